@@ -1,0 +1,436 @@
+//! The physical model: a chain of `n` masses in series between two fixed walls.
+//!
+//! ```text
+//! wall ─k_0─ m_1 ─k_1─ m_2 ─ ... ─ m_n ─k_n─ wall      (each mass also has a damper d_i to ground)
+//! ```
+//!
+//! Equations of motion (impulse `gamma * delta(t)` on mass 1, zero initial state):
+//!
+//! `m_i x_i'' + d_i x_i' + (k_{i-1} + k_i) x_i - k_{i-1} x_{i-1} - k_i x_{i+1} = gamma delta(t) [i = 1]`
+//!
+//! The *uniform* chain has `m_i = mass`, `k_i = k`, `d_i = d`; a [`Defect`] changes one
+//! mass, one spring or one damper. The paper's chain is `mass = 1, k = 1, d = 0.1, gamma = 1`
+//! ([`Chain::paper`]).
+
+use crate::error::{check_f64, Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// Largest chain length accepted (the closed-form model is O(1) in `n`; the
+/// O(n) reference solver and the simulator are not).
+pub const MAX_N: usize = 1_000_000_000;
+
+/// One place where the chain differs from the uniform chain.
+///
+/// Each defect is a rank-1 update `u c(s) u^T` of the uniform chain's dynamic
+/// stiffness `K(s) = M s^2 + D s + K_spring`:
+///
+/// | defect | `u` | `c(s)` |
+/// |---|---|---|
+/// | `Mass { at: j, m }` | `e_j` | `(m - mass) s^2` |
+/// | `Damper { at: j, d }` | `e_j` | `(d - d_uniform) s` |
+/// | `Spring { at: i, k }` | `e_i - e_{i+1}` (`e_0 = e_{n+1} = 0`) | `k - k_uniform` |
+///
+/// Positions are 1-based (`1..=n`) for masses and dampers; springs are numbered
+/// `0..=n`, spring `i` joining mass `i` and mass `i+1`, springs `0` and `n`
+/// being the ones attached to the walls.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum Defect {
+    /// Mass `m` at mass position `at` (1-based).
+    Mass {
+        /// Position, `1..=n`.
+        at: usize,
+        /// Mass, `> 0`.
+        m: f64,
+    },
+    /// Stiffness `k` of spring `at` (`0..=n`).
+    Spring {
+        /// Spring index, `0..=n`.
+        at: usize,
+        /// Stiffness, `> 0`.
+        k: f64,
+    },
+    /// Damping `d` on mass `at` (1-based).
+    Damper {
+        /// Position, `1..=n`.
+        at: usize,
+        /// Damping, `>= 0`.
+        d: f64,
+    },
+}
+
+impl Defect {
+    /// `mass`, `spring` or `damper`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Defect::Mass { .. } => "mass",
+            Defect::Spring { .. } => "spring",
+            Defect::Damper { .. } => "damper",
+        }
+    }
+
+    /// The position (mass index or spring index).
+    pub fn at(&self) -> usize {
+        match *self {
+            Defect::Mass { at, .. } | Defect::Spring { at, .. } | Defect::Damper { at, .. } => at,
+        }
+    }
+
+    /// The defect's value (mass, stiffness or damping).
+    pub fn value(&self) -> f64 {
+        match *self {
+            Defect::Mass { m, .. } => m,
+            Defect::Spring { k, .. } => k,
+            Defect::Damper { d, .. } => d,
+        }
+    }
+
+    /// Parse the CLI form `kind:at:value`, for example `mass:8:5`,
+    /// `spring:3:0.5`, `damper:4:0.3`.
+    ///
+    /// # Errors
+    /// [`Error::Parse`] with the expected form.
+    ///
+    /// ```
+    /// use springmass::Defect;
+    /// assert_eq!(Defect::parse("mass:8:5").unwrap(), Defect::Mass { at: 8, m: 5.0 });
+    /// assert!(Defect::parse("mass:8").is_err());
+    /// ```
+    pub fn parse(text: &str) -> Result<Defect> {
+        let bad = |why: &str| Error::parse("defect", text, format!("{why}; expected kind:at:value with kind mass|spring|damper, e.g. mass:8:5"));
+        let parts: Vec<&str> = text.trim().split(':').collect();
+        if parts.len() != 3 {
+            return Err(bad("need three fields"));
+        }
+        let at: usize = parts[1].trim().parse().map_err(|_| bad("position is not a non-negative integer"))?;
+        let v: f64 = parts[2].trim().parse().map_err(|_| bad("value is not a number"))?;
+        match parts[0].trim().to_ascii_lowercase().as_str() {
+            "mass" | "m" => Ok(Defect::Mass { at, m: v }),
+            "spring" | "k" => Ok(Defect::Spring { at, k: v }),
+            "damper" | "d" => Ok(Defect::Damper { at, d: v }),
+            _ => Err(bad("unknown kind")),
+        }
+    }
+}
+
+impl std::fmt::Display for Defect {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}:{}:{}", self.kind(), self.at(), self.value())
+    }
+}
+
+/// A validated chain: uniform parameters plus defects.
+///
+/// Construct with [`Chain::new`] (then the `with_*` builders) or
+/// [`Chain::paper`]; every constructor validates, so a `Chain` in hand is
+/// always physical.
+///
+/// ```
+/// use springmass::{Chain, Defect};
+/// let chain = Chain::paper(20)?
+///     .with_defect(Defect::Mass { at: 8, m: 5.0 })?
+///     .with_defect(Defect::Mass { at: 15, m: 2.0 })?;
+/// assert_eq!(chain.n(), 20);
+/// assert_eq!(chain.masses()[7], 5.0);
+/// # Ok::<(), springmass::Error>(())
+/// ```
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Chain {
+    n: usize,
+    k: f64,
+    d: f64,
+    gamma: f64,
+    mass: f64,
+    defects: Vec<Defect>,
+}
+
+impl Chain {
+    /// A uniform chain of `n` unit masses with `k = 1`, `d = 0`, `gamma = 1`.
+    ///
+    /// # Errors
+    /// `n` outside `1..=MAX_N`.
+    pub fn new(n: usize) -> Result<Chain> {
+        if n == 0 || n > MAX_N {
+            return Err(Error::invalid("n", n, format!("1 <= n <= {MAX_N}")));
+        }
+        Ok(Chain {
+            n,
+            k: 1.0,
+            d: 0.0,
+            gamma: 1.0,
+            mass: 1.0,
+            defects: Vec::new(),
+        })
+    }
+
+    /// The paper's chain: `n` unit masses, `k = 1`, `d = 0.1`, `gamma = 1`.
+    pub fn paper(n: usize) -> Result<Chain> {
+        Chain::new(n)?.with_d(0.1)
+    }
+
+    /// Uniform spring constant, `k > 0`.
+    pub fn with_k(mut self, k: f64) -> Result<Chain> {
+        self.k = check_f64("k", k, k > 0.0, "k > 0 and finite")?;
+        Ok(self)
+    }
+
+    /// Uniform damping, `d >= 0`.
+    pub fn with_d(mut self, d: f64) -> Result<Chain> {
+        self.d = check_f64("d", d, d >= 0.0, "d >= 0 and finite")?;
+        Ok(self)
+    }
+
+    /// Impulse on mass 1, finite.
+    pub fn with_gamma(mut self, gamma: f64) -> Result<Chain> {
+        self.gamma = check_f64("gamma", gamma, true, "finite")?;
+        Ok(self)
+    }
+
+    /// Uniform mass, `> 0` (the paper uses 1).
+    pub fn with_mass(mut self, mass: f64) -> Result<Chain> {
+        self.mass = check_f64("mass", mass, mass > 0.0, "mass > 0 and finite")?;
+        Ok(self)
+    }
+
+    /// Add one defect, validated against `n` and the defects already present.
+    ///
+    /// # Errors
+    /// Position out of range, value out of range, or a second defect of the
+    /// same kind at the same place.
+    pub fn with_defect(mut self, defect: Defect) -> Result<Chain> {
+        let idx = self.defects.len();
+        let n = self.n;
+        match defect {
+            Defect::Mass { at, m } => {
+                check_pos(&format!("defects[{idx}].at"), at, 1, n)?;
+                check_f64(&format!("defects[{idx}].m"), m, m > 0.0, "m > 0 and finite")?;
+            }
+            Defect::Damper { at, d } => {
+                check_pos(&format!("defects[{idx}].at"), at, 1, n)?;
+                check_f64(&format!("defects[{idx}].d"), d, d >= 0.0, "d >= 0 and finite")?;
+            }
+            Defect::Spring { at, k } => {
+                check_pos(&format!("defects[{idx}].at"), at, 0, n)?;
+                check_f64(&format!("defects[{idx}].k"), k, k > 0.0, "k > 0 and finite")?;
+            }
+        }
+        if self
+            .defects
+            .iter()
+            .any(|e| e.kind() == defect.kind() && e.at() == defect.at())
+        {
+            return Err(Error::DuplicateDefect {
+                kind: defect.kind(),
+                at: defect.at(),
+            });
+        }
+        self.defects.push(defect);
+        Ok(self)
+    }
+
+    /// Add several defects (see [`Chain::with_defect`]).
+    pub fn with_defects(self, defects: impl IntoIterator<Item = Defect>) -> Result<Chain> {
+        defects.into_iter().try_fold(self, |c, d| c.with_defect(d))
+    }
+
+    /// The same chain without defects.
+    pub fn uniform(&self) -> Chain {
+        Chain {
+            defects: Vec::new(),
+            ..self.clone()
+        }
+    }
+
+    /// Number of masses.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+    /// Uniform spring constant.
+    pub fn k(&self) -> f64 {
+        self.k
+    }
+    /// Uniform damping.
+    pub fn d(&self) -> f64 {
+        self.d
+    }
+    /// Impulse on mass 1.
+    pub fn gamma(&self) -> f64 {
+        self.gamma
+    }
+    /// Uniform mass.
+    pub fn mass(&self) -> f64 {
+        self.mass
+    }
+    /// The defects, in the order given.
+    pub fn defects(&self) -> &[Defect] {
+        &self.defects
+    }
+
+    /// All `n` masses (0-based vector: `masses()[i-1] = m_i`). O(n) memory.
+    pub fn masses(&self) -> Vec<f64> {
+        let mut v = vec![self.mass; self.n];
+        for d in &self.defects {
+            if let Defect::Mass { at, m } = *d {
+                v[at - 1] = m;
+            }
+        }
+        v
+    }
+
+    /// All `n + 1` spring constants, `springs()[i]` joining mass `i` and `i+1`
+    /// (`springs()[0]` and `springs()[n]` attach to the walls).
+    pub fn springs(&self) -> Vec<f64> {
+        let mut v = vec![self.k; self.n + 1];
+        for d in &self.defects {
+            if let Defect::Spring { at, k } = *d {
+                v[at] = k;
+            }
+        }
+        v
+    }
+
+    /// All `n` damping coefficients (0-based vector).
+    pub fn dampers(&self) -> Vec<f64> {
+        let mut v = vec![self.d; self.n];
+        for d in &self.defects {
+            if let Defect::Damper { at, d: dd } = *d {
+                v[at - 1] = dd;
+            }
+        }
+        v
+    }
+
+    /// Check a 1-based observed mass index.
+    pub fn check_observe(&self, i: usize) -> Result<usize> {
+        check_pos("observe", i, 1, self.n)
+    }
+}
+
+fn check_pos(field: &str, at: usize, lo: usize, hi: usize) -> Result<usize> {
+    if at < lo || at > hi {
+        Err(Error::invalid(field, at, format!("{lo} <= {field} <= {hi}")))
+    } else {
+        Ok(at)
+    }
+}
+
+/// A plain, serialisable description of a chain, as it appears in scene files.
+/// Convert with [`ChainSpec::build`], which validates.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChainSpec {
+    /// Number of masses.
+    pub n: usize,
+    /// Uniform spring constant (default 1).
+    #[serde(default = "one")]
+    pub k: f64,
+    /// Uniform damping (default 0.1, the paper's).
+    #[serde(default = "paper_d")]
+    pub d: f64,
+    /// Impulse on mass 1 (default 1).
+    #[serde(default = "one")]
+    pub gamma: f64,
+    /// Uniform mass (default 1).
+    #[serde(default = "one")]
+    pub mass: f64,
+    /// Defects (default none).
+    #[serde(default)]
+    pub defects: Vec<Defect>,
+}
+
+fn one() -> f64 {
+    1.0
+}
+fn paper_d() -> f64 {
+    0.1
+}
+
+impl ChainSpec {
+    /// Validate and build.
+    pub fn build(&self) -> Result<Chain> {
+        Chain::new(self.n)?
+            .with_k(self.k)?
+            .with_d(self.d)?
+            .with_gamma(self.gamma)?
+            .with_mass(self.mass)?
+            .with_defects(self.defects.iter().copied())
+    }
+}
+
+impl From<&Chain> for ChainSpec {
+    fn from(c: &Chain) -> Self {
+        ChainSpec {
+            n: c.n,
+            k: c.k,
+            d: c.d,
+            gamma: c.gamma,
+            mass: c.mass,
+            defects: c.defects.clone(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validation_names_fields() {
+        assert!(matches!(Chain::new(0), Err(Error::InvalidParameter { field, .. }) if field == "n"));
+        let c = Chain::paper(5).unwrap();
+        for (bad, field) in [
+            (Defect::Mass { at: 0, m: 1.0 }, "defects[0].at"),
+            (Defect::Mass { at: 6, m: 1.0 }, "defects[0].at"),
+            (Defect::Mass { at: 2, m: 0.0 }, "defects[0].m"),
+            (Defect::Mass { at: 2, m: f64::NAN }, "defects[0].m"),
+            (Defect::Spring { at: 6, k: 1.0 }, "defects[0].at"),
+            (Defect::Spring { at: 0, k: -1.0 }, "defects[0].k"),
+            (Defect::Damper { at: 1, d: -0.1 }, "defects[0].d"),
+        ] {
+            match c.clone().with_defect(bad) {
+                Err(Error::InvalidParameter { field: f, .. }) => assert_eq!(f, field),
+                other => panic!("{bad:?} gave {other:?}"),
+            }
+        }
+        assert!(c.clone().with_k(0.0).is_err());
+        assert!(c.clone().with_d(-1.0).is_err());
+        assert!(c.clone().with_d(f64::INFINITY).is_err());
+        assert!(c.clone().with_gamma(f64::NAN).is_err());
+        let c2 = c.with_defect(Defect::Mass { at: 2, m: 3.0 }).unwrap();
+        assert!(matches!(
+            c2.clone().with_defect(Defect::Mass { at: 2, m: 4.0 }),
+            Err(Error::DuplicateDefect { kind: "mass", at: 2 })
+        ));
+        // a damper at the same place is a different kind: allowed
+        assert!(c2.with_defect(Defect::Damper { at: 2, d: 1.0 }).is_ok());
+    }
+
+    #[test]
+    fn profiles() {
+        let c = Chain::paper(4)
+            .unwrap()
+            .with_defects([
+                Defect::Mass { at: 4, m: 2.0 },
+                Defect::Spring { at: 0, k: 3.0 },
+                Defect::Spring { at: 4, k: 5.0 },
+                Defect::Damper { at: 1, d: 0.7 },
+            ])
+            .unwrap();
+        assert_eq!(c.masses(), vec![1.0, 1.0, 1.0, 2.0]);
+        assert_eq!(c.springs(), vec![3.0, 1.0, 1.0, 1.0, 5.0]);
+        assert_eq!(c.dampers(), vec![0.7, 0.1, 0.1, 0.1]);
+    }
+
+    #[test]
+    fn spec_roundtrip_toml() {
+        let text = r#"
+            n = 20
+            defects = [ { kind = "mass", at = 8, m = 5.0 }, { kind = "spring", at = 0, k = 2.0 } ]
+        "#;
+        let spec: ChainSpec = toml::from_str(text).unwrap();
+        let c = spec.build().unwrap();
+        assert_eq!(c.d(), 0.1);
+        assert_eq!(c.defects().len(), 2);
+        assert!(toml::from_str::<ChainSpec>("n = 3\nkk = 1").is_err());
+    }
+}

@@ -1,0 +1,122 @@
+//! One error type for the whole library.
+//!
+//! Every variant that comes from user input names the offending field and the
+//! allowed range, so that the CLI can print it as a one-line message and a
+//! library caller can match on it.
+
+use thiserror::Error;
+
+/// Errors returned by the springmass library. The library never panics on
+/// user input: every invalid parameter ends here.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum Error {
+    /// A parameter is outside its allowed range (or is NaN / infinite).
+    #[error("invalid {field} = {value}: allowed {allowed}")]
+    InvalidParameter {
+        /// Dotted path of the field, for example `defects[2].m` or `s`.
+        field: String,
+        /// The offending value as the user gave it.
+        value: String,
+        /// The allowed range in words, for example `m > 0 and finite`.
+        allowed: String,
+    },
+
+    /// Two defects of one kind at one place.
+    #[error("duplicate {kind} defect at position {at}: at most one of each kind per place")]
+    DuplicateDefect {
+        /// `mass`, `spring` or `damper`.
+        kind: &'static str,
+        /// The 1-based mass index (or spring index 0..=n).
+        at: usize,
+    },
+
+    /// A textual input (defect spec, complex number, CSV line, TOML) could not be parsed.
+    #[error("cannot parse {what} {input:?}: {reason}")]
+    Parse {
+        /// What was being parsed, for example `defect` or `s` or `line 17`.
+        what: String,
+        /// The input text.
+        input: String,
+        /// Why it failed, including the expected form.
+        reason: String,
+    },
+
+    /// The value is a pole of the response (resonance of an undamped chain on the
+    /// imaginary axis): the Laplace transform does not exist there.
+    #[error("s = {s} is a pole of the response (singular system); move s off the imaginary axis or add damping")]
+    Singular {
+        /// The offending s, formatted.
+        s: String,
+    },
+
+    /// f64 (or the chosen precision) cannot resolve the requested quantity:
+    /// the signal lies below the rounding or data-error floor.
+    #[error("not resolvable at this precision: {reason}")]
+    Unresolvable {
+        /// What could not be resolved and why.
+        reason: String,
+    },
+
+    /// A numerical method could not reach the requested accuracy.
+    #[error("numerical method {method} failed: {reason}")]
+    Numerical {
+        /// Name of the method.
+        method: String,
+        /// What went wrong.
+        reason: String,
+    },
+
+    /// An I/O problem (reading or writing a file).
+    #[error("i/o error on {path}: {reason}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The OS message.
+        reason: String,
+    },
+}
+
+impl Error {
+    /// Shorthand for [`Error::InvalidParameter`].
+    pub fn invalid(
+        field: impl Into<String>,
+        value: impl ToString,
+        allowed: impl Into<String>,
+    ) -> Self {
+        Error::InvalidParameter {
+            field: field.into(),
+            value: value.to_string(),
+            allowed: allowed.into(),
+        }
+    }
+
+    /// Shorthand for [`Error::Parse`].
+    pub fn parse(what: impl Into<String>, input: impl Into<String>, reason: impl Into<String>) -> Self {
+        Error::Parse {
+            what: what.into(),
+            input: input.into(),
+            reason: reason.into(),
+        }
+    }
+
+    /// Shorthand for [`Error::Io`].
+    pub fn io(path: impl AsRef<std::path::Path>, err: impl ToString) -> Self {
+        Error::Io {
+            path: path.as_ref().display().to_string(),
+            reason: err.to_string(),
+        }
+    }
+}
+
+/// Result alias used throughout the crate.
+pub type Result<T> = std::result::Result<T, Error>;
+
+/// Check that `value` is finite and satisfies `ok`, or return an
+/// [`Error::InvalidParameter`] naming `field` and `allowed`.
+pub fn check_f64(field: &str, value: f64, ok: bool, allowed: &str) -> Result<f64> {
+    if value.is_finite() && ok {
+        Ok(value)
+    } else {
+        Err(Error::invalid(field, value, allowed))
+    }
+}

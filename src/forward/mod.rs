@@ -1,0 +1,255 @@
+//! Forward model: `X_i(s)` of a chain with defects, by low-rank updates of the
+//! closed-form Green's function.
+//!
+//! The chain's dynamic stiffness is `K(s) = K_0(s) + U C(s) U^T`, with `K_0` the
+//! uniform chain ([`crate::green`]) and one column `u_l` and coefficient
+//! `c_l(s) = dm_l s^2 + dd_l s + dk_l` per [`Update`] (a mass and a damper defect at
+//! the same place share one column). With `G = K_0^{-1}` and `b = gamma e_1`,
+//!
+//! `z = U^T X` solves `(I + (U^T G U) C) z = gamma U^T G e_1`, and
+//! `X_o = gamma G_{o1} - (G U)_o C z`,
+//!
+//! a `k x k` solve per `s`: O(k^3) whatever `n` (Sherman-Morrison for `k = 1`,
+//! which is the paper's (4.6)). When the observed mass carries a point update,
+//! `X_o = z_l` is read directly, which avoids the cancellation
+//! `G_oo - G_oo c G_oo / (1 + G_oo c)` for heavy defects at the observed mass.
+//!
+//! [`tridiag`] is the independent O(n) solver.
+//!
+//! ```
+//! use springmass::{Chain, Defect, forward::Forward};
+//! let chain = Chain::paper(20)?.with_defect(Defect::Mass { at: 8, m: 5.0 })?;
+//! let fwd = Forward::new(&chain);
+//! let x1 = fwd.eval(0.5_f64, 1)?;
+//! let reference = springmass::forward::tridiag::solve(&chain, 0.5_f64, 1)?;
+//! assert!((x1 - reference).abs() < 1e-14 * reference);
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+pub mod tridiag;
+
+use crate::chain::{Chain, Defect};
+use crate::error::{Error, Result};
+use crate::green::{Green, Probe};
+use crate::linalg::solve_in_place;
+use crate::scalar::Scalar;
+
+/// Largest `n` for which a singular closed form falls back to the O(n) solver.
+const FALLBACK_MAX_N: usize = 10_000_000;
+
+/// One rank-1 update `u c(s) u^T`, `c(s) = dm s^2 + dd s + dk`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Update {
+    /// The column `u`.
+    pub probe: Probe,
+    /// Change of mass.
+    pub dm: f64,
+    /// Change of damping.
+    pub dd: f64,
+    /// Change of stiffness.
+    pub dk: f64,
+}
+
+impl Update {
+    /// `c(s) = dm s^2 + dd s + dk`.
+    #[inline]
+    pub fn coeff<T: Scalar>(&self, s: &T) -> T {
+        let mut c = T::from_f64(self.dk);
+        if self.dm != 0.0 {
+            c = c + (s.clone() * s.clone()).scale(self.dm);
+        }
+        if self.dd != 0.0 {
+            c = c + s.scale(self.dd);
+        }
+        c
+    }
+}
+
+/// The updates of a chain's defects, merged per column.
+pub fn updates(chain: &Chain) -> Vec<Update> {
+    let mut out: Vec<Update> = Vec::with_capacity(chain.defects().len());
+    for d in chain.defects() {
+        let (probe, dm, dd, dk) = match *d {
+            Defect::Mass { at, m } => (Probe::Point(at), m - chain.mass(), 0.0, 0.0),
+            Defect::Damper { at, d } => (Probe::Point(at), 0.0, d - chain.d(), 0.0),
+            Defect::Spring { at, k } => (Probe::Diff(at), 0.0, 0.0, k - chain.k()),
+        };
+        if let Some(u) = out.iter_mut().find(|u| u.probe == probe) {
+            u.dm += dm;
+            u.dd += dd;
+            u.dk += dk;
+        } else {
+            out.push(Update { probe, dm, dd, dk });
+        }
+    }
+    out
+}
+
+/// Check a Laplace variable: finite, `Re s >= 0`.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming `s`.
+pub fn check_s<T: Scalar>(s: &T) -> Result<()> {
+    let z = s.to_c64();
+    if !(z.re.is_finite() && z.im.is_finite()) || z.re < 0.0 {
+        return Err(Error::invalid("s", format!("{z}"), "finite with Re s >= 0"));
+    }
+    Ok(())
+}
+
+/// The forward model of one chain, ready to be evaluated at many `s`.
+#[derive(Clone, Debug)]
+pub struct Forward {
+    chain: Chain,
+    updates: Vec<Update>,
+}
+
+impl Forward {
+    /// Prepare the updates of `chain` (validated by construction).
+    pub fn new(chain: &Chain) -> Forward {
+        Forward {
+            chain: chain.clone(),
+            updates: updates(chain),
+        }
+    }
+
+    /// The chain.
+    pub fn chain(&self) -> &Chain {
+        &self.chain
+    }
+
+    /// The merged rank-1 updates.
+    pub fn updates(&self) -> &[Update] {
+        &self.updates
+    }
+
+    /// Green's function of the underlying uniform chain at `s`.
+    pub fn green<T: Scalar>(&self, s: T) -> Green<T> {
+        let c = &self.chain;
+        Green::new(c.n(), c.k(), c.mass(), c.d(), s)
+    }
+
+    /// `X_observe(s)`.
+    ///
+    /// # Errors
+    /// `s` not finite or `Re s < 0`; `observe` outside `1..=n`;
+    /// [`Error::Singular`] at a pole (undamped chain on the imaginary axis).
+    pub fn eval<T: Scalar>(&self, s: T, observe: usize) -> Result<T> {
+        check_s(&s)?;
+        self.chain.check_observe(observe)?;
+        let g = self.green(s.clone());
+        let x = self.eval_with(&g, &s, observe);
+        if x.is_finite() {
+            return Ok(x);
+        }
+        // A removable singularity of the closed form (lambda = i pi with d = 0),
+        // or a true pole: decide with the O(n) solver.
+        if self.chain.n() <= FALLBACK_MAX_N {
+            return tridiag::solve(&self.chain, s, observe);
+        }
+        Err(Error::Singular { s: format!("{}", s.to_c64()) })
+    }
+
+    /// `X_observe(s)` for a prepared Green's function; unchecked (the caller
+    /// validated `s` and `observe`). May return a non-finite value at a pole.
+    pub fn eval_with<T: Scalar>(&self, g: &Green<T>, s: &T, observe: usize) -> T {
+        woodbury(g, s, &self.updates, self.chain.gamma(), observe)
+    }
+}
+
+/// The Woodbury response for explicit updates (used by the fitting code,
+/// which varies the updates at fixed `s`).
+pub fn woodbury<T: Scalar>(g: &Green<T>, s: &T, updates: &[Update], gamma: f64, observe: usize) -> T {
+    let obs = Probe::Point(observe);
+    let base = g.entry(observe, 1);
+    let k = updates.len();
+    if k == 0 {
+        return base.scale(gamma);
+    }
+    let c: Vec<T> = updates.iter().map(|u| u.coeff(s)).collect();
+    let mut a: Vec<T> = Vec::with_capacity(k * k);
+    for ul in updates {
+        for (m, um) in updates.iter().enumerate() {
+            a.push(g.bilinear(ul.probe, um.probe) * c[m].clone());
+        }
+    }
+    for l in 0..k {
+        a[l * k + l] = a[l * k + l].clone() + T::one();
+    }
+    let mut z: Vec<T> = updates.iter().map(|u| g.bilinear(u.probe, Probe::Point(1))).collect();
+    if !solve_in_place(&mut a, &mut z, k) {
+        return T::from_f64(f64::NAN);
+    }
+    if let Some(l) = updates.iter().position(|u| u.probe == obs) {
+        return z[l].scale(gamma);
+    }
+    let mut corr = T::zero();
+    for l in 0..k {
+        corr = corr + g.bilinear(obs, updates[l].probe) * c[l].clone() * z[l].clone();
+    }
+    (base - corr).scale(gamma)
+}
+
+/// `X_observe(s)` of `chain` (see [`Forward::eval`]).
+pub fn response<T: Scalar>(chain: &Chain, s: T, observe: usize) -> Result<T> {
+    Forward::new(chain).eval(s, observe)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use num_complex::Complex64;
+
+    #[test]
+    fn single_defect_is_papers_formula_4_7() {
+        // X_1 = -R_11 + R_1j (1-m) s^2 R_j1 / (1 + R_jj (1-m) s^2), R = -G (k = 1)
+        for &(n, j, m) in &[(20usize, 15usize, 1.01), (5, 3, 4.0), (20, 3, 5.0), (7, 1, 0.5), (7, 7, 30.0)] {
+            let chain = Chain::paper(n).unwrap().with_defect(Defect::Mass { at: j, m }).unwrap();
+            for &s in &[0.05, 0.7, 2.0, 9.0] {
+                let g: Green<f64> = Green::new(n, 1.0, 1.0, 0.1, s);
+                let (r11, r1j, rjj) = (-g.entry(1, 1), -g.entry(1, j), -g.entry(j, j));
+                let e = (1.0 - m) * s * s;
+                let paper = -r11 + r1j * e * r1j / (1.0 + rjj * e);
+                let x = response(&chain, s, 1).unwrap();
+                assert!((x - paper).abs() <= 1e-13 * paper.abs(), "n={n} j={j} m={m} s={s}");
+            }
+        }
+    }
+
+    #[test]
+    fn uniform_x1_closed_form() {
+        for &n in &[1usize, 2, 5, 20, 1000] {
+            for &s in &[0.01, 0.3, 1.0, 4.0] {
+                let x = response(&Chain::paper(n).unwrap(), s, 1).unwrap();
+                let lam = (1.0 + (s * s + 0.1 * s) / 2.0).acosh();
+                let expect = (n as f64 * lam).sinh() / ((n as f64 + 1.0) * lam).sinh();
+                if expect.is_finite() {
+                    assert!((x - expect).abs() < 1e-12 * expect, "n={n} s={s}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn mass_and_damper_at_one_place_merge() {
+        let c = Chain::paper(6)
+            .unwrap()
+            .with_defects([Defect::Mass { at: 3, m: 2.0 }, Defect::Damper { at: 3, d: 1.0 }])
+            .unwrap();
+        assert_eq!(updates(&c).len(), 1);
+        let s = Complex64::new(0.4, 1.1);
+        let x = response(&c, s, 2).unwrap();
+        let r = tridiag::solve(&c, s, 2).unwrap();
+        assert!((x - r).norm() < 1e-13 * r.norm());
+    }
+
+    #[test]
+    fn bad_s_and_observe() {
+        let c = Chain::paper(3).unwrap();
+        assert!(matches!(response(&c, -1.0, 1), Err(Error::InvalidParameter { field, .. }) if field == "s"));
+        assert!(response(&c, f64::NAN, 1).is_err());
+        assert!(response(&c, Complex64::new(-0.1, 2.0), 1).is_err());
+        assert!(matches!(response(&c, 1.0, 4), Err(Error::InvalidParameter { field, .. }) if field == "observe"));
+        assert!(response(&c, 1.0, 0).is_err());
+    }
+}

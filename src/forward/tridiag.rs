@@ -1,0 +1,158 @@
+//! O(n) reference solver: the full tridiagonal system `K(s) X = gamma e_1` for
+//! any mass, spring and damper profile, by Gaussian elimination with partial
+//! pivoting (the LAPACK `gtsv` scheme, which stays stable for complex `s`,
+//! where `K(s)` is complex symmetric but not diagonally dominant).
+//!
+//! It knows nothing of Green's functions or defects, which makes it the
+//! independent check of the closed form and the Woodbury updates, and the
+//! fallback for chains whose "defects" are not few.
+
+use crate::chain::Chain;
+use crate::error::{Error, Result};
+use crate::scalar::Scalar;
+
+/// Displacements `X_1..X_n` (0-based vector) of `chain` at `s`, all masses at once.
+///
+/// Cost O(n) time and memory.
+///
+/// # Errors
+/// `s` not finite or `Re s < 0`; [`Error::Singular`] when `K(s)` is singular.
+///
+/// ```
+/// use springmass::{Chain, forward::tridiag::solve_all};
+/// let x = solve_all(&Chain::paper(20)?, 0.5_f64)?;
+/// assert_eq!(x.len(), 20);
+/// # Ok::<(), springmass::Error>(())
+/// ```
+pub fn solve_all<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
+    super::check_s(&s)?;
+    let n = chain.n();
+    let m = chain.masses();
+    let k = chain.springs();
+    let d = chain.dampers();
+    let s2 = s.clone() * s.clone();
+    // diagonal, super/sub diagonal (symmetric: dl = du = -k_i, i = 1..n-1)
+    let mut diag: Vec<T> = (0..n)
+        .map(|i| s2.scale(m[i]) + s.scale(d[i]) + T::from_f64(k[i] + k[i + 1]))
+        .collect();
+    let mut dl: Vec<T> = (0..n.saturating_sub(1)).map(|i| T::from_f64(-k[i + 1])).collect();
+    let mut du = dl.clone();
+    let mut du2: Vec<T> = vec![T::zero(); n.saturating_sub(2)];
+    let mut b: Vec<T> = vec![T::zero(); n];
+    b[0] = T::from_f64(chain.gamma());
+    let singular = || Error::Singular { s: format!("{:?}", s.to_c64()) };
+    for i in 0..n.saturating_sub(1) {
+        if diag[i].magnitude() >= dl[i].magnitude() {
+            // no interchange
+            if diag[i].is_zero() {
+                return Err(singular());
+            }
+            let fact = dl[i].clone() / diag[i].clone();
+            diag[i + 1] = diag[i + 1].clone() - fact.clone() * du[i].clone();
+            b[i + 1] = b[i + 1].clone() - fact * b[i].clone();
+            dl[i] = T::zero();
+        } else {
+            // interchange rows i and i+1
+            let fact = diag[i].clone() / dl[i].clone();
+            diag[i] = dl[i].clone();
+            let temp = diag[i + 1].clone();
+            diag[i + 1] = du[i].clone() - fact.clone() * temp.clone();
+            if i + 2 < n {
+                dl[i] = du[i + 1].clone();
+                du[i + 1] = -(fact.clone() * dl[i].clone());
+            } else {
+                dl[i] = T::zero();
+            }
+            du[i] = temp;
+            let bi = b[i].clone();
+            b[i] = b[i + 1].clone();
+            b[i + 1] = bi - fact * b[i + 1].clone();
+        }
+        if i + 2 < n {
+            du2[i] = dl[i].clone();
+        }
+    }
+    if diag[n - 1].is_zero() {
+        return Err(singular());
+    }
+    // back substitution: U has diag, du, du2
+    let mut x = vec![T::zero(); n];
+    x[n - 1] = b[n - 1].clone() / diag[n - 1].clone();
+    if n >= 2 {
+        x[n - 2] = (b[n - 2].clone() - du[n - 2].clone() * x[n - 1].clone()) / diag[n - 2].clone();
+    }
+    for i in (0..n.saturating_sub(2)).rev() {
+        x[i] = (b[i].clone() - du[i].clone() * x[i + 1].clone() - du2[i].clone() * x[i + 2].clone())
+            / diag[i].clone();
+    }
+    if x.iter().any(|v| !v.is_finite()) {
+        return Err(singular());
+    }
+    Ok(x)
+}
+
+/// `X_observe(s)` by the O(n) solver (1-based `observe`).
+pub fn solve<T: Scalar>(chain: &Chain, s: T, observe: usize) -> Result<T> {
+    chain.check_observe(observe)?;
+    Ok(solve_all(chain, s)?.swap_remove(observe - 1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::chain::Defect;
+    use num_complex::Complex64;
+
+    fn dense(chain: &Chain, s: Complex64) -> Vec<Complex64> {
+        let n = chain.n();
+        let (m, k, d) = (chain.masses(), chain.springs(), chain.dampers());
+        let mut a = nalgebra::DMatrix::<Complex64>::zeros(n, n);
+        for i in 0..n {
+            a[(i, i)] = s * s * m[i] + s * d[i] + k[i] + k[i + 1];
+            if i + 1 < n {
+                a[(i, i + 1)] = (-k[i + 1]).into();
+                a[(i + 1, i)] = (-k[i + 1]).into();
+            }
+        }
+        let mut b = nalgebra::DVector::<Complex64>::zeros(n);
+        b[0] = chain.gamma().into();
+        a.lu().solve(&b).unwrap().iter().copied().collect()
+    }
+
+    #[test]
+    fn matches_dense_lu() {
+        let chain = Chain::paper(12)
+            .unwrap()
+            .with_defects([
+                Defect::Mass { at: 1, m: 1e3 },
+                Defect::Spring { at: 0, k: 0.3 },
+                Defect::Spring { at: 12, k: 7.0 },
+                Defect::Damper { at: 5, d: 2.0 },
+                Defect::Mass { at: 12, m: 1e-3 },
+            ])
+            .unwrap();
+        for s in [Complex64::new(0.3, 0.0), Complex64::new(0.0, 1.3), Complex64::new(0.2, 40.0), Complex64::new(5.0, -2.0)] {
+            let x = solve_all(&chain, s).unwrap();
+            let r = dense(&chain, s);
+            let scale = r.iter().map(|z| z.norm()).fold(0.0, f64::max);
+            for i in 0..12 {
+                assert!((x[i] - r[i]).norm() <= 1e-12 * scale, "s={s} i={i}");
+            }
+        }
+    }
+
+    #[test]
+    fn n_one() {
+        let c = Chain::paper(1).unwrap();
+        let x = solve(&c, 2.0, 1).unwrap();
+        assert!((x - 1.0 / (4.0 + 0.2 + 2.0)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn singular_undamped_resonance_is_an_error() {
+        // n = 1, k = 1, m = 1, d = 0: pole at s = i sqrt(2)
+        let c = Chain::new(1).unwrap();
+        let r = solve(&c, Complex64::new(0.0, 2f64.sqrt()), 1);
+        assert!(r.is_err() || r.unwrap().norm() > 1e14);
+    }
+}

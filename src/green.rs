@@ -1,0 +1,350 @@
+//! Closed-form Green's function of the uniform chain (Theorem 2.1, any `k`).
+//!
+//! The uniform chain's dynamic stiffness is `K(s) = tridiag(-k, mass s^2 + d s + 2k, -k)`
+//! and its Green's function is `G(s) = K(s)^{-1}`. With
+//! `cosh(lambda) = 1 + (mass s^2 + d s) / (2k)`, for `i <= j`
+//!
+//! `G_ij = sinh(i lambda) sinh((n+1-j) lambda) / (k sinh(lambda) sinh((n+1) lambda))`.
+//!
+//! (The paper's `R = A^{-1}` with `A = tridiag(1, h, 1) = -K` when `k = 1`, so `R = -G`.)
+//!
+//! # Numerical form
+//!
+//! Every `sinh(p lambda)` is written as `e^{p lambda} (1 - q^{2p}) / 2` with
+//! `q = e^{-lambda}`, `|q| <= 1` for `Re s >= 0`; the growing exponentials
+//! cancel analytically and what is left is
+//!
+//! `G_ij = q^{j-i+1} (1 - q^{2i}) (1 - q^{2(n+1-j)}) / (k (1 - q^2) (1 - q^{2(n+1)}))`,
+//!
+//! each `1 - q^{2p}` taken as `-expm1(-2 p lambda)`. No term exceeds 1 in size, so
+//! nothing overflows for any `n`; values below the range underflow to 0. `lambda`
+//! itself is `2 asinh( sqrt(s) sqrt((mass s + d)/k) / 2 )`, which has no
+//! cancellation at small `|s|` and no overflow at large `|s|`. At `lambda = 0`
+//! (`s = 0`) the static limit `G_ij = i (n+1-j) / (k (n+1))` is used.
+//!
+//! Spring defects need the strain probe `e_i - e_{i+1}`; its entries are
+//! formed from the closed-form differences
+//! `sinh((i+1) lambda) - sinh(i lambda) = 2 cosh((i + 1/2) lambda) sinh(lambda/2)`,
+//! so they do not cancel either. Every entry costs O(1) whatever `n`.
+//!
+//! ```
+//! use springmass::green::{Green, Probe};
+//! let g = Green::new(20, 1.0, 1.0, 0.1, 0.5_f64);
+//! // X_1 of the uniform chain is gamma G_11 = sinh(n lambda) / (k sinh((n+1) lambda))
+//! let lam = g.lambda();
+//! let expect = (20.0 * lam).sinh() / (21.0 * lam).sinh();
+//! assert!((g.entry(1, 1) - expect).abs() < 1e-14 * expect);
+//! assert_eq!(g.bilinear(Probe::Point(3), Probe::Point(7)), g.entry(3, 7));
+//! ```
+
+use crate::scalar::Scalar;
+
+/// A vector the Green's function is applied to: a point load `e_j` (mass
+/// and damper defects, observations) or a strain `e_i - e_{i+1}` (spring `i`,
+/// `0..=n`, with `e_0 = e_{n+1} = 0`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Probe {
+    /// `e_j`, `1 <= j <= n`.
+    Point(usize),
+    /// `e_i - e_{i+1}`, `0 <= i <= n`.
+    Diff(usize),
+}
+
+impl Probe {
+    fn span(self) -> (usize, usize) {
+        match self {
+            Probe::Point(j) => (j, j),
+            Probe::Diff(i) => (i, i + 1),
+        }
+    }
+}
+
+/// A factor `e^{e lambda} * mantissa` (the exponent is kept as an integer and
+/// cancelled analytically against the denominator).
+struct Factor<T> {
+    exp: usize,
+    mant: T,
+}
+
+/// The Green's function of a uniform chain at one value of `s`.
+///
+/// Construction costs a few transcendental functions; every entry after that
+/// costs three. What depends only on `(n, k, mass, d, s)` lives here, so a
+/// caller that evaluates many defect hypotheses at one `s` builds it once.
+#[derive(Clone, Debug)]
+pub struct Green<T: Scalar> {
+    n: usize,
+    lambda: T,
+    /// `lambda == 0`: use the static limit.
+    stat: bool,
+    /// `1 - q`
+    one_m_q: T,
+    /// `k (1 - q^2)(1 - q^{2(n+1)}) / 4` (or `k (n+1)` in the static limit)
+    den: T,
+}
+
+impl<T: Scalar> Green<T> {
+    /// Green's function of the uniform chain `(n, k, mass, d)` at `s`.
+    ///
+    /// The parameters are assumed validated (see [`crate::Chain`]); `s` must have
+    /// `Re s >= 0`. Use [`crate::forward`] for the checked entry point.
+    pub fn new(n: usize, k: f64, mass: f64, d: f64, s: T) -> Green<T> {
+        // lambda = 2 asinh( sqrt(s) * sqrt((mass s + d)/k) / 2 )
+        let inner = (s.scale(mass) + T::from_f64(d)).scale(1.0 / k);
+        let root = s.sqrt() * inner.sqrt();
+        let lambda = root.scale(0.5).asinh().scale(2.0);
+        Self::from_lambda(n, k, lambda)
+    }
+
+    /// Green's function for a given `lambda` (`Re lambda >= 0`).
+    pub fn from_lambda(n: usize, k: f64, lambda: T) -> Green<T> {
+        let stat = lambda.is_zero();
+        let (one_m_q, den) = if stat {
+            (T::zero(), T::from_f64(k * (n as f64 + 1.0)))
+        } else {
+            let one_m_q = -(-lambda.clone()).expm1();
+            let one_m_q2 = -(lambda.scale(-2.0)).expm1();
+            let one_m_qn = -(lambda.scale(-2.0 * (n as f64 + 1.0))).expm1();
+            (one_m_q, (one_m_q2 * one_m_qn).scale(0.25 * k))
+        };
+        Green {
+            n,
+            lambda,
+            stat,
+            one_m_q,
+            den,
+        }
+    }
+
+    /// Number of masses.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
+    /// `lambda(s)`, with `cosh(lambda) = 1 + (mass s^2 + d s)/(2k)` and `Re lambda >= 0`.
+    pub fn lambda(&self) -> T {
+        self.lambda.clone()
+    }
+
+    /// `q^p = exp(-p lambda)`.
+    #[inline]
+    fn qpow(&self, p: usize) -> T {
+        if p == 0 {
+            T::one()
+        } else {
+            self.lambda.scale(-(p as f64)).exp()
+        }
+    }
+
+    /// `(1 - q^{2p}) / 2`.
+    #[inline]
+    fn half_one_minus_q2p(&self, p: usize) -> T {
+        if p == 0 {
+            T::zero()
+        } else {
+            (self.lambda.scale(-2.0 * p as f64)).expm1().scale(-0.5)
+        }
+    }
+
+    /// `sinh(a lambda)` as a left factor.
+    fn left_point(&self, a: usize) -> Factor<T> {
+        if self.stat {
+            return Factor { exp: 0, mant: T::from_f64(a as f64) };
+        }
+        Factor { exp: a, mant: self.half_one_minus_q2p(a) }
+    }
+
+    /// `sinh((n+1-b) lambda)` as a right factor.
+    fn right_point(&self, b: usize) -> Factor<T> {
+        let p = self.n + 1 - b;
+        if self.stat {
+            return Factor { exp: 0, mant: T::from_f64(p as f64) };
+        }
+        Factor { exp: p, mant: self.half_one_minus_q2p(p) }
+    }
+
+    /// `sinh(i lambda) - sinh((i+1) lambda) = -e^{(i+1) lambda} (1 + q^{2i+1}) (1 - q) / 2`.
+    fn left_diff(&self, i: usize) -> Factor<T> {
+        if self.stat {
+            return Factor { exp: 0, mant: T::from_f64(-1.0) };
+        }
+        let m = (T::one() + self.qpow(2 * i + 1)) * self.one_m_q.clone();
+        Factor { exp: i + 1, mant: m.scale(-0.5) }
+    }
+
+    /// `sinh((n+1-j) lambda) - sinh((n-j) lambda) = e^{(n+1-j) lambda} (1 + q^{2(n-j)+1}) (1 - q) / 2`.
+    fn right_diff(&self, j: usize) -> Factor<T> {
+        if self.stat {
+            return Factor { exp: 0, mant: T::one() };
+        }
+        let p = self.n + 1 - j;
+        let m = (T::one() + self.qpow(2 * p - 1)) * self.one_m_q.clone();
+        Factor { exp: p, mant: m.scale(0.5) }
+    }
+
+    fn left(&self, p: Probe) -> Factor<T> {
+        match p {
+            Probe::Point(a) => self.left_point(a),
+            Probe::Diff(i) => self.left_diff(i),
+        }
+    }
+
+    fn right(&self, p: Probe) -> Factor<T> {
+        match p {
+            Probe::Point(b) => self.right_point(b),
+            Probe::Diff(j) => self.right_diff(j),
+        }
+    }
+
+    /// `L R / (k sinh(lambda) sinh((n+1) lambda))` with the exponentials cancelled.
+    #[inline]
+    fn combine(&self, l: Factor<T>, r: Factor<T>) -> T {
+        let num = l.mant * r.mant;
+        if self.stat {
+            return num / self.den.clone();
+        }
+        // exponent of the quotient: l.exp + r.exp - (n + 2) <= 0
+        let p = self.n + 2 - l.exp - r.exp;
+        self.qpow(p) * num / self.den.clone()
+    }
+
+    /// `G_ij` (1-based, `1 <= i, j <= n`), symmetric.
+    pub fn entry(&self, i: usize, j: usize) -> T {
+        let (a, b) = if i <= j { (i, j) } else { (j, i) };
+        self.combine(self.left_point(a), self.right_point(b))
+    }
+
+    /// `u^T G v` for two probes.
+    pub fn bilinear(&self, u: Probe, v: Probe) -> T {
+        let (ulo, uhi) = u.span();
+        let (vlo, vhi) = v.span();
+        if uhi <= vlo {
+            self.combine(self.left(u), self.right(v))
+        } else if vhi <= ulo {
+            self.combine(self.left(v), self.right(u))
+        } else {
+            // Only Diff(i) with itself overlaps:
+            // G_ii - 2 G_{i,i+1} + G_{i+1,i+1} = [S(i) dT(i) + T(i+1) dS(i)] / den,
+            // both terms positive for real s.
+            let i = match (u, v) {
+                (Probe::Diff(i), Probe::Diff(_)) => i,
+                _ => unreachable!("point probes never overlap other probes"),
+            };
+            let t1 = self.combine(self.left_point(i), self.right_diff(i));
+            let mut ld = self.left_diff(i);
+            ld.mant = -ld.mant;
+            let t2 = self.combine(ld, self.right_point(i + 1));
+            t1 + t2
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use num_complex::Complex64;
+
+    /// Dense inverse of the uniform chain by nalgebra LU (complex).
+    fn dense_inverse(n: usize, k: f64, mass: f64, d: f64, s: Complex64) -> nalgebra::DMatrix<Complex64> {
+        let diag = s * s * mass + s * d + 2.0 * k;
+        let mut m = nalgebra::DMatrix::<Complex64>::zeros(n, n);
+        for i in 0..n {
+            m[(i, i)] = diag;
+            if i + 1 < n {
+                m[(i, i + 1)] = Complex64::new(-k, 0.0);
+                m[(i + 1, i)] = Complex64::new(-k, 0.0);
+            }
+        }
+        m.lu().try_inverse().unwrap()
+    }
+
+    fn rel(a: Complex64, b: Complex64) -> f64 {
+        (a - b).norm() / b.norm().max(1e-300)
+    }
+
+    #[test]
+    fn matches_dense_inverse_complex_and_real() {
+        let ss = [
+            Complex64::new(1e-3, 0.0),
+            Complex64::new(0.5, 0.0),
+            Complex64::new(3.0, 0.0),
+            Complex64::new(0.5, 2.0),
+            Complex64::new(0.1, 0.7),
+            Complex64::new(1.0, -5.0),
+            Complex64::new(0.0, 0.37),
+        ];
+        for &n in &[1usize, 2, 3, 7, 20] {
+            for &(k, mass, d) in &[(1.0, 1.0, 0.1), (2.5, 0.3, 0.0), (0.7, 4.0, 3.0)] {
+                for &s in &ss {
+                    let inv = dense_inverse(n, k, mass, d, s);
+                    let g = Green::new(n, k, mass, d, s);
+                    let gr = (s.im == 0.0).then(|| Green::new(n, k, mass, d, s.re));
+                    for i in 1..=n {
+                        for j in 1..=n {
+                            let e = g.entry(i, j);
+                            assert!(rel(e, inv[(i - 1, j - 1)]) < 1e-11, "n={n} s={s} ({i},{j}) {e} vs {}", inv[(i - 1, j - 1)]);
+                            if let Some(gr) = &gr {
+                                assert!(rel(Complex64::new(gr.entry(i, j), 0.0), inv[(i - 1, j - 1)]) < 1e-11);
+                            }
+                        }
+                    }
+                    // strain probes against the dense inverse
+                    let vec_of = |p: Probe| {
+                        let mut v = nalgebra::DVector::<Complex64>::zeros(n);
+                        match p {
+                            Probe::Point(j) => v[j - 1] = 1.0.into(),
+                            Probe::Diff(i) => {
+                                if i >= 1 {
+                                    v[i - 1] += Complex64::from(1.0);
+                                }
+                                if i < n {
+                                    v[i] -= Complex64::from(1.0);
+                                }
+                            }
+                        }
+                        v
+                    };
+                    let probes: Vec<Probe> = (0..=n).map(Probe::Diff).chain((1..=n).map(Probe::Point)).collect();
+                    for &u in &probes {
+                        for &v in &probes {
+                            let expect = (vec_of(u).transpose() * &inv * vec_of(v))[(0, 0)];
+                            let got = g.bilinear(u, v);
+                            let scale = inv.iter().map(|z| z.norm()).fold(0.0, f64::max);
+                            assert!((got - expect).norm() <= 1e-11 * scale.max(expect.norm()), "n={n} s={s} {u:?} {v:?}: {got} vs {expect}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn static_limit_and_tiny_s() {
+        let n = 9;
+        let g0 = Green::new(n, 2.0, 1.0, 0.0, 0.0_f64);
+        let gt = Green::new(n, 2.0, 1.0, 0.0, 1e-9_f64);
+        for i in 1..=n {
+            for j in i..=n {
+                let exact = (i * (n + 1 - j)) as f64 / (2.0 * (n + 1) as f64);
+                assert!((g0.entry(i, j) - exact).abs() < 1e-15 * exact);
+                assert!((gt.entry(i, j) - exact).abs() < 1e-12 * exact);
+            }
+        }
+        assert!((g0.bilinear(Probe::Diff(0), Probe::Diff(0)) - 9.0 / 20.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn never_overflows() {
+        for &n in &[1usize, 1000, 1_000_000, 1_000_000_000] {
+            for &s in &[1e-6, 1e-3, 1.0, 1e4, 1e8] {
+                let g = Green::new(n, 1.0, 1e6, 10.0, s);
+                for &(i, j) in &[(1, 1), (1, n), (n / 2 + 1, n), (n, n)] {
+                    let e = g.entry(i, j);
+                    assert!(e.is_finite() && e >= 0.0, "n={n} s={s} ({i},{j}) {e}");
+                }
+                let gc = Green::new(n, 1.0, 1e-3, 0.0, Complex64::new(s, 100.0));
+                assert!(Scalar::is_finite(&gc.entry(1, n)));
+            }
+        }
+    }
+}

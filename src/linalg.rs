@@ -1,0 +1,100 @@
+//! Small dense linear algebra over any [`Scalar`] (the Woodbury capacitance
+//! systems are `k x k` with `k` the number of defects, so a plain Gaussian
+//! elimination with partial pivoting is the right tool; nalgebra's LU needs
+//! `ComplexField`, which the arbitrary-precision type does not implement).
+
+use crate::scalar::Scalar;
+
+/// Solve `A x = b` in place for a row-major `k x k` matrix `a`; on return `b`
+/// holds `x`. Partial pivoting by modulus.
+///
+/// Returns `false` (and leaves `b` unspecified) when a pivot is exactly zero
+/// or not finite.
+///
+/// ```
+/// use springmass::linalg::solve_in_place;
+/// let mut a = vec![2.0, 1.0, 1.0, 3.0];
+/// let mut b = vec![3.0, 5.0];
+/// assert!(solve_in_place(&mut a, &mut b, 2));
+/// assert!((b[0] - 0.8).abs() < 1e-15 && (b[1] - 1.4).abs() < 1e-15);
+/// ```
+pub fn solve_in_place<T: Scalar>(a: &mut [T], b: &mut [T], k: usize) -> bool {
+    debug_assert_eq!(a.len(), k * k);
+    debug_assert_eq!(b.len(), k);
+    for col in 0..k {
+        // pivot
+        let mut piv = col;
+        let mut best = a[col * k + col].magnitude();
+        for r in col + 1..k {
+            let m = a[r * k + col].magnitude();
+            if m > best {
+                best = m;
+                piv = r;
+            }
+        }
+        if best == 0.0 || !best.is_finite() {
+            return false;
+        }
+        if piv != col {
+            for c in 0..k {
+                a.swap(col * k + c, piv * k + c);
+            }
+            b.swap(col, piv);
+        }
+        let p = a[col * k + col].clone();
+        for r in col + 1..k {
+            let f = a[r * k + col].clone() / p.clone();
+            if f.is_zero() {
+                continue;
+            }
+            for c in col + 1..k {
+                let v = a[col * k + c].clone();
+                a[r * k + c] = a[r * k + c].clone() - f.clone() * v;
+            }
+            let bc = b[col].clone();
+            b[r] = b[r].clone() - f * bc;
+            a[r * k + col] = T::zero();
+        }
+    }
+    for row in (0..k).rev() {
+        let mut acc = b[row].clone();
+        for c in row + 1..k {
+            acc = acc - a[row * k + c].clone() * b[c].clone();
+        }
+        b[row] = acc / a[row * k + row].clone();
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use num_complex::Complex64;
+
+    #[test]
+    fn needs_pivoting() {
+        let mut a = vec![0.0, 1.0, 1.0, 0.0];
+        let mut b = vec![2.0, 3.0];
+        assert!(solve_in_place(&mut a, &mut b, 2));
+        assert_eq!(b, vec![3.0, 2.0]);
+        let mut s = vec![1.0, 2.0, 2.0, 4.0];
+        let mut b = vec![1.0, 1.0];
+        assert!(!solve_in_place(&mut s, &mut b, 2));
+    }
+
+    #[test]
+    fn complex_random_against_nalgebra() {
+        let k = 5;
+        let mut a: Vec<Complex64> = (0..k * k)
+            .map(|i| Complex64::new(((i * 7 + 3) % 11) as f64 - 5.0, ((i * 5 + 1) % 7) as f64 - 3.0))
+            .collect();
+        let b: Vec<Complex64> = (0..k).map(|i| Complex64::new(i as f64, 1.0)).collect();
+        let m = nalgebra::DMatrix::from_row_slice(k, k, &a);
+        let x_ref = m.lu().solve(&nalgebra::DVector::from_vec(b.clone())).unwrap();
+        let mut x = b;
+        assert!(solve_in_place(&mut a, &mut x, k));
+        for i in 0..k {
+            assert!((x[i] - x_ref[i]).norm() < 1e-12);
+        }
+    }
+}
