@@ -97,13 +97,27 @@ impl Defect {
     /// assert!(Defect::parse("mass:8").is_err());
     /// ```
     pub fn parse(text: &str) -> Result<Defect> {
-        let bad = |why: &str| Error::parse("defect", text, format!("{why}; expected kind:at:value with kind mass|spring|damper, e.g. mass:8:5"));
+        let bad = |why: &str| {
+            Error::parse(
+                "defect",
+                text,
+                format!(
+                    "{why}; expected kind:at:value with kind mass|spring|damper, e.g. mass:8:5"
+                ),
+            )
+        };
         let parts: Vec<&str> = text.trim().split(':').collect();
         if parts.len() != 3 {
             return Err(bad("need three fields"));
         }
-        let at: usize = parts[1].trim().parse().map_err(|_| bad("position is not a non-negative integer"))?;
-        let v: f64 = parts[2].trim().parse().map_err(|_| bad("value is not a number"))?;
+        let at: usize = parts[1]
+            .trim()
+            .parse()
+            .map_err(|_| bad("position is not a non-negative integer"))?;
+        let v: f64 = parts[2]
+            .trim()
+            .parse()
+            .map_err(|_| bad("value is not a number"))?;
         match parts[0].trim().to_ascii_lowercase().as_str() {
             "mass" | "m" => Ok(Defect::Mass { at, m: v }),
             "spring" | "k" => Ok(Defect::Spring { at, k: v }),
@@ -207,7 +221,12 @@ impl Chain {
             }
             Defect::Damper { at, d } => {
                 check_pos(&format!("defects[{idx}].at"), at, 1, n)?;
-                check_f64(&format!("defects[{idx}].d"), d, d >= 0.0, "d >= 0 and finite")?;
+                check_f64(
+                    &format!("defects[{idx}].d"),
+                    d,
+                    d >= 0.0,
+                    "d >= 0 and finite",
+                )?;
             }
             Defect::Spring { at, k } => {
                 check_pos(&format!("defects[{idx}].at"), at, 0, n)?;
@@ -308,7 +327,11 @@ impl Chain {
 
 fn check_pos(field: &str, at: usize, lo: usize, hi: usize) -> Result<usize> {
     if at < lo || at > hi {
-        Err(Error::invalid(field, at, format!("{lo} <= {field} <= {hi}")))
+        Err(Error::invalid(
+            field,
+            at,
+            format!("{lo} <= {field} <= {hi}"),
+        ))
     } else {
         Ok(at)
     }
@@ -376,7 +399,9 @@ mod tests {
 
     #[test]
     fn validation_names_fields() {
-        assert!(matches!(Chain::new(0), Err(Error::InvalidParameter { field, .. }) if field == "n"));
+        assert!(
+            matches!(Chain::new(0), Err(Error::InvalidParameter { field, .. }) if field == "n")
+        );
         let c = Chain::paper(5).unwrap();
         for (bad, field) in [
             (Defect::Mass { at: 0, m: 1.0 }, "defects[0].at"),
@@ -399,7 +424,10 @@ mod tests {
         let c2 = c.with_defect(Defect::Mass { at: 2, m: 3.0 }).unwrap();
         assert!(matches!(
             c2.clone().with_defect(Defect::Mass { at: 2, m: 4.0 }),
-            Err(Error::DuplicateDefect { kind: "mass", at: 2 })
+            Err(Error::DuplicateDefect {
+                kind: "mass",
+                at: 2
+            })
         ));
         // a damper at the same place is a different kind: allowed
         assert!(c2.with_defect(Defect::Damper { at: 2, d: 1.0 }).is_ok());

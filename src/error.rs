@@ -91,7 +91,11 @@ impl Error {
     }
 
     /// Shorthand for [`Error::Parse`].
-    pub fn parse(what: impl Into<String>, input: impl Into<String>, reason: impl Into<String>) -> Self {
+    pub fn parse(
+        what: impl Into<String>,
+        input: impl Into<String>,
+        reason: impl Into<String>,
+    ) -> Self {
         Error::Parse {
             what: what.into(),
             input: input.into(),

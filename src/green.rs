@@ -149,37 +149,61 @@ impl<T: Scalar> Green<T> {
     /// `sinh(a lambda)` as a left factor.
     fn left_point(&self, a: usize) -> Factor<T> {
         if self.stat {
-            return Factor { exp: 0, mant: T::from_f64(a as f64) };
+            return Factor {
+                exp: 0,
+                mant: T::from_f64(a as f64),
+            };
         }
-        Factor { exp: a, mant: self.half_one_minus_q2p(a) }
+        Factor {
+            exp: a,
+            mant: self.half_one_minus_q2p(a),
+        }
     }
 
     /// `sinh((n+1-b) lambda)` as a right factor.
     fn right_point(&self, b: usize) -> Factor<T> {
         let p = self.n + 1 - b;
         if self.stat {
-            return Factor { exp: 0, mant: T::from_f64(p as f64) };
+            return Factor {
+                exp: 0,
+                mant: T::from_f64(p as f64),
+            };
         }
-        Factor { exp: p, mant: self.half_one_minus_q2p(p) }
+        Factor {
+            exp: p,
+            mant: self.half_one_minus_q2p(p),
+        }
     }
 
     /// `sinh(i lambda) - sinh((i+1) lambda) = -e^{(i+1) lambda} (1 + q^{2i+1}) (1 - q) / 2`.
     fn left_diff(&self, i: usize) -> Factor<T> {
         if self.stat {
-            return Factor { exp: 0, mant: T::from_f64(-1.0) };
+            return Factor {
+                exp: 0,
+                mant: T::from_f64(-1.0),
+            };
         }
         let m = (T::one() + self.qpow(2 * i + 1)) * self.one_m_q.clone();
-        Factor { exp: i + 1, mant: m.scale(-0.5) }
+        Factor {
+            exp: i + 1,
+            mant: m.scale(-0.5),
+        }
     }
 
     /// `sinh((n+1-j) lambda) - sinh((n-j) lambda) = e^{(n+1-j) lambda} (1 + q^{2(n-j)+1}) (1 - q) / 2`.
     fn right_diff(&self, j: usize) -> Factor<T> {
         if self.stat {
-            return Factor { exp: 0, mant: T::one() };
+            return Factor {
+                exp: 0,
+                mant: T::one(),
+            };
         }
         let p = self.n + 1 - j;
         let m = (T::one() + self.qpow(2 * p - 1)) * self.one_m_q.clone();
-        Factor { exp: p, mant: m.scale(0.5) }
+        Factor {
+            exp: p,
+            mant: m.scale(0.5),
+        }
     }
 
     fn left(&self, p: Probe) -> Factor<T> {
@@ -245,7 +269,13 @@ mod tests {
     use num_complex::Complex64;
 
     /// Dense inverse of the uniform chain by nalgebra LU (complex).
-    fn dense_inverse(n: usize, k: f64, mass: f64, d: f64, s: Complex64) -> nalgebra::DMatrix<Complex64> {
+    fn dense_inverse(
+        n: usize,
+        k: f64,
+        mass: f64,
+        d: f64,
+        s: Complex64,
+    ) -> nalgebra::DMatrix<Complex64> {
         let diag = s * s * mass + s * d + 2.0 * k;
         let mut m = nalgebra::DMatrix::<Complex64>::zeros(n, n);
         for i in 0..n {
@@ -282,9 +312,16 @@ mod tests {
                     for i in 1..=n {
                         for j in 1..=n {
                             let e = g.entry(i, j);
-                            assert!(rel(e, inv[(i - 1, j - 1)]) < 1e-11, "n={n} s={s} ({i},{j}) {e} vs {}", inv[(i - 1, j - 1)]);
+                            assert!(
+                                rel(e, inv[(i - 1, j - 1)]) < 1e-11,
+                                "n={n} s={s} ({i},{j}) {e} vs {}",
+                                inv[(i - 1, j - 1)]
+                            );
                             if let Some(gr) = &gr {
-                                assert!(rel(Complex64::new(gr.entry(i, j), 0.0), inv[(i - 1, j - 1)]) < 1e-11);
+                                assert!(
+                                    rel(Complex64::new(gr.entry(i, j), 0.0), inv[(i - 1, j - 1)])
+                                        < 1e-11
+                                );
                             }
                         }
                     }
@@ -304,13 +341,19 @@ mod tests {
                         }
                         v
                     };
-                    let probes: Vec<Probe> = (0..=n).map(Probe::Diff).chain((1..=n).map(Probe::Point)).collect();
+                    let probes: Vec<Probe> = (0..=n)
+                        .map(Probe::Diff)
+                        .chain((1..=n).map(Probe::Point))
+                        .collect();
                     for &u in &probes {
                         for &v in &probes {
                             let expect = (vec_of(u).transpose() * &inv * vec_of(v))[(0, 0)];
                             let got = g.bilinear(u, v);
                             let scale = inv.iter().map(|z| z.norm()).fold(0.0, f64::max);
-                            assert!((got - expect).norm() <= 1e-11 * scale.max(expect.norm()), "n={n} s={s} {u:?} {v:?}: {got} vs {expect}");
+                            assert!(
+                                (got - expect).norm() <= 1e-11 * scale.max(expect.norm()),
+                                "n={n} s={s} {u:?} {v:?}: {got} vs {expect}"
+                            );
                         }
                     }
                 }

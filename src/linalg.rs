@@ -86,11 +86,19 @@ mod tests {
     fn complex_random_against_nalgebra() {
         let k = 5;
         let mut a: Vec<Complex64> = (0..k * k)
-            .map(|i| Complex64::new(((i * 7 + 3) % 11) as f64 - 5.0, ((i * 5 + 1) % 7) as f64 - 3.0))
+            .map(|i| {
+                Complex64::new(
+                    ((i * 7 + 3) % 11) as f64 - 5.0,
+                    ((i * 5 + 1) % 7) as f64 - 3.0,
+                )
+            })
             .collect();
         let b: Vec<Complex64> = (0..k).map(|i| Complex64::new(i as f64, 1.0)).collect();
         let m = nalgebra::DMatrix::from_row_slice(k, k, &a);
-        let x_ref = m.lu().solve(&nalgebra::DVector::from_vec(b.clone())).unwrap();
+        let x_ref = m
+            .lu()
+            .solve(&nalgebra::DVector::from_vec(b.clone()))
+            .unwrap();
         let mut x = b;
         assert!(solve_in_place(&mut a, &mut x, k));
         for i in 0..k {

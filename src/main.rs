@@ -1,3 +1,35 @@
+//! `springmass` command-line interface: a thin layer over the library.
+//! Every subcommand lives in its own file under `src/cmd/`.
+
+mod cmd;
+
+use clap::{Parser, Subcommand};
+
+/// Vibration suppression and defect detection in 1D spring-mass chains.
+#[derive(Parser)]
+#[command(name = "springmass", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Laplace-domain response X_i(s) of a chain (closed form + Woodbury).
+    Response(cmd::response::Args),
+}
+
+fn run() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Response(a) => cmd::response::run(a),
+    }
+}
+
 fn main() {
-    println!("Hello, world!");
+    if let Err(e) = run() {
+        // one line: the error and its causes joined by ": "
+        eprintln!("error: {e:#}");
+        std::process::exit(2);
+    }
 }

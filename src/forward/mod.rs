@@ -147,7 +147,9 @@ impl Forward {
         if self.chain.n() <= FALLBACK_MAX_N {
             return tridiag::solve(&self.chain, s, observe);
         }
-        Err(Error::Singular { s: format!("{}", s.to_c64()) })
+        Err(Error::Singular {
+            s: format!("{}", s.to_c64()),
+        })
     }
 
     /// `X_observe(s)` for a prepared Green's function; unchecked (the caller
@@ -159,7 +161,13 @@ impl Forward {
 
 /// The Woodbury response for explicit updates (used by the fitting code,
 /// which varies the updates at fixed `s`).
-pub fn woodbury<T: Scalar>(g: &Green<T>, s: &T, updates: &[Update], gamma: f64, observe: usize) -> T {
+pub fn woodbury<T: Scalar>(
+    g: &Green<T>,
+    s: &T,
+    updates: &[Update],
+    gamma: f64,
+    observe: usize,
+) -> T {
     let obs = Probe::Point(observe);
     let base = g.entry(observe, 1);
     let k = updates.len();
@@ -176,7 +184,10 @@ pub fn woodbury<T: Scalar>(g: &Green<T>, s: &T, updates: &[Update], gamma: f64, 
     for l in 0..k {
         a[l * k + l] = a[l * k + l].clone() + T::one();
     }
-    let mut z: Vec<T> = updates.iter().map(|u| g.bilinear(u.probe, Probe::Point(1))).collect();
+    let mut z: Vec<T> = updates
+        .iter()
+        .map(|u| g.bilinear(u.probe, Probe::Point(1)))
+        .collect();
     if !solve_in_place(&mut a, &mut z, k) {
         return T::from_f64(f64::NAN);
     }
@@ -203,15 +214,27 @@ mod tests {
     #[test]
     fn single_defect_is_papers_formula_4_7() {
         // X_1 = -R_11 + R_1j (1-m) s^2 R_j1 / (1 + R_jj (1-m) s^2), R = -G (k = 1)
-        for &(n, j, m) in &[(20usize, 15usize, 1.01), (5, 3, 4.0), (20, 3, 5.0), (7, 1, 0.5), (7, 7, 30.0)] {
-            let chain = Chain::paper(n).unwrap().with_defect(Defect::Mass { at: j, m }).unwrap();
+        for &(n, j, m) in &[
+            (20usize, 15usize, 1.01),
+            (5, 3, 4.0),
+            (20, 3, 5.0),
+            (7, 1, 0.5),
+            (7, 7, 30.0),
+        ] {
+            let chain = Chain::paper(n)
+                .unwrap()
+                .with_defect(Defect::Mass { at: j, m })
+                .unwrap();
             for &s in &[0.05, 0.7, 2.0, 9.0] {
                 let g: Green<f64> = Green::new(n, 1.0, 1.0, 0.1, s);
                 let (r11, r1j, rjj) = (-g.entry(1, 1), -g.entry(1, j), -g.entry(j, j));
                 let e = (1.0 - m) * s * s;
                 let paper = -r11 + r1j * e * r1j / (1.0 + rjj * e);
                 let x = response(&chain, s, 1).unwrap();
-                assert!((x - paper).abs() <= 1e-13 * paper.abs(), "n={n} j={j} m={m} s={s}");
+                assert!(
+                    (x - paper).abs() <= 1e-13 * paper.abs(),
+                    "n={n} j={j} m={m} s={s}"
+                );
             }
         }
     }
@@ -234,7 +257,10 @@ mod tests {
     fn mass_and_damper_at_one_place_merge() {
         let c = Chain::paper(6)
             .unwrap()
-            .with_defects([Defect::Mass { at: 3, m: 2.0 }, Defect::Damper { at: 3, d: 1.0 }])
+            .with_defects([
+                Defect::Mass { at: 3, m: 2.0 },
+                Defect::Damper { at: 3, d: 1.0 },
+            ])
             .unwrap();
         assert_eq!(updates(&c).len(), 1);
         let s = Complex64::new(0.4, 1.1);
@@ -246,10 +272,14 @@ mod tests {
     #[test]
     fn bad_s_and_observe() {
         let c = Chain::paper(3).unwrap();
-        assert!(matches!(response(&c, -1.0, 1), Err(Error::InvalidParameter { field, .. }) if field == "s"));
+        assert!(
+            matches!(response(&c, -1.0, 1), Err(Error::InvalidParameter { field, .. }) if field == "s")
+        );
         assert!(response(&c, f64::NAN, 1).is_err());
         assert!(response(&c, Complex64::new(-0.1, 2.0), 1).is_err());
-        assert!(matches!(response(&c, 1.0, 4), Err(Error::InvalidParameter { field, .. }) if field == "observe"));
+        assert!(
+            matches!(response(&c, 1.0, 4), Err(Error::InvalidParameter { field, .. }) if field == "observe")
+        );
         assert!(response(&c, 1.0, 0).is_err());
     }
 }

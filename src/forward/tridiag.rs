@@ -35,12 +35,16 @@ pub fn solve_all<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
     let mut diag: Vec<T> = (0..n)
         .map(|i| s2.scale(m[i]) + s.scale(d[i]) + T::from_f64(k[i] + k[i + 1]))
         .collect();
-    let mut dl: Vec<T> = (0..n.saturating_sub(1)).map(|i| T::from_f64(-k[i + 1])).collect();
+    let mut dl: Vec<T> = (0..n.saturating_sub(1))
+        .map(|i| T::from_f64(-k[i + 1]))
+        .collect();
     let mut du = dl.clone();
     let mut du2: Vec<T> = vec![T::zero(); n.saturating_sub(2)];
     let mut b: Vec<T> = vec![T::zero(); n];
     b[0] = T::from_f64(chain.gamma());
-    let singular = || Error::Singular { s: format!("{:?}", s.to_c64()) };
+    let singular = || Error::Singular {
+        s: format!("{:?}", s.to_c64()),
+    };
     for i in 0..n.saturating_sub(1) {
         if diag[i].magnitude() >= dl[i].magnitude() {
             // no interchange
@@ -82,8 +86,9 @@ pub fn solve_all<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
         x[n - 2] = (b[n - 2].clone() - du[n - 2].clone() * x[n - 1].clone()) / diag[n - 2].clone();
     }
     for i in (0..n.saturating_sub(2)).rev() {
-        x[i] = (b[i].clone() - du[i].clone() * x[i + 1].clone() - du2[i].clone() * x[i + 2].clone())
-            / diag[i].clone();
+        x[i] =
+            (b[i].clone() - du[i].clone() * x[i + 1].clone() - du2[i].clone() * x[i + 2].clone())
+                / diag[i].clone();
     }
     if x.iter().any(|v| !v.is_finite()) {
         return Err(singular());
@@ -131,7 +136,12 @@ mod tests {
                 Defect::Mass { at: 12, m: 1e-3 },
             ])
             .unwrap();
-        for s in [Complex64::new(0.3, 0.0), Complex64::new(0.0, 1.3), Complex64::new(0.2, 40.0), Complex64::new(5.0, -2.0)] {
+        for s in [
+            Complex64::new(0.3, 0.0),
+            Complex64::new(0.0, 1.3),
+            Complex64::new(0.2, 40.0),
+            Complex64::new(5.0, -2.0),
+        ] {
             let x = solve_all(&chain, s).unwrap();
             let r = dense(&chain, s);
             let scale = r.iter().map(|z| z.norm()).fold(0.0, f64::max);

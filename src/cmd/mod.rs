@@ -1,0 +1,87 @@
+//! Subcommands. Shared argument groups live here.
+
+pub mod response;
+
+use anyhow::Context;
+use clap::Args as ClapArgs;
+use springmass::{Chain, ChainSpec, Defect};
+use std::path::PathBuf;
+
+/// How a chain is given on the command line: flags, or the `[chain]` table of
+/// a TOML scene file (flags given explicitly override the file).
+#[derive(ClapArgs, Debug, Clone)]
+pub struct ChainArgs {
+    /// Number of masses.
+    #[arg(long)]
+    pub n: Option<usize>,
+    /// Uniform spring constant [default: 1].
+    #[arg(long)]
+    pub k: Option<f64>,
+    /// Uniform damping [default: 0.1].
+    #[arg(long)]
+    pub d: Option<f64>,
+    /// Impulse on mass 1 [default: 1].
+    #[arg(long)]
+    pub gamma: Option<f64>,
+    /// Uniform mass [default: 1].
+    #[arg(long)]
+    pub mass: Option<f64>,
+    /// A defect `kind:at:value` (repeatable): mass:8:5, spring:3:0.5, damper:4:0.3.
+    #[arg(long = "defect", value_name = "KIND:AT:VALUE")]
+    pub defects: Vec<String>,
+    /// TOML scene file with a `[chain]` table (n, k, d, gamma, mass, defects).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+}
+
+impl ChainArgs {
+    /// Build and validate the chain.
+    pub fn chain(&self) -> anyhow::Result<Chain> {
+        let mut spec = match &self.scene {
+            Some(path) => read_chain_spec(path)?,
+            None => ChainSpec {
+                n: self.n.context("--n is required (or give --scene FILE)")?,
+                k: 1.0,
+                d: 0.1,
+                gamma: 1.0,
+                mass: 1.0,
+                defects: vec![],
+            },
+        };
+        if let Some(n) = self.n {
+            spec.n = n;
+        }
+        if let Some(k) = self.k {
+            spec.k = k;
+        }
+        if let Some(d) = self.d {
+            spec.d = d;
+        }
+        if let Some(g) = self.gamma {
+            spec.gamma = g;
+        }
+        if let Some(m) = self.mass {
+            spec.mass = m;
+        }
+        for t in &self.defects {
+            spec.defects.push(Defect::parse(t)?);
+        }
+        Ok(spec.build()?)
+    }
+}
+
+/// Read the `[chain]` table of a scene file (other tables are ignored here).
+pub fn read_chain_spec(path: &std::path::Path) -> anyhow::Result<ChainSpec> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let value: toml::Table =
+        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    let chain = value
+        .get("chain")
+        .with_context(|| format!("{}: no [chain] table", path.display()))?
+        .clone();
+    let spec: ChainSpec = chain
+        .try_into()
+        .with_context(|| format!("{}: in [chain]", path.display()))?;
+    Ok(spec)
+}
