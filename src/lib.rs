@@ -36,6 +36,8 @@
 //! | [`green`] | closed-form Green's function, overflow-free for every `n` and `s` |
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
+//! | [`series`] | sampled time series, CSV in and out, atomic writes |
+//! | [`plot`] | SVG line plots and heatmaps (bundled font) |
 //! | [`error`] | one error type; every variant names the field and its range |
 
 pub mod chain;
@@ -43,7 +45,9 @@ pub mod error;
 pub mod forward;
 pub mod green;
 pub mod linalg;
+pub mod plot;
 pub mod scalar;
+pub mod series;
 
 pub use chain::{Chain, ChainSpec, Defect};
 pub use error::{Error, Result};
