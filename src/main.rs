@@ -17,12 +17,18 @@ struct Cli {
 enum Command {
     /// Laplace-domain response X_i(s) of a chain (closed form + Woodbury).
     Response(cmd::response::Args),
+    /// Run a study file (sweep of cases) in parallel into tables and plots; `study merge` combines shards.
+    Study(cmd::study::Args),
+    /// Check a study file, print the schema of every field with its default.
+    Config(cmd::config::Args),
 }
 
 fn run() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Response(a) => cmd::response::run(a),
+        Command::Study(a) => cmd::study::run(a),
+        Command::Config(a) => cmd::config::run(a),
     }
 }
 

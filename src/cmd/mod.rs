@@ -1,6 +1,8 @@
 //! Subcommands. Shared argument groups live here.
 
+pub mod config;
 pub mod response;
+pub mod study;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
