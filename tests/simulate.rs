@@ -318,3 +318,142 @@ fn bad_input_gives_clear_errors() {
     assert!(Force::sampled(vec![0.0, 1.0], vec![1.0, 2.0], 0).is_err());
     assert!("euler".parse::<Method>().is_err());
 }
+
+// ---------------------------------------------------------------- the CLI
+
+fn cli(args: &[&str]) -> (i32, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_springmass"))
+        .arg("simulate")
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn tmp_dir(tag: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("springmass-sim-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn cli_reproduces_paper_figures_10_12_14() {
+    let dir = tmp_dir("figs");
+    for (fig, n, defect) in [
+        (10, "20", "mass:15:1.01"),
+        (12, "5", "mass:3:4"),
+        (14, "20", "mass:3:5"),
+    ] {
+        let svg = dir.join(format!("fig{fig}.svg"));
+        let csv = dir.join(format!("fig{fig}.csv"));
+        let (code, _, err) = cli(&[
+            "--n",
+            n,
+            "--defect",
+            defect,
+            "--t-end",
+            "200",
+            "--dt",
+            "0.05",
+            "--out",
+            csv.to_str().unwrap(),
+            "--plot",
+            svg.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{err}");
+        let text = std::fs::read_to_string(&svg).unwrap();
+        assert!(text.contains("<svg") && text.contains("x_1"), "fig {fig}");
+        // the CSV is the exact x_1 (residue sum) to 1e-12
+        let ts = springmass::series::TimeSeries::read_csv(&csv).unwrap();
+        let (j, m): (usize, f64) = {
+            let p: Vec<&str> = defect.split(':').collect();
+            (p[1].parse().unwrap(), p[2].parse().unwrap())
+        };
+        let chain = paper(n.parse().unwrap(), &[(j, m)]);
+        let ex = ModalResponse::impulse(&chain, 1).unwrap().eval_many(ts.t());
+        assert_eq!(ts.len(), 4001);
+        assert!(max_diff(ts.column("x1").unwrap(), &ex) < 1e-12, "fig {fig}");
+    }
+}
+
+#[test]
+fn cli_noise_is_seeded_and_forces_are_read() {
+    let base = [
+        "--n",
+        "6",
+        "--t-end",
+        "5",
+        "--dt",
+        "0.5",
+        "--observe",
+        "1,6",
+    ];
+    let with = |extra: &[&str]| {
+        let mut v: Vec<&str> = base.to_vec();
+        v.extend_from_slice(extra);
+        let (code, out, err) = cli(&v);
+        assert_eq!(code, 0, "{err}");
+        springmass::series::TimeSeries::from_csv_str(&out).unwrap()
+    };
+    let clean = with(&[]);
+    let a = with(&["--noise", "0.01", "--seed", "7"]);
+    let b = with(&["--noise", "0.01", "--seed", "7"]);
+    let c = with(&["--noise", "0.01", "--seed", "8"]);
+    assert_eq!(a, b);
+    assert_ne!(a, c);
+    let d = max_diff(a.column("x6").unwrap(), clean.column("x6").unwrap());
+    assert!(d > 1e-4 && d < 0.1, "{d}");
+    // a force file: f6 acts on mass 6
+    let dir = tmp_dir("force");
+    let f = dir.join("f.csv");
+    let ts: Vec<f64> = (0..=50).map(|k| k as f64 * 0.1).collect();
+    let fs: Vec<f64> = ts.iter().map(|t| 0.5 * t).collect();
+    springmass::series::TimeSeries::new(ts, vec![("f6".into(), fs)])
+        .unwrap()
+        .write_csv(&f)
+        .unwrap();
+    let forced = with(&["--force", f.to_str().unwrap(), "--force-order", "1"]);
+    let lib = simulate_forced(
+        &Chain::paper(6).unwrap(),
+        &SimOptions::new(5.0, 0.5).with_observe(vec![1, 6]),
+        &Forcing::new().on(6, |t| 0.5 * t),
+    )
+    .unwrap();
+    assert!(max_diff(forced.column("x6").unwrap(), lib.x(6).unwrap()) < 1e-12);
+    // a badly named force column
+    std::fs::write(dir.join("g.csv"), "t,force6\n0,1\n1,2\n").unwrap();
+    let (code, _, err) = cli(&["--n", "6", "--force", dir.join("g.csv").to_str().unwrap()]);
+    assert_eq!(code, 2);
+    assert!(err.contains("f<j>"), "{err}");
+}
+
+#[test]
+fn cli_bad_input() {
+    for (args, needle) in [
+        (vec!["--n", "5", "--dt", "0"], "dt"),
+        (vec!["--n", "5", "--dt", "-0.1"], "dt"),
+        (vec!["--n", "5", "--t-end", "0"], "t_end"),
+        (
+            vec!["--n", "5", "--t-end", "1e9", "--dt", "1e-3"],
+            "stored values",
+        ),
+        (vec!["--n", "5", "--observe", "1,6"], "observe"),
+        (vec!["--n", "5", "--noise", "-1"], "noise"),
+        (vec!["--n", "5", "--method", "euler"], "method"),
+        (
+            vec!["--n", "5", "--force", "/nonexistent/f.csv"],
+            "/nonexistent/f.csv",
+        ),
+    ] {
+        let (code, _, err) = cli(&args);
+        assert_eq!(code, 2, "{args:?}");
+        assert!(
+            err.contains(needle) && err.lines().count() == 1,
+            "{args:?}: {err}"
+        );
+    }
+}
