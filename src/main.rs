@@ -21,6 +21,8 @@ enum Command {
     Study(cmd::study::Args),
     /// Check a study file, print the schema of every field with its default.
     Config(cmd::config::Args),
+    /// Time-domain simulation x_i(t): impulse on mass 1, optional forces, CSV/SVG out.
+    Simulate(cmd::simulate::Args),
 }
 
 fn run() -> anyhow::Result<()> {
@@ -29,6 +31,7 @@ fn run() -> anyhow::Result<()> {
         Command::Response(a) => cmd::response::run(a),
         Command::Study(a) => cmd::study::run(a),
         Command::Config(a) => cmd::config::run(a),
+        Command::Simulate(a) => cmd::simulate::run(a),
     }
 }
 

@@ -216,9 +216,9 @@ pub fn axis_values(axis: &Axis) -> std::result::Result<Vec<(toml::Value, String)
 }
 
 /// Most values on one axis, and most cases in one study.
-pub const MAX_AXIS: usize = 1_000_000;
+pub const MAX_AXIS: usize = 100_000;
 /// Most cases in one study.
-pub const MAX_CASES: usize = 10_000_000;
+pub const MAX_CASES: usize = 200_000;
 
 fn range_values(r: &super::config::Range) -> std::result::Result<Vec<toml::Value>, String> {
     if !r.from.is_finite() || !r.to.is_finite() {

@@ -7,9 +7,12 @@
 //! - the closed-form Green's function plus a `k x k` Woodbury solve
 //!   ([`crate::forward::Forward::eval_with`]), O(k^3) per `s` whatever `n`, and
 //! - the pivoted O(n) tridiagonal solve ([`crate::forward::tridiag::solve`]),
+//!   the reference, and
+//! - the O(k) cancellation-free transfer sweep
+//!   ([`crate::forward::transfer::Transfer`], behind `Forward::eval`),
 //!
-//! and record the largest relative difference between the two together with
-//! the measured time per `s` of each path. Points where the reference is not
+//! and record the largest relative difference of each fast path to the
+//! reference together with the measured time per `s` of each path. Points where the reference is not
 //! resolvable in f64 (zero, subnormal or not finite) are counted in
 //! `unresolved` and left out of the differences.
 //!
@@ -29,6 +32,7 @@
 use super::{from_scene, CaseOutput};
 use crate::chain::{ChainSpec, Defect};
 use crate::error::{check_f64, Error, Result};
+use crate::forward::transfer::Transfer;
 use crate::forward::{tridiag, Forward};
 use crate::scalar::Scalar;
 use crate::study::config::FieldDoc;
@@ -211,11 +215,13 @@ pub const METRICS: &[(&str, &str)] = &[
     ("unresolved", "points where the O(n) reference is zero, subnormal or not finite in f64 (left out of the differences)"),
     ("woodbury_nonfinite", "resolved points where the closed form gave a non-finite value"),
     ("max_rel_diff", "largest |X_woodbury - X_reference| / |X_reference| over resolved points"),
+    ("max_rel_diff_transfer", "largest |X_transfer - X_reference| / |X_reference| over resolved points (the O(k) cancellation-free sweep behind `Forward::eval`)"),
     ("rms_rel_diff", "root mean square of the relative differences over resolved points"),
     ("x_min", "smallest |X_reference| over resolved points"),
     ("x_max", "largest |X_reference| over resolved points"),
     ("t_woodbury", "measured seconds per s of the closed form + Woodbury path"),
     ("t_reference", "measured seconds per s of the O(n) tridiagonal path"),
+    ("t_transfer", "measured seconds per s of the O(k) transfer sweep"),
     ("t_speedup", "t_reference / t_woodbury"),
 ];
 
@@ -419,11 +425,14 @@ pub fn run(scene: &Scene, seed: u64) -> Result<CaseOutput> {
     out.metrics
         .insert("woodbury_nonfinite".into(), m.nonfinite.into());
     out.metrics.insert("max_rel_diff".into(), num(m.max_rel));
+    out.metrics
+        .insert("max_rel_diff_transfer".into(), num(m.max_rel_transfer));
     out.metrics.insert("rms_rel_diff".into(), num(m.rms_rel));
     out.metrics.insert("x_min".into(), num(m.x_min));
     out.metrics.insert("x_max".into(), num(m.x_max));
     out.timings.insert("t_woodbury".into(), num(m.t_woodbury));
     out.timings.insert("t_reference".into(), num(m.t_reference));
+    out.timings.insert("t_transfer".into(), num(m.t_transfer));
     out.timings
         .insert("t_speedup".into(), num(m.t_reference / m.t_woodbury));
     Ok(out)
@@ -433,11 +442,13 @@ struct Measured {
     unresolved: usize,
     nonfinite: usize,
     max_rel: f64,
+    max_rel_transfer: f64,
     rms_rel: f64,
     x_min: f64,
     x_max: f64,
     t_woodbury: f64,
     t_reference: f64,
+    t_transfer: f64,
 }
 
 /// Seconds per call of `pass`: the best of five rounds, each repeating
@@ -482,6 +493,14 @@ fn measure<T: Scalar>(
         }
         black_box(&xw);
     });
+    let mut xt: Vec<T> = vec![T::zero(); pts.len()];
+    let tr = Transfer::new(chain);
+    let t_t = time_per_pass(min_t, || {
+        for (x, s) in xt.iter_mut().zip(&pts) {
+            *x = tr.eval(black_box(s), observe);
+        }
+        black_box(&xt);
+    });
     let mut xr: Vec<T> = vec![T::zero(); pts.len()];
     let mut err: Option<Error> = None;
     let t_r = time_per_pass(min_t, || {
@@ -502,15 +521,17 @@ fn measure<T: Scalar>(
         unresolved: 0,
         nonfinite: 0,
         max_rel: 0.0,
+        max_rel_transfer: 0.0,
         rms_rel: 0.0,
         x_min: f64::INFINITY,
         x_max: 0.0,
         t_woodbury: t_w / pts.len() as f64,
         t_reference: t_r / pts.len() as f64,
+        t_transfer: t_t / pts.len() as f64,
     };
     let mut sum2 = 0.0;
     let mut resolved = 0usize;
-    for (w, r) in xw.iter().zip(&xr) {
+    for ((w, r), t) in xw.iter().zip(&xr).zip(&xt) {
         let mag = r.magnitude();
         if !(mag.is_finite() && mag >= f64::MIN_POSITIVE) {
             m.unresolved += 1;
@@ -519,6 +540,12 @@ fn measure<T: Scalar>(
         resolved += 1;
         m.x_min = m.x_min.min(mag);
         m.x_max = m.x_max.max(mag);
+        let rel_t = (t.clone() - r.clone()).magnitude() / mag;
+        m.max_rel_transfer = if rel_t.is_nan() {
+            f64::INFINITY
+        } else {
+            m.max_rel_transfer.max(rel_t)
+        };
         if !w.is_finite() {
             m.nonfinite += 1;
             m.max_rel = f64::INFINITY;
@@ -530,6 +557,7 @@ fn measure<T: Scalar>(
     }
     if resolved == 0 {
         m.max_rel = f64::NAN;
+        m.max_rel_transfer = f64::NAN;
         m.rms_rel = f64::NAN;
         m.x_min = f64::NAN;
         m.x_max = f64::NAN;
@@ -558,6 +586,8 @@ mod tests {
             let out = Kind::Forward.run(&scene(text), 3).unwrap();
             let d = out.metrics["max_rel_diff"].as_f64().unwrap();
             assert!(d < 1e-11, "{text}: {d}");
+            let dt = out.metrics["max_rel_diff_transfer"].as_f64().unwrap();
+            assert!(dt < 1e-11, "{text}: {dt}");
             assert_eq!(out.metrics["unresolved"], 0);
             assert!(out.timings["t_woodbury"].as_f64().unwrap() > 0.0);
         }
