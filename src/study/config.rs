@@ -375,9 +375,9 @@ impl std::fmt::Display for Problem {
 pub fn parse(text: &str, origin: &str) -> Result<StudyFile> {
     let problems = check_structure(text);
     if let Some(p) = problems.first() {
-        return Err(Error::parse(origin, p.path.clone(), p.to_string()));
+        return Err(Error::parse("study file", origin, p.to_string()));
     }
-    toml::from_str(text).map_err(|e| Error::parse(origin, "", one_line(&e.to_string())))
+    toml::from_str(text).map_err(|e| Error::parse("study file", origin, one_line(&e.to_string())))
 }
 
 /// Every problem of a study file: syntax, unknown or misspelled fields
@@ -570,7 +570,11 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
             );
         }
     }
-    if !problems.borrow().is_empty() {
+    let axes_ok = file
+        .sweep
+        .iter()
+        .all(|a| sweep::axis_values(a).is_ok() && sweep::parse_path(&a.path).is_ok());
+    if !axes_ok || file.study.repeats == 0 {
         return problems.into_inner();
     }
     // Every case: the kind's deserialisation and semantic checks. One problem

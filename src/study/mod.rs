@@ -65,8 +65,8 @@ impl Study {
         if !problems.is_empty() {
             let all: Vec<String> = problems.iter().map(|p| p.to_string()).collect();
             return Err(Error::parse(
+                "study file",
                 origin,
-                "",
                 format!("{} problem(s):\n  {}", problems.len(), all.join("\n  ")),
             ));
         }
