@@ -295,8 +295,31 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
     })
 }
 
+/// Remove temporary files of atomic writes that an interrupted run left
+/// behind (`.<name>.tmp<pid>` next to our outputs).
+fn remove_stale_temporaries(out: &Path) {
+    let Ok(entries) = std::fs::read_dir(out) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().to_string();
+        let Some(rest) = name.strip_prefix('.') else {
+            continue;
+        };
+        let Some((base, pid)) = rest.rsplit_once(".tmp") else {
+            continue;
+        };
+        let ours = [RESULTS, STUDY_COPY, MANIFEST, "summary.csv", "report.md"].contains(&base)
+            || base.ends_with(".svg");
+        if ours && !pid.is_empty() && pid.chars().all(|c| c.is_ascii_digit()) {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
 /// Create or check `study.toml` and `manifest.json` in `out`.
 fn prepare_folder(out: &Path, study: &Study, manifest: &Manifest) -> Result<()> {
+    remove_stale_temporaries(out);
     let mpath = out.join(MANIFEST);
     if mpath.exists() {
         let text = std::fs::read_to_string(&mpath).map_err(|e| Error::io(&mpath, e))?;
@@ -528,6 +551,8 @@ values = [8, 30]
             .unwrap();
         f.write_all(b"{\"id\":\"c0005\",\"key\":\"ab").unwrap();
         drop(f);
+        // and a temporary file of an interrupted atomic write
+        std::fs::write(b.join(".summary.csv.tmp123"), "x").unwrap();
         o.max_cases = None;
         o.threads = Some(1);
         let s = run(&study, &o).unwrap();
