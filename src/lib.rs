@@ -38,6 +38,8 @@
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
+//! | [`time`] | time domain: inverse Laplace transforms, transform of sampled series |
+//! | [`noise`] | seeded additive white Gaussian noise |
 //! | [`error`] | one error type; every variant names the field and its range |
 
 pub mod chain;
@@ -45,9 +47,11 @@ pub mod error;
 pub mod forward;
 pub mod green;
 pub mod linalg;
+pub mod noise;
 pub mod plot;
 pub mod scalar;
 pub mod series;
+pub mod time;
 
 pub use chain::{Chain, ChainSpec, Defect};
 pub use error::{Error, Result};

@@ -1,0 +1,5 @@
+//! Time domain: simulation, exact and numerical inverse Laplace transforms,
+//! and the Laplace transform of sampled data.
+
+pub mod inverse;
+pub mod series;
