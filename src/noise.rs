@@ -49,7 +49,10 @@ impl NoiseLevel {
             )
         };
         let (kind, val) = text.split_once(':').ok_or_else(|| bad("missing `:`"))?;
-        let v: f64 = val.trim().parse().map_err(|_| bad("the value is not a number"))?;
+        let v: f64 = val
+            .trim()
+            .parse()
+            .map_err(|_| bad("the value is not a number"))?;
         let level = match kind.trim() {
             "abs" => NoiseLevel::Absolute(v),
             "snr" => NoiseLevel::Snr(v),
@@ -125,8 +128,9 @@ mod tests {
     fn levels_and_statistics() {
         let x: Vec<f64> = (0..20000).map(|i| (i as f64 * 0.01).sin()).collect();
         let (y, sigma) = add_noise(&x, NoiseLevel::Snr(20.0), 3).unwrap();
-        let rms = (0.5f64).sqrt();
-        assert!((sigma - rms / 10.0).abs() < 1e-3 * sigma);
+        let rms = (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt();
+        assert!((rms - 0.5f64.sqrt()).abs() < 1e-2);
+        assert!((sigma - rms / 10.0).abs() < 1e-12 * sigma);
         let d: Vec<f64> = y.iter().zip(&x).map(|(a, b)| a - b).collect();
         let mean = d.iter().sum::<f64>() / d.len() as f64;
         let var = d.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / d.len() as f64;
@@ -140,9 +144,15 @@ mod tests {
 
     #[test]
     fn parse_and_errors() {
-        assert_eq!(NoiseLevel::parse("abs:1e-4").unwrap(), NoiseLevel::Absolute(1e-4));
+        assert_eq!(
+            NoiseLevel::parse("abs:1e-4").unwrap(),
+            NoiseLevel::Absolute(1e-4)
+        );
         assert_eq!(NoiseLevel::parse("snr:40").unwrap(), NoiseLevel::Snr(40.0));
-        assert_eq!(NoiseLevel::parse("rel:0.01").unwrap(), NoiseLevel::RelativeMax(0.01));
+        assert_eq!(
+            NoiseLevel::parse("rel:0.01").unwrap(),
+            NoiseLevel::RelativeMax(0.01)
+        );
         for bad in ["abs", "abs:x", "foo:1", "abs:-1", "rel:nan", "snr:inf"] {
             assert!(NoiseLevel::parse(bad).is_err(), "{bad}");
         }
