@@ -358,3 +358,66 @@ fn cli_laplace_text_json_and_errors() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn defect_chains_from_the_modal_sum_match_the_forward_model() {
+    use springmass::time::modal::ModalResponse;
+    use springmass::Defect;
+    // P2 (n=5, mass 4 at 3), S3 (n=20, masses 5 at 8 and 2 at 15), and a
+    // spring + damper defect chain; dt = 0.01 on [0, 300].
+    let chains = [
+        Chain::paper(5)
+            .unwrap()
+            .with_defect(Defect::Mass { at: 3, m: 4.0 })
+            .unwrap(),
+        Chain::paper(20)
+            .unwrap()
+            .with_defect(Defect::Mass { at: 8, m: 5.0 })
+            .unwrap()
+            .with_defect(Defect::Mass { at: 15, m: 2.0 })
+            .unwrap(),
+        Chain::paper(8)
+            .unwrap()
+            .with_defect(Defect::Spring { at: 4, k: 0.5 })
+            .unwrap()
+            .with_defect(Defect::Damper { at: 6, d: 0.4 })
+            .unwrap(),
+    ];
+    for chain in chains {
+        let fwd = Forward::new(&chain);
+        let modal = ModalResponse::impulse(&chain, 1).unwrap();
+        let t: Vec<f64> = (0..=30000).map(|i| i as f64 * 0.01).collect();
+        let x = modal.eval_many(&t);
+        let tr = SeriesTransform::new(&t, &x, &TransformOptions::default()).unwrap();
+        let mut worst: f64 = 0.0;
+        for s in s_grid() {
+            let exact = fwd.eval(s, 1).unwrap();
+            let v = tr.eval(s).unwrap();
+            let err = (v.value - exact).norm();
+            worst = worst.max(err / exact.norm());
+            assert!(
+                err / exact.norm() < 1e-8,
+                "{:?} s = {s}: rel {:.3e}",
+                chain.defects(),
+                err / exact.norm()
+            );
+            assert!(
+                err <= v.err,
+                "{:?} s = {s}: {err:.3e} > est {:.3e}",
+                chain.defects(),
+                v.err
+            );
+        }
+        for s in [0.001, 0.01].map(|v| Complex64::new(v, 0.0)) {
+            let v = tr.eval(s).unwrap();
+            let err = (v.value - fwd.eval(s, 1).unwrap()).norm();
+            assert!(
+                err <= v.err,
+                "{:?} s = {s}: {err:.3e} > est {:.3e}",
+                chain.defects(),
+                v.err
+            );
+        }
+        println!("{:?}: max relative error {worst:.2e}", chain.defects());
+    }
+}
