@@ -37,8 +37,10 @@
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
 //! | [`error`] | one error type; every variant names the field and its range |
+//! | [`detect`] | defect fitting: [`detect::search`] the optimizers (GA, Nelder-Mead, particle swarm) behind one interface |
 
 pub mod chain;
+pub mod detect;
 pub mod error;
 pub mod forward;
 pub mod green;
