@@ -29,8 +29,11 @@
 //!    second-best position set can be 1e-13 of its scale: random value
 //!    mutation alone rarely resolves it.
 //!
-//! Stops when the budget is spent, the target cost is reached, or the best
-//! cost has not improved by a relative 1e-12 for `stall_generations`.
+//! **Restarts**: when the best cost has not improved by a relative 1e-12 for
+//! `stall_generations`, the population is re-drawn at random around the
+//! `elites` best individuals. The run stops when `patience` restarts in a row
+//! brought no better position set, when the budget is spent or when the
+//! target cost is reached.
 //! Children are evaluated in one batch per generation, in parallel when
 //! `parallel` (results recorded in order: same seed, same answer, whatever the
 //! thread count). Parallel evaluation only pays when one cost takes more
@@ -53,7 +56,7 @@ use std::collections::HashSet;
 /// Defaults: `population = 40`, `tournament = 3`, `crossover_rate = 0.9`,
 /// `position_mutation = 0.3`, `jump_probability = 0.3`,
 /// `value_mutation = 0.5`, `sigma_range = (1e-7, 0.3)`, `elites = 2`,
-/// `stall_generations = 60`, `polish = true`, `polish_top = 2`,
+/// `stall_generations = 30`, `patience = 2`, `polish = true`, `polish_top = 2`,
 /// `polish_evals = 300`, `parallel = false`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GeneticOptions {
@@ -73,8 +76,10 @@ pub struct GeneticOptions {
     pub sigma_range: (f64, f64),
     /// Individuals copied unchanged (< population).
     pub elites: usize,
-    /// Generations without improvement before stopping (>= 1).
+    /// Generations without improvement before a restart (>= 1).
     pub stall_generations: usize,
+    /// Restarts in a row without a better position set before stopping (>= 1).
+    pub patience: usize,
     /// Lamarckian Nelder-Mead polish of the best new position sets.
     pub polish: bool,
     /// Distinct position sets polished per generation.
@@ -96,7 +101,8 @@ impl Default for GeneticOptions {
             value_mutation: 0.5,
             sigma_range: (1e-7, 0.3),
             elites: 2,
-            stall_generations: 60,
+            stall_generations: 30,
+            patience: 2,
             polish: true,
             polish_top: 2,
             polish_evals: 300,
@@ -143,6 +149,9 @@ impl GeneticOptions {
         if self.stall_generations == 0 {
             return Err(Error::invalid("genetic.stall_generations", 0, ">= 1"));
         }
+        if self.patience == 0 {
+            return Err(Error::invalid("genetic.patience", 0, ">= 1"));
+        }
         if self.polish && self.polish_evals == 0 {
             return Err(Error::invalid("genetic.polish_evals", 0, ">= 1 when polish"));
         }
@@ -181,6 +190,9 @@ pub struct Genetic {
     polished: HashSet<Vec<usize>>,
     best: f64,
     stalled: usize,
+    incumbent: Option<(Vec<usize>, f64)>,
+    idle_restarts: usize,
+    finished: bool,
 }
 
 impl Genetic {
@@ -195,6 +207,9 @@ impl Genetic {
             polished: HashSet::new(),
             best: f64::INFINITY,
             stalled: 0,
+            incumbent: None,
+            idle_restarts: 0,
+            finished: false,
         }
     }
 
@@ -427,13 +442,41 @@ impl<'t, 'a> Solver<GaProblem<'t, 'a>, GaState> for Genetic {
             self.stalled += 1;
         }
         self.best = self.best.min(next[0].cost);
+        if self.stalled >= self.opts.stall_generations {
+            let b = &next[0];
+            let better = match &self.incumbent {
+                None => true,
+                Some((pos, cost)) => b.candidate.positions != *pos && b.cost < *cost,
+            };
+            if better {
+                self.incumbent = Some((b.candidate.positions.clone(), b.cost));
+                self.idle_restarts = 0;
+            } else {
+                self.idle_restarts += 1;
+            }
+            if self.idle_restarts >= self.opts.patience {
+                self.finished = true;
+            } else {
+                // restart around the elites
+                let fresh: Vec<Candidate> = (self.opts.elites..self.opts.population)
+                    .map(|_| self.space.random_candidate(&mut self.rng))
+                    .collect();
+                next.truncate(self.opts.elites);
+                next.extend(self.evaluate(problem, fresh).map_err(to_argmin)?);
+                sort(&mut next);
+                self.polish_top(problem, &mut next).map_err(to_argmin)?;
+                sort(&mut next);
+                self.best = self.best.min(next[0].cost);
+                self.stalled = 0;
+            }
+        }
         let best = next[0].clone();
         let kv = argmin::kv!("stalled" => self.stalled as u64; "best_cost" => best.cost;);
         Ok((state.individual(best.clone()).cost(best.cost).population(next), Some(kv)))
     }
 
     fn terminate(&mut self, _state: &GaState) -> TerminationStatus {
-        if self.stalled >= self.opts.stall_generations {
+        if self.finished {
             return TerminationStatus::Terminated(TerminationReason::SolverConverged);
         }
         TerminationStatus::NotTerminated

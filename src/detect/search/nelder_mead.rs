@@ -54,9 +54,20 @@ pub enum Positions {
 /// Nelder-Mead knobs.
 ///
 /// Defaults: `positions = LocalSearch`, `step = 0.15` (initial simplex edge
-/// in unit coordinates), `sd_tolerance = 1e-22` (argmin's stop on the
-/// standard deviation of the vertex costs), `max_iters_per_fit = 400`,
+/// in unit coordinates), `sd_rel = 1e-3`, `sd_tolerance = 1e-30`,
+/// `min_progress = 1e-4`, `rounds = 40`, `max_iters_per_fit = 400`,
 /// `neighbourhood = 1`, `patience = 3`.
+///
+/// One value fit ([`polish`]) is a sequence of Nelder-Mead *rounds*: each
+/// round stops when the standard deviation of the vertex costs falls below
+/// `max(sd_rel * c, sd_tolerance)`, with `c` the best cost at the round's
+/// start; the next round restarts the simplex at the best vertex with an edge
+/// of twice the last round's move. The fit stops when a round lowers the cost
+/// by less than a relative `min_progress`. The tolerance is therefore
+/// relative (scale-free): a fit at a wrong position set stops on its plateau
+/// after a few rounds, a fit at the true one keeps converging towards the
+/// rounding floor, which is what separates position sets whose residuals
+/// differ by 1e-13. Restarting also cures Nelder-Mead's degenerate simplices.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NelderMeadOptions {
     /// Treatment of the positions.
@@ -65,6 +76,12 @@ pub struct NelderMeadOptions {
     pub step: f64,
     /// Stop one fit when the vertex costs' standard deviation is below this.
     pub sd_tolerance: f64,
+    /// A round stops when the vertex costs' standard deviation is below `sd_rel` times its start cost.
+    pub sd_rel: f64,
+    /// A fit stops when a round improves the cost by less than this (relative).
+    pub min_progress: f64,
+    /// Cap on rounds per fit.
+    pub rounds: usize,
     /// Cap on Nelder-Mead iterations per fit.
     pub max_iters_per_fit: usize,
     /// Largest position move (in free positions) tried by the local search.
@@ -78,7 +95,10 @@ impl Default for NelderMeadOptions {
         NelderMeadOptions {
             positions: Positions::LocalSearch,
             step: 0.15,
-            sd_tolerance: 1e-22,
+            sd_tolerance: 1e-30,
+            sd_rel: 1e-3,
+            min_progress: 1e-4,
+            rounds: 40,
             max_iters_per_fit: 400,
             neighbourhood: 1,
             patience: 3,
@@ -100,6 +120,15 @@ impl NelderMeadOptions {
                 ">= 0 and finite",
             ));
         }
+        if !(self.sd_rel >= 0.0 && self.sd_rel.is_finite()) {
+            return Err(Error::invalid("nelder_mead.sd_rel", self.sd_rel, ">= 0 and finite"));
+        }
+        if !(self.min_progress >= 0.0 && self.min_progress < 1.0) {
+            return Err(Error::invalid("nelder_mead.min_progress", self.min_progress, "in [0, 1)"));
+        }
+        if self.rounds == 0 {
+            return Err(Error::invalid("nelder_mead.rounds", 0, ">= 1"));
+        }
         if self.max_iters_per_fit == 0 {
             return Err(Error::invalid("nelder_mead.max_iters_per_fit", 0, ">= 1"));
         }
@@ -120,19 +149,19 @@ pub(crate) struct Budgeted<'t, 'a, S> {
     pub tracked: &'t Tracked<'a>,
     /// Stop when the tracked evaluation count reaches this.
     pub stop_at: usize,
-    /// Stop after this many iterations without a relative improvement of 1e-12.
-    pub stall_iters: Option<usize>,
+    /// Stop after `stall.0` iterations without a relative improvement of `stall.1`.
+    pub stall: Option<(usize, f64)>,
     last_best: f64,
     stalled: usize,
 }
 
 impl<'t, 'a, S> Budgeted<'t, 'a, S> {
-    pub fn new(inner: S, tracked: &'t Tracked<'a>, stop_at: usize, stall_iters: Option<usize>) -> Self {
+    pub fn new(inner: S, tracked: &'t Tracked<'a>, stop_at: usize, stall: Option<(usize, f64)>) -> Self {
         Budgeted {
             inner,
             tracked,
             stop_at,
-            stall_iters,
+            stall,
             last_best: f64::INFINITY,
             stalled: 0,
         }
@@ -159,9 +188,9 @@ impl<O, I: State<Float = f64>, S: Solver<O, I>> Solver<O, I> for Budgeted<'_, '_
                 "evaluation budget spent".into(),
             ));
         }
-        if let Some(limit) = self.stall_iters {
+        if let Some((limit, rel)) = self.stall {
             let b = state.get_best_cost();
-            if b < self.last_best - 1e-12 * self.last_best.abs() {
+            if b < self.last_best - rel * self.last_best.abs() {
                 self.last_best = b;
                 self.stalled = 0;
             } else {
@@ -249,29 +278,52 @@ pub fn polish(
     let x0: Vec<f64> = (0..nv)
         .map(|i| space.to_unit(i, start.values[i]).clamp(0.0, 1.0))
         .collect();
-    let problem = ValueFit {
-        tracked,
-        positions: start.positions.clone(),
-    };
-    let nm = NelderMead::new(simplex(&x0, opts.step))
-        .with_sd_tolerance(opts.sd_tolerance)
-        .map_err(|e| argmin_err("nelder-mead", e))?;
     let stop_at = tracked.evaluations() + max_evals;
-    let res = Executor::new(problem, Budgeted::new(nm, tracked, stop_at, None))
-        .configure(|s| s.max_iters(opts.max_iters_per_fit as u64))
-        .ctrlc(false)
-        .run()
-        .map_err(|e| argmin_err("nelder-mead", e))?;
-    let st = res.state();
-    let best_u = st.get_best_param().cloned().unwrap_or(x0);
-    let best_cost = st.get_best_cost();
+    let (mut x, mut cost) = (x0, c0);
+    let mut step = opts.step;
+    for _ in 0..opts.rounds {
+        if tracked.evaluations() >= stop_at || tracked.done() {
+            break;
+        }
+        let problem = ValueFit {
+            tracked,
+            positions: start.positions.clone(),
+        };
+        let tol = (opts.sd_rel * cost).max(opts.sd_tolerance);
+        let nm = NelderMead::new(simplex(&x, step))
+            .with_sd_tolerance(tol)
+            .map_err(|e| argmin_err("nelder-mead", e))?;
+        let res = Executor::new(problem, Budgeted::new(nm, tracked, stop_at, None))
+            .configure(|s| s.max_iters(opts.max_iters_per_fit as u64))
+            .ctrlc(false)
+            .run()
+            .map_err(|e| argmin_err("nelder-mead", e))?;
+        let st = res.state();
+        let (Some(u), c) = (st.get_best_param(), st.get_best_cost()) else {
+            break;
+        };
+        if !(c < cost) {
+            break;
+        }
+        let moved = u
+            .iter()
+            .zip(&x)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        let progress = (cost - c) / cost.abs().max(f64::MIN_POSITIVE);
+        x = u.clone();
+        cost = c;
+        step = (2.0 * moved).clamp(1e-9, opts.step);
+        if progress < opts.min_progress {
+            break;
+        }
+    }
     let fit = ValueFit {
         tracked,
         positions: start.positions.clone(),
     };
-    let (cand, _) = fit.candidate(&best_u);
-    if best_cost < c0 {
-        Ok((cand, best_cost))
+    if cost < c0 {
+        Ok((fit.candidate(&x).0, cost))
     } else {
         Ok((start.clone(), c0))
     }

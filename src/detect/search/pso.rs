@@ -20,14 +20,21 @@
 //! steps shrink only as fast as the velocities damp), so the run ends, if
 //! asked, with Nelder-Mead on the values at the best positions
 //! ([`Finish::Polish`]) or with the discrete neighbour search of
-//! [`super::nelder_mead::local_search`] ([`Finish::LocalSearch`]). The swarm
-//! gets `swarm_share` of the budget, the finish the rest.
+//! [`super::nelder_mead::local_search`] ([`Finish::LocalSearch`]).
+//!
+//! ## Episodes
+//!
+//! A swarm stops after `stall_iters` sweeps without improvement (or at
+//! `swarm_share` of the budget); its finish follows; then a new swarm, seeded
+//! from `(seed, episode)`, starts. The run stops when `patience` episodes in a
+//! row brought no better position set, or the budget is spent.
 //!
 //! Seeding: `ParticleSwarm::with_rng_generator(ChaCha8Rng::seed_from_u64(seed))`
 //! (argmin's default seeds itself from the OS, which would not be reproducible).
 
 use super::nelder_mead::{local_search, polish, Budgeted};
 use super::{argmin_err, finite_cost, Candidate, SearchOptions, Tracked};
+use argmin::core::State;
 use crate::error::{Error, Result};
 use argmin::core::{CostFunction, Executor};
 use argmin::solver::particleswarm::ParticleSwarm;
@@ -49,9 +56,9 @@ pub enum Finish {
 /// Particle-swarm knobs.
 ///
 /// Defaults: `particles = 40`; argmin's factors (inertia `1/(2 ln 2)`,
-/// cognitive and social `0.5 + ln 2`); `stall_iters = 150` (stop the swarm
+/// cognitive and social `0.5 + ln 2`); `stall_iters = 30` (stop the swarm
 /// after that many sweeps without a relative improvement of 1e-12);
-/// `finish = LocalSearch`; `swarm_share = 0.7`.
+/// `finish = LocalSearch`; `swarm_share = 0.7`; `patience = 2`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PsoOptions {
     /// Swarm size (>= 2).
@@ -66,8 +73,11 @@ pub struct PsoOptions {
     pub stall_iters: usize,
     /// What runs after the swarm.
     pub finish: Finish,
-    /// Fraction of the budget for the swarm when a finish follows, in `(0, 1]`.
+    /// Cap on one swarm's evaluations, as a fraction of the budget, in `(0, 1]`
+    /// (1 when `finish = None`).
     pub swarm_share: f64,
+    /// Episodes in a row without a better position set before stopping (>= 1).
+    pub patience: usize,
 }
 
 impl Default for PsoOptions {
@@ -77,9 +87,10 @@ impl Default for PsoOptions {
             inertia: 1.0 / (2.0 * 2f64.ln()),
             cognitive: 0.5 + 2f64.ln(),
             social: 0.5 + 2f64.ln(),
-            stall_iters: 150,
+            stall_iters: 30,
             finish: Finish::LocalSearch,
             swarm_share: 0.7,
+            patience: 2,
         }
     }
 }
@@ -102,6 +113,9 @@ impl PsoOptions {
         }
         if self.stall_iters == 0 {
             return Err(Error::invalid("pso.stall_iters", 0, ">= 1"));
+        }
+        if self.patience == 0 {
+            return Err(Error::invalid("pso.patience", 0, ">= 1"));
         }
         if !(self.swarm_share > 0.0 && self.swarm_share <= 1.0) {
             return Err(Error::invalid("pso.swarm_share", self.swarm_share, "in (0, 1]"));
@@ -155,37 +169,63 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
     lo.extend(std::iter::repeat_n(0.0, space.n_values()));
     hi.extend(std::iter::repeat_n(1.0, space.n_values()));
     let share = if o.finish == Finish::None { 1.0 } else { o.swarm_share };
-    let stop_at = ((opts.max_evals as f64) * share).ceil() as usize;
-    let pso = ParticleSwarm::new((lo, hi), o.particles)
-        .with_inertia_factor(o.inertia)
-        .and_then(|p| p.with_cognitive_factor(o.cognitive))
-        .and_then(|p| p.with_social_factor(o.social))
-        .map_err(|e| argmin_err("particle-swarm", e))?
-        .with_rng_generator(ChaCha8Rng::seed_from_u64(opts.seed));
-    Executor::new(
-        Swarmed { tracked },
-        Budgeted::new(pso, tracked, stop_at, Some(o.stall_iters)),
-    )
-    .configure(|s| s.max_iters(u64::MAX))
-    .ctrlc(false)
-    .run()
-    .map_err(|e| argmin_err("particle-swarm", e))?;
-    let Some((best, _)) = tracked.best() else {
-        return Ok(());
-    };
-    let best = space.canonicalize(&best);
-    match o.finish {
-        Finish::None => {}
-        Finish::Polish => {
-            if !tracked.done() {
-                polish(tracked, &best, tracked.remaining(), &opts.nelder_mead)?;
+    let swarm_cap = (((opts.max_evals as f64) * share).ceil() as usize).max(1);
+    let mut incumbent: Option<(Vec<usize>, f64)> = None;
+    let mut idle = 0;
+    let mut episode: u64 = 0;
+    while !tracked.done() && idle < o.patience {
+        let stop_at = tracked.evaluations() + swarm_cap.min(tracked.remaining());
+        let rng = ChaCha8Rng::seed_from_u64(episode_seed(opts.seed, episode));
+        let pso = ParticleSwarm::new((lo.clone(), hi.clone()), o.particles)
+            .with_inertia_factor(o.inertia)
+            .and_then(|p| p.with_cognitive_factor(o.cognitive))
+            .and_then(|p| p.with_social_factor(o.social))
+            .map_err(|e| argmin_err("particle-swarm", e))?
+            .with_rng_generator(rng);
+        let res = Executor::new(
+            Swarmed { tracked },
+            Budgeted::new(pso, tracked, stop_at, Some((o.stall_iters, 1e-12))),
+        )
+        .configure(|s| s.max_iters(u64::MAX))
+        .ctrlc(false)
+        .run()
+        .map_err(|e| argmin_err("particle-swarm", e))?;
+        let st = res.state();
+        let Some(best) = st.get_best_param() else {
+            break;
+        };
+        let best = space.canonicalize(&Swarmed { tracked }.candidate(&best.position));
+        let mut out = (best.clone(), st.get_best_cost());
+        if !tracked.done() {
+            match o.finish {
+                Finish::None => {}
+                Finish::Polish => {
+                    out = polish(tracked, &best, tracked.remaining(), &opts.nelder_mead)?;
+                }
+                Finish::LocalSearch => {
+                    out = local_search(tracked, &best, &opts.nelder_mead)?;
+                }
             }
         }
-        Finish::LocalSearch => {
-            if !tracked.done() {
-                local_search(tracked, &best, &opts.nelder_mead)?;
-            }
+        let better = match &incumbent {
+            None => true,
+            Some((pos, c)) => out.0.positions != *pos && out.1 < *c,
+        };
+        if better {
+            incumbent = Some((out.0.positions.clone(), out.1));
+            idle = 0;
+        } else {
+            idle += 1;
         }
+        episode += 1;
     }
     Ok(())
+}
+
+/// Seed of swarm episode `e`: a SplitMix64 step of `seed` and `e`.
+fn episode_seed(seed: u64, e: u64) -> u64 {
+    let mut z = seed ^ e.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
 }
