@@ -154,6 +154,9 @@ fn main() {
                 let hit = b.positions == truth.positions
                     && b.values.iter().zip(&truth.values).all(|(x, y)| ((x - y) / y).abs() < 0.01);
                 ok += hit as usize;
+                if !hit && args.iter().any(|a| a == "--verbose") {
+                    println!("    miss {} seed {seed}: {:?} r = {:.2e} evals {}", v.name, b, r.cost, r.evaluations);
+                }
                 j1.push(b.positions[0] as f64);
                 j2.push(b.positions[1] as f64);
                 m1.push(b.values[0]);

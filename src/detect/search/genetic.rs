@@ -29,9 +29,12 @@
 //!    second-best position set can be 1e-13 of its scale: random value
 //!    mutation alone rarely resolves it.
 //!
-//! **Restarts**: when the best cost has not improved by a relative 1e-12 for
-//! `stall_generations`, the population is re-drawn at random around the
-//! `elites` best individuals. The run stops when `patience` restarts in a row
+//! **Restarts**: when for `stall_generations` the best individual kept its
+//! position set and its cost did not fall by a relative `stall_rel` (with
+//! exact data the cost of the true position set keeps falling by orders of
+//! magnitude towards the rounding floor; such refinements say nothing about
+//! the positions, hence a large threshold), the population is re-drawn at random (an independent
+//! restart; the best so far is kept by the tracker). The run stops when `patience` restarts in a row
 //! brought no better position set, when the budget is spent or when the
 //! target cost is reached.
 //! Children are evaluated in one batch per generation, in parallel when
@@ -56,7 +59,7 @@ use std::collections::HashSet;
 /// Defaults: `population = 40`, `tournament = 3`, `crossover_rate = 0.9`,
 /// `position_mutation = 0.3`, `jump_probability = 0.3`,
 /// `value_mutation = 0.5`, `sigma_range = (1e-7, 0.3)`, `elites = 2`,
-/// `stall_generations = 30`, `patience = 2`, `polish = true`, `polish_top = 2`,
+/// `stall_generations = 30`, `stall_rel = 0.99`, `patience = 2`, `polish = true`, `polish_top = 2`,
 /// `polish_evals = 300`, `parallel = false`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GeneticOptions {
@@ -78,6 +81,9 @@ pub struct GeneticOptions {
     pub elites: usize,
     /// Generations without improvement before a restart (>= 1).
     pub stall_generations: usize,
+    /// Relative improvement of the best cost that resets the stall count (as a
+    /// change of the best position set does), in `[0, 1)`.
+    pub stall_rel: f64,
     /// Restarts in a row without a better position set before stopping (>= 1).
     pub patience: usize,
     /// Lamarckian Nelder-Mead polish of the best new position sets.
@@ -102,6 +108,7 @@ impl Default for GeneticOptions {
             sigma_range: (1e-7, 0.3),
             elites: 2,
             stall_generations: 30,
+            stall_rel: 0.99,
             patience: 2,
             polish: true,
             polish_top: 2,
@@ -149,6 +156,9 @@ impl GeneticOptions {
         if self.stall_generations == 0 {
             return Err(Error::invalid("genetic.stall_generations", 0, ">= 1"));
         }
+        if !(0.0..1.0).contains(&self.stall_rel) {
+            return Err(Error::invalid("genetic.stall_rel", self.stall_rel, "in [0, 1)"));
+        }
         if self.patience == 0 {
             return Err(Error::invalid("genetic.patience", 0, ">= 1"));
         }
@@ -189,6 +199,7 @@ pub struct Genetic {
     rng: ChaCha8Rng,
     polished: HashSet<Vec<usize>>,
     best: f64,
+    best_positions: Option<Vec<usize>>,
     stalled: usize,
     incumbent: Option<(Vec<usize>, f64)>,
     idle_restarts: usize,
@@ -206,6 +217,7 @@ impl Genetic {
             rng: ChaCha8Rng::seed_from_u64(seed),
             polished: HashSet::new(),
             best: f64::INFINITY,
+            best_positions: None,
             stalled: 0,
             incumbent: None,
             idle_restarts: 0,
@@ -436,12 +448,14 @@ impl<'t, 'a> Solver<GaProblem<'t, 'a>, GaState> for Genetic {
         sort(&mut next);
         self.polish_top(problem, &mut next).map_err(to_argmin)?;
         sort(&mut next);
-        if next[0].cost < self.best - 1e-12 * self.best.abs() {
+        let moved = self.best_positions.as_ref() != Some(&next[0].candidate.positions);
+        if moved || next[0].cost < self.best - self.opts.stall_rel * self.best.abs() {
             self.stalled = 0;
+            self.best = next[0].cost;
+            self.best_positions = Some(next[0].candidate.positions.clone());
         } else {
             self.stalled += 1;
         }
-        self.best = self.best.min(next[0].cost);
         if self.stalled >= self.opts.stall_generations {
             let b = &next[0];
             let better = match &self.incumbent {
@@ -457,16 +471,18 @@ impl<'t, 'a> Solver<GaProblem<'t, 'a>, GaState> for Genetic {
             if self.idle_restarts >= self.opts.patience {
                 self.finished = true;
             } else {
-                // restart around the elites
-                let fresh: Vec<Candidate> = (self.opts.elites..self.opts.population)
+                // independent restart: a fresh population (the incumbent is
+                // kept by the tracker; elites would pull the new population
+                // back into the old basin)
+                let fresh: Vec<Candidate> = (0..self.opts.population)
                     .map(|_| self.space.random_candidate(&mut self.rng))
                     .collect();
-                next.truncate(self.opts.elites);
-                next.extend(self.evaluate(problem, fresh).map_err(to_argmin)?);
+                next = self.evaluate(problem, fresh).map_err(to_argmin)?;
                 sort(&mut next);
                 self.polish_top(problem, &mut next).map_err(to_argmin)?;
                 sort(&mut next);
-                self.best = self.best.min(next[0].cost);
+                self.best = next[0].cost;
+                self.best_positions = Some(next[0].candidate.positions.clone());
                 self.stalled = 0;
             }
         }
