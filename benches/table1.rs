@@ -1,11 +1,13 @@
 //! The paper's Table 1, rerun with every optimizer.
 //!
-//! `cargo bench --bench table1 [-- --seeds 20 --budget 20000 --only ga,pso]`
+//! `cargo bench --bench table1 [-- --seeds 20 --budget 20000 --only ga,pso
+//!  --systems 1,3 --data exact|pipeline --t-end 400 --dt 0.05 --verbose]`
 //!
 //! Systems 1-4 (n = 5, 10, 20, 20; two mass defects; k = 1, d = 0.1); the
-//! unknowns are 2 positions and 2 masses in [0.1, 20] (log scale). Data: the
-//! exact model at 80 Gauss-Legendre nodes on log-graded panels of [0, 300]
-//! (`support/exact.rs`). For each system and optimizer, over the seeds:
+//! unknowns are 2 positions and 2 masses in [0.1, 20] (log scale). Data at
+//! 80 Gauss-Legendre nodes on log-graded panels of [0, 300]
+//! (`support/exact.rs`): the exact model (default), or the paper's pipeline
+//! (`--data pipeline`: simulated x_1(t), Laplace-transformed). For each system and optimizer, over the seeds:
 //! success rate (both positions exact, both masses within 1%), median
 //! estimates, median evaluations, median wall time (single thread), next to
 //! the paper's GA row. The header of each system gives the residual gap
@@ -18,9 +20,7 @@ mod exact;
 use exact::{default_rule, ExactObjective};
 use springmass::detect::search::nelder_mead::{polish, Positions};
 use springmass::detect::search::pso::Finish;
-use springmass::detect::search::{
-    minimize, Candidate, Method, Objective, SearchOptions, Tracked,
-};
+use springmass::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Tracked};
 use std::time::Instant;
 
 struct Variant {
@@ -31,19 +31,31 @@ struct Variant {
 
 fn variants() -> Vec<Variant> {
     vec![
-        Variant { name: "ga", method: Method::Genetic, tweak: |_| {} },
+        Variant {
+            name: "ga",
+            method: Method::Genetic,
+            tweak: |_| {},
+        },
         Variant {
             name: "ga-no-polish",
             method: Method::Genetic,
             tweak: |o| o.genetic.polish = false,
         },
-        Variant { name: "nelder-mead", method: Method::NelderMead, tweak: |_| {} },
+        Variant {
+            name: "nelder-mead",
+            method: Method::NelderMead,
+            tweak: |_| {},
+        },
         Variant {
             name: "nm-relax-round",
             method: Method::NelderMead,
             tweak: |o| o.nelder_mead.positions = Positions::RelaxRound,
         },
-        Variant { name: "pso", method: Method::ParticleSwarm, tweak: |_| {} },
+        Variant {
+            name: "pso",
+            method: Method::ParticleSwarm,
+            tweak: |_| {},
+        },
         Variant {
             name: "pso-no-finish",
             method: Method::ParticleSwarm,
@@ -76,7 +88,10 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// Nelder-Mead from the true masses), and the truth's own residual.
 fn gap(obj: &ExactObjective, truth: &Candidate) -> (f64, f64, Vec<usize>) {
     let n = obj.space().n;
-    let opts = SearchOptions { max_evals: usize::MAX, ..Default::default() };
+    let opts = SearchOptions {
+        max_evals: usize::MAX,
+        ..Default::default()
+    };
     let t = Tracked::new(obj, &opts);
     let r_truth = obj.cost(truth);
     let mut best = (f64::INFINITY, vec![]);
@@ -85,7 +100,10 @@ fn gap(obj: &ExactObjective, truth: &Candidate) -> (f64, f64, Vec<usize>) {
             if [a, b] == truth.positions[..] {
                 continue;
             }
-            let start = Candidate { positions: vec![a, b], values: truth.values.clone() };
+            let start = Candidate {
+                positions: vec![a, b],
+                values: truth.values.clone(),
+            };
             let mut nm = opts.nelder_mead.clone();
             nm.max_iters_per_fit = 2000;
             let (_, v) = polish(&t, &start, 5000, &nm).unwrap();
@@ -105,21 +123,44 @@ fn main() {
             .and_then(|i| args.get(i + 1).cloned())
     };
     let seeds: u64 = get("--seeds").and_then(|s| s.parse().ok()).unwrap_or(20);
-    let budget: usize = get("--budget").and_then(|s| s.parse().ok()).unwrap_or(20_000);
+    let budget: usize = get("--budget")
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(20_000);
     let only: Option<Vec<String>> = get("--only").map(|s| s.split(',').map(String::from).collect());
     let systems: Vec<usize> = get("--systems")
         .map(|s| s.split(',').filter_map(|x| x.parse().ok()).collect())
         .unwrap_or(vec![1, 2, 3, 4]);
     let rule = default_rule();
+    let pipeline = get("--data").is_some_and(|d| d == "pipeline");
+    let t_end: f64 = get("--t-end").and_then(|s| s.parse().ok()).unwrap_or(400.0);
+    let dt: f64 = get("--dt").and_then(|s| s.parse().ok()).unwrap_or(0.05);
     println!(
-        "Table 1 rerun: exact-model data, {} nodes (8-pt Gauss-Legendre on 10 log-graded panels of [0, 300]); \
+        "Table 1 rerun: {} data, {} nodes (8-pt Gauss-Legendre on 10 log-graded panels of [0, 300]); \
          unknowns 2 positions + 2 masses in [0.1, 20]; budget {budget} evaluations; {seeds} seeds; success = positions exact and masses within 1%",
+        if pipeline { "time-series pipeline" } else { "exact-model" },
         rule.len()
     );
     for sys in systems {
         let (n, d) = ExactObjective::table1_system(sys);
         let chain = ExactObjective::table1_chain(sys);
-        let obj = ExactObjective::new(&chain, 2, (0.1, 20.0), &rule);
+        let obj = if pipeline {
+            let (data, rel) = ExactObjective::pipeline_data(&chain, &rule, t_end, dt);
+            let max_dev = rule
+                .iter()
+                .zip(&data)
+                .map(|(&(s, _), x)| {
+                    let e = springmass::forward::response(&chain, s, 1).unwrap();
+                    ((x - e) / e).abs()
+                })
+                .fold(0.0, f64::max);
+            println!(
+                "\nSystem {sys} data: simulated x_1 on [0, {t_end}], dt = {dt}, Laplace-transformed; \
+                 largest relative error vs exact model {max_dev:.1e} (transform's own estimate {rel:.1e})"
+            );
+            ExactObjective::with_data(&chain, 2, (0.1, 20.0), &rule, data)
+        } else {
+            ExactObjective::new(&chain, 2, (0.1, 20.0), &rule)
+        };
         let truth = Candidate {
             positions: vec![d[0].0, d[1].0],
             values: vec![d[0].1, d[1].1],
@@ -145,17 +186,27 @@ fn main() {
             let (mut j1, mut m1, mut j2, mut m2) = (vec![], vec![], vec![], vec![]);
             let (mut evals, mut ms, mut rs) = (vec![], vec![], vec![]);
             for seed in 0..seeds {
-                let mut opts = SearchOptions { max_evals: budget, seed, ..Default::default() };
+                let mut opts = SearchOptions {
+                    max_evals: budget,
+                    seed,
+                    ..Default::default()
+                };
                 (v.tweak)(&mut opts);
                 let t0 = Instant::now();
                 let r = minimize(v.method, &obj, &opts).expect("search");
                 ms.push(t0.elapsed().as_secs_f64() * 1e3);
                 let b = &r.best;
                 let hit = b.positions == truth.positions
-                    && b.values.iter().zip(&truth.values).all(|(x, y)| ((x - y) / y).abs() < 0.01);
+                    && b.values
+                        .iter()
+                        .zip(&truth.values)
+                        .all(|(x, y)| ((x - y) / y).abs() < 0.01);
                 ok += hit as usize;
                 if !hit && args.iter().any(|a| a == "--verbose") {
-                    println!("    miss {} seed {seed}: {:?} r = {:.2e} evals {}", v.name, b, r.cost, r.evaluations);
+                    println!(
+                        "    miss {} seed {seed}: {:?} r = {:.2e} evals {}",
+                        v.name, b, r.cost, r.evaluations
+                    );
                 }
                 j1.push(b.positions[0] as f64);
                 j2.push(b.positions[1] as f64);

@@ -8,16 +8,19 @@ mod exact;
 
 use exact::{default_rule, ExactObjective};
 use proptest::prelude::*;
-use springmass::detect::search::{
-    minimize, Candidate, Method, Objective, SearchOptions, Space,
-};
+use springmass::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
 use springmass::forward::response;
 use springmass::{Chain, Defect, Error};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 fn table1(sys: usize) -> (ExactObjective, Candidate) {
     let (_, d) = ExactObjective::table1_system(sys);
-    let obj = ExactObjective::new(&ExactObjective::table1_chain(sys), 2, (0.1, 20.0), &default_rule());
+    let obj = ExactObjective::new(
+        &ExactObjective::table1_chain(sys),
+        2,
+        (0.1, 20.0),
+        &default_rule(),
+    );
     let truth = Candidate {
         positions: vec![d[0].0, d[1].0],
         values: vec![d[0].1, d[1].1],
@@ -76,7 +79,13 @@ impl Synthetic {
             n: 12,
             n_positions: 2,
             excluded: vec![5, 9],
-            bounds: vec![(0.1, 10.0), (0.1, 10.0), (-1.0, 1.0), (-1.0, 1.0), (0.0, 1.0)],
+            bounds: vec![
+                (0.1, 10.0),
+                (0.1, 10.0),
+                (-1.0, 1.0),
+                (-1.0, 1.0),
+                (0.0, 1.0),
+            ],
             log_scale: vec![true, true, false, false, false],
             pairing: vec![Some(0), Some(1), Some(0), Some(1), None],
         })
@@ -113,7 +122,10 @@ fn exact_objective_matches_forward_model() {
     let (obj, _) = table1(3);
     let chain = Chain::paper(20)
         .unwrap()
-        .with_defects([Defect::Mass { at: 4, m: 0.3 }, Defect::Mass { at: 17, m: 7.0 }])
+        .with_defects([
+            Defect::Mass { at: 4, m: 0.3 },
+            Defect::Mass { at: 17, m: 7.0 },
+        ])
         .unwrap();
     let c = Candidate {
         positions: vec![4, 17],
@@ -122,7 +134,10 @@ fn exact_objective_matches_forward_model() {
     for (i, &(s, _)) in default_rule().iter().enumerate() {
         let want = response(&chain, s, 1).unwrap();
         let got = obj.predict(i, &c);
-        assert!((got - want).abs() <= 1e-13 * want.abs(), "s = {s}: {got} vs {want}");
+        assert!(
+            (got - want).abs() <= 1e-13 * want.abs(),
+            "s = {s}: {got} vs {want}"
+        );
     }
     // the truth has (numerically) zero residual, a far guess does not
     let (obj, truth) = table1(1);
@@ -172,7 +187,10 @@ fn same_seed_same_result_different_seed_differs() {
         let b = minimize(method, &obj, &opts(7)).unwrap();
         assert_eq!(a, b, "{method:?}");
         let c = minimize(method, &obj, &opts(8)).unwrap();
-        assert_ne!(a.trace, c.trace, "{method:?}: seeds 7 and 8 gave the same run");
+        assert_ne!(
+            a.trace, c.trace,
+            "{method:?}: seeds 7 and 8 gave the same run"
+        );
     }
 }
 
@@ -212,7 +230,11 @@ fn evaluations_are_counted_and_budget_is_kept() {
                 ..Default::default()
             };
             let r = minimize(method, &audit, &opts).unwrap();
-            assert_eq!(r.evaluations, audit.calls.load(Ordering::SeqCst), "{method:?}");
+            assert_eq!(
+                r.evaluations,
+                audit.calls.load(Ordering::SeqCst),
+                "{method:?}"
+            );
             // overshoot: at most one generation / one swarm sweep / one simplex step
             let slack = 40 + 3;
             assert!(
@@ -220,7 +242,11 @@ fn evaluations_are_counted_and_budget_is_kept() {
                 "{method:?}: {} evaluations for a budget of {budget}",
                 r.evaluations
             );
-            assert!(r.evaluations >= budget.min(40), "{method:?} stopped at {}", r.evaluations);
+            assert!(
+                r.evaluations >= budget.min(40),
+                "{method:?} stopped at {}",
+                r.evaluations
+            );
         }
     }
 }
@@ -239,17 +265,28 @@ fn candidates_stay_in_space_and_pairs_stay_together() {
                 ..Default::default()
             };
             let r = minimize(method, &audit, &opts).unwrap();
-            assert_eq!(audit.outside.load(Ordering::SeqCst), 0, "{method:?} left the space");
+            assert_eq!(
+                audit.outside.load(Ordering::SeqCst),
+                0,
+                "{method:?} left the space"
+            );
             assert!(syn.0.contains(&r.best));
             assert!(r.best.positions.windows(2).all(|w| w[0] < w[1]));
             let t = Synthetic::truth();
-            assert_eq!(r.best.positions, t.positions, "{method:?} seed {seed}: {:?}", r.best);
+            assert_eq!(
+                r.best.positions, t.positions,
+                "{method:?} seed {seed}: {:?}",
+                r.best
+            );
             for (x, y) in r.best.values.iter().zip(&t.values) {
                 assert!((x - y).abs() < 1e-3, "{method:?} seed {seed}: {:?}", r.best);
             }
             // trace: strictly decreasing cost at increasing evaluation counts, ending at the result
             assert!(!r.trace.is_empty());
-            assert!(r.trace.windows(2).all(|w| w[0].0 < w[1].0 && w[0].1 > w[1].1));
+            assert!(r
+                .trace
+                .windows(2)
+                .all(|w| w[0].0 < w[1].0 && w[0].1 > w[1].1));
             let last = *r.trace.last().unwrap();
             assert_eq!(last.1, r.cost);
             assert!(last.0 <= r.evaluations);
@@ -261,14 +298,25 @@ fn candidates_stay_in_space_and_pairs_stay_together() {
 #[test]
 fn single_defect_and_three_defects() {
     // k = 1: one defect (n = 10, at 6, m = 0.4)
-    let chain = Chain::paper(10).unwrap().with_defect(Defect::Mass { at: 6, m: 0.4 }).unwrap();
+    let chain = Chain::paper(10)
+        .unwrap()
+        .with_defect(Defect::Mass { at: 6, m: 0.4 })
+        .unwrap();
     let obj = ExactObjective::new(&chain, 1, (0.1, 20.0), &default_rule());
     let truth = Candidate {
         positions: vec![6],
         values: vec![0.4],
     };
     for method in Method::ALL {
-        let r = minimize(method, &obj, &SearchOptions { max_evals: 10_000, ..Default::default() }).unwrap();
+        let r = minimize(
+            method,
+            &obj,
+            &SearchOptions {
+                max_evals: 10_000,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert!(recovered(&r.best, &truth, 1e-4), "{method:?}: {:?}", r.best);
     }
     // k = 3 on a short chain (shallow defects are resolvable)
@@ -286,8 +334,22 @@ fn single_defect_and_three_defects() {
         values: vec![2.0, 0.5, 3.0],
     };
     for method in Method::ALL {
-        let r = minimize(method, &obj, &SearchOptions { max_evals: 40_000, seed: 2, ..Default::default() }).unwrap();
-        assert!(recovered(&r.best, &truth, 1e-2), "{method:?}: {:?} r = {:e}", r.best, r.cost);
+        let r = minimize(
+            method,
+            &obj,
+            &SearchOptions {
+                max_evals: 40_000,
+                seed: 2,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert!(
+            recovered(&r.best, &truth, 1e-2),
+            "{method:?}: {:?} r = {:e}",
+            r.best,
+            r.cost
+        );
     }
 }
 
@@ -325,13 +387,25 @@ impl Objective for Nasty {
 fn non_finite_costs_never_reach_the_optimizers() {
     let nasty = Nasty(Space::masses(10, 1, (0.1, 10.0)));
     for method in Method::ALL {
-        let r = minimize(method, &nasty, &SearchOptions { max_evals: 3000, ..Default::default() }).unwrap();
+        let r = minimize(
+            method,
+            &nasty,
+            &SearchOptions {
+                max_evals: 3000,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert!(r.cost.is_finite());
         // a finite-cost position (2, 5 or 8: isolated by non-finite walls, so a
         // local method may stop at 5 or 8), with its value fitted
         assert_eq!(r.best.positions[0] % 3, 2, "{method:?}");
         // (fits stop at a relative cost tolerance: with a cost offset of 8, |v - 1| ~ 0.03)
-        assert!((r.best.values[0] - 1.0).abs() < 0.1, "{method:?}: {:?}", r.best);
+        assert!(
+            (r.best.values[0] - 1.0).abs() < 0.1,
+            "{method:?}: {:?}",
+            r.best
+        );
         if method != Method::NelderMead {
             assert_eq!(r.best.positions, vec![2], "{method:?}");
         }
@@ -345,17 +419,32 @@ fn bad_input_gives_typed_errors() {
         Error::InvalidParameter { field, .. } => field,
         e => panic!("unexpected {e}"),
     };
-    let o = SearchOptions { max_evals: 0, ..Default::default() };
-    assert_eq!(field(minimize(Method::Genetic, &obj, &o).unwrap_err()), "max_evals");
+    let o = SearchOptions {
+        max_evals: 0,
+        ..Default::default()
+    };
+    assert_eq!(
+        field(minimize(Method::Genetic, &obj, &o).unwrap_err()),
+        "max_evals"
+    );
     let mut o = SearchOptions::default();
     o.genetic.population = 2;
-    assert_eq!(field(minimize(Method::Genetic, &obj, &o).unwrap_err()), "genetic.population");
+    assert_eq!(
+        field(minimize(Method::Genetic, &obj, &o).unwrap_err()),
+        "genetic.population"
+    );
     let mut o = SearchOptions::default();
     o.pso.particles = 1;
-    assert_eq!(field(minimize(Method::ParticleSwarm, &obj, &o).unwrap_err()), "pso.particles");
+    assert_eq!(
+        field(minimize(Method::ParticleSwarm, &obj, &o).unwrap_err()),
+        "pso.particles"
+    );
     let mut o = SearchOptions::default();
     o.nelder_mead.step = 0.0;
-    assert_eq!(field(minimize(Method::NelderMead, &obj, &o).unwrap_err()), "nelder_mead.step");
+    assert_eq!(
+        field(minimize(Method::NelderMead, &obj, &o).unwrap_err()),
+        "nelder_mead.step"
+    );
     // a space with more defects than free positions
     let mut s = Synthetic::new();
     s.0.n_positions = 11;
@@ -371,7 +460,10 @@ fn bad_input_gives_typed_errors() {
     );
     assert!("simplex".parse::<Method>().is_err());
     assert_eq!("pso".parse::<Method>().unwrap(), Method::ParticleSwarm);
-    assert_eq!(serde_json::to_string(&Method::NelderMead).unwrap(), "\"nelder-mead\"");
+    assert_eq!(
+        serde_json::to_string(&Method::NelderMead).unwrap(),
+        "\"nelder-mead\""
+    );
 }
 
 proptest! {

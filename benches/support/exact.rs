@@ -82,6 +82,22 @@ impl ExactObjective {
     /// Data from `truth` (mass defects only), `k` unknown defects with masses
     /// in `bounds` on the uniform chain of `truth` (`mass = 1`).
     pub fn new(truth: &Chain, k: usize, bounds: (f64, f64), rule: &[(f64, f64)]) -> ExactObjective {
+        let data = rule
+            .iter()
+            .map(|&(s, _)| response(truth, s, 1).expect("valid s"))
+            .collect();
+        Self::with_data(truth, k, bounds, rule, data)
+    }
+
+    /// As [`ExactObjective::new`] with given observed data `X_1*(s_i)`, one per node.
+    pub fn with_data(
+        truth: &Chain,
+        k: usize,
+        bounds: (f64, f64),
+        rule: &[(f64, f64)],
+        data: Vec<f64>,
+    ) -> ExactObjective {
+        assert_eq!(data.len(), rule.len());
         let n = truth.n();
         let mut o = ExactObjective {
             space: Space::masses(n, k, bounds),
@@ -92,7 +108,7 @@ impl ExactObjective {
             g11: Vec::new(),
             g1: Vec::new(),
             gjj: Vec::new(),
-            data: Vec::new(),
+            data,
         };
         for &(s, w) in rule {
             let g = Green::new(n, truth.k(), truth.mass(), truth.d(), s);
@@ -107,9 +123,37 @@ impl ExactObjective {
                     o.gjj.push(g.entry(a, b));
                 }
             }
-            o.data.push(response(truth, s, 1).expect("valid s"));
         }
         o
+    }
+
+    /// The paper's pipeline: simulate `x_1(t)` on `[0, t_end]` with step `dt`
+    /// (library simulator), Laplace-transform the samples (library Filon-type
+    /// transform, envelope tail bound) at the nodes. Returns the data and the
+    /// largest relative error estimate over the nodes.
+    pub fn pipeline_data(
+        truth: &Chain,
+        rule: &[(f64, f64)],
+        t_end: f64,
+        dt: f64,
+    ) -> (Vec<f64>, f64) {
+        use springmass::time::series::{SeriesTransform, TransformOptions};
+        use springmass::time::simulate::{simulate, SimOptions};
+        use springmass::Complex64;
+        let traj = simulate(truth, &SimOptions::new(t_end, dt)).expect("simulation");
+        let x = traj.x(1).expect("x_1 observed");
+        let tr =
+            SeriesTransform::uniform(0.0, dt, x, &TransformOptions::default()).expect("transform");
+        let mut worst: f64 = 0.0;
+        let data = rule
+            .iter()
+            .map(|&(s, _)| {
+                let v = tr.eval(Complex64::new(s, 0.0)).expect("transform at s");
+                worst = worst.max(v.err / v.value.re.abs());
+                v.value.re
+            })
+            .collect();
+        (data, worst)
     }
 
     /// The paper's Table 1 system `i` (1..=4): (n, [(j1, m1), (j2, m2)]).

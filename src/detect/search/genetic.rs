@@ -46,8 +46,8 @@ use super::nelder_mead::{polish, step_position, NelderMeadOptions};
 use super::{argmin_err, Candidate, SearchOptions, Space, Tracked};
 use crate::error::{Error, Result};
 use argmin::core::{
-    CostFunction, Executor, PopulationState, Problem, Solver, TerminationReason,
-    TerminationStatus, KV,
+    CostFunction, Executor, PopulationState, Problem, Solver, TerminationReason, TerminationStatus,
+    KV,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -123,7 +123,11 @@ impl GeneticOptions {
     /// [`Error::InvalidParameter`] naming the field.
     pub fn validate(&self) -> Result<()> {
         if self.population < 4 {
-            return Err(Error::invalid("genetic.population", self.population, ">= 4"));
+            return Err(Error::invalid(
+                "genetic.population",
+                self.population,
+                ">= 4",
+            ));
         }
         if self.tournament == 0 {
             return Err(Error::invalid("genetic.tournament", 0, ">= 1"));
@@ -157,13 +161,21 @@ impl GeneticOptions {
             return Err(Error::invalid("genetic.stall_generations", 0, ">= 1"));
         }
         if !(0.0..1.0).contains(&self.stall_rel) {
-            return Err(Error::invalid("genetic.stall_rel", self.stall_rel, "in [0, 1)"));
+            return Err(Error::invalid(
+                "genetic.stall_rel",
+                self.stall_rel,
+                "in [0, 1)",
+            ));
         }
         if self.patience == 0 {
             return Err(Error::invalid("genetic.patience", 0, ">= 1"));
         }
         if self.polish && self.polish_evals == 0 {
-            return Err(Error::invalid("genetic.polish_evals", 0, ">= 1 when polish"));
+            return Err(Error::invalid(
+                "genetic.polish_evals",
+                0,
+                ">= 1 when polish",
+            ));
         }
         Ok(())
     }
@@ -266,7 +278,11 @@ impl Genetic {
             } else {
                 self.free_position(&taken)
             };
-            let donor = if pos == alt.positions[p] && pos != src.positions[p] { alt } else { src };
+            let donor = if pos == alt.positions[p] && pos != src.positions[p] {
+                alt
+            } else {
+                src
+            };
             for &i in g {
                 child.values[i] = if a.positions[p] == b.positions[p] {
                     self.blend(i, a.values[i], b.values[i])
@@ -303,7 +319,9 @@ impl Genetic {
             }
         }
         for i in 0..nv {
-            if self.rng.random::<f64>() < self.opts.value_mutation || (force && !changed && i + 1 == nv) {
+            if self.rng.random::<f64>() < self.opts.value_mutation
+                || (force && !changed && i + 1 == nv)
+            {
                 self.step_value(c, i);
                 changed = true;
             }
@@ -329,13 +347,22 @@ impl Genetic {
     }
 
     fn sigma_range_log(&self) -> (f64, f64) {
-        (self.opts.sigma_range.0.log10(), self.opts.sigma_range.1.log10())
+        (
+            self.opts.sigma_range.0.log10(),
+            self.opts.sigma_range.1.log10(),
+        )
     }
 
-    fn evaluate(&self, problem: &mut Problem<GaProblem<'_, '_>>, cs: Vec<Candidate>) -> Result<Vec<Individual>> {
+    fn evaluate(
+        &self,
+        problem: &mut Problem<GaProblem<'_, '_>>,
+        cs: Vec<Candidate>,
+    ) -> Result<Vec<Individual>> {
         let parallel = self.opts.parallel;
         let costs = problem
-            .bulk_problem("cost_count", cs.len(), |o| Ok(o.tracked.cost_batch(&cs, parallel)))
+            .bulk_problem("cost_count", cs.len(), |o| {
+                Ok(o.tracked.cost_batch(&cs, parallel))
+            })
             .map_err(|e| argmin_err("genetic", e))?;
         Ok(cs
             .into_iter()
@@ -345,7 +372,11 @@ impl Genetic {
     }
 
     /// Polish the best never-polished distinct position sets in `pop` (sorted).
-    fn polish_top(&mut self, problem: &mut Problem<GaProblem<'_, '_>>, pop: &mut [Individual]) -> Result<()> {
+    fn polish_top(
+        &mut self,
+        problem: &mut Problem<GaProblem<'_, '_>>,
+        pop: &mut [Individual],
+    ) -> Result<()> {
         if !self.opts.polish {
             return Ok(());
         }
@@ -413,7 +444,13 @@ impl<'t, 'a> Solver<GaProblem<'t, 'a>, GaState> for Genetic {
         sort(&mut pop);
         self.best = pop[0].cost;
         let best = pop[0].clone();
-        Ok((state.individual(best.clone()).cost(best.cost).population(pop), None))
+        Ok((
+            state
+                .individual(best.clone())
+                .cost(best.cost)
+                .population(pop),
+            None,
+        ))
     }
 
     fn next_iter(
@@ -488,7 +525,13 @@ impl<'t, 'a> Solver<GaProblem<'t, 'a>, GaState> for Genetic {
         }
         let best = next[0].clone();
         let kv = argmin::kv!("stalled" => self.stalled as u64; "best_cost" => best.cost;);
-        Ok((state.individual(best.clone()).cost(best.cost).population(next), Some(kv)))
+        Ok((
+            state
+                .individual(best.clone())
+                .cost(best.cost)
+                .population(next),
+            Some(kv),
+        ))
     }
 
     fn terminate(&mut self, _state: &GaState) -> TerminationStatus {

@@ -135,11 +135,7 @@ impl std::str::FromStr for Method {
             "ga" | "genetic" => Ok(Method::Genetic),
             "nm" | "nelder-mead" => Ok(Method::NelderMead),
             "pso" | "particle-swarm" => Ok(Method::ParticleSwarm),
-            _ => Err(Error::parse(
-                "method",
-                s,
-                "expected ga, nelder-mead or pso",
-            )),
+            _ => Err(Error::parse("method", s, "expected ga, nelder-mead or pso")),
         }
     }
 }
@@ -376,7 +372,9 @@ impl Space {
 
     /// The positions a defect may take: `1..=n` minus `excluded`.
     pub fn available(&self) -> Vec<usize> {
-        (1..=self.n).filter(|j| !self.excluded.contains(j)).collect()
+        (1..=self.n)
+            .filter(|j| !self.excluded.contains(j))
+            .collect()
     }
 
     /// Is `c` a point of the space (right lengths, distinct available
@@ -389,8 +387,7 @@ impl Space {
                     && !self.excluded.contains(&p)
                     && !c.positions[..i].contains(&p)
             })
-            && c
-                .values
+            && c.values
                 .iter()
                 .zip(&self.bounds)
                 .all(|(v, &(lo, hi))| v.is_finite() && *v >= lo && *v <= hi)
@@ -650,7 +647,13 @@ mod tests {
     #[test]
     fn validate_accepts_and_rejects() {
         let ok = Space {
-            bounds: vec![(0.1, 20.0), (0.5, 2.0), (0.1, 20.0), (0.5, 2.0), (-1.0, 1.0)],
+            bounds: vec![
+                (0.1, 20.0),
+                (0.5, 2.0),
+                (0.1, 20.0),
+                (0.5, 2.0),
+                (-1.0, 1.0),
+            ],
             log_scale: vec![true, false, true, false, false],
             pairing: vec![Some(0), Some(0), Some(1), Some(1), None],
             ..space()
@@ -661,10 +664,18 @@ mod tests {
         assert!(e.to_string().contains("space.pairing"), "{e}");
         let mut s = Space::masses(5, 2, (0.1, 20.0));
         s.n_positions = 6;
-        assert!(s.validate().unwrap_err().to_string().contains("space.n_positions"));
+        assert!(s
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("space.n_positions"));
         let mut s = Space::masses(5, 2, (0.1, 20.0));
         s.bounds[1] = (2.0, 2.0);
-        assert!(s.validate().unwrap_err().to_string().contains("space.bounds[1]"));
+        assert!(s
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("space.bounds[1]"));
         let mut s = Space::masses(5, 2, (0.1, 20.0));
         s.bounds = vec![(0.0, 1.0); 2];
         assert!(s.validate().unwrap_err().to_string().contains("log scale"));
@@ -673,13 +684,25 @@ mod tests {
         assert!(s.validate().is_err());
         let mut s = Space::masses(5, 2, (0.1, 20.0));
         s.pairing[1] = Some(2);
-        assert!(s.validate().unwrap_err().to_string().contains("space.pairing[1]"));
+        assert!(s
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("space.pairing[1]"));
         let mut s = Space::masses(5, 2, (0.1, 20.0));
         s.log_scale.pop();
-        assert!(s.validate().unwrap_err().to_string().contains("space.log_scale"));
+        assert!(s
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("space.log_scale"));
         let mut s = Space::masses(5, 2, (0.1, 20.0));
         s.excluded = vec![6];
-        assert!(s.validate().unwrap_err().to_string().contains("space.excluded[0]"));
+        assert!(s
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("space.excluded[0]"));
         let mut s = Space::masses(5, 2, (0.1, 20.0));
         s.excluded = vec![1, 2, 3, 4];
         assert!(s.validate().is_err());
@@ -688,7 +711,13 @@ mod tests {
     #[test]
     fn canonicalize_keeps_pairs() {
         let s = Space {
-            bounds: vec![(0.1, 20.0), (0.5, 2.0), (0.1, 20.0), (0.5, 2.0), (-1.0, 1.0)],
+            bounds: vec![
+                (0.1, 20.0),
+                (0.5, 2.0),
+                (0.1, 20.0),
+                (0.5, 2.0),
+                (-1.0, 1.0),
+            ],
             log_scale: vec![true, false, true, false, false],
             pairing: vec![Some(0), Some(1), Some(0), Some(1), None],
             ..space()

@@ -121,10 +121,18 @@ impl NelderMeadOptions {
             ));
         }
         if !(self.sd_rel >= 0.0 && self.sd_rel.is_finite()) {
-            return Err(Error::invalid("nelder_mead.sd_rel", self.sd_rel, ">= 0 and finite"));
+            return Err(Error::invalid(
+                "nelder_mead.sd_rel",
+                self.sd_rel,
+                ">= 0 and finite",
+            ));
         }
         if !(self.min_progress >= 0.0 && self.min_progress < 1.0) {
-            return Err(Error::invalid("nelder_mead.min_progress", self.min_progress, "in [0, 1)"));
+            return Err(Error::invalid(
+                "nelder_mead.min_progress",
+                self.min_progress,
+                "in [0, 1)",
+            ));
         }
         if self.rounds == 0 {
             return Err(Error::invalid("nelder_mead.rounds", 0, ">= 1"));
@@ -156,7 +164,12 @@ pub(crate) struct Budgeted<'t, 'a, S> {
 }
 
 impl<'t, 'a, S> Budgeted<'t, 'a, S> {
-    pub fn new(inner: S, tracked: &'t Tracked<'a>, stop_at: usize, stall: Option<(usize, f64)>) -> Self {
+    pub fn new(
+        inner: S,
+        tracked: &'t Tracked<'a>,
+        stop_at: usize,
+        stall: Option<(usize, f64)>,
+    ) -> Self {
         Budgeted {
             inner,
             tracked,
@@ -172,10 +185,18 @@ impl<O, I: State<Float = f64>, S: Solver<O, I>> Solver<O, I> for Budgeted<'_, '_
     fn name(&self) -> &str {
         self.inner.name()
     }
-    fn init(&mut self, problem: &mut Problem<O>, state: I) -> std::result::Result<(I, Option<KV>), argmin::core::Error> {
+    fn init(
+        &mut self,
+        problem: &mut Problem<O>,
+        state: I,
+    ) -> std::result::Result<(I, Option<KV>), argmin::core::Error> {
         self.inner.init(problem, state)
     }
-    fn next_iter(&mut self, problem: &mut Problem<O>, state: I) -> std::result::Result<(I, Option<KV>), argmin::core::Error> {
+    fn next_iter(
+        &mut self,
+        problem: &mut Problem<O>,
+        state: I,
+    ) -> std::result::Result<(I, Option<KV>), argmin::core::Error> {
         self.inner.next_iter(problem, state)
     }
     fn terminate(&mut self, state: &I) -> TerminationStatus {
@@ -248,7 +269,11 @@ fn simplex(x0: &[f64], step: f64) -> Vec<Vec<f64>> {
     let mut s = vec![x0.to_vec()];
     for i in 0..x0.len() {
         let mut v = x0.to_vec();
-        v[i] = if x0[i] + step <= 1.0 { x0[i] + step } else { x0[i] - step };
+        v[i] = if x0[i] + step <= 1.0 {
+            x0[i] + step
+        } else {
+            x0[i] - step
+        };
         s.push(v);
     }
     s
@@ -331,7 +356,13 @@ pub fn polish(
 
 /// The free position reached from `positions[p]` by `steps` moves in
 /// direction `dir` (skipping excluded and taken positions), if any.
-pub fn step_position(space: &Space, positions: &[usize], p: usize, dir: isize, steps: usize) -> Option<usize> {
+pub fn step_position(
+    space: &Space,
+    positions: &[usize],
+    p: usize,
+    dir: isize,
+    steps: usize,
+) -> Option<usize> {
     let mut j = positions[p] as isize;
     let mut moved = 0;
     loop {
@@ -481,7 +512,12 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
                 for i in 0..z0.len() {
                     let mut v = z0.clone();
                     let st = o.step * scale[i];
-                    v[i] = if z0[i] + st <= if i < space.n_positions { space.n as f64 + 0.5 } else { 1.0 } {
+                    v[i] = if z0[i] + st
+                        <= if i < space.n_positions {
+                            space.n as f64 + 0.5
+                        } else {
+                            1.0
+                        } {
                         z0[i] + st
                     } else {
                         z0[i] - st
@@ -492,11 +528,14 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
                     .with_sd_tolerance(o.sd_tolerance)
                     .map_err(|e| argmin_err("nelder-mead", e))?;
                 let stop_at = tracked.evaluations() + tracked.remaining();
-                Executor::new(Relaxed { tracked }, Budgeted::new(nm, tracked, stop_at, None))
-                    .configure(|s| s.max_iters(10 * o.max_iters_per_fit as u64))
-                    .ctrlc(false)
-                    .run()
-                    .map_err(|e| argmin_err("nelder-mead", e))?;
+                Executor::new(
+                    Relaxed { tracked },
+                    Budgeted::new(nm, tracked, stop_at, None),
+                )
+                .configure(|s| s.max_iters(10 * o.max_iters_per_fit as u64))
+                .ctrlc(false)
+                .run()
+                .map_err(|e| argmin_err("nelder-mead", e))?;
             }
         }
     }

@@ -34,8 +34,8 @@
 
 use super::nelder_mead::{local_search, polish, Budgeted};
 use super::{argmin_err, finite_cost, Candidate, SearchOptions, Tracked};
-use argmin::core::State;
 use crate::error::{Error, Result};
+use argmin::core::State;
 use argmin::core::{CostFunction, Executor};
 use argmin::solver::particleswarm::ParticleSwarm;
 use rand::SeedableRng;
@@ -118,7 +118,11 @@ impl PsoOptions {
             return Err(Error::invalid("pso.patience", 0, ">= 1"));
         }
         if !(self.swarm_share > 0.0 && self.swarm_share <= 1.0) {
-            return Err(Error::invalid("pso.swarm_share", self.swarm_share, "in (0, 1]"));
+            return Err(Error::invalid(
+                "pso.swarm_share",
+                self.swarm_share,
+                "in (0, 1]",
+            ));
         }
         Ok(())
     }
@@ -168,7 +172,11 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
     let mut hi = vec![space.n as f64 + 0.5 - 1e-9; k];
     lo.extend(std::iter::repeat_n(0.0, space.n_values()));
     hi.extend(std::iter::repeat_n(1.0, space.n_values()));
-    let share = if o.finish == Finish::None { 1.0 } else { o.swarm_share };
+    let share = if o.finish == Finish::None {
+        1.0
+    } else {
+        o.swarm_share
+    };
     let swarm_cap = (((opts.max_evals as f64) * share).ceil() as usize).max(1);
     let mut incumbent: Option<(Vec<usize>, f64)> = None;
     let mut idle = 0;
