@@ -234,9 +234,8 @@ impl ExactObjective {
                     z[p] = acc / m[p * (k + 1) + p];
                 }
                 let mut x = self.g11[i];
-                for l in 0..k {
-                    let pl = c.positions[l] - 1;
-                    x -= g1[pl] * (c.values[l] - 1.0) * s2 * z[l];
+                for ((&pl, &ml), zl) in c.positions.iter().zip(&c.values).zip(&z) {
+                    x -= g1[pl - 1] * (ml - 1.0) * s2 * zl;
                 }
                 x
             }

@@ -564,3 +564,110 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
     .map_err(|e| argmin_err("genetic", e))?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn space() -> Space {
+        Space {
+            n: 12,
+            n_positions: 2,
+            excluded: vec![6],
+            bounds: vec![(0.1, 20.0), (0.1, 20.0), (-1.0, 1.0)],
+            log_scale: vec![true, true, false],
+            pairing: vec![Some(0), Some(1), None],
+        }
+    }
+
+    #[test]
+    fn crossover_keeps_each_value_with_its_position() {
+        let s = space();
+        let mut ga = Genetic::new(
+            s.clone(),
+            GeneticOptions::default(),
+            NelderMeadOptions::default(),
+            5,
+        );
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        for _ in 0..500 {
+            let a = s.random_candidate(&mut rng);
+            let b = s.random_candidate(&mut rng);
+            if a.positions.iter().any(|p| b.positions.contains(p)) {
+                continue;
+            }
+            let c = s.canonicalize(&ga.crossover(&a, &b));
+            assert!(s.contains(&c), "{c:?}");
+            for (q, &pos) in c.positions.iter().enumerate() {
+                let from = [&a, &b].into_iter().find_map(|par| {
+                    par.positions
+                        .iter()
+                        .position(|&x| x == pos)
+                        .map(|p| par.values[p])
+                });
+                assert_eq!(from, Some(c.values[q]), "{a:?} x {b:?} -> {c:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn mutation_and_crossover_stay_in_space() {
+        let s = space();
+        let mut ga = Genetic::new(
+            s.clone(),
+            GeneticOptions::default(),
+            NelderMeadOptions::default(),
+            1,
+        );
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        let mut moved = 0;
+        for _ in 0..2000 {
+            let a = s.random_candidate(&mut rng);
+            let b = s.random_candidate(&mut rng);
+            let mut c = ga.crossover(&a, &b);
+            let before = c.clone();
+            ga.mutate(&mut c, true);
+            assert!(s.contains(&c), "{c:?}");
+            assert_ne!(c, before, "forced mutation changed nothing");
+            moved += (c.positions != before.positions) as usize;
+        }
+        assert!(moved > 200, "positions moved only {moved} times");
+    }
+
+    #[test]
+    fn options_validate() {
+        GeneticOptions::default().validate().unwrap();
+        let bad = [
+            GeneticOptions {
+                population: 3,
+                ..Default::default()
+            },
+            GeneticOptions {
+                elites: 40,
+                ..Default::default()
+            },
+            GeneticOptions {
+                crossover_rate: 1.5,
+                ..Default::default()
+            },
+            GeneticOptions {
+                sigma_range: (0.0, 0.1),
+                ..Default::default()
+            },
+            GeneticOptions {
+                patience: 0,
+                ..Default::default()
+            },
+            GeneticOptions {
+                stall_rel: 1.0,
+                ..Default::default()
+            },
+        ];
+        for o in bad {
+            assert!(
+                matches!(o.validate(), Err(Error::InvalidParameter { .. })),
+                "{o:?}"
+            );
+        }
+    }
+}

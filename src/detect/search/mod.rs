@@ -713,12 +713,12 @@ mod tests {
         let s = Space {
             bounds: vec![
                 (0.1, 20.0),
-                (0.5, 2.0),
                 (0.1, 20.0),
+                (0.5, 2.0),
                 (0.5, 2.0),
                 (-1.0, 1.0),
             ],
-            log_scale: vec![true, false, true, false, false],
+            log_scale: vec![true, true, false, false, false],
             pairing: vec![Some(0), Some(1), Some(0), Some(1), None],
             ..space()
         };

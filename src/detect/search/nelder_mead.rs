@@ -327,7 +327,7 @@ pub fn polish(
         let (Some(u), c) = (st.get_best_param(), st.get_best_cost()) else {
             break;
         };
-        if !(c < cost) {
+        if c >= cost {
             break;
         }
         let moved = u
@@ -540,4 +540,79 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detect::search::Objective;
+
+    struct Bowl(Space);
+    impl Objective for Bowl {
+        fn space(&self) -> &Space {
+            &self.0
+        }
+        fn cost(&self, c: &Candidate) -> f64 {
+            // minimum 0 at positions {4, 9}, values (3, 0.2)
+            let p = (c.positions[0] as f64 - 4.0).abs() + (c.positions[1] as f64 - 9.0).abs();
+            p + (c.values[0] / 3.0).ln().powi(2) + 10.0 * (c.values[1] / 0.2).ln().powi(2)
+        }
+    }
+
+    #[test]
+    fn polish_converges_far_below_the_start_at_fixed_positions() {
+        let bowl = Bowl(Space::masses(12, 2, (0.1, 20.0)));
+        let t = Tracked::new(&bowl, &SearchOptions::default());
+        let start = Candidate {
+            positions: vec![4, 9],
+            values: vec![10.0, 10.0],
+        };
+        let (c, v) = polish(&t, &start, 5000, &NelderMeadOptions::default()).unwrap();
+        assert_eq!(c.positions, vec![4, 9]);
+        assert!(v < 1e-20, "{v:e} at {c:?}");
+        assert!((c.values[0] - 3.0).abs() < 1e-8 && (c.values[1] - 0.2).abs() < 1e-9);
+        // at a wrong position set, the fit stops on the plateau (cost 1) quickly
+        let before = t.evaluations();
+        let start = Candidate {
+            positions: vec![5, 9],
+            values: vec![10.0, 10.0],
+        };
+        let (_, v) = polish(&t, &start, 5000, &NelderMeadOptions::default()).unwrap();
+        assert!((v - 1.0).abs() < 1e-3);
+        assert!(
+            t.evaluations() - before < 1000,
+            "{}",
+            t.evaluations() - before
+        );
+    }
+
+    #[test]
+    fn local_search_walks_to_the_optimum() {
+        let bowl = Bowl(Space::masses(12, 2, (0.1, 20.0)));
+        let t = Tracked::new(
+            &bowl,
+            &SearchOptions {
+                max_evals: 100_000,
+                ..Default::default()
+            },
+        );
+        let start = Candidate {
+            positions: vec![1, 12],
+            values: vec![1.0, 1.0],
+        };
+        let (c, v) = local_search(&t, &start, &NelderMeadOptions::default()).unwrap();
+        assert_eq!(c.positions, vec![4, 9]);
+        assert!(v < 1e-12);
+    }
+
+    #[test]
+    fn step_position_skips_taken_and_excluded() {
+        let mut s = Space::masses(8, 2, (0.1, 20.0));
+        s.excluded = vec![4];
+        assert_eq!(step_position(&s, &[3, 5], 0, 1, 1), Some(6));
+        assert_eq!(step_position(&s, &[3, 5], 0, 1, 2), Some(7));
+        assert_eq!(step_position(&s, &[3, 5], 0, -1, 1), Some(2));
+        assert_eq!(step_position(&s, &[1, 5], 0, -1, 1), None);
+        assert_eq!(step_position(&s, &[3, 8], 1, 1, 1), None);
+    }
 }

@@ -237,3 +237,69 @@ fn episode_seed(seed: u64, e: u64) -> u64 {
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detect::search::{minimize, Method, Objective, Space};
+
+    struct Valley(Space);
+    impl Objective for Valley {
+        fn space(&self) -> &Space {
+            &self.0
+        }
+        fn cost(&self, c: &Candidate) -> f64 {
+            (c.positions[0] as f64 - 13.0).powi(2) + (c.values[0] - 0.7).powi(2)
+        }
+    }
+
+    #[test]
+    fn swarm_alone_is_seeded_and_finds_a_one_defect_optimum() {
+        let mut s = Space::masses(30, 1, (0.0, 1.0));
+        s.log_scale = vec![false];
+        let v = Valley(s);
+        let mut opts = SearchOptions {
+            max_evals: 5000,
+            seed: 11,
+            ..Default::default()
+        };
+        opts.pso.finish = Finish::None;
+        let a = minimize(Method::ParticleSwarm, &v, &opts).unwrap();
+        let b = minimize(Method::ParticleSwarm, &v, &opts).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(a.best.positions, vec![13]);
+        assert!((a.best.values[0] - 0.7).abs() < 1e-3);
+    }
+
+    #[test]
+    fn episode_seeds_differ() {
+        let s: std::collections::HashSet<u64> = (0..100).map(|e| episode_seed(7, e)).collect();
+        assert_eq!(s.len(), 100);
+        assert_ne!(episode_seed(1, 0), episode_seed(2, 0));
+    }
+
+    #[test]
+    fn options_validate() {
+        PsoOptions::default().validate().unwrap();
+        for o in [
+            PsoOptions {
+                particles: 1,
+                ..Default::default()
+            },
+            PsoOptions {
+                inertia: -1.0,
+                ..Default::default()
+            },
+            PsoOptions {
+                swarm_share: 0.0,
+                ..Default::default()
+            },
+            PsoOptions {
+                patience: 0,
+                ..Default::default()
+            },
+        ] {
+            assert!(o.validate().is_err(), "{o:?}");
+        }
+    }
+}
