@@ -512,3 +512,52 @@ proptest! {
         prop_assert!(space.contains(&c), "{:?}", c);
     }
 }
+
+/// Positions only (known masses) or values only (known positions).
+struct Degenerate(Space);
+impl Objective for Degenerate {
+    fn space(&self) -> &Space {
+        &self.0
+    }
+    fn cost(&self, c: &Candidate) -> f64 {
+        let p: f64 = c
+            .positions
+            .iter()
+            .zip([4.0, 11.0])
+            .map(|(&p, q)| (p as f64 - q).powi(2))
+            .sum();
+        let v: f64 = c.values.iter().map(|v| (v - 0.3).powi(2)).sum();
+        p + v
+    }
+}
+
+#[test]
+fn positions_only_and_values_only_spaces() {
+    let pos_only = Degenerate(Space {
+        n: 15,
+        n_positions: 2,
+        excluded: vec![],
+        bounds: vec![],
+        log_scale: vec![],
+        pairing: vec![],
+    });
+    let val_only = Degenerate(Space {
+        n: 15,
+        n_positions: 0,
+        excluded: vec![3],
+        bounds: vec![(0.0, 1.0); 3],
+        log_scale: vec![false; 3],
+        pairing: vec![None; 3],
+    });
+    for method in Method::ALL {
+        let opts = SearchOptions {
+            max_evals: 5000,
+            ..Default::default()
+        };
+        let r = minimize(method, &pos_only, &opts).unwrap();
+        assert_eq!(r.best.positions, vec![4, 11], "{method:?}");
+        let r = minimize(method, &val_only, &opts).unwrap();
+        assert!(r.best.positions.is_empty());
+        assert!(r.cost < 1e-8, "{method:?}: {:?} {:e}", r.best, r.cost);
+    }
+}
