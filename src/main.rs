@@ -23,6 +23,8 @@ enum Command {
     Config(cmd::config::Args),
     /// Time-domain simulation x_i(t): impulse on mass 1, optional forces, CSV/SVG out.
     Simulate(cmd::simulate::Args),
+    /// Laplace transform X(s) of a sampled series (CSV), with error estimates.
+    Laplace(cmd::laplace::Args),
 }
 
 fn run() -> anyhow::Result<()> {
@@ -32,6 +34,7 @@ fn run() -> anyhow::Result<()> {
         Command::Study(a) => cmd::study::run(a),
         Command::Config(a) => cmd::config::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
+        Command::Laplace(a) => cmd::laplace::run(a),
     }
 }
 

@@ -1,6 +1,7 @@
 //! Subcommands. Shared argument groups live here.
 
 pub mod config;
+pub mod laplace;
 pub mod response;
 pub mod simulate;
 pub mod study;
