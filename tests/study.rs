@@ -359,6 +359,13 @@ fn schema_and_docs_document_every_field() {
         .unwrap();
     assert!(o.status.success());
     let schema = String::from_utf8_lossy(&o.stdout);
+    let help = Command::new(BIN)
+        .args(["config", "--help"])
+        .output()
+        .unwrap();
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(help.contains("study.seed [0]"), "{help}");
+    assert!(help.contains("scene.s.count [32]"), "{help}");
     let docs =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/config.md")).unwrap();
     assert!(

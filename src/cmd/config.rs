@@ -1,14 +1,14 @@
 //! `springmass config`: check a study file, print the schema.
 
 use clap::{Args as ClapArgs, Subcommand};
-use springmass::study::config::{check, schema_markdown};
+use springmass::study::config::{check, schema_markdown, schema_text};
 use springmass::study::kinds::ALL;
 use springmass::study::{Study, DEFAULT_STUDY};
 use std::path::PathBuf;
 
 /// Arguments of `springmass config`.
 #[derive(ClapArgs, Debug)]
-#[command(after_long_help = LONG_HELP)]
+#[command(after_long_help = format!("{LONG_HELP}\n\n{}", schema_text(ALL)))]
 pub struct Args {
     #[command(subcommand)]
     pub command: ConfigCommand,
@@ -20,8 +20,8 @@ A study file is TOML with four tables:
   [scene]     the base case, in the schema of the kind
   [[sweep]]   path = \"field.path\" and values = [...] or range = { from, to, count | step, spacing, integer }
   [report]    max_case_rows (200), [[report.table]], [[report.plot]]
-Unknown fields are errors. `springmass config schema` lists every field with its
-type, default and meaning; docs/config.md is the same reference.";
+Unknown fields are errors. Every field follows; `springmass config schema` prints
+the same as Markdown tables, and docs/config.md is the reference page.";
 
 /// The subcommands.
 #[derive(Subcommand, Debug)]

@@ -804,6 +804,39 @@ fn one_line(s: &str) -> String {
     s.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
+/// The schema as plain text for a terminal (`springmass config --help`):
+/// every field with its default, type and meaning.
+pub fn schema_text(kinds: &[Kind]) -> String {
+    let mut out = String::from("Study file fields (default in brackets):\n");
+    let entry = |f: &FieldDoc, prefix: &str| {
+        format!(
+            "  {prefix}{} [{}]  ({})\n      {}\n",
+            f.path,
+            f.default,
+            f.ty,
+            f.doc.replace('`', "")
+        )
+    };
+    for f in STUDY_FIELDS {
+        out.push_str(&entry(f, ""));
+    }
+    for k in kinds {
+        out.push_str(&format!(
+            "\nKind {}: {}\nScene fields:\n",
+            k.name(),
+            k.summary()
+        ));
+        for f in k.schema() {
+            out.push_str(&entry(f, "scene."));
+        }
+        out.push_str("Metrics (columns of summary.csv; t_* are timings):\n");
+        for (m, doc) in k.metrics() {
+            out.push_str(&format!("  {m}: {}\n", doc.replace('`', "")));
+        }
+    }
+    out
+}
+
 /// The schema of `kind` as Markdown: one table of the study fields and one of
 /// the kind's scene fields (the text of `springmass config schema`).
 pub fn schema_markdown(kinds: &[Kind]) -> String {
