@@ -151,6 +151,9 @@ pub struct ReportSpec {
     /// SVG plots (default none).
     #[serde(default)]
     pub plot: Vec<PlotSpec>,
+    /// SVG heatmaps over two axes (default none).
+    #[serde(default)]
+    pub heatmap: Vec<HeatmapSpec>,
 }
 
 impl Default for ReportSpec {
@@ -159,6 +162,7 @@ impl Default for ReportSpec {
             max_case_rows: default_case_rows(),
             table: Vec::new(),
             plot: Vec::new(),
+            heatmap: Vec::new(),
         }
     }
 }
@@ -241,6 +245,31 @@ pub struct PlotSpec {
     /// Logarithmic vertical axis (default false).
     #[serde(default)]
     pub logy: bool,
+}
+
+/// One SVG heatmap of the report: `aggregate(z)` over the grid of the values
+/// of axes `x` and `y` (a residual surface, an accuracy map).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeatmapSpec {
+    /// Output file name (default `<z>-over-<x>-<y>.svg`).
+    #[serde(default)]
+    pub file: Option<String>,
+    /// Title (default: `<aggregate> of <z>`).
+    #[serde(default)]
+    pub title: Option<String>,
+    /// Axis column along the horizontal axis (numeric); required.
+    pub x: String,
+    /// Axis column along the vertical axis (numeric); required.
+    pub y: String,
+    /// Metric (or timing) coloured; required.
+    pub z: String,
+    /// Reduction over the cases of one cell (default `mean`).
+    #[serde(default)]
+    pub aggregate: Aggregate,
+    /// Colour by `log10 z` (default false).
+    #[serde(default)]
+    pub log_z: bool,
 }
 
 fn one_usize() -> usize {
@@ -341,6 +370,14 @@ pub const STUDY_FIELDS: &[FieldDoc] = &[
     FieldDoc::new("report.plot[].aggregate", "\"mean\" | \"median\" | \"min\" | \"max\" | \"rate\" | \"count\"", "\"mean\"", "Reduction over the cases at one point (repeats and axes not on the plot)."),
     FieldDoc::new("report.plot[].logx", "bool", "false", "Logarithmic horizontal axis."),
     FieldDoc::new("report.plot[].logy", "bool", "false", "Logarithmic vertical axis (non-positive values are dropped)."),
+    FieldDoc::new("report.heatmap", "array of tables", "[]", "SVG heatmaps `[[report.heatmap]]`: `aggregate(z)` over the grid of the values of two axes (residual surfaces, accuracy maps). Cells without a value are grey."),
+    FieldDoc::new("report.heatmap[].file", "string", "\"<z>-over-<x>-<y>.svg\"", "Output file name inside the output folder."),
+    FieldDoc::new("report.heatmap[].title", "string", "\"<aggregate> of <z>\"", "Heatmap title."),
+    FieldDoc::new("report.heatmap[].x", "string", "required", "Axis column along the horizontal axis; its values must be numbers."),
+    FieldDoc::new("report.heatmap[].y", "string", "required", "Axis column along the vertical axis; its values must be numbers."),
+    FieldDoc::new("report.heatmap[].z", "string", "required", "Metric or `t_*` timing coloured."),
+    FieldDoc::new("report.heatmap[].aggregate", "\"mean\" | \"median\" | \"min\" | \"max\" | \"rate\" | \"count\"", "\"mean\"", "Reduction over the cases of one cell."),
+    FieldDoc::new("report.heatmap[].log_z", "bool", "false", "Colour by log10 z (non-positive cells grey)."),
 ];
 
 /// One problem found in a study file.
@@ -564,6 +601,30 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
                 format!(
                     "{:?} is not a metric of kind {}; metrics: {}",
                     p.y,
+                    file.study.kind.name(),
+                    metric_list()
+                ),
+            );
+        }
+    }
+    for (i, h) in file.report.heatmap.iter().enumerate() {
+        for (field, col) in [("x", &h.x), ("y", &h.y)] {
+            if !columns.contains(col) {
+                push(
+                    format!("report.heatmap[{i}].{field}"),
+                    format!(
+                        "{col:?} is not an axis column; axes: {}",
+                        columns.join(", ")
+                    ),
+                );
+            }
+        }
+        if !known_metric(&h.z) {
+            push(
+                format!("report.heatmap[{i}].z"),
+                format!(
+                    "{:?} is not a metric of kind {}; metrics: {}",
+                    h.z,
                     file.study.kind.name(),
                     metric_list()
                 ),

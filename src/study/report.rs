@@ -7,12 +7,12 @@
 //! the thread count or the sharding. Nothing time-dependent (dates, run
 //! durations) is written.
 
-use super::config::{Aggregate, PlotSpec, TableSpec};
+use super::config::{Aggregate, HeatmapSpec, PlotSpec, TableSpec};
 use super::run::Record;
 use super::sweep::format_float;
 use super::Study;
 use crate::error::{Error, Result};
-use crate::plot::{Line, LinePlot};
+use crate::plot::{Heatmap, Line, LinePlot};
 use crate::series::write_atomic;
 use std::path::Path;
 
@@ -219,10 +219,15 @@ fn table_md(study: &Study, records: &[Record], spec: &TableSpec) -> String {
 
 /// File name of a plot (sanitised).
 pub fn plot_file(spec: &PlotSpec) -> String {
-    let raw = spec
-        .file
-        .clone()
-        .unwrap_or_else(|| format!("{}-vs-{}.svg", spec.y, spec.x));
+    sanitize(
+        spec.file
+            .clone()
+            .unwrap_or_else(|| format!("{}-vs-{}.svg", spec.y, spec.x)),
+    )
+}
+
+/// Characters outside `A-Za-z0-9._-` become `_`; no leading dot; `.svg` appended if missing.
+fn sanitize(raw: String) -> String {
     let mut f: String = raw
         .chars()
         .map(|c| {
@@ -292,6 +297,74 @@ pub fn plot_chart(records: &[Record], spec: &PlotSpec) -> Result<LinePlot> {
     Ok(chart)
 }
 
+/// File name of a heatmap (sanitised).
+pub fn heatmap_file(spec: &HeatmapSpec) -> String {
+    sanitize(
+        spec.file
+            .clone()
+            .unwrap_or_else(|| format!("{}-over-{}-{}.svg", spec.z, spec.x, spec.y)),
+    )
+}
+
+/// Build the heatmap of one spec.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] when an axis has non-numeric values.
+pub fn heatmap_chart(records: &[Record], spec: &HeatmapSpec) -> Result<Heatmap> {
+    let number = |r: &Record, col: &str| {
+        axis_number(r, col).ok_or_else(|| {
+            Error::invalid(
+                format!("report.heatmap axis {col:?}"),
+                axis_label(r, col),
+                "numeric axis values",
+            )
+        })
+    };
+    let mut xs: Vec<f64> = Vec::new();
+    let mut ys: Vec<f64> = Vec::new();
+    for r in records {
+        let (x, y) = (number(r, &spec.x)?, number(r, &spec.y)?);
+        if !xs.contains(&x) {
+            xs.push(x);
+        }
+        if !ys.contains(&y) {
+            ys.push(y);
+        }
+    }
+    xs.sort_by(f64::total_cmp);
+    ys.sort_by(f64::total_cmp);
+    let mut cells: Vec<Vec<Vec<f64>>> = vec![vec![Vec::new(); xs.len()]; ys.len()];
+    for r in records.iter().filter(|r| r.ok()) {
+        let (x, y) = (number(r, &spec.x)?, number(r, &spec.y)?);
+        let ix = xs.iter().position(|&v| v == x).unwrap_or(0);
+        let iy = ys.iter().position(|&v| v == y).unwrap_or(0);
+        if let Some(z) = metric(r, &spec.z) {
+            cells[iy][ix].push(z);
+        }
+    }
+    let z: Vec<Vec<f64>> = cells
+        .iter()
+        .map(|row| {
+            row.iter()
+                .map(|c| aggregate(spec.aggregate, c).unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect();
+    Ok(Heatmap {
+        title: spec
+            .title
+            .clone()
+            .unwrap_or_else(|| format!("{} of {}", spec.aggregate.name(), spec.z)),
+        x_label: spec.x.clone(),
+        y_label: spec.y.clone(),
+        x: xs,
+        y: ys,
+        z,
+        log_z: spec.log_z,
+        mark: None,
+    })
+}
+
 /// The `report.md` text; also returns the plots to write `(file, svg)`.
 fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)>) {
     let f = &study.file;
@@ -354,7 +427,7 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
         s.push_str(&table_md(study, records, t));
     }
     let mut plots = Vec::new();
-    if !f.report.plot.is_empty() {
+    if !f.report.plot.is_empty() || !f.report.heatmap.is_empty() {
         s.push_str("## Plots\n\n");
         for p in &f.report.plot {
             let file = plot_file(p);
@@ -365,6 +438,19 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
                 }
                 Err(e) => s.push_str(&format!(
                     "Plot `{file}` not drawn: {}\n\n",
+                    md_escape(&e.to_string())
+                )),
+            }
+        }
+        for h in &f.report.heatmap {
+            let file = heatmap_file(h);
+            match heatmap_chart(records, h).and_then(|c| c.to_svg_string()) {
+                Ok(svg) => {
+                    s.push_str(&format!("![{}]({file})\n\n", md_escape(&file)));
+                    plots.push((file, svg));
+                }
+                Err(e) => s.push_str(&format!(
+                    "Heatmap `{file}` not drawn: {}\n\n",
                     md_escape(&e.to_string())
                 )),
             }
