@@ -39,6 +39,7 @@
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
+//! | [`time`] | simulation ([`time::simulate`]) and exact inverse Laplace transforms ([`time::modal`]) |
 //! | [`error`] | one error type; every variant names the field and its range |
 
 pub mod chain;
@@ -50,6 +51,7 @@ pub mod linalg;
 pub mod plot;
 pub mod scalar;
 pub mod series;
+pub mod time;
 
 pub use chain::{Chain, ChainSpec, Defect};
 pub use error::{Error, Result};
