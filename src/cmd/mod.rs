@@ -2,6 +2,7 @@
 
 pub mod response;
 pub mod simulate;
+pub mod suppress;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;

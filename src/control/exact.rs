@@ -203,12 +203,14 @@ impl Modes {
     }
 
     /// Prepare the exact convolution with a disturbance sampled at step `h`
-    /// from `t = 0` (`u[i] = u(i h)`, linear in between).
+    /// from `t = 0` (`u[i] = u(i h)`, linear in between, zero after the last
+    /// sample), available for `0 <= t <= max(t_end, last sample)`.
     ///
     /// # Errors
-    /// `h` not finite and positive; fewer than 2 samples; a non-finite sample.
-    pub fn convolve(&self, u: &[f64], h: f64) -> Result<Convolution> {
-        Convolution::new(self, u, h)
+    /// `h` not finite and positive; fewer than 2 samples; a non-finite sample;
+    /// `t_end` not finite.
+    pub fn convolve(&self, u: &[f64], h: f64, t_end: f64) -> Result<Convolution> {
+        Convolution::new(self, u, h, t_end)
     }
 }
 
@@ -264,8 +266,8 @@ impl Series {
 
 /// The exact response of a [`Modes`] kernel to a piecewise-linear input:
 /// `y(t) = int_0^t x(t - tau) u(tau) dtau`, available at every `t >= 0`
-/// (held constant-slope beyond the last sample: `u` is extended by its last
-/// value).
+/// (`u` is zero after its last sample, as for a sampled force in
+/// [`crate::time::simulate`]).
 #[derive(Clone, Debug)]
 pub struct Convolution {
     /// Internal step (the sample step divided so that `rate * step <= 1`).
@@ -281,7 +283,10 @@ pub struct Convolution {
 }
 
 impl Convolution {
-    fn new(modes: &Modes, u: &[f64], h: f64) -> Result<Convolution> {
+    fn new(modes: &Modes, u: &[f64], h: f64, t_end: f64) -> Result<Convolution> {
+        if !t_end.is_finite() {
+            return Err(Error::invalid("t_end", t_end, "finite"));
+        }
         if !(h.is_finite() && h > 0.0) {
             return Err(Error::invalid("dt", h, "finite and > 0"));
         }
@@ -315,7 +320,8 @@ impl Convolution {
                 .collect(),
             states: Vec::new(),
         };
-        let total = (u.len() - 1) * sub;
+        let samples = (u.len() - 1).max((t_end / h).ceil().max(0.0) as usize);
+        let total = samples * sub;
         let full: Vec<[f64; 6]> = conv.series.iter().map(|s| s.at(step)).collect();
         conv.states = conv
             .series
@@ -346,19 +352,23 @@ impl Convolution {
         let i = g / self.sub;
         let r = (g % self.sub) as f64 / self.sub as f64;
         if i + 1 >= self.u.len() {
-            return (self.u[self.u.len() - 1], 0.0);
+            return (0.0, 0.0);
         }
         let slope = (self.u[i + 1] - self.u[i]) / self.h;
         (self.u[i] + slope * r * self.h, slope)
     }
 
-    /// `y(t)`; 0 for `t <= 0`.
+    /// `y(t)`; 0 for `t <= 0`, NaN beyond the prepared horizon.
     pub fn eval(&self, t: f64) -> f64 {
-        if t <= 0.0 || !t.is_finite() {
+        if t <= 0.0 {
             return 0.0;
         }
         let last = self.states[0].len() - 1;
-        let g = ((t / self.step).floor() as usize).min(last);
+        let pos = t / self.step;
+        if pos.is_nan() || pos > last as f64 * (1.0 + 1e-12) {
+            return f64::NAN;
+        }
+        let g = (pos.floor() as usize).min(last);
         let tau = t - g as f64 * self.step;
         let (u0, slope) = self.input(g);
         let mut sum = 0.0;
@@ -374,9 +384,9 @@ impl Convolution {
         sum
     }
 
-    /// `y` at the sample times `i h`.
+    /// `y` at the sample times `i h` up to the horizon.
     pub fn on_grid(&self) -> Vec<f64> {
-        (0..self.u.len())
+        (0..=(self.states[0].len() - 1) / self.sub)
             .map(|i| {
                 let g = i * self.sub;
                 self.states
@@ -474,7 +484,8 @@ mod tests {
         let f = Modes::new(&sup, Signal::F);
         let h = 0.05;
         let u: Vec<f64> = (0..=400).map(|i| (i as f64 * h * 0.7).sin()).collect();
-        let conv = f.convolve(&u, h).unwrap();
+        let conv = f.convolve(&u, h, 20.0).unwrap();
+        assert!(conv.eval(20.5).is_nan());
         let grid = conv.on_grid();
         for &i in &[20usize, 150, 400] {
             let t = i as f64 * h;
@@ -504,7 +515,7 @@ mod tests {
             let tm = t - 0.3 * h;
             assert!((conv.eval(tm) - grid[i]).abs() < 0.1);
         }
-        assert!(f.convolve(&[1.0, f64::NAN], 0.1).is_err());
-        assert!(f.convolve(&[1.0, 2.0], -0.1).is_err());
+        assert!(f.convolve(&[1.0, f64::NAN], 0.1, 1.0).is_err());
+        assert!(f.convolve(&[1.0, 2.0], -0.1, 1.0).is_err());
     }
 }

@@ -56,6 +56,7 @@
 
 pub mod exact;
 pub mod laplace;
+pub mod verify;
 
 pub use laplace::URatio;
 
