@@ -155,3 +155,212 @@ fn sampled_disturbance_verified_by_simulation() {
     );
     assert!(e.is_err());
 }
+
+// ---------------------------------------------------------------- CLI
+
+fn cli(args: &[&str]) -> (i32, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_springmass"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn tmpdir(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("springmass-suppress-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn cli_writes_series_figures_summary_and_robustness() {
+    let dir = tmpdir("ok");
+    let out = dir.join("n4");
+    let (code, stdout, err) = cli(&[
+        "suppress",
+        "--n",
+        "4",
+        "--t-end",
+        "30",
+        "--dt",
+        "0.02",
+        "--robust-delays",
+        "0,0.01,0.1",
+        "--robust-gains",
+        "0,0.01,0.1",
+        "--out-dir",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(stdout.contains("f and g"), "{stdout}");
+    for f in [
+        "timeseries.csv",
+        "summary.json",
+        "robustness.csv",
+        "fig_controls.svg",
+        "fig_x1_f_alone.svg",
+        "fig_x1_cloak.svg",
+        "fig_x_end.svg",
+        "robust_delay.svg",
+        "robust_gain.svg",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert!(s["exact_controls"]["rel_x_end"].as_f64().unwrap() < 1e-8);
+    assert!(s["exact_controls"]["rel_x1_minus_y1"].as_f64().unwrap() < 1e-8);
+    assert!(
+        s["single_control_f1_alone"]["rel_x1_minus_y1"]
+            .as_f64()
+            .unwrap()
+            > 0.5
+    );
+    // Theorem 3.1's f without g does not keep mass n+1 still
+    assert!(
+        s["theorem_f_without_g"]["rel_x_end_vs_uncontrolled"]
+            .as_f64()
+            .unwrap()
+            > 0.1
+    );
+    let rob = &s["robustness"]["gain_all"];
+    assert!((rob[2]["rel_x_end_vs_uncontrolled"].as_f64().unwrap() - 0.1).abs() < 1e-6);
+    let ts = springmass::series::TimeSeries::read_csv(out.join("timeseries.csv")).unwrap();
+    for c in ["f_on_4", "g_on_3", "y1", "x1", "x5", "y5", "x1_f1_alone"] {
+        assert!(ts.column(c).is_some(), "column {c}");
+    }
+
+    // single control, a disturbance, a delay
+    let csv = dir.join("u.csv");
+    pulse(0.05, 401).write_csv(&csv).unwrap();
+    let out2 = dir.join("single");
+    let (code, _, err) = cli(&[
+        "suppress",
+        "--n",
+        "6",
+        "--single",
+        "--t-end",
+        "20",
+        "--dt",
+        "0.05",
+        "--disturbance",
+        csv.to_str().unwrap(),
+        "--delay",
+        "0.1",
+        "--robust-delays",
+        "0,0.1",
+        "--robust-gains",
+        "0,0.1",
+        "--out-dir",
+        out2.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out2.join("fig_single.svg").exists());
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out2.join("summary.json")).unwrap()).unwrap();
+    assert!(s["exact_controls"]["rel_x_end"].as_f64().unwrap() < 1e-8);
+    assert!(
+        s["applied_controls"]["metrics"]["rel_x_end"]
+            .as_f64()
+            .unwrap()
+            > 1e-3
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn cli_bad_input_is_a_clear_error() {
+    let dir = tmpdir("bad");
+    let o = dir.join("o");
+    let o = o.to_str().unwrap();
+    let (code, _, err) = cli(&["suppress", "--n", "1", "--out-dir", o]);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("invalid n = 1") && err.contains("2 <= n"),
+        "{err}"
+    );
+    let (code, _, err) = cli(&["suppress", "--n", "4", "--delay", "-0.5", "--out-dir", o]);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("invalid delay = -0.5") && err.contains(">= 0"),
+        "{err}"
+    );
+    let (code, _, err) = cli(&["suppress", "--n", "4", "--gain-error", "3", "--out-dir", o]);
+    assert_eq!(code, 2);
+    assert!(err.contains("gain_error"), "{err}");
+    let nan = dir.join("nan.csv");
+    std::fs::write(&nan, "t,u\n0,0\n0.1,NaN\n0.2,1\n").unwrap();
+    let (code, _, err) = cli(&[
+        "suppress",
+        "--n",
+        "4",
+        "--disturbance",
+        nan.to_str().unwrap(),
+        "--out-dir",
+        o,
+    ]);
+    assert_eq!(code, 2);
+    assert!(err.contains("NaN") && err.contains("line 3"), "{err}");
+    let late = dir.join("late.csv");
+    std::fs::write(&late, "t,u\n1,0\n1.1,1\n").unwrap();
+    let (code, _, err) = cli(&[
+        "suppress",
+        "--n",
+        "4",
+        "--disturbance",
+        late.to_str().unwrap(),
+        "--out-dir",
+        o,
+    ]);
+    assert_eq!(code, 2);
+    assert!(err.contains("t[0]"), "{err}");
+    let (code, _, err) = cli(&["suppress", "--n", "4", "--d", "-1", "--out-dir", o]);
+    assert_eq!(code, 2);
+    assert!(err.contains("invalid d = -1"), "{err}");
+    assert!(!err.contains("panicked"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn exact_displacements_match_the_chain_modal_sums() {
+    // y_1, y_{n+1} of the (n+1)-chain and x_1 of the (n-1)-chain (what mass 1
+    // sees under f1) from time::modal's eigen-decomposition of the chain
+    use springmass::time::modal::ModalResponse;
+    for &(n, k, d, m) in &[
+        (4usize, 1.0, 0.1, 1.0),
+        (19, 2.0, 0.0, 0.5),
+        (12, 1.0, 5.0, 1.0),
+    ] {
+        let sup = Suppression::new(n, k, d, m, 1.0).unwrap();
+        let chain = sup.chain();
+        let small = springmass::Chain::new(n - 1)
+            .unwrap()
+            .with_k(k)
+            .unwrap()
+            .with_d(d)
+            .unwrap()
+            .with_mass(m)
+            .unwrap();
+        let pairs = [
+            (Signal::Y1, ModalResponse::impulse(chain, 1).unwrap()),
+            (Signal::YEnd, ModalResponse::impulse(chain, n + 1).unwrap()),
+            (Signal::X1Single, ModalResponse::impulse(&small, 1).unwrap()),
+        ];
+        for (sig, modal) in pairs {
+            let ours = Modes::new(&sup, sig);
+            for i in 0..=400 {
+                let t = i as f64 * 0.25;
+                let (a, b) = (ours.eval(t), modal.eval(t));
+                assert!(
+                    (a - b).abs() < 1e-12,
+                    "n={n} d={d} {sig:?} t={t}: {a} vs {b}"
+                );
+            }
+        }
+    }
+}

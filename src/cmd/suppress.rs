@@ -20,26 +20,26 @@ pub struct Args {
     #[arg(long)]
     pub n: usize,
     /// Spring constant.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub k: f64,
     /// Damping per mass.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = 0.1, allow_hyphen_values = true)]
     pub d: f64,
     /// Mass of every body.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub mass: f64,
     /// Impulse on mass 1 (ignored with --disturbance).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub gamma: f64,
     /// Only the single control f1 of Corollary 3.2 (default: Theorem 3.1's f and g,
     /// plus f1 for the comparison figure).
     #[arg(long)]
     pub single: bool,
     /// Simulated horizon.
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = 60.0, allow_hyphen_values = true)]
     pub t_end: f64,
     /// Output step of the simulation (a divisor of the disturbance step).
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.01, allow_hyphen_values = true)]
     pub dt: f64,
     /// Disturbance on mass 1 instead of the impulse: CSV `t,u` with uniform t from 0.
     #[arg(long)]
