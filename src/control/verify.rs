@@ -590,6 +590,18 @@ mod tests {
             .unwrap()
             .metrics;
         assert!(d.rel_x1_minus_y1 < 1e-9 && d.rel_x_end > 1e-3);
+        // x_{n+1}(t) = y_{n+1}(t) - y_{n+1}(t - tau), from the exact modal form
+        let ye = Modes::new(&sup, Signal::YEnd);
+        let want = base
+            .t()
+            .iter()
+            .map(|&t| (ye.eval(t) - ye.eval(t - 0.5)).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            (d.max_abs_x_end - want).abs() < 1e-10 * want,
+            "{} vs {want}",
+            d.max_abs_x_end
+        );
         let f = base
             .run(&c, &Perturbation::new(0.0, eps, Target::First).unwrap())
             .unwrap()
