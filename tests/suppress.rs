@@ -38,7 +38,7 @@ fn exact_controls_match_reference_residue_sums() {
                 worst = worst.max((modes.eval(*ti) - wi).abs());
             }
             assert!(
-                worst <= 1e-13 * scale.max(1.0),
+                worst <= 5e-15 * scale.max(1.0),
                 "n={n} {key}: max abs error {worst:e}"
             );
             eprintln!("reference n={n} {key}: max |exact - residue80| = {worst:.2e} (max |value| {scale:.3})");
