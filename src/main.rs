@@ -21,6 +21,8 @@ enum Command {
     Simulate(cmd::simulate::Args),
     /// Vibration suppression controls (Theorem 3.1, Corollary 3.2), verified by simulation.
     Suppress(cmd::suppress::Args),
+    /// Laplace transform X(s) of a sampled series (CSV), with error estimates.
+    Laplace(cmd::laplace::Args),
 }
 
 fn run() -> anyhow::Result<()> {
@@ -29,6 +31,7 @@ fn run() -> anyhow::Result<()> {
         Command::Response(a) => cmd::response::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Suppress(a) => cmd::suppress::run(a),
+        Command::Laplace(a) => cmd::laplace::run(a),
     }
 }
 

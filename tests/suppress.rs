@@ -426,3 +426,48 @@ mod props {
         }
     }
 }
+
+#[test]
+fn exact_controls_match_numerical_inverse_laplace() {
+    // time::inverse (two de Hoog runs + Talbot check) returns a value only
+    // where it trusts it; there the exact modal sums must agree to 1e-8.
+    use springmass::time::inverse::{invert, InverseOptions};
+    use springmass::Complex64;
+    let opts = InverseOptions::default();
+    // the last case has a critically damped mode (j = 2 of U_5)
+    let d_crit = (8.0 * (1.0 - (2.0 * std::f64::consts::PI / 6.0).cos())).sqrt();
+    for &(n, d) in &[(4usize, 0.1), (19, 0.1), (19, 5.0), (6, 0.0), (4, d_crit)] {
+        let sup = Suppression::new(n, 1.0, d, 1.0, 1.0).unwrap();
+        for sig in [Signal::F, Signal::G, Signal::F1] {
+            let r = sup.ratio(sig);
+            let lap = |s: Complex64| -> Complex64 {
+                r.eval(&sup, s)
+                    .unwrap_or(Complex64::new(f64::NAN, f64::NAN))
+            };
+            let modes = Modes::new(&sup, sig);
+            let (mut resolved, mut worst, mut last_ok) = (0, 0.0_f64, 0.0);
+            for i in 1..=120 {
+                let t = i as f64 * 0.5;
+                if let Ok(inv) = invert(&lap, t, &opts) {
+                    let e = (modes.eval(t) - inv.value).abs();
+                    assert!(
+                        e <= 1e-8,
+                        "n={n} d={d} {sig:?} t={t}: {e:e} (est {:e})",
+                        inv.err
+                    );
+                    worst = worst.max(e);
+                    resolved += 1;
+                    last_ok = t;
+                }
+            }
+            eprintln!(
+                "inverse n={n} d={d} {sig:?}: resolved {resolved}/120 points (last t = {last_ok}), max |exact - inverse| = {worst:.2e}"
+            );
+            // at least the early times (the controls' onset) are resolved
+            assert!(
+                resolved >= 20,
+                "n={n} d={d} {sig:?}: only {resolved} points resolved"
+            );
+        }
+    }
+}
