@@ -44,6 +44,10 @@ use crate::time::simulate::{simulate_forced, Force, Forcing, Method, SimOptions,
 use serde::Serialize;
 use std::sync::Arc;
 
+/// Largest number of (time step x mode) states kept by the exact convolutions
+/// of a disturbance (each state is 16 bytes, per signal).
+pub const MAX_CONV_STATES: usize = 20_000_000;
+
 /// Which controls a [`Perturbation`] acts on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub enum Target {
@@ -309,6 +313,34 @@ impl Baseline {
     /// simulator failures.
     pub fn new(sup: &Suppression, input: &Input, opts: &VerifyOptions) -> Result<Baseline> {
         let n = sup.n();
+        if *input == Input::Impulse && sup.gamma() == 0.0 {
+            return Err(Error::invalid(
+                "gamma",
+                0,
+                "non-zero for the impulse input (nothing to suppress)",
+            ));
+        }
+        if let Input::Sampled { h, u } = input {
+            if u.iter().all(|v| *v == 0.0) {
+                return Err(Error::invalid(
+                    "disturbance",
+                    "all zero",
+                    "at least one non-zero sample (nothing to suppress)",
+                ));
+            }
+            // memory of the exact convolutions: modes x internal steps
+            let steps = (opts.t_end.max(h * (u.len() - 1) as f64) / h).ceil();
+            let states = steps * (n + 2) as f64;
+            if states > MAX_CONV_STATES as f64 {
+                return Err(Error::invalid(
+                    "disturbance samples x modes",
+                    format!("{steps} x {}", n + 2),
+                    format!(
+                        "at most {MAX_CONV_STATES}: use a coarser disturbance step, a shorter horizon or a smaller n"
+                    ),
+                ));
+            }
+        }
         let sim = SimOptions::new(opts.t_end, opts.dt)
             .with_observe(vec![1, n - 1, n, n + 1])
             .with_method(opts.method);
@@ -569,6 +601,21 @@ mod tests {
         let ts =
             TimeSeries::new(vec![0.0, 0.1, 0.3], vec![("u".into(), vec![1.0, 2.0, 3.0])]).unwrap();
         assert!(Input::from_series(&ts).is_err());
+        let sup = Suppression::new(4, 1.0, 0.1, 1.0, 0.0).unwrap();
+        let opts = VerifyOptions::new(10.0, 0.1).unwrap();
+        assert!(Baseline::new(&sup, &Input::Impulse, &opts).is_err());
+        let zero = Input::Sampled {
+            h: 0.1,
+            u: vec![0.0; 5],
+        };
+        assert!(Baseline::new(&sup, &zero, &opts).is_err());
+        let big = Input::Sampled {
+            h: 1e-4,
+            u: vec![1.0; 10],
+        };
+        let sup = Suppression::paper(4000).unwrap();
+        let opts = VerifyOptions::new(1000.0, 1e-4).unwrap();
+        assert!(Baseline::new(&sup, &big, &opts).is_err());
     }
 
     #[test]
