@@ -23,6 +23,8 @@ enum Command {
     Config(cmd::config::Args),
     /// Time-domain simulation x_i(t): impulse on mass 1, optional forces, CSV/SVG out.
     Simulate(cmd::simulate::Args),
+    /// Vibration suppression controls (Theorem 3.1, Corollary 3.2), verified by simulation.
+    Suppress(cmd::suppress::Args),
     /// Laplace transform X(s) of a sampled series (CSV), with error estimates.
     Laplace(cmd::laplace::Args),
 }
@@ -34,6 +36,7 @@ fn run() -> anyhow::Result<()> {
         Command::Study(a) => cmd::study::run(a),
         Command::Config(a) => cmd::config::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
+        Command::Suppress(a) => cmd::suppress::run(a),
         Command::Laplace(a) => cmd::laplace::run(a),
     }
 }

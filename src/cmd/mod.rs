@@ -5,6 +5,7 @@ pub mod laplace;
 pub mod response;
 pub mod simulate;
 pub mod study;
+pub mod suppress;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
