@@ -19,19 +19,24 @@ fn tmp(name: &str) -> PathBuf {
     d
 }
 
-/// Every file of a folder, by name.
+/// Every file of a folder and of its `cases/` subfolder, by relative name.
 fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
-    std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.is_file())
-        .map(|p| {
-            (
-                p.file_name().unwrap().to_string_lossy().to_string(),
-                std::fs::read(&p).unwrap(),
-            )
-        })
-        .collect()
+    let mut out = BTreeMap::new();
+    for sub in ["", "cases"] {
+        let Ok(entries) = std::fs::read_dir(dir.join(sub)) else {
+            continue;
+        };
+        for p in entries.map(|e| e.unwrap().path()).filter(|p| p.is_file()) {
+            let name = p.file_name().unwrap().to_string_lossy().to_string();
+            let key = if sub.is_empty() {
+                name
+            } else {
+                format!("{sub}/{name}")
+            };
+            out.insert(key, std::fs::read(&p).unwrap());
+        }
+    }
+    out
 }
 
 fn assert_same_files(a: &Path, b: &Path) {
@@ -283,6 +288,65 @@ fn shards_merge_into_the_single_run_report() {
         "2/3",
     ]);
     assert_eq!(o.status.code(), Some(2));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn suppression_shards_with_case_plots_merge_exactly() {
+    let dir = tmp("suppress");
+    let file = dir.join("s.toml");
+    std::fs::write(
+        &file,
+        r#"
+[study]
+name = "sup"
+kind = "suppress"
+timings = false
+[scene]
+n = 3
+t_end = 10.0
+dt = 0.1
+plots = true
+[[sweep]]
+path = "scheme"
+values = ["cloak", "single"]
+[[sweep]]
+path = "input.kind"
+values = ["impulse", "noise"]
+"#,
+    )
+    .unwrap();
+    let f = file.to_str().unwrap();
+    let single = dir.join("single");
+    let o = study(&[f, "--out", single.to_str().unwrap(), "--threads", "2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let fs = files(&single);
+    assert_eq!(fs.keys().filter(|k| k.starts_with("cases/")).count(), 12);
+    let md = String::from_utf8_lossy(&fs["report.md"]).to_string();
+    assert!(md.contains("[controls](cases/c0000-controls.svg)"), "{md}");
+    let (a, b) = (dir.join("a"), dir.join("b"));
+    for (d, s) in [(&a, "1/2"), (&b, "2/2")] {
+        let o = study(&[
+            f,
+            "--out",
+            d.to_str().unwrap(),
+            "--shard",
+            s,
+            "--threads",
+            "1",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let merged = dir.join("merged");
+    let o = study(&[
+        "merge",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--out",
+        merged.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_same_files(&single, &merged);
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -336,7 +336,7 @@ impl FieldDoc {
 pub const STUDY_FIELDS: &[FieldDoc] = &[
     FieldDoc::new("study", "table", "required", "What the study is and does."),
     FieldDoc::new("study.name", "string", "required", "Name of the study: letters, digits, `-`, `_`, `.`. Titles the report; the default output folder is `out/<name>`."),
-    FieldDoc::new("study.kind", "string", "required", "What one case does: `forward` (see the kind's `scene.*` fields)."),
+    FieldDoc::new("study.kind", "string", "required", "What one case does: `forward` or `suppress` (see each kind's `scene.*` fields)."),
     FieldDoc::new("study.description", "string", "\"\"", "A paragraph printed at the top of `report.md`."),
     FieldDoc::new("study.seed", "integer >= 0", "0", "Master seed. Each case's seed is derived from it and the case's parameters (not its position), so it is the same whatever the thread count, order or shard."),
     FieldDoc::new("study.repeats", "integer >= 1", "1", "Replicates of every sweep point, each with its own derived seed (a `repeat` column tells them apart)."),

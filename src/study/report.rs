@@ -474,6 +474,38 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
         }
         s.push('\n');
     }
+    let with_files: Vec<&Record> = records.iter().filter(|r| !r.files.is_empty()).collect();
+    if !with_files.is_empty() {
+        s.push_str("## Case plots\n\n");
+        for r in with_files {
+            let params: Vec<String> = r
+                .params
+                .iter()
+                .map(|p| format!("{} = {}", p.column, p.label))
+                .collect();
+            let links: Vec<String> = r
+                .files
+                .iter()
+                .map(|f| {
+                    let name = f
+                        .rsplit('/')
+                        .next()
+                        .unwrap_or(f)
+                        .trim_start_matches(r.id.as_str())
+                        .trim_start_matches('-')
+                        .trim_end_matches(".svg");
+                    format!("[{name}]({f})")
+                })
+                .collect();
+            s.push_str(&format!(
+                "- {} ({}): {}\n",
+                r.id,
+                md_escape(&params.join(", ")),
+                links.join(", ")
+            ));
+        }
+        s.push('\n');
+    }
     s.push_str("## Cases\n\n");
     if records.len() > f.report.max_case_rows {
         s.push_str(&format!(

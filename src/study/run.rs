@@ -9,6 +9,7 @@
 //! | `manifest.json` | study name, content hash, number of cases, shard |
 //! | `results.jsonl` | one [`Record`] per finished case (sorted by id at the end) |
 //! | `summary.csv`, `report.md`, `*.svg` | written when every case is done ([`super::report`]) |
+//! | `cases/<id>-<name>.svg` | pictures of single cases (kinds that draw them), written before their record |
 //!
 //! **Nothing lost.** Each record is written with one `write` call on a file
 //! opened for appending, and the file is `fsync`ed at least once a second and
@@ -71,6 +72,10 @@ pub struct Record {
     /// Measured timings (empty when `study.timings = false`).
     #[serde(default, skip_serializing_if = "serde_json::Map::is_empty")]
     pub timings: serde_json::Map<String, serde_json::Value>,
+    /// Pictures of this case, relative to the output folder
+    /// (`cases/<id>-<name>.svg`), written before the record.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub files: Vec<String>,
 }
 
 impl Record {
@@ -142,8 +147,31 @@ pub struct RunSummary {
     pub report: Option<PathBuf>,
 }
 
-/// Run one case: never panics (a panic in a kind becomes a failed record).
-pub fn execute(study: &Study, case: &Case) -> Record {
+/// Folder of the per-case pictures inside an output folder.
+pub const CASES: &str = "cases";
+
+/// Run one case and write its pictures into `out/cases/` (atomically, before
+/// the record that lists them is appended). Never panics: a panic in a kind,
+/// or a picture that cannot be written, becomes a failed record.
+pub fn execute(study: &Study, case: &Case, out: &Path) -> Record {
+    let mut rec = execute_case(study, case);
+    let plots = std::mem::take(&mut rec.1);
+    let mut rec = rec.0;
+    for p in plots {
+        let file = format!("{CASES}/{}-{}.svg", case.id, p.name);
+        match write_atomic(&out.join(&file), p.svg.as_bytes()) {
+            Ok(()) => rec.files.push(file),
+            Err(e) => {
+                rec.status = "error".into();
+                rec.error = Some(e.to_string());
+            }
+        }
+    }
+    rec
+}
+
+/// Run one case without writing anything: its record and its pictures.
+pub fn execute_case(study: &Study, case: &Case) -> (Record, Vec<super::kinds::CasePlot>) {
     let kind = study.file.study.kind;
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         kind.run(&case.scene, case.seed)
@@ -164,7 +192,7 @@ pub fn execute(study: &Study, case: &Case) -> Record {
             )
         }
     };
-    Record {
+    let rec = Record {
         id: case.id.clone(),
         key: case.key.clone(),
         seed: case.seed,
@@ -178,7 +206,9 @@ pub fn execute(study: &Study, case: &Case) -> Record {
         } else {
             serde_json::Map::new()
         },
-    }
+        files: Vec::new(),
+    };
+    (rec, out.plots)
 }
 
 /// Run a study (or one shard of it) into `opts.out`, resuming what is there.
@@ -234,7 +264,7 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
     let failure: Mutex<Option<Error>> = Mutex::new(None);
     let work = || {
         todo.par_iter().for_each(|case| {
-            let rec = execute(study, case);
+            let rec = execute(study, case, out);
             let line = match serde_json::to_string(&rec) {
                 Ok(l) => l,
                 Err(e) => {
@@ -320,6 +350,7 @@ fn remove_stale_temporaries(out: &Path) {
 /// Create or check `study.toml` and `manifest.json` in `out`.
 fn prepare_folder(out: &Path, study: &Study, manifest: &Manifest) -> Result<()> {
     remove_stale_temporaries(out);
+    remove_stale_temporaries(&out.join(CASES));
     let mpath = out.join(MANIFEST);
     if mpath.exists() {
         let text = std::fs::read_to_string(&mpath).map_err(|e| Error::io(&mpath, e))?;

@@ -97,6 +97,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<MergeSummary> {
     let text = read(&first.join(STUDY_COPY))?;
     let study = Study::from_text(&text, &first.join(STUDY_COPY).display().to_string())?;
     let mut all: BTreeMap<String, Record> = BTreeMap::new();
+    let mut sources: BTreeMap<String, PathBuf> = BTreeMap::new();
     let mut read_count = 0;
     for d in dirs {
         let other = read(&d.join(STUDY_COPY))?;
@@ -122,6 +123,11 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<MergeSummary> {
         }
         let (records, _) = load_records(&d.join(run::RESULTS))?;
         for r in records {
+            if !all.contains_key(&r.id) {
+                for f in &r.files {
+                    sources.insert(f.clone(), d.join(f));
+                }
+            }
             match study.case(&r.id) {
                 Some(c) if c.key == r.key => {}
                 _ => {
@@ -170,6 +176,10 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<MergeSummary> {
     crate::series::write_atomic(&out.join(STUDY_COPY), text.as_bytes())?;
     let mtext = serde_json::to_string_pretty(&manifest).unwrap_or_default() + "\n";
     crate::series::write_atomic(&out.join(MANIFEST), mtext.as_bytes())?;
+    for (f, src) in &sources {
+        let bytes = std::fs::read(src).map_err(|e| Error::io(src, e))?;
+        crate::series::write_atomic(&out.join(f), &bytes)?;
+    }
     let records: Vec<Record> = all.into_values().collect();
     run::write_records(out, &records)?;
     super::report::write(&study, &records, out)?;

@@ -7,19 +7,31 @@
 //! each `match` below.
 
 pub mod forward;
+pub mod suppress;
 
 use super::config::{FieldDoc, Problem};
 use crate::error::{Error, Result};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-/// The numbers one case produces.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+/// The numbers (and pictures) one case produces.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct CaseOutput {
     /// Reproducible results (a function of the scene and the seed only).
     pub metrics: serde_json::Map<String, serde_json::Value>,
     /// Measured wall-clock numbers (keys start with `t_`); not reproducible.
     pub timings: serde_json::Map<String, serde_json::Value>,
+    /// Pictures of this case (written as `cases/<id>-<name>.svg`).
+    pub plots: Vec<CasePlot>,
+}
+
+/// One picture of one case.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CasePlot {
+    /// Short name (letters, digits, `_`), part of the file name.
+    pub name: String,
+    /// The SVG text.
+    pub svg: String,
 }
 
 /// The case kinds.
@@ -29,16 +41,19 @@ pub enum Kind {
     /// Forward-model accuracy and speed: Woodbury closed form against the
     /// O(n) tridiagonal reference on an s grid.
     Forward,
+    /// Active suppression (Theorem 3.1, Corollary 3.2) verified by simulation.
+    Suppress,
 }
 
 /// Every kind, in documentation order.
-pub const ALL: &[Kind] = &[Kind::Forward];
+pub const ALL: &[Kind] = &[Kind::Forward, Kind::Suppress];
 
 impl Kind {
     /// The name used in `study.kind`.
     pub fn name(&self) -> &'static str {
         match self {
             Kind::Forward => "forward",
+            Kind::Suppress => "suppress",
         }
     }
 
@@ -62,6 +77,7 @@ impl Kind {
     pub fn summary(&self) -> &'static str {
         match self {
             Kind::Forward => forward::SUMMARY,
+            Kind::Suppress => suppress::SUMMARY,
         }
     }
 
@@ -69,6 +85,7 @@ impl Kind {
     pub fn schema(&self) -> &'static [FieldDoc] {
         match self {
             Kind::Forward => forward::FIELDS,
+            Kind::Suppress => suppress::FIELDS,
         }
     }
 
@@ -76,6 +93,7 @@ impl Kind {
     pub fn metrics(&self) -> &'static [(&'static str, &'static str)] {
         match self {
             Kind::Forward => forward::METRICS,
+            Kind::Suppress => suppress::METRICS,
         }
     }
 
@@ -87,6 +105,7 @@ impl Kind {
     pub fn validate(&self, scene: &toml::Value) -> Result<()> {
         match self {
             Kind::Forward => forward::Scene::from_value(scene).map(|_| ()),
+            Kind::Suppress => suppress::Scene::from_value(scene).map(|_| ()),
         }
     }
 
@@ -98,6 +117,7 @@ impl Kind {
     pub fn run(&self, scene: &toml::Value, seed: u64) -> Result<CaseOutput> {
         match self {
             Kind::Forward => forward::run(&forward::Scene::from_value(scene)?, seed),
+            Kind::Suppress => suppress::run(&suppress::Scene::from_value(scene)?, seed),
         }
     }
 }
