@@ -652,9 +652,11 @@ impl Modes {
 const CLUSTER: f64 = 0.05;
 
 /// The second-order terms `(e (s + a) + c) / ((s + a)^2 + w2)` of the
-/// near-double pole pairs, fitted so that the modal sum equals the exact
-/// `amp [K(s)^-1]_{ij}` (an O(n) tridiagonal solve) at two points per pair
-/// on the line `Re s = 1/2` (least squares). `a`, `w2` (the pair's sum and
+/// near-double pole pairs, fitted (jointly, least squares) so that the modal
+/// sum equals the exact `amp [K(s)^-1]_{ij}` (an O(n) tridiagonal solve) at
+/// two points per pair on a circle around the pair's centre `-a` (radius half
+/// the distance to the nearest other pole, at least twice the pair's
+/// half-width), where the pair dominates. `a`, `w2` (the pair's sum and
 /// product) are well conditioned even where the two poles are not.
 fn fit_clusters(
     qep: &Qep,
@@ -665,11 +667,42 @@ fn fit_clusters(
     amp: f64,
 ) -> Result<Vec<Term>> {
     let nc = clusters.len();
+    let mut other_poles: Vec<Complex64> = Vec::new();
+    for t in others {
+        match *t {
+            Term::Pair { p, .. } => {
+                other_poles.push(p);
+                other_poles.push(p.conj());
+            }
+            Term::Real { p, .. } => other_poles.push(p.into()),
+            Term::Osc { .. } => {}
+        }
+    }
     let mut pts = Vec::with_capacity(2 * nc);
-    for &(a, w2) in clusters {
-        let b = w2.max(0.0).sqrt();
-        pts.push(Complex64::new(0.5, b));
-        pts.push(Complex64::new(0.5 + a, b + 0.5));
+    for (ci, &(a, w2)) in clusters.iter().enumerate() {
+        let centre = Complex64::new(-a, 0.0);
+        let half_width = w2.abs().sqrt();
+        let dist = other_poles
+            .iter()
+            .map(|p| (p - centre).norm())
+            .chain(
+                clusters
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != ci)
+                    .map(|(_, c)| (c.0 - a).abs()),
+            )
+            .fold(f64::INFINITY, f64::min);
+        let rho = if dist.is_finite() {
+            0.5 * dist
+        } else {
+            1.0 + a.abs()
+        }
+        .max(2.0 * half_width)
+        .max(1e-6 * (1.0 + a.abs()));
+        for angle in [0.5 * std::f64::consts::PI, 0.3 * std::f64::consts::PI] {
+            pts.push(centre + Complex64::from_polar(rho, angle));
+        }
     }
     let mut mat = DMatrix::zeros(2 * pts.len(), 2 * nc);
     let mut rhs = nalgebra::DVector::zeros(2 * pts.len());
