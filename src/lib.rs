@@ -38,14 +38,18 @@
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
-//! | [`time`] | simulation ([`time::simulate`]) and exact inverse Laplace transforms ([`time::modal`]) |
+//! | [`time`] | simulation ([`time::simulate`]), exact ([`time::modal`]) and numerical ([`time::inverse`]) inverse Laplace transforms, transform of sampled series ([`time::series`]) |
+//! | [`noise`] | seeded additive white Gaussian noise |
 //! | [`error`] | one error type; every variant names the field and its range |
+//! | [`detect`] | defect fitting: [`detect::search`] the optimizers (GA, Nelder-Mead, particle swarm) behind one interface |
 
 pub mod chain;
+pub mod detect;
 pub mod error;
 pub mod forward;
 pub mod green;
 pub mod linalg;
+pub mod noise;
 pub mod plot;
 pub mod scalar;
 pub mod series;

@@ -19,6 +19,8 @@ enum Command {
     Response(cmd::response::Args),
     /// Time-domain simulation x_i(t): impulse on mass 1, optional forces, CSV/SVG out.
     Simulate(cmd::simulate::Args),
+    /// Laplace transform X(s) of a sampled series (CSV), with error estimates.
+    Laplace(cmd::laplace::Args),
 }
 
 fn run() -> anyhow::Result<()> {
@@ -26,6 +28,7 @@ fn run() -> anyhow::Result<()> {
     match cli.command {
         Command::Response(a) => cmd::response::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
+        Command::Laplace(a) => cmd::laplace::run(a),
     }
 }
 

@@ -407,6 +407,9 @@ fn cli_noise_is_seeded_and_forces_are_read() {
     assert_ne!(a, c);
     let d = max_diff(a.column("x6").unwrap(), clean.column("x6").unwrap());
     assert!(d > 1e-4 && d < 0.1, "{d}");
+    let e = with(&["--noise", "snr:40", "--seed", "7"]);
+    assert_ne!(e, clean);
+    assert_eq!(e, with(&["--noise", "snr:40", "--seed", "7"]));
     // a force file: f6 acts on mass 6
     let dir = tmp_dir("force");
     let f = dir.join("f.csv");
@@ -443,6 +446,7 @@ fn cli_bad_input() {
         ),
         (vec!["--n", "5", "--observe", "1,6"], "observe"),
         (vec!["--n", "5", "--noise", "-1"], "noise"),
+        (vec!["--n", "5", "--noise", "loud:3"], "noise"),
         (vec!["--n", "5", "--method", "euler"], "method"),
         (
             vec!["--n", "5", "--force", "/nonexistent/f.csv"],
