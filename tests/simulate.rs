@@ -535,3 +535,24 @@ mod props {
         }
     }
 }
+
+#[test]
+fn large_chain_forced_rk_matches_exact_convolution() {
+    // n = 10^4 (closed-form modes), a damped oscillating force on mass 5
+    let n = 10_000;
+    let chain = Chain::paper(n).unwrap();
+    let (amp, q) = (Complex64::new(0.3, 0.2), Complex64::new(-0.1, 1.3));
+    let forcing = Forcing::new().on(5, move |t| (amp * (q * t).exp()).re);
+    let opts = SimOptions::new(15.0, 0.5).with_observe(vec![1, 5]);
+    let tr = simulate_forced(&chain, &opts, &forcing).unwrap();
+    assert_eq!(tr.method, Method::Rk);
+    for obs in [1, 5] {
+        let ex: Vec<f64> =
+            tr.t.iter()
+                .map(|&t| exact_forced(&chain, obs, 5, amp, q, t))
+                .collect();
+        let e = max_diff(tr.x(obs).unwrap(), &ex);
+        println!("n = 10^4 forced rk: x{obs} max error {e:.2e}");
+        assert!(e < 1e-12, "x{obs}: {e:e}");
+    }
+}
