@@ -28,6 +28,7 @@ fn paper(n: usize, defects: &[(usize, f64)]) -> Chain {
 fn reference_path(scene: &str) -> Option<std::path::PathBuf> {
     let name = format!("time_{scene}.json");
     [
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/reference"),
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data"),
         std::path::PathBuf::from("/work/shared/reference"),
     ]
