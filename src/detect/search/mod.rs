@@ -8,7 +8,7 @@
 //! | method | file | integer positions |
 //! |---|---|---|
 //! | [`Method::Genetic`] | [`genetic`] | native: mixed genome, pair-preserving crossover, neighbour/jump mutation; Lamarckian Nelder-Mead polish of the values; independent restarts |
-//! | [`Method::NelderMead`] | [`nelder_mead`] | fixed per run: discrete steepest descent over positions, argmin Nelder-Mead on the values, restarts |
+//! | [`Method::NelderMead`] | [`nelder_mead`] | fixed per run: discrete descent over positions (memoised fits), argmin Nelder-Mead on the values, restarts |
 //! | [`Method::ParticleSwarm`] | [`pso`] | relax-and-round (with collision repair), argmin particle swarm, then the Nelder-Mead local search; episodes |
 //!
 //! Exhaustive enumeration of position sets lives with the fitting code (it is

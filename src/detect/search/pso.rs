@@ -32,7 +32,7 @@
 //! Seeding: `ParticleSwarm::with_rng_generator(ChaCha8Rng::seed_from_u64(seed))`
 //! (argmin's default seeds itself from the OS, which would not be reproducible).
 
-use super::nelder_mead::{local_search, polish, Budgeted};
+use super::nelder_mead::{local_search_memo, polish, Budgeted, FitMemo};
 use super::{argmin_err, finite_cost, Candidate, SearchOptions, Tracked};
 use crate::error::{Error, Result};
 use argmin::core::State;
@@ -198,6 +198,7 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
     let mut incumbent: Option<(Vec<usize>, f64)> = None;
     let mut idle = 0;
     let mut episode: u64 = 0;
+    let mut memo = FitMemo::new();
     while !tracked.done() && idle < o.patience {
         let stop_at = tracked.evaluations() + swarm_cap.min(tracked.remaining());
         let rng = ChaCha8Rng::seed_from_u64(episode_seed(opts.seed, episode));
@@ -237,7 +238,7 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
                     out = polish(tracked, &best, tracked.remaining(), &opts.nelder_mead)?;
                 }
                 Finish::LocalSearch => {
-                    out = local_search(tracked, &best, &opts.nelder_mead)?;
+                    out = local_search_memo(tracked, &best, &opts.nelder_mead, &mut memo)?;
                 }
             }
         }
