@@ -1,7 +1,9 @@
 //! Subcommands. Shared argument groups live here.
 
+pub mod laplace;
 pub mod response;
 pub mod simulate;
+pub mod suppress;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
