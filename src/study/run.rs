@@ -561,6 +561,32 @@ values = [8, 30]
     }
 
     #[test]
+    fn records_roundtrip_byte_for_byte() {
+        // floats must survive parse + print exactly (serde_json float_roundtrip),
+        // or a resumed run would rewrite the records of earlier runs differently
+        let study = Study::from_text(TEXT, "t").unwrap();
+        for case in &study.cases {
+            let (rec, _) = execute_case(&study, case);
+            let line = serde_json::to_string(&rec).unwrap();
+            let back: Record = serde_json::from_str(&line).unwrap();
+            assert_eq!(serde_json::to_string(&back).unwrap(), line);
+        }
+        for x in [
+            5.796622836856578e-16,
+            0.1 + 0.2,
+            1e-300,
+            f64::MAX,
+            2.0f64.sqrt(),
+        ] {
+            let t = serde_json::to_string(&x).unwrap();
+            assert_eq!(
+                serde_json::from_str::<f64>(&t).unwrap().to_bits(),
+                x.to_bits()
+            );
+        }
+    }
+
+    #[test]
     fn resume_after_partial_run_and_torn_line_gives_same_files() {
         let study = Study::from_text(TEXT, "t").unwrap();
         let a = tmp("a");
