@@ -643,24 +643,37 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
     match sweep::expand(file) {
         Err(e) => push(String::new(), e.to_string()),
         Ok(cases) => {
-            let mut seen = std::collections::BTreeSet::new();
-            for case in &cases {
-                if let Err(e) = file.study.kind.validate(&case.scene) {
+            // (path, message) -> (first failing case, number of failing cases),
+            // in order of first appearance
+            let mut found: Vec<((String, String), (usize, usize))> = Vec::new();
+            for (ci, case) in cases.iter().enumerate() {
+                for e in file.study.kind.validate_all(&case.scene) {
                     let (path, message) = split_field(&e);
                     let path = if path.is_empty() {
                         "scene".to_string()
                     } else {
                         format!("scene.{path}")
                     };
-                    if seen.insert((path.clone(), message.clone())) {
-                        let where_ = if case.params.is_empty() {
-                            String::new()
-                        } else {
-                            format!(" (case {}: {})", case.id, case.describe())
-                        };
-                        push(path, format!("{message}{where_}"));
+                    let key = (path, message);
+                    match found.iter_mut().find(|(k, _)| *k == key) {
+                        Some((_, (_, count))) => *count += 1,
+                        None => found.push((key, (ci, 1))),
                     }
                 }
+            }
+            for ((path, message), (first, count)) in found {
+                let case = &cases[first];
+                let where_ = if count == cases.len() || case.params.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        " ({count} of {} cases, first {}: {})",
+                        cases.len(),
+                        case.id,
+                        case.describe()
+                    )
+                };
+                push(path, format!("{message}{where_}"));
             }
         }
     }
@@ -996,7 +1009,11 @@ values = [5, 10]
         let p = check(&bad);
         assert_eq!(p.len(), 1, "{p:?}");
         assert_eq!(p[0].path, "scene.chain.defects[0].at");
-        assert!(p[0].message.contains("chain.n = 2"), "{p:?}");
+        assert!(
+            p[0].message
+                .contains("1 of 2 cases, first c0000: chain.n = 2"),
+            "{p:?}"
+        );
         // a misspelled sweep path is an unknown field of the case
         let bad = GOOD.replace("path = \"chain.n\"", "path = \"chain.nn\"");
         let p = check(&bad);

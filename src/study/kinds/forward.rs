@@ -239,60 +239,85 @@ impl Scene {
     /// Range checks (the chain is checked by [`ChainSpec::build`]).
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] naming the field.
+    /// The first of [`Scene::problems`].
     pub fn check(&self) -> Result<()> {
-        let chain = self.chain.build().map_err(prefix_chain)?;
-        chain.check_observe(self.observe)?;
+        match self.problems().into_iter().next() {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+
+    /// Every failed range check, each naming its field.
+    pub fn problems(&self) -> Vec<Error> {
         let r = &self.random_defects;
-        defect_kind(&r.kind)?;
-        check_f64(
-            "random_defects.min",
-            r.min,
-            r.min > 0.0,
-            "min > 0 and finite",
-        )?;
-        check_f64(
-            "random_defects.max",
-            r.max,
-            r.max >= r.min,
-            "max >= min and finite",
-        )?;
-        let free = free_positions(&self.chain, &r.kind);
-        if r.count > free {
-            return Err(Error::invalid(
-                "random_defects.count",
-                r.count,
-                format!("at most {free} (free {} positions of the chain)", r.kind),
-            ));
-        }
         let g = &self.s;
-        check_f64("s.from", g.from, g.from >= 0.0, "from >= 0 and finite")?;
-        check_f64("s.to", g.to, g.to >= g.from, "to >= from and finite")?;
-        if g.count == 0 || g.count > MAX_POINTS {
-            return Err(Error::invalid(
-                "s.count",
-                g.count,
-                format!("1 <= count <= {MAX_POINTS}"),
-            ));
-        }
-        match g.spacing.as_str() {
-            "linear" => {}
-            "log" => {
-                check_f64("s.from", g.from, g.from > 0.0, "from > 0 with log spacing")?;
-            }
-            other => return Err(Error::invalid("s.spacing", other, "\"log\" or \"linear\"")),
-        }
-        if let Some(sig) = g.sigma {
-            check_f64("s.sigma", sig, sig >= 0.0, "sigma >= 0 and finite")?;
-        }
-        let t = self.timing.min_seconds;
-        check_f64(
-            "timing.min_seconds",
-            t,
-            (0.0..=60.0).contains(&t),
-            "0 <= min_seconds <= 60",
-        )?;
-        Ok(())
+        let checks: [&dyn Fn() -> Result<()>; 6] = [
+            &|| {
+                let chain = self.chain.build().map_err(prefix_chain)?;
+                chain.check_observe(self.observe).map(|_| ())
+            },
+            &|| {
+                defect_kind(&r.kind)?;
+                check_f64(
+                    "random_defects.min",
+                    r.min,
+                    r.min > 0.0,
+                    "min > 0 and finite",
+                )?;
+                check_f64(
+                    "random_defects.max",
+                    r.max,
+                    r.max >= r.min,
+                    "max >= min and finite",
+                )?;
+                let free = free_positions(&self.chain, &r.kind);
+                if r.count > free {
+                    return Err(Error::invalid(
+                        "random_defects.count",
+                        r.count,
+                        format!("at most {free} (free {} positions of the chain)", r.kind),
+                    ));
+                }
+                Ok(())
+            },
+            &|| {
+                check_f64("s.from", g.from, g.from >= 0.0, "from >= 0 and finite")?;
+                check_f64("s.to", g.to, g.to >= g.from, "to >= from and finite")?;
+                match g.spacing.as_str() {
+                    "linear" => Ok(()),
+                    "log" => check_f64("s.from", g.from, g.from > 0.0, "from > 0 with log spacing")
+                        .map(|_| ()),
+                    other => Err(Error::invalid("s.spacing", other, "\"log\" or \"linear\"")),
+                }
+            },
+            &|| {
+                if g.count == 0 || g.count > MAX_POINTS {
+                    return Err(Error::invalid(
+                        "s.count",
+                        g.count,
+                        format!("1 <= count <= {MAX_POINTS}"),
+                    ));
+                }
+                Ok(())
+            },
+            &|| match g.sigma {
+                Some(sig) => {
+                    check_f64("s.sigma", sig, sig >= 0.0, "sigma >= 0 and finite").map(|_| ())
+                }
+                None => Ok(()),
+            },
+            &|| {
+                let t = self.timing.min_seconds;
+                check_f64(
+                    "timing.min_seconds",
+                    t,
+                    (0.0..=60.0).contains(&t),
+                    "0 <= min_seconds <= 60",
+                )
+                .map(|_| ())
+            },
+        ];
+        checks.iter().filter_map(|c| c().err()).collect()
     }
 
     /// The grid parameters `t`.

@@ -109,6 +109,21 @@ impl Kind {
         }
     }
 
+    /// Every problem of a resolved scene (a deserialisation error alone, or
+    /// every failed range check).
+    pub fn validate_all(&self, scene: &toml::Value) -> Vec<Error> {
+        match self {
+            Kind::Forward => match from_scene::<forward::Scene>(scene, forward::FIELDS) {
+                Ok(s) => s.problems(),
+                Err(e) => vec![e],
+            },
+            Kind::Suppress => match from_scene::<suppress::Scene>(scene, suppress::FIELDS) {
+                Ok(s) => s.problems(),
+                Err(e) => vec![e],
+            },
+        }
+    }
+
     /// Run one case.
     ///
     /// # Errors

@@ -212,12 +212,27 @@ impl Scene {
     /// Range checks.
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] naming the field.
+    /// The first of [`Scene::problems`].
     pub fn check(&self) -> Result<()> {
-        self.suppression()?;
-        self.scheme()?;
-        self.method()?;
-        self.options()?;
+        match self.problems().into_iter().next() {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+
+    /// Every failed range check, each naming its field.
+    pub fn problems(&self) -> Vec<Error> {
+        let checks: [&dyn Fn() -> Result<()>; 5] = [
+            &|| self.suppression().map(|_| ()),
+            &|| self.scheme().map(|_| ()),
+            &|| self.method().map(|_| ()),
+            &|| self.options().map(|_| ()),
+            &|| self.check_input(),
+        ];
+        checks.iter().filter_map(|c| c().err()).collect()
+    }
+
+    fn check_input(&self) -> Result<()> {
         let i = &self.input;
         match i.kind.as_str() {
             "impulse" => {}
@@ -237,7 +252,7 @@ impl Scene {
                         "non-zero (nothing to suppress)",
                     ));
                 }
-                if i.duration / self.dt > MAX_SAMPLES {
+                if self.dt > 0.0 && i.duration / self.dt > MAX_SAMPLES {
                     return Err(Error::invalid(
                         "input.duration",
                         i.duration,
