@@ -562,7 +562,7 @@ impl ModeFit {
         // amplitudes: y_k = Σ c_i z_i^k
         let vand = DMatrix::from_fn(l, r, |k, i| z[i].powu(k as u32));
         let yc = nalgebra::DVector::from_iterator(l, y.iter().map(|&v| Complex64::new(v, 0.0)));
-        let c = vand.svd(true, true).solve(&yc, 1e-14).ok()?;
+        let c = vand.svd(true, true).solve(&yc, 0.0).ok()?;
         let poles: Vec<Complex64> = z.iter().map(|zi| zi.ln() / big_h).collect();
         let t0 = t[idx[0]];
         // residual on every sample of the window
