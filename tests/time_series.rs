@@ -323,6 +323,33 @@ fn cli_laplace_text_json_and_errors() {
         4,
         "{text}"
     );
+    // the mode-fit tail: fitted for this 4-mass record, and accurate at small s
+    let out = Command::new(bin)
+        .args([
+            "laplace",
+            "--series",
+            csv.to_str().unwrap(),
+            "--s",
+            "0.001",
+            "--tail",
+            "modes",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let x = v["points"][0]["x"][0].as_f64().unwrap();
+    let err = v["points"][0]["err"].as_f64().unwrap();
+    let exact = fwd.eval(0.001, 1).unwrap();
+    assert!(
+        (x - exact).abs() <= err && err < 1e-12,
+        "{x} vs {exact}, err {err}"
+    );
     // errors: missing column, bad CSV (duplicate time, naming the line), bad s
     let bad = dir.join("bad.csv");
     std::fs::write(&bad, "t,x1\n0,0\n0.5,1\n0.5,2\n1,3\n").unwrap();

@@ -20,18 +20,26 @@
 //!   the data are resolved.
 //! * **Rounding floor**: `eps (32 + |s| t_max) Σ |w_i x_i|` (summation and the
 //!   phase `s t` of the kernel).
-//! * **Truncation (tail beyond `t_N`)**, [`Tail`]: by default an exponential
-//!   envelope `|x(t)| <= A e^{-a (t - t_N)}` is fitted to block maxima of the
-//!   last quarter of the record (the rate halved for safety, and taken as 0
-//!   unless the envelope falls by at least a factor 2 across the window; `A`
-//!   the largest block maximum carried forward to `t_N`), and the tail bound
-//!   `A |e^{-s t_N}| / (a + Re s)` is added to the error estimate. No value
-//!   correction is applied: for the oscillating, many-mode responses of a
-//!   chain an extrapolation of the last samples (even a single decaying
-//!   exponential) is more often wrong than the truncation itself; the bound
-//!   is honest and is what dominates at small `s` (for example `s = 0.001`
-//!   with a record of 300 time units). [`Tail::Zero`] declares that the
-//!   signal is zero after `t_N` (no bound).
+//! * **Truncation (tail beyond `t_N`)**, [`Tail`]:
+//!   - [`Tail::Envelope`] (default): an exponential envelope
+//!     `|x(t)| <= A e^{-a (t - t_N)}` is fitted to block maxima of the last
+//!     quarter of the record (the rate halved for safety, and taken as 0
+//!     unless the envelope falls by at least a factor 2 across the window; `A`
+//!     the largest block maximum carried forward to `t_N`), and the tail bound
+//!     `A |e^{-s t_N}| / (a + Re s)` is added to the error estimate. No value
+//!     correction: for oscillating many-mode responses an extrapolation of
+//!     the last samples by one exponential is more often wrong than the
+//!     truncation itself. The bound is honest but pessimistic (about 100x
+//!     the true truncation error for a 20-mass chain at `s = 0.001`).
+//!   - [`Tail::Modes`]: the end of the record is fitted to a sum of decaying
+//!     modes ([`ModeFit`], matrix pencil) on two windows; the analytic
+//!     transform of the fitted tail is *added* to the value and the
+//!     disagreement of the two windows (plus the fit residual) is the
+//!     truncation estimate. Accepted only if the model reproduces every
+//!     sample of the window; otherwise the envelope bound is used. For
+//!     few-mode records this removes the truncation error (n = 4 chain on
+//!     [0, 300]: error 3e-15 at `s = 0.001` instead of 4e-9).
+//!   - [`Tail::Zero`]: the signal is zero after `t_N` (no bound).
 //! * **Noise**: with a noise level `sigma` (white, per sample) the variance
 //!   of the transformed value is `sigma^2 Σ |w_i|^2`.
 //!
