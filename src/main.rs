@@ -19,6 +19,8 @@ enum Command {
     Response(cmd::response::Args),
     /// Time-domain simulation x_i(t): impulse on mass 1, optional forces, CSV/SVG out.
     Simulate(cmd::simulate::Args),
+    /// Vibration suppression controls (Theorem 3.1, Corollary 3.2), verified by simulation.
+    Suppress(cmd::suppress::Args),
     /// Laplace transform X(s) of a sampled series (CSV), with error estimates.
     Laplace(cmd::laplace::Args),
 }
@@ -28,6 +30,7 @@ fn run() -> anyhow::Result<()> {
     match cli.command {
         Command::Response(a) => cmd::response::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
+        Command::Suppress(a) => cmd::suppress::run(a),
         Command::Laplace(a) => cmd::laplace::run(a),
     }
 }

@@ -3,6 +3,7 @@
 pub mod laplace;
 pub mod response;
 pub mod simulate;
+pub mod suppress;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
