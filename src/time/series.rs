@@ -289,18 +289,17 @@ impl SeriesTransform {
         if !(s.re.is_finite() && s.im.is_finite()) {
             return Err(Error::invalid("s", s, "finite"));
         }
-        let w_hi = self.hi.weights(&self.t, s);
-        let w_lo = self.lo.weights(&self.t, s);
-        let mut q_hi = Complex64::new(0.0, 0.0);
-        let mut q_lo = Complex64::new(0.0, 0.0);
-        let mut sum_abs = 0.0;
-        let mut sum_w2 = 0.0;
-        for ((a, b), x) in w_hi.iter().zip(&w_lo).zip(&self.x) {
-            q_hi += a * x;
-            q_lo += b * x;
-            sum_abs += a.norm() * x.abs();
-            sum_w2 += a.norm_sqr();
-        }
+        let (q_hi, sum_abs) = self.hi.apply(&self.x, s);
+        let (q_lo, _) = self.lo.apply(&self.x, s);
+        let sum_w2 = if self.opts.noise_sigma.is_some() {
+            self.hi
+                .weights(&self.t, s)
+                .iter()
+                .map(|w| w.norm_sqr())
+                .sum()
+        } else {
+            0.0
+        };
         if !(q_hi.re.is_finite() && q_hi.im.is_finite() && q_lo.norm().is_finite()) {
             return Err(Error::Unresolvable {
                 reason: format!(
@@ -402,29 +401,68 @@ impl Rule {
         Rule { p, panels, mats }
     }
 
-    fn weights(&self, t: &[f64], s: Complex64) -> Vec<Complex64> {
+    /// Visit every panel with its first sample index, the factor
+    /// `h2 e^{-s alpha}` and its local weights `W_j`.
+    fn for_each_panel(&self, s: Complex64, mut visit: impl FnMut(usize, Complex64, &[Complex64])) {
         let p = self.p;
-        let mut out = vec![Complex64::new(0.0, 0.0); t.len()];
         let mut mu = vec![Complex64::new(0.0, 0.0); p + 1];
         let mut wloc = vec![Complex64::new(0.0, 0.0); p + 1];
-        let mut cache: Option<(usize, f64)> = None;
+        // Local weights depend only on (Lagrange matrix, exact h2): a uniform
+        // grid has a handful of distinct h2 values (rounding of t_i), so a
+        // small exact cache makes the rule cost one exponential per panel.
+        let mut cache: std::collections::HashMap<(usize, u64), Vec<Complex64>> =
+            std::collections::HashMap::new();
+        let mut last: (usize, u64) = (usize::MAX, 0);
         for pan in &self.panels {
-            let reuse = matches!(cache, Some((m, h)) if m == pan.mat && (h - pan.h2).abs() <= 1e-13 * pan.h2);
-            if !reuse {
-                moments(s * pan.h2, &mut mu);
-                let l = &self.mats[pan.mat];
-                for (j, wj) in wloc.iter_mut().enumerate() {
-                    let row = &l[j * (p + 1)..(j + 1) * (p + 1)];
-                    *wj = row.iter().zip(&mu).map(|(c, m)| m * c).sum();
+            let key = (pan.mat, pan.h2.to_bits());
+            if key != last {
+                if let Some(w) = cache.get(&key) {
+                    wloc.copy_from_slice(w);
+                } else {
+                    moments(s * pan.h2, &mut mu);
+                    let l = &self.mats[pan.mat];
+                    for (j, wj) in wloc.iter_mut().enumerate() {
+                        let row = &l[j * (p + 1)..(j + 1) * (p + 1)];
+                        *wj = row.iter().zip(&mu).map(|(c, m)| m * c).sum();
+                    }
+                    if cache.len() < 256 {
+                        cache.insert(key, wloc.clone());
+                    }
                 }
-                cache = Some((pan.mat, pan.h2));
+                last = key;
             }
             let scale = (-s * pan.alpha).exp() * pan.h2;
-            for (j, wj) in wloc.iter().enumerate() {
-                out[pan.first + j] += scale * wj;
-            }
+            visit(pan.first, scale, &wloc);
         }
+    }
+
+    fn weights(&self, t: &[f64], s: Complex64) -> Vec<Complex64> {
+        let mut out = vec![Complex64::new(0.0, 0.0); t.len()];
+        self.for_each_panel(s, |first, scale, w| {
+            for (j, wj) in w.iter().enumerate() {
+                out[first + j] += scale * wj;
+            }
+        });
         out
+    }
+
+    /// `(Σ w_i x_i, Σ_panels Σ_j |scale W_j| |x_j|)` without forming the weights
+    /// (the second is an upper bound of `Σ |w_i x_i|`, in the l1 norm of the
+    /// complex weights).
+    fn apply(&self, x: &[f64], s: Complex64) -> (Complex64, f64) {
+        let mut acc = Complex64::new(0.0, 0.0);
+        let mut abs = 0.0;
+        self.for_each_panel(s, |first, scale, w| {
+            let mut loc = Complex64::new(0.0, 0.0);
+            let mut la = 0.0;
+            for (wj, xj) in w.iter().zip(&x[first..]) {
+                loc += wj * xj;
+                la += (wj.re.abs() + wj.im.abs()) * xj.abs();
+            }
+            acc += scale * loc;
+            abs += (scale.re.abs() + scale.im.abs()) * la;
+        });
+        (acc, abs)
     }
 }
 
