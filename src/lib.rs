@@ -36,6 +36,7 @@
 //! | [`green`] | closed-form Green's function, overflow-free for every `n` and `s` |
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
+//! | [`precision`] | arbitrary-precision reals ([`precision::BigReal`]) and real-only operations |
 //! | [`error`] | one error type; every variant names the field and its range |
 
 pub mod chain;
@@ -43,6 +44,7 @@ pub mod error;
 pub mod forward;
 pub mod green;
 pub mod linalg;
+pub mod precision;
 pub mod scalar;
 
 pub use chain::{Chain, ChainSpec, Defect};
