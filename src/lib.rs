@@ -37,6 +37,8 @@
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
 //! | [`precision`] | arbitrary-precision reals ([`precision::BigReal`]) and real-only operations |
+//! | [`series`] | sampled time series, CSV in and out, atomic writes |
+//! | [`plot`] | SVG line plots and heatmaps (bundled font) |
 //! | [`error`] | one error type; every variant names the field and its range |
 
 pub mod chain;
@@ -45,7 +47,9 @@ pub mod forward;
 pub mod green;
 pub mod linalg;
 pub mod precision;
+pub mod plot;
 pub mod scalar;
+pub mod series;
 
 pub use chain::{Chain, ChainSpec, Defect};
 pub use error::{Error, Result};
