@@ -39,15 +39,17 @@
 //! | [`precision`] | arbitrary-precision reals ([`precision::BigReal`]) and real-only operations |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
+//! | [`detect::locate`] | explicit single-defect locators (section 4.1), error floors, any precision |
 //! | [`error`] | one error type; every variant names the field and its range |
 
 pub mod chain;
+pub mod detect;
 pub mod error;
 pub mod forward;
 pub mod green;
 pub mod linalg;
-pub mod precision;
 pub mod plot;
+pub mod precision;
 pub mod scalar;
 pub mod series;
 

@@ -1,0 +1,3 @@
+//! Defect detection from Laplace-domain data.
+
+pub mod locate;
