@@ -360,6 +360,12 @@ pub fn locate<T: RealScalar>(
         .map(|p| estimate(model, p, method))
         .collect::<Result<_>>()?;
     let large = matches!(method, Method::Large | Method::LargePaper);
+    let ctx = Ctx {
+        n,
+        mass: model.mass().to_f64(),
+        d: model.d().to_f64(),
+        k: model.k().to_f64(),
+    };
     let candidates: Vec<Location<T>> = match choice {
         SChoice::At(s) => {
             let i = data.find(s).ok_or_else(|| {
@@ -379,7 +385,7 @@ pub fn locate<T: RealScalar>(
                 }
                 vec![extrapolate(
                     method,
-                    (n, model.mass().to_f64()),
+                    &ctx,
                     &est[i - 2],
                     &est[i - 1],
                     &est[i],
@@ -392,13 +398,7 @@ pub fn locate<T: RealScalar>(
             let mut c = Vec::new();
             if large {
                 for i in 2..est.len() {
-                    if let Ok(l) = extrapolate(
-                        method,
-                        (n, model.mass().to_f64()),
-                        &est[i - 2],
-                        &est[i - 1],
-                        &est[i],
-                    ) {
+                    if let Ok(l) = extrapolate(method, &ctx, &est[i - 2], &est[i - 1], &est[i]) {
                         c.push(l);
                     }
                 }
@@ -495,11 +495,19 @@ fn single<T: RealScalar>(method: Method, n: usize, e: &Estimate<T>) -> Result<Lo
     }
 }
 
+/// Chain constants the extrapolation's error model needs.
+struct Ctx {
+    n: usize,
+    mass: f64,
+    d: f64,
+    k: f64,
+}
+
 /// Remove the heavy-defect bias `j(s) = j + L/(2 lambda)` with two values of
 /// `s` (`b`, `c`) and check the model at a third (`a`).
 fn extrapolate<T: RealScalar>(
     method: Method,
-    (n, mass0): (usize, f64),
+    ctx: &Ctx,
     a: &Estimate<T>,
     b: &Estimate<T>,
     c: &Estimate<T>,
@@ -541,10 +549,16 @@ fn extrapolate<T: RealScalar>(
         });
     }
     let mass = if l > 0.0 {
-        Some(mass0 / -(-l).exp_m1())
+        Some(ctx.mass / -(-l).exp_m1())
     } else {
         None
     };
+    // Relative size of the terms the 1/lambda model neglects at the smallest s:
+    // 1 + c G_jj = (m s^2 + d s + 2k) / (mass s^2 + d s + 2k) deviates from
+    // m / mass by O((d s + 2k) / (mass s^2)).
+    let eps = (ctx.d * a.s + 2.0 * ctx.k) / (ctx.mass * a.s * a.s);
+    let first_order = (jc.clone() - jinf.clone()).abs().to_f64();
+    let n = ctx.n;
     Ok(Location {
         method,
         n,
@@ -552,7 +566,7 @@ fn extrapolate<T: RealScalar>(
         position: 0,
         s: c.s,
         sigma,
-        bias: resid,
+        bias: resid + 2.0 * eps * first_order,
         mass,
         raw_j: Some(jc),
         used: vec![a.s, b.s, c.s],

@@ -88,6 +88,11 @@ impl<T: RealScalar> Model<T> {
         &self.mass
     }
 
+    /// Uniform damping.
+    pub fn d(&self) -> &T {
+        &self.d
+    }
+
     /// Impulse.
     pub fn gamma(&self) -> &T {
         &self.gamma
