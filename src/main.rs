@@ -17,12 +17,15 @@ struct Cli {
 enum Command {
     /// Laplace-domain response X_i(s) of a chain (closed form + Woodbury).
     Response(cmd::response::Args),
+    /// Locate one mass defect from X_1(s) (section 4.1 locators, corrected).
+    Locate(cmd::locate::Args),
 }
 
 fn run() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Response(a) => cmd::response::run(a),
+        Command::Locate(a) => cmd::locate::run(a),
     }
 }
 

@@ -119,6 +119,8 @@ pub trait RealScalar: Scalar + PartialOrd {
     /// Natural logarithm of `|x|` as an `f64`, finite even where `x` itself is
     /// outside the `f64` range (`-inf` for 0).
     fn ln_abs_f64(&self) -> f64;
+    /// Decimal text with `digits` significant digits (scientific notation).
+    fn to_decimal(&self, digits: usize) -> String;
 }
 
 impl RealScalar for f64 {
@@ -152,6 +154,9 @@ impl RealScalar for f64 {
     #[inline]
     fn ln_abs_f64(&self) -> f64 {
         f64::abs(*self).ln()
+    }
+    fn to_decimal(&self, digits: usize) -> String {
+        format!("{:.*e}", digits.clamp(1, 17) - 1, self)
     }
 }
 
@@ -464,6 +469,9 @@ impl RealScalar for BigReal {
         };
         let top = *words.last().unwrap_or(&0) as f64 / 18446744073709551616.0;
         top.ln() + (e as f64) * std::f64::consts::LN_2
+    }
+    fn to_decimal(&self, digits: usize) -> String {
+        self.to_string_digits(digits.max(1))
     }
 }
 

@@ -443,3 +443,130 @@ fn two_defects_are_not_mistaken_for_one() {
         }
     }
 }
+
+fn cli(args: &[&str]) -> (i32, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_springmass"))
+        .arg("locate")
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into(),
+        String::from_utf8_lossy(&out.stderr).into(),
+    )
+}
+
+#[test]
+fn cli_locates_refuses_and_rejects() {
+    let (rc, out, _) = cli(&[
+        "--n",
+        "20",
+        "--defect",
+        "mass:15:1.01",
+        "--m",
+        "1.01",
+        "--json",
+    ]);
+    assert_eq!(rc, 0);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["position"], 15);
+    assert_eq!(v["resolved"], true);
+    // unknown mass, auto s
+    let (rc, out, _) = cli(&["--n", "5", "--defect", "mass:2:0.5", "--json"]);
+    assert_eq!(rc, 0, "{out}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["position"], 2);
+    assert!((v["mass"].as_f64().unwrap() - 0.5).abs() < 1e-6);
+    // (4.17) in 256 bits at s = 50: the paper's Figure 13 value before extrapolation
+    let (rc, out, _) = cli(&[
+        "--n",
+        "5",
+        "--defect",
+        "mass:3:4",
+        "--large",
+        "--s",
+        "50",
+        "--precision",
+        "256",
+        "--json",
+    ]);
+    assert_eq!(rc, 0, "{out}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert!(
+        v["raw_j"].as_str().unwrap().starts_with("3.018422"),
+        "{out}"
+    );
+    assert_eq!(v["position"], 3);
+    // a deep light defect at large s in f64: refused with exit 1, not a number
+    let (rc, out, _) = cli(&[
+        "--n",
+        "20",
+        "--defect",
+        "mass:15:1.01",
+        "--m",
+        "1.01",
+        "--s",
+        "5",
+    ]);
+    assert_eq!(rc, 1);
+    assert!(out.starts_with("not resolvable"), "{out}");
+    // bad input: exit 2 with a one-line message
+    for bad in [
+        vec!["--n", "5", "--defect", "mass:3:4", "--m=-1"],
+        vec!["--n", "5", "--defect", "mass:3:4", "--s", "abc"],
+        vec!["--n", "5", "--defect", "mass:3:4", "--precision", "8"],
+        vec!["--n", "5", "--defect", "mass:3:4", "--curve", "5:1:10"],
+        vec!["--n", "5", "--m", "2"],
+        vec!["--n", "5", "--defect", "mass:3:4", "--method", "magic"],
+    ] {
+        let (rc, _, err) = cli(&bad);
+        assert_eq!(rc, 2, "{bad:?}");
+        assert_eq!(err.trim().lines().count(), 1, "{bad:?}: {err}");
+    }
+}
+
+#[test]
+fn cli_curve_plot_and_laplace_csv() {
+    let dir = std::env::temp_dir().join(format!("springmass-locate-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let svg = dir.join("fig15.svg");
+    let (rc, out, err) = cli(&[
+        "--n",
+        "20",
+        "--defect",
+        "mass:3:5",
+        "--large",
+        "--curve",
+        "1:50:6",
+        "--precision",
+        "128",
+        "--plot",
+        svg.to_str().unwrap(),
+    ]);
+    assert_eq!(rc, 0, "{err}");
+    assert!(out.contains("3.0142907"), "{out}");
+    assert!(std::fs::read_to_string(&svg).unwrap().contains("<svg"));
+    // measured Laplace data from CSV (decimal text, read at the working precision)
+    let c = chain(5, 4, 2.0);
+    let data = LaplaceData::<f64>::from_chain(&c, &default_grid()).unwrap();
+    let mut text = String::from("s,x,err\n");
+    for p in data.points() {
+        text.push_str(&format!("{:e},{:e},{:e}\n", p.s, p.x, 1e-12 * p.x));
+    }
+    let csv = dir.join("x1.csv");
+    std::fs::write(&csv, text).unwrap();
+    let (rc, out, err) = cli(&[
+        "--n",
+        "5",
+        "--laplace",
+        csv.to_str().unwrap(),
+        "--m",
+        "2",
+        "--json",
+    ]);
+    assert_eq!(rc, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["position"], 4);
+    std::fs::remove_dir_all(&dir).ok();
+}

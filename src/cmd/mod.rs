@@ -1,5 +1,6 @@
 //! Subcommands. Shared argument groups live here.
 
+pub mod locate;
 pub mod response;
 
 use anyhow::Context;
