@@ -78,6 +78,17 @@ impl<T: RealScalar> Model<T> {
         }
     }
 
+    /// The same model rounded to `f64` (for root isolation).
+    pub fn to_f64(&self) -> Model<f64> {
+        Model {
+            n: self.n,
+            k: self.k.to_f64(),
+            mass: self.mass.to_f64(),
+            d: self.d.to_f64(),
+            gamma: self.gamma.to_f64(),
+        }
+    }
+
     /// Number of masses.
     pub fn n(&self) -> usize {
         self.n

@@ -25,16 +25,19 @@ const MIN_SNR: f64 = 1e3;
 /// At most this many data are used (spread over the usable range of `s`).
 const MAX_POINTS: usize = 8;
 
-struct Datum<T> {
-    at: super::model::AtS<T>,
-    ln_d: T,
+/// A usable datum. Only `D` needs the working precision; the fit itself runs
+/// in `f64` on `ln|D|` (well conditioned, see `known::solve_at`).
+struct Datum {
+    at: super::model::AtS<f64>,
+    ln_d: f64,
     rel: f64,
     s: f64,
 }
 
 pub(crate) fn fit<T: RealScalar>(model: &Model<T>, data: &LaplaceData<T>) -> Result<Location<T>> {
     let n = model.n();
-    let mut usable: Vec<(Datum<T>, bool)> = Vec::new();
+    let mut usable: Vec<(Datum, bool)> = Vec::new();
+    let model64 = model.to_f64();
     for p in data.points() {
         let at = model.at(&p.s);
         let (d, floor) = signal(model, &at, p);
@@ -43,10 +46,10 @@ pub(crate) fn fit<T: RealScalar>(model: &Model<T>, data: &LaplaceData<T>) -> Res
             let positive = d > T::zero();
             usable.push((
                 Datum {
-                    ln_d: d.abs().ln(),
+                    ln_d: d.ln_abs_f64(),
                     rel: floor / da,
                     s: p.s.to_f64(),
-                    at,
+                    at: model64.at(&p.s.to_f64()),
                 },
                 positive,
             ));
@@ -69,7 +72,7 @@ pub(crate) fn fit<T: RealScalar>(model: &Model<T>, data: &LaplaceData<T>) -> Res
     }
     let heavy = heavy != 0;
     // spread over s
-    let picked: Vec<Datum<T>> = if usable.len() <= MAX_POINTS {
+    let picked: Vec<Datum> = if usable.len() <= MAX_POINTS {
         usable.into_iter().map(|u| u.0).collect()
     } else {
         let k = usable.len();
@@ -83,12 +86,12 @@ pub(crate) fn fit<T: RealScalar>(model: &Model<T>, data: &LaplaceData<T>) -> Res
             .map(|(_, u)| u.0)
             .collect()
     };
-    let mass = model.mass().clone();
-    let mass_of = |t: f64| -> T {
+    let mass = model.mass().to_f64();
+    let mass_of = |t: f64| -> f64 {
         let u = if heavy { t.exp() } else { -t.exp() };
-        mass.clone() * T::from_f64(u).exp()
+        mass * u.exp()
     };
-    let tol = root_tol::<T>(n);
+    let tol = root_tol::<f64>(n);
     let hi = n as f64 + 0.5;
     // positions for a trial mass; warm-started from the previous trial
     let positions = |t: f64, guess: &mut Vec<f64>| -> Option<Vec<(f64, f64)>> {
@@ -96,17 +99,15 @@ pub(crate) fn fit<T: RealScalar>(model: &Model<T>, data: &LaplaceData<T>) -> Res
         let mut out = Vec::with_capacity(picked.len());
         for (i, dm) in picked.iter().enumerate() {
             let c = dm.at.c(&m);
-            let g = |j: &T| dm.at.ln_f_exact(j, &c) - dm.ln_d.clone();
+            let g = |j: &f64| dm.at.ln_f_exact(j, &c) - dm.ln_d;
             let j = if guess[i].is_finite() {
                 near(&g, guess[i], 0.5, hi, scan_points(n), tol)
             } else {
                 roots(&g, 0.5, hi, scan_points(n), tol).into_iter().next()
             }?;
-            let jf = j.to_f64();
+            let jf = j;
             let h = 1e-4;
-            let slope = ((dm.at.ln_f_exact(&T::from_f64(jf + h), &c)
-                - dm.at.ln_f_exact(&T::from_f64(jf - h), &c))
-            .to_f64()
+            let slope = ((dm.at.ln_f_exact(&(jf + h), &c) - dm.at.ln_f_exact(&(jf - h), &c))
                 / (2.0 * h))
                 .abs();
             guess[i] = jf;
@@ -187,7 +188,7 @@ pub(crate) fn fit<T: RealScalar>(model: &Model<T>, data: &LaplaceData<T>) -> Res
         sigma = f64::INFINITY;
     }
     let bias = (phi / sw).sqrt();
-    let m = mass_of(tb).to_f64();
+    let m = mass_of(tb);
     let s_used: Vec<f64> = picked.iter().map(|d| d.s).collect();
     let last = *s_used.last().unwrap_or(&f64::NAN);
     Location {
