@@ -40,6 +40,7 @@
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
 //! | [`detect::locate`] | explicit single-defect locators (section 4.1), error floors, any precision |
+//! | [`time`] | simulation ([`time::simulate`]) and exact inverse Laplace transforms ([`time::modal`]) |
 //! | [`error`] | one error type; every variant names the field and its range |
 
 pub mod chain;
@@ -52,6 +53,7 @@ pub mod plot;
 pub mod precision;
 pub mod scalar;
 pub mod series;
+pub mod time;
 
 pub use chain::{Chain, ChainSpec, Defect};
 pub use error::{Error, Result};

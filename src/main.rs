@@ -19,6 +19,8 @@ enum Command {
     Response(cmd::response::Args),
     /// Locate one mass defect from X_1(s) (section 4.1 locators, corrected).
     Locate(cmd::locate::Args),
+    /// Time-domain simulation x_i(t): impulse on mass 1, optional forces, CSV/SVG out.
+    Simulate(cmd::simulate::Args),
 }
 
 fn run() -> anyhow::Result<()> {
@@ -26,6 +28,7 @@ fn run() -> anyhow::Result<()> {
     match cli.command {
         Command::Response(a) => cmd::response::run(a),
         Command::Locate(a) => cmd::locate::run(a),
+        Command::Simulate(a) => cmd::simulate::run(a),
     }
 }
 

@@ -209,35 +209,54 @@ pub fn woodbury<T: Scalar>(
     gamma: f64,
     observe: usize,
 ) -> T {
-    let obs = Probe::Point(observe);
-    let base = g.entry(observe, 1);
+    let src = g.factors(Probe::Point(1));
     let k = updates.len();
     if k == 0 {
-        return base.scale(gamma);
+        return g.entry(observe, 1).scale(gamma);
     }
+    // factors once per probe; A = U^T G U is symmetric
+    let fu: Vec<_> = updates.iter().map(|u| g.factors(u.probe)).collect();
     let c: Vec<T> = updates.iter().map(|u| u.coeff(s)).collect();
-    let mut a: Vec<T> = Vec::with_capacity(k * k);
-    for ul in updates {
-        for (m, um) in updates.iter().enumerate() {
-            a.push(g.bilinear(ul.probe, um.probe) * c[m].clone());
+    let mut gu = vec![T::zero(); k * k];
+    for l in 0..k {
+        for m in l..k {
+            let v = g.pair(&fu[l], &fu[m]);
+            gu[m * k + l] = v.clone();
+            gu[l * k + m] = v;
         }
     }
+    let mut a: Vec<T> = Vec::with_capacity(k * k);
     for l in 0..k {
-        a[l * k + l] = a[l * k + l].clone() + T::one();
+        for m in 0..k {
+            let mut v = gu[l * k + m].clone() * c[m].clone();
+            if l == m {
+                v = v + T::one();
+            }
+            a.push(v);
+        }
     }
-    let mut z: Vec<T> = updates
-        .iter()
-        .map(|u| g.bilinear(u.probe, Probe::Point(1)))
-        .collect();
+    let rhs: Vec<T> = fu.iter().map(|f| g.pair(f, &src)).collect();
+    let mut z = rhs.clone();
     if !solve_in_place(&mut a, &mut z, k) {
         return T::from_f64(f64::NAN);
     }
+    let obs = Probe::Point(observe);
     if let Some(l) = updates.iter().position(|u| u.probe == obs) {
         return z[l].scale(gamma);
     }
+    let (base, h) = if observe == 1 {
+        // G e_1 is the right-hand side itself
+        (g.pair(&src, &src), rhs)
+    } else {
+        let fo = g.factors(obs);
+        (
+            g.pair(&fo, &src),
+            fu.iter().map(|f| g.pair(&fo, f)).collect(),
+        )
+    };
     let mut corr = T::zero();
     for l in 0..k {
-        corr = corr + g.bilinear(obs, updates[l].probe) * c[l].clone() * z[l].clone();
+        corr = corr + h[l].clone() * c[l].clone() * z[l].clone();
     }
     (base - corr).scale(gamma)
 }
