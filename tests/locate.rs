@@ -343,8 +343,15 @@ fn asymptotic_4_10_reproduces_notes_values() {
         for e in &ex {
             assert!((e.j_f64() - 15.0).abs() < 1e-12, "{e:?}");
             // polished in 512 bits: as many digits as sigma says (s = 1: ~1e-139)
-            let err = (e.j.clone().unwrap() - BigReal::from_f64(15.0)).abs().to_f64();
-            assert!(err <= 3.0 * e.sigma + 1e-150, "s = {}: {err:e} vs {:e}", e.s, e.sigma);
+            let err = (e.j.clone().unwrap() - BigReal::from_f64(15.0))
+                .abs()
+                .to_f64();
+            assert!(
+                err <= 3.0 * e.sigma + 1e-150,
+                "s = {}: {err:e} vs {:e}",
+                e.s,
+                e.sigma
+            );
         }
         assert!(ex[0].sigma < 1e-100);
     });
