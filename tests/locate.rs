@@ -579,5 +579,16 @@ fn cli_curve_plot_and_laplace_csv() {
     assert_eq!(rc, 0, "{err}");
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     assert_eq!(v["position"], 4);
+    // the chain and its true defect from a scene file
+    let scene = dir.join("p3.toml");
+    std::fs::write(
+        &scene,
+        "[chain]\nn = 20\nd = 0.1\ndefects = [{ kind = \"mass\", at = 3, m = 5.0 }]\n",
+    )
+    .unwrap();
+    let (rc, out, err) = cli(&["--scene", scene.to_str().unwrap(), "--m", "5", "--json"]);
+    assert_eq!(rc, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["position"], 3);
     std::fs::remove_dir_all(&dir).ok();
 }
