@@ -592,3 +592,42 @@ fn cli_curve_plot_and_laplace_csv() {
     assert_eq!(v["position"], 3);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn extremes_resolve_or_refuse_never_lie() {
+    // very long chains, extreme masses, the smallest chains
+    for (n, j, m) in [
+        (1_000_000usize, 2usize, 100.0),
+        (1_000_000, 500_000, 2.0),
+        (1_000_000, 1_000_000, 0.5),
+        (20, 7, 1e6),
+        (20, 7, 1e-3),
+        (2, 2, 1e-6),
+        (1, 1, 3.0),
+        (1000, 40, 5.0),
+    ] {
+        let c = chain(n, j, m);
+        let model: Model<f64> = Model::from_chain(&c);
+        let data = LaplaceData::<f64>::from_chain(&c, &default_grid()).unwrap();
+        let mut resolved = 0;
+        for method in [
+            Method::Exact { m },
+            Method::UnknownMass,
+            Method::Large,
+            Method::Asymptotic { m },
+        ] {
+            match locate(&model, &data, method, SChoice::Auto) {
+                Ok(l) => {
+                    assert_eq!(l.position, j, "n={n} j={j} m={m} {method:?}");
+                    assert!(l.sigma.is_finite() && l.j.is_finite());
+                    resolved += 1;
+                }
+                Err(e) => assert!(matches!(e, Error::Unresolvable { .. }), "{e}"),
+            }
+        }
+        // shallow defects are always found by the exact locators
+        if j <= 40 {
+            assert!(resolved >= 2, "n={n} j={j} m={m}");
+        }
+    }
+}
