@@ -35,20 +35,25 @@
 //! | [`scalar`] | the number types the model is generic over (`f64`, `Complex64`, extended precision) |
 //! | [`green`] | closed-form Green's function, overflow-free for every `n` and `s` |
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
+//! | [`control`] | vibration suppression (Theorem 3.1, Corollary 3.2): Laplace, exact time domain, verification |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
 //! | [`precision`] | arbitrary-precision reals ([`precision::BigReal`]) and real-only operations |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
 //! | [`detect::locate`] | explicit single-defect locators (section 4.1), error floors, any precision |
-//! | [`time`] | simulation ([`time::simulate`]) and exact inverse Laplace transforms ([`time::modal`]) |
+//! | [`time`] | simulation ([`time::simulate`]), exact ([`time::modal`]) and numerical ([`time::inverse`]) inverse Laplace transforms, transform of sampled series ([`time::series`]) |
+//! | [`noise`] | seeded additive white Gaussian noise |
 //! | [`error`] | one error type; every variant names the field and its range |
+//! | [`detect`] | defect fitting: [`detect::search`] the optimizers (GA, Nelder-Mead, particle swarm) behind one interface |
 
 pub mod chain;
+pub mod control;
 pub mod detect;
 pub mod error;
 pub mod forward;
 pub mod green;
 pub mod linalg;
+pub mod noise;
 pub mod plot;
 pub mod precision;
 pub mod scalar;

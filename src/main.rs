@@ -21,6 +21,10 @@ enum Command {
     Locate(cmd::locate::Args),
     /// Time-domain simulation x_i(t): impulse on mass 1, optional forces, CSV/SVG out.
     Simulate(cmd::simulate::Args),
+    /// Vibration suppression controls (Theorem 3.1, Corollary 3.2), verified by simulation.
+    Suppress(cmd::suppress::Args),
+    /// Laplace transform X(s) of a sampled series (CSV), with error estimates.
+    Laplace(cmd::laplace::Args),
 }
 
 fn run() -> anyhow::Result<()> {
@@ -29,6 +33,8 @@ fn run() -> anyhow::Result<()> {
         Command::Response(a) => cmd::response::run(a),
         Command::Locate(a) => cmd::locate::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
+        Command::Suppress(a) => cmd::suppress::run(a),
+        Command::Laplace(a) => cmd::laplace::run(a),
     }
 }
 

@@ -1,8 +1,10 @@
 //! Subcommands. Shared argument groups live here.
 
+pub mod laplace;
 pub mod locate;
 pub mod response;
 pub mod simulate;
+pub mod suppress;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;

@@ -1,3 +1,4 @@
-//! Defect detection from Laplace-domain data.
+//! Defect detection: explicit locators and fitting.
 
 pub mod locate;
+pub mod search;
