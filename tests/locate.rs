@@ -111,6 +111,107 @@ fn acceptance_table_exact_f64_data() {
     }
 }
 
+/// The acceptance table on simulated data: `x_1(t)` simulated with dt = 0.01 on
+/// [0, 300], transformed to X_1(s) with the transform's per-s error estimate.
+fn simulated_table(
+    masses: &[f64],
+    ns: &[usize],
+    grid: &[f64],
+) -> Vec<(usize, f64, &'static str, Tally)> {
+    use rayon::prelude::*;
+    let methods: [(&'static str, fn(f64) -> Method); 3] = [
+        ("exact", |m| Method::Exact { m }),
+        ("unknown-mass", |_| Method::UnknownMass),
+        ("large", |_| Method::Large),
+    ];
+    let cases: Vec<(usize, f64, usize)> = ns
+        .iter()
+        .flat_map(|&n| {
+            masses
+                .iter()
+                .flat_map(move |&m| (1..=n).map(move |j| (n, m, j)))
+        })
+        .collect();
+    let results: Vec<(usize, f64, usize, Vec<Option<bool>>)> = cases
+        .par_iter()
+        .map(|&(n, m, j)| {
+            let c = chain(n, j, m);
+            let data = LaplaceData::<f64>::from_simulation(&c, 300.0, 0.01, grid).unwrap();
+            let model: Model<f64> = Model::from_chain(&c);
+            let r = methods
+                .iter()
+                .map(|(_, f)| match locate(&model, &data, f(m), SChoice::Auto) {
+                    Ok(l) => Some(l.position == j),
+                    Err(Error::Unresolvable { .. }) => None,
+                    Err(e) => panic!("n={n} m={m} j={j}: {e}"),
+                })
+                .collect();
+            (n, m, j, r)
+        })
+        .collect();
+    let mut out = Vec::new();
+    for &n in ns {
+        for &m in masses {
+            for (k, (name, _)) in methods.iter().enumerate() {
+                let mut t = Tally::default();
+                for r in results.iter().filter(|r| r.0 == n && r.1 == m) {
+                    match r.3[k] {
+                        Some(true) => t.right += 1,
+                        Some(false) => t.wrong += 1,
+                        None => t.refused += 1,
+                    }
+                }
+                out.push((n, m, *name, t));
+            }
+        }
+    }
+    out
+}
+
+fn print_simulated(rows: &[(usize, f64, &'static str, Tally)]) {
+    println!("\nSimulated x_1(t) (dt = 0.01, T = 300) -> X_1(s) with error estimates, --s auto");
+    println!("| n  | m    | method       | resolved | right | refused | wrong |");
+    println!("|----|------|--------------|----------|-------|---------|-------|");
+    for (n, m, name, t) in rows {
+        println!(
+            "| {n:2} | {m:4} | {name:12} | {:7.1}% | {:5} | {:7} | {:5} |",
+            100.0 * t.fraction(),
+            t.right,
+            t.refused,
+            t.wrong
+        );
+    }
+}
+
+#[test]
+fn simulated_series_data_never_wrong() {
+    // a fast subset: n = 5 (all masses) and n = 20 (two masses), 13 values of s
+    let grid: Vec<f64> = (0..=12)
+        .map(|i| 10f64.powf(-2.0 + i as f64 / 4.0))
+        .collect();
+    let mut rows = simulated_table(&MASSES, &[5], &grid);
+    rows.extend(simulated_table(&[1.01, 100.0], &[20], &grid));
+    print_simulated(&rows);
+    for (n, m, name, t) in &rows {
+        assert_eq!(t.wrong, 0, "{name} n={n} m={m}");
+        if *name == "exact" {
+            assert!(t.fraction() >= 0.95, "{name} n={n} m={m}: {}", t.fraction());
+        }
+    }
+}
+
+/// The full table on simulated data (125 simulations, ~1 min): run with
+/// `cargo test --release --test locate -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn simulated_series_full_table() {
+    let rows = simulated_table(&MASSES, &[5, 20], &default_grid());
+    print_simulated(&rows);
+    for (n, m, name, t) in &rows {
+        assert_eq!(t.wrong, 0, "{name} n={n} m={m}");
+    }
+}
+
 #[test]
 fn never_wrong_with_noisy_data() {
     // seeded relative noise of 1e-9 .. 1e-3 with its level declared in err

@@ -10,6 +10,9 @@ use crate::chain::Chain;
 use crate::error::{Error, Result};
 use crate::forward::Forward;
 use crate::precision::RealScalar;
+use crate::time::series::SeriesTransform;
+use crate::time::simulate::{simulate, SimOptions};
+use num_complex::Complex64;
 
 /// One datum: `X_1(s)` with an absolute error estimate `err >= 0`.
 #[derive(Clone, Debug, PartialEq)]
@@ -137,6 +140,49 @@ impl<T: RealScalar> LaplaceData<T> {
             points.push(Point { s: st, x, err: 0.0 });
         }
         Self::new("exact model", points)
+    }
+
+    /// Data from a sampled series `x_1(t)`: its Laplace transform at real `s`
+    /// ([`crate::time::series`]), each value with the transform's error budget
+    /// (discretisation + truncation + rounding) plus, when the transform was
+    /// given a noise level, one standard deviation of the transformed noise.
+    ///
+    /// # Errors
+    /// Invalid `s` and the transform's own errors.
+    pub fn from_transform(
+        label: impl Into<String>,
+        tr: &SeriesTransform,
+        s: &[f64],
+    ) -> Result<LaplaceData<T>> {
+        let mut points = Vec::with_capacity(s.len());
+        for &si in s {
+            if !(si.is_finite() && si > 0.0) {
+                return Err(Error::invalid("s", si, "s > 0 and finite"));
+            }
+            let v = tr.eval(Complex64::new(si, 0.0))?;
+            let err = v.err + v.noise_var.map(f64::sqrt).unwrap_or(0.0);
+            points.push(Point {
+                s: T::from_f64(si),
+                x: T::from_f64(v.value.re),
+                err,
+            });
+        }
+        Self::new(label, points)
+    }
+
+    /// Simulated data: `x_1(t)` of `chain` simulated on `[0, t_end]` with output
+    /// step `dt` ([`crate::time::simulate`]), then transformed as in
+    /// [`LaplaceData::from_transform`] (the paper's "simulated data").
+    ///
+    /// # Errors
+    /// Invalid simulation options or `s`.
+    pub fn from_simulation(chain: &Chain, t_end: f64, dt: f64, s: &[f64]) -> Result<LaplaceData<T>> {
+        let traj = simulate(chain, &SimOptions::new(t_end, dt))?;
+        let x = traj
+            .x(1)
+            .ok_or_else(|| Error::invalid("observe", 1, "mass 1 observed"))?;
+        let tr = SeriesTransform::uniform(0.0, dt, x, &Default::default())?;
+        Self::from_transform(format!("simulated x_1(t), dt = {dt}, T = {t_end}"), &tr, s)
     }
 
     /// The points, by increasing `s`.
