@@ -680,6 +680,35 @@ fn cli_curve_plot_and_laplace_csv() {
     assert_eq!(rc, 0, "{err}");
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     assert_eq!(v["position"], 4);
+    // a measured time series x_1(t) (here simulated and written as CSV)
+    let c = chain(20, 6, 3.0);
+    let traj = springmass::time::simulate::simulate(
+        &c,
+        &springmass::time::simulate::SimOptions::new(300.0, 0.01),
+    )
+    .unwrap();
+    let series = dir.join("x1_t.csv");
+    traj.to_series().unwrap().write_csv(&series).unwrap();
+    for extra in [vec!["--m", "3"], vec![]] {
+        let mut args = vec!["--n", "20", "--series", series.to_str().unwrap(), "--json"];
+        args.extend(extra);
+        let (rc, out, err) = cli(&args);
+        assert_eq!(rc, 0, "{err}");
+        let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+        assert_eq!(v["position"], 6, "{out}");
+    }
+    let (rc, out, _) = cli(&[
+        "--n",
+        "20",
+        "--defect",
+        "mass:6:3",
+        "--m",
+        "3",
+        "--simulate",
+        "--json",
+    ]);
+    assert_eq!(rc, 0);
+    assert!(out.contains("\"position\":6"), "{out}");
     // the chain and its true defect from a scene file
     let scene = dir.join("p3.toml");
     std::fs::write(

@@ -2,9 +2,12 @@
 //! locators of section 4.1 (corrected), in `f64` or extended precision.
 //!
 //! Data: synthetic `X_1(s)` of the chain given by `--scene`/`--defect` (its
-//! defect is the truth the locator does not see), or measured Laplace data
-//! from `--laplace FILE.csv` (columns `s`, `x` and optionally `err`; numbers
-//! are read as decimals at the working precision).
+//! defect is the truth the locator does not see), exact (closed form) or
+//! through a simulated time series (`--simulate`, dt = 0.01, T = 300 by
+//! default); a measured time series `--series x1.csv` (Laplace-transformed
+//! with its error estimate); or measured Laplace data `--laplace FILE.csv`
+//! (columns `s`, `x` and optionally `err`; numbers are read as decimals at
+//! the working precision).
 //!
 //! Exit status: 0 located, 1 not resolvable (the reason is printed), 2 bad input.
 
@@ -16,6 +19,8 @@ use springmass::detect::locate::{
 };
 use springmass::plot::{Line, LinePlot};
 use springmass::precision::{check_bits, with_precision, BigReal, RealScalar};
+use springmass::series::TimeSeries;
+use springmass::time::series::{SeriesTransform, TransformOptions};
 use springmass::Error;
 use std::path::PathBuf;
 
@@ -36,8 +41,28 @@ pub struct Args {
     #[arg(long)]
     pub method: Option<String>,
     /// Measured Laplace data: CSV with columns s, x [, err] (absolute error).
-    #[arg(long, value_name = "FILE.csv")]
+    #[arg(long, value_name = "FILE.csv", conflicts_with_all = ["series", "simulate"])]
     pub laplace: Option<PathBuf>,
+    /// Measured time series x_1(t): CSV with a header `t,<name>,...`; it is
+    /// Laplace-transformed with a per-s error estimate.
+    #[arg(long, value_name = "FILE.csv", conflicts_with = "simulate")]
+    pub series: Option<PathBuf>,
+    /// Column of --series to use [default: the first value column].
+    #[arg(long, requires = "series")]
+    pub column: Option<String>,
+    /// White-noise standard deviation of the --series samples (adds the
+    /// transformed noise to each value's error).
+    #[arg(long, requires = "series")]
+    pub noise_sigma: Option<f64>,
+    /// Synthetic data through a simulated time series (instead of the closed form).
+    #[arg(long)]
+    pub simulate: bool,
+    /// Output step of --simulate.
+    #[arg(long, default_value_t = 0.01, requires = "simulate")]
+    pub dt: f64,
+    /// Duration of --simulate.
+    #[arg(long, default_value_t = 300.0, requires = "simulate")]
+    pub t_end: f64,
     /// Where to evaluate: `auto` (default), one value, or a comma-separated list
     /// (synthetic data are generated there; `auto` uses 61 values from 1e-3 to 100).
     /// For the large-defect locators one value S also uses S/2 and S/sqrt(2).
@@ -203,51 +228,90 @@ fn read_laplace<T: RealScalar>(path: &PathBuf) -> anyhow::Result<LaplaceData<T>>
     Ok(LaplaceData::new(format!("{}", path.display()), points)?)
 }
 
+fn read_series(a: &Args, path: &PathBuf) -> anyhow::Result<SeriesTransform> {
+    let ts = TimeSeries::read_csv(path)?;
+    let column = match &a.column {
+        Some(c) => c.clone(),
+        None => ts
+            .names()
+            .first()
+            .cloned()
+            .with_context(|| format!("{}: no value column", path.display()))?,
+    };
+    let opts = TransformOptions {
+        noise_sigma: a.noise_sigma,
+        ..Default::default()
+    };
+    Ok(SeriesTransform::from_series(&ts, &column, &opts)
+        .with_context(|| format!("{}: column {column}", path.display()))?)
+}
+
 fn run_in<T: RealScalar>(a: &Args) -> anyhow::Result<Outcome> {
     let method = method(a)?;
     let (s_values, choice) = s_plan(&a.s, method)?;
-    let (model, data): (Model<T>, LaplaceData<T>) = match &a.laplace {
-        Some(path) => {
-            let model = if a.chain.n.is_some() || a.chain.scene.is_some() {
-                Model::from_chain(&a.chain.chain()?)
-            } else {
-                bail!("--laplace needs the chain (--n, or --scene) for the locator's model");
-            };
-            (model, read_laplace(path)?)
-        }
-        None => {
-            let chain = a.chain.chain()?;
-            if chain.defects().is_empty() {
-                bail!("synthetic data need the true defect: give --defect mass:J:M or a --scene with a defect (or use --laplace FILE.csv)");
-            }
-            (
-                Model::from_chain(&chain),
-                LaplaceData::from_chain(&chain, &s_values)?,
-            )
+    let measured = a.laplace.is_some() || a.series.is_some();
+    let model_chain = || -> anyhow::Result<springmass::Chain> {
+        if a.chain.n.is_some() || a.chain.scene.is_some() {
+            a.chain.chain()
+        } else {
+            bail!("measured data need the chain (--n, or --scene) for the locator's model")
         }
     };
+    let synthetic = |svals: &[f64]| -> anyhow::Result<LaplaceData<T>> {
+        let chain = a.chain.chain()?;
+        if chain.defects().is_empty() {
+            bail!("synthetic data need the true defect: give --defect mass:J:M or a --scene with a defect (or use --series / --laplace)");
+        }
+        Ok(if a.simulate {
+            LaplaceData::from_simulation(&chain, a.t_end, a.dt, svals)?
+        } else {
+            LaplaceData::from_chain(&chain, svals)?
+        })
+    };
+    let transform = match &a.series {
+        Some(path) => Some(read_series(a, path)?),
+        None => None,
+    };
+    let source = |svals: &[f64]| -> anyhow::Result<LaplaceData<T>> {
+        if let Some(path) = &a.laplace {
+            read_laplace(path)
+        } else if let (Some(tr), Some(path)) = (&transform, &a.series) {
+            Ok(LaplaceData::from_transform(
+                format!("{} (Laplace-transformed)", path.display()),
+                tr,
+                svals,
+            )?)
+        } else {
+            synthetic(svals)
+        }
+    };
+    let model: Model<T> = Model::from_chain(&if measured {
+        model_chain()?
+    } else {
+        a.chain.chain()?
+    });
+    let data = source(&s_values)?;
     let precision = match a.precision {
         Some(b) => format!("{b} bits"),
         None => "f64".into(),
     };
     if let Some(spec) = &a.curve {
         let svals = parse_curve(spec)?;
-        let cdata: LaplaceData<T> = match &a.laplace {
-            Some(_) => {
-                // a curve over measured data uses the data's own s in the range
-                let (lo, hi) = (svals[0], svals[svals.len() - 1]);
-                let pts: Vec<Point<T>> = data
-                    .points()
-                    .iter()
-                    .filter(|p| {
-                        let s = p.s.to_f64();
-                        s >= lo && s <= hi
-                    })
-                    .cloned()
-                    .collect();
-                LaplaceData::new(data.label(), pts)?
-            }
-            None => LaplaceData::from_chain(&a.chain.chain()?, &svals)?,
+        let cdata: LaplaceData<T> = if a.laplace.is_some() {
+            // a curve over tabulated Laplace data uses the data's own s in the range
+            let (lo, hi) = (svals[0], svals[svals.len() - 1]);
+            let pts: Vec<Point<T>> = data
+                .points()
+                .iter()
+                .filter(|p| {
+                    let s = p.s.to_f64();
+                    s >= lo && s <= hi
+                })
+                .cloned()
+                .collect();
+            LaplaceData::new(data.label(), pts)?
+        } else {
+            source(&svals)?
         };
         let est = curve(&model, &cdata, method)?;
         print_curve(a, method, &precision, &est)?;
