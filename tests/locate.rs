@@ -18,6 +18,9 @@ use springmass::{Chain, Defect, Error};
 
 const MASSES: [f64; 5] = [0.5, 1.01, 2.0, 4.0, 100.0];
 
+/// A locator by name, built from the defect's mass.
+type Named = (&'static str, fn(f64) -> Method);
+
 fn chain(n: usize, j: usize, m: f64) -> Chain {
     Chain::paper(n)
         .unwrap()
@@ -75,7 +78,6 @@ fn tally(
 fn acceptance_table_exact_f64_data() {
     let grid = default_grid();
     let data_of = |c: &Chain| LaplaceData::<f64>::from_chain(c, &grid).unwrap();
-    type Named = (&'static str, fn(f64) -> Method);
     let methods: [Named; 4] = [
         ("exact (4.7), m known", |m| Method::Exact { m }),
         ("unknown mass, (4.7) at several s", |_| Method::UnknownMass),
@@ -119,7 +121,7 @@ fn simulated_table(
     grid: &[f64],
 ) -> Vec<(usize, f64, &'static str, Tally)> {
     use rayon::prelude::*;
-    let methods: [(&'static str, fn(f64) -> Method); 3] = [
+    let methods: [Named; 3] = [
         ("exact", |m| Method::Exact { m }),
         ("unknown-mass", |_| Method::UnknownMass),
         ("large", |_| Method::Large),

@@ -242,8 +242,8 @@ fn read_series(a: &Args, path: &PathBuf) -> anyhow::Result<SeriesTransform> {
         noise_sigma: a.noise_sigma,
         ..Default::default()
     };
-    Ok(SeriesTransform::from_series(&ts, &column, &opts)
-        .with_context(|| format!("{}: column {column}", path.display()))?)
+    SeriesTransform::from_series(&ts, &column, &opts)
+        .with_context(|| format!("{}: column {column}", path.display()))
 }
 
 fn run_in<T: RealScalar>(a: &Args) -> anyhow::Result<Outcome> {

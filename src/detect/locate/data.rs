@@ -176,7 +176,12 @@ impl<T: RealScalar> LaplaceData<T> {
     ///
     /// # Errors
     /// Invalid simulation options or `s`.
-    pub fn from_simulation(chain: &Chain, t_end: f64, dt: f64, s: &[f64]) -> Result<LaplaceData<T>> {
+    pub fn from_simulation(
+        chain: &Chain,
+        t_end: f64,
+        dt: f64,
+        s: &[f64],
+    ) -> Result<LaplaceData<T>> {
         let traj = simulate(chain, &SimOptions::new(t_end, dt))?;
         let x = traj
             .x(1)
