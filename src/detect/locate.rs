@@ -32,6 +32,16 @@
 //! the exact relations, the distance to the exact locator for (4.10), and the
 //! misfit of the `1/lambda` extrapolation at a third `s` for (4.17).
 //!
+//! # Data sources
+//!
+//! [`LaplaceData`] holds `X_1(s)` with an absolute error per `s`:
+//! [`LaplaceData::from_chain`] (exact closed form, rounding only),
+//! [`LaplaceData::from_simulation`] (simulated `x_1(t)`, Laplace-transformed),
+//! [`LaplaceData::from_transform`] (any sampled series through
+//! [`crate::time::series`], with its discretisation, truncation, rounding and
+//! noise estimates), or [`LaplaceData::new`] / [`LaplaceData::from_f64`] for
+//! tabulated values.
+//!
 //! # Precision
 //!
 //! Everything is generic over [`RealScalar`]: `f64`, or

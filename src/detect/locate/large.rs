@@ -103,3 +103,48 @@ pub(crate) fn paper_point<T: RealScalar>(model: &Model<T>, p: &Point<T>) -> Esti
     e.j = Some(j);
     e
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::chain::{Chain, Defect};
+    use crate::detect::locate::LaplaceData;
+    use crate::precision::{with_precision, BigReal};
+
+    #[test]
+    fn pinned_mass_gives_j_exactly_and_forms_agree() {
+        // m -> infinity pins mass j: the rewritten (4.17) is then exact
+        with_precision(256, || {
+            for &(n, j) in &[(5usize, 3usize), (20, 2), (3, 1)] {
+                let c = Chain::paper(n)
+                    .unwrap()
+                    .with_defect(Defect::Mass { at: j, m: 1e30 })
+                    .unwrap();
+                let model: Model<BigReal> = Model::from_chain(&c);
+                let data = LaplaceData::<BigReal>::from_chain(&c, &[2.0, 10.0]).unwrap();
+                for p in data.points() {
+                    let e = stable_point(&model, p);
+                    let q = paper_point(&model, p);
+                    assert_eq!(e.status, Status::Ok);
+                    let jv = e.j.unwrap();
+                    // 1/m = 1e-30 residual: j exact to ~1e-30 / (2 lambda)
+                    assert!((jv.to_f64() - j as f64).abs() < 1e-25, "{n} {j}: {jv:?}");
+                    assert!((jv - q.j.unwrap()).abs().to_f64() < 1e-60);
+                }
+            }
+        });
+    }
+
+    #[test]
+    fn light_defect_is_wrong_sign_not_nan() {
+        let c = Chain::paper(5)
+            .unwrap()
+            .with_defect(Defect::Mass { at: 2, m: 0.5 })
+            .unwrap();
+        let model: Model<f64> = Model::from_chain(&c);
+        let data = LaplaceData::<f64>::from_chain(&c, &[3.0]).unwrap();
+        let e = stable_point(&model, &data.points()[0]);
+        assert_eq!(e.status, Status::WrongSign);
+        assert!(e.j.is_none());
+    }
+}
