@@ -37,8 +37,10 @@
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
 //! | [`control`] | vibration suppression (Theorem 3.1, Corollary 3.2): Laplace, exact time domain, verification |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
+//! | [`precision`] | arbitrary-precision reals ([`precision::BigReal`]) and real-only operations |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
+//! | [`detect::locate`] | explicit single-defect locators (section 4.1), error floors, any precision |
 //! | [`time`] | simulation ([`time::simulate`]), exact ([`time::modal`]) and numerical ([`time::inverse`]) inverse Laplace transforms, transform of sampled series ([`time::series`]) |
 //! | [`noise`] | seeded additive white Gaussian noise |
 //! | [`error`] | one error type; every variant names the field and its range |
@@ -53,6 +55,7 @@ pub mod green;
 pub mod linalg;
 pub mod noise;
 pub mod plot;
+pub mod precision;
 pub mod scalar;
 pub mod series;
 pub mod time;

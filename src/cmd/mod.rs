@@ -1,6 +1,7 @@
 //! Subcommands. Shared argument groups live here.
 
 pub mod laplace;
+pub mod locate;
 pub mod response;
 pub mod simulate;
 pub mod suppress;

@@ -1,3 +1,4 @@
-//! Defect detection (placeholder on the optim branch; the lead merges the module list).
+//! Defect detection: explicit locators and fitting.
 
+pub mod locate;
 pub mod search;
