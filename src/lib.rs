@@ -37,8 +37,10 @@
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
 //! | [`error`] | one error type; every variant names the field and its range |
+//! | [`detect`] | defect fitting: data, quadrature, residuals, unknowns, enumeration, `fit` |
 
 pub mod chain;
+pub mod detect;
 pub mod error;
 pub mod forward;
 pub mod green;
