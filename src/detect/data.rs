@@ -154,7 +154,10 @@ mod tests {
     fn s3() -> Chain {
         Chain::paper(20)
             .unwrap()
-            .with_defects([Defect::Mass { at: 8, m: 5.0 }, Defect::Mass { at: 15, m: 2.0 }])
+            .with_defects([
+                Defect::Mass { at: 8, m: 5.0 },
+                Defect::Mass { at: 15, m: 2.0 },
+            ])
             .unwrap()
     }
 

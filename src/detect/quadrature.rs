@@ -242,6 +242,8 @@ pub struct AdaptiveOutput {
     pub error: f64,
     /// Integrand evaluations.
     pub evaluations: usize,
+    /// The absolute tolerance aimed at, `max(rel_tol |I|, abs_tol)`.
+    pub tolerance: f64,
 }
 
 /// The adaptive reference: double-exponential quadrature (`quadrature`
@@ -267,9 +269,7 @@ impl Default for Adaptive {
             rel_tol: 1e-12,
             abs_tol: 1e-28,
             max_depth: 12,
-            breaks: vec![
-                1e-3, 1e-2, 0.1, 0.3, 1.0, 2.0, 4.0, 8.0, 16.0, 40.0, 100.0,
-            ],
+            breaks: vec![1e-3, 1e-2, 0.1, 0.3, 1.0, 2.0, 4.0, 8.0, 16.0, 40.0, 100.0],
         }
     }
 }
@@ -319,6 +319,7 @@ impl Adaptive {
             value: 0.0,
             error: 0.0,
             evaluations: 0,
+            tolerance: target,
         };
         let mut failed = None;
         let total = b - a;
@@ -553,7 +554,11 @@ mod tests {
 
     #[test]
     fn table_matches_green() {
-        for &(n, k, mass, d) in &[(1usize, 1.0, 1.0, 0.1), (20, 1.0, 1.0, 0.1), (37, 2.5, 0.7, 0.0)] {
+        for &(n, k, mass, d) in &[
+            (1usize, 1.0, 1.0, 0.1),
+            (20, 1.0, 1.0, 0.1),
+            (37, 2.5, 0.7, 0.0),
+        ] {
             let chain = Chain::new(n)
                 .unwrap()
                 .with_k(k)
@@ -572,7 +577,10 @@ mod tests {
                 for i in 1..=n {
                     for j in 1..=n {
                         let (e, x) = (t.entry(q, i, j), g.entry(i, j));
-                        assert!((e - x).abs() <= 1e-13 * x.abs() + 1e-300, "{n} {sq} {i} {j}");
+                        assert!(
+                            (e - x).abs() <= 1e-13 * x.abs() + 1e-300,
+                            "{n} {sq} {i} {j}"
+                        );
                         let (e, x) = (tc.entry(q, i, j), gc.entry(i, j));
                         assert!((e - x).norm() <= 1e-13 * x.norm() + 1e-300);
                     }

@@ -217,7 +217,8 @@ impl Unknowns {
         self.defects
             .iter()
             .map(|d| {
-                let at = d.at.unwrap_or_else(|| *pi.next().expect("one per unknown position"));
+                let at =
+                    d.at.unwrap_or_else(|| *pi.next().expect("one per unknown position"));
                 let m = match d.mass {
                     MassUnknown::Known(m) => m,
                     MassUnknown::Free { .. } => *mi.next().expect("one per unknown mass"),
@@ -239,8 +240,7 @@ impl Unknowns {
         for (i, &p) in c.positions.iter().enumerate() {
             if p == 0 || p > self.n {
                 viol += 1.0 + p.abs_diff(self.n.min(p.max(1))) as f64;
-            } else if self.space.excluded.binary_search(&p).is_ok()
-                || c.positions[..i].contains(&p)
+            } else if self.space.excluded.binary_search(&p).is_ok() || c.positions[..i].contains(&p)
             {
                 viol += 1.0;
             }
