@@ -93,7 +93,7 @@ pub struct SearchSpec {
     /// Hypotheses reported (best and runners-up) (default 5).
     #[serde(default = "default_keep")]
     pub keep: usize,
-    /// Enumeration: starting values per unknown mass (default 3).
+    /// Enumeration: starting values per unknown mass (default 2).
     #[serde(default = "default_starts")]
     pub starts: usize,
     /// Enumeration: largest exhaustive set count before the beam search (default 200 000).
@@ -117,7 +117,7 @@ fn default_keep() -> usize {
     5
 }
 fn default_starts() -> usize {
-    3
+    2
 }
 fn default_max_sets() -> usize {
     200_000

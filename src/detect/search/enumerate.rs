@@ -6,7 +6,7 @@
 //! assignment otherwise; known positions excluded), the unknown masses are
 //! fitted by projected Levenberg-Marquardt in `u = ln m` inside their bounds,
 //! from the best point of a small grid of starts (`starts` per unknown mass,
-//! log-spaced). The Jacobian is analytic: `dX_1/dm_l = -gamma s^2 z_l^2` with
+//! log-spaced, default 2). The Jacobian is analytic: `dX_1/dm_l = -gamma s^2 z_l^2` with
 //! `z = (I + G_JJ C)^{-1} G_J1` (see [`crate::detect::misfit`]), so one
 //! Gauss-Newton step costs one residual evaluation. Sets are fitted in
 //! parallel with rayon; the result is sorted by `(residual, positions)` and
@@ -55,7 +55,8 @@ use rayon::prelude::*;
 pub struct EnumerateOptions {
     /// Hypotheses kept in the ranked list (default 10).
     pub keep: usize,
-    /// Log-spaced starting values per unknown mass (default 3).
+    /// Log-spaced starting values per unknown mass (default 2: a grid of
+    /// `2^f` starts for `f` unknown masses; the best starts the LM fit).
     pub starts: usize,
     /// Levenberg-Marquardt iterations per set (default 60).
     pub max_iter: usize,
@@ -72,7 +73,7 @@ impl Default for EnumerateOptions {
     fn default() -> Self {
         EnumerateOptions {
             keep: 10,
-            starts: 3,
+            starts: 2,
             max_iter: 60,
             max_sets: 200_000,
             beam: 16,
@@ -378,6 +379,8 @@ pub fn fit_slots(
     let mut hess = vec![0.0; k * k];
     let mut r = table.gauss_newton(&dm_of(&m), &mut grad, &mut hess);
     evals += 1;
+    let mut grad_t = grad.clone();
+    let mut hess_t = hess.clone();
     let mut mu = 1e-3;
     let mut a = vec![0.0; f * f];
     let mut b = vec![0.0; f];
@@ -385,15 +388,35 @@ pub fn fit_slots(
         if r == 0.0 {
             break;
         }
-        for (i, &(si, _, _)) in free.iter().enumerate() {
-            b[i] = -m[si] * grad[si];
-            for (j, &(sj, _, _)) in free.iter().enumerate() {
-                a[i * f + j] = m[si] * m[sj] * hess[si * k + sj];
-            }
-            a[i * f + i] *= 1.0 + mu;
-            a[i * f + i] += 1e-300;
+        // active set: a variable at a bound whose descent direction leaves
+        // the box is frozen for this step (plain clamping of the full step
+        // would stall the others)
+        let act: Vec<usize> = (0..f)
+            .filter(|&i| {
+                let (si, lo, hi) = free[i];
+                let gu = m[si] * grad[si];
+                !((u[i] <= lo && gu > 0.0) || (u[i] >= hi && gu < 0.0))
+            })
+            .collect();
+        let fa = act.len();
+        if fa == 0 {
+            break;
         }
-        if !solve_in_place(&mut a, &mut b, f) || b.iter().any(|x| !x.is_finite()) {
+        a.clear();
+        a.resize(fa * fa, 0.0);
+        b.clear();
+        b.resize(fa, 0.0);
+        for (i, &ii) in act.iter().enumerate() {
+            let si = free[ii].0;
+            b[i] = -m[si] * grad[si];
+            for (j, &jj) in act.iter().enumerate() {
+                let sj = free[jj].0;
+                a[i * fa + j] = m[si] * m[sj] * hess[si * k + sj];
+            }
+            a[i * fa + i] *= 1.0 + mu;
+            a[i * fa + i] += 1e-300;
+        }
+        if !solve_in_place(&mut a, &mut b, fa) || b.iter().any(|x| !x.is_finite()) {
             mu *= 10.0;
             if mu > 1e12 {
                 break;
@@ -403,22 +426,26 @@ pub fn fit_slots(
         let mut step = 0.0f64;
         let mut trial = m.clone();
         let mut u_new = u.clone();
-        for (i, &(s, lo, hi)) in free.iter().enumerate() {
-            u_new[i] = (u[i] + b[i]).clamp(lo, hi);
-            step = step.max((u_new[i] - u[i]).abs());
-            trial[s] = u_new[i].exp();
+        for (i, &ii) in act.iter().enumerate() {
+            let (s, lo, hi) = free[ii];
+            u_new[ii] = (u[ii] + b[i]).clamp(lo, hi);
+            step = step.max((u_new[ii] - u[ii]).abs());
+            trial[s] = u_new[ii].exp();
         }
-        if step < 1e-11 {
+        if step < 1e-13 {
             break;
         }
-        let r_new = table.residual(&dm_of(&trial));
+        // the trial point is evaluated with its Gauss-Newton pieces (one
+        // evaluation per iteration; the pieces are kept when it is accepted)
+        let r_new = table.gauss_newton(&dm_of(&trial), &mut grad_t, &mut hess_t);
         evals += 1;
         if r_new < r {
-            let small = r - r_new <= 1e-10 * r;
+            let small = r - r_new <= 1e-9 * r;
             u = u_new;
             m = trial;
-            r = table.gauss_newton(&dm_of(&m), &mut grad, &mut hess);
-            evals += 1;
+            r = r_new;
+            std::mem::swap(&mut grad, &mut grad_t);
+            std::mem::swap(&mut hess, &mut hess_t);
             mu = (mu * 0.2).max(1e-15);
             if small {
                 break;
