@@ -61,9 +61,26 @@ impl Probe {
 
 /// A factor `e^{e lambda} * mantissa` (the exponent is kept as an integer and
 /// cancelled analytically against the denominator).
+#[derive(Clone, Debug)]
 struct Factor<T> {
     exp: usize,
     mant: T,
+}
+
+/// The left and right factors of one probe at one `s`, computed once and
+/// reused for every entry that involves the probe (see [`Green::pair`]).
+#[derive(Clone, Debug)]
+pub struct ProbeFactors<T> {
+    probe: Probe,
+    left: Factor<T>,
+    right: Factor<T>,
+}
+
+impl<T> ProbeFactors<T> {
+    /// The probe these factors belong to.
+    pub fn probe(&self) -> Probe {
+        self.probe
+    }
 }
 
 /// The Green's function of a uniform chain at one value of `s`.
@@ -223,7 +240,12 @@ impl<T: Scalar> Green<T> {
     /// `L R / (k sinh(lambda) sinh((n+1) lambda))` with the exponentials cancelled.
     #[inline]
     fn combine(&self, l: Factor<T>, r: Factor<T>) -> T {
-        let num = l.mant * r.mant;
+        self.combine_ref(&l, &r)
+    }
+
+    #[inline]
+    fn combine_ref(&self, l: &Factor<T>, r: &Factor<T>) -> T {
+        let num = l.mant.clone() * r.mant.clone();
         if self.stat {
             return num / self.den.clone();
         }
@@ -236,6 +258,28 @@ impl<T: Scalar> Green<T> {
     pub fn entry(&self, i: usize, j: usize) -> T {
         let (a, b) = if i <= j { (i, j) } else { (j, i) };
         self.combine(self.left_point(a), self.right_point(b))
+    }
+
+    /// The factors of one probe, for repeated use with [`Green::pair`].
+    pub fn factors(&self, p: Probe) -> ProbeFactors<T> {
+        ProbeFactors {
+            probe: p,
+            left: self.left(p),
+            right: self.right(p),
+        }
+    }
+
+    /// `u^T G v` from precomputed factors: one exponential per entry.
+    pub fn pair(&self, u: &ProbeFactors<T>, v: &ProbeFactors<T>) -> T {
+        let (ulo, uhi) = u.probe.span();
+        let (vlo, vhi) = v.probe.span();
+        if uhi <= vlo {
+            self.combine_ref(&u.left, &v.right)
+        } else if vhi <= ulo {
+            self.combine_ref(&v.left, &u.right)
+        } else {
+            self.bilinear(u.probe, v.probe)
+        }
     }
 
     /// `u^T G v` for two probes.

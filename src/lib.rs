@@ -36,8 +36,12 @@
 //! | [`green`] | closed-form Green's function, overflow-free for every `n` and `s` |
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
+//! | [`series`] | sampled time series, CSV in and out, atomic writes |
+//! | [`plot`] | SVG line plots and heatmaps (bundled font) |
+//! | [`time`] | simulation ([`time::simulate`]), exact ([`time::modal`]) and numerical ([`time::inverse`]) inverse Laplace transforms, transform of sampled series ([`time::series`]) |
+//! | [`noise`] | seeded additive white Gaussian noise |
 //! | [`error`] | one error type; every variant names the field and its range |
-//! | [`detect`] | defect fitting: data, quadrature, residuals, unknowns, enumeration, `fit` |
+//! | [`detect`] | defect fitting: data, quadrature, residuals, unknowns, [`detect::search`] (enumeration, GA, Nelder-Mead, particle swarm), `fit` |
 
 pub mod chain;
 pub mod detect;
@@ -45,7 +49,11 @@ pub mod error;
 pub mod forward;
 pub mod green;
 pub mod linalg;
+pub mod noise;
+pub mod plot;
 pub mod scalar;
+pub mod series;
+pub mod time;
 
 pub use chain::{Chain, ChainSpec, Defect};
 pub use error::{Error, Result};

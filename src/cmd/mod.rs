@@ -1,6 +1,8 @@
 //! Subcommands. Shared argument groups live here.
 
+pub mod laplace;
 pub mod response;
+pub mod simulate;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
@@ -15,16 +17,16 @@ pub struct ChainArgs {
     #[arg(long)]
     pub n: Option<usize>,
     /// Uniform spring constant [default: 1].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub k: Option<f64>,
     /// Uniform damping [default: 0.1].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub d: Option<f64>,
     /// Impulse on mass 1 [default: 1].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub gamma: Option<f64>,
     /// Uniform mass [default: 1].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub mass: Option<f64>,
     /// A defect `kind:at:value` (repeatable): mass:8:5, spring:3:0.5, damper:4:0.3.
     #[arg(long = "defect", value_name = "KIND:AT:VALUE")]

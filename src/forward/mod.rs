@@ -14,7 +14,21 @@
 //! `X_o = z_l` is read directly, which avoids the cancellation
 //! `G_oo - G_oo c G_oo / (1 + G_oo c)` for heavy defects at the observed mass.
 //!
-//! [`tridiag`] is the independent O(n) solver.
+//! # Three evaluators
+//!
+//! | path | cost per `s` | use |
+//! |---|---|---|
+//! | [`woodbury`] | O(k^3), Green's entries tabulable per `s` | `X_1` in fitting (hot path) |
+//! | [`transfer::Transfer`] | O(k) | [`Forward::eval`]: any observed mass, no cancellation |
+//! | [`tridiag`] | O(n) | independent reference, fallback |
+//!
+//! Woodbury is exact algebra but, for a mass `o` *behind* a heavy defect, the
+//! transmitted wave is a difference of nearly equal terms (relative error of
+//! order `1e-16 (1 + G_jj |c_j|)`, 1e-10 for a 1e6 mass): for `X_1` (the
+//! paper's observable) this does not occur, so the fitting code keeps
+//! Woodbury, while [`Forward::eval`] uses the cancellation-free
+//! [`transfer`] sweep. The two are tested against each other and against
+//! [`tridiag`] over the whole grid of extremes (`tests/forward.rs`).
 //!
 //! ```
 //! use springmass::{Chain, Defect, forward::Forward};
@@ -26,7 +40,10 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+pub mod transfer;
 pub mod tridiag;
+
+use transfer::Transfer;
 
 use crate::chain::{Chain, Defect};
 use crate::error::{Error, Result};
@@ -36,6 +53,10 @@ use crate::scalar::Scalar;
 
 /// Largest `n` for which a singular closed form falls back to the O(n) solver.
 const FALLBACK_MAX_N: usize = 10_000_000;
+
+/// Largest `|s|` accepted (beyond it `mass s^2` leaves the f64 range for any
+/// physical mass; the spec asks for `|s| <= 1e4`).
+pub const MAX_ABS_S: f64 = 1e100;
 
 /// One rank-1 update `u c(s) u^T`, `c(s) = dm s^2 + dd s + dk`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -91,8 +112,12 @@ pub fn updates(chain: &Chain) -> Vec<Update> {
 /// [`Error::InvalidParameter`] naming `s`.
 pub fn check_s<T: Scalar>(s: &T) -> Result<()> {
     let z = s.to_c64();
-    if !(z.re.is_finite() && z.im.is_finite()) || z.re < 0.0 {
-        return Err(Error::invalid("s", format!("{z}"), "finite with Re s >= 0"));
+    if !(z.re.is_finite() && z.im.is_finite()) || z.re < 0.0 || z.norm() > MAX_ABS_S {
+        return Err(Error::invalid(
+            "s",
+            format!("{z}"),
+            "finite with Re s >= 0 and |s| <= 1e100",
+        ));
     }
     Ok(())
 }
@@ -102,6 +127,7 @@ pub fn check_s<T: Scalar>(s: &T) -> Result<()> {
 pub struct Forward {
     chain: Chain,
     updates: Vec<Update>,
+    transfer: Transfer,
 }
 
 impl Forward {
@@ -110,6 +136,7 @@ impl Forward {
         Forward {
             chain: chain.clone(),
             updates: updates(chain),
+            transfer: Transfer::new(chain),
         }
     }
 
@@ -129,16 +156,30 @@ impl Forward {
         Green::new(c.n(), c.k(), c.mass(), c.d(), s)
     }
 
-    /// `X_observe(s)`.
+    /// `X_observe(s)` by the cancellation-free transfer sweep (O(k) per `s`).
     ///
     /// # Errors
-    /// `s` not finite or `Re s < 0`; `observe` outside `1..=n`;
+    /// `s` not finite, `Re s < 0` or `|s| > 1e100`; `observe` outside `1..=n`;
     /// [`Error::Singular`] at a pole (undamped chain on the imaginary axis).
     pub fn eval<T: Scalar>(&self, s: T, observe: usize) -> Result<T> {
         check_s(&s)?;
         self.chain.check_observe(observe)?;
+        let x = self.transfer.eval(&s, observe);
+        self.finish(x, s, observe)
+    }
+
+    /// `X_observe(s)` by Woodbury on the closed-form Green's function (checked).
+    /// Accurate to rounding for `observe = 1` and at defect sites; see the
+    /// module docs for masses behind heavy defects.
+    pub fn eval_woodbury<T: Scalar>(&self, s: T, observe: usize) -> Result<T> {
+        check_s(&s)?;
+        self.chain.check_observe(observe)?;
         let g = self.green(s.clone());
         let x = self.eval_with(&g, &s, observe);
+        self.finish(x, s, observe)
+    }
+
+    fn finish<T: Scalar>(&self, x: T, s: T, observe: usize) -> Result<T> {
         if x.is_finite() {
             return Ok(x);
         }
@@ -168,35 +209,54 @@ pub fn woodbury<T: Scalar>(
     gamma: f64,
     observe: usize,
 ) -> T {
-    let obs = Probe::Point(observe);
-    let base = g.entry(observe, 1);
+    let src = g.factors(Probe::Point(1));
     let k = updates.len();
     if k == 0 {
-        return base.scale(gamma);
+        return g.entry(observe, 1).scale(gamma);
     }
+    // factors once per probe; A = U^T G U is symmetric
+    let fu: Vec<_> = updates.iter().map(|u| g.factors(u.probe)).collect();
     let c: Vec<T> = updates.iter().map(|u| u.coeff(s)).collect();
-    let mut a: Vec<T> = Vec::with_capacity(k * k);
-    for ul in updates {
-        for (m, um) in updates.iter().enumerate() {
-            a.push(g.bilinear(ul.probe, um.probe) * c[m].clone());
+    let mut gu = vec![T::zero(); k * k];
+    for l in 0..k {
+        for m in l..k {
+            let v = g.pair(&fu[l], &fu[m]);
+            gu[m * k + l] = v.clone();
+            gu[l * k + m] = v;
         }
     }
+    let mut a: Vec<T> = Vec::with_capacity(k * k);
     for l in 0..k {
-        a[l * k + l] = a[l * k + l].clone() + T::one();
+        for m in 0..k {
+            let mut v = gu[l * k + m].clone() * c[m].clone();
+            if l == m {
+                v = v + T::one();
+            }
+            a.push(v);
+        }
     }
-    let mut z: Vec<T> = updates
-        .iter()
-        .map(|u| g.bilinear(u.probe, Probe::Point(1)))
-        .collect();
+    let rhs: Vec<T> = fu.iter().map(|f| g.pair(f, &src)).collect();
+    let mut z = rhs.clone();
     if !solve_in_place(&mut a, &mut z, k) {
         return T::from_f64(f64::NAN);
     }
+    let obs = Probe::Point(observe);
     if let Some(l) = updates.iter().position(|u| u.probe == obs) {
         return z[l].scale(gamma);
     }
+    let (base, h) = if observe == 1 {
+        // G e_1 is the right-hand side itself
+        (g.pair(&src, &src), rhs)
+    } else {
+        let fo = g.factors(obs);
+        (
+            g.pair(&fo, &src),
+            fu.iter().map(|f| g.pair(&fo, f)).collect(),
+        )
+    };
     let mut corr = T::zero();
     for l in 0..k {
-        corr = corr + g.bilinear(obs, updates[l].probe) * c[l].clone() * z[l].clone();
+        corr = corr + h[l].clone() * c[l].clone() * z[l].clone();
     }
     (base - corr).scale(gamma)
 }

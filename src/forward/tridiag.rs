@@ -6,6 +6,13 @@
 //! It knows nothing of Green's functions or defects, which makes it the
 //! independent check of the closed form and the Woodbury updates, and the
 //! fallback for chains whose "defects" are not few.
+//!
+//! For real `s` the elimination is written in *excess-stiffness* form,
+//! `E_i = m_i s^2 + d_i s + kappa_i E_{i+1} / (E_{i+1} + kappa_i)`, `X_1 = gamma / (E_1 + kappa_0)`,
+//! `X_{i+1} = kappa_i X_i / (E_{i+1} + kappa_i)`: every term is positive, and the
+//! small part `m s^2 + d s` is never added to `2k` (which at `s = 1e-6` would
+//! round away eight digits of it). `K(s)` is symmetric positive definite there,
+//! so no pivoting is needed. Complex `s` uses the pivoted `gtsv` scheme.
 
 use crate::chain::Chain;
 use crate::error::{Error, Result};
@@ -26,6 +33,9 @@ use crate::scalar::Scalar;
 /// ```
 pub fn solve_all<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
     super::check_s(&s)?;
+    if s.to_c64().im == 0.0 {
+        return solve_all_real(chain, s);
+    }
     let n = chain.n();
     let m = chain.masses();
     let k = chain.springs();
@@ -92,6 +102,34 @@ pub fn solve_all<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
     }
     if x.iter().any(|v| !v.is_finite()) {
         return Err(singular());
+    }
+    Ok(x)
+}
+
+/// Real `s`: excess-stiffness elimination (see the module docs).
+fn solve_all_real<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
+    let n = chain.n();
+    let (m, k, d) = (chain.masses(), chain.springs(), chain.dampers());
+    let s2 = s.clone() * s.clone();
+    // e[i] = E_{i+1} (0-based), dd[i] = D_{i+1} = E + kappa_{i}
+    let mut e = vec![T::zero(); n];
+    let mut tail = T::from_f64(k[n]); // kappa_n * (E_{n+1}/D_{n+1}) with the wall ratio 1
+    for i in (0..n).rev() {
+        e[i] = s2.scale(m[i]) + s.scale(d[i]) + tail;
+        let kap = k[i]; // spring to the left of mass i+1
+        tail = e[i].clone().scale(kap) / (e[i].clone() + T::from_f64(kap));
+    }
+    let mut x = Vec::with_capacity(n);
+    let mut xi = T::from_f64(chain.gamma()) / (e[0].clone() + T::from_f64(k[0]));
+    x.push(xi.clone());
+    for i in 1..n {
+        xi = xi.scale(k[i]) / (e[i].clone() + T::from_f64(k[i]));
+        x.push(xi.clone());
+    }
+    if x.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Singular {
+            s: format!("{:?}", s.to_c64()),
+        });
     }
     Ok(x)
 }
