@@ -90,7 +90,10 @@ fn print_text(scene: &FitScene, r: &FitReport) {
             );
         }
     }
-    let sets = r.sets.map(|s| format!(", {s} position sets")).unwrap_or_default();
+    let sets = r
+        .sets
+        .map(|s| format!(", {s} position sets"))
+        .unwrap_or_default();
     let beam = match r.exhaustive {
         Some(false) => " (beam search)",
         _ => "",

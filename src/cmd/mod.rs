@@ -1,8 +1,10 @@
 //! Subcommands. Shared argument groups live here.
 
+pub mod fit;
 pub mod laplace;
 pub mod response;
 pub mod simulate;
+pub mod surface;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
