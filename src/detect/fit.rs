@@ -40,7 +40,7 @@ use crate::chain::Defect;
 use crate::detect::data::Data;
 use crate::detect::misfit::{Misfit, MisfitKind};
 use crate::detect::scene::FitScene;
-use crate::detect::search::enumerate::{enumerate, fit_slots, EnumerateOptions};
+use crate::detect::search::enumerate::{enumerate, fit_slots, Defects, EnumerateOptions};
 use crate::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
 use crate::detect::space::{MassUnknown, Unknowns};
 use crate::error::{Error, Result};
@@ -324,7 +324,7 @@ fn probe_neighbours(
     unknowns: &Unknowns,
     positions: &[usize],
     opts: &EnumerateOptions,
-) -> (Vec<(Vec<(usize, f64)>, f64)>, usize) {
+) -> (Vec<(Defects, f64)>, usize) {
     let allowed = unknowns.allowed_positions();
     let mut seen: Vec<Vec<usize>> = vec![sorted(positions)];
     let mut out = Vec::new();

@@ -574,6 +574,7 @@ impl<T: Num> Gathered<T> {
 impl Gathered<f64> {
     /// `k = 2`, real axis: straight-line kernel, four independent accumulators.
     #[inline]
+    #[allow(clippy::needless_range_loop)] // lane loops: indexed form vectorises
     fn residual_k2<const OBS: u8>(&self, dm1: f64, dm2: f64, gamma: f64) -> f64 {
         let np = self.np;
         let (g1a, g1b) = self.g1.split_at(np);
@@ -610,6 +611,7 @@ impl Gathered<f64> {
 
     /// `k = 2`, real axis: residual and Gauss-Newton pieces, straight-line.
     #[inline]
+    #[allow(clippy::needless_range_loop)] // lane loops: indexed form vectorises
     fn gauss_newton_k2<const OBS: u8>(
         &self,
         dm1: f64,
@@ -673,6 +675,7 @@ impl Gathered<f64> {
 
     /// `k = 1`, real axis.
     #[inline]
+    #[allow(clippy::needless_range_loop)] // lane loops: indexed form vectorises
     fn residual_k1<const OBS: bool>(&self, dm1: f64, gamma: f64) -> f64 {
         let np = self.np;
         let mut acc = [0.0f64; 4];

@@ -50,6 +50,12 @@ use crate::error::{Error, Result};
 use crate::linalg::solve_in_place;
 use rayon::prelude::*;
 
+/// Defects `(position, mass)`.
+pub type Defects = Vec<(usize, f64)>;
+
+/// A fitted set: defects, residual, evaluations.
+type Fitted = (Defects, f64, usize);
+
 /// Options of [`enumerate`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct EnumerateOptions {
@@ -172,7 +178,7 @@ fn exhaustive(
         let slots = slots_for(unknowns, set, unknowns.free_positions().len());
         fit_slots(misfit, &slots, opts)
     };
-    let fitted: Vec<(Vec<(usize, f64)>, f64, usize)> = if opts.parallel {
+    let fitted: Vec<Fitted> = if opts.parallel {
         sets.par_iter().map(fit_one).collect()
     } else {
         sets.iter().map(fit_one).collect()
@@ -224,7 +230,7 @@ fn slots_for(unknowns: &Unknowns, positions: &[usize], placed: usize) -> Vec<(us
 
 fn finish(
     unknowns: &Unknowns,
-    fitted: Vec<(Vec<(usize, f64)>, f64, usize)>,
+    fitted: Vec<Fitted>,
     sets: usize,
     exhaustive: bool,
     keep: usize,
@@ -266,7 +272,7 @@ fn beam(misfit: &Misfit, unknowns: &Unknowns, opts: &EnumerateOptions) -> Result
     let mut beam: Vec<Vec<usize>> = vec![Vec::new()];
     let mut sets = 0;
     let mut evaluations = 0;
-    let mut last: Vec<(Vec<usize>, Vec<(usize, f64)>, f64)> = Vec::new();
+    let mut last: Vec<(Vec<usize>, Defects, f64)> = Vec::new();
     for t in 0..p {
         let mut cands: Vec<Vec<usize>> = Vec::new();
         for b in &beam {
@@ -291,14 +297,14 @@ fn beam(misfit: &Misfit, unknowns: &Unknowns, opts: &EnumerateOptions) -> Result
             }
         }
         let fit_one = |c: &Vec<usize>| fit_slots(misfit, &slots_for(unknowns, c, t + 1), opts);
-        let fitted: Vec<(Vec<(usize, f64)>, f64, usize)> = if opts.parallel {
+        let fitted: Vec<Fitted> = if opts.parallel {
             cands.par_iter().map(fit_one).collect()
         } else {
             cands.iter().map(fit_one).collect()
         };
         sets += cands.len();
         evaluations += fitted.iter().map(|f| f.2).sum::<usize>();
-        let mut scored: Vec<(Vec<usize>, Vec<(usize, f64)>, f64)> = cands
+        let mut scored: Vec<(Vec<usize>, Defects, f64)> = cands
             .into_iter()
             .zip(fitted)
             .map(|(c, (d, r, _))| (c, d, r))
@@ -324,7 +330,7 @@ pub fn fit_slots(
     misfit: &Misfit,
     slots: &[(usize, MassUnknown)],
     opts: &EnumerateOptions,
-) -> (Vec<(usize, f64)>, f64, usize) {
+) -> Fitted {
     let base = misfit.chain().mass();
     let pos: Vec<usize> = slots.iter().map(|s| s.0).collect();
     let table = misfit.set(&pos);
