@@ -226,3 +226,84 @@ fn fixed_rules_against_the_adaptive_reference() {
         }
     }
 }
+
+#[test]
+fn cli_fit_and_surface() {
+    let exe = env!("CARGO_BIN_EXE_springmass");
+    let root = env!("CARGO_MANIFEST_DIR");
+    let out = std::process::Command::new(exe)
+        .args([
+            "fit",
+            "--scene",
+            &format!("{root}/configs/table1-system3.toml"),
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let d = v["defects"].as_array().unwrap();
+    assert_eq!(
+        (d[0]["at"].as_u64(), d[1]["at"].as_u64()),
+        (Some(8), Some(15))
+    );
+    assert_eq!(v["nodes"].as_u64(), Some(80));
+    assert!(v["runners_up"][0]["gap"].as_f64().unwrap() > 1e-14);
+
+    let dir = std::env::temp_dir().join(format!("springmass-fit-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "[chain]\nn = 3\n[unknowns]\nk = 4\n").unwrap();
+    let out = std::process::Command::new(exe)
+        .args(["fit", "--scene", bad.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let msg = String::from_utf8_lossy(&out.stderr);
+    assert!(msg.contains("unknowns.k"), "{msg}");
+
+    for (cfg, kind) in [("figure16", "jm"), ("figure17", "pair")] {
+        let prefix = dir.join(cfg);
+        let out = std::process::Command::new(exe)
+            .args([
+                "surface",
+                "--scene",
+                &format!("{root}/configs/{cfg}.toml"),
+                "--kind",
+                kind,
+                "--out",
+                prefix.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let csv = std::fs::read_to_string(prefix.with_extension("csv")).unwrap();
+        // the minimum of the surface is the truth
+        let best = csv
+            .lines()
+            .skip(1)
+            .map(|l| {
+                l.split(',')
+                    .map(|x| x.parse::<f64>().unwrap())
+                    .collect::<Vec<_>>()
+            })
+            .min_by(|a, b| a[2].total_cmp(&b[2]))
+            .unwrap();
+        match kind {
+            "jm" => assert_eq!(best[0], 3.0),
+            _ => assert_eq!((best[0], best[1]), (10.0, 15.0)),
+        }
+        assert!(std::fs::read_to_string(prefix.with_extension("svg"))
+            .unwrap()
+            .contains("<svg"));
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
