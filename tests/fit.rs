@@ -44,7 +44,7 @@ fn enumeration_recovers_every_table1_system_exactly() {
                 );
             }
             assert!(report.residual < 1e-26, "{}", report.residual);
-            assert!(report.resolved);
+            assert!(report.resolved && report.fits_data);
             let gap = report.runners_up[0].gap;
             assert!(gap > 1e3 * report.floor, "system {}: gap {gap:e}", sys + 1);
             assert_eq!(report.sets, Some(n * (n - 1) / 2));
@@ -96,6 +96,29 @@ fn bad_scenes_are_typed_errors_naming_the_field() {
             "{text}"
         );
     }
+}
+
+#[test]
+fn a_model_missing_a_defect_does_not_fit_the_data() {
+    let (n, defs) = TABLE1[1];
+    let mut scene = FitScene::synthetic(&truth(n, &defs));
+    scene.unknowns.k = Some(1);
+    let report = fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
+    assert_eq!(report.defects.len(), 1);
+    assert_eq!(report.defects[0].at(), 3);
+    assert!(!report.fits_data, "{report:?}");
+}
+
+#[test]
+fn beam_search_reports_its_cost_and_finds_table1_system3() {
+    let (n, defs) = TABLE1[2];
+    let mut scene = FitScene::synthetic(&truth(n, &defs));
+    scene.search.max_sets = 50; // force the beam search
+    let report = fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
+    assert_eq!(report.exhaustive, Some(false));
+    let pos: Vec<usize> = report.defects.iter().map(|d| d.at()).collect();
+    assert_eq!(pos, vec![8, 15]);
+    assert!(report.fits_data);
 }
 
 #[test]

@@ -20,7 +20,9 @@
 //! their gaps `r_alt - r_best`, the number of residual evaluations, the wall
 //! time, and whether the gap to the first runner-up is above the data's
 //! error floor ([`crate::detect::misfit::Misfit::floor`]); below it the data
-//! cannot tell the two hypotheses apart.
+//! cannot tell the two hypotheses apart. `fits_data` says whether the best
+//! residual itself is within the floor (a residual far above it means the
+//! model lacks a defect or the search missed the truth).
 //!
 //! ```
 //! use springmass::{Chain, Defect};
@@ -160,6 +162,10 @@ pub struct FitReport {
     pub floor: f64,
     /// Gap to the first runner-up above the floor (the answer is resolved by the data).
     pub resolved: bool,
+    /// The residual is within the data's error (`r <= 4 floor`): the
+    /// hypothesis explains the data. False means a defect is missing from the
+    /// model, or the search (beam search, stochastic methods) missed the truth.
+    pub fits_data: bool,
 }
 
 /// Fit the scene's unknowns to `data`.
@@ -256,6 +262,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitRep
     let wall = t1.elapsed().as_secs_f64();
     let floor = misfit.floor();
     let resolved = runners.first().is_none_or(|r| r.gap > floor);
+    let fits_data = residual <= 4.0 * floor;
     let kind = match scene.misfit.kind {
         MisfitKind::RealAxis => format!("real-axis [0, {}]", scene.misfit.s_max),
         MisfitKind::Bromwich => format!(
@@ -279,6 +286,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitRep
         nodes: misfit.nodes(),
         floor,
         resolved,
+        fits_data,
     })
 }
 
