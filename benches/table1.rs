@@ -39,7 +39,10 @@ fn variants() -> Vec<Variant> {
         Variant {
             name: "ga-no-polish",
             method: Method::Genetic,
-            tweak: |o| o.genetic.polish = false,
+            tweak: |o| {
+                o.genetic.polish = false;
+                o.final_polish = false;
+            },
         },
         Variant {
             name: "nelder-mead",
@@ -49,7 +52,10 @@ fn variants() -> Vec<Variant> {
         Variant {
             name: "nm-relax-round",
             method: Method::NelderMead,
-            tweak: |o| o.nelder_mead.positions = Positions::RelaxRound,
+            tweak: |o| {
+                o.nelder_mead.positions = Positions::RelaxRound;
+                o.final_polish = false;
+            },
         },
         Variant {
             name: "pso",
@@ -59,7 +65,10 @@ fn variants() -> Vec<Variant> {
         Variant {
             name: "pso-no-finish",
             method: Method::ParticleSwarm,
-            tweak: |o| o.pso.finish = Finish::None,
+            tweak: |o| {
+                o.pso.finish = Finish::None;
+                o.final_polish = false;
+            },
         },
     ]
 }

@@ -35,6 +35,7 @@
 //! | [`scalar`] | the number types the model is generic over (`f64`, `Complex64`, extended precision) |
 //! | [`green`] | closed-form Green's function, overflow-free for every `n` and `s` |
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
+//! | [`control`] | vibration suppression (Theorem 3.1, Corollary 3.2): Laplace, exact time domain, verification |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
@@ -44,6 +45,7 @@
 //! | [`detect`] | defect fitting: data, quadrature, residuals, unknowns, [`detect::search`] (enumeration, GA, Nelder-Mead, particle swarm), `fit` |
 
 pub mod chain;
+pub mod control;
 pub mod detect;
 pub mod error;
 pub mod forward;

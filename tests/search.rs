@@ -195,6 +195,29 @@ fn same_seed_same_result_different_seed_differs() {
 }
 
 #[test]
+fn parallel_swarm_is_independent_of_thread_count() {
+    let (obj, _) = table1(2);
+    let mut opts = SearchOptions {
+        max_evals: 4000,
+        seed: 5,
+        trace: true,
+        ..Default::default()
+    };
+    opts.pso.parallel = true;
+    let run = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| minimize(Method::ParticleSwarm, &obj, &opts).unwrap())
+    };
+    let one = run(1);
+    assert_eq!(one, run(3));
+    opts.pso.parallel = false;
+    assert_eq!(one, minimize(Method::ParticleSwarm, &obj, &opts).unwrap());
+}
+
+#[test]
 fn parallel_genetic_is_independent_of_thread_count() {
     let (obj, _) = table1(3);
     let mut opts = SearchOptions {

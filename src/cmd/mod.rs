@@ -4,6 +4,7 @@ pub mod fit;
 pub mod laplace;
 pub mod response;
 pub mod simulate;
+pub mod suppress;
 pub mod surface;
 
 use anyhow::Context;

@@ -56,10 +56,10 @@ use std::collections::HashSet;
 
 /// Genetic-algorithm knobs.
 ///
-/// Defaults: `population = 40`, `tournament = 3`, `crossover_rate = 0.9`,
+/// Defaults: `population = 30`, `tournament = 3`, `crossover_rate = 0.9`,
 /// `position_mutation = 0.3`, `jump_probability = 0.3`,
 /// `value_mutation = 0.5`, `sigma_range = (1e-7, 0.3)`, `elites = 2`,
-/// `stall_generations = 30`, `stall_rel = 0.99`, `patience = 2`, `polish = true`, `polish_top = 2`,
+/// `stall_generations = 20`, `stall_rel = 0.99`, `patience = 2`, `polish = true`, `polish_top = 3`,
 /// `polish_evals = 300`, `parallel = false`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GeneticOptions {
@@ -99,7 +99,7 @@ pub struct GeneticOptions {
 impl Default for GeneticOptions {
     fn default() -> Self {
         GeneticOptions {
-            population: 40,
+            population: 30,
             tournament: 3,
             crossover_rate: 0.9,
             position_mutation: 0.3,
@@ -107,11 +107,11 @@ impl Default for GeneticOptions {
             value_mutation: 0.5,
             sigma_range: (1e-7, 0.3),
             elites: 2,
-            stall_generations: 30,
+            stall_generations: 20,
             stall_rel: 0.99,
             patience: 2,
             polish: true,
-            polish_top: 2,
+            polish_top: 3,
             polish_evals: 300,
             parallel: false,
         }

@@ -10,12 +10,17 @@
 //!
 //! 1. draw distinct random positions and random values (seeded);
 //! 2. fit the values with Nelder-Mead at those positions ([`polish`]);
-//! 3. steepest descent over positions: try every move of one defect to the
-//!    next free position up to `neighbourhood` steps left or right, refit the
-//!    values from the current ones (warm start), take the best move if it
-//!    lowers the cost; repeat until no move helps;
+//! 3. descent over positions: try the moves of one defect to the next free
+//!    position up to `neighbourhood` steps left or right, refit the values
+//!    from the current ones (warm start), take the first move that lowers the
+//!    cost (or the best move, `first_improvement = false`); repeat until no
+//!    move helps;
 //! 4. restart from 1 until `patience` consecutive restarts end at an already
 //!    known or worse position set, or the budget is spent.
+//!
+//! Fitted position sets are memoised for the whole run ([`FitMemo`]): a
+//! restart that walks into known territory costs almost nothing, which is
+//! what makes the restarts (and so the robustness) cheap.
 //!
 //! This follows the structure of the residual (a smooth function of the
 //! masses for every position set) and needs no rounding heuristics; its
@@ -40,12 +45,13 @@ use argmin::core::{
 use argmin::solver::neldermead::NelderMead;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use std::collections::HashMap;
 
 /// How Nelder-Mead treats the integer positions (see the module doc).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Positions {
-    /// Positions fixed per run, discrete steepest descent over them, restarts.
+    /// Positions fixed per run, discrete descent over them, restarts.
     LocalSearch,
     /// Relaxed positions in the simplex, rounded for each evaluation; restarts.
     RelaxRound,
@@ -56,7 +62,7 @@ pub enum Positions {
 /// Defaults: `positions = LocalSearch`, `step = 0.15` (initial simplex edge
 /// in unit coordinates), `sd_rel = 1e-3`, `sd_tolerance = 1e-30`,
 /// `min_progress = 1e-4`, `rounds = 40`, `max_iters_per_fit = 400`,
-/// `neighbourhood = 1`, `patience = 3`.
+/// `neighbourhood = 1`, `patience = 3`, `first_improvement = true`.
 ///
 /// One value fit ([`polish`]) is a sequence of Nelder-Mead *rounds*: each
 /// round stops when the standard deviation of the vertex costs falls below
@@ -88,6 +94,8 @@ pub struct NelderMeadOptions {
     pub neighbourhood: usize,
     /// Restarts in a row without a better position set before stopping.
     pub patience: usize,
+    /// Take the first improving position move instead of the best one.
+    pub first_improvement: bool,
 }
 
 impl Default for NelderMeadOptions {
@@ -102,6 +110,7 @@ impl Default for NelderMeadOptions {
             max_iters_per_fit: 400,
             neighbourhood: 1,
             patience: 3,
+            first_improvement: true,
         }
     }
 }
@@ -381,7 +390,12 @@ pub fn step_position(
     }
 }
 
-/// Discrete steepest descent over positions from `start`, refitting the
+/// Fitted position sets of one run: positions -> (fitted candidate, cost).
+/// The objective is deterministic, so a set fitted once need not be refitted
+/// when a later descent (or restart) comes back to it.
+pub type FitMemo = HashMap<Vec<usize>, (Candidate, f64)>;
+
+/// Discrete descent over positions from `start`, refitting the
 /// values at every trial (see the module doc). Returns the local optimum.
 ///
 /// # Errors
@@ -391,12 +405,32 @@ pub fn local_search(
     start: &Candidate,
     opts: &NelderMeadOptions,
 ) -> Result<(Candidate, f64)> {
+    local_search_memo(tracked, start, opts, &mut FitMemo::new())
+}
+
+/// [`local_search`] sharing the fits of earlier descents through `memo`.
+///
+/// # Errors
+/// [`Error::Numerical`] if argmin fails.
+pub fn local_search_memo(
+    tracked: &Tracked<'_>,
+    start: &Candidate,
+    opts: &NelderMeadOptions,
+    memo: &mut FitMemo,
+) -> Result<(Candidate, f64)> {
     let space = tracked.space().clone();
-    let fit_budget = |t: &Tracked<'_>| t.remaining().max(1);
-    let (mut cur, mut cur_cost) = polish(tracked, start, fit_budget(tracked), opts)?;
+    let mut fit = |c: &Candidate| -> Result<(Candidate, f64)> {
+        if let Some(hit) = memo.get(&c.positions) {
+            return Ok(hit.clone());
+        }
+        let out = polish(tracked, c, tracked.remaining().max(1), opts)?;
+        memo.insert(c.positions.clone(), out.clone());
+        Ok(out)
+    };
+    let (mut cur, mut cur_cost) = fit(&space.canonicalize(start))?;
     while !tracked.done() {
         let mut best: Option<(Candidate, f64)> = None;
-        for p in 0..space.n_positions {
+        'moves: for p in 0..space.n_positions {
             for dir in [-1isize, 1] {
                 for steps in 1..=opts.neighbourhood {
                     let Some(j) = step_position(&space, &cur.positions, p, dir, steps) else {
@@ -405,12 +439,12 @@ pub fn local_search(
                     let mut trial = cur.clone();
                     trial.positions[p] = j;
                     let trial = space.canonicalize(&trial);
-                    let (c, v) = polish(tracked, &trial, fit_budget(tracked), opts)?;
+                    let (c, v) = fit(&trial)?;
                     if best.as_ref().is_none_or(|(_, b)| v < *b) {
                         best = Some((c, v));
                     }
-                    if tracked.done() {
-                        break;
+                    if tracked.done() || (opts.first_improvement && v < cur_cost) {
+                        break 'moves;
                     }
                 }
             }
@@ -481,9 +515,10 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
         Positions::LocalSearch => {
             let mut incumbent: Option<(Vec<usize>, f64)> = None;
             let mut idle = 0;
+            let mut memo = FitMemo::new();
             while !tracked.done() && idle < o.patience {
                 let start = space.random_candidate(&mut rng);
-                let (c, v) = local_search(tracked, &start, o)?;
+                let (c, v) = local_search_memo(tracked, &start, o, &mut memo)?;
                 let better = match &incumbent {
                     None => true,
                     Some((pos, best)) => c.positions != *pos && v < *best,

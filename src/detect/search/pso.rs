@@ -32,7 +32,7 @@
 //! Seeding: `ParticleSwarm::with_rng_generator(ChaCha8Rng::seed_from_u64(seed))`
 //! (argmin's default seeds itself from the OS, which would not be reproducible).
 
-use super::nelder_mead::{local_search, polish, Budgeted};
+use super::nelder_mead::{local_search_memo, polish, Budgeted, FitMemo};
 use super::{argmin_err, finite_cost, Candidate, SearchOptions, Tracked};
 use crate::error::{Error, Result};
 use argmin::core::State;
@@ -58,7 +58,7 @@ pub enum Finish {
 /// Defaults: `particles = 40`; argmin's factors (inertia `1/(2 ln 2)`,
 /// cognitive and social `0.5 + ln 2`); `stall_iters = 30` (stop the swarm
 /// after that many sweeps without a relative improvement of 1e-12);
-/// `finish = LocalSearch`; `swarm_share = 0.7`; `patience = 2`.
+/// `finish = LocalSearch`; `swarm_share = 0.7`; `patience = 2`; `parallel = false`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PsoOptions {
     /// Swarm size (>= 2).
@@ -78,6 +78,8 @@ pub struct PsoOptions {
     pub swarm_share: f64,
     /// Episodes in a row without a better position set before stopping (>= 1).
     pub patience: usize,
+    /// Evaluate each sweep with rayon (deterministic; pays only for costly objectives).
+    pub parallel: bool,
 }
 
 impl Default for PsoOptions {
@@ -91,6 +93,7 @@ impl Default for PsoOptions {
             finish: Finish::LocalSearch,
             swarm_share: 0.7,
             patience: 2,
+            parallel: false,
         }
     }
 }
@@ -131,6 +134,7 @@ impl PsoOptions {
 /// Relaxed particle -> rounded candidate.
 struct Swarmed<'t, 'a> {
     tracked: &'t Tracked<'a>,
+    parallel: bool,
 }
 
 impl Swarmed<'_, '_> {
@@ -153,6 +157,19 @@ impl CostFunction for Swarmed<'_, '_> {
     type Output = f64;
     fn cost(&self, z: &Vec<f64>) -> std::result::Result<f64, argmin::core::Error> {
         Ok(finite_cost(self.tracked.cost(&self.candidate(z))))
+    }
+
+    /// One swarm sweep as one batch: evaluated in parallel when asked,
+    /// recorded in particle order (deterministic whatever the thread count,
+    /// and whether or not argmin's own `rayon` feature is enabled).
+    fn bulk_cost<P>(&self, params: &[P]) -> std::result::Result<Vec<f64>, argmin::core::Error>
+    where
+        P: std::borrow::Borrow<Vec<f64>> + argmin::core::SyncAlias,
+        f64: argmin::core::SendAlias,
+        Self: argmin::core::SyncAlias,
+    {
+        let cands: Vec<Candidate> = params.iter().map(|p| self.candidate(p.borrow())).collect();
+        Ok(self.tracked.cost_batch(&cands, self.parallel))
     }
 }
 
@@ -181,6 +198,7 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
     let mut incumbent: Option<(Vec<usize>, f64)> = None;
     let mut idle = 0;
     let mut episode: u64 = 0;
+    let mut memo = FitMemo::new();
     while !tracked.done() && idle < o.patience {
         let stop_at = tracked.evaluations() + swarm_cap.min(tracked.remaining());
         let rng = ChaCha8Rng::seed_from_u64(episode_seed(opts.seed, episode));
@@ -191,7 +209,10 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
             .map_err(|e| argmin_err("particle-swarm", e))?
             .with_rng_generator(rng);
         let res = Executor::new(
-            Swarmed { tracked },
+            Swarmed {
+                tracked,
+                parallel: o.parallel,
+            },
             Budgeted::new(pso, tracked, stop_at, Some((o.stall_iters, 1e-12))),
         )
         .configure(|s| s.max_iters(u64::MAX))
@@ -202,7 +223,13 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
         let Some(best) = st.get_best_param() else {
             break;
         };
-        let best = space.canonicalize(&Swarmed { tracked }.candidate(&best.position));
+        let best = space.canonicalize(
+            &Swarmed {
+                tracked,
+                parallel: false,
+            }
+            .candidate(&best.position),
+        );
         let mut out = (best.clone(), st.get_best_cost());
         if !tracked.done() {
             match o.finish {
@@ -211,7 +238,7 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
                     out = polish(tracked, &best, tracked.remaining(), &opts.nelder_mead)?;
                 }
                 Finish::LocalSearch => {
-                    out = local_search(tracked, &best, &opts.nelder_mead)?;
+                    out = local_search_memo(tracked, &best, &opts.nelder_mead, &mut memo)?;
                 }
             }
         }
