@@ -365,3 +365,27 @@ fn cli_fit_and_surface() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn measured_csv_series_through_the_scene() {
+    use springmass::time::simulate::{simulate, SimOptions};
+    let (n, defs) = TABLE1[1];
+    let chain = truth(n, &defs);
+    let traj = simulate(&chain, &SimOptions::new(300.0, 0.05)).unwrap();
+    let dir = std::env::temp_dir().join(format!("springmass-fit-csv-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("x1.csv");
+    traj.to_series().unwrap().write_csv(&csv).unwrap();
+    let text = format!(
+        "[chain]\nn = {n}\n[data]\nsource = \"series\"\npath = {:?}\ncolumn = \"x1\"\n[unknowns]\nk = 2\n",
+        csv.display().to_string()
+    );
+    let scene = FitScene::from_toml(&text).unwrap();
+    let report = fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
+    let pos: Vec<usize> = report.defects.iter().map(|d| d.at()).collect();
+    assert_eq!(pos, vec![3, 7], "{report:?}");
+    // a missing column names the columns present
+    let bad = FitScene::from_toml(&text.replace("column = \"x1\"", "column = \"x9\"")).unwrap();
+    assert!(bad.data().is_err());
+    std::fs::remove_dir_all(&dir).ok();
+}
