@@ -25,6 +25,10 @@ enum Command {
     Suppress(cmd::suppress::Args),
     /// Laplace transform X(s) of a sampled series (CSV), with error estimates.
     Laplace(cmd::laplace::Args),
+    /// Fit defect positions and masses to X_1 data (enumerate, ga, nelder-mead, pso).
+    Fit(cmd::fit::Args),
+    /// Residual surfaces r(j, m) and r(j1, j2) (the paper's Figures 16 and 17), CSV + SVG.
+    Surface(cmd::surface::Args),
 }
 
 fn run() -> anyhow::Result<()> {
@@ -35,6 +39,8 @@ fn run() -> anyhow::Result<()> {
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Suppress(a) => cmd::suppress::run(a),
         Command::Laplace(a) => cmd::laplace::run(a),
+        Command::Fit(a) => cmd::fit::run(a),
+        Command::Surface(a) => cmd::surface::run(a),
     }
 }
 
