@@ -37,13 +37,15 @@
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
 //! | [`control`] | vibration suppression (Theorem 3.1, Corollary 3.2): Laplace, exact time domain, verification |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
+//! | [`precision`] | arbitrary-precision reals ([`precision::BigReal`]) and real-only operations |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
 //! | [`study`] | config-driven studies: sweeps, parallel resumable runs, reports |
+//! | [`detect::locate`] | explicit single-defect locators (section 4.1), error floors, any precision |
 //! | [`time`] | simulation ([`time::simulate`]), exact ([`time::modal`]) and numerical ([`time::inverse`]) inverse Laplace transforms, transform of sampled series ([`time::series`]) |
 //! | [`noise`] | seeded additive white Gaussian noise |
 //! | [`error`] | one error type; every variant names the field and its range |
-//! | [`detect`] | defect fitting: [`detect::search`] the optimizers (GA, Nelder-Mead, particle swarm) behind one interface |
+//! | [`detect`] | defect fitting: data, quadrature, residuals, unknowns, [`detect::search`] (enumeration, GA, Nelder-Mead, particle swarm), `fit` |
 
 pub mod chain;
 pub mod control;
@@ -54,6 +56,7 @@ pub mod green;
 pub mod linalg;
 pub mod noise;
 pub mod plot;
+pub mod precision;
 pub mod scalar;
 pub mod series;
 pub mod study;

@@ -21,12 +21,18 @@ enum Command {
     Study(cmd::study::Args),
     /// Check a study file, print the schema of every field with its default.
     Config(cmd::config::Args),
+    /// Locate one mass defect from X_1(s) (section 4.1 locators, corrected).
+    Locate(cmd::locate::Args),
     /// Time-domain simulation x_i(t): impulse on mass 1, optional forces, CSV/SVG out.
     Simulate(cmd::simulate::Args),
     /// Vibration suppression controls (Theorem 3.1, Corollary 3.2), verified by simulation.
     Suppress(cmd::suppress::Args),
     /// Laplace transform X(s) of a sampled series (CSV), with error estimates.
     Laplace(cmd::laplace::Args),
+    /// Fit defect positions and masses to X_1 data (enumerate, ga, nelder-mead, pso).
+    Fit(cmd::fit::Args),
+    /// Residual surfaces r(j, m) and r(j1, j2) (the paper's Figures 16 and 17), CSV + SVG.
+    Surface(cmd::surface::Args),
 }
 
 fn run() -> anyhow::Result<()> {
@@ -35,9 +41,12 @@ fn run() -> anyhow::Result<()> {
         Command::Response(a) => cmd::response::run(a),
         Command::Study(a) => cmd::study::run(a),
         Command::Config(a) => cmd::config::run(a),
+        Command::Locate(a) => cmd::locate::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Suppress(a) => cmd::suppress::run(a),
         Command::Laplace(a) => cmd::laplace::run(a),
+        Command::Fit(a) => cmd::fit::run(a),
+        Command::Surface(a) => cmd::surface::run(a),
     }
 }
 

@@ -1,11 +1,14 @@
 //! Subcommands. Shared argument groups live here.
 
 pub mod config;
+pub mod fit;
 pub mod laplace;
+pub mod locate;
 pub mod response;
 pub mod simulate;
 pub mod study;
 pub mod suppress;
+pub mod surface;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;

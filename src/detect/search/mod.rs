@@ -63,6 +63,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+pub mod enumerate;
 pub mod genetic;
 pub mod nelder_mead;
 pub mod pso;
