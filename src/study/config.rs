@@ -73,6 +73,22 @@ pub struct StudyMeta {
     /// non-reproducible numbers; with `false` two runs give identical bytes.
     #[serde(default = "yes")]
     pub timings: bool,
+    /// Cases whose scene is invalid (for example `j1 = j2` in a crossed
+    /// sweep of two positions): `error` (default: the file is refused) or
+    /// `skip` (recorded with status `skipped` and the reason).
+    #[serde(default)]
+    pub invalid_cases: InvalidCases,
+}
+
+/// What to do with cases whose scene fails the kind's checks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum InvalidCases {
+    /// Refuse the study file (every such problem is listed).
+    #[default]
+    Error,
+    /// Run the valid cases; record the others as skipped.
+    Skip,
 }
 
 /// One sweep axis: a field path and its values (a list or a range).
@@ -336,11 +352,12 @@ impl FieldDoc {
 pub const STUDY_FIELDS: &[FieldDoc] = &[
     FieldDoc::new("study", "table", "required", "What the study is and does."),
     FieldDoc::new("study.name", "string", "required", "Name of the study: letters, digits, `-`, `_`, `.`. Titles the report; the default output folder is `out/<name>`."),
-    FieldDoc::new("study.kind", "string", "required", "What one case does: `forward` or `suppress` (see each kind's `scene.*` fields)."),
+    FieldDoc::new("study.kind", "string", "required", "What one case does: `forward`, `suppress`, `fit` or `locate` (see each kind's `scene.*` fields)."),
     FieldDoc::new("study.description", "string", "\"\"", "A paragraph printed at the top of `report.md`."),
     FieldDoc::new("study.seed", "integer >= 0", "0", "Master seed. Each case's seed is derived from it and the case's parameters (not its position), so it is the same whatever the thread count, order or shard."),
     FieldDoc::new("study.repeats", "integer >= 1", "1", "Replicates of every sweep point, each with its own derived seed (a `repeat` column tells them apart)."),
     FieldDoc::new("study.timings", "bool", "true", "Record measured timings (the `t_*` columns). Timings are the only non-reproducible numbers: with `false` two runs of a study give identical bytes."),
+    FieldDoc::new("study.invalid_cases", "\"error\" | \"skip\"", "\"error\"", "Cases of the sweep whose scene fails the kind's checks (for example j1 = j2 when two positions are crossed): refuse the file, or record them with status `skipped` and the reason and run the others."),
     FieldDoc::opaque("scene", "table", "{}", "The base case, in the schema of `study.kind` (the `scene.*` fields of that kind). Sweeps override fields of it."),
     FieldDoc::new("sweep", "array of tables", "[]", "Sweep axes `[[sweep]]`, crossed: every combination of values is one case. The first axis varies slowest. No axes: one case (per repeat)."),
     FieldDoc::new("sweep[].path", "string", "required", "Field path inside `[scene]`: dotted keys, `[i]` for an array element, e.g. `chain.n`, `chain.defects[1].m`. Missing tables are created; the resulting case must satisfy the kind's schema (a misspelled path is an unknown field)."),
@@ -638,6 +655,7 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
     if !axes_ok || file.study.repeats == 0 {
         return problems.into_inner();
     }
+    let skip = file.study.invalid_cases == InvalidCases::Skip;
     // Every case: the kind's deserialisation and semantic checks. One problem
     // per distinct message (a bad base field fails every case alike).
     match sweep::expand(file) {
@@ -647,7 +665,14 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
             // in order of first appearance
             let mut found: Vec<((String, String), (usize, usize))> = Vec::new();
             for (ci, case) in cases.iter().enumerate() {
-                for e in file.study.kind.validate_all(&case.scene) {
+                let errs = file.study.kind.validate_all(&case.scene);
+                // with `skip`, unknown fields still are errors (a misspelling
+                // would otherwise skip every case)
+                let errs: Vec<Error> = errs
+                    .into_iter()
+                    .filter(|e| !skip || e.to_string().contains("unknown field"))
+                    .collect();
+                for e in errs {
                     let (path, message) = split_field(&e);
                     let path = if path.is_empty() {
                         "scene".to_string()

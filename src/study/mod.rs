@@ -129,10 +129,14 @@ mod tests {
             let p = e.unwrap().path();
             if p.extension().is_some_and(|x| x == "toml") {
                 let text = std::fs::read_to_string(&p).unwrap();
+                // configs/ also holds scene files of other commands
+                if !text.lines().any(|l| l.trim() == "[study]") {
+                    continue;
+                }
                 assert_eq!(config::check(&text), vec![], "{}", p.display());
                 n += 1;
             }
         }
-        assert!(n >= 2);
+        assert!(n >= 7, "{n} study files");
     }
 }

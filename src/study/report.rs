@@ -377,11 +377,13 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
     }
     s.push_str("| | |\n|---|---|\n");
     s.push_str(&format!("| kind | `{}` |\n", f.study.kind.name()));
+    let skipped = records.iter().filter(|r| r.status == "skipped").count();
     s.push_str(&format!(
-        "| cases | {} ({} ok, {} failed) |\n",
+        "| cases | {} ({} ok, {} failed, {} skipped) |\n",
         records.len(),
         ok,
-        records.len() - ok
+        records.len() - ok - skipped,
+        skipped
     ));
     s.push_str(&format!(
         "| seed | {} |\n| repeats | {} |\n",
@@ -458,7 +460,7 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
     }
     let failed: Vec<&Record> = records.iter().filter(|r| !r.ok()).collect();
     if !failed.is_empty() {
-        s.push_str("## Failed cases\n\n| id | parameters | error |\n|---|---|---|\n");
+        s.push_str("## Failed and skipped cases\n\n| id | parameters | status | reason |\n|---|---|---|---|\n");
         for r in failed {
             let params: Vec<String> = r
                 .params
@@ -466,9 +468,10 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
                 .map(|p| format!("{} = {}", p.column, p.label))
                 .collect();
             s.push_str(&format!(
-                "| {} | {} | {} |\n",
+                "| {} | {} | {} | {} |\n",
                 r.id,
                 md_escape(&params.join(", ")),
+                r.status,
                 md_escape(r.error.as_deref().unwrap_or(""))
             ));
         }

@@ -62,7 +62,7 @@ pub struct Record {
     pub repeat: usize,
     /// Axis values.
     pub params: Vec<Param>,
-    /// `ok` or `error`.
+    /// `ok`, `error` or `skipped` (an invalid scene with `study.invalid_cases = "skip"`).
     pub status: String,
     /// The error message of a failed case.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -173,12 +173,17 @@ pub fn execute(study: &Study, case: &Case, out: &Path) -> Record {
 /// Run one case without writing anything: its record and its pictures.
 pub fn execute_case(study: &Study, case: &Case) -> (Record, Vec<super::kinds::CasePlot>) {
     let kind = study.file.study.kind;
+    let skip = study.file.study.invalid_cases == super::config::InvalidCases::Skip;
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        kind.run(&case.scene, case.seed)
+        if skip {
+            kind.validate(&case.scene).map_err(|e| (true, e))?;
+        }
+        kind.run(&case.scene, case.seed).map_err(|e| (false, e))
     }));
     let (status, error, out) = match result {
+        Ok(Err((true, e))) => ("skipped", Some(e.to_string()), CaseOutput::default()),
+        Ok(Err((false, e))) => ("error", Some(e.to_string()), CaseOutput::default()),
         Ok(Ok(out)) => ("ok", None, out),
-        Ok(Err(e)) => ("error", Some(e.to_string()), CaseOutput::default()),
         Err(p) => {
             let msg = p
                 .downcast_ref::<&str>()

@@ -6,7 +6,9 @@
 //! prints; it returns numbers. Adding a kind is one new file and one arm in
 //! each `match` below.
 
+pub mod fit;
 pub mod forward;
+pub mod locate;
 pub mod suppress;
 
 use super::config::{FieldDoc, Problem};
@@ -43,10 +45,14 @@ pub enum Kind {
     Forward,
     /// Active suppression (Theorem 3.1, Corollary 3.2) verified by simulation.
     Suppress,
+    /// Defect detection by fitting (`detect::fit` on a `FitScene`).
+    Fit,
+    /// Explicit single-defect locators (section 4.1).
+    Locate,
 }
 
 /// Every kind, in documentation order.
-pub const ALL: &[Kind] = &[Kind::Forward, Kind::Suppress];
+pub const ALL: &[Kind] = &[Kind::Forward, Kind::Suppress, Kind::Fit, Kind::Locate];
 
 impl Kind {
     /// The name used in `study.kind`.
@@ -54,6 +60,8 @@ impl Kind {
         match self {
             Kind::Forward => "forward",
             Kind::Suppress => "suppress",
+            Kind::Fit => "fit",
+            Kind::Locate => "locate",
         }
     }
 
@@ -78,6 +86,8 @@ impl Kind {
         match self {
             Kind::Forward => forward::SUMMARY,
             Kind::Suppress => suppress::SUMMARY,
+            Kind::Fit => fit::SUMMARY,
+            Kind::Locate => locate::SUMMARY,
         }
     }
 
@@ -86,6 +96,8 @@ impl Kind {
         match self {
             Kind::Forward => forward::FIELDS,
             Kind::Suppress => suppress::FIELDS,
+            Kind::Fit => fit::FIELDS,
+            Kind::Locate => locate::FIELDS,
         }
     }
 
@@ -94,6 +106,8 @@ impl Kind {
         match self {
             Kind::Forward => forward::METRICS,
             Kind::Suppress => suppress::METRICS,
+            Kind::Fit => fit::METRICS,
+            Kind::Locate => locate::METRICS,
         }
     }
 
@@ -106,6 +120,8 @@ impl Kind {
         match self {
             Kind::Forward => forward::Scene::from_value(scene).map(|_| ()),
             Kind::Suppress => suppress::Scene::from_value(scene).map(|_| ()),
+            Kind::Fit => fit::scene(scene).map(|_| ()),
+            Kind::Locate => locate::Scene::from_value(scene).map(|_| ()),
         }
     }
 
@@ -121,6 +137,8 @@ impl Kind {
                 Ok(s) => s.problems(),
                 Err(e) => vec![e],
             },
+            Kind::Fit => fit::scene(scene).err().into_iter().collect(),
+            Kind::Locate => locate::Scene::from_value(scene).err().into_iter().collect(),
         }
     }
 
@@ -133,6 +151,8 @@ impl Kind {
         match self {
             Kind::Forward => forward::run(&forward::Scene::from_value(scene)?, seed),
             Kind::Suppress => suppress::run(&suppress::Scene::from_value(scene)?, seed),
+            Kind::Fit => fit::run(scene, seed),
+            Kind::Locate => locate::run(&locate::Scene::from_value(scene)?, seed),
         }
     }
 }
