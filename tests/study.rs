@@ -351,6 +351,59 @@ values = ["impulse", "noise"]
 }
 
 #[test]
+fn fit_and_locate_studies_do_not_depend_on_threads() {
+    let dir = tmp("fitloc");
+    let studies = [
+        r#"
+[study]
+name = "fit"
+kind = "fit"
+seed = 4
+repeats = 2
+timings = false
+[scene]
+chain = { n = 5, defects = [ { kind = "mass", at = 2, m = 3.0 }, { kind = "mass", at = 4, m = 0.5 } ] }
+data = { noise = 1e-6 }
+search = { max_evals = 3000, parallel = true }
+[[sweep]]
+path = "search.method"
+values = ["enumerate", "ga", "pso"]
+[[report.plot]]
+x = "repeat"
+y = "success"
+series = "search.method"
+aggregate = "rate"
+"#,
+        r#"
+[study]
+name = "loc"
+kind = "locate"
+timings = false
+[scene]
+chain = { n = 20, defects = [ { kind = "mass", at = 3, m = 5.0 } ] }
+plots = true
+[[sweep]]
+path = "method"
+values = ["exact", "large", "large-paper", "unknown-mass"]
+"#,
+    ];
+    for (i, text) in studies.iter().enumerate() {
+        let file = dir.join(format!("s{i}.toml"));
+        std::fs::write(&file, text).unwrap();
+        let f = file.to_str().unwrap();
+        let (a, b) = (dir.join(format!("a{i}")), dir.join(format!("b{i}")));
+        for (d, t) in [(&a, "1"), (&b, "2")] {
+            let o = study(&[f, "--out", d.to_str().unwrap(), "--threads", t]);
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        }
+        assert_same_files(&a, &b);
+        let csv = std::fs::read_to_string(a.join("summary.csv")).unwrap();
+        assert!(csv.lines().skip(1).all(|l| l.contains(",ok,")), "{csv}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn default_study_runs_and_says_where_the_report_is() {
     let dir = tmp("default");
     let o = Command::new(BIN)
