@@ -38,6 +38,7 @@
 //! | [`control`] | vibration suppression (Theorem 3.1, Corollary 3.2): Laplace, exact time domain, verification |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
 //! | [`precision`] | arbitrary-precision reals ([`precision::BigReal`]) and real-only operations |
+//! | [`scenes`] | the paper's reference scenes (P1-P4, Table 1's S1-S4), shared by tests, benches and configs |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
 //! | [`study`] | config-driven studies: sweeps, parallel resumable runs, reports |
@@ -58,6 +59,7 @@ pub mod noise;
 pub mod plot;
 pub mod precision;
 pub mod scalar;
+pub mod scenes;
 pub mod series;
 pub mod study;
 pub mod time;
