@@ -417,7 +417,7 @@ fn default_study_runs_and_says_where_the_report_is() {
     assert!(out.contains("report: out/default/report.md"), "{out}");
     let md = std::fs::read_to_string(dir.join("out/default/report.md")).unwrap();
     assert!(md.contains("# Study `default`"));
-    assert!(dir.join("out/default/accuracy.svg").exists());
+    assert!(dir.join("out/default/evaluations.svg").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
 
