@@ -22,21 +22,7 @@ use springmass::detect::data::Data;
 use springmass::detect::misfit::{Misfit, MisfitSpec};
 use springmass::detect::search::enumerate::{enumerate, EnumerateOptions};
 use springmass::detect::space::{DefectUnknown, Unknowns};
-use springmass::{Chain, Defect};
-
-const TABLE1: [(usize, [(usize, f64); 2]); 4] = [
-    (5, [(2, 3.0), (4, 0.5)]),
-    (10, [(3, 3.0), (7, 2.0)]),
-    (20, [(8, 5.0), (15, 2.0)]),
-    (20, [(8, 5.0), (15, 15.0)]),
-];
-
-fn truth(n: usize, defs: &[(usize, f64)]) -> Chain {
-    Chain::paper(n)
-        .unwrap()
-        .with_defects(defs.iter().map(|&(at, m)| Defect::Mass { at, m }))
-        .unwrap()
-}
+use springmass::scenes;
 
 /// Thread CPU time (Linux `clock_gettime(CLOCK_THREAD_CPUTIME_ID)`).
 struct CpuTime;
@@ -119,8 +105,7 @@ fn bench(c: &mut Criterion) {
 }
 
 fn bench_generic<M: Measurement + 'static>(c: &mut Criterion<M>, prefix: &str) {
-    let (n, defs) = TABLE1[2];
-    let chain = truth(n, &defs);
+    let chain = scenes::table1(3).unwrap();
     let spec = MisfitSpec::default();
     let mis = Misfit::new(&chain.uniform(), &Data::exact(&chain), &spec).unwrap();
     assert_eq!(mis.nodes(), 80);
@@ -147,8 +132,10 @@ fn bench_generic<M: Measurement + 'static>(c: &mut Criterion<M>, prefix: &str) {
         ..EnumerateOptions::default()
     };
     let mut group = c.benchmark_group(format!("{prefix}enumerate"));
-    for (i, &(n, defs)) in TABLE1.iter().enumerate() {
-        let chain = truth(n, &defs);
+    for sys in 1..=4 {
+        let chain = scenes::table1(sys).unwrap();
+        let n = chain.n();
+        let defs = scenes::truth(&format!("S{sys}")).unwrap();
         let mis = Misfit::new(&chain.uniform(), &Data::exact(&chain), &spec).unwrap();
         let u = Unknowns::new(n, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
         let e = enumerate(&mis, &u, &opts).unwrap();
@@ -156,13 +143,11 @@ fn bench_generic<M: Measurement + 'static>(c: &mut Criterion<M>, prefix: &str) {
         assert_eq!(e.ranked[0].defects[1].0, defs[1].0);
         if prefix.is_empty() {
             eprintln!(
-                "system {}: {} sets, {} evaluations",
-                i + 1,
-                e.sets,
-                e.evaluations
+                "system {sys}: {} sets, {} evaluations",
+                e.sets, e.evaluations
             );
         }
-        group.bench_function(format!("system{}", i + 1), |b| {
+        group.bench_function(format!("system{sys}"), |b| {
             b.iter(|| enumerate(&mis, &u, &opts).unwrap())
         });
     }

@@ -11,13 +11,11 @@ use springmass::detect::locate::{
     default_grid, estimate, locate, LaplaceData, Method, Model, SChoice,
 };
 use springmass::precision::{with_precision, BigReal, RealScalar};
-use springmass::{Chain, Defect};
+use springmass::Chain;
 
+/// The paper's scene P3 (n = 20, (3, 5)).
 fn chain() -> Chain {
-    Chain::paper(20)
-        .unwrap()
-        .with_defect(Defect::Mass { at: 3, m: 5.0 })
-        .unwrap()
+    springmass::scenes::by_name("P3").unwrap()
 }
 
 fn point_bench<T: RealScalar>(c: &mut Criterion, label: &str) {

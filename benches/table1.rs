@@ -4,23 +4,27 @@
 //!  --systems 1,3 --data exact|pipeline --t-end 400 --dt 0.05 --verbose]`
 //!
 //! Systems 1-4 (n = 5, 10, 20, 20; two mass defects; k = 1, d = 0.1); the
-//! unknowns are 2 positions and 2 masses in [0.1, 20] (log scale). Data at
-//! 80 Gauss-Legendre nodes on log-graded panels of [0, 300]
-//! (`support/exact.rs`): the exact model (default), or the paper's pipeline
-//! (`--data pipeline`: simulated x_1(t), Laplace-transformed). For each system and optimizer, over the seeds:
+//! unknowns are 2 positions and 2 masses in [0.1, 20] (log scale). The
+//! library's residual (`detect::misfit::Misfit`, default rule: 80
+//! Gauss-Legendre nodes on log-graded panels of [0, 300]) wrapped as
+//! `detect::fit::MisfitObjective`, against the exact model's data
+//! (`Data::exact`, default) or the paper's pipeline (`--data pipeline`,
+//! `Data::simulated`: simulated x_1(t), Laplace-transformed). Systems and the
+//! paper's GA row from `springmass::scenes`. For each system and optimizer, over the seeds:
 //! success rate (both positions exact, both masses within 1%), median
 //! estimates, median evaluations, median wall time (single thread), next to
 //! the paper's GA row. The header of each system gives the residual gap
 //! between the truth and the best wrong position set (masses refitted), the
 //! quantity that limits every method.
 
-#[path = "support/exact.rs"]
-mod exact;
-
-use exact::{default_rule, ExactObjective};
+use springmass::detect::data::Data;
+use springmass::detect::fit::MisfitObjective;
+use springmass::detect::misfit::{Misfit, MisfitSpec};
 use springmass::detect::search::nelder_mead::{polish, Positions};
 use springmass::detect::search::pso::Finish;
 use springmass::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Tracked};
+use springmass::detect::space::{DefectUnknown, Unknowns};
+use springmass::scenes;
 use std::time::Instant;
 
 struct Variant {
@@ -73,13 +77,6 @@ fn variants() -> Vec<Variant> {
     ]
 }
 
-const PAPER: [&str; 4] = [
-    "(2, 2.9760), (4, 0.6579)",
-    "(3, 2.9009), (4, 1.3364)",
-    "(8, 5.0113), (17, 3.2586)",
-    "(8, 5.0646), (16, 14.2290)",
-];
-
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
@@ -95,7 +92,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Best residual over position sets other than the truth (masses refitted by
 /// Nelder-Mead from the true masses), and the truth's own residual.
-fn gap(obj: &ExactObjective, truth: &Candidate) -> (f64, f64, Vec<usize>) {
+fn gap(obj: &dyn Objective, truth: &Candidate) -> (f64, f64, Vec<usize>) {
     let n = obj.space().n;
     let opts = SearchOptions {
         max_evals: usize::MAX,
@@ -141,37 +138,43 @@ fn main() {
     let systems: Vec<usize> = get("--systems")
         .map(|s| s.split(',').filter_map(|x| x.parse().ok()).collect())
         .unwrap_or(vec![1, 2, 3, 4]);
-    let rule = default_rule();
+    let spec = MisfitSpec::default();
     let pipeline = get("--data").is_some_and(|d| d == "pipeline");
     let t_end: f64 = get("--t-end").and_then(|s| s.parse().ok()).unwrap_or(400.0);
     let dt: f64 = get("--dt").and_then(|s| s.parse().ok()).unwrap_or(0.05);
     println!(
-        "Table 1 rerun: {} data, {} nodes (8-pt Gauss-Legendre on 10 log-graded panels of [0, 300]); \
+        "Table 1 rerun: {} data, {} nodes ({}); \
          unknowns 2 positions + 2 masses in [0.1, 20]; budget {budget} evaluations; {seeds} seeds; success = positions exact and masses within 1%",
         if pipeline { "time-series pipeline" } else { "exact-model" },
-        rule.len()
+        spec.rule().expect("default rule").nodes.len(),
+        spec.rule().expect("default rule").name
     );
     for sys in systems {
-        let (n, d) = ExactObjective::table1_system(sys);
-        let chain = ExactObjective::table1_chain(sys);
-        let obj = if pipeline {
-            let (data, rel) = ExactObjective::pipeline_data(&chain, &rule, t_end, dt);
-            let max_dev = rule
-                .iter()
-                .zip(&data)
-                .map(|(&(s, _), x)| {
-                    let e = springmass::forward::response(&chain, s, 1).unwrap();
-                    ((x - e) / e).abs()
-                })
-                .fold(0.0, f64::max);
+        let chain = scenes::table1(sys).expect("Table 1 system");
+        let n = chain.n();
+        let d = scenes::truth(&format!("S{sys}")).expect("Table 1 defects");
+        let data = if pipeline {
+            Data::simulated(&chain, t_end, dt, 0.0, 0).expect("pipeline data")
+        } else {
+            Data::exact(&chain)
+        };
+        let misfit = Misfit::new(&chain, &data, &spec).expect("misfit");
+        if pipeline {
+            let nodes = &misfit.rule().nodes;
+            let sm = data.sample(nodes).expect("data at the nodes");
+            let (mut max_dev, mut rel) = (0.0f64, 0.0f64);
+            for ((&s, x), e) in nodes.iter().zip(&sm.values).zip(&sm.sigma) {
+                let exact = springmass::forward::response(&chain, s, 1).unwrap();
+                max_dev = max_dev.max(((x - exact) / exact).abs());
+                rel = rel.max(e / x.abs());
+            }
             println!(
                 "\nSystem {sys} data: simulated x_1 on [0, {t_end}], dt = {dt}, Laplace-transformed; \
                  largest relative error vs exact model {max_dev:.1e} (transform's own estimate {rel:.1e})"
             );
-            ExactObjective::with_data(&chain, 2, (0.1, 20.0), &rule, data)
-        } else {
-            ExactObjective::new(&chain, 2, (0.1, 20.0), &rule)
-        };
+        }
+        let unknowns = Unknowns::new(n, vec![DefectUnknown::free(0.1, 20.0); 2]).expect("unknowns");
+        let obj = MisfitObjective::new(&misfit, &unknowns);
         let truth = Candidate {
             positions: vec![d[0].0, d[1].0],
             values: vec![d[0].1, d[1].1],
@@ -186,13 +189,10 @@ fn main() {
             "  {:<15} {:>7} {:>6} {:>30} {:>10} {:>10} {:>10}",
             "method", "success", "pos ok", "median estimate", "med evals", "med ms", "med r"
         );
-        println!(
-            "  {:<15} {:>7} {:>6} {:>30}",
-            "paper GA",
-            "-",
-            "-",
-            PAPER[sys - 1]
-        );
+        println!("  {:<15} {:>7} {:>6} {:>30}", "paper GA", "-", "-", {
+            let [(j1, m1), (j2, m2)] = scenes::TABLE1_PAPER_GA[sys - 1];
+            format!("({j1}, {m1:.4}), ({j2}, {m2:.4})")
+        });
         for v in variants() {
             if let Some(o) = &only {
                 if !o.iter().any(|x| x == v.name) {

@@ -51,6 +51,24 @@ pub fn by_name(name: &str) -> Result<Chain> {
     Chain::paper(n)?.with_defects(defects.iter().map(|&(at, m)| Defect::Mass { at, m }))
 }
 
+/// The true defects `(j, m)` of a reference scene (all are mass defects), in
+/// increasing `j`.
+///
+/// ```
+/// use springmass::scenes;
+/// assert_eq!(scenes::truth("S3")?, vec![(8, 5.0), (15, 2.0)]);
+/// # Ok::<(), springmass::Error>(())
+/// ```
+///
+/// # Errors
+/// [`Error::InvalidParameter`] for an unknown name, listing the known ones.
+pub fn truth(name: &str) -> Result<Vec<(usize, f64)>> {
+    let up = name.trim().to_ascii_uppercase();
+    spec(&up)
+        .map(|(_, d)| d.to_vec())
+        .ok_or_else(|| Error::invalid("scene", name, NAMES.join(", ")))
+}
+
 /// System `i` (1..=4) of the paper's Table 1.
 pub fn table1(i: usize) -> Result<Chain> {
     if !(1..=4).contains(&i) {
@@ -80,6 +98,19 @@ mod tests {
             assert!(!c.defects().is_empty());
         }
         assert!(by_name("S9").is_err());
+        assert!(truth("S9").is_err());
+        for name in NAMES {
+            let want: Vec<(usize, f64)> = by_name(name)
+                .unwrap()
+                .defects()
+                .iter()
+                .map(|d| match *d {
+                    Defect::Mass { at, m } => (at, m),
+                    _ => unreachable!("reference scenes have mass defects only"),
+                })
+                .collect();
+            assert_eq!(truth(name).unwrap(), want, "{name}");
+        }
         assert!(table1(0).is_err() && table1(5).is_err());
         assert_eq!(
             table1(4).unwrap().defects()[1],

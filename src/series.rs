@@ -18,6 +18,38 @@ use crate::error::{Error, Result};
 use std::io::Write;
 use std::path::Path;
 
+/// Check a time grid: every `t[i]` finite and strictly greater than `t[i-1]`
+/// (uniform or not). Shared by [`TimeSeries::new`] and
+/// [`crate::time::series::SeriesTransform::new`].
+///
+/// ```
+/// use springmass::series::check_times;
+/// assert!(check_times(&[0.0, 0.5, 2.0]).is_ok());
+/// assert!(check_times(&[0.0, 0.5, 0.5]).is_err());
+/// ```
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming the first bad sample (`t[i]`).
+pub fn check_times(t: &[f64]) -> Result<()> {
+    for (i, w) in t.iter().enumerate() {
+        if !w.is_finite() {
+            return Err(Error::invalid(format!("t[{i}]"), w, "finite"));
+        }
+        if i > 0 && *w <= t[i - 1] {
+            return Err(Error::invalid(
+                format!("t[{i}]"),
+                w,
+                format!(
+                    "strictly greater than t[{}] = {} (sorted, no duplicates)",
+                    i - 1,
+                    t[i - 1]
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// A validated time series.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TimeSeries {
@@ -40,22 +72,7 @@ impl TimeSeries {
         if columns.is_empty() {
             return Err(Error::invalid("columns", "[]", "at least one value column"));
         }
-        for (i, w) in t.iter().enumerate() {
-            if !w.is_finite() {
-                return Err(Error::invalid(format!("t[{i}]"), w, "finite"));
-            }
-            if i > 0 && *w <= t[i - 1] {
-                return Err(Error::invalid(
-                    format!("t[{i}]"),
-                    w,
-                    format!(
-                        "strictly greater than t[{}] = {} (sorted, no duplicates)",
-                        i - 1,
-                        t[i - 1]
-                    ),
-                ));
-            }
-        }
+        check_times(&t)?;
         let mut names = Vec::with_capacity(columns.len());
         let mut cols = Vec::with_capacity(columns.len());
         for (name, v) in columns {

@@ -8,49 +8,40 @@ use springmass::detect::quadrature::Adaptive;
 use springmass::detect::scene::FitScene;
 use springmass::detect::search::enumerate::{enumerate, EnumerateOptions};
 use springmass::detect::space::{DefectUnknown, Unknowns};
-use springmass::{Chain, Defect, Error};
+use springmass::{scenes, Chain, Error};
 
-/// The paper's Table 1 systems (NOTES.md): n and the true (j, m) pairs.
-const TABLE1: [(usize, [(usize, f64); 2]); 4] = [
-    (5, [(2, 3.0), (4, 0.5)]),
-    (10, [(3, 3.0), (7, 2.0)]),
-    (20, [(8, 5.0), (15, 2.0)]),
-    (20, [(8, 5.0), (15, 15.0)]),
-];
-
-fn truth(n: usize, defs: &[(usize, f64)]) -> Chain {
-    Chain::paper(n)
-        .unwrap()
-        .with_defects(defs.iter().map(|&(at, m)| Defect::Mass { at, m }))
-        .unwrap()
+/// System `sys` (1..=4) of the paper's Table 1 (NOTES.md): n, the chain and
+/// the true (j, m) pairs.
+fn table1(sys: usize) -> (usize, Chain, Vec<(usize, f64)>) {
+    let chain = scenes::table1(sys).unwrap();
+    let defs = scenes::truth(&format!("S{sys}")).unwrap();
+    (chain.n(), chain, defs)
 }
 
 #[test]
 fn enumeration_recovers_every_table1_system_exactly() {
     for kind in [MisfitKind::RealAxis, MisfitKind::Bromwich] {
-        for (sys, &(n, defs)) in TABLE1.iter().enumerate() {
-            let chain = truth(n, &defs);
+        for sys in 1..=4 {
+            let (n, chain, defs) = table1(sys);
             let mut scene = FitScene::synthetic(&chain);
             scene.misfit.kind = kind;
             let report = fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
             let got: Vec<(usize, f64)> =
                 report.defects.iter().map(|d| (d.at(), d.value())).collect();
             for (g, t) in got.iter().zip(&defs) {
-                assert_eq!(g.0, t.0, "{kind:?} system {}: {got:?}", sys + 1);
+                assert_eq!(g.0, t.0, "{kind:?} system {sys}: {got:?}");
                 assert!(
                     (g.1 - t.1).abs() < 1e-7 * t.1,
-                    "{kind:?} system {}: {got:?}",
-                    sys + 1
+                    "{kind:?} system {sys}: {got:?}"
                 );
             }
             assert!(report.residual < 1e-26, "{}", report.residual);
             assert!(report.resolved && report.fits_data);
             let gap = report.runners_up[0].gap;
-            assert!(gap > 1e3 * report.floor, "system {}: gap {gap:e}", sys + 1);
+            assert!(gap > 1e3 * report.floor, "system {sys}: gap {gap:e}");
             assert_eq!(report.sets, Some(n * (n - 1) / 2));
             println!(
-                "{kind:?} system {}: runner-up {:?} gap {gap:.3e}, floor {:.1e}, {} evaluations, {:.2} ms",
-                sys + 1,
+                "{kind:?} system {sys}: runner-up {:?} gap {gap:.3e}, floor {:.1e}, {} evaluations, {:.2} ms",
                 report.runners_up[0].defects.iter().map(|d| d.at()).collect::<Vec<_>>(),
                 report.floor,
                 report.evaluations,
@@ -103,8 +94,8 @@ fn bromwich_line_resolves_system3_where_the_real_axis_cannot() {
     // 1e-4 relative noise: the real-axis residual cannot see the second
     // defect (gap 1.4e-13 against a floor of 5e-9); on the Bromwich line the
     // gap is 6.8e-7 (Parseval: time-domain conditioning) and the truth is found
-    let (n, defs) = TABLE1[2];
-    let mut scene = FitScene::synthetic(&truth(n, &defs));
+    let chain = scenes::table1(3).unwrap();
+    let mut scene = FitScene::synthetic(&chain);
     scene.data.noise = 1e-4;
     scene.misfit.kind = MisfitKind::Bromwich;
     let report = fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
@@ -116,8 +107,8 @@ fn bromwich_line_resolves_system3_where_the_real_axis_cannot() {
 
 #[test]
 fn a_model_missing_a_defect_does_not_fit_the_data() {
-    let (n, defs) = TABLE1[1];
-    let mut scene = FitScene::synthetic(&truth(n, &defs));
+    let chain = scenes::table1(2).unwrap();
+    let mut scene = FitScene::synthetic(&chain);
     scene.unknowns.k = Some(1);
     let report = fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
     assert_eq!(report.defects.len(), 1);
@@ -127,8 +118,8 @@ fn a_model_missing_a_defect_does_not_fit_the_data() {
 
 #[test]
 fn beam_search_reports_its_cost_and_finds_table1_system3() {
-    let (n, defs) = TABLE1[2];
-    let mut scene = FitScene::synthetic(&truth(n, &defs));
+    let chain = scenes::table1(3).unwrap();
+    let mut scene = FitScene::synthetic(&chain);
     scene.search.max_sets = 50; // force the beam search
     let report = fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
     assert_eq!(report.exhaustive, Some(false));
@@ -139,7 +130,7 @@ fn beam_search_reports_its_cost_and_finds_table1_system3() {
 
 #[test]
 fn enumeration_is_deterministic_across_threads() {
-    let chain = truth(10, &[(3, 3.0), (7, 2.0)]);
+    let chain = scenes::table1(2).unwrap();
     let mis = Misfit::new(
         &chain.uniform(),
         &Data::exact(&chain).with_noise(1e-6, 3).unwrap(),
@@ -167,8 +158,7 @@ fn enumeration_is_deterministic_across_threads() {
 #[test]
 fn noise_above_the_gap_is_flagged_unresolved() {
     // System 3's runner-up is 1.6e-13 above the truth in r: 1e-4 noise hides it
-    let (n, defs) = TABLE1[2];
-    let chain = truth(n, &defs);
+    let chain = scenes::table1(3).unwrap();
     let mut scene = FitScene::synthetic(&chain);
     scene.data.noise = 1e-4;
     scene.data.seed = 11;
@@ -179,8 +169,7 @@ fn noise_above_the_gap_is_flagged_unresolved() {
 
 #[test]
 fn stochastic_methods_run_seeded_through_fit() {
-    let (n, defs) = TABLE1[0];
-    let chain = truth(n, &defs);
+    let chain = scenes::table1(1).unwrap();
     let mut scene = FitScene::synthetic(&chain);
     scene.search.max_evals = 3000;
     scene.search.trace = true;
@@ -214,8 +203,8 @@ fn stochastic_methods_run_seeded_through_fit() {
 #[test]
 fn enumeration_recovers_table1_from_simulated_time_series() {
     // the paper's pipeline: simulate x_1(t) on [0, 300] (dt 0.05), transform
-    for &(n, defs) in &TABLE1 {
-        let chain = truth(n, &defs);
+    for sys in 1..=4 {
+        let (_, chain, defs) = table1(sys);
         let mut scene = FitScene::synthetic(&chain);
         scene.data.source = springmass::detect::scene::DataSourceKind::Simulated;
         let report = fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
@@ -236,8 +225,8 @@ fn enumeration_recovers_table1_from_simulated_time_series() {
 fn fixed_rules_against_the_adaptive_reference() {
     let rules = [(5usize, 8usize), (10, 8), (20, 8), (10, 4)];
     let adaptive = Adaptive::default();
-    for &(n, defs) in &TABLE1 {
-        let chain = truth(n, &defs);
+    for sys in 1..=4 {
+        let (n, chain, defs) = table1(sys);
         let data = Data::exact(&chain);
         for &(panels, per) in &rules {
             let spec = MisfitSpec::real_axis(panels, per);
@@ -369,8 +358,8 @@ fn cli_fit_and_surface() {
 #[test]
 fn measured_csv_series_through_the_scene() {
     use springmass::time::simulate::{simulate, SimOptions};
-    let (n, defs) = TABLE1[1];
-    let chain = truth(n, &defs);
+    let chain = scenes::table1(2).unwrap();
+    let n = chain.n();
     let traj = simulate(&chain, &SimOptions::new(300.0, 0.05)).unwrap();
     let dir = std::env::temp_dir().join(format!("springmass-fit-csv-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -395,8 +384,8 @@ fn objective_penalises_invalid_candidates_finitely() {
     use springmass::detect::fit::MisfitObjective;
     use springmass::detect::search::{Candidate, Objective};
     use springmass::detect::space::PENALTY;
-    let (n, defs) = TABLE1[0];
-    let chain = truth(n, &defs);
+    let chain = scenes::table1(1).unwrap();
+    let n = chain.n();
     let mis = Misfit::new(
         &chain.uniform(),
         &Data::exact(&chain),

@@ -278,11 +278,7 @@ fn talbot_alone_is_wrong_at_long_times() {
 fn inverse_of_the_forward_model_matches_the_modal_sum() {
     use springmass::forward::Forward;
     use springmass::time::modal::ModalResponse;
-    use springmass::{Chain, Defect};
-    let chain = Chain::paper(5)
-        .unwrap()
-        .with_defect(Defect::Mass { at: 3, m: 4.0 })
-        .unwrap();
+    let chain = springmass::scenes::by_name("P2").unwrap();
     let fwd = Forward::new(&chain);
     let modal = ModalResponse::impulse(&chain, 1).unwrap();
     let f = |s: Complex64| fwd.eval(s, 1).unwrap_or(Complex64::new(f64::NAN, 0.0));

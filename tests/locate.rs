@@ -14,7 +14,7 @@ use springmass::forward::Forward;
 use springmass::green::Green;
 use springmass::precision::{with_precision, BigReal, RealScalar};
 use springmass::scalar::Scalar;
-use springmass::{Chain, Defect, Error};
+use springmass::{scenes, Chain, Defect, Error};
 
 const MASSES: [f64; 5] = [0.5, 1.01, 2.0, 4.0, 100.0];
 
@@ -262,7 +262,7 @@ fn never_wrong_with_noisy_data() {
 #[test]
 fn known_mass_exact_locator_is_exact_in_f64() {
     // P1: n = 20, j = 15, m = 1.01 — small s carries the signal
-    let c = chain(20, 15, 1.01);
+    let c = scenes::by_name("P1").unwrap();
     let model: Model<f64> = Model::from_chain(&c);
     let data = LaplaceData::<f64>::from_chain(&c, &[0.1]).unwrap();
     let e = estimate(&model, &data.points()[0], Method::Exact { m: 1.01 }).unwrap();
@@ -331,7 +331,7 @@ fn forward_model_in_big_real_agrees_with_locator_model() {
     // f64 representation of d = 0.1 (~1e-17).
     with_precision(256, || {
         let v = reference("P2");
-        let c = chain(5, 3, 4.0);
+        let c = scenes::by_name("P2").unwrap();
         let fwd = Forward::new(&c);
         let model: Model<BigReal> = Model::from_chain(&c);
         for p in v["real_s"].as_array().unwrap() {
@@ -429,7 +429,7 @@ fn asymptotic_4_10_reproduces_notes_values() {
         (20.0, 15.0008),
         (50.0, 15.00018),
     ];
-    let c = chain(20, 15, 1.01);
+    let c = scenes::by_name("P1").unwrap();
     with_precision(512, || {
         let s: Vec<f64> = want.iter().map(|w| w.0).collect();
         let data = LaplaceData::<BigReal>::from_chain(&c, &s).unwrap();
@@ -463,7 +463,7 @@ fn asymptotic_4_10_reproduces_notes_values() {
 #[test]
 fn digits_versus_precision() {
     // P2 at s = 50 by (4.17): digits obtained (from sigma, and against 512 bits)
-    let c = chain(5, 3, 4.0);
+    let c = scenes::by_name("P2").unwrap();
     let at = |bits: usize| -> (f64, f64) {
         with_precision(bits, || {
             let data = LaplaceData::<BigReal>::from_chain(&c, &[50.0]).unwrap();
@@ -510,7 +510,7 @@ fn digits_versus_precision() {
 
 #[test]
 fn bad_input_is_a_typed_error() {
-    let c = chain(5, 3, 4.0);
+    let c = scenes::by_name("P2").unwrap();
     let model: Model<f64> = Model::from_chain(&c);
     let data = LaplaceData::<f64>::from_chain(&c, &[1.0, 2.0, 4.0]).unwrap();
     for m in [0.0, -1.0, f64::NAN, 1.0] {
@@ -541,13 +541,7 @@ fn two_defects_are_not_mistaken_for_one() {
     // System 1 of Table 1 (n = 5, (2, 3), (4, 0.5)): the known-mass locator with
     // m = 3 must not return a confident wrong answer silently; whatever it returns
     // must be position 2 (the dominant defect) or a refusal.
-    let c = Chain::paper(5)
-        .unwrap()
-        .with_defects([
-            Defect::Mass { at: 2, m: 3.0 },
-            Defect::Mass { at: 4, m: 0.5 },
-        ])
-        .unwrap();
+    let c = scenes::table1(1).unwrap();
     let model: Model<f64> = Model::from_chain(&c);
     let data = LaplaceData::<f64>::from_chain(&c, &default_grid()).unwrap();
     for method in [Method::Exact { m: 3.0 }, Method::UnknownMass] {

@@ -3,29 +3,49 @@
 //! count), evaluation counting and budgets, candidates always inside the
 //! space, traces, bad input, non-finite objectives.
 
-#[path = "../benches/support/exact.rs"]
-mod exact;
-
-use exact::{default_rule, ExactObjective};
 use proptest::prelude::*;
+use springmass::detect::data::Data;
+use springmass::detect::fit::MisfitObjective;
+use springmass::detect::misfit::{Misfit, MisfitSpec};
 use springmass::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
+use springmass::detect::space::{DefectUnknown, Unknowns};
 use springmass::forward::response;
-use springmass::{Chain, Defect, Error};
+use springmass::{scenes, Chain, Defect, Error};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-fn table1(sys: usize) -> (ExactObjective, Candidate) {
-    let (_, d) = ExactObjective::table1_system(sys);
-    let obj = ExactObjective::new(
-        &ExactObjective::table1_chain(sys),
-        2,
-        (0.1, 20.0),
-        &default_rule(),
-    );
-    let truth = Candidate {
-        positions: vec![d[0].0, d[1].0],
-        values: vec![d[0].1, d[1].1],
-    };
-    (obj, truth)
+/// The library's residual (default 80-node rule) against exact-model data of
+/// `truth`, with `k` unknown defects of masses in [0.1, 20] (owns what
+/// [`MisfitObjective`] borrows).
+struct Exact {
+    misfit: Misfit,
+    unknowns: Unknowns,
+}
+
+impl Exact {
+    fn new(truth: &Chain, k: usize) -> Exact {
+        let misfit = Misfit::new(truth, &Data::exact(truth), &MisfitSpec::default()).unwrap();
+        let unknowns = Unknowns::new(truth.n(), vec![DefectUnknown::free(0.1, 20.0); k]).unwrap();
+        Exact { misfit, unknowns }
+    }
+}
+
+impl Objective for Exact {
+    fn space(&self) -> &Space {
+        self.unknowns.space()
+    }
+    fn cost(&self, c: &Candidate) -> f64 {
+        MisfitObjective::new(&self.misfit, &self.unknowns).cost(c)
+    }
+}
+
+/// System `sys` of Table 1 and its true defects as a candidate.
+fn table1(sys: usize) -> (Exact, Candidate) {
+    let chain = scenes::table1(sys).unwrap();
+    let (positions, values) = scenes::truth(&format!("S{sys}"))
+        .unwrap()
+        .into_iter()
+        .unzip();
+    (Exact::new(&chain, 2), Candidate { positions, values })
 }
 
 fn recovered(best: &Candidate, truth: &Candidate, rel: f64) -> bool {
@@ -118,7 +138,8 @@ impl Objective for Synthetic {
 
 #[test]
 fn exact_objective_matches_forward_model() {
-    // the test objective's tabled Woodbury equals the library's forward model
+    // the library residual (tabled Woodbury) equals the quadrature of the
+    // forward model's responses on the same rule
     let (obj, _) = table1(3);
     let chain = Chain::paper(20)
         .unwrap()
@@ -131,14 +152,20 @@ fn exact_objective_matches_forward_model() {
         positions: vec![4, 17],
         values: vec![0.3, 7.0],
     };
-    for (i, &(s, _)) in default_rule().iter().enumerate() {
-        let want = response(&chain, s, 1).unwrap();
-        let got = obj.predict(i, &c);
-        assert!(
-            (got - want).abs() <= 1e-13 * want.abs(),
-            "s = {s}: {got} vs {want}"
-        );
-    }
+    let s3 = scenes::table1(3).unwrap();
+    let rule = obj.misfit.rule();
+    assert_eq!(rule.nodes.len(), 80);
+    let want: f64 = rule
+        .nodes
+        .iter()
+        .zip(&rule.weights)
+        .map(|(&s, w)| {
+            let e = response(&chain, s, 1).unwrap() - response(&s3, s, 1).unwrap();
+            w * e * e
+        })
+        .sum();
+    let got = obj.cost(&c);
+    assert!((got - want).abs() <= 1e-12 * want, "r = {got} vs {want}");
     // the truth has (numerically) zero residual, a far guess does not
     let (obj, truth) = table1(1);
     assert!(obj.cost(&truth) < 1e-28);
@@ -325,7 +352,7 @@ fn single_defect_and_three_defects() {
         .unwrap()
         .with_defect(Defect::Mass { at: 6, m: 0.4 })
         .unwrap();
-    let obj = ExactObjective::new(&chain, 1, (0.1, 20.0), &default_rule());
+    let obj = Exact::new(&chain, 1);
     let truth = Candidate {
         positions: vec![6],
         values: vec![0.4],
@@ -351,7 +378,7 @@ fn single_defect_and_three_defects() {
             Defect::Mass { at: 4, m: 3.0 },
         ])
         .unwrap();
-    let obj = ExactObjective::new(&chain, 3, (0.1, 20.0), &default_rule());
+    let obj = Exact::new(&chain, 3);
     let truth = Candidate {
         positions: vec![1, 3, 4],
         values: vec![2.0, 0.5, 3.0],

@@ -8,7 +8,7 @@ use springmass::time::modal::{ModalResponse, Modes};
 use springmass::time::simulate::{
     simulate, simulate_forced, Force, Forcing, Method, SimOptions, Trajectory,
 };
-use springmass::{Chain, Defect};
+use springmass::{scenes, Chain, Defect};
 
 fn max_diff(a: &[f64], b: &[f64]) -> f64 {
     assert_eq!(a.len(), b.len());
@@ -92,8 +92,8 @@ fn matches_reference_time_series_for_all_scenes() {
 #[test]
 fn three_paths_agree_to_1e_10_on_0_300_for_n_20() {
     for chain in [
-        paper(20, &[(15, 1.01)]),
-        paper(20, &[(3, 5.0)]),
+        scenes::by_name("P1").unwrap(),
+        scenes::by_name("P3").unwrap(),
         Chain::paper(20).unwrap(),
         Chain::new(20)
             .unwrap()
@@ -137,7 +137,7 @@ fn simpson_laplace(tr: &Trajectory, s: f64) -> f64 {
 
 #[test]
 fn transform_of_simulation_matches_laplace_model() {
-    let chain = paper(20, &[(15, 1.01)]);
+    let chain = scenes::by_name("P1").unwrap();
     let tr = simulate(&chain, &SimOptions::new(100.0, 0.01)).unwrap();
     for s in [0.5, 1.0, 2.0] {
         let want = response(&chain, s, 1).unwrap();

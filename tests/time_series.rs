@@ -8,7 +8,7 @@
 use springmass::forward::Forward;
 use springmass::series::TimeSeries;
 use springmass::time::series::{SeriesTransform, Tail, TransformOptions};
-use springmass::{Chain, Complex64, Error};
+use springmass::{scenes, Chain, Complex64, Error};
 
 /// Exact x_1(t) of a uniform chain (k = 1, unit masses, gamma = 1, damping d, underdamped).
 fn x1_uniform(n: usize, d: f64, t: f64) -> f64 {
@@ -393,16 +393,8 @@ fn defect_chains_from_the_modal_sum_match_the_forward_model() {
     // P2 (n=5, mass 4 at 3), S3 (n=20, masses 5 at 8 and 2 at 15), and a
     // spring + damper defect chain; dt = 0.01 on [0, 300].
     let chains = [
-        Chain::paper(5)
-            .unwrap()
-            .with_defect(Defect::Mass { at: 3, m: 4.0 })
-            .unwrap(),
-        Chain::paper(20)
-            .unwrap()
-            .with_defect(Defect::Mass { at: 8, m: 5.0 })
-            .unwrap()
-            .with_defect(Defect::Mass { at: 15, m: 2.0 })
-            .unwrap(),
+        scenes::by_name("P2").unwrap(),
+        scenes::table1(3).unwrap(),
         Chain::paper(8)
             .unwrap()
             .with_defect(Defect::Spring { at: 4, k: 0.5 })
@@ -487,10 +479,7 @@ fn mode_fit_tail_correction_small_s() {
     }
     // a defect chain (different decay rates per mode), from the modal sum
     use springmass::time::modal::ModalResponse;
-    let chain = Chain::paper(5)
-        .unwrap()
-        .with_defect(springmass::Defect::Mass { at: 3, m: 4.0 })
-        .unwrap();
+    let chain = springmass::scenes::by_name("P2").unwrap();
     let fwd = Forward::new(&chain);
     let t: Vec<f64> = (0..=15000).map(|i| i as f64 * 0.01).collect();
     let x = ModalResponse::impulse(&chain, 1).unwrap().eval_many(&t);

@@ -283,16 +283,9 @@ impl Data {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::chain::Defect;
 
     fn s3() -> Chain {
-        Chain::paper(20)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 8, m: 5.0 },
-                Defect::Mass { at: 15, m: 2.0 },
-            ])
-            .unwrap()
+        crate::scenes::table1(3).unwrap()
     }
 
     #[test]
@@ -311,13 +304,7 @@ mod tests {
 
     #[test]
     fn simulated_series_data_match_the_model() {
-        let c = Chain::paper(5)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 2, m: 3.0 },
-                Defect::Mass { at: 4, m: 0.5 },
-            ])
-            .unwrap();
+        let c = crate::scenes::table1(1).unwrap();
         let d = Data::simulated(&c, 300.0, 0.05, 0.0, 0).unwrap();
         let exact = Data::exact(&c);
         for s in [0.2, 1.0, 5.0] {

@@ -188,22 +188,7 @@ impl SeriesTransform {
                 "at least 4 samples",
             ));
         }
-        for (i, w) in t.iter().enumerate() {
-            if !w.is_finite() {
-                return Err(Error::invalid(format!("t[{i}]"), w, "finite"));
-            }
-            if i > 0 && *w <= t[i - 1] {
-                return Err(Error::invalid(
-                    format!("t[{i}]"),
-                    w,
-                    format!(
-                        "strictly greater than t[{}] = {} (sorted, no duplicates)",
-                        i - 1,
-                        t[i - 1]
-                    ),
-                ));
-            }
-        }
+        crate::series::check_times(t)?;
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {
             return Err(Error::invalid(format!("x[{i}]"), x[i], "finite"));
         }

@@ -180,15 +180,13 @@ fn exhaustive(
         &mut cur,
         &mut sets,
     );
-    let fit_one = |set: &Vec<usize>| {
-        let slots = slots_for(unknowns, set, unknowns.free_positions().len());
-        fit_slots(misfit, &slots, opts)
-    };
-    let fitted: Vec<Fitted> = if opts.parallel {
-        sets.par_iter().map(fit_one).collect()
-    } else {
-        sets.iter().map(fit_one).collect()
-    };
+    let fitted = fit_sets(
+        misfit,
+        unknowns,
+        &sets,
+        unknowns.free_positions().len(),
+        opts,
+    );
     Ok(finish(unknowns, fitted, sets.len(), true, opts.keep))
 }
 
@@ -302,12 +300,7 @@ fn beam(misfit: &Misfit, unknowns: &Unknowns, opts: &EnumerateOptions) -> Result
                 cands.push(c);
             }
         }
-        let fit_one = |c: &Vec<usize>| fit_slots(misfit, &slots_for(unknowns, c, t + 1), opts);
-        let fitted: Vec<Fitted> = if opts.parallel {
-            cands.par_iter().map(fit_one).collect()
-        } else {
-            cands.iter().map(fit_one).collect()
-        };
+        let fitted = fit_sets(misfit, unknowns, &cands, t + 1, opts);
         sets += cands.len();
         evaluations += fitted.iter().map(|f| f.2).sum::<usize>();
         let mut scored: Vec<(Vec<usize>, Defects, f64)> = cands
@@ -348,12 +341,7 @@ fn beam(misfit: &Misfit, unknowns: &Unknowns, opts: &EnumerateOptions) -> Result
                         c
                     })
                     .collect();
-                let fit_one = |c: &Vec<usize>| fit_slots(misfit, &slots_for(unknowns, c, p), opts);
-                let fitted: Vec<Fitted> = if opts.parallel {
-                    cands.par_iter().map(fit_one).collect()
-                } else {
-                    cands.iter().map(fit_one).collect()
-                };
+                let fitted = fit_sets(misfit, unknowns, &cands, p, opts);
                 sets += cands.len();
                 evaluations += fitted.iter().map(|f| f.2).sum::<usize>();
                 for (c, (d, r, _)) in cands.into_iter().zip(fitted) {
@@ -387,6 +375,24 @@ fn canon(c: &[usize], comb: bool) -> Vec<usize> {
         v.sort_unstable();
     }
     v
+}
+
+/// [`fit_slots`] for every position set of `sets` (slots from
+/// [`slots_for`] with `placed` positions placed), in parallel when
+/// `opts.parallel` (same results either way, in the order of `sets`).
+fn fit_sets(
+    misfit: &Misfit,
+    unknowns: &Unknowns,
+    sets: &[Vec<usize>],
+    placed: usize,
+    opts: &EnumerateOptions,
+) -> Vec<Fitted> {
+    let fit_one = |set: &Vec<usize>| fit_slots(misfit, &slots_for(unknowns, set, placed), opts);
+    if opts.parallel {
+        sets.par_iter().map(fit_one).collect()
+    } else {
+        sets.iter().map(fit_one).collect()
+    }
 }
 
 /// Fit the unknown masses of the slots (positions fixed). Returns the

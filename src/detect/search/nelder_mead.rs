@@ -234,6 +234,19 @@ impl<O, I: State<Float = f64>, S: Solver<O, I>> Solver<O, I> for Budgeted<'_, '_
     }
 }
 
+/// Values of `space` at unit coordinates `u`, each projected onto `[0, 1]`;
+/// adds the squared distance of each projection to `out` (in order).
+fn unit_values(space: &Space, u: &[f64], out: &mut f64) -> Vec<f64> {
+    u.iter()
+        .enumerate()
+        .map(|(i, &ui)| {
+            let p = ui.clamp(0.0, 1.0);
+            *out += (ui - p).powi(2);
+            space.from_unit(i, p)
+        })
+        .collect()
+}
+
 /// Cost of unit values at fixed positions (projection + squared distance).
 struct ValueFit<'t, 'a> {
     tracked: &'t Tracked<'a>,
@@ -244,15 +257,7 @@ impl ValueFit<'_, '_> {
     fn candidate(&self, u: &[f64]) -> (Candidate, f64) {
         let space = self.tracked.space();
         let mut out = 0.0;
-        let values = u
-            .iter()
-            .enumerate()
-            .map(|(i, &ui)| {
-                let p = ui.clamp(0.0, 1.0);
-                out += (ui - p).powi(2);
-                space.from_unit(i, p)
-            })
-            .collect();
+        let values = unit_values(space, u, &mut out);
         (
             Candidate {
                 positions: self.positions.clone(),
@@ -475,15 +480,7 @@ impl Relaxed<'_, '_> {
             let p = x.clamp(0.5, space.n as f64 + 0.5);
             out += ((x - p) / space.n as f64).powi(2);
         }
-        let values = z[k..]
-            .iter()
-            .enumerate()
-            .map(|(i, &ui)| {
-                let p = ui.clamp(0.0, 1.0);
-                out += (ui - p).powi(2);
-                space.from_unit(i, p)
-            })
-            .collect();
+        let values = unit_values(space, &z[k..], &mut out);
         (Candidate { positions, values }, out)
     }
 }
