@@ -36,6 +36,7 @@
 //! | [`green`] | closed-form Green's function, overflow-free for every `n` and `s` |
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
+//! | [`sensitivity`] | derivatives of X_o(s) with respect to every parameter (reciprocity) |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
 //! | [`error`] | one error type; every variant names the field and its range |
@@ -47,6 +48,7 @@ pub mod green;
 pub mod linalg;
 pub mod plot;
 pub mod scalar;
+pub mod sensitivity;
 pub mod series;
 
 pub use chain::{Chain, ChainSpec, Defect};
