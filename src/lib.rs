@@ -39,6 +39,8 @@
 //! | [`sensitivity`] | derivatives of X_o(s) with respect to every parameter (reciprocity) |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
+//! | [`time`] | simulation ([`time::simulate`]), exact ([`time::modal`]) and numerical ([`time::inverse`]) inverse Laplace transforms, transform of sampled series ([`time::series`]) |
+//! | [`noise`] | seeded additive white Gaussian noise |
 //! | [`error`] | one error type; every variant names the field and its range |
 
 pub mod chain;
@@ -46,10 +48,12 @@ pub mod error;
 pub mod forward;
 pub mod green;
 pub mod linalg;
+pub mod noise;
 pub mod plot;
 pub mod scalar;
 pub mod sensitivity;
 pub mod series;
+pub mod time;
 
 pub use chain::{Chain, ChainSpec, Defect};
 pub use error::{Error, Result};

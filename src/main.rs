@@ -17,12 +17,15 @@ struct Cli {
 enum Command {
     /// Laplace-domain response X_i(s) of a chain (closed form + Woodbury).
     Response(cmd::response::Args),
+    /// Time-domain simulation x_i(t): impulse on mass 1, optional forces, CSV/SVG out.
+    Simulate(cmd::simulate::Args),
 }
 
 fn run() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Response(a) => cmd::response::run(a),
+        Command::Simulate(a) => cmd::simulate::run(a),
     }
 }
 

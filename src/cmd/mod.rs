@@ -1,6 +1,7 @@
 //! Subcommands. Shared argument groups live here.
 
 pub mod response;
+pub mod simulate;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
