@@ -44,6 +44,7 @@
 //! | [`error`] | one error type; every variant names the field and its range |
 
 pub mod chain;
+pub mod detect;
 pub mod error;
 pub mod forward;
 pub mod green;

@@ -49,7 +49,10 @@ impl NoiseLevel {
             )
         };
         let (kind, val) = text.split_once(':').ok_or_else(|| bad("missing `:`"))?;
-        let v: f64 = val.trim().parse().map_err(|_| bad("the value is not a number"))?;
+        let v: f64 = val
+            .trim()
+            .parse()
+            .map_err(|_| bad("the value is not a number"))?;
         let level = match kind.trim() {
             "abs" => NoiseLevel::Absolute(v),
             "snr" => NoiseLevel::Snr(v),
@@ -140,9 +143,15 @@ mod tests {
 
     #[test]
     fn parse_and_errors() {
-        assert_eq!(NoiseLevel::parse("abs:1e-4").unwrap(), NoiseLevel::Absolute(1e-4));
+        assert_eq!(
+            NoiseLevel::parse("abs:1e-4").unwrap(),
+            NoiseLevel::Absolute(1e-4)
+        );
         assert_eq!(NoiseLevel::parse("snr:40").unwrap(), NoiseLevel::Snr(40.0));
-        assert_eq!(NoiseLevel::parse("rel:0.01").unwrap(), NoiseLevel::RelativeMax(0.01));
+        assert_eq!(
+            NoiseLevel::parse("rel:0.01").unwrap(),
+            NoiseLevel::RelativeMax(0.01)
+        );
         for bad in ["abs", "abs:x", "foo:1", "abs:-1", "rel:nan", "snr:inf"] {
             assert!(NoiseLevel::parse(bad).is_err(), "{bad}");
         }

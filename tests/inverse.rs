@@ -12,8 +12,8 @@ use springmass::{Complex64, Error};
 const D: f64 = 0.1;
 
 fn reference() -> Option<serde_json::Value> {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/reference/controls.json");
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/reference/controls.json");
     let path = if path.exists() {
         path
     } else {
@@ -27,7 +27,13 @@ fn reference() -> Option<serde_json::Value> {
 fn u_ratio(c: Complex64, a: usize, b: usize) -> Complex64 {
     let mut prev = Complex64::new(1.0, 0.0); // U_0
     let mut cur = 2.0 * c; // U_1
-    let mut ua = if a == 0 { Some(prev) } else if a == 1 { Some(cur) } else { None };
+    let mut ua = if a == 0 {
+        Some(prev)
+    } else if a == 1 {
+        Some(cur)
+    } else {
+        None
+    };
     if b == 0 {
         return ua.unwrap() / prev;
     }
@@ -100,7 +106,9 @@ fn cases(refj: &serde_json::Value) -> Vec<Case> {
     out
 }
 
-const TABLE_T: [f64; 12] = [0.5, 1.0, 2.0, 5.0, 10.0, 15.0, 20.0, 28.0, 30.0, 40.0, 50.0, 60.0];
+const TABLE_T: [f64; 12] = [
+    0.5, 1.0, 2.0, 5.0, 10.0, 15.0, 20.0, 28.0, 30.0, 40.0, 50.0, 60.0,
+];
 
 #[test]
 fn accuracy_table_and_failure_region() {
@@ -109,7 +117,9 @@ fn accuracy_table_and_failure_region() {
     };
     let opts = InverseOptions::default();
     println!("# numerical inverse Laplace vs exact residue sums (controls.json), d = 0.1");
-    println!("# abs error; columns: Talbot(M) with M evaluations, de Hoog(M) with 2M+1 evaluations");
+    println!(
+        "# abs error; columns: Talbot(M) with M evaluations, de Hoog(M) with 2M+1 evaluations"
+    );
     println!(
         "# invert(): checked value (de Hoog pairs M/T=2t and 1.5M/T=2.5t, M = 40, 80, 160 until they agree; + Talbot M=24)"
     );
@@ -133,7 +143,10 @@ fn accuracy_table_and_failure_region() {
         for m in dh_ms {
             head += &format!(" {:>10}", format!("dH{}", 2 * m + 1));
         }
-        head += &format!(" {:>10} {:>10} {:>6} {:>9}", "invert", "est", "evals", "Talbot?");
+        head += &format!(
+            " {:>10} {:>10} {:>6} {:>9}",
+            "invert", "est", "evals", "Talbot?"
+        );
         println!("{head}");
         for &t in &TABLE_T {
             let i = case.t.iter().position(|&v| v == t).unwrap();
@@ -179,10 +192,17 @@ fn accuracy_table_and_failure_region() {
                     // A Talbot value that is off must be flagged.
                     if let Some(tv) = r.talbot {
                         if (tv - exact).abs() > 2.0 * (r.err + tol) {
-                            assert_eq!(r.talbot_agrees, Some(false), "t={t}: wrong Talbot not flagged");
+                            assert_eq!(
+                                r.talbot_agrees,
+                                Some(false),
+                                "t={t}: wrong Talbot not flagged"
+                            );
                         }
                     }
-                    row += &format!(" {err:>10.2e} {:>10.2e} {:>6} {tal:>9}", r.err, r.evaluations);
+                    row += &format!(
+                        " {err:>10.2e} {:>10.2e} {:>6} {tal:>9}",
+                        r.err, r.evaluations
+                    );
                 }
                 Err(e) => {
                     refused += 1;
@@ -193,7 +213,12 @@ fn accuracy_table_and_failure_region() {
             println!("{row}");
             // Usefulness: short and moderate times must be resolved.
             if t <= 20.0 {
-                assert!(invert(&f, t, &opts).is_ok(), "n={} {} t={t} refused", case.n, case.kind);
+                assert!(
+                    invert(&f, t, &opts).is_ok(),
+                    "n={} {} t={t} refused",
+                    case.n,
+                    case.kind
+                );
             }
         }
     }
@@ -221,7 +246,10 @@ fn every_reference_time_is_accurate_or_refused() {
                     err <= r.err && r.err <= opts.atol + opts.rtol * r.value.abs(),
                     "n={} {} t={t}: {err:.3e} est {:.3e} m {} v {}",
                     case.n,
-                    case.kind, r.err, r.m, r.value
+                    case.kind,
+                    r.err,
+                    r.m,
+                    r.value
                 );
             }
         }

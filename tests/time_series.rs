@@ -61,7 +61,11 @@ fn acceptance_dt_001_on_0_300_matches_forward_model() {
         worst_rel = worst_rel.max(rel);
         worst_ratio = worst_ratio.max(err / v.err);
         assert!(rel < 1e-8, "s = {s}: rel error {rel:.3e}");
-        assert!(err <= v.err, "s = {s}: error {err:.3e} above estimate {:.3e}", v.err);
+        assert!(
+            err <= v.err,
+            "s = {s}: error {err:.3e} above estimate {:.3e}",
+            v.err
+        );
     }
     println!(
         "n=20 dt=0.01 [0,300]: max relative error {worst_rel:.3e}, max true/estimated error {worst_ratio:.3e}"
@@ -91,8 +95,15 @@ fn error_estimate_bounds_truncation_down_to_s_0001() {
             "s = {s}: true error {err:.3e}, estimate {:.3e} (trunc {:.3e}, disc {:.3e})",
             v.err, v.err_trunc, v.err_disc
         );
-        assert!(err <= v.err, "s = {s}: error {err:.3e} above estimate {:.3e}", v.err);
-        assert!(v.err_trunc > v.err_disc, "truncation should dominate at s = {s}");
+        assert!(
+            err <= v.err,
+            "s = {s}: error {err:.3e} above estimate {:.3e}",
+            v.err
+        );
+        assert!(
+            v.err_trunc > v.err_disc,
+            "truncation should dominate at s = {s}"
+        );
     }
 }
 
@@ -104,13 +115,19 @@ fn short_records_truncation_dominates_and_is_bounded() {
         let fwd = Forward::new(&chain);
         let (t, x) = sampled(n, chain.d(), 0.05, 60.0);
         let tr = SeriesTransform::new(&t, &x, &TransformOptions::default()).unwrap();
-        for s in [0.001, 0.01, 0.05, 0.2, 1.0].map(|v| Complex64::new(v, 0.0)).into_iter().chain(
-            [0.3, 0.9, 1.7].map(|w| Complex64::new(0.02, w)),
-        ) {
+        for s in [0.001, 0.01, 0.05, 0.2, 1.0]
+            .map(|v| Complex64::new(v, 0.0))
+            .into_iter()
+            .chain([0.3, 0.9, 1.7].map(|w| Complex64::new(0.02, w)))
+        {
             let exact = fwd.eval(s, 1).unwrap();
             let v = tr.eval(s).unwrap();
             let err = (v.value - exact).norm();
-            assert!(err <= v.err, "n={n} s = {s}: error {err:.3e} above estimate {:.3e}", v.err);
+            assert!(
+                err <= v.err,
+                "n={n} s = {s}: error {err:.3e} above estimate {:.3e}",
+                v.err
+            );
         }
     }
 }
@@ -135,7 +152,11 @@ fn coarse_and_nonuniform_sampling_estimate_still_bounds() {
             let exact = fwd.eval(s, 1).unwrap();
             let v = tr.eval(s).unwrap();
             let err = (v.value - exact).norm();
-            assert!(err <= v.err, "dt={dt} s = {s}: error {err:.3e} above estimate {:.3e}", v.err);
+            assert!(
+                err <= v.err,
+                "dt={dt} s = {s}: error {err:.3e} above estimate {:.3e}",
+                v.err
+            );
         }
     }
 }
@@ -153,18 +174,27 @@ fn noise_variance_matches_monte_carlo() {
         ..Default::default()
     };
     let s = Complex64::new(0.2, 1.0);
-    let clean = SeriesTransform::new(&t, &x, &opts).unwrap().eval(s).unwrap();
+    let clean = SeriesTransform::new(&t, &x, &opts)
+        .unwrap()
+        .eval(s)
+        .unwrap();
     let var = clean.noise_var.unwrap();
     let trials = 200;
     let mut acc = 0.0;
     for seed in 0..trials {
         let (noisy, _) = add_noise(&x, NoiseLevel::Absolute(sigma), seed).unwrap();
-        let v = SeriesTransform::new(&t, &noisy, &opts).unwrap().eval(s).unwrap();
+        let v = SeriesTransform::new(&t, &noisy, &opts)
+            .unwrap()
+            .eval(s)
+            .unwrap();
         acc += (v.value - clean.value).norm_sqr();
     }
     let emp = acc / trials as f64;
     // chi-square with ~2*200 degrees of freedom: within 25 %
-    assert!((emp / var - 1.0).abs() < 0.25, "empirical {emp:.3e} vs predicted {var:.3e}");
+    assert!(
+        (emp / var - 1.0).abs() < 0.25,
+        "empirical {emp:.3e} vs predicted {var:.3e}"
+    );
 }
 
 #[test]
@@ -182,7 +212,10 @@ fn transform_from_csv_column() {
     assert!((v.value - exact).norm() <= v.err);
     let e = SeriesTransform::from_series(&back, "x7", &TransformOptions::default()).unwrap_err();
     assert!(matches!(e, Error::InvalidParameter { .. }));
-    assert!(e.to_string().contains("x7") && e.to_string().contains("x1"), "{e}");
+    assert!(
+        e.to_string().contains("x7") && e.to_string().contains("x1"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -191,7 +224,11 @@ fn bad_input_names_field_or_line() {
     let cases: Vec<(Vec<f64>, Vec<f64>, &str)> = vec![
         (vec![0.0, 2.0, 1.0, 3.0], vec![0.0; 4], "t[2]"),
         (vec![0.0, 1.0, 1.0, 3.0], vec![0.0; 4], "t[2]"),
-        (vec![0.0, 1.0, 2.0, 3.0], vec![0.0, 0.0, 0.0, f64::NAN], "x[3]"),
+        (
+            vec![0.0, 1.0, 2.0, 3.0],
+            vec![0.0, 0.0, 0.0, f64::NAN],
+            "x[3]",
+        ),
         (vec![0.0, f64::INFINITY, 2.0, 3.0], vec![0.0; 4], "t[1]"),
         (vec![0.0, 1.0, 2.0, 3.0], vec![0.0; 3], "x.len"),
     ];
@@ -200,7 +237,9 @@ fn bad_input_names_field_or_line() {
         assert!(e.contains(needle), "{needle}: {e}");
     }
     for dt in [0.0, -1.0, f64::NAN] {
-        let e = SeriesTransform::uniform(0.0, dt, &[0.0; 10], &o).unwrap_err().to_string();
+        let e = SeriesTransform::uniform(0.0, dt, &[0.0; 10], &o)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("dt"), "{e}");
     }
     // CSV problems name the line (TimeSeries), consistent with the above
@@ -212,7 +251,12 @@ fn bad_input_names_field_or_line() {
         let e = TimeSeries::from_csv_str(text).unwrap_err().to_string();
         assert!(e.contains(needle), "{e}");
     }
-    let bad = TransformOptions { degree: 12, ..Default::default() };
-    let e = SeriesTransform::new(&[0.0, 1.0, 2.0, 3.0], &[0.0; 4], &bad).unwrap_err().to_string();
+    let bad = TransformOptions {
+        degree: 12,
+        ..Default::default()
+    };
+    let e = SeriesTransform::new(&[0.0, 1.0, 2.0, 3.0], &[0.0; 4], &bad)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("degree"), "{e}");
 }

@@ -127,11 +127,7 @@ pub fn de_hoog<F: Fn(Complex64) -> Complex64>(f: &F, t: f64, p: &DeHoog) -> Resu
 }
 
 /// [`de_hoog`] and the size `e^{γt}/T Σ_k |F(p_k)|` of the summed terms.
-fn de_hoog_scaled<F: Fn(Complex64) -> Complex64>(
-    f: &F,
-    t: f64,
-    p: &DeHoog,
-) -> Result<(f64, f64)> {
+fn de_hoog_scaled<F: Fn(Complex64) -> Complex64>(f: &F, t: f64, p: &DeHoog) -> Result<(f64, f64)> {
     check_t(t)?;
     if !(2..=500).contains(&p.m) {
         return Err(Error::invalid("m", p.m, "2..=500"));
@@ -401,11 +397,19 @@ mod tests {
     fn both_methods_on_a_damped_sine() {
         for &t in &[0.1, 0.5, 1.0, 3.0, 6.0] {
             let tb = talbot(&damped_sine, t, 24).unwrap();
-            assert!((tb - exact(t)).abs() < 1e-9, "talbot t={t}: {tb} vs {}", exact(t));
+            assert!(
+                (tb - exact(t)).abs() < 1e-9,
+                "talbot t={t}: {tb} vs {}",
+                exact(t)
+            );
         }
         for &t in &[0.1, 1.0, 5.0, 20.0] {
             let dh = de_hoog(&damped_sine, t, &DeHoog::default()).unwrap();
-            assert!((dh - exact(t)).abs() < 1e-9, "de Hoog t={t}: {dh} vs {}", exact(t));
+            assert!(
+                (dh - exact(t)).abs() < 1e-9,
+                "de Hoog t={t}: {dh} vs {}",
+                exact(t)
+            );
         }
     }
 
@@ -420,7 +424,12 @@ mod tests {
         for (ff, fe) in cases {
             for &t in &[0.5, 2.0, 10.0] {
                 let r = invert(&ff, t, &InverseOptions::default()).unwrap();
-                assert!((r.value - fe(t)).abs() <= r.err.max(1e-9), "t={t}: {} vs {}", r.value, fe(t));
+                assert!(
+                    (r.value - fe(t)).abs() <= r.err.max(1e-9),
+                    "t={t}: {} vs {}",
+                    r.value,
+                    fe(t)
+                );
             }
         }
     }
@@ -430,10 +439,24 @@ mod tests {
         assert!(talbot(&damped_sine, 0.0, 20).is_err());
         assert!(talbot(&damped_sine, 1.0, 2).is_err());
         assert!(de_hoog(&damped_sine, -1.0, &DeHoog::default()).is_err());
-        let e = de_hoog(&damped_sine, 1.0, &DeHoog { tol: 2.0, ..Default::default() }).unwrap_err();
+        let e = de_hoog(
+            &damped_sine,
+            1.0,
+            &DeHoog {
+                tol: 2.0,
+                ..Default::default()
+            },
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("tol"));
         let nan = |_s: Complex64| Complex64::new(f64::NAN, 0.0);
-        assert!(matches!(talbot(&nan, 1.0, 20), Err(Error::Numerical { .. })));
-        assert!(matches!(invert(&nan, 1.0, &InverseOptions::default()), Err(Error::Numerical { .. })));
+        assert!(matches!(
+            talbot(&nan, 1.0, 20),
+            Err(Error::Numerical { .. })
+        ));
+        assert!(matches!(
+            invert(&nan, 1.0, &InverseOptions::default()),
+            Err(Error::Numerical { .. })
+        ));
     }
 }

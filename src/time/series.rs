@@ -164,7 +164,11 @@ impl SeriesTransform {
             ));
         }
         if t.len() < 4 {
-            return Err(Error::invalid("series length", t.len(), "at least 4 samples"));
+            return Err(Error::invalid(
+                "series length",
+                t.len(),
+                "at least 4 samples",
+            ));
         }
         for (i, w) in t.iter().enumerate() {
             if !w.is_finite() {
@@ -270,7 +274,9 @@ impl SeriesTransform {
         }
         if !(q_hi.re.is_finite() && q_hi.im.is_finite() && q_lo.norm().is_finite()) {
             return Err(Error::Unresolvable {
-                reason: format!("the transform overflows at s = {s} (Re s too negative for this record)"),
+                reason: format!(
+                    "the transform overflows at s = {s} (Re s too negative for this record)"
+                ),
             });
         }
         let t_max = self.t[0].abs().max(self.t[self.t.len() - 1].abs());
@@ -516,14 +522,23 @@ mod tests {
             // compare the recurrence at w2 with the series at w2 forced via a tiny shift check:
             // derivative bound |d mu/dw| <= 2, so |a - b| <= 2 |w - w2|.
             for k in 0..10 {
-                assert!((a[k] - b[k]).norm() <= 2.0 * (w - w2).norm() + 1e-14, "{w} {k}");
+                assert!(
+                    (a[k] - b[k]).norm() <= 2.0 * (w - w2).norm() + 1e-14,
+                    "{w} {k}"
+                );
             }
         }
     }
 
     #[test]
     fn moments_match_quadrature() {
-        for &w in &[c(0.3, 0.0), c(5.0, 0.0), c(0.01, 7.0), c(40.0, -3.0), c(1.0, 1.0)] {
+        for &w in &[
+            c(0.3, 0.0),
+            c(5.0, 0.0),
+            c(0.01, 7.0),
+            c(40.0, -3.0),
+            c(1.0, 1.0),
+        ] {
             let mut mu = vec![c(0.0, 0.0); 8];
             moments(w, &mut mu);
             for (k, m) in mu.iter().enumerate() {
@@ -546,7 +561,14 @@ mod tests {
     fn exact_for_polynomials_on_nonuniform_grids() {
         // cubic x(t) on [0, 2] with jittered times: exact up to the tail, which is zero.
         let t: Vec<f64> = (0..=41)
-            .map(|i| 2.0 * i as f64 / 41.0 + if i % 41 == 0 { 0.0 } else { 0.01 * ((i * 7) % 5) as f64 / 5.0 })
+            .map(|i| {
+                2.0 * i as f64 / 41.0
+                    + if i % 41 == 0 {
+                        0.0
+                    } else {
+                        0.01 * ((i * 7) % 5) as f64 / 5.0
+                    }
+            })
             .collect();
         let x: Vec<f64> = t.iter().map(|t| 1.0 - 2.0 * t + 0.5 * t * t * t).collect();
         let opts = TransformOptions {
@@ -565,7 +587,11 @@ mod tests {
                 acc += f(i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
             }
             acc *= h / 3.0;
-            assert!((v.value - acc).norm() < 1e-9 * (1.0 + acc.norm()), "{s}: {} vs {acc}", v.value);
+            assert!(
+                (v.value - acc).norm() < 1e-9 * (1.0 + acc.norm()),
+                "{s}: {} vs {acc}",
+                v.value
+            );
             assert!(v.err_disc < 1e-9, "{s}: {}", v.err_disc);
         }
     }
@@ -591,7 +617,10 @@ mod tests {
         let t: Vec<f64> = (0..=1000).map(|i| i as f64 * 0.1).collect();
         let x: Vec<f64> = t.iter().map(|t| t.sin()).collect();
         let tr = SeriesTransform::new(&t, &x, &TransformOptions::default()).unwrap();
-        assert!(matches!(tr.eval(c(0.0, 1.0)), Err(Error::Unresolvable { .. })));
+        assert!(matches!(
+            tr.eval(c(0.0, 1.0)),
+            Err(Error::Unresolvable { .. })
+        ));
         let v = tr.eval(c(0.5, 0.0)).unwrap();
         let exact = 1.0 / (0.25 + 1.0);
         assert!((v.value.re - exact).abs() <= v.err);

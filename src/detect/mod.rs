@@ -1,0 +1,11 @@
+//! Defect detection: fit the positions and masses of defects to observed data.
+//!
+//! | module | what |
+//! |---|---|
+//! | [`lsq`] | bounded Levenberg-Marquardt and Gauss-Newton covariance |
+//! | [`misfit_time`] | time-domain chi-square against a sampled series |
+//! | [`chainfit`] | continuous fit of defect values and chain parameters (d, k, mass, gamma) |
+
+pub mod chainfit;
+pub mod lsq;
+pub mod misfit_time;
