@@ -42,6 +42,7 @@
 //! | [`time`] | simulation ([`time::simulate`]), exact ([`time::modal`]) and numerical ([`time::inverse`]) inverse Laplace transforms, transform of sampled series ([`time::series`]) |
 //! | [`noise`] | seeded additive white Gaussian noise |
 //! | [`error`] | one error type; every variant names the field and its range |
+//! | [`detect`] | defect fitting: data, quadrature, residuals, unknowns, enumeration, `fit` |
 
 pub mod chain;
 pub mod detect;

@@ -1,7 +1,15 @@
-//! Defect detection: fit the positions and masses of defects to observed data.
+//! Defect detection: fit the positions and masses of defects to observed
+//! `X_1` data by minimising an L2 residual.
 //!
 //! | module | what |
 //! |---|---|
+//! | [`data`] | observed data `X_1*(s)`: source, noise, values at nodes |
+//! | [`quadrature`] | fixed rules with tabled Green's functions; adaptive reference |
+//! | [`misfit`] | the residuals (real axis, Bromwich line) and per-position-set tables |
+//! | [`space`] | the unknowns and the search space |
+//! | [`search`] | optimizers: exhaustive enumeration (+ GA, Nelder-Mead, PSO) |
+//! | [`scene`] | the TOML fit scene |
+//! | [`fit`] | `fit(scene, data, options) -> FitReport` |
 //! | [`lsq`] | bounded Levenberg-Marquardt and Gauss-Newton covariance |
 //! | [`misfit_time`] | time-domain chi-square against a sampled series |
 //! | [`identify`] | standard errors, chi-square gaps, noise level of indistinguishability, flags |
@@ -9,7 +17,14 @@
 //! | [`chainfit`] | continuous fit of defect values and chain parameters (d, k, mass, gamma) |
 
 pub mod chainfit;
+pub mod data;
+pub mod fit;
 pub mod identify;
 pub mod lsq;
+pub mod misfit;
 pub mod misfit_time;
+pub mod quadrature;
+pub mod scene;
+pub mod search;
 pub mod select;
+pub mod space;

@@ -1,0 +1,110 @@
+//! `springmass fit`: fit defect positions and masses to data described by a
+//! TOML scene (see `springmass::detect::scene`).
+
+use anyhow::Context;
+use clap::Args as ClapArgs;
+use springmass::detect::fit::{fit, FitMethod, FitReport};
+use springmass::detect::scene::FitScene;
+use std::path::PathBuf;
+
+/// Arguments of `springmass fit`.
+#[derive(ClapArgs, Debug)]
+pub struct Args {
+    /// The fit scene (TOML with [chain], [data], [unknowns], [misfit], [search]).
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// enumerate | ga | nelder-mead | pso (overrides [search].method).
+    #[arg(long)]
+    pub method: Option<String>,
+    /// Seed of stochastic methods (overrides [search].seed).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Relative noise level of synthetic data (overrides [data].noise).
+    #[arg(long)]
+    pub noise: Option<f64>,
+    /// Record and print the optimizer's trace.
+    #[arg(long)]
+    pub trace: bool,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let mut scene = FitScene::load(&a.scene)?;
+    if let Some(m) = &a.method {
+        scene.search.method = FitMethod::parse(m)?;
+    }
+    if let Some(s) = a.seed {
+        scene.search.seed = s;
+    }
+    if let Some(x) = a.noise {
+        scene.data.noise = x;
+    }
+    if a.trace {
+        scene.search.trace = true;
+    }
+    let data = scene.data().context("in [data]")?;
+    let report = fit(&scene, &data, &scene.options())?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_text(&scene, &report);
+    }
+    Ok(())
+}
+
+fn fmt_defects(d: &[springmass::Defect]) -> String {
+    d.iter()
+        .map(|d| format!("({}, {:.6})", d.at(), d.value()))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn print_text(scene: &FitScene, r: &FitReport) {
+    println!("# method   {}", r.method);
+    println!("# misfit   {} ({} nodes)", r.misfit, r.nodes);
+    let truth: Vec<springmass::Defect> = scene.chain.defects.clone();
+    if !truth.is_empty() {
+        println!("truth      {}", fmt_defects(&truth));
+    }
+    println!("found      {}", fmt_defects(&r.defects));
+    println!("residual   {:.6e}", r.residual);
+    println!(
+        "data floor {:.3e}  ({})",
+        r.floor,
+        if r.resolved {
+            "resolved: the first runner-up is above the floor"
+        } else {
+            "NOT resolved: the first runner-up is within the data's error"
+        }
+    );
+    if !r.runners_up.is_empty() {
+        println!("runners-up");
+        for alt in &r.runners_up {
+            println!(
+                "  {:<40} r = {:.6e}  gap = {:.3e}",
+                fmt_defects(&alt.defects),
+                alt.residual,
+                alt.gap
+            );
+        }
+    }
+    let sets = r.sets.map(|s| format!(", {s} position sets")).unwrap_or_default();
+    let beam = match r.exhaustive {
+        Some(false) => " (beam search)",
+        _ => "",
+    };
+    println!("evaluations {}{sets}{beam}", r.evaluations);
+    println!(
+        "wall time  {:.3} ms (setup {:.3} ms)",
+        r.wall_time_s * 1e3,
+        r.setup_time_s * 1e3
+    );
+    if !r.trace.is_empty() {
+        println!("trace (evaluations, best residual)");
+        for (e, c) in &r.trace {
+            println!("  {e:>8} {c:.6e}");
+        }
+    }
+}

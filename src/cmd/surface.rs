@@ -1,0 +1,142 @@
+//! `springmass surface`: residual surfaces, the paper's Figures 16 and 17.
+//!
+//! * `--kind jm`: one defect, `r(j, m)` over `j = 1..=n` and `m` on a log grid
+//!   (Figure 16);
+//! * `--kind pair`: two defects of known masses, `r(j1, j2)` over distinct
+//!   positions (Figure 17; the masses come from `--masses` or the scene's true
+//!   defects).
+//!
+//! Writes `<out>.csv` and `<out>.svg` (heatmap of `log10 r`, the minimum marked).
+
+use anyhow::{bail, Context};
+use clap::{Args as ClapArgs, ValueEnum};
+use springmass::detect::misfit::Misfit;
+use springmass::detect::scene::FitScene;
+use springmass::plot::Heatmap;
+use std::path::PathBuf;
+
+/// Which surface.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum Kind {
+    /// r over (j, m), one defect (Figure 16).
+    Jm,
+    /// r over (j1, j2), two defects of known masses (Figure 17).
+    Pair,
+}
+
+/// Arguments of `springmass surface`.
+#[derive(ClapArgs, Debug)]
+pub struct Args {
+    /// The scene ([chain] with the true defects, [data], [misfit]).
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// jm (Figure 16) or pair (Figure 17).
+    #[arg(long, value_enum)]
+    pub kind: Kind,
+    /// Output prefix: writes PREFIX.csv and PREFIX.svg.
+    #[arg(long, default_value = "surface")]
+    pub out: PathBuf,
+    /// jm: mass range [default: the scene's mass_bounds].
+    #[arg(long, num_args = 2, value_names = ["LO", "HI"])]
+    pub m_range: Option<Vec<f64>>,
+    /// jm: number of masses on the log grid.
+    #[arg(long, default_value_t = 60)]
+    pub m_steps: usize,
+    /// pair: the two known masses, comma separated [default: the scene's true masses].
+    #[arg(long, value_delimiter = ',')]
+    pub masses: Vec<f64>,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let scene = FitScene::load(&a.scene)?;
+    let truth = scene.truth()?;
+    let data = scene.data().context("in [data]")?;
+    let misfit = Misfit::new(&truth.uniform(), &data, &scene.misfit)?;
+    let n = truth.n();
+    let mut csv = String::new();
+    let heat = match a.kind {
+        Kind::Jm => {
+            let [lo, hi] = match &a.m_range {
+                Some(v) => [v[0], v[1]],
+                None => scene.unknowns.mass_bounds,
+            };
+            if !(lo > 0.0 && hi > lo && lo.is_finite() && hi.is_finite()) {
+                bail!("invalid --m-range = [{lo}, {hi}]: allowed 0 < LO < HI, finite");
+            }
+            if a.m_steps < 2 {
+                bail!("invalid --m-steps = {}: allowed >= 2", a.m_steps);
+            }
+            let ms: Vec<f64> = (0..a.m_steps)
+                .map(|i| lo * (hi / lo).powf(i as f64 / (a.m_steps - 1) as f64))
+                .collect();
+            csv.push_str("j,m,r\n");
+            let mut z = vec![vec![0.0; n]; ms.len()];
+            let mut best = (f64::INFINITY, 0.0, 0.0);
+            for (iy, &m) in ms.iter().enumerate() {
+                for j in 1..=n {
+                    let r = misfit.residual(&[(j, m)]);
+                    z[iy][j - 1] = r;
+                    csv.push_str(&format!("{j},{m:.10e},{r:.10e}\n"));
+                    if r < best.0 {
+                        best = (r, j as f64, m.log10());
+                    }
+                }
+            }
+            Heatmap {
+                title: format!("r(j, m), n = {n}: log10 r (min at j = {}, m = {:.4})", best.1, 10f64.powf(best.2)),
+                x_label: "j".into(),
+                y_label: "log10 m".into(),
+                x: (1..=n).map(|j| j as f64).collect(),
+                y: ms.iter().map(|m| m.log10()).collect(),
+                z,
+                log_z: true,
+                mark: Some((best.1, best.2)),
+            }
+        }
+        Kind::Pair => {
+            let masses: Vec<f64> = if a.masses.is_empty() {
+                truth.defects().iter().map(|d| d.value()).collect()
+            } else {
+                a.masses.clone()
+            };
+            if masses.len() != 2 || masses.iter().any(|m| !(m.is_finite() && *m > 0.0)) {
+                bail!("invalid --masses = {masses:?}: allowed two masses > 0 (or a scene with two true defects)");
+            }
+            csv.push_str("j1,j2,r\n");
+            let mut z = vec![vec![f64::NAN; n]; n];
+            let mut best = (f64::INFINITY, 0.0, 0.0);
+            for j2 in 1..=n {
+                for j1 in 1..=n {
+                    if j1 == j2 {
+                        continue;
+                    }
+                    let r = misfit.residual(&[(j1, masses[0]), (j2, masses[1])]);
+                    z[j2 - 1][j1 - 1] = r;
+                    csv.push_str(&format!("{j1},{j2},{r:.10e}\n"));
+                    if r < best.0 {
+                        best = (r, j1 as f64, j2 as f64);
+                    }
+                }
+            }
+            Heatmap {
+                title: format!(
+                    "r(j1, j2), m1 = {}, m2 = {}: log10 r (min at ({}, {}))",
+                    masses[0], masses[1], best.1, best.2
+                ),
+                x_label: "j1".into(),
+                y_label: "j2".into(),
+                x: (1..=n).map(|j| j as f64).collect(),
+                y: (1..=n).map(|j| j as f64).collect(),
+                z,
+                log_z: true,
+                mark: Some((best.1, best.2)),
+            }
+        }
+    };
+    let csv_path = a.out.with_extension("csv");
+    let svg_path = a.out.with_extension("svg");
+    std::fs::write(&csv_path, csv).with_context(|| format!("writing {}", csv_path.display()))?;
+    heat.write_svg(&svg_path)?;
+    println!("wrote {} and {}", csv_path.display(), svg_path.display());
+    Ok(())
+}

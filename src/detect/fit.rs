@@ -1,0 +1,227 @@
+//! `fit(scene, data, options)`: find the defects that best explain the data.
+//!
+//! Builds the residual of the scene's `[misfit]` (fixed rule, tabled Green's
+//! function, data sampled at the same nodes), the unknowns of `[unknowns]`,
+//! and runs the chosen method:
+//!
+//! * `enumerate` (default): every position set, masses fitted per set by
+//!   Levenberg-Marquardt ([`crate::detect::search::enumerate`]); the runners-up
+//!   are the next position sets in the ranking.
+//!
+//! The report gives the defects found, the residual, the runners-up with
+//! their gaps `r_alt - r_best`, the number of residual evaluations, the wall
+//! time, and whether the gap to the first runner-up is above the data's
+//! error floor ([`crate::detect::misfit::Misfit::floor`]); below it the data
+//! cannot tell the two hypotheses apart.
+//!
+//! ```
+//! use springmass::{Chain, Defect};
+//! use springmass::detect::{fit::fit, scene::FitScene};
+//! let truth = Chain::paper(10)?.with_defects([
+//!     Defect::Mass { at: 3, m: 3.0 }, Defect::Mass { at: 7, m: 2.0 }])?;
+//! let scene = FitScene::synthetic(&truth);
+//! let report = fit(&scene, &scene.data()?, &scene.options())?;
+//! assert_eq!(report.defects, vec![Defect::Mass { at: 3, m: report.defects[0].value() },
+//!                                 Defect::Mass { at: 7, m: report.defects[1].value() }]);
+//! assert!((report.defects[1].value() - 2.0).abs() < 1e-8);
+//! assert!(report.resolved);
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+use crate::chain::Defect;
+use crate::detect::data::Data;
+use crate::detect::misfit::{Misfit, MisfitKind};
+use crate::detect::scene::FitScene;
+use crate::detect::search::enumerate::{enumerate, EnumerateOptions};
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// Fitting methods.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FitMethod {
+    /// Exhaustive enumeration of position sets with a mass fit per set.
+    #[default]
+    Enumerate,
+    /// Genetic algorithm.
+    #[serde(alias = "genetic")]
+    Ga,
+    /// Nelder-Mead.
+    NelderMead,
+    /// Particle swarm.
+    #[serde(alias = "particle-swarm")]
+    Pso,
+}
+
+impl FitMethod {
+    /// Parse `enumerate`, `ga`, `nelder-mead`, `pso` (aliases `genetic`,
+    /// `particle-swarm`, `nm`).
+    ///
+    /// # Errors
+    /// [`Error::Parse`] naming the allowed names.
+    pub fn parse(text: &str) -> Result<FitMethod> {
+        match text.trim().to_ascii_lowercase().as_str() {
+            "enumerate" | "enum" => Ok(FitMethod::Enumerate),
+            "ga" | "genetic" => Ok(FitMethod::Ga),
+            "nelder-mead" | "nm" => Ok(FitMethod::NelderMead),
+            "pso" | "particle-swarm" => Ok(FitMethod::Pso),
+            _ => Err(Error::parse(
+                "method",
+                text,
+                "expected enumerate, ga, nelder-mead or pso",
+            )),
+        }
+    }
+
+    /// The canonical name.
+    pub fn name(self) -> &'static str {
+        match self {
+            FitMethod::Enumerate => "enumerate",
+            FitMethod::Ga => "ga",
+            FitMethod::NelderMead => "nelder-mead",
+            FitMethod::Pso => "pso",
+        }
+    }
+}
+
+/// Options of [`fit`] (from a scene's `[search]` with [`FitScene::options`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitOptions {
+    /// The method.
+    pub method: FitMethod,
+    /// Seed of stochastic methods.
+    pub seed: u64,
+    /// Evaluation budget of stochastic methods.
+    pub max_evals: usize,
+    /// Record the optimizer's trace.
+    pub trace: bool,
+    /// Enumeration options (`keep` also sets the number of hypotheses reported).
+    pub enumerate: EnumerateOptions,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitScene::synthetic(&crate::Chain::new(1).expect("n = 1 is valid")).options()
+    }
+}
+
+/// An alternative hypothesis.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Alternative {
+    /// Its defects (masses fitted).
+    pub defects: Vec<Defect>,
+    /// Its residual.
+    pub residual: f64,
+    /// `residual - best residual`.
+    pub gap: f64,
+}
+
+/// What [`fit`] found.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FitReport {
+    /// The method used.
+    pub method: String,
+    /// The defects found (mass defects).
+    pub defects: Vec<Defect>,
+    /// The residual at the defects found.
+    pub residual: f64,
+    /// The next best hypotheses, best first.
+    pub runners_up: Vec<Alternative>,
+    /// Residual evaluations.
+    pub evaluations: usize,
+    /// Position sets fitted (enumeration).
+    pub sets: Option<usize>,
+    /// Whether the enumeration was exhaustive (false: beam search).
+    pub exhaustive: Option<bool>,
+    /// Wall time of the search, seconds (the residual's setup excluded).
+    pub wall_time_s: f64,
+    /// Wall time of the setup (rule, Green's tables, data), seconds.
+    pub setup_time_s: f64,
+    /// `(evaluations, best residual)` per iteration when traced.
+    pub trace: Vec<(usize, f64)>,
+    /// The residual: kind and rule.
+    pub misfit: String,
+    /// Quadrature nodes.
+    pub nodes: usize,
+    /// The data's error floor on `r`.
+    pub floor: f64,
+    /// Gap to the first runner-up above the floor (the answer is resolved by the data).
+    pub resolved: bool,
+}
+
+/// Fit the scene's unknowns to `data`.
+///
+/// # Errors
+/// Invalid chain, unknowns or misfit in the scene (typed, naming the field);
+/// a method this build does not provide (`search.method`).
+pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitReport> {
+    let t0 = Instant::now();
+    let model = scene.truth()?.uniform();
+    let unknowns = scene.unknowns()?;
+    let misfit = Misfit::new(&model, data, &scene.misfit)?;
+    let setup = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let to_defects = |d: &[(usize, f64)]| -> Vec<Defect> {
+        d.iter().map(|&(at, m)| Defect::Mass { at, m }).collect()
+    };
+    let (defects, residual, runners, evaluations, sets, exhaustive, trace) = match options.method {
+        FitMethod::Enumerate => {
+            let e = enumerate(&misfit, &unknowns, &options.enumerate)?;
+            let best = e.ranked.first().ok_or_else(|| Error::Numerical {
+                method: "enumerate".into(),
+                reason: "no hypothesis".into(),
+            })?;
+            let runners: Vec<Alternative> = e.ranked[1..]
+                .iter()
+                .map(|h| Alternative {
+                    defects: to_defects(&h.defects),
+                    residual: h.residual,
+                    gap: h.residual - best.residual,
+                })
+                .collect();
+            (
+                to_defects(&best.defects),
+                best.residual,
+                runners,
+                e.evaluations,
+                Some(e.sets),
+                Some(e.exhaustive),
+                Vec::new(),
+            )
+        }
+        m => {
+            return Err(Error::invalid(
+                "search.method",
+                m.name(),
+                "enumerate (the stochastic optimizers are not in this build)",
+            ))
+        }
+    };
+    let wall = t1.elapsed().as_secs_f64();
+    let floor = misfit.floor();
+    let resolved = runners.first().is_none_or(|r| r.gap > floor);
+    let kind = match scene.misfit.kind {
+        MisfitKind::RealAxis => format!("real-axis [0, {}]", scene.misfit.s_max),
+        MisfitKind::Bromwich => format!(
+            "bromwich sigma={} omega in [0, {}]",
+            scene.misfit.sigma, scene.misfit.omega_max
+        ),
+    };
+    Ok(FitReport {
+        method: options.method.name().into(),
+        defects,
+        residual,
+        runners_up: runners,
+        evaluations,
+        sets,
+        exhaustive,
+        wall_time_s: wall,
+        setup_time_s: setup,
+        trace,
+        misfit: format!("{kind}, {}", misfit.rule().name),
+        nodes: misfit.nodes(),
+        floor,
+        resolved,
+    })
+}

@@ -1,0 +1,316 @@
+//! The fit scene: a TOML file describing the chain, the data, the unknowns,
+//! the residual and the search.
+//!
+//! ```toml
+//! [chain]            # the chain (crate::ChainSpec); defects = the TRUE defects
+//! n = 20             #   used to synthesise data (ignored by the model, which
+//! d = 0.1            #   is the uniform part n, k, d, gamma, mass)
+//! defects = [ { kind = "mass", at = 8, m = 5.0 }, { kind = "mass", at = 15, m = 2.0 } ]
+//!
+//! [data]             # optional
+//! source = "exact"   # "exact": the closed-form model of [chain]
+//! noise = 0.0        # relative Gaussian noise (standard deviation), default 0
+//! seed = 0           # noise seed, default 0
+//!
+//! [unknowns]         # optional; see crate::detect::space::UnknownsSpec
+//! k = 2              # default: number of defects in [chain]
+//! mass_bounds = [0.1, 100]
+//!
+//! [misfit]           # optional; see crate::detect::misfit::MisfitSpec
+//! kind = "real-axis" # or "bromwich"
+//! panels = 10
+//! per_panel = 8
+//! s_max = 300
+//!
+//! [search]           # optional; see SearchSpec
+//! method = "enumerate"   # enumerate | ga | nelder-mead | pso
+//! seed = 0
+//! ```
+//!
+//! Every table rejects unknown fields.
+//!
+//! ```
+//! use springmass::detect::scene::FitScene;
+//! let scene = FitScene::from_toml("[chain]\nn = 5\ndefects = [{ kind = \"mass\", at = 2, m = 3.0 }]\n")?;
+//! assert_eq!(scene.unknowns()?.k(), 1);
+//! assert!(FitScene::from_toml("[chain]\nn = 5\n[search]\nmethd = 1\n").is_err());
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+use crate::chain::{Chain, ChainSpec, Defect};
+use crate::detect::data::Data;
+use crate::detect::fit::{FitMethod, FitOptions};
+use crate::detect::misfit::MisfitSpec;
+use crate::detect::search::enumerate::EnumerateOptions;
+use crate::detect::space::{Unknowns, UnknownsSpec};
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Where the data of a scene come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DataSourceKind {
+    /// The closed-form model of the `[chain]` (with its true defects).
+    #[default]
+    Exact,
+    /// A time series (CSV) transformed to the Laplace domain: not available
+    /// until the time-series module is merged; rejected with an error.
+    Series,
+}
+
+/// The `[data]` table.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct DataSpec {
+    /// `exact` (default) or `series`.
+    #[serde(default)]
+    pub source: DataSourceKind,
+    /// Path of the series (for `series`).
+    #[serde(default)]
+    pub path: Option<PathBuf>,
+    /// Relative noise level (default 0).
+    #[serde(default)]
+    pub noise: f64,
+    /// Noise seed (default 0).
+    #[serde(default)]
+    pub seed: u64,
+}
+
+/// The `[search]` table.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SearchSpec {
+    /// `enumerate` (default), `ga`, `nelder-mead` or `pso`.
+    #[serde(default)]
+    pub method: FitMethod,
+    /// Seed of stochastic methods (default 0).
+    #[serde(default)]
+    pub seed: u64,
+    /// Evaluation budget of stochastic methods (default 20 000).
+    #[serde(default = "default_max_evals")]
+    pub max_evals: usize,
+    /// Hypotheses reported (best and runners-up) (default 5).
+    #[serde(default = "default_keep")]
+    pub keep: usize,
+    /// Enumeration: starting values per unknown mass (default 2).
+    #[serde(default = "default_starts")]
+    pub starts: usize,
+    /// Enumeration: largest exhaustive set count before the beam search (default 200 000).
+    #[serde(default = "default_max_sets")]
+    pub max_sets: usize,
+    /// Enumeration: beam width (default 16).
+    #[serde(default = "default_beam")]
+    pub beam: usize,
+    /// Use all cores (default true).
+    #[serde(default = "default_true")]
+    pub parallel: bool,
+    /// Record the optimizer's trace (default false).
+    #[serde(default)]
+    pub trace: bool,
+}
+
+fn default_max_evals() -> usize {
+    20_000
+}
+fn default_keep() -> usize {
+    5
+}
+fn default_starts() -> usize {
+    2
+}
+fn default_max_sets() -> usize {
+    200_000
+}
+fn default_beam() -> usize {
+    16
+}
+fn default_true() -> bool {
+    true
+}
+
+impl Default for SearchSpec {
+    fn default() -> Self {
+        SearchSpec {
+            method: FitMethod::Enumerate,
+            seed: 0,
+            max_evals: default_max_evals(),
+            keep: default_keep(),
+            starts: default_starts(),
+            max_sets: default_max_sets(),
+            beam: default_beam(),
+            parallel: true,
+            trace: false,
+        }
+    }
+}
+
+/// A fit scene (see the module documentation for the format).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FitScene {
+    /// The chain; its defects are the truth used for synthetic data.
+    pub chain: ChainSpec,
+    /// The data.
+    #[serde(default)]
+    pub data: DataSpec,
+    /// The unknowns.
+    #[serde(default)]
+    pub unknowns: UnknownsSpec,
+    /// The residual.
+    #[serde(default)]
+    pub misfit: MisfitSpec,
+    /// The search.
+    #[serde(default)]
+    pub search: SearchSpec,
+}
+
+impl FitScene {
+    /// Parse a scene.
+    ///
+    /// # Errors
+    /// [`Error::Parse`] with the TOML message (unknown fields included).
+    pub fn from_toml(text: &str) -> Result<FitScene> {
+        toml::from_str(text).map_err(|e| Error::parse("fit scene", "", e.to_string().trim()))
+    }
+
+    /// Read and parse a scene file.
+    ///
+    /// # Errors
+    /// [`Error::Io`]; [`Error::Parse`].
+    pub fn load(path: impl AsRef<Path>) -> Result<FitScene> {
+        let text =
+            std::fs::read_to_string(path.as_ref()).map_err(|e| Error::io(path.as_ref(), e))?;
+        toml::from_str(&text).map_err(|e| {
+            Error::parse(
+                "fit scene",
+                path.as_ref().display().to_string(),
+                e.to_string().trim(),
+            )
+        })
+    }
+
+    /// A scene for synthetic data of `truth` with the defaults elsewhere.
+    pub fn synthetic(truth: &Chain) -> FitScene {
+        FitScene {
+            chain: ChainSpec::from(truth),
+            data: DataSpec::default(),
+            unknowns: UnknownsSpec::default(),
+            misfit: MisfitSpec::default(),
+            search: SearchSpec::default(),
+        }
+    }
+
+    /// The true chain (validated).
+    ///
+    /// # Errors
+    /// As [`ChainSpec::build`].
+    pub fn truth(&self) -> Result<Chain> {
+        self.chain.build()
+    }
+
+    /// The unknowns (validated against `chain.n`; `k` defaults to the number
+    /// of mass defects in `[chain]`).
+    ///
+    /// # Errors
+    /// As [`UnknownsSpec::build`].
+    pub fn unknowns(&self) -> Result<Unknowns> {
+        let k = self
+            .chain
+            .defects
+            .iter()
+            .filter(|d| matches!(d, Defect::Mass { .. }))
+            .count();
+        self.unknowns.build(self.chain.n, k)
+    }
+
+    /// The data described by `[data]`.
+    ///
+    /// # Errors
+    /// Invalid chain or noise; `series` (not available yet).
+    pub fn data(&self) -> Result<Data> {
+        match self.data.source {
+            DataSourceKind::Exact => {
+                Data::exact(&self.truth()?).with_noise(self.data.noise, self.data.seed)
+            }
+            DataSourceKind::Series => Err(Error::invalid(
+                "data.source",
+                "series",
+                "exact (time-series data need the time-series module, not in this build)",
+            )),
+        }
+    }
+
+    /// The fit options described by `[search]`.
+    pub fn options(&self) -> FitOptions {
+        let s = &self.search;
+        FitOptions {
+            method: s.method,
+            seed: s.seed,
+            max_evals: s.max_evals,
+            trace: s.trace,
+            enumerate: EnumerateOptions {
+                keep: s.keep,
+                starts: s.starts,
+                max_sets: s.max_sets,
+                beam: s.beam,
+                parallel: s.parallel,
+                ..EnumerateOptions::default()
+            },
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn example_config_parses() {
+        let text = include_str!("../../configs/table1-system3.toml");
+        let s = FitScene::from_toml(text).unwrap();
+        assert_eq!(s.chain.n, 20);
+        assert_eq!(s.unknowns().unwrap().k(), 2);
+        s.data().unwrap();
+    }
+
+    #[test]
+    fn errors_name_fields() {
+        let bad = |text: &str, field: &str| {
+            let s = FitScene::from_toml(text).unwrap();
+            match s.unknowns().and_then(|_| s.data()) {
+                Err(Error::InvalidParameter { field: f, .. }) => assert_eq!(f, field, "{text}"),
+                other => panic!("{text}: {other:?}"),
+            }
+        };
+        bad("[chain]\nn = 3\n[unknowns]\nk = 4\n", "unknowns.k");
+        bad(
+            "[chain]\nn = 3\n[unknowns]\nk = 1\nmass_bounds = [5, 5]\n",
+            "unknowns.mass_bounds",
+        );
+        bad(
+            "[chain]\nn = 3\n[unknowns]\nk = 2\n[[unknowns.defects]]\nat = 9\n",
+            "unknowns.defects[0].at",
+        );
+        bad(
+            "[chain]\nn = 3\n[unknowns]\nk = 2\n[[unknowns.defects]]\nat = 2\n[[unknowns.defects]]\nat = 2\n",
+            "unknowns.defects[1].at",
+        );
+        bad(
+            "[chain]\nn = 3\n[unknowns]\nk = 1\n[[unknowns.defects]]\nbounds = [3, 1]\n",
+            "unknowns.defects[0].bounds",
+        );
+        bad(
+            "[chain]\nn = 3\n[unknowns]\nk = 1\n[data]\nnoise = -1\n",
+            "data.noise",
+        );
+        bad(
+            "[chain]\nn = 3\n[unknowns]\nk = 1\n[data]\nsource = \"series\"\n",
+            "data.source",
+        );
+        assert!(matches!(
+            FitScene::from_toml("[chain]\nn = 3\n[misfit]\nkind = \"imaginary\"\n"),
+            Err(Error::Parse { .. })
+        ));
+    }
+}

@@ -1,0 +1,582 @@
+//! Exhaustive enumeration of position sets, with a local fit of the unknown
+//! masses for each set.
+//!
+//! For every admissible assignment of the unknown positions (a set of
+//! distinct positions when the defects are interchangeable, an ordered
+//! assignment otherwise; known positions excluded), the unknown masses are
+//! fitted by projected Levenberg-Marquardt in `u = ln m` inside their bounds,
+//! from the best point of a small grid of starts (`starts` per unknown mass,
+//! log-spaced, default 2). The Jacobian is analytic: `dX_1/dm_l = -gamma s^2 z_l^2` with
+//! `z = (I + G_JJ C)^{-1} G_J1` (see [`crate::detect::misfit`]), so one
+//! Gauss-Newton step costs one residual evaluation. Sets are fitted in
+//! parallel with rayon; the result is sorted by `(residual, positions)` and
+//! does not depend on the number of threads.
+//!
+//! # Cost
+//! Exhaustive: `C(a, p)` (interchangeable) or `a!/(a-p)!` set fits, `a` the
+//! number of allowed positions, `p` the number of unknown positions; each fit
+//! is `starts^f` grid evaluations plus typically 5 to 30 LM evaluations (`f`
+//! unknown masses), each evaluation `O(nodes k^3)`.
+//!
+//! When the count exceeds `max_sets`, a **beam search** (coarse-to-fine in
+//! the number of defects) replaces it: place the unknown-position defects one
+//! at a time, fitting all masses placed so far at every allowed position for
+//! each of the `beam` best partial hypotheses, and keep the `beam` best. Cost
+//! `about beam * p * a` set fits instead of `C(a, p)`; it is exact when every
+//! prefix of the truth ranks within the beam (true when the defects are
+//! ordered by their effect on `X_1`, which falls like `s^{-4(j-1)}` with depth
+//! `j`), and is not guaranteed otherwise.
+//!
+//! ```
+//! use springmass::{Chain, Defect};
+//! use springmass::detect::{data::Data, misfit::{Misfit, MisfitSpec}};
+//! use springmass::detect::space::{DefectUnknown, Unknowns};
+//! use springmass::detect::search::enumerate::{enumerate, EnumerateOptions};
+//! let truth = Chain::paper(5)?.with_defects([
+//!     Defect::Mass { at: 2, m: 3.0 }, Defect::Mass { at: 4, m: 0.5 }])?;
+//! let misfit = Misfit::new(&truth.uniform(), &Data::exact(&truth), &MisfitSpec::default())?;
+//! let unknowns = Unknowns::new(5, vec![DefectUnknown::free(0.1, 100.0); 2])?;
+//! let e = enumerate(&misfit, &unknowns, &EnumerateOptions::default())?;
+//! let best = &e.ranked[0];
+//! assert_eq!((best.defects[0].0, best.defects[1].0), (2, 4));
+//! assert!((best.defects[1].1 - 0.5).abs() < 1e-8);
+//! assert_eq!(e.sets, 10);
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+use crate::detect::misfit::Misfit;
+use crate::detect::space::{MassUnknown, Unknowns};
+use crate::error::{Error, Result};
+use crate::linalg::solve_in_place;
+use rayon::prelude::*;
+
+/// Options of [`enumerate`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnumerateOptions {
+    /// Hypotheses kept in the ranked list (default 10).
+    pub keep: usize,
+    /// Log-spaced starting values per unknown mass (default 2: a grid of
+    /// `2^f` starts for `f` unknown masses; the best starts the LM fit).
+    pub starts: usize,
+    /// Levenberg-Marquardt iterations per set (default 60).
+    pub max_iter: usize,
+    /// Largest number of sets enumerated exhaustively (default 200 000);
+    /// beyond it the beam search is used.
+    pub max_sets: usize,
+    /// Beam width of the beam search (default 16).
+    pub beam: usize,
+    /// Fit sets in parallel (rayon) (default true). The result is the same.
+    pub parallel: bool,
+}
+
+impl Default for EnumerateOptions {
+    fn default() -> Self {
+        EnumerateOptions {
+            keep: 10,
+            starts: 2,
+            max_iter: 60,
+            max_sets: 200_000,
+            beam: 16,
+            parallel: true,
+        }
+    }
+}
+
+/// One hypothesis: defects `(position, mass)` in the order of the unknowns
+/// (sorted by position when the defects are interchangeable) and its residual.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Hypothesis {
+    /// `(position, mass)` per defect.
+    pub defects: Vec<(usize, f64)>,
+    /// The residual `r` at the fitted masses.
+    pub residual: f64,
+}
+
+/// The outcome of [`enumerate`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Enumeration {
+    /// Best hypotheses, best first (at most `keep`).
+    pub ranked: Vec<Hypothesis>,
+    /// Number of position sets fitted.
+    pub sets: usize,
+    /// Residual evaluations.
+    pub evaluations: usize,
+    /// Whether every set was enumerated (false: beam search).
+    pub exhaustive: bool,
+}
+
+/// Number of position sets of the exhaustive enumeration, `None` on overflow.
+pub fn count_sets(unknowns: &Unknowns) -> Option<usize> {
+    let a = unknowns.allowed_positions().len();
+    let p = unknowns.free_positions().len();
+    let mut c: u128 = 1;
+    for i in 0..p {
+        c = c.checked_mul((a - i) as u128)?;
+        if unknowns.interchangeable() {
+            c /= (i + 1) as u128;
+        }
+    }
+    usize::try_from(c).ok()
+}
+
+/// Enumerate position sets, fit the masses of each, rank by residual.
+///
+/// # Errors
+/// `keep`, `starts`, `beam` or `max_iter` zero (fields `search.*`).
+pub fn enumerate(
+    misfit: &Misfit,
+    unknowns: &Unknowns,
+    opts: &EnumerateOptions,
+) -> Result<Enumeration> {
+    for (name, v) in [
+        ("search.keep", opts.keep),
+        ("search.starts", opts.starts),
+        ("search.beam", opts.beam),
+        ("search.max_iter", opts.max_iter),
+    ] {
+        if v == 0 {
+            return Err(Error::invalid(name, v, ">= 1"));
+        }
+    }
+    if unknowns.n() != misfit.chain().n() {
+        return Err(Error::invalid(
+            "unknowns.n",
+            unknowns.n(),
+            format!("the model chain's n = {}", misfit.chain().n()),
+        ));
+    }
+    match count_sets(unknowns) {
+        Some(c) if c <= opts.max_sets => exhaustive(misfit, unknowns, opts),
+        _ => beam(misfit, unknowns, opts),
+    }
+}
+
+fn exhaustive(
+    misfit: &Misfit,
+    unknowns: &Unknowns,
+    opts: &EnumerateOptions,
+) -> Result<Enumeration> {
+    let allowed = unknowns.allowed_positions();
+    let p = unknowns.free_positions().len();
+    let mut sets: Vec<Vec<usize>> = Vec::new();
+    let mut cur = Vec::with_capacity(p);
+    gen_sets(
+        &allowed,
+        p,
+        unknowns.interchangeable(),
+        0,
+        &mut cur,
+        &mut sets,
+    );
+    let fit_one = |set: &Vec<usize>| {
+        let slots = slots_for(unknowns, set, unknowns.free_positions().len());
+        fit_slots(misfit, &slots, opts)
+    };
+    let fitted: Vec<(Vec<(usize, f64)>, f64, usize)> = if opts.parallel {
+        sets.par_iter().map(fit_one).collect()
+    } else {
+        sets.iter().map(fit_one).collect()
+    };
+    Ok(finish(unknowns, fitted, sets.len(), true, opts.keep))
+}
+
+fn gen_sets(
+    allowed: &[usize],
+    p: usize,
+    comb: bool,
+    from: usize,
+    cur: &mut Vec<usize>,
+    out: &mut Vec<Vec<usize>>,
+) {
+    if cur.len() == p {
+        out.push(cur.clone());
+        return;
+    }
+    let start = if comb { from } else { 0 };
+    for i in start..allowed.len() {
+        let a = allowed[i];
+        if !comb && cur.contains(&a) {
+            continue;
+        }
+        cur.push(a);
+        gen_sets(allowed, p, comb, i + 1, cur, out);
+        cur.pop();
+    }
+}
+
+/// The slots `(position, mass)` of the known-position defects and of the
+/// first `placed` unknown-position defects, in defect order.
+fn slots_for(unknowns: &Unknowns, positions: &[usize], placed: usize) -> Vec<(usize, MassUnknown)> {
+    let free = unknowns.free_positions();
+    unknowns
+        .defects()
+        .iter()
+        .enumerate()
+        .filter_map(|(i, d)| match d.at {
+            Some(at) => Some((at, d.mass)),
+            None => {
+                let t = free.iter().position(|&f| f == i).expect("free index");
+                (t < placed).then(|| (positions[t], d.mass))
+            }
+        })
+        .collect()
+}
+
+fn finish(
+    unknowns: &Unknowns,
+    fitted: Vec<(Vec<(usize, f64)>, f64, usize)>,
+    sets: usize,
+    exhaustive: bool,
+    keep: usize,
+) -> Enumeration {
+    let evaluations = fitted.iter().map(|f| f.2).sum();
+    let mut ranked: Vec<Hypothesis> = fitted
+        .into_iter()
+        .map(|(mut defects, residual, _)| {
+            if unknowns.interchangeable() && unknowns.free_positions().len() == unknowns.k() {
+                defects.sort_by_key(|d| d.0);
+            }
+            Hypothesis { defects, residual }
+        })
+        .collect();
+    sort_hyps(&mut ranked);
+    ranked.truncate(keep);
+    Enumeration {
+        ranked,
+        sets,
+        evaluations,
+        exhaustive,
+    }
+}
+
+fn sort_hyps(h: &mut [Hypothesis]) {
+    h.sort_by(|a, b| {
+        a.residual.total_cmp(&b.residual).then_with(|| {
+            let pa: Vec<usize> = a.defects.iter().map(|d| d.0).collect();
+            let pb: Vec<usize> = b.defects.iter().map(|d| d.0).collect();
+            pa.cmp(&pb)
+        })
+    });
+}
+
+fn beam(misfit: &Misfit, unknowns: &Unknowns, opts: &EnumerateOptions) -> Result<Enumeration> {
+    let allowed = unknowns.allowed_positions();
+    let p = unknowns.free_positions().len();
+    let comb = unknowns.interchangeable();
+    let mut beam: Vec<Vec<usize>> = vec![Vec::new()];
+    let mut sets = 0;
+    let mut evaluations = 0;
+    let mut last: Vec<(Vec<usize>, Vec<(usize, f64)>, f64)> = Vec::new();
+    for t in 0..p {
+        let mut cands: Vec<Vec<usize>> = Vec::new();
+        for b in &beam {
+            for &a in &allowed {
+                if b.contains(&a) {
+                    continue;
+                }
+                let mut c = b.clone();
+                c.push(a);
+                if comb {
+                    let mut s = c.clone();
+                    s.sort_unstable();
+                    if cands.iter().any(|x| {
+                        let mut y = x.clone();
+                        y.sort_unstable();
+                        y == s
+                    }) {
+                        continue;
+                    }
+                }
+                cands.push(c);
+            }
+        }
+        let fit_one = |c: &Vec<usize>| fit_slots(misfit, &slots_for(unknowns, c, t + 1), opts);
+        let fitted: Vec<(Vec<(usize, f64)>, f64, usize)> = if opts.parallel {
+            cands.par_iter().map(fit_one).collect()
+        } else {
+            cands.iter().map(fit_one).collect()
+        };
+        sets += cands.len();
+        evaluations += fitted.iter().map(|f| f.2).sum::<usize>();
+        let mut scored: Vec<(Vec<usize>, Vec<(usize, f64)>, f64)> = cands
+            .into_iter()
+            .zip(fitted)
+            .map(|(c, (d, r, _))| (c, d, r))
+            .collect();
+        scored.sort_by(|a, b| a.2.total_cmp(&b.2).then_with(|| a.0.cmp(&b.0)));
+        scored.truncate(opts.beam.max(opts.keep));
+        beam = scored.iter().map(|s| s.0.clone()).collect();
+        last = scored;
+    }
+    if p == 0 {
+        let (d, r, e) = fit_slots(misfit, &slots_for(unknowns, &[], 0), opts);
+        return Ok(finish(unknowns, vec![(d, r, e)], 1, true, opts.keep));
+    }
+    let fitted = last.into_iter().map(|(_, d, r)| (d, r, 0)).collect();
+    let mut out = finish(unknowns, fitted, sets, false, opts.keep);
+    out.evaluations = evaluations;
+    Ok(out)
+}
+
+/// Fit the unknown masses of the slots (positions fixed). Returns the
+/// defects `(position, mass)`, the residual and the evaluations used.
+pub fn fit_slots(
+    misfit: &Misfit,
+    slots: &[(usize, MassUnknown)],
+    opts: &EnumerateOptions,
+) -> (Vec<(usize, f64)>, f64, usize) {
+    let base = misfit.chain().mass();
+    let pos: Vec<usize> = slots.iter().map(|s| s.0).collect();
+    let table = misfit.set(&pos);
+    let k = slots.len();
+    let mut m: Vec<f64> = slots
+        .iter()
+        .map(|s| match s.1 {
+            MassUnknown::Known(m) => m,
+            MassUnknown::Free { lo, hi } => (lo * hi).sqrt(),
+        })
+        .collect();
+    let free: Vec<(usize, f64, f64)> = slots
+        .iter()
+        .enumerate()
+        .filter_map(|(i, s)| match s.1 {
+            MassUnknown::Free { lo, hi } => Some((i, lo.ln(), hi.ln())),
+            MassUnknown::Known(_) => None,
+        })
+        .collect();
+    let dm_of = |m: &[f64]| -> Vec<f64> { m.iter().map(|x| x - base).collect() };
+    let mut evals = 0;
+    let done = |m: Vec<f64>, r: f64, e: usize| (pos.iter().copied().zip(m).collect(), r, e);
+    if free.is_empty() {
+        let r = table.residual(&dm_of(&m));
+        return done(m, r, 1);
+    }
+    let f = free.len();
+    // grid of starts (at most 729 points)
+    let mut g = opts.starts;
+    while g > 1 && g.checked_pow(f as u32).is_none_or(|t| t > 729) {
+        g -= 1;
+    }
+    let total = g.pow(f as u32);
+    let mut best = (f64::INFINITY, m.clone());
+    let mut trial = m.clone();
+    for idx in 0..total {
+        let mut rem = idx;
+        for &(slot, lo, hi) in &free {
+            let i = rem % g;
+            rem /= g;
+            trial[slot] = (lo + (hi - lo) * (i as f64 + 0.5) / g as f64).exp();
+        }
+        let r = table.residual(&dm_of(&trial));
+        evals += 1;
+        if r < best.0 {
+            best = (r, trial.clone());
+        }
+    }
+    m = best.1;
+    let mut u: Vec<f64> = free.iter().map(|&(s, _, _)| m[s].ln()).collect();
+    let mut grad = vec![0.0; k];
+    let mut hess = vec![0.0; k * k];
+    let mut r = table.gauss_newton(&dm_of(&m), &mut grad, &mut hess);
+    evals += 1;
+    let mut grad_t = grad.clone();
+    let mut hess_t = hess.clone();
+    let mut mu = 1e-3;
+    let mut a = vec![0.0; f * f];
+    let mut b = vec![0.0; f];
+    for _ in 0..opts.max_iter {
+        if r == 0.0 {
+            break;
+        }
+        // active set: a variable at a bound whose descent direction leaves
+        // the box is frozen for this step (plain clamping of the full step
+        // would stall the others)
+        let act: Vec<usize> = (0..f)
+            .filter(|&i| {
+                let (si, lo, hi) = free[i];
+                let gu = m[si] * grad[si];
+                !((u[i] <= lo && gu > 0.0) || (u[i] >= hi && gu < 0.0))
+            })
+            .collect();
+        let fa = act.len();
+        if fa == 0 {
+            break;
+        }
+        a.clear();
+        a.resize(fa * fa, 0.0);
+        b.clear();
+        b.resize(fa, 0.0);
+        for (i, &ii) in act.iter().enumerate() {
+            let si = free[ii].0;
+            b[i] = -m[si] * grad[si];
+            for (j, &jj) in act.iter().enumerate() {
+                let sj = free[jj].0;
+                a[i * fa + j] = m[si] * m[sj] * hess[si * k + sj];
+            }
+            a[i * fa + i] *= 1.0 + mu;
+            a[i * fa + i] += 1e-300;
+        }
+        if !solve_in_place(&mut a, &mut b, fa) || b.iter().any(|x| !x.is_finite()) {
+            mu *= 10.0;
+            if mu > 1e12 {
+                break;
+            }
+            continue;
+        }
+        let mut step = 0.0f64;
+        let mut trial = m.clone();
+        let mut u_new = u.clone();
+        for (i, &ii) in act.iter().enumerate() {
+            let (s, lo, hi) = free[ii];
+            u_new[ii] = (u[ii] + b[i]).clamp(lo, hi);
+            step = step.max((u_new[ii] - u[ii]).abs());
+            trial[s] = u_new[ii].exp();
+        }
+        if step < 1e-13 {
+            break;
+        }
+        // the trial point is evaluated with its Gauss-Newton pieces (one
+        // evaluation per iteration; the pieces are kept when it is accepted)
+        let r_new = table.gauss_newton(&dm_of(&trial), &mut grad_t, &mut hess_t);
+        evals += 1;
+        if r_new < r {
+            let small = r - r_new <= 1e-9 * r;
+            u = u_new;
+            m = trial;
+            r = r_new;
+            std::mem::swap(&mut grad, &mut grad_t);
+            std::mem::swap(&mut hess, &mut hess_t);
+            mu = (mu * 0.2).max(1e-15);
+            if small {
+                break;
+            }
+        } else {
+            mu *= 5.0;
+            if mu > 1e12 {
+                break;
+            }
+        }
+    }
+    done(m, r, evals)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::chain::{Chain, Defect};
+    use crate::detect::data::Data;
+    use crate::detect::misfit::MisfitSpec;
+    use crate::detect::space::DefectUnknown;
+
+    fn setup(n: usize, defs: &[(usize, f64)]) -> Misfit {
+        let truth = Chain::paper(n)
+            .unwrap()
+            .with_defects(defs.iter().map(|&(at, m)| Defect::Mass { at, m }))
+            .unwrap();
+        Misfit::new(
+            &truth.uniform(),
+            &Data::exact(&truth),
+            &MisfitSpec::default(),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn counts() {
+        let u = Unknowns::new(20, vec![DefectUnknown::free(0.1, 10.0); 2]).unwrap();
+        assert_eq!(count_sets(&u), Some(190));
+        let u = Unknowns::new(
+            20,
+            vec![
+                DefectUnknown {
+                    at: None,
+                    mass: MassUnknown::Known(3.0),
+                },
+                DefectUnknown {
+                    at: None,
+                    mass: MassUnknown::Known(7.0),
+                },
+            ],
+        )
+        .unwrap();
+        assert_eq!(count_sets(&u), Some(380));
+        let u = Unknowns::new(1000, vec![DefectUnknown::free(0.1, 10.0); 5]).unwrap();
+        assert!(count_sets(&u).unwrap() > 1_000_000_000_000);
+    }
+
+    #[test]
+    fn serial_equals_parallel_and_known_masses_are_ordered() {
+        let mis = setup(12, &[(3, 3.0), (9, 7.0)]);
+        let u = Unknowns::new(
+            12,
+            vec![
+                DefectUnknown {
+                    at: None,
+                    mass: MassUnknown::Known(7.0),
+                },
+                DefectUnknown {
+                    at: None,
+                    mass: MassUnknown::Known(3.0),
+                },
+            ],
+        )
+        .unwrap();
+        let par = enumerate(&mis, &u, &EnumerateOptions::default()).unwrap();
+        let ser = enumerate(
+            &mis,
+            &u,
+            &EnumerateOptions {
+                parallel: false,
+                ..EnumerateOptions::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(par, ser);
+        assert_eq!(par.sets, 132);
+        assert_eq!(par.ranked[0].defects, vec![(9, 7.0), (3, 3.0)]);
+        assert!(par.ranked[0].residual < 1e-28);
+        assert!(par.ranked[1].residual > 0.0);
+    }
+
+    #[test]
+    fn beam_search_finds_a_shallow_pair() {
+        let mis = setup(20, &[(4, 5.0), (11, 2.0)]);
+        let u = Unknowns::new(20, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
+        let opts = EnumerateOptions {
+            max_sets: 10,
+            beam: 4,
+            keep: 4,
+            ..EnumerateOptions::default()
+        };
+        let e = enumerate(&mis, &u, &opts).unwrap();
+        assert!(!e.exhaustive);
+        assert_eq!(e.sets, 20 + 4 * 19 - 6); // pairs inside the beam counted once
+        let best = &e.ranked[0];
+        assert_eq!(
+            best.defects.iter().map(|d| d.0).collect::<Vec<_>>(),
+            vec![4, 11]
+        );
+        assert!((best.defects[0].1 - 5.0).abs() < 1e-6 && (best.defects[1].1 - 2.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn known_position_with_free_mass() {
+        let mis = setup(10, &[(2, 4.0), (6, 0.3)]);
+        let u = Unknowns::new(
+            10,
+            vec![
+                DefectUnknown {
+                    at: Some(6),
+                    mass: MassUnknown::Free { lo: 0.1, hi: 10.0 },
+                },
+                DefectUnknown::free(0.1, 10.0),
+            ],
+        )
+        .unwrap();
+        let e = enumerate(&mis, &u, &EnumerateOptions::default()).unwrap();
+        assert_eq!(e.sets, 9);
+        let d = &e.ranked[0].defects;
+        assert_eq!((d[0].0, d[1].0), (6, 2));
+        assert!((d[0].1 - 0.3).abs() < 1e-8 && (d[1].1 - 4.0).abs() < 1e-8);
+    }
+}
