@@ -36,7 +36,7 @@ use crate::detect::lsq::{covariance, levenberg_marquardt, LeastSquares, LmFit, L
 use crate::detect::misfit_time::TimeMisfit;
 use crate::error::{check_f64, Error, Result};
 use crate::forward::Forward;
-use crate::sensitivity::{gradient, Param};
+use crate::sensitivity::{defect_gradient_with, gradient, Param};
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 
@@ -122,8 +122,26 @@ impl LaplaceObs {
 
     fn jacobian(&self, chain: &Chain, params: &[Param]) -> Result<DMatrix<f64>> {
         let mut rows: Vec<Vec<f64>> = Vec::with_capacity(2 * self.s.len());
+        // defect parameters only: O(k) per site by the transfer sweep
+        let defect_idx: Option<Vec<usize>> = params
+            .iter()
+            .map(|p| match p {
+                Param::Defect(i) => Some(*i),
+                _ => None,
+            })
+            .collect();
+        let fwd = Forward::new(chain);
         for q in 0..self.s.len() {
-            let g = gradient(chain, self.s[q], 1, params)?;
+            let g = match &defect_idx {
+                Some(idx) => {
+                    let all = defect_gradient_with(&fwd, self.s[q])?;
+                    crate::sensitivity::Gradient {
+                        value: all.value,
+                        grad: idx.iter().map(|&i| all.grad[i]).collect(),
+                    }
+                }
+                None => gradient(chain, self.s[q], 1, params)?,
+            };
             let sw = self.weights[q].sqrt();
             rows.push(g.grad.iter().map(|v| v.re * sw).collect());
             if self.s[q].im != 0.0 {

@@ -14,6 +14,7 @@
 //! | [`misfit_time`] | time-domain chi-square against a sampled series |
 //! | [`identify`] | standard errors, chi-square gaps, noise level of indistinguishability, flags |
 //! | [`select`] | number of defects by AIC, BIC or a chi-square test |
+//! | [`noisefit`] | fits to noisy sampled series with each misfit (noise study) |
 //! | [`chainfit`] | continuous fit of defect values and chain parameters (d, k, mass, gamma) |
 
 pub mod chainfit;
@@ -23,6 +24,7 @@ pub mod identify;
 pub mod lsq;
 pub mod misfit;
 pub mod misfit_time;
+pub mod noisefit;
 pub mod quadrature;
 pub mod scene;
 pub mod search;
