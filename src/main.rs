@@ -19,6 +19,8 @@ enum Command {
     Response(cmd::response::Args),
     /// Time-domain simulation x_i(t): impulse on mass 1, optional forces, CSV/SVG out.
     Simulate(cmd::simulate::Args),
+    /// Noise study: success vs noise per misfit, calibration, damping, number of defects.
+    NoiseStudy(cmd::noise::Args),
 }
 
 fn run() -> anyhow::Result<()> {
@@ -26,6 +28,7 @@ fn run() -> anyhow::Result<()> {
     match cli.command {
         Command::Response(a) => cmd::response::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
+        Command::NoiseStudy(a) => cmd::noise::run(a),
     }
 }
 

@@ -1,5 +1,6 @@
 //! Subcommands. Shared argument groups live here.
 
+pub mod noise;
 pub mod response;
 pub mod simulate;
 

@@ -15,6 +15,7 @@
 //! | [`identify`] | standard errors, chi-square gaps, noise level of indistinguishability, flags |
 //! | [`select`] | number of defects by AIC, BIC or a chi-square test |
 //! | [`noisefit`] | fits to noisy sampled series with each misfit (noise study) |
+//! | [`noise_study`] | success vs noise, calibration, unknown damping, number of defects |
 //! | [`chainfit`] | continuous fit of defect values and chain parameters (d, k, mass, gamma) |
 
 pub mod chainfit;
@@ -24,6 +25,7 @@ pub mod identify;
 pub mod lsq;
 pub mod misfit;
 pub mod misfit_time;
+pub mod noise_study;
 pub mod noisefit;
 pub mod quadrature;
 pub mod scene;
