@@ -21,7 +21,9 @@
 use crate::chain::{Chain, Defect};
 use crate::detect::chainfit::ChainFitReport;
 use crate::detect::misfit_time::TimeData;
-use crate::detect::noisefit::{fit_damping, fit_noisy, Hypothesis, MisfitChoice, Setup};
+use crate::detect::noisefit::{
+    fit_damping, fit_noisy, time_from_bromwich, Hypothesis, MisfitChoice, Setup,
+};
 use crate::detect::select::{select, Criterion, ModelFit, Selection};
 use crate::error::Result;
 use crate::noise::NoiseLevel;
@@ -171,16 +173,31 @@ pub fn success_table(
             let seed = task_seed(&[cfg.seed, si as u64, li as u64, r as u64]);
             let data = noisy_data(&s.truth, cfg, cfg.levels[li], seed)?;
             let k = s.truth.defects().len();
-            misfits
-                .iter()
-                .map(|&m| {
-                    let h = fit_noisy(&s.truth.uniform(), &data, k, m, setup)?;
-                    Ok((
-                        h[0].matches(&s.truth, cfg.mass_tol),
-                        h[0].positions_match(&s.truth),
-                    ))
-                })
-                .collect()
+            let base = s.truth.uniform();
+            let mut bromwich: Option<Vec<Hypothesis>> = None;
+            let mut out = Vec::with_capacity(misfits.len());
+            for &m in misfits {
+                let h = match m {
+                    MisfitChoice::RealAxis => fit_noisy(&base, &data, k, m, setup)?,
+                    MisfitChoice::Bromwich | MisfitChoice::Time => {
+                        if bromwich.is_none() {
+                            bromwich =
+                                Some(fit_noisy(&base, &data, k, MisfitChoice::Bromwich, setup)?);
+                        }
+                        let b = bromwich.as_ref().expect("set above");
+                        if m == MisfitChoice::Time {
+                            time_from_bromwich(&base, &data, b, setup)?
+                        } else {
+                            b.clone()
+                        }
+                    }
+                };
+                out.push((
+                    h[0].matches(&s.truth, cfg.mass_tol),
+                    h[0].positions_match(&s.truth),
+                ));
+            }
+            Ok(out)
         })
         .collect();
     let mut cells = Vec::new();

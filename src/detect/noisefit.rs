@@ -7,7 +7,7 @@
 //! * [`MisfitChoice::Bromwich`]: the same on the line `s = sigma_B + i omega`,
 //!   `omega in [0, W]` (default `sigma_B = 0.05`, a few over the record length
 //!   `T = 200` so that the unrecorded tail weighs `e^{-sigma_B T}`; `W = 4`, above
-//!   the chain's band `2 sqrt(k/mass)`), 160 nodes;
+//!   the chain's band `2 sqrt(k/mass)`), 80 nodes (`gl-uniform` 10x8);
 //! * [`MisfitChoice::Time`]: the time-domain chi-square ([`TimeMisfit`]).
 //!
 //! Laplace misfits weight node `q` by `w_q / v_q`, with `w_q` the rule's weight
@@ -26,6 +26,7 @@
 
 use crate::chain::{Chain, Defect};
 use crate::detect::chainfit::{fit_chain, LaplaceObs, Obs};
+use crate::detect::identify::{identify, Alternative, FittedDefect, Identifiability};
 use crate::detect::lsq::{levenberg_marquardt, LmOptions};
 use crate::detect::misfit_time::{TimeData, TimeMisfit};
 use crate::detect::quadrature::Rule;
@@ -94,13 +95,15 @@ pub struct Setup {
     pub mass_bounds: (f64, f64),
     /// Sets kept after the coarse pass.
     pub shortlist: usize,
+    /// Bromwich sets refitted in the time domain.
+    pub time_shortlist: usize,
     /// LM iterations of the coarse pass.
     pub coarse_iter: usize,
 }
 
 impl Setup {
     /// Defaults (see the module docs): mass bounds `[0.1, 50]`, shortlist 8,
-    /// 6 coarse iterations.
+    /// time shortlist 5, 4 coarse iterations.
     ///
     /// # Errors
     /// Never in practice (fixed valid rules).
@@ -108,10 +111,11 @@ impl Setup {
         Ok(Setup {
             real_rule: Rule::gauss_legendre_log(0.0, 300.0, 10, 8, 0.05)?,
             bromwich_sigma: 0.05,
-            bromwich_rule: Rule::gauss_legendre_uniform(0.0, 4.0, 20, 8)?,
+            bromwich_rule: Rule::gauss_legendre_uniform(0.0, 4.0, 10, 8)?,
             mass_bounds: (0.1, 50.0),
             shortlist: 8,
-            coarse_iter: 6,
+            time_shortlist: 5,
+            coarse_iter: 4,
         })
     }
 }
@@ -406,10 +410,61 @@ pub fn fit_noisy(
         MisfitChoice::Time => {
             let obs = laplace_obs(data, MisfitChoice::Bromwich, setup)?;
             let ranked = enumerate_laplace(base, &obs, k, setup)?;
-            let n = setup.shortlist.min(ranked.len());
-            refine_time(base, &TimeMisfit::new(data.clone()), &ranked[..n], setup)
+            time_from_bromwich(base, data, &ranked, setup)
         }
     }
+}
+
+/// The time-domain ranking from a Bromwich ranking (its first
+/// `setup.time_shortlist` sets refitted by [`refine_time`]).
+///
+/// # Errors
+/// As [`refine_time`].
+pub fn time_from_bromwich(
+    base: &Chain,
+    data: &TimeData,
+    bromwich: &[Hypothesis],
+    setup: &Setup,
+) -> Result<Vec<Hypothesis>> {
+    let n = setup.time_shortlist.min(bromwich.len());
+    refine_time(base, &TimeMisfit::new(data.clone()), &bromwich[..n], setup)
+}
+
+/// The identifiability report of a ranked list (best first), for the data's
+/// noise level `sigma` (see [`crate::detect::identify`]). `uniform` is the
+/// uniform mass.
+///
+/// # Errors
+/// An empty list; as [`identify`].
+pub fn identify_ranked(
+    ranked: &[Hypothesis],
+    uniform: f64,
+    sigma: f64,
+    threshold: Option<f64>,
+) -> Result<Identifiability> {
+    let best = ranked
+        .first()
+        .ok_or_else(|| Error::invalid("ranked", 0, "at least one hypothesis"))?;
+    let defects: Vec<FittedDefect> = best
+        .positions
+        .iter()
+        .zip(&best.masses)
+        .zip(&best.std_errors)
+        .map(|((&at, &value), &std_error)| FittedDefect {
+            at,
+            value,
+            std_error,
+            uniform,
+        })
+        .collect();
+    let alts: Vec<Alternative> = ranked[1..]
+        .iter()
+        .map(|h| Alternative {
+            positions: h.positions.clone(),
+            chi2: h.chi2,
+        })
+        .collect();
+    identify(&defects, best.chi2, &alts, sigma, threshold)
 }
 
 /// Fit the chain's damping `d` (and the masses) at the positions of `hyp` in
