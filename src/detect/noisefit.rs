@@ -103,7 +103,7 @@ pub struct Setup {
 
 impl Setup {
     /// Defaults (see the module docs): mass bounds `[0.1, 50]`, shortlist 8,
-    /// time shortlist 5, 4 coarse iterations.
+    /// time shortlist 5, 12 coarse iterations.
     ///
     /// # Errors
     /// Never in practice (fixed valid rules).
@@ -115,7 +115,7 @@ impl Setup {
             mass_bounds: (0.1, 50.0),
             shortlist: 8,
             time_shortlist: 5,
-            coarse_iter: 4,
+            coarse_iter: 12,
         })
     }
 }
