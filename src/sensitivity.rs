@@ -278,28 +278,22 @@ pub fn gradient<T: Scalar>(
             },
             Param::Mass => {
                 let mut acc = T::zero();
-                for i in 1..=n {
-                    if !mass_def[i] {
-                        acc = acc + point(i);
-                    }
+                for (i, _) in mass_def.iter().enumerate().skip(1).filter(|(_, d)| !**d) {
+                    acc = acc + point(i);
                 }
                 s2.clone() * acc
             }
             Param::D => {
                 let mut acc = T::zero();
-                for i in 1..=n {
-                    if !damp_def[i] {
-                        acc = acc + point(i);
-                    }
+                for (i, _) in damp_def.iter().enumerate().skip(1).filter(|(_, d)| !**d) {
+                    acc = acc + point(i);
                 }
                 s.clone() * acc
             }
             Param::K => {
                 let mut acc = T::zero();
-                for j in 0..=n {
-                    if !spring_def[j] {
-                        acc = acc + spring(j);
-                    }
+                for (j, _) in spring_def.iter().enumerate().filter(|(_, d)| !**d) {
+                    acc = acc + spring(j);
                 }
                 acc
             }

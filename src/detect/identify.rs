@@ -165,7 +165,7 @@ pub fn identify(
                     ));
                 }
             }
-            if !(significance >= 2.0) {
+            if significance.is_nan() || significance < 2.0 {
                 reasons.push(format!(
                     "value {:.4} is within {significance:.2} standard errors of the uniform {}",
                     d.value, d.uniform

@@ -175,7 +175,7 @@ pub fn covariance(j: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     let svd = js.svd(false, true);
     let smax = svd.singular_values.max();
     let smin = svd.singular_values.min();
-    if !(smin > 1e-13 * smax) {
+    if smin.is_nan() || smin <= 1e-13 * smax {
         return Err(Error::Unresolvable {
             reason: format!(
                 "the data do not constrain all {p} parameters (singular value ratio {:.1e})",
@@ -222,7 +222,7 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
         ));
     }
     for (i, &(lo, hi)) in bounds.iter().enumerate() {
-        if !(lo < hi) {
+        if lo.is_nan() || hi.is_nan() || lo >= hi {
             return Err(Error::invalid(
                 format!("bounds[{i}]"),
                 format!("({lo}, {hi})"),

@@ -257,7 +257,8 @@ pub fn calibration(
     repeats: usize,
 ) -> Result<Calibration> {
     let k = truth.defects().len();
-    let runs: Vec<Result<(Vec<f64>, Vec<f64>, f64)>> = (0..repeats)
+    type Run = Result<(Vec<f64>, Vec<f64>, f64)>;
+    let runs: Vec<Run> = (0..repeats)
         .into_par_iter()
         .map(|r| {
             let data = noisy_data(truth, cfg, level, task_seed(&[cfg.seed, 77, r as u64]))?;
