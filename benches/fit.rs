@@ -118,7 +118,7 @@ fn bench(c: &mut Criterion) {
     bench_generic(c, "");
 }
 
-fn bench_generic<M: Measurement>(c: &mut Criterion<M>, prefix: &str) {
+fn bench_generic<M: Measurement + 'static>(c: &mut Criterion<M>, prefix: &str) {
     let (n, defs) = TABLE1[2];
     let chain = truth(n, &defs);
     let spec = MisfitSpec::default();
@@ -126,20 +126,20 @@ fn bench_generic<M: Measurement>(c: &mut Criterion<M>, prefix: &str) {
     assert_eq!(mis.nodes(), 80);
     let set = mis.set(&[8, 15]);
     let dm = [3.9, 1.1];
-    c.bench_function(format!("{prefix}residual_k2_80"), |b| {
+    c.bench_function(&format!("{prefix}residual_k2_80"), |b| {
         b.iter(|| set.residual(black_box(&dm)))
     });
-    c.bench_function(format!("{prefix}residual_general_k2_80"), |b| {
+    c.bench_function(&format!("{prefix}residual_general_k2_80"), |b| {
         b.iter(|| set.residual_general(black_box(&dm)))
     });
     let (mut g, mut h) = ([0.0; 2], [0.0; 4]);
-    c.bench_function(format!("{prefix}gauss_newton_k2_80"), |b| {
+    c.bench_function(&format!("{prefix}gauss_newton_k2_80"), |b| {
         b.iter(|| set.gauss_newton(black_box(&dm), &mut g, &mut h))
     });
-    c.bench_function(format!("{prefix}gather_set_80"), |b| {
+    c.bench_function(&format!("{prefix}gather_set_80"), |b| {
         b.iter(|| mis.set(black_box(&[8, 15])))
     });
-    c.bench_function(format!("{prefix}setup/system3"), |b| {
+    c.bench_function(&format!("{prefix}setup/system3"), |b| {
         b.iter(|| Misfit::new(&chain.uniform(), &Data::exact(&chain), &spec).unwrap())
     });
     let opts = EnumerateOptions {

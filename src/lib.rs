@@ -35,6 +35,7 @@
 //! | [`scalar`] | the number types the model is generic over (`f64`, `Complex64`, extended precision) |
 //! | [`green`] | closed-form Green's function, overflow-free for every `n` and `s` |
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
+//! | [`control`] | vibration suppression (Theorem 3.1, Corollary 3.2): Laplace, exact time domain, verification |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
 //! | [`sensitivity`] | derivatives of X_o(s) with respect to every parameter (reciprocity) |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
@@ -42,9 +43,10 @@
 //! | [`time`] | simulation ([`time::simulate`]), exact ([`time::modal`]) and numerical ([`time::inverse`]) inverse Laplace transforms, transform of sampled series ([`time::series`]) |
 //! | [`noise`] | seeded additive white Gaussian noise |
 //! | [`error`] | one error type; every variant names the field and its range |
-//! | [`detect`] | defect fitting: data, quadrature, residuals, unknowns, enumeration, `fit` |
+//! | [`detect`] | defect fitting: data, quadrature, residuals, unknowns, [`detect::search`] (enumeration, GA, Nelder-Mead, particle swarm), `fit` |
 
 pub mod chain;
+pub mod control;
 pub mod detect;
 pub mod error;
 pub mod forward;

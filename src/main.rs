@@ -19,6 +19,14 @@ enum Command {
     Response(cmd::response::Args),
     /// Time-domain simulation x_i(t): impulse on mass 1, optional forces, CSV/SVG out.
     Simulate(cmd::simulate::Args),
+    /// Vibration suppression controls (Theorem 3.1, Corollary 3.2), verified by simulation.
+    Suppress(cmd::suppress::Args),
+    /// Laplace transform X(s) of a sampled series (CSV), with error estimates.
+    Laplace(cmd::laplace::Args),
+    /// Fit defect positions and masses to X_1 data (enumerate, ga, nelder-mead, pso).
+    Fit(cmd::fit::Args),
+    /// Residual surfaces r(j, m) and r(j1, j2) (the paper's Figures 16 and 17), CSV + SVG.
+    Surface(cmd::surface::Args),
     /// Noise study: success vs noise per misfit, calibration, damping, number of defects.
     NoiseStudy(cmd::noise::Args),
 }
@@ -28,6 +36,10 @@ fn run() -> anyhow::Result<()> {
     match cli.command {
         Command::Response(a) => cmd::response::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
+        Command::Suppress(a) => cmd::suppress::run(a),
+        Command::Laplace(a) => cmd::laplace::run(a),
+        Command::Fit(a) => cmd::fit::run(a),
+        Command::Surface(a) => cmd::surface::run(a),
         Command::NoiseStudy(a) => cmd::noise::run(a),
     }
 }

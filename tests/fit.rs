@@ -44,7 +44,7 @@ fn enumeration_recovers_every_table1_system_exactly() {
                 );
             }
             assert!(report.residual < 1e-26, "{}", report.residual);
-            assert!(report.resolved);
+            assert!(report.resolved && report.fits_data);
             let gap = report.runners_up[0].gap;
             assert!(gap > 1e3 * report.floor, "system {}: gap {gap:e}", sys + 1);
             assert_eq!(report.sets, Some(n * (n - 1) / 2));
@@ -99,6 +99,45 @@ fn bad_scenes_are_typed_errors_naming_the_field() {
 }
 
 #[test]
+fn bromwich_line_resolves_system3_where_the_real_axis_cannot() {
+    // 1e-4 relative noise: the real-axis residual cannot see the second
+    // defect (gap 1.4e-13 against a floor of 5e-9); on the Bromwich line the
+    // gap is 6.8e-7 (Parseval: time-domain conditioning) and the truth is found
+    let (n, defs) = TABLE1[2];
+    let mut scene = FitScene::synthetic(&truth(n, &defs));
+    scene.data.noise = 1e-4;
+    scene.misfit.kind = MisfitKind::Bromwich;
+    let report = fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
+    let pos: Vec<usize> = report.defects.iter().map(|d| d.at()).collect();
+    assert_eq!(pos, vec![8, 15], "{report:?}");
+    assert!(report.resolved && report.fits_data);
+    assert!((report.defects[1].value() - 2.0).abs() < 0.05);
+}
+
+#[test]
+fn a_model_missing_a_defect_does_not_fit_the_data() {
+    let (n, defs) = TABLE1[1];
+    let mut scene = FitScene::synthetic(&truth(n, &defs));
+    scene.unknowns.k = Some(1);
+    let report = fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
+    assert_eq!(report.defects.len(), 1);
+    assert_eq!(report.defects[0].at(), 3);
+    assert!(!report.fits_data, "{report:?}");
+}
+
+#[test]
+fn beam_search_reports_its_cost_and_finds_table1_system3() {
+    let (n, defs) = TABLE1[2];
+    let mut scene = FitScene::synthetic(&truth(n, &defs));
+    scene.search.max_sets = 50; // force the beam search
+    let report = fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
+    assert_eq!(report.exhaustive, Some(false));
+    let pos: Vec<usize> = report.defects.iter().map(|d| d.at()).collect();
+    assert_eq!(pos, vec![8, 15]);
+    assert!(report.fits_data);
+}
+
+#[test]
 fn enumeration_is_deterministic_across_threads() {
     let chain = truth(10, &[(3, 3.0), (7, 2.0)]);
     let mis = Misfit::new(
@@ -139,14 +178,55 @@ fn noise_above_the_gap_is_flagged_unresolved() {
 }
 
 #[test]
-fn methods_not_in_this_build_say_so() {
-    let chain = truth(5, &[(2, 3.0)]);
-    let scene = FitScene::synthetic(&chain);
-    let mut opts = scene.options();
-    opts.method = FitMethod::Ga;
-    let r = fit(&scene, &scene.data().unwrap(), &opts);
-    if let Err(e) = r {
-        assert!(matches!(e, Error::InvalidParameter { ref field, .. } if field == "search.method"));
+fn stochastic_methods_run_seeded_through_fit() {
+    let (n, defs) = TABLE1[0];
+    let chain = truth(n, &defs);
+    let mut scene = FitScene::synthetic(&chain);
+    scene.search.max_evals = 3000;
+    scene.search.trace = true;
+    let data = scene.data().unwrap();
+    for m in [FitMethod::Ga, FitMethod::NelderMead, FitMethod::Pso] {
+        let mut opts = scene.options();
+        opts.method = m;
+        opts.seed = 5;
+        let a = fit(&scene, &data, &opts).unwrap();
+        let b = fit(&scene, &data, &opts).unwrap();
+        assert_eq!(a.defects, b.defects, "{m:?} not reproducible");
+        assert_eq!(a.evaluations, b.evaluations);
+        assert!(a.residual.is_finite() && a.residual >= 0.0);
+        assert!(
+            a.evaluations > 0 && a.evaluations <= 3000 + 500,
+            "{m:?}: {}",
+            a.evaluations
+        );
+        assert!(!a.trace.is_empty());
+        assert!(!a.runners_up.is_empty());
+    }
+    // the optimizers' spaces are unordered: distinct known masses need enumerate
+    let text = "[chain]\nn = 8\n[unknowns]\nk = 2\n[[unknowns.defects]]\nm = 3.0\n[[unknowns.defects]]\nm = 7.0\n[search]\nmethod = \"ga\"\n";
+    let sc = FitScene::from_toml(text).unwrap();
+    match fit(&sc, &Data::exact(&Chain::paper(8).unwrap()), &sc.options()) {
+        Err(Error::InvalidParameter { field, .. }) => assert_eq!(field, "search.method"),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn enumeration_recovers_table1_from_simulated_time_series() {
+    // the paper's pipeline: simulate x_1(t) on [0, 300] (dt 0.05), transform
+    for &(n, defs) in &TABLE1 {
+        let chain = truth(n, &defs);
+        let mut scene = FitScene::synthetic(&chain);
+        scene.data.source = springmass::detect::scene::DataSourceKind::Simulated;
+        let report = fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
+        for (g, t) in report.defects.iter().zip(&defs) {
+            assert_eq!(g.at(), t.0, "{defs:?}: {:?}", report.defects);
+            assert!(
+                (g.value() - t.1).abs() < 1e-3 * t.1,
+                "{defs:?}: {:?}",
+                report.defects
+            );
+        }
     }
 }
 
@@ -183,5 +263,105 @@ fn fixed_rules_against_the_adaptive_reference() {
                 assert!(rel < 1e-2, "rule {panels}x{per}: rel err {rel:e}");
             }
         }
+        // the Bromwich line's default rule (40 x 8 on omega in [0, 4], sigma 0.1)
+        let spec = MisfitSpec {
+            kind: MisfitKind::Bromwich,
+            ..MisfitSpec::default()
+        };
+        let mis = Misfit::new(&chain.uniform(), &data, &spec).unwrap();
+        let u = Unknowns::new(n, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
+        let e = enumerate(&mis, &u, &EnumerateOptions::default()).unwrap();
+        let runner = &e.ranked[1];
+        let reference = mis.reference(&runner.defects, &adaptive).unwrap();
+        let rel = (runner.residual - reference.value).abs() / reference.value;
+        println!(
+            "n={n} {defs:?} bromwich {} nodes: runner-up {:?} r_fixed {:.6e} r_ref {:.6e} rel err {rel:.1e}",
+            mis.nodes(),
+            runner.defects.iter().map(|d| d.0).collect::<Vec<_>>(),
+            runner.residual,
+            reference.value
+        );
+        assert!(rel < 1e-3);
     }
+}
+
+#[test]
+fn cli_fit_and_surface() {
+    let exe = env!("CARGO_BIN_EXE_springmass");
+    let root = env!("CARGO_MANIFEST_DIR");
+    let out = std::process::Command::new(exe)
+        .args([
+            "fit",
+            "--scene",
+            &format!("{root}/configs/table1-system3.toml"),
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let d = v["defects"].as_array().unwrap();
+    assert_eq!(
+        (d[0]["at"].as_u64(), d[1]["at"].as_u64()),
+        (Some(8), Some(15))
+    );
+    assert_eq!(v["nodes"].as_u64(), Some(80));
+    assert!(v["runners_up"][0]["gap"].as_f64().unwrap() > 1e-14);
+
+    let dir = std::env::temp_dir().join(format!("springmass-fit-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "[chain]\nn = 3\n[unknowns]\nk = 4\n").unwrap();
+    let out = std::process::Command::new(exe)
+        .args(["fit", "--scene", bad.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let msg = String::from_utf8_lossy(&out.stderr);
+    assert!(msg.contains("unknowns.k"), "{msg}");
+
+    for (cfg, kind) in [("figure16", "jm"), ("figure17", "pair")] {
+        let prefix = dir.join(cfg);
+        let out = std::process::Command::new(exe)
+            .args([
+                "surface",
+                "--scene",
+                &format!("{root}/configs/{cfg}.toml"),
+                "--kind",
+                kind,
+                "--out",
+                prefix.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let csv = std::fs::read_to_string(prefix.with_extension("csv")).unwrap();
+        // the minimum of the surface is the truth
+        let best = csv
+            .lines()
+            .skip(1)
+            .map(|l| {
+                l.split(',')
+                    .map(|x| x.parse::<f64>().unwrap())
+                    .collect::<Vec<_>>()
+            })
+            .min_by(|a, b| a[2].total_cmp(&b[2]))
+            .unwrap();
+        match kind {
+            "jm" => assert_eq!(best[0], 3.0),
+            _ => assert_eq!((best[0], best[1]), (10.0, 15.0)),
+        }
+        assert!(std::fs::read_to_string(prefix.with_extension("svg"))
+            .unwrap()
+            .contains("<svg"));
+    }
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -273,3 +273,37 @@ fn talbot_alone_is_wrong_at_long_times() {
         assert_eq!(r.talbot_agrees, Some(false));
     }
 }
+
+#[test]
+fn inverse_of_the_forward_model_matches_the_modal_sum() {
+    use springmass::forward::Forward;
+    use springmass::time::modal::ModalResponse;
+    use springmass::{Chain, Defect};
+    let chain = Chain::paper(5)
+        .unwrap()
+        .with_defect(Defect::Mass { at: 3, m: 4.0 })
+        .unwrap();
+    let fwd = Forward::new(&chain);
+    let modal = ModalResponse::impulse(&chain, 1).unwrap();
+    let f = |s: Complex64| fwd.eval(s, 1).unwrap_or(Complex64::new(f64::NAN, 0.0));
+    let mut accepted = 0;
+    for t in [0.5, 1.0, 3.0, 10.0, 20.0, 30.0, 50.0, 80.0] {
+        let exact = modal.eval(t);
+        match invert(&f, t, &InverseOptions::default()) {
+            Ok(r) => {
+                accepted += 1;
+                assert!(
+                    (r.value - exact).abs() <= r.err,
+                    "t={t}: {} vs {exact} (err {})",
+                    r.value,
+                    r.err
+                );
+            }
+            Err(e) => assert!(
+                matches!(e, Error::Numerical { .. }) && t > 20.0,
+                "t={t}: {e}"
+            ),
+        }
+    }
+    assert!(accepted >= 5);
+}

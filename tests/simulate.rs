@@ -28,6 +28,7 @@ fn paper(n: usize, defects: &[(usize, f64)]) -> Chain {
 fn reference_path(scene: &str) -> Option<std::path::PathBuf> {
     let name = format!("time_{scene}.json");
     [
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/reference"),
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data"),
         std::path::PathBuf::from("/work/shared/reference"),
     ]
@@ -407,6 +408,9 @@ fn cli_noise_is_seeded_and_forces_are_read() {
     assert_ne!(a, c);
     let d = max_diff(a.column("x6").unwrap(), clean.column("x6").unwrap());
     assert!(d > 1e-4 && d < 0.1, "{d}");
+    let e = with(&["--noise", "snr:40", "--seed", "7"]);
+    assert_ne!(e, clean);
+    assert_eq!(e, with(&["--noise", "snr:40", "--seed", "7"]));
     // a force file: f6 acts on mass 6
     let dir = tmp_dir("force");
     let f = dir.join("f.csv");
@@ -443,6 +447,7 @@ fn cli_bad_input() {
         ),
         (vec!["--n", "5", "--observe", "1,6"], "observe"),
         (vec!["--n", "5", "--noise", "-1"], "noise"),
+        (vec!["--n", "5", "--noise", "loud:3"], "noise"),
         (vec!["--n", "5", "--method", "euler"], "method"),
         (
             vec!["--n", "5", "--force", "/nonexistent/f.csv"],
@@ -455,5 +460,100 @@ fn cli_bad_input() {
             err.contains(needle) && err.lines().count() == 1,
             "{args:?}: {err}"
         );
+    }
+}
+
+// ---------------------------------------------------------------- property tests
+
+mod props {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn arb_chain() -> impl Strategy<Value = Chain> {
+        (
+            1usize..=14,
+            prop_oneof![Just(0.0), 0.001f64..0.05, 0.05f64..3.0],
+            0.3f64..4.0,
+            0.3f64..4.0,
+            proptest::collection::vec((0u8..3, 0usize..15, 0.05f64..12.0), 0..4),
+        )
+            .prop_map(|(n, d, k, mass, defs)| {
+                let mut c = Chain::new(n)
+                    .unwrap()
+                    .with_d(d)
+                    .unwrap()
+                    .with_k(k)
+                    .unwrap()
+                    .with_mass(mass)
+                    .unwrap();
+                for (kind, at, v) in defs {
+                    let def = match kind {
+                        0 => Defect::Mass {
+                            at: 1 + at % n,
+                            m: v,
+                        },
+                        1 => Defect::Spring {
+                            at: at % (n + 1),
+                            k: v,
+                        },
+                        _ => Defect::Damper {
+                            at: 1 + at % n,
+                            d: v,
+                        },
+                    };
+                    if let Ok(c2) = c.clone().with_defect(def) {
+                        c = c2;
+                    }
+                }
+                c
+            })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(96))]
+
+        /// The residue sum's transform is the forward model, and the
+        /// simulator (both stepping methods) matches the residue sum.
+        #[test]
+        fn modal_simulator_and_laplace_model_agree(chain in arb_chain()) {
+            let n = chain.n();
+            let modal = ModalResponse::impulse(&chain, n).unwrap();
+            for s in [Complex64::new(0.3, 0.9), Complex64::new(1.0, 0.0), Complex64::new(0.05, 2.0)] {
+                let want = response(&chain, s, n).unwrap();
+                let got = modal.laplace(s);
+                prop_assert!((got - want).norm() <= 1e-9 * want.norm() + 1e3 * modal.error_bound(),
+                    "{chain:?} s={s}: {got} vs {want}");
+            }
+            let opts = SimOptions::new(40.0, 0.5).with_observe(vec![n]);
+            let ex = modal.eval_many(&opts.samples(&chain).map(|k| (0..k).map(|i| i as f64 * 0.5).collect::<Vec<_>>()).unwrap());
+            let scale = ex.iter().fold(1e-3_f64, |a, b| a.max(b.abs()));
+            for m in [Method::Expm, Method::Rk] {
+                let tr = simulate(&chain, &opts.clone().with_method(m)).unwrap();
+                let e = max_diff(tr.x(n).unwrap(), &ex);
+                prop_assert!(e <= 1e-11 * scale + 10.0 * modal.error_bound(),
+                    "{chain:?} {m}: {e:e} (scale {scale:e}, bound {:e})", modal.error_bound());
+            }
+        }
+    }
+}
+
+#[test]
+fn large_chain_forced_rk_matches_exact_convolution() {
+    // n = 10^4 (closed-form modes), a damped oscillating force on mass 5
+    let n = 10_000;
+    let chain = Chain::paper(n).unwrap();
+    let (amp, q) = (Complex64::new(0.3, 0.2), Complex64::new(-0.1, 1.3));
+    let forcing = Forcing::new().on(5, move |t| (amp * (q * t).exp()).re);
+    let opts = SimOptions::new(15.0, 0.5).with_observe(vec![1, 5]);
+    let tr = simulate_forced(&chain, &opts, &forcing).unwrap();
+    assert_eq!(tr.method, Method::Rk);
+    for obs in [1, 5] {
+        let ex: Vec<f64> =
+            tr.t.iter()
+                .map(|&t| exact_forced(&chain, obs, 5, amp, q, t))
+                .collect();
+        let e = max_diff(tr.x(obs).unwrap(), &ex);
+        println!("n = 10^4 forced rk: x{obs} max error {e:.2e}");
+        assert!(e < 1e-12, "x{obs}: {e:e}");
     }
 }

@@ -260,3 +260,164 @@ fn bad_input_names_field_or_line() {
         .to_string();
     assert!(e.contains("degree"), "{e}");
 }
+
+#[test]
+fn cli_laplace_text_json_and_errors() {
+    use std::process::Command;
+    let n = 4;
+    let chain = Chain::paper(n).unwrap();
+    let fwd = Forward::new(&chain);
+    let (t, x) = sampled(n, chain.d(), 0.01, 300.0);
+    let ts = TimeSeries::new(t, vec![("x1".into(), x)]).unwrap();
+    let dir = std::env::temp_dir().join(format!("springmass-laplace-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("x1.csv");
+    ts.write_csv(&csv).unwrap();
+    let bin = env!("CARGO_BIN_EXE_springmass");
+    let out = Command::new(bin)
+        .args([
+            "laplace",
+            "--series",
+            csv.to_str().unwrap(),
+            "--s",
+            "0.5,0.05+1i",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let pts = v["points"].as_array().unwrap();
+    assert_eq!(pts.len(), 2);
+    for p in pts {
+        let s = Complex64::new(p["s"][0].as_f64().unwrap(), p["s"][1].as_f64().unwrap());
+        let x = Complex64::new(p["x"][0].as_f64().unwrap(), p["x"][1].as_f64().unwrap());
+        let err = p["err"].as_f64().unwrap();
+        let exact = fwd.eval(s, 1).unwrap();
+        assert!(
+            (x - exact).norm() <= err && err < 1e-9,
+            "{s}: {x} vs {exact}, err {err}"
+        );
+    }
+    // text output has a header and one row per s
+    let out = Command::new(bin)
+        .args([
+            "laplace",
+            "--series",
+            csv.to_str().unwrap(),
+            "--column",
+            "x1",
+            "--s",
+            "1,2,3",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        text.lines().filter(|l| !l.starts_with('#')).count(),
+        4,
+        "{text}"
+    );
+    // errors: missing column, bad CSV (duplicate time, naming the line), bad s
+    let bad = dir.join("bad.csv");
+    std::fs::write(&bad, "t,x1\n0,0\n0.5,1\n0.5,2\n1,3\n").unwrap();
+    for (args, needle) in [
+        (
+            vec![
+                "--series",
+                csv.to_str().unwrap(),
+                "--column",
+                "x9",
+                "--s",
+                "1",
+            ],
+            "x9",
+        ),
+        (
+            vec!["--series", bad.to_str().unwrap(), "--s", "1"],
+            "line 4",
+        ),
+        (
+            vec!["--series", csv.to_str().unwrap(), "--s", "1+zi"],
+            "1+zi",
+        ),
+    ] {
+        let out = Command::new(bin)
+            .arg("laplace")
+            .args(&args)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle) && err.lines().count() == 1, "{err}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn defect_chains_from_the_modal_sum_match_the_forward_model() {
+    use springmass::time::modal::ModalResponse;
+    use springmass::Defect;
+    // P2 (n=5, mass 4 at 3), S3 (n=20, masses 5 at 8 and 2 at 15), and a
+    // spring + damper defect chain; dt = 0.01 on [0, 300].
+    let chains = [
+        Chain::paper(5)
+            .unwrap()
+            .with_defect(Defect::Mass { at: 3, m: 4.0 })
+            .unwrap(),
+        Chain::paper(20)
+            .unwrap()
+            .with_defect(Defect::Mass { at: 8, m: 5.0 })
+            .unwrap()
+            .with_defect(Defect::Mass { at: 15, m: 2.0 })
+            .unwrap(),
+        Chain::paper(8)
+            .unwrap()
+            .with_defect(Defect::Spring { at: 4, k: 0.5 })
+            .unwrap()
+            .with_defect(Defect::Damper { at: 6, d: 0.4 })
+            .unwrap(),
+    ];
+    for chain in chains {
+        let fwd = Forward::new(&chain);
+        let modal = ModalResponse::impulse(&chain, 1).unwrap();
+        let t: Vec<f64> = (0..=30000).map(|i| i as f64 * 0.01).collect();
+        let x = modal.eval_many(&t);
+        let tr = SeriesTransform::new(&t, &x, &TransformOptions::default()).unwrap();
+        let mut worst: f64 = 0.0;
+        for s in s_grid() {
+            let exact = fwd.eval(s, 1).unwrap();
+            let v = tr.eval(s).unwrap();
+            let err = (v.value - exact).norm();
+            worst = worst.max(err / exact.norm());
+            assert!(
+                err / exact.norm() < 1e-8,
+                "{:?} s = {s}: rel {:.3e}",
+                chain.defects(),
+                err / exact.norm()
+            );
+            assert!(
+                err <= v.err,
+                "{:?} s = {s}: {err:.3e} > est {:.3e}",
+                chain.defects(),
+                v.err
+            );
+        }
+        for s in [0.001, 0.01].map(|v| Complex64::new(v, 0.0)) {
+            let v = tr.eval(s).unwrap();
+            let err = (v.value - fwd.eval(s, 1).unwrap()).norm();
+            assert!(
+                err <= v.err,
+                "{:?} s = {s}: {err:.3e} > est {:.3e}",
+                chain.defects(),
+                v.err
+            );
+        }
+        println!("{:?}: max relative error {worst:.2e}", chain.defects());
+    }
+}

@@ -79,6 +79,11 @@ fn print_text(scene: &FitScene, r: &FitReport) {
             "NOT resolved: the first runner-up is within the data's error"
         }
     );
+    if !r.fits_data {
+        println!(
+            "WARNING    the residual is far above the data floor: the hypothesis does not explain the data (a defect missing from [unknowns], or the search missed the truth)"
+        );
+    }
     if !r.runners_up.is_empty() {
         println!("runners-up");
         for alt in &r.runners_up {
@@ -90,7 +95,10 @@ fn print_text(scene: &FitScene, r: &FitReport) {
             );
         }
     }
-    let sets = r.sets.map(|s| format!(", {s} position sets")).unwrap_or_default();
+    let sets = r
+        .sets
+        .map(|s| format!(", {s} position sets"))
+        .unwrap_or_default();
     let beam = match r.exhaustive {
         Some(false) => " (beam search)",
         _ => "",

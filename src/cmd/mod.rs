@@ -1,8 +1,12 @@
 //! Subcommands. Shared argument groups live here.
 
+pub mod fit;
+pub mod laplace;
 pub mod noise;
 pub mod response;
 pub mod simulate;
+pub mod suppress;
+pub mod surface;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;

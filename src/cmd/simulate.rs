@@ -1,21 +1,17 @@
 //! `springmass simulate`: x_i(t) of a chain (impulse on mass 1, optional
 //! forces from a CSV), written as CSV and/or plotted as SVG.
 //!
-//! Noise: additive white Gaussian noise of standard deviation `--noise`,
-//! seeded (`ChaCha8Rng::seed_from_u64(seed)`, stream = column index), so the
-//! same seed gives the same data. (Implemented here until the shared noise
-//! module lands on main; the lead may switch this to it.)
+//! Noise: additive white Gaussian noise ([`springmass::noise`]): `--noise
+//! SIGMA` (absolute) or `abs:SIGMA`, `snr:DB`, `rel:R`; column `c` (0-based)
+//! of the output uses the seed `seed + c`, so the same seed gives the same data.
 
 use super::ChainArgs;
 use anyhow::Context;
 use clap::Args as ClapArgs;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
+use springmass::noise::{add_noise, NoiseLevel};
 use springmass::plot::{Line, LinePlot};
 use springmass::series::TimeSeries;
 use springmass::time::simulate::{simulate_forced, Forcing, Method, SimOptions};
-use springmass::Error;
 use std::path::PathBuf;
 
 /// Arguments of `springmass simulate`.
@@ -32,9 +28,9 @@ pub struct Args {
     /// Observed masses (1-based), comma separated.
     #[arg(long, value_delimiter = ',', default_value = "1")]
     pub observe: Vec<usize>,
-    /// Standard deviation of additive white Gaussian noise (0: none).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
-    pub noise: f64,
+    /// Additive white Gaussian noise: SIGMA (absolute), abs:SIGMA, snr:DB or rel:R.
+    #[arg(long, allow_hyphen_values = true)]
+    pub noise: Option<String>,
     /// Seed of the noise.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -56,36 +52,31 @@ pub struct Args {
     pub plot: Option<PathBuf>,
 }
 
-/// Add seeded white Gaussian noise of standard deviation `level` to every column.
-fn add_noise(ts: &TimeSeries, level: f64, seed: u64) -> anyhow::Result<TimeSeries> {
-    if !(level.is_finite() && level >= 0.0) {
-        return Err(Error::invalid("noise", level, "noise >= 0 and finite").into());
+/// Parse `--noise`: a bare number is an absolute standard deviation.
+fn noise_level(text: &str) -> anyhow::Result<NoiseLevel> {
+    let level = match text.trim().parse::<f64>() {
+        Ok(v) => NoiseLevel::Absolute(v),
+        Err(_) => NoiseLevel::parse(text)?,
+    };
+    level.sigma(&[])?; // validates the level (sign, finiteness)
+    Ok(level)
+}
+
+/// Add seeded noise to every column (column `c` uses `seed + c`).
+fn noisy(ts: &TimeSeries, level: NoiseLevel, seed: u64) -> anyhow::Result<TimeSeries> {
+    let mut cols = Vec::with_capacity(ts.names().len());
+    for (c, name) in ts.names().iter().enumerate() {
+        let col = ts.column_at(c).unwrap_or_default();
+        let (y, _) = add_noise(col, level, seed.wrapping_add(c as u64))?;
+        cols.push((name.clone(), y));
     }
-    if level == 0.0 {
-        return Ok(ts.clone());
-    }
-    let normal =
-        Normal::new(0.0, level).map_err(|e| Error::invalid("noise", level, e.to_string()))?;
-    let cols = ts
-        .names()
-        .iter()
-        .enumerate()
-        .map(|(c, name)| {
-            let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            rng.set_stream(c as u64);
-            let col = ts.column_at(c).unwrap_or_default();
-            (
-                name.clone(),
-                col.iter().map(|x| x + normal.sample(&mut rng)).collect(),
-            )
-        })
-        .collect();
     Ok(TimeSeries::new(ts.t().to_vec(), cols)?)
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     let chain = a.chain.chain()?;
     let method: Method = a.method.parse()?;
+    let level = a.noise.as_deref().map(noise_level).transpose()?;
     let forcing = match &a.force {
         Some(path) => {
             let ts = TimeSeries::read_csv(path)?;
@@ -98,7 +89,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .with_observe(a.observe.clone())
         .with_method(method);
     let traj = simulate_forced(&chain, &opts, &forcing)?;
-    let series = add_noise(&traj.to_series()?, a.noise, a.seed)?;
+    let series = match level {
+        Some(l) => noisy(&traj.to_series()?, l, a.seed)?,
+        None => traj.to_series()?,
+    };
     if let Some(path) = &a.out {
         series.write_csv(path)?;
     }
@@ -116,8 +110,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         if !forcing.is_empty() {
             title.push_str(", forced");
         }
-        if a.noise > 0.0 {
-            title.push_str(&format!(", noise {}", a.noise));
+        if let Some(text) = &a.noise {
+            title.push_str(&format!(", noise {text}"));
         }
         let mut plot = LinePlot::new(title, "t", "displacement");
         for name in series.names() {

@@ -83,7 +83,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 }
             }
             Heatmap {
-                title: format!("r(j, m), n = {n}: log10 r (min at j = {}, m = {:.4})", best.1, 10f64.powf(best.2)),
+                title: format!(
+                    "r(j, m), n = {n}: log10 r (min at j = {}, m = {:.4})",
+                    best.1,
+                    10f64.powf(best.2)
+                ),
                 x_label: "j".into(),
                 y_label: "log10 m".into(),
                 x: (1..=n).map(|j| j as f64).collect(),

@@ -7,12 +7,22 @@
 //! * `enumerate` (default): every position set, masses fitted per set by
 //!   Levenberg-Marquardt ([`crate::detect::search::enumerate`]); the runners-up
 //!   are the next position sets in the ranking.
+//! * `ga`, `nelder-mead`, `pso`: [`crate::detect::search::minimize`] on
+//!   [`MisfitObjective`] (the residual; invalid candidates get a finite
+//!   penalty). The defects and residual reported are the optimizer's own best.
+//!   The runners-up are probes around it: each unknown position moved by
+//!   +-1 and +-2 (to free places), masses refitted by the enumeration's LM;
+//!   a negative gap means the optimizer stopped short of a better neighbour.
+//!   These methods need interchangeable unknown-position defects (the
+//!   optimizers' spaces are unordered).
 //!
 //! The report gives the defects found, the residual, the runners-up with
 //! their gaps `r_alt - r_best`, the number of residual evaluations, the wall
 //! time, and whether the gap to the first runner-up is above the data's
 //! error floor ([`crate::detect::misfit::Misfit::floor`]); below it the data
-//! cannot tell the two hypotheses apart.
+//! cannot tell the two hypotheses apart. `fits_data` says whether the best
+//! residual itself is within the floor (a residual far above it means the
+//! model lacks a defect or the search missed the truth).
 //!
 //! ```
 //! use springmass::{Chain, Defect};
@@ -32,7 +42,9 @@ use crate::chain::Defect;
 use crate::detect::data::Data;
 use crate::detect::misfit::{Misfit, MisfitKind};
 use crate::detect::scene::FitScene;
-use crate::detect::search::enumerate::{enumerate, EnumerateOptions};
+use crate::detect::search::enumerate::{enumerate, fit_slots, Defects, EnumerateOptions};
+use crate::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
+use crate::detect::space::{MassUnknown, Unknowns};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -128,8 +140,10 @@ pub struct FitReport {
     pub residual: f64,
     /// The next best hypotheses, best first.
     pub runners_up: Vec<Alternative>,
-    /// Residual evaluations.
+    /// Residual evaluations of the method.
     pub evaluations: usize,
+    /// Residual evaluations spent probing runners-up (stochastic methods).
+    pub probe_evaluations: usize,
     /// Position sets fitted (enumeration).
     pub sets: Option<usize>,
     /// Whether the enumeration was exhaustive (false: beam search).
@@ -148,6 +162,10 @@ pub struct FitReport {
     pub floor: f64,
     /// Gap to the first runner-up above the floor (the answer is resolved by the data).
     pub resolved: bool,
+    /// The residual is within the data's error (`r <= 4 floor`): the
+    /// hypothesis explains the data. False means a defect is missing from the
+    /// model, or the search (beam search, stochastic methods) missed the truth.
+    pub fits_data: bool,
 }
 
 /// Fit the scene's unknowns to `data`.
@@ -165,6 +183,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitRep
     let to_defects = |d: &[(usize, f64)]| -> Vec<Defect> {
         d.iter().map(|&(at, m)| Defect::Mass { at, m }).collect()
     };
+    let mut probe_evals = 0;
     let (defects, residual, runners, evaluations, sets, exhaustive, trace) = match options.method {
         FitMethod::Enumerate => {
             let e = enumerate(&misfit, &unknowns, &options.enumerate)?;
@@ -191,16 +210,59 @@ pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitRep
             )
         }
         m => {
-            return Err(Error::invalid(
-                "search.method",
-                m.name(),
-                "enumerate (the stochastic optimizers are not in this build)",
-            ))
+            let method = match m {
+                FitMethod::Ga => Method::Genetic,
+                FitMethod::NelderMead => Method::NelderMead,
+                _ => Method::ParticleSwarm,
+            };
+            if !unknowns.interchangeable() {
+                return Err(Error::invalid(
+                    "search.method",
+                    m.name(),
+                    "enumerate when the defects at unknown positions differ (known, unequal masses or unequal bounds)",
+                ));
+            }
+            let obj = MisfitObjective::new(&misfit, &unknowns);
+            let opts = SearchOptions {
+                max_evals: options.max_evals,
+                seed: options.seed,
+                trace: options.trace,
+                ..SearchOptions::default()
+            };
+            let res = minimize(method, &obj, &opts)?;
+            let best = unknowns.decode(&res.best).map_err(|_| Error::Numerical {
+                method: m.name().into(),
+                reason: "the best candidate is outside the space".into(),
+            })?;
+            let (runners, probes) =
+                probe_neighbours(&misfit, &unknowns, &res.best.positions, &options.enumerate);
+            probe_evals = probes;
+            let mut best = best;
+            if unknowns.interchangeable() && unknowns.free_positions().len() == unknowns.k() {
+                best.sort_by_key(|d| d.0);
+            }
+            (
+                to_defects(&best),
+                res.cost,
+                runners
+                    .into_iter()
+                    .map(|(d, r)| Alternative {
+                        defects: to_defects(&d),
+                        residual: r,
+                        gap: r - res.cost,
+                    })
+                    .collect(),
+                res.evaluations,
+                None,
+                None,
+                res.trace,
+            )
         }
     };
     let wall = t1.elapsed().as_secs_f64();
     let floor = misfit.floor();
     let resolved = runners.first().is_none_or(|r| r.gap > floor);
+    let fits_data = residual <= 4.0 * floor;
     let kind = match scene.misfit.kind {
         MisfitKind::RealAxis => format!("real-axis [0, {}]", scene.misfit.s_max),
         MisfitKind::Bromwich => format!(
@@ -214,6 +276,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitRep
         residual,
         runners_up: runners,
         evaluations,
+        probe_evaluations: probe_evals,
         sets,
         exhaustive,
         wall_time_s: wall,
@@ -223,5 +286,95 @@ pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitRep
         nodes: misfit.nodes(),
         floor,
         resolved,
+        fits_data,
     })
+}
+
+/// The residual as an optimizer [`Objective`]: the candidate is decoded by
+/// [`Unknowns::decode`] (invalid candidates get its finite penalty, at least
+/// [`crate::detect::space::PENALTY`]) and costed by [`Misfit::residual`].
+pub struct MisfitObjective<'a> {
+    misfit: &'a Misfit,
+    unknowns: &'a Unknowns,
+}
+
+impl<'a> MisfitObjective<'a> {
+    /// Wrap a residual and its unknowns (same `n`).
+    pub fn new(misfit: &'a Misfit, unknowns: &'a Unknowns) -> MisfitObjective<'a> {
+        MisfitObjective { misfit, unknowns }
+    }
+}
+
+impl Objective for MisfitObjective<'_> {
+    fn space(&self) -> &Space {
+        self.unknowns.space()
+    }
+    fn cost(&self, c: &Candidate) -> f64 {
+        match self.unknowns.decode(c) {
+            Ok(d) => {
+                let r = self.misfit.residual(&d);
+                if r.is_nan() {
+                    f64::MAX
+                } else {
+                    r
+                }
+            }
+            Err(p) => p,
+        }
+    }
+}
+
+/// Hypotheses next to `positions` (each unknown position moved by +-1, +-2
+/// to a free place; masses refitted), best first, at most `opts.keep - 1`;
+/// and the evaluations spent.
+fn probe_neighbours(
+    misfit: &Misfit,
+    unknowns: &Unknowns,
+    positions: &[usize],
+    opts: &EnumerateOptions,
+) -> (Vec<(Defects, f64)>, usize) {
+    let allowed = unknowns.allowed_positions();
+    let mut seen: Vec<Vec<usize>> = vec![sorted(positions)];
+    let mut out = Vec::new();
+    let mut evals = 0;
+    for t in 0..positions.len() {
+        for delta in [-2i64, -1, 1, 2] {
+            let p = positions[t] as i64 + delta;
+            if p < 1 || !allowed.contains(&(p as usize)) || positions.contains(&(p as usize)) {
+                continue;
+            }
+            let mut cand = positions.to_vec();
+            cand[t] = p as usize;
+            if seen.contains(&sorted(&cand)) {
+                continue;
+            }
+            seen.push(sorted(&cand));
+            let mut pi = cand.iter();
+            let slots: Vec<(usize, MassUnknown)> = unknowns
+                .defects()
+                .iter()
+                .map(|d| {
+                    (
+                        d.at.unwrap_or_else(|| *pi.next().expect("one per position")),
+                        d.mass,
+                    )
+                })
+                .collect();
+            let (mut d, r, e) = fit_slots(misfit, &slots, opts);
+            evals += e;
+            if unknowns.interchangeable() && unknowns.free_positions().len() == unknowns.k() {
+                d.sort_by_key(|x| x.0);
+            }
+            out.push((d, r));
+        }
+    }
+    out.sort_by(|a, b| a.1.total_cmp(&b.1));
+    out.truncate(opts.keep.saturating_sub(1));
+    (out, evals)
+}
+
+fn sorted(v: &[usize]) -> Vec<usize> {
+    let mut s = v.to_vec();
+    s.sort_unstable();
+    s
 }

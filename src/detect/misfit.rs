@@ -574,6 +574,7 @@ impl<T: Num> Gathered<T> {
 impl Gathered<f64> {
     /// `k = 2`, real axis: straight-line kernel, four independent accumulators.
     #[inline]
+    #[allow(clippy::needless_range_loop)] // lane loops: indexed form vectorises
     fn residual_k2<const OBS: u8>(&self, dm1: f64, dm2: f64, gamma: f64) -> f64 {
         let np = self.np;
         let (g1a, g1b) = self.g1.split_at(np);
@@ -582,25 +583,27 @@ impl Gathered<f64> {
         let gbb = &rest[np..2 * np];
         let mut acc = [0.0f64; 4];
         for q0 in (0..np).step_by(4) {
+            // fixed-size views: one bounds check per chunk, none in the lanes
+            let v = |a: &[f64]| -> [f64; 4] { a[q0..q0 + 4].try_into().expect("padded to 4") };
+            let (s2, w, d, g11) = (v(&self.s2), v(&self.w), v(&self.d), v(&self.g11));
+            let (g1a, g1b, gaa, gab, gbb) = (v(g1a), v(g1b), v(gaa), v(gab), v(gbb));
             for l in 0..4 {
-                let q = q0 + l;
-                let s2 = self.s2[q];
-                let c1 = dm1 * s2;
-                let c2 = dm2 * s2;
-                let a11 = 1.0 + gaa[q] * c1;
-                let a22 = 1.0 + gbb[q] * c2;
-                let a12 = gab[q] * c2;
-                let a21 = gab[q] * c1;
+                let c1 = dm1 * s2[l];
+                let c2 = dm2 * s2[l];
+                let a11 = 1.0 + gaa[l] * c1;
+                let a22 = 1.0 + gbb[l] * c2;
+                let a12 = gab[l] * c2;
+                let a21 = gab[l] * c1;
                 let inv = 1.0 / (a11 * a22 - a12 * a21);
-                let z1 = (g1a[q] * a22 - a12 * g1b[q]) * inv;
-                let z2 = (a11 * g1b[q] - a21 * g1a[q]) * inv;
+                let z1 = (g1a[l] * a22 - a12 * g1b[l]) * inv;
+                let z2 = (a11 * g1b[l] - a21 * g1a[l]) * inv;
                 let x = match OBS {
                     1 => z1,
                     2 => z2,
-                    _ => self.g11[q] - g1a[q] * c1 * z1 - g1b[q] * c2 * z2,
+                    _ => g11[l] - g1a[l] * c1 * z1 - g1b[l] * c2 * z2,
                 } * gamma;
-                let e = x - self.d[q];
-                acc[l] += self.w[q] * e * e;
+                let e = x - d[l];
+                acc[l] += w[l] * e * e;
             }
         }
         (acc[0] + acc[1]) + (acc[2] + acc[3])
@@ -608,6 +611,7 @@ impl Gathered<f64> {
 
     /// `k = 2`, real axis: residual and Gauss-Newton pieces, straight-line.
     #[inline]
+    #[allow(clippy::needless_range_loop)] // lane loops: indexed form vectorises
     fn gauss_newton_k2<const OBS: u8>(
         &self,
         dm1: f64,
@@ -628,25 +632,27 @@ impl Gathered<f64> {
         let mut hab = [0.0f64; 4];
         let mut hbb = [0.0f64; 4];
         for q0 in (0..np).step_by(4) {
+            let v = |a: &[f64]| -> [f64; 4] { a[q0..q0 + 4].try_into().expect("padded to 4") };
+            let (s2v, wv, d, g11) = (v(&self.s2), v(&self.w), v(&self.d), v(&self.g11));
+            let (g1a, g1b, gaa, gab, gbb) = (v(g1a), v(g1b), v(gaa), v(gab), v(gbb));
             for l in 0..4 {
-                let q = q0 + l;
-                let s2 = self.s2[q];
+                let s2 = s2v[l];
                 let c1 = dm1 * s2;
                 let c2 = dm2 * s2;
-                let a11 = 1.0 + gaa[q] * c1;
-                let a22 = 1.0 + gbb[q] * c2;
-                let a12 = gab[q] * c2;
-                let a21 = gab[q] * c1;
+                let a11 = 1.0 + gaa[l] * c1;
+                let a22 = 1.0 + gbb[l] * c2;
+                let a12 = gab[l] * c2;
+                let a21 = gab[l] * c1;
                 let inv = 1.0 / (a11 * a22 - a12 * a21);
-                let z1 = (g1a[q] * a22 - a12 * g1b[q]) * inv;
-                let z2 = (a11 * g1b[q] - a21 * g1a[q]) * inv;
+                let z1 = (g1a[l] * a22 - a12 * g1b[l]) * inv;
+                let z2 = (a11 * g1b[l] - a21 * g1a[l]) * inv;
                 let x = match OBS {
                     1 => z1,
                     2 => z2,
-                    _ => self.g11[q] - g1a[q] * c1 * z1 - g1b[q] * c2 * z2,
+                    _ => g11[l] - g1a[l] * c1 * z1 - g1b[l] * c2 * z2,
                 } * gamma;
-                let e = x - self.d[q];
-                let w = self.w[q];
+                let e = x - d[l];
+                let w = wv[l];
                 let j1 = -gamma * s2 * z1 * z1;
                 let j2 = -gamma * s2 * z2 * z2;
                 r[l] += w * e * e;
@@ -669,6 +675,7 @@ impl Gathered<f64> {
 
     /// `k = 1`, real axis.
     #[inline]
+    #[allow(clippy::needless_range_loop)] // lane loops: indexed form vectorises
     fn residual_k1<const OBS: bool>(&self, dm1: f64, gamma: f64) -> f64 {
         let np = self.np;
         let mut acc = [0.0f64; 4];

@@ -8,9 +8,14 @@
 //! defects = [ { kind = "mass", at = 8, m = 5.0 }, { kind = "mass", at = 15, m = 2.0 } ]
 //!
 //! [data]             # optional
-//! source = "exact"   # "exact": the closed-form model of [chain]
-//! noise = 0.0        # relative Gaussian noise (standard deviation), default 0
+//! source = "exact"   # "exact": the closed-form model of [chain];
+//!                    # "simulated": x_1(t) of [chain] on [0, t_end] step dt, transformed;
+//!                    # "series": a CSV (path, column = "x1"), transformed
+//! noise = 0.0        # exact: relative Laplace-domain noise; simulated: absolute
+//!                    # noise on the samples; series: the samples' known noise
 //! seed = 0           # noise seed, default 0
+//! # t_end = 300.0    # simulated
+//! # dt = 0.05        # simulated
 //!
 //! [unknowns]         # optional; see crate::detect::space::UnknownsSpec
 //! k = 2              # default: number of defects in [chain]
@@ -54,8 +59,12 @@ pub enum DataSourceKind {
     /// The closed-form model of the `[chain]` (with its true defects).
     #[default]
     Exact,
-    /// A time series (CSV) transformed to the Laplace domain: not available
-    /// until the time-series module is merged; rejected with an error.
+    /// A simulation of `[chain]` (`t_end`, `dt`), optional white noise of
+    /// standard deviation `noise` on the samples, Laplace-transformed (the
+    /// paper's pipeline).
+    Simulated,
+    /// A measured CSV series (`path`, `column`), Laplace-transformed; `noise`
+    /// is the samples' known standard deviation (error estimate only).
     Series,
 }
 
@@ -63,18 +72,28 @@ pub enum DataSourceKind {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 pub struct DataSpec {
-    /// `exact` (default) or `series`.
+    /// `exact` (default), `simulated` or `series`.
     #[serde(default)]
     pub source: DataSourceKind,
-    /// Path of the series (for `series`).
+    /// Path of the CSV series (for `series`).
     #[serde(default)]
     pub path: Option<PathBuf>,
-    /// Relative noise level (default 0).
+    /// Column of the CSV series (default `x1`).
+    #[serde(default)]
+    pub column: Option<String>,
+    /// `exact`: relative Laplace-domain noise; `simulated`: absolute noise
+    /// on the samples; `series`: the samples' known noise (default 0).
     #[serde(default)]
     pub noise: f64,
     /// Noise seed (default 0).
     #[serde(default)]
     pub seed: u64,
+    /// `simulated`: end of the record (default 300).
+    #[serde(default)]
+    pub t_end: Option<f64>,
+    /// `simulated`: sampling step (default 0.05).
+    #[serde(default)]
+    pub dt: Option<f64>,
 }
 
 /// The `[search]` table.
@@ -233,11 +252,29 @@ impl FitScene {
             DataSourceKind::Exact => {
                 Data::exact(&self.truth()?).with_noise(self.data.noise, self.data.seed)
             }
-            DataSourceKind::Series => Err(Error::invalid(
-                "data.source",
-                "series",
-                "exact (time-series data need the time-series module, not in this build)",
-            )),
+            DataSourceKind::Simulated => Data::simulated(
+                &self.truth()?,
+                self.data.t_end.unwrap_or(300.0),
+                self.data.dt.unwrap_or(0.05),
+                self.data.noise,
+                self.data.seed,
+            ),
+            DataSourceKind::Series => {
+                let path = self.data.path.as_ref().ok_or_else(|| {
+                    Error::invalid("data.path", "(none)", "a CSV file for source = \"series\"")
+                })?;
+                crate::error::check_f64(
+                    "data.noise",
+                    self.data.noise,
+                    self.data.noise >= 0.0,
+                    ">= 0 and finite",
+                )?;
+                Data::from_csv(
+                    path,
+                    self.data.column.as_deref().unwrap_or("x1"),
+                    (self.data.noise > 0.0).then_some(self.data.noise),
+                )
+            }
         }
     }
 
@@ -306,7 +343,7 @@ mod tests {
         );
         bad(
             "[chain]\nn = 3\n[unknowns]\nk = 1\n[data]\nsource = \"series\"\n",
-            "data.source",
+            "data.path",
         );
         assert!(matches!(
             FitScene::from_toml("[chain]\nn = 3\n[misfit]\nkind = \"imaginary\"\n"),

@@ -1,7 +1,7 @@
 //! Time domain: simulation of the chain ([`simulate`]), the exact inverse
 //! Laplace transform of its responses as finite sums of damped modes
-//! ([`modal`]), numerical inverse Laplace transforms of any `F(s)`
-//! ([`inverse`]), and the Laplace transform of sampled data ([`series`]).
+//! ([`modal`]), the numerical inverse Laplace transform of a general `F(s)`
+//! ([`inverse`]) and the Laplace transform of sampled data ([`series`]).
 
 pub mod inverse;
 pub mod modal;

@@ -25,9 +25,13 @@
 //!   (`2n x 2n` real Schur form for starting values), each pole then refined by
 //!   Rayleigh-quotient iteration on the tridiagonal `K(s)` (O(n) per step),
 //!   residues `amp v_i v_j / (v^T (2 p M + D) v)` ([`ModalPath::Quadratic`]).
-//!   Nearly double poles (near-critical modes of a non-proportional chain)
-//!   give large residues of opposite signs: [`ModalResponse::error_bound`]
-//!   reports the resulting rounding bound.
+//!   Two poles closer than 5% (near-critical modes of a non-proportional
+//!   chain) become one second-order term `(e (s + a) + c) / ((s + a)^2 + w2)`:
+//!   its centre from the Schur form, `w2` from `det K(-a)` divided by the
+//!   other poles, `e` and `c` fitted to the exact `X(s)` on `Re s = 1/2`; this
+//!   stays accurate through critical damping, where separate residues blow up.
+//!   [`ModalResponse::error_bound`] estimates the remaining error (rounding
+//!   and pole conditioning).
 //!
 //! ```
 //! use springmass::{Chain, Defect, forward::response, Complex64};
@@ -65,11 +69,15 @@ pub enum ModalPath {
 /// One term of a modal sum.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Term {
-    /// `c e^{-a t} sin(b t)/b` with `b^2 = w2` (any sign; `w2 = 0` is
-    /// `c t e^{-a t}`); transform `c / (s^2 + 2 a s + a^2 + w2)`.
+    /// `e^{-a t} (e cos(b t) + c sin(b t)/b)` with `b^2 = w2` (any sign:
+    /// `cosh`/`sinh` for `w2 < 0`, `e + c t` for `w2 = 0`); transform
+    /// `(e (s + a) + c) / (s^2 + 2 a s + a^2 + w2)`. Proportional modes have
+    /// `e = 0`; a near-double pole pair of the general path is one such term.
     Osc {
-        /// Coefficient.
+        /// Coefficient of `sin(b t)/b`.
         c: f64,
+        /// Coefficient of `cos(b t)`.
+        e: f64,
         /// Decay rate.
         a: f64,
         /// Squared damped frequency.
@@ -103,6 +111,24 @@ pub struct PoleResidue {
     pub order: u8,
 }
 
+/// `cos(sqrt(w2) t)` as an entire function of `w2` (`cosh` for `w2 < 0`).
+fn cos_t(w2: f64, t: f64) -> f64 {
+    let z = w2 * t * t;
+    if z.abs() < 0.1 {
+        let mut term = 1.0;
+        let mut sum = 1.0;
+        for k in 1..12 {
+            term *= -z / ((2 * k - 1) as f64 * (2 * k) as f64);
+            sum += term;
+        }
+        sum
+    } else if w2 > 0.0 {
+        (w2.sqrt() * t).cos()
+    } else {
+        ((-w2).sqrt() * t).cosh()
+    }
+}
+
 /// `sin(sqrt(w2) t) / sqrt(w2)` as an entire function of `w2` (so `t` at `w2 = 0`,
 /// `sinh` for `w2 < 0`).
 fn sinc_t(w2: f64, t: f64) -> f64 {
@@ -129,13 +155,16 @@ impl Term {
     /// Value at `t >= 0`.
     pub fn eval(&self, t: f64) -> f64 {
         match *self {
-            Term::Osc { c, a, w2 } => {
+            Term::Osc { c, e, a, w2 } => {
                 if w2 < 0.0 && w2 * t * t < -1.0 {
                     // overdamped, large t: avoid overflow of sinh * exp
                     let b = (-w2).sqrt();
-                    c * (((b - a) * t).exp() - (-(a + b) * t).exp()) / (2.0 * b)
-                } else {
+                    let (up, down) = (((b - a) * t).exp(), (-(a + b) * t).exp());
+                    c * (up - down) / (2.0 * b) + e * 0.5 * (up + down)
+                } else if e == 0.0 {
                     c * (-a * t).exp() * sinc_t(w2, t)
+                } else {
+                    (-a * t).exp() * (c * sinc_t(w2, t) + e * cos_t(w2, t))
                 }
             }
             Term::Pair { p, r } => {
@@ -148,7 +177,7 @@ impl Term {
     /// Laplace transform at `s`.
     pub fn laplace(&self, s: Complex64) -> Complex64 {
         match *self {
-            Term::Osc { c, a, w2 } => c / (s * s + s * (2.0 * a) + (a * a + w2)),
+            Term::Osc { c, e, a, w2 } => ((s + a) * e + c) / (s * s + s * (2.0 * a) + (a * a + w2)),
             Term::Pair { p, r } => r / (s - p) + r.conj() / (s - p.conj()),
             Term::Real { p, r } => r / (s - p),
         }
@@ -156,15 +185,19 @@ impl Term {
     /// A bound on `|term(t)|` over `t >= 0` (for rounding estimates).
     fn amplitude(&self) -> f64 {
         match *self {
-            Term::Osc { c, a, w2 } => {
-                let env = if w2 > 0.0 {
-                    1.0 / w2.sqrt()
-                } else if w2 == 0.0 {
-                    1.0 / (a * std::f64::consts::E)
+            Term::Osc { c, e, a, w2 } => {
+                // max over t of e^{-at} |sin(bt)/b| (sinh for w2 < 0)
+                let crit = 1.0 / (a * std::f64::consts::E);
+                let b = w2.abs().sqrt();
+                let env = if w2 >= 0.0 {
+                    (1.0 / b).min(crit)
+                } else if b < a {
+                    (0.5 / b).min(1.0 / ((a - b) * std::f64::consts::E))
                 } else {
-                    1.0 / (2.0 * (-w2).sqrt())
+                    f64::INFINITY
                 };
-                c.abs() * env
+                let env = if env.is_nan() { f64::INFINITY } else { env };
+                c.abs() * env + e.abs()
             }
             Term::Pair { r, .. } => 2.0 * r.norm(),
             Term::Real { r, .. } => r.abs(),
@@ -177,6 +210,8 @@ impl Term {
 pub struct ModalResponse {
     terms: Vec<Term>,
     path: ModalPath,
+    /// error from the conditioning of the poles (general path)
+    pole_err: f64,
 }
 
 impl ModalResponse {
@@ -189,7 +224,11 @@ impl ModalResponse {
     }
     /// Build from terms (for example to combine responses).
     pub fn from_terms(terms: Vec<Term>, path: ModalPath) -> ModalResponse {
-        ModalResponse { terms, path }
+        ModalResponse {
+            terms,
+            path,
+            pole_err: 0.0,
+        }
     }
     /// The terms.
     pub fn terms(&self) -> &[Term] {
@@ -209,17 +248,21 @@ impl ModalResponse {
         };
         for t in &self.terms {
             match *t {
-                Term::Osc { c, a, w2 } => {
+                Term::Osc { c, e, a, w2 } => {
                     if w2 > 0.0 {
                         let b = w2.sqrt();
-                        let r = Complex64::new(0.0, -c / (2.0 * b));
+                        let r = Complex64::new(0.5 * e, -c / (2.0 * b));
                         out.push(pr(Complex64::new(-a, b), r, 1));
                         out.push(pr(Complex64::new(-a, -b), r.conj(), 1));
                     } else if w2 < 0.0 {
                         let b = (-w2).sqrt();
-                        out.push(pr(Complex64::new(-a + b, 0.0), (c / (2.0 * b)).into(), 1));
-                        out.push(pr(Complex64::new(-a - b, 0.0), (-c / (2.0 * b)).into(), 1));
+                        let (r1, r2) = (0.5 * e + c / (2.0 * b), 0.5 * e - c / (2.0 * b));
+                        out.push(pr(Complex64::new(-a + b, 0.0), r1.into(), 1));
+                        out.push(pr(Complex64::new(-a - b, 0.0), r2.into(), 1));
                     } else {
+                        if e != 0.0 {
+                            out.push(pr(Complex64::new(-a, 0.0), e.into(), 1));
+                        }
                         out.push(pr(Complex64::new(-a, 0.0), c.into(), 2));
                     }
                 }
@@ -248,10 +291,13 @@ impl ModalResponse {
     pub fn laplace(&self, s: Complex64) -> Complex64 {
         self.terms.iter().map(|m| m.laplace(s)).sum()
     }
-    /// A rounding bound for [`ModalResponse::eval`]: `8 eps sum_k max_t |term_k(t)|`
-    /// (large when nearly double poles carry large cancelling residues).
+    /// An error estimate for [`ModalResponse::eval`]: rounding
+    /// `8 eps sum_k max_t |term_k(t)|`, plus, on the general path, the pole
+    /// conditioning `eps sum_k max_t |term_k| (|p_k| / sep_k)^2` (`sep_k` the
+    /// distance to the nearest other pole). Large when close poles carry large
+    /// cancelling residues. An estimate, not a rigorous bound.
     pub fn error_bound(&self) -> f64 {
-        8.0 * f64::EPSILON * self.terms.iter().map(Term::amplitude).sum::<f64>()
+        8.0 * f64::EPSILON * self.terms.iter().map(Term::amplitude).sum::<f64>() + self.pole_err
     }
 }
 
@@ -267,6 +313,12 @@ enum Inner {
         poles: Vec<Complex64>,
         vecs: Vec<Vec<Complex64>>,
         norms: Vec<Complex64>,
+        /// |p| / distance to the nearest other pole
+        conds: Vec<f64>,
+        /// near-double pole pairs `(a, w2)`: `(s + a)^2 + w2`
+        clusters: Vec<(f64, f64)>,
+        k: Vec<f64>,
+        d: Vec<f64>,
     },
 }
 
@@ -419,11 +471,42 @@ impl Modes {
             k: &k,
             d: &d,
         };
+        // near-double pole pairs: one second-order term each, fitted per
+        // response (see `Modes::response`)
+        let mut used = vec![false; n2];
+        let mut clusters = Vec::new();
+        for (idx, p0) in ev.iter().enumerate() {
+            if p0.im > 0.0 && 2.0 * p0.im <= CLUSTER * p0.norm() {
+                used[idx] = true;
+                clusters.push((-p0.re, p0.im * p0.im));
+            }
+        }
+        let mut reals: Vec<(usize, f64)> = ev
+            .iter()
+            .enumerate()
+            .filter(|(_, z)| z.im == 0.0)
+            .map(|(i, z)| (i, z.re))
+            .collect();
+        reals.sort_by(|a, b| a.1.total_cmp(&b.1));
+        let mut r = 0;
+        while r + 1 < reals.len() {
+            let ((i1, p1), (i2, p2)) = (reals[r], reals[r + 1]);
+            if (p1 - p2).abs() <= CLUSTER * p1.abs().max(p2.abs()) {
+                used[i1] = true;
+                used[i2] = true;
+                let h = 0.5 * (p1 - p2);
+                clusters.push((-0.5 * (p1 + p2), -h * h));
+                r += 2;
+            } else {
+                r += 1;
+            }
+        }
         let mut poles = Vec::new();
         let mut vecs = Vec::new();
         let mut norms = Vec::new();
+        let mut conds = Vec::new();
         for (idx, &p0) in ev.iter().enumerate() {
-            if p0.im < 0.0 {
+            if p0.im < 0.0 || used[idx] {
                 continue;
             }
             let sep = ev
@@ -445,12 +528,35 @@ impl Modes {
             poles.push(p);
             vecs.push(v);
             norms.push(nu);
+            conds.push(p.norm() / sep);
+        }
+        // the pair's product (w2) from the determinant: the Schur 2x2 blocks
+        // split a near-double pair with cancellation, its centre is reliable
+        let schur_clusters = clusters.clone();
+        for (ci, cl) in clusters.iter_mut().enumerate() {
+            let others: Vec<(f64, f64)> = schur_clusters
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != ci)
+                .map(|(_, c)| *c)
+                .collect();
+            if let Some(w2) = qep.cluster_w2(cl.0, &poles, &others) {
+                cl.1 = w2;
+            }
         }
         Ok(Modes {
             n,
             masses: m,
             path: ModalPath::Quadratic,
-            inner: Inner::Quad { poles, vecs, norms },
+            inner: Inner::Quad {
+                poles,
+                vecs,
+                norms,
+                conds,
+                clusters,
+                k,
+                d,
+            },
         })
     }
 
@@ -475,6 +581,7 @@ impl Modes {
         }
         let (i0, j0) = (i - 1, j - 1);
         let mut terms = Vec::new();
+        let mut pole_err = 0.0;
         match &self.inner {
             Inner::Prop { alpha, omega2, q } => {
                 let n = self.n;
@@ -493,28 +600,146 @@ impl Modes {
                     if c != 0.0 {
                         terms.push(Term::Osc {
                             c,
+                            e: 0.0,
                             a,
                             w2: w - a * a,
                         });
                     }
                 }
             }
-            Inner::Quad { poles, vecs, norms } => {
-                for ((p, v), nu) in poles.iter().zip(vecs).zip(norms) {
+            Inner::Quad {
+                poles,
+                vecs,
+                norms,
+                conds,
+                clusters,
+                k,
+                d,
+            } => {
+                for (((p, v), nu), cond) in poles.iter().zip(vecs).zip(norms).zip(conds) {
                     let r = v[i0] * v[j0] * amp / nu;
-                    if p.im == 0.0 {
-                        terms.push(Term::Real { p: p.re, r: r.re });
+                    let term = if p.im == 0.0 {
+                        Term::Real { p: p.re, r: r.re }
                     } else {
-                        terms.push(Term::Pair { p: *p, r });
-                    }
+                        Term::Pair { p: *p, r }
+                    };
+                    pole_err += f64::EPSILON * term.amplitude() * cond * cond;
+                    terms.push(term);
+                }
+                if !clusters.is_empty() {
+                    let qep = Qep {
+                        m: &self.masses,
+                        k,
+                        d,
+                    };
+                    terms.extend(fit_clusters(&qep, clusters, &terms, i0, j0, amp)?);
                 }
             }
         }
         Ok(ModalResponse {
             terms,
             path: self.path,
+            pole_err,
         })
     }
+}
+
+/// Relative distance below which two poles are treated as one near-double
+/// pair. Generous on purpose: the pair's term is exact for any separation,
+/// while separate residues lose about `eps / sep^2`, and the Schur form can
+/// misplace the two poles of a near-double pair by `sqrt(eps)` or more
+/// (seen: 1e-3 at the edge of critical damping).
+const CLUSTER: f64 = 0.05;
+
+/// The second-order terms `(e (s + a) + c) / ((s + a)^2 + w2)` of the
+/// near-double pole pairs, fitted (jointly, least squares) so that the modal
+/// sum equals the exact `amp [K(s)^-1]_{ij}` (an O(n) tridiagonal solve) at
+/// two points per pair on a circle around the pair's centre `-a` (radius half
+/// the distance to the nearest other pole, at least twice the pair's
+/// half-width), where the pair dominates. `a`, `w2` (the pair's sum and
+/// product) are well conditioned even where the two poles are not.
+fn fit_clusters(
+    qep: &Qep,
+    clusters: &[(f64, f64)],
+    others: &[Term],
+    i0: usize,
+    j0: usize,
+    amp: f64,
+) -> Result<Vec<Term>> {
+    let nc = clusters.len();
+    let mut other_poles: Vec<Complex64> = Vec::new();
+    for t in others {
+        match *t {
+            Term::Pair { p, .. } => {
+                other_poles.push(p);
+                other_poles.push(p.conj());
+            }
+            Term::Real { p, .. } => other_poles.push(p.into()),
+            Term::Osc { .. } => {}
+        }
+    }
+    let mut pts = Vec::with_capacity(2 * nc);
+    for (ci, &(a, w2)) in clusters.iter().enumerate() {
+        let centre = Complex64::new(-a, 0.0);
+        let half_width = w2.abs().sqrt();
+        let dist = other_poles
+            .iter()
+            .map(|p| (p - centre).norm())
+            .chain(
+                clusters
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != ci)
+                    .map(|(_, c)| (c.0 - a).abs()),
+            )
+            .fold(f64::INFINITY, f64::min);
+        let rho = if dist.is_finite() {
+            0.5 * dist
+        } else {
+            1.0 + a.abs()
+        }
+        .max(2.0 * half_width)
+        .max(1e-6 * (1.0 + a.abs()));
+        for angle in [0.5 * std::f64::consts::PI, 0.3 * std::f64::consts::PI] {
+            pts.push(centre + Complex64::from_polar(rho, angle));
+        }
+    }
+    let mut mat = DMatrix::zeros(2 * pts.len(), 2 * nc);
+    let mut rhs = nalgebra::DVector::zeros(2 * pts.len());
+    for (row, &s) in pts.iter().enumerate() {
+        let mut e = vec![Complex64::new(0.0, 0.0); qep.n()];
+        e[j0] = Complex64::new(1.0, 0.0);
+        let x = qep.solve(s, &e)[i0] * amp;
+        let r = x - others.iter().map(|t| t.laplace(s)).sum::<Complex64>();
+        rhs[2 * row] = r.re;
+        rhs[2 * row + 1] = r.im;
+        for (c, &(a, w2)) in clusters.iter().enumerate() {
+            let den = (s + a) * (s + a) + w2;
+            let fe = (s + a) / den;
+            let fc = Complex64::new(1.0, 0.0) / den;
+            mat[(2 * row, 2 * c)] = fe.re;
+            mat[(2 * row + 1, 2 * c)] = fe.im;
+            mat[(2 * row, 2 * c + 1)] = fc.re;
+            mat[(2 * row + 1, 2 * c + 1)] = fc.im;
+        }
+    }
+    let sol = mat
+        .svd(true, true)
+        .solve(&rhs, 1e-15)
+        .map_err(|e| Error::Numerical {
+            method: "near-double poles".into(),
+            reason: e.to_string(),
+        })?;
+    Ok(clusters
+        .iter()
+        .enumerate()
+        .map(|(c, &(a, w2))| Term::Osc {
+            c: sol[2 * c + 1],
+            e: sol[2 * c],
+            a,
+            w2,
+        })
+        .collect())
 }
 
 /// `Some(alpha)` when `d_i / m_i = alpha` for every mass (to 4 ulps).
@@ -594,6 +819,45 @@ impl Qep<'_> {
             x[i] = (x[i] - du[i] * x[i + 1] - dl[i] * x[i + 2]) / nz(dg[i]);
         }
         x
+    }
+
+    /// `w2` of a near-double pair centred at `-a`: `det K(-a) / (det M
+    /// prod_other (-a - p))`, with `det K` from the `LDL^T` pivots (log scale).
+    fn cluster_w2(&self, a: f64, poles: &[Complex64], clusters: &[(f64, f64)]) -> Option<f64> {
+        let s = -a;
+        let n = self.n();
+        let (mut log, mut sign) = (0.0_f64, 1.0_f64);
+        let mut prev = 0.0_f64;
+        for i in 0..n {
+            let mut r = self.m[i] * s * s + self.d[i] * s + self.k[i] + self.k[i + 1];
+            if i > 0 {
+                r -= self.k[i] * self.k[i] / prev;
+            }
+            if r == 0.0 {
+                r = f64::EPSILON * (self.k[i] + self.k[i + 1]);
+            }
+            prev = r;
+            let q = r / self.m[i];
+            log += q.abs().ln();
+            sign *= q.signum();
+        }
+        for p in poles {
+            if p.im == 0.0 {
+                let f = s - p.re;
+                log -= f.abs().ln();
+                sign *= f.signum();
+            } else {
+                log -= (Complex64::new(s, 0.0) - p).norm_sqr().ln();
+            }
+        }
+        for &(ao, w2o) in clusters {
+            let f = (s + ao) * (s + ao) + w2o;
+            log -= f.abs().ln();
+            sign *= f.signum();
+        }
+        // (s + a)^2 + w2 at s = -a is w2
+        let w2 = sign * log.exp();
+        w2.is_finite().then_some(w2)
     }
 
     fn normalise(v: &mut [Complex64]) {
@@ -823,5 +1087,137 @@ mod tests {
         let m = Modes::new(&Chain::paper(4).unwrap()).unwrap();
         assert!(m.response(5, 1, 1.0).is_err());
         assert!(m.response(1, 0, 1.0).is_err());
+    }
+}
+
+#[cfg(test)]
+mod scan_near_critical {
+    use super::*;
+    use crate::chain::Defect;
+    use crate::time::simulate::{simulate, Method, SimOptions};
+
+    /// Non-proportional chains swept through critical damping of their modes:
+    /// the residue sum keeps matching the matrix-exponential simulation
+    /// within its own reported rounding bound.
+    #[test]
+    fn sweep_through_critical_damping() {
+        let mut worst: f64 = 0.0;
+        for n in [2usize, 3] {
+            for step in 0..300 {
+                let d = 0.2 + step as f64 * 0.01;
+                let chain = Chain::new(n)
+                    .unwrap()
+                    .with_d(d)
+                    .unwrap()
+                    .with_defect(Defect::Mass { at: n, m: 2.0 })
+                    .unwrap();
+                let r = ModalResponse::impulse(&chain, 1).unwrap();
+                let o = SimOptions::new(30.0, 0.5).with_method(Method::Expm);
+                let tr = simulate(&chain, &o).unwrap();
+                let e =
+                    tr.t.iter()
+                        .zip(tr.x(1).unwrap())
+                        .map(|(&t, x)| (r.eval(t) - x).abs())
+                        .fold(0.0, f64::max);
+                worst = worst.max(e / (1e-14 + r.error_bound()));
+                assert!(
+                    e <= 1e-13 + 10.0 * r.error_bound(),
+                    "n={n} d={d}: {e:e}, bound {:e}",
+                    r.error_bound()
+                );
+            }
+        }
+        println!("worst error / (1e-14 + bound) = {worst:.2}");
+    }
+
+    fn chain2(d: f64) -> Chain {
+        Chain::new(2)
+            .unwrap()
+            .with_d(d)
+            .unwrap()
+            .with_defect(Defect::Mass { at: 2, m: 2.0 })
+            .unwrap()
+    }
+
+    /// Real-pole terms (0 when the pair is one term or complex).
+    fn real_count(d: f64) -> usize {
+        let r = ModalResponse::impulse(&chain2(d), 1).unwrap();
+        r.terms()
+            .iter()
+            .filter(|t| matches!(t, Term::Real { .. }))
+            .count()
+    }
+
+    /// Is the near-double pair (one term) overdamped (`w2 < 0`)?
+    fn pair_overdamped(d: f64) -> bool {
+        let r = ModalResponse::impulse(&chain2(d), 1).unwrap();
+        r.terms()
+            .iter()
+            .any(|t| matches!(t, Term::Osc { w2, e, .. } if *e != 0.0 && *w2 < 0.0))
+    }
+
+    fn bisect(mut lo: f64, mut hi: f64, left: impl Fn(f64) -> bool) -> (f64, f64) {
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if left(mid) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        (lo, hi)
+    }
+
+    /// At the physical edge of critical damping (the pair's `w2` changes
+    /// sign) and at the edge where the pair stops being one term, no pole is
+    /// lost and the residue sum matches the matrix-exponential simulation.
+    #[test]
+    fn at_the_merging_edge_no_pole_is_lost() {
+        let mut d = 0.5;
+        while !pair_overdamped(d) && real_count(d) == 0 {
+            d += 0.01;
+        }
+        let (plo, phi) = bisect(d - 0.01, d, |x| !pair_overdamped(x) && real_count(x) == 0);
+        let mut d2 = d;
+        while real_count(d2) == 0 {
+            d2 += 0.01;
+        }
+        let (clo, chi) = bisect(d2 - 0.01, d2, |x| real_count(x) == 0);
+        let mut ds = vec![];
+        for (lo, hi) in [(plo, phi), (clo, chi)] {
+            ds.extend([
+                lo,
+                hi,
+                hi * (1.0 + 1e-12),
+                lo * (1.0 - 1e-12),
+                hi * (1.0 + 1e-8),
+            ]);
+        }
+        for d in ds {
+            let chain = chain2(d);
+            let r = ModalResponse::impulse(&chain, 1).unwrap();
+            let npoles: usize = r.poles().iter().filter(|p| p.order == 1).count();
+            assert_eq!(npoles, 4, "d = {d}: {:?}", r.terms());
+            let tr = simulate(
+                &chain,
+                &SimOptions::new(30.0, 0.5).with_method(Method::Expm),
+            )
+            .unwrap();
+            let e =
+                tr.t.iter()
+                    .zip(tr.x(1).unwrap())
+                    .map(|(&t, x)| (r.eval(t) - x).abs())
+                    .fold(0.0, f64::max);
+            println!(
+                "d = {d:.17}: real-pole terms {}, |modal - expm| {e:.2e}, bound {:.2e}",
+                real_count(d),
+                r.error_bound()
+            );
+            assert!(
+                e <= 1e-11 && e <= 1e-14 + 10.0 * r.error_bound(),
+                "d = {d}: {e:e} {:?}",
+                r.terms()
+            );
+        }
     }
 }

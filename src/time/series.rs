@@ -22,8 +22,9 @@
 //!   phase `s t` of the kernel).
 //! * **Truncation (tail beyond `t_N`)**, [`Tail`]: by default an exponential
 //!   envelope `|x(t)| <= A e^{-a (t - t_N)}` is fitted to block maxima of the
-//!   last quarter of the record (the rate halved for safety, `A` the largest
-//!   block maximum carried forward to `t_N`), and the tail bound
+//!   last quarter of the record (the rate halved for safety, and taken as 0
+//!   unless the envelope falls by at least a factor 2 across the window; `A`
+//!   the largest block maximum carried forward to `t_N`), and the tail bound
 //!   `A |e^{-s t_N}| / (a + Re s)` is added to the error estimate. No value
 //!   correction is applied: for the oscillating, many-mode responses of a
 //!   chain an extrapolation of the last samples (even a single decaying
@@ -493,7 +494,13 @@ fn fit_envelope(t: &[f64], x: &[f64]) -> Envelope {
         let sxy: f64 = pts.iter().map(|p| (p.0 - mt) * (p.1 - my)).sum();
         let sxx: f64 = pts.iter().map(|p| (p.0 - mt) * (p.0 - mt)).sum();
         if sxx > 0.0 {
-            rate = (-0.5 * sxy / sxx).max(0.0);
+            let fitted = -sxy / sxx;
+            // A decay is only believed if the envelope falls by at least a
+            // factor of 2 across the window; otherwise the record is treated
+            // as not decaying (rate 0).
+            if fitted * (t_end - t0) >= std::f64::consts::LN_2 {
+                rate = 0.5 * fitted;
+            }
         }
     }
     let amp = blocks

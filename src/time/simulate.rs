@@ -17,7 +17,7 @@
 //! | `Expm` | dense `O(n^2)`, setup `O(n^3)` | exact: `y_{k+1} = exp(A dt) y_k` | exponential integrator, exact for a force that is a polynomial of degree `< q` on each step |
 //! | `Rk` | sparse `O(n)` | Taylor/RK of adaptive degree on sub-steps with `h ||A|| <= 1.5` | same, on the augmented system |
 //! | `Modal` | `O(modes)` per sample | exact residue sum ([`super::modal`]) | not available |
-//! | `Auto` | `Expm` for `n <= 300`, else `Rk` | | |
+//! | `Auto` | the cheaper of `Expm` and `Rk` by a cost model | | |
 //!
 //! **Forces.** On each step `[t, t + h]` every force is replaced by the
 //! polynomial through its values at `q` Chebyshev nodes of the step
@@ -70,6 +70,8 @@ pub const MAX_VALUES: usize = 50_000_000;
 pub const MAX_INTERP_ORDER: usize = 7;
 /// Largest number of force nodes per step.
 pub const MAX_FORCE_NODES: usize = 12;
+/// Sub-steps of `Rk` satisfy `h ||A||_inf <= RK_THETA`.
+const RK_THETA: f64 = 1.5;
 /// Largest chain for the dense `Expm` method (its matrix has `(2n)^2` entries).
 pub const MAX_N_EXPM: usize = 2000;
 
@@ -283,7 +285,7 @@ impl Forcing {
 /// Integration method (see the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Method {
-    /// `Expm` for `n <= 300`, `Rk` above.
+    /// The cheaper of `Expm` and `Rk` (dense setup `O(n^3)` against sparse steps).
     #[default]
     Auto,
     /// Dense matrix exponential stepping (exponential integrator when forced).
@@ -476,12 +478,11 @@ pub fn simulate_forced(chain: &Chain, opts: &SimOptions, forcing: &Forcing) -> R
     let samples = opts.samples(chain)?;
     forcing.check(chain.n())?;
     let t: Vec<f64> = (0..samples).map(|k| k as f64 * opts.dt).collect();
+    let sys = System::new(chain, forcing, opts);
     let method = match opts.method {
-        Method::Auto if chain.n() <= 300 => Method::Expm,
-        Method::Auto => Method::Rk,
+        Method::Auto => sys.cheaper(opts, samples),
         m => m,
     };
-    let sys = System::new(chain, forcing, opts);
     let (x, substeps) = match method {
         Method::Modal => {
             if !forcing.is_empty() {
@@ -521,10 +522,37 @@ pub fn simulate_forced(chain: &Chain, opts: &SimOptions, forcing: &Forcing) -> R
     })
 }
 
+/// `sum += term`, returning `(max |term|, max |sum|)`; four independent lanes
+/// so that the maxima do not serialise the loop.
+fn add_track_max(sum: &mut [f64], term: &[f64]) -> (f64, f64) {
+    let (mut t, mut s) = ([0.0_f64; 4], [0.0_f64; 4]);
+    let mut sc = sum.chunks_exact_mut(4);
+    let mut tc = term.chunks_exact(4);
+    for (a, b) in (&mut sc).zip(&mut tc) {
+        for j in 0..4 {
+            a[j] += b[j];
+            t[j] = t[j].max(b[j].abs());
+            s[j] = s[j].max(a[j].abs());
+        }
+    }
+    for (a, b) in sc.into_remainder().iter_mut().zip(tc.remainder()) {
+        *a += b;
+        t[0] = t[0].max(b.abs());
+        s[0] = s[0].max(a.abs());
+    }
+    (
+        t[0].max(t[1]).max(t[2].max(t[3])),
+        s[0].max(s[1]).max(s[2].max(s[3])),
+    )
+}
+
 /// The state-space system and the force sampling shared by the steppers.
 struct System<'a> {
     n: usize,
     m: Vec<f64>,
+    inv_m: Vec<f64>,
+    /// per mass: [k_i, -(k_i + k_{i+1}), k_{i+1}, -d_i] / m_i
+    rows: Vec<[f64; 4]>,
     k: Vec<f64>,
     d: Vec<f64>,
     v0: f64,
@@ -552,18 +580,53 @@ impl<'a> System<'a> {
         let v = DMatrix::from_fn(q, q, |i, j| nodes[i].powi(j as i32));
         // Chebyshev nodes are distinct: the Vandermonde matrix is invertible
         let vinv = v.try_inverse().unwrap_or_else(|| DMatrix::zeros(q, q));
+        let springs = chain.springs();
+        let dampers = chain.dampers();
         System {
             n: chain.n(),
             v0: chain.gamma() / m[0],
+            inv_m: m.iter().map(|v| 1.0 / v).collect(),
+            rows: (0..chain.n())
+                .map(|i| {
+                    let (k, d) = (&springs, &dampers);
+                    [
+                        k[i] / m[i],
+                        -(k[i] + k[i + 1]) / m[i],
+                        k[i + 1] / m[i],
+                        -d[i] / m[i],
+                    ]
+                })
+                .collect(),
             m,
-            k: chain.springs(),
-            d: chain.dampers(),
+            k: springs.clone(),
+            d: dampers.clone(),
             forcing,
             observe: opts.observe.clone(),
             fm,
             nodes,
             vinv,
         }
+    }
+
+    /// `Expm` or `Rk`, whichever a cost model (calibrated on this code:
+    /// about 4 ns per `(2n)^3` of setup and 1 ns per matrix entry per dense
+    /// step, 5 ns per mass per Taylor term) says is cheaper.
+    fn cheaper(&self, opts: &SimOptions, samples: usize) -> Method {
+        let n2 = (2 * self.n) as f64;
+        let extra = (self.q() * self.nf()) as f64;
+        let steps = samples.saturating_sub(1) as f64;
+        let expm = 4.0 * (n2 + extra).powi(3) + steps * opts.substeps as f64 * n2 * (n2 + extra);
+        let rk = 5.0 * steps * self.rk_substeps(opts) as f64 * 20.0 * self.n as f64;
+        if self.n <= MAX_N_EXPM && expm < rk {
+            Method::Expm
+        } else {
+            Method::Rk
+        }
+    }
+
+    fn rk_substeps(&self, opts: &SimOptions) -> usize {
+        opts.substeps
+            .max((opts.dt * self.norm_a() / RK_THETA).ceil() as usize)
     }
 
     fn nf(&self) -> usize {
@@ -592,21 +655,34 @@ impl<'a> System<'a> {
         Ok(())
     }
 
-    /// `out = A y` (sparse, O(n)).
-    fn apply_a(&self, y: &[f64], out: &mut [f64]) {
+    /// `out = alpha A y` (sparse, O(n)), with the rows of `M^-1 K` and `M^-1 D`
+    /// precomputed in `rows`.
+    fn apply_a_scaled(&self, y: &[f64], out: &mut [f64], alpha: f64) {
         let n = self.n;
         let (x, v) = y.split_at(n);
         let (ox, ov) = out.split_at_mut(n);
-        ox.copy_from_slice(v);
-        for i in 0..n {
-            let mut f = -(self.k[i] + self.k[i + 1]) * x[i] - self.d[i] * v[i];
-            if i > 0 {
-                f += self.k[i] * x[i - 1];
-            }
-            if i + 1 < n {
-                f += self.k[i + 1] * x[i + 1];
-            }
-            ov[i] = f / self.m[i];
+        for (o, vi) in ox.iter_mut().zip(v) {
+            *o = alpha * vi;
+        }
+        let r = &self.rows;
+        let row = |i: usize, xl: f64, xr: f64| {
+            let [lo, dg, up, dd] = r[i];
+            alpha * (lo * xl + dg * x[i] + up * xr + dd * v[i])
+        };
+        if n == 1 {
+            ov[0] = row(0, 0.0, 0.0);
+            return;
+        }
+        ov[0] = row(0, 0.0, x[1]);
+        ov[n - 1] = row(n - 1, x[n - 2], 0.0);
+        for (((o, w), ri), vi) in ov[1..n - 1]
+            .iter_mut()
+            .zip(x.windows(3))
+            .zip(&r[1..n - 1])
+            .zip(&v[1..n - 1])
+        {
+            let [lo, dg, up, dd] = *ri;
+            *o = alpha * (lo * w[0] + dg * w[1] + up * w[2] + dd * vi);
         }
     }
 
@@ -705,13 +781,10 @@ impl<'a> System<'a> {
     /// Sparse Taylor/RK stepping on the augmented system. Returns the
     /// trajectory and the number of sub-steps per output step.
     fn run_rk(&self, opts: &SimOptions, samples: usize) -> Result<(Vec<Vec<f64>>, usize)> {
-        const THETA: f64 = 1.5;
         const MAX_TERMS: usize = 80;
         let n2 = 2 * self.n;
         let (nf, q) = (self.nf(), self.q());
-        let sub = opts
-            .substeps
-            .max((opts.dt * self.norm_a() / THETA).ceil() as usize);
+        let sub = self.rk_substeps(opts);
         let h = opts.dt / sub as f64;
         let mut y = self.initial();
         let mut u = vec![0.0; q * nf];
@@ -721,7 +794,6 @@ impl<'a> System<'a> {
         let mut sum = vec![0.0; n2];
         let mut out = self.new_out(samples);
         self.record(&y, 0, &mut out);
-        let inf = |v: &[f64]| v.iter().fold(0.0_f64, |a, b| a.max(b.abs()));
         for k in 1..samples {
             for s in 0..sub {
                 if nf > 0 {
@@ -754,24 +826,20 @@ impl<'a> System<'a> {
                         });
                     }
                     // (ny, nu) = Z (ty, tu) / terms
-                    self.apply_a(&ty, &mut ny);
                     let c = 1.0 / terms as f64;
-                    for v in ny.iter_mut() {
-                        *v *= h * c;
-                    }
+                    self.apply_a_scaled(&ty, &mut ny, h * c);
                     for (l, &j) in self.fm.iter().enumerate() {
-                        ny[self.n + j - 1] += c * tu[l] / self.m[j - 1];
+                        ny[self.n + j - 1] += c * tu[l] * self.inv_m[j - 1];
                     }
+                    let mut umax = 0.0_f64;
                     for i in 0..q * nf {
                         nu[i] = if i + nf < q * nf { c * tu[i + nf] } else { 0.0 };
+                        umax = umax.max(nu[i].abs());
                     }
                     std::mem::swap(&mut ty, &mut ny);
                     std::mem::swap(&mut tu, &mut nu);
-                    for (a, b) in sum.iter_mut().zip(&ty) {
-                        *a += b;
-                    }
-                    let scale = inf(&sum).max(f64::MIN_POSITIVE);
-                    if inf(&ty).max(inf(&tu)) <= f64::EPSILON * 0.5 * scale {
+                    let (tmax, smax) = add_track_max(&mut sum, &ty);
+                    if tmax.max(umax) <= f64::EPSILON * 0.5 * smax.max(f64::MIN_POSITIVE) {
                         small += 1;
                     } else {
                         small = 0;
