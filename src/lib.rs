@@ -38,8 +38,10 @@
 //! | [`control`] | vibration suppression (Theorem 3.1, Corollary 3.2): Laplace, exact time domain, verification |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
 //! | [`sensitivity`] | derivatives of X_o(s) with respect to every parameter (reciprocity) |
+//! | [`precision`] | arbitrary-precision reals ([`precision::BigReal`]) and real-only operations |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
+//! | [`detect::locate`] | explicit single-defect locators (section 4.1), error floors, any precision |
 //! | [`time`] | simulation ([`time::simulate`]), exact ([`time::modal`]) and numerical ([`time::inverse`]) inverse Laplace transforms, transform of sampled series ([`time::series`]) |
 //! | [`noise`] | seeded additive white Gaussian noise |
 //! | [`error`] | one error type; every variant names the field and its range |
@@ -54,6 +56,7 @@ pub mod green;
 pub mod linalg;
 pub mod noise;
 pub mod plot;
+pub mod precision;
 pub mod scalar;
 pub mod sensitivity;
 pub mod series;

@@ -17,6 +17,8 @@ struct Cli {
 enum Command {
     /// Laplace-domain response X_i(s) of a chain (closed form + Woodbury).
     Response(cmd::response::Args),
+    /// Locate one mass defect from X_1(s) (section 4.1 locators, corrected).
+    Locate(cmd::locate::Args),
     /// Time-domain simulation x_i(t): impulse on mass 1, optional forces, CSV/SVG out.
     Simulate(cmd::simulate::Args),
     /// Vibration suppression controls (Theorem 3.1, Corollary 3.2), verified by simulation.
@@ -35,6 +37,7 @@ fn run() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Response(a) => cmd::response::run(a),
+        Command::Locate(a) => cmd::locate::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Suppress(a) => cmd::suppress::run(a),
         Command::Laplace(a) => cmd::laplace::run(a),

@@ -365,3 +365,74 @@ fn cli_fit_and_surface() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn measured_csv_series_through_the_scene() {
+    use springmass::time::simulate::{simulate, SimOptions};
+    let (n, defs) = TABLE1[1];
+    let chain = truth(n, &defs);
+    let traj = simulate(&chain, &SimOptions::new(300.0, 0.05)).unwrap();
+    let dir = std::env::temp_dir().join(format!("springmass-fit-csv-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("x1.csv");
+    traj.to_series().unwrap().write_csv(&csv).unwrap();
+    let text = format!(
+        "[chain]\nn = {n}\n[data]\nsource = \"series\"\npath = {:?}\ncolumn = \"x1\"\n[unknowns]\nk = 2\n",
+        csv.display().to_string()
+    );
+    let scene = FitScene::from_toml(&text).unwrap();
+    let report = fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
+    let pos: Vec<usize> = report.defects.iter().map(|d| d.at()).collect();
+    assert_eq!(pos, vec![3, 7], "{report:?}");
+    // a missing column names the columns present
+    let bad = FitScene::from_toml(&text.replace("column = \"x1\"", "column = \"x9\"")).unwrap();
+    assert!(bad.data().is_err());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn objective_penalises_invalid_candidates_finitely() {
+    use springmass::detect::fit::MisfitObjective;
+    use springmass::detect::search::{Candidate, Objective};
+    use springmass::detect::space::PENALTY;
+    let (n, defs) = TABLE1[0];
+    let chain = truth(n, &defs);
+    let mis = Misfit::new(
+        &chain.uniform(),
+        &Data::exact(&chain),
+        &MisfitSpec::default(),
+    )
+    .unwrap();
+    let u = Unknowns::new(n, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
+    let obj = MisfitObjective::new(&mis, &u);
+    let ok = obj.cost(&Candidate {
+        positions: vec![4, 2],
+        values: vec![0.5, 3.0],
+    });
+    assert!(ok < 1e-25, "{ok}");
+    for c in [
+        Candidate {
+            positions: vec![2, 2],
+            values: vec![3.0, 0.5],
+        },
+        Candidate {
+            positions: vec![0, 6],
+            values: vec![3.0, 0.5],
+        },
+        Candidate {
+            positions: vec![2, 4],
+            values: vec![f64::NAN, 0.5],
+        },
+        Candidate {
+            positions: vec![2, 4],
+            values: vec![-1.0, 1e300],
+        },
+        Candidate {
+            positions: vec![2],
+            values: vec![3.0],
+        },
+    ] {
+        let p = obj.cost(&c);
+        assert!(p.is_finite() && p >= PENALTY, "{c:?}: {p}");
+    }
+}

@@ -8,6 +8,14 @@ use springmass::series::TimeSeries;
 use springmass::time::series::{SeriesTransform, Tail, TransformOptions, DEFAULT_DEGREE};
 use std::path::PathBuf;
 
+/// The tail model on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum TailArg {
+    Envelope,
+    Modes,
+    Zero,
+}
+
 /// Arguments of `springmass laplace`.
 #[derive(ClapArgs, Debug)]
 pub struct Args {
@@ -32,9 +40,12 @@ pub struct Args {
     /// standard deviation of each X(s).
     #[arg(long)]
     pub noise_sigma: Option<f64>,
-    /// Treat the signal as zero after the last sample (no truncation bound).
-    #[arg(long)]
-    pub zero_tail: bool,
+    /// After the last sample: `envelope` (bound the tail by a fitted
+    /// exponential envelope), `modes` (fit decaying modes and add their
+    /// transform as a correction; falls back to `envelope`), `zero` (the
+    /// signal is zero there).
+    #[arg(long, value_enum, default_value_t = TailArg::Envelope)]
+    pub tail: TailArg,
     /// Print JSON: {"points": [{"s": [re, im], "x": [re, im], "err": e}, ...]}
     /// (plus "noise_std" per point with --noise-sigma).
     #[arg(long)]
@@ -50,10 +61,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let opts = TransformOptions {
         degree: a.degree,
         noise_sigma: a.noise_sigma,
-        tail: if a.zero_tail {
-            Tail::Zero
-        } else {
-            Tail::Envelope
+        tail: match a.tail {
+            TailArg::Envelope => Tail::Envelope,
+            TailArg::Modes => Tail::Modes,
+            TailArg::Zero => Tail::Zero,
         },
     };
     let tr = SeriesTransform::from_series(&ts, &column, &opts)
@@ -89,6 +100,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             t[t.len() - 1],
             tr.degree()
         );
+        if let Some(fit) = tr.mode_fit() {
+            println!(
+                "# tail after t = {}: {} decaying modes fitted (relative residual {:.1e}), transform added",
+                fit.t_end,
+                fit.poles.len(),
+                fit.residual
+            );
+        }
         if let Some(env) = tr.envelope() {
             println!(
                 "# tail after t = {}: |x| <= {:.3e} exp(-{:.3e} (t - {}))  (bound, no correction)",

@@ -3,6 +3,7 @@
 pub mod fit;
 pub mod laplace;
 pub mod noise;
+pub mod locate;
 pub mod response;
 pub mod simulate;
 pub mod suppress;

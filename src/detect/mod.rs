@@ -1,5 +1,6 @@
-//! Defect detection: fit the positions and masses of defects to observed
-//! `X_1` data by minimising an L2 residual.
+//! Defect detection: explicit locators for one defect ([`locate`]), and
+//! fitting the positions and masses of defects to observed `X_1` data by
+//! minimising an L2 residual.
 //!
 //! ```
 //! use springmass::{Chain, Defect};
@@ -30,12 +31,14 @@
 //! | [`noisefit`] | fits to noisy sampled series with each misfit (noise study) |
 //! | [`noise_study`] | success vs noise, calibration, unknown damping, number of defects |
 //! | [`chainfit`] | continuous fit of defect values and chain parameters (d, k, mass, gamma) |
+//! | [`locate`] | explicit single-defect locators (section 4.1), corrected, any precision |
 
 pub mod chainfit;
 pub mod data;
 pub mod fit;
 pub mod identify;
 pub mod lsq;
+pub mod locate;
 pub mod misfit;
 pub mod misfit_time;
 pub mod noise_study;

@@ -309,6 +309,14 @@ mod tests {
         assert_eq!(s.chain.n, 20);
         assert_eq!(s.unknowns().unwrap().k(), 2);
         s.data().unwrap();
+        for text in [
+            include_str!("../../configs/table1-system3-series.toml"),
+            include_str!("../../configs/figure16.toml"),
+            include_str!("../../configs/figure17.toml"),
+        ] {
+            let s = FitScene::from_toml(text).unwrap();
+            s.unknowns().unwrap();
+        }
     }
 
     #[test]
