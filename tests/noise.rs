@@ -189,3 +189,48 @@ fn laplace_observations_with_unknown_gamma_and_k() {
         f.values
     );
 }
+
+#[test]
+fn cli_rejects_bad_input_and_runs_a_tiny_table() {
+    let bin = env!("CARGO_BIN_EXE_springmass");
+    let dir = std::env::temp_dir().join(format!("springmass-noise-{}", std::process::id()));
+    let out = std::process::Command::new(bin)
+        .args(["noise-study", "table", "--levels", "-1", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("levels"));
+    let out = std::process::Command::new(bin)
+        .args(["noise-study", "table", "--systems", "S9", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let out = std::process::Command::new(bin)
+        .args([
+            "noise-study",
+            "table",
+            "--systems",
+            "S1",
+            "--levels",
+            "1e-3",
+            "--seeds",
+            "1",
+            "--misfits",
+            "bromwich",
+            "--out",
+        ])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = std::fs::read_to_string(dir.join("success.csv")).unwrap();
+    assert!(csv.contains("S1,bromwich,1e-3,1,1,1"), "{csv}");
+    assert!(dir.join("success.svg").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

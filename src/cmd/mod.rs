@@ -2,8 +2,8 @@
 
 pub mod fit;
 pub mod laplace;
-pub mod noise;
 pub mod locate;
+pub mod noise;
 pub mod response;
 pub mod simulate;
 pub mod suppress;

@@ -40,7 +40,7 @@ pub struct Args {
     #[arg(long, default_value_t = 20)]
     pub seeds: usize,
     /// Noise levels (relative to max |x_1|), comma separated [default: 1e-8,1e-7,...,1e-1].
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     pub levels: Vec<f64>,
     /// Systems for the table (S1,S2,S3,S4,C3a,C3b) [default: all].
     #[arg(long, value_delimiter = ',')]
