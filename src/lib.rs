@@ -39,8 +39,10 @@
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
 //! | [`sensitivity`] | derivatives of X_o(s) with respect to every parameter (reciprocity) |
 //! | [`precision`] | arbitrary-precision reals ([`precision::BigReal`]) and real-only operations |
+//! | [`scenes`] | the paper's reference scenes (P1-P4, Table 1's S1-S4), shared by tests, benches and configs |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
+//! | [`study`] | config-driven studies: sweeps, parallel resumable runs, reports |
 //! | [`detect::locate`] | explicit single-defect locators (section 4.1), error floors, any precision |
 //! | [`time`] | simulation ([`time::simulate`]), exact ([`time::modal`]) and numerical ([`time::inverse`]) inverse Laplace transforms, transform of sampled series ([`time::series`]) |
 //! | [`noise`] | seeded additive white Gaussian noise |
@@ -58,8 +60,10 @@ pub mod noise;
 pub mod plot;
 pub mod precision;
 pub mod scalar;
+pub mod scenes;
 pub mod sensitivity;
 pub mod series;
+pub mod study;
 pub mod time;
 
 pub use chain::{Chain, ChainSpec, Defect};

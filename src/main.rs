@@ -17,6 +17,10 @@ struct Cli {
 enum Command {
     /// Laplace-domain response X_i(s) of a chain (closed form + Woodbury).
     Response(cmd::response::Args),
+    /// Run a study file (sweep of cases) in parallel into tables and plots; `study merge` combines shards.
+    Study(cmd::study::Args),
+    /// Check a study file, print the schema of every field with its default.
+    Config(cmd::config::Args),
     /// Locate one mass defect from X_1(s) (section 4.1 locators, corrected).
     Locate(cmd::locate::Args),
     /// Time-domain simulation x_i(t): impulse on mass 1, optional forces, CSV/SVG out.
@@ -37,6 +41,8 @@ fn run() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Response(a) => cmd::response::run(a),
+        Command::Study(a) => cmd::study::run(a),
+        Command::Config(a) => cmd::config::run(a),
         Command::Locate(a) => cmd::locate::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Suppress(a) => cmd::suppress::run(a),

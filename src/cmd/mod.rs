@@ -1,11 +1,13 @@
 //! Subcommands. Shared argument groups live here.
 
+pub mod config;
 pub mod fit;
 pub mod laplace;
 pub mod locate;
 pub mod noise;
 pub mod response;
 pub mod simulate;
+pub mod study;
 pub mod suppress;
 pub mod surface;
 

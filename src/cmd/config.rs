@@ -1,0 +1,73 @@
+//! `springmass config`: check a study file, print the schema.
+
+use clap::{Args as ClapArgs, Subcommand};
+use springmass::study::config::{check, schema_markdown, schema_text};
+use springmass::study::kinds::ALL;
+use springmass::study::{Study, DEFAULT_STUDY};
+use std::path::PathBuf;
+
+/// Arguments of `springmass config`.
+#[derive(ClapArgs, Debug)]
+#[command(after_long_help = format!("{LONG_HELP}\n\n{}", schema_text(ALL)))]
+pub struct Args {
+    #[command(subcommand)]
+    pub command: ConfigCommand,
+}
+
+const LONG_HELP: &str = "\
+A study file is TOML with four tables:
+  [study]     name, kind, description, seed (0), repeats (1), timings (true)
+  [scene]     the base case, in the schema of the kind
+  [[sweep]]   path = \"field.path\" and values = [...] or range = { from, to, count | step, spacing, integer }
+  [report]    max_case_rows (200), [[report.table]], [[report.plot]]
+Unknown fields are errors. Every field follows; `springmass config schema` prints
+the same as Markdown tables, and docs/config.md is the reference page.";
+
+/// The subcommands.
+#[derive(Subcommand, Debug)]
+pub enum ConfigCommand {
+    /// Check a study file: report every problem with its field path and line; exit 1 if any.
+    Check {
+        /// The study file.
+        file: PathBuf,
+    },
+    /// Print every field of a study file (and of each kind's scene) with its type and default (Markdown).
+    Schema,
+    /// Print the embedded default study file.
+    ShowDefault,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    match a.command {
+        ConfigCommand::Check { file } => {
+            let text = std::fs::read_to_string(&file)
+                .map_err(|e| anyhow::anyhow!("reading {}: {e}", file.display()))?;
+            let problems = check(&text);
+            if problems.is_empty() {
+                let s = Study::from_text(&text, &file.display().to_string())?;
+                println!(
+                    "{}: ok (study {:?}, kind {}, {} cases)",
+                    file.display(),
+                    s.file.study.name,
+                    s.file.study.kind.name(),
+                    s.cases.len()
+                );
+                Ok(())
+            } else {
+                for p in &problems {
+                    println!("{}: {p}", file.display());
+                }
+                eprintln!("{}: {} problem(s)", file.display(), problems.len());
+                std::process::exit(1);
+            }
+        }
+        ConfigCommand::Schema => {
+            print!("{}", schema_markdown(ALL));
+            Ok(())
+        }
+        ConfigCommand::ShowDefault => {
+            print!("{DEFAULT_STUDY}");
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,108 @@
+//! `springmass study`: run a study file (or the embedded default) into a
+//! report; `springmass study merge`: combine shard outputs.
+
+use anyhow::Context;
+use clap::{Args as ClapArgs, Subcommand};
+use springmass::study::run::{run as run_study, RunOptions};
+use springmass::study::shard::{merge, Shard};
+use springmass::study::Study;
+use std::path::PathBuf;
+
+/// Arguments of `springmass study`.
+#[derive(ClapArgs, Debug)]
+#[command(args_conflicts_with_subcommands = true)]
+pub struct Args {
+    #[command(subcommand)]
+    pub merge: Option<MergeCommand>,
+    /// The study file (TOML). Without it (or with --default), the embedded
+    /// default study runs.
+    pub file: Option<PathBuf>,
+    /// Run the embedded default study (`springmass config show-default` prints it).
+    #[arg(long, conflicts_with = "file")]
+    pub default: bool,
+    /// Output folder [default: out/<study name>]. Running again with the same
+    /// folder resumes: finished cases are not recomputed.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Worker threads [default: number of cores]. Results do not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Run only shard I of N (1-based): cases whose index is I-1 modulo N.
+    /// Combine the shard folders with `springmass study merge`.
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<Shard>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `springmass study merge DIR... --out DIR`.
+#[derive(Subcommand, Debug)]
+pub enum MergeCommand {
+    /// Combine the output folders of shards (or partial runs) of one study into
+    /// the report a single run gives.
+    Merge {
+        /// Shard output folders.
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// Output folder of the combined report.
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    if let Some(MergeCommand::Merge { dirs, out }) = a.merge {
+        let m = merge(&dirs, &out)?;
+        println!(
+            "merged {} records from {} folder(s): {} cases, {} failed",
+            m.read,
+            dirs.len(),
+            m.total,
+            m.failed
+        );
+        println!("report: {}", m.report.display());
+        return Ok(());
+    }
+    if a.threads == Some(0) {
+        anyhow::bail!("invalid threads = 0: allowed threads >= 1");
+    }
+    let study = match (&a.file, a.default) {
+        (Some(f), false) => Study::from_file(f)?,
+        _ => Study::default_study()?,
+    };
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("out").join(&study.file.study.name));
+    let mut opts = RunOptions::new(&out);
+    opts.threads = a.threads;
+    opts.shard = a.shard;
+    opts.progress = !a.quiet;
+    eprintln!(
+        "study {}: {} cases{}, output in {}",
+        study.file.study.name,
+        study.cases.len(),
+        a.shard.map(|s| format!(" (shard {s})")).unwrap_or_default(),
+        out.display()
+    );
+    let start = std::time::Instant::now();
+    let s = run_study(&study, &opts).with_context(|| format!("running into {}", out.display()))?;
+    eprintln!(
+        "{} run now, {} resumed, {} failed, in {:.1} s",
+        s.ran,
+        s.resumed,
+        s.failed,
+        start.elapsed().as_secs_f64()
+    );
+    match (&s.report, a.shard) {
+        (Some(r), _) => println!("report: {}", r.display()),
+        (None, Some(sh)) => println!(
+            "shard {sh} done: {} cases in {}; combine the shard folders with `springmass study merge DIR... --out DIR`",
+            s.selected,
+            out.display()
+        ),
+        (None, None) => println!("incomplete: run the same command again to resume"),
+    }
+    Ok(())
+}

@@ -1,0 +1,89 @@
+//! The paper's reference scenes, in one place for tests, benchmarks, examples
+//! and configs alike.
+//!
+//! | name | n | defects `(j, m)` | where in the paper |
+//! |---|---|---|---|
+//! | `P1` | 20 | (15, 1.01) | section 4.1.1, Figures 10-11 |
+//! | `P2` | 5 | (3, 4) | section 4.1.2, Figures 12-13 |
+//! | `P3` | 20 | (3, 5) | section 4.1.3, Figures 14-15 |
+//! | `P4` | 20 | (10, 3), (15, 7) | section 4.2.2, Figure 17 |
+//! | `S1`..`S4` | 5, 10, 20, 20 | Table 1 | section 4.2.3 |
+//!
+//! All with `k = 1`, `d = 0.1`, `gamma = 1`, unit masses elsewhere (the
+//! conventions of `shared/reference/`).
+//!
+//! ```
+//! use springmass::scenes;
+//! let s3 = scenes::table1(3)?;
+//! assert_eq!(s3.n(), 20);
+//! assert_eq!(scenes::by_name("P2")?.defects().len(), 1);
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+use crate::chain::{Chain, Defect};
+use crate::error::{Error, Result};
+
+/// Names of all reference scenes.
+pub const NAMES: [&str; 8] = ["P1", "P2", "P3", "P4", "S1", "S2", "S3", "S4"];
+
+/// `(n, [(j, m), ...])` of a scene.
+fn spec(name: &str) -> Option<(usize, &'static [(usize, f64)])> {
+    Some(match name {
+        "P1" => (20, &[(15, 1.01)]),
+        "P2" => (5, &[(3, 4.0)]),
+        "P3" => (20, &[(3, 5.0)]),
+        "P4" => (20, &[(10, 3.0), (15, 7.0)]),
+        "S1" => (5, &[(2, 3.0), (4, 0.5)]),
+        "S2" => (10, &[(3, 3.0), (7, 2.0)]),
+        "S3" => (20, &[(8, 5.0), (15, 2.0)]),
+        "S4" => (20, &[(8, 5.0), (15, 15.0)]),
+        _ => return None,
+    })
+}
+
+/// A reference scene by name (`P1`..`P4`, `S1`..`S4`, case-insensitive).
+///
+/// # Errors
+/// [`Error::InvalidParameter`] for an unknown name, listing the known ones.
+pub fn by_name(name: &str) -> Result<Chain> {
+    let up = name.trim().to_ascii_uppercase();
+    let (n, defects) = spec(&up).ok_or_else(|| Error::invalid("scene", name, NAMES.join(", ")))?;
+    Chain::paper(n)?.with_defects(defects.iter().map(|&(at, m)| Defect::Mass { at, m }))
+}
+
+/// System `i` (1..=4) of the paper's Table 1.
+pub fn table1(i: usize) -> Result<Chain> {
+    if !(1..=4).contains(&i) {
+        return Err(Error::invalid("system", i, "1 <= system <= 4"));
+    }
+    by_name(&format!("S{i}"))
+}
+
+/// The paper's genetic-algorithm estimates of Table 1, `[(j1, m1), (j2, m2)]`
+/// for systems 1..=4 (to print next to ours).
+pub const TABLE1_PAPER_GA: [[(usize, f64); 2]; 4] = [
+    [(2, 2.9760), (4, 0.6579)],
+    [(3, 2.9009), (4, 1.3364)],
+    [(8, 5.0113), (17, 3.2586)],
+    [(8, 5.0646), (16, 14.2290)],
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn all_scenes_build() {
+        for name in NAMES {
+            let c = by_name(name).unwrap();
+            assert_eq!(c.d(), 0.1);
+            assert!(!c.defects().is_empty());
+        }
+        assert!(by_name("S9").is_err());
+        assert!(table1(0).is_err() && table1(5).is_err());
+        assert_eq!(
+            table1(4).unwrap().defects()[1],
+            Defect::Mass { at: 15, m: 15.0 }
+        );
+    }
+}

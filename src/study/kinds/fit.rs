@@ -1,0 +1,236 @@
+//! Kind `fit`: defect detection by fitting ([`crate::detect::fit::fit`]) on a
+//! [`FitScene`]: synthetic data of the scene's true chain (exact, or
+//! simulated and Laplace-transformed, with optional noise), the unknowns, the
+//! residual (quadrature rule and nodes) and the search (method, budget).
+//!
+//! The case's seed becomes the data's noise seed and the search's seed
+//! unless the scene sets `data.seed` / `search.seed` itself. Metrics: whether
+//! the positions found equal the true ones, the position and mass errors,
+//! the residual and its gap to the best other hypothesis against the data's
+//! error floor, and the evaluations; timings: setup and search.
+//!
+//! ```
+//! use springmass::study::kinds::Kind;
+//! let scene: toml::Value = toml::from_str(r#"
+//!     chain = { n = 5, defects = [ { kind = "mass", at = 2, m = 3.0 }, { kind = "mass", at = 4, m = 0.5 } ] }
+//! "#).unwrap();
+//! let out = Kind::Fit.run(&scene, 0)?;
+//! assert_eq!(out.metrics["success"], true);
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+use super::{from_scene, CaseOutput};
+use crate::chain::Defect;
+use crate::detect::fit::fit;
+use crate::detect::scene::FitScene;
+use crate::error::Result;
+use crate::study::config::FieldDoc;
+use crate::study::sweep::{set_path, splitmix64};
+
+/// One paragraph for the schema page.
+pub const SUMMARY: &str = "Fits the unknown defects of a chain to synthetic data of its true defects (detect::fit with a FitScene) and records whether the positions were recovered, the errors, the residual gap against the data's floor, and the cost.";
+
+/// Every scene field of kind `fit` (the [`FitScene`] schema).
+pub const FIELDS: &[FieldDoc] = &[
+    FieldDoc::new("chain", "table", "required", "The chain; its defects are the truth used for synthetic data (the model is its uniform part)."),
+    FieldDoc::new("chain.n", "integer >= 1", "required", "Number of masses."),
+    FieldDoc::new("chain.k", "float > 0", "1", "Uniform spring constant."),
+    FieldDoc::new("chain.d", "float >= 0", "0.1", "Uniform damping."),
+    FieldDoc::new("chain.gamma", "float", "1", "Impulse on mass 1."),
+    FieldDoc::new("chain.mass", "float > 0", "1", "Uniform mass."),
+    FieldDoc::new("chain.defects", "array of tables", "[]", "The true defects, e.g. `{ kind = \"mass\", at = 8, m = 5.0 }`."),
+    FieldDoc::new("chain.defects[].kind", "\"mass\" | \"spring\" | \"damper\"", "required", "What differs (the fit looks for mass defects)."),
+    FieldDoc::new("chain.defects[].at", "integer", "required", "Position."),
+    FieldDoc::new("chain.defects[].m", "float > 0", "required for mass", "The mass."),
+    FieldDoc::new("chain.defects[].k", "float > 0", "required for spring", "The stiffness."),
+    FieldDoc::new("chain.defects[].d", "float >= 0", "required for damper", "The damping."),
+    FieldDoc::new("data", "table", "{}", "The data."),
+    FieldDoc::new("data.source", "\"exact\" | \"simulated\" | \"series\"", "\"exact\"", "Closed-form model of the chain; a simulation Laplace-transformed (the paper's pipeline); or a measured CSV series."),
+    FieldDoc::new("data.path", "string", "none", "CSV series (source `series`)."),
+    FieldDoc::new("data.column", "string", "\"x1\"", "Column of the CSV series."),
+    FieldDoc::new("data.noise", "float >= 0", "0", "`exact`: relative Laplace-domain noise; `simulated`: absolute noise on the samples; `series`: the samples' known noise."),
+    FieldDoc::new("data.seed", "integer", "the case's seed", "Noise seed (in a study: derived from the case unless given)."),
+    FieldDoc::new("data.t_end", "float", "300", "`simulated`: end of the record."),
+    FieldDoc::new("data.dt", "float", "0.05", "`simulated`: sampling step."),
+    FieldDoc::new("unknowns", "table", "{}", "The unknowns."),
+    FieldDoc::new("unknowns.k", "integer", "number of true mass defects", "Number of defects sought."),
+    FieldDoc::new("unknowns.mass_bounds", "[float, float]", "[0.1, 100]", "Bounds of unknown masses."),
+    FieldDoc::new("unknowns.defects", "array of tables", "[]", "Per-defect knowledge (known position and/or mass, bounds)."),
+    FieldDoc::new("unknowns.defects[].at", "integer", "unknown", "Known position."),
+    FieldDoc::new("unknowns.defects[].m", "float", "unknown", "Known mass."),
+    FieldDoc::new("unknowns.defects[].bounds", "[float, float]", "mass_bounds", "Bounds of this unknown mass."),
+    FieldDoc::new("misfit", "table", "{}", "The residual."),
+    FieldDoc::new("misfit.kind", "\"real-axis\" | \"bromwich\"", "\"real-axis\"", "L2 residual on [0, s_max] of the real axis, or on the line s = sigma + i omega."),
+    FieldDoc::new("misfit.rule", "\"gl-log\" | \"gl-uniform\"", "by kind", "Quadrature rule: Gauss-Legendre on log-graded or uniform panels."),
+    FieldDoc::new("misfit.panels", "integer", "10 (real axis), 40 (Bromwich)", "Number of panels."),
+    FieldDoc::new("misfit.per_panel", "integer", "8", "Gauss points per panel."),
+    FieldDoc::new("misfit.first", "float", "0.05", "End of the first log-graded panel."),
+    FieldDoc::new("misfit.s_max", "float", "300", "Upper limit of the real-axis integral."),
+    FieldDoc::new("misfit.sigma", "float", "0.1", "Abscissa of the Bromwich line."),
+    FieldDoc::new("misfit.omega_max", "float", "4", "Upper limit of omega on the Bromwich line."),
+    FieldDoc::new("search", "table", "{}", "The search."),
+    FieldDoc::new("search.method", "\"enumerate\" | \"ga\" | \"nelder-mead\" | \"pso\"", "\"enumerate\"", "Exhaustive enumeration of position sets with mass fits, or a stochastic optimizer."),
+    FieldDoc::new("search.seed", "integer", "the case's seed", "Seed of stochastic methods (in a study: derived from the case unless given)."),
+    FieldDoc::new("search.max_evals", "integer", "20000", "Evaluation budget of stochastic methods."),
+    FieldDoc::new("search.keep", "integer", "5", "Hypotheses reported (best and runners-up)."),
+    FieldDoc::new("search.starts", "integer", "2", "Enumeration: starting values per unknown mass."),
+    FieldDoc::new("search.max_sets", "integer", "200000", "Enumeration: largest exhaustive set count before the beam search."),
+    FieldDoc::new("search.beam", "integer", "16", "Enumeration: beam width."),
+    FieldDoc::new("search.parallel", "bool", "true", "Parallel residual evaluations (on the study's thread pool)."),
+    FieldDoc::new("search.trace", "bool", "false", "Record the optimizer's trace."),
+];
+
+/// Every metric and timing of kind `fit`.
+pub const METRICS: &[(&str, &str)] = &[
+    (
+        "success",
+        "the positions found equal the true mass-defect positions (as sets)",
+    ),
+    ("found", "positions found, e.g. 8;15"),
+    ("truth", "true positions, e.g. 8;15"),
+    (
+        "position_error",
+        "sum of |found - true| over positions (both sorted)",
+    ),
+    (
+        "mass_max_rel_err",
+        "largest |m_found - m_true| / m_true (positions sorted), when the positions are right",
+    ),
+    ("residual", "residual at the answer"),
+    (
+        "gap",
+        "residual of the best other hypothesis minus the answer's",
+    ),
+    ("floor", "the data's error floor on the residual"),
+    (
+        "resolved",
+        "gap above the floor: the data decide the answer",
+    ),
+    (
+        "fits_data",
+        "the answer's residual is within the data's floor",
+    ),
+    ("evaluations", "residual evaluations"),
+    ("nodes", "quadrature nodes of the residual"),
+    (
+        "t_setup",
+        "measured seconds of the setup (rule, tables, data)",
+    ),
+    ("t_search", "measured seconds of the search"),
+];
+
+fn positions(d: &[Defect]) -> Vec<(usize, f64)> {
+    let mut v: Vec<(usize, f64)> = d
+        .iter()
+        .filter_map(|d| match *d {
+            Defect::Mass { at, m } => Some((at, m)),
+            _ => None,
+        })
+        .collect();
+    v.sort_by_key(|p| p.0);
+    v
+}
+
+/// Put the case seed into `data.seed` and `search.seed` unless given.
+pub fn seeded(value: &toml::Value, seed: u64) -> toml::Value {
+    let mut v = value.clone();
+    let has = |v: &toml::Value, t: &str| v.get(t).and_then(|x| x.get("seed")).is_some();
+    if !has(&v, "data") {
+        let _ = set_path(
+            &mut v,
+            "data.seed",
+            toml::Value::Integer((seed >> 1) as i64),
+        );
+    }
+    if !has(&v, "search") {
+        let s2 = splitmix64(seed);
+        let _ = set_path(
+            &mut v,
+            "search.seed",
+            toml::Value::Integer((s2 >> 1) as i64),
+        );
+    }
+    v
+}
+
+/// Deserialize and check a scene.
+///
+/// # Errors
+/// [`crate::Error::InvalidParameter`] naming the field.
+pub fn scene(value: &toml::Value) -> Result<FitScene> {
+    let s: FitScene = from_scene(value, FIELDS)?;
+    s.truth()?;
+    s.unknowns()?;
+    Ok(s)
+}
+
+/// Run one `fit` case.
+///
+/// # Errors
+/// An invalid scene; the fit's own errors.
+pub fn run(value: &toml::Value, seed: u64) -> Result<CaseOutput> {
+    let s = scene(&seeded(value, seed))?;
+    let data = s.data()?;
+    let r = fit(&s, &data, &s.options())?;
+    let truth = positions(s.truth()?.defects());
+    let found = positions(&r.defects);
+    let list = |p: &[(usize, f64)]| {
+        p.iter()
+            .map(|x| x.0.to_string())
+            .collect::<Vec<_>>()
+            .join(";")
+    };
+    let same = truth.len() == found.len() && truth.iter().zip(&found).all(|(a, b)| a.0 == b.0);
+    let pos_err: usize = if truth.len() == found.len() {
+        truth
+            .iter()
+            .zip(&found)
+            .map(|(a, b)| a.0.abs_diff(b.0))
+            .sum()
+    } else {
+        usize::MAX
+    };
+    let num = |x: f64| {
+        serde_json::Number::from_f64(x)
+            .map(serde_json::Value::Number)
+            .unwrap_or(serde_json::Value::Null)
+    };
+    let mut out = CaseOutput::default();
+    let m = &mut out.metrics;
+    m.insert("success".into(), same.into());
+    m.insert("found".into(), list(&found).into());
+    m.insert("truth".into(), list(&truth).into());
+    m.insert(
+        "position_error".into(),
+        if pos_err == usize::MAX {
+            serde_json::Value::Null
+        } else {
+            pos_err.into()
+        },
+    );
+    let mrel = if same {
+        truth
+            .iter()
+            .zip(&found)
+            .map(|(a, b)| ((b.1 - a.1) / a.1).abs())
+            .fold(0.0, f64::max)
+    } else {
+        f64::NAN
+    };
+    m.insert("mass_max_rel_err".into(), num(mrel));
+    m.insert("residual".into(), num(r.residual));
+    m.insert(
+        "gap".into(),
+        r.runners_up
+            .first()
+            .map_or(serde_json::Value::Null, |a| num(a.gap)),
+    );
+    m.insert("floor".into(), num(r.floor));
+    m.insert("resolved".into(), r.resolved.into());
+    m.insert("fits_data".into(), r.fits_data.into());
+    m.insert("evaluations".into(), r.evaluations.into());
+    m.insert("nodes".into(), r.nodes.into());
+    out.timings.insert("t_setup".into(), num(r.setup_time_s));
+    out.timings.insert("t_search".into(), num(r.wall_time_s));
+    Ok(out)
+}

@@ -1,0 +1,295 @@
+//! Kind `locate`: the explicit single-defect locators of section 4.1
+//! ([`crate::detect::locate::locate`], in f64), on data of a chain with one
+//! mass defect: exact closed-form `X_1(s)`, or the paper's pipeline (a
+//! simulated `x_1(t)`, Laplace-transformed).
+//!
+//! An unresolvable defect is a result, not a failure: `resolved = false` and
+//! the reason in `status`. With `plots = true` the case draws its `j(s)`
+//! curve (the paper's Figures 11, 13 and 15).
+//!
+//! ```
+//! use springmass::study::kinds::Kind;
+//! let scene: toml::Value = toml::from_str(
+//!     "chain = { n = 20, defects = [ { kind = \"mass\", at = 15, m = 1.01 } ] }").unwrap();
+//! let out = Kind::Locate.run(&scene, 0)?;
+//! assert_eq!(out.metrics["position"], 15);
+//! assert_eq!(out.metrics["success"], true);
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+use super::{from_scene, CaseOutput, CasePlot};
+use crate::chain::{Chain, ChainSpec, Defect};
+use crate::detect::locate::{curve, default_grid, locate, LaplaceData, Method, Model, SChoice};
+use crate::error::{check_f64, Error, Result};
+use crate::plot::{Line, LinePlot};
+use crate::study::config::FieldDoc;
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// One paragraph for the schema page.
+pub const SUMMARY: &str = "Locates one mass defect from X_1(s) with the section 4.1 locators (exact (4.7), asymptotic (4.10), large-defect (4.17) stable or as printed, unknown mass), in f64, on exact or simulated data; an unresolvable defect is reported as such.";
+
+/// The scene of a `locate` case.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// The chain with exactly one mass defect (the truth).
+    pub chain: ChainSpec,
+    /// `exact` (default), `asymptotic`, `large`, `large-paper`, `unknown-mass`.
+    #[serde(default = "default_method")]
+    pub method: String,
+    /// Assumed defect mass of `exact` / `asymptotic` (default: the true one).
+    #[serde(default)]
+    pub m: Option<f64>,
+    /// A fixed `s` (default: automatic choice over the default grid).
+    #[serde(default)]
+    pub s: Option<f64>,
+    /// `exact` (default) or `simulated`.
+    #[serde(default = "default_source")]
+    pub data: String,
+    /// `simulated`: end of the record (default 300).
+    #[serde(default = "default_t_end")]
+    pub t_end: f64,
+    /// `simulated`: sampling step (default 0.05).
+    #[serde(default = "default_dt")]
+    pub dt: f64,
+    /// Draw the `j(s)` curve (default false).
+    #[serde(default)]
+    pub plots: bool,
+}
+
+fn default_method() -> String {
+    "exact".into()
+}
+fn default_source() -> String {
+    "exact".into()
+}
+fn default_t_end() -> f64 {
+    300.0
+}
+fn default_dt() -> f64 {
+    0.05
+}
+
+/// Every scene field of kind `locate`.
+pub const FIELDS: &[FieldDoc] = &[
+    FieldDoc::new("chain", "table", "required", "The chain, with exactly one mass defect: the truth that makes the data."),
+    FieldDoc::new("chain.n", "integer >= 1", "required", "Number of masses."),
+    FieldDoc::new("chain.k", "float > 0", "1", "Uniform spring constant."),
+    FieldDoc::new("chain.d", "float >= 0", "0.1", "Uniform damping."),
+    FieldDoc::new("chain.gamma", "float", "1", "Impulse on mass 1."),
+    FieldDoc::new("chain.mass", "float > 0", "1", "Uniform mass."),
+    FieldDoc::new("chain.defects", "array of tables", "required", "Exactly one `{ kind = \"mass\", at, m }`."),
+    FieldDoc::new("chain.defects[].kind", "\"mass\"", "required", "The defect kind (mass)."),
+    FieldDoc::new("chain.defects[].at", "integer", "required", "Its position (the answer sought)."),
+    FieldDoc::new("chain.defects[].m", "float > 0", "required", "Its mass."),
+    FieldDoc::new("chain.defects[].k", "float > 0", "none", "Not used (spring defects are not located)."),
+    FieldDoc::new("chain.defects[].d", "float >= 0", "none", "Not used (damper defects are not located)."),
+    FieldDoc::new("method", "\"exact\" | \"asymptotic\" | \"large\" | \"large-paper\" | \"unknown-mass\"", "\"exact\"", "Relation solved for j: (4.7); (4.10); (4.17) rewritten stably and extrapolated; (4.17) as printed; (4.7) at several s with the mass fitted."),
+    FieldDoc::new("m", "float > 0", "the true mass", "Assumed defect mass of `exact` and `asymptotic` (a wrong m measures the sensitivity)."),
+    FieldDoc::new("s", "float > 0", "automatic", "A fixed s; default: every s of the default grid (1e-3 ... 1e2) and the best resolved estimate."),
+    FieldDoc::new("data", "\"exact\" | \"simulated\"", "\"exact\"", "X_1(s) from the closed form, or from x_1(t) simulated on [0, t_end] and Laplace-transformed (the paper's pipeline)."),
+    FieldDoc::new("t_end", "float > 0", "300", "`simulated`: end of the record."),
+    FieldDoc::new("dt", "float > 0", "0.05", "`simulated`: sampling step."),
+    FieldDoc::new("plots", "bool", "false", "Draw this case's j(s) curve into `cases/<id>-js.svg`."),
+];
+
+/// Every metric and timing of kind `locate`.
+pub const METRICS: &[(&str, &str)] = &[
+    ("truth", "true position of the defect"),
+    (
+        "resolved",
+        "the locator returned a position (not unresolvable at f64 with this data)",
+    ),
+    ("success", "the position returned is the true one"),
+    ("position", "position returned (empty when unresolved)"),
+    ("j", "real-valued estimate of j before rounding"),
+    ("sigma", "its uncertainty from the data's error"),
+    ("bias", "its model error (asymptotics, extrapolation)"),
+    ("s_used", "the s of the answer"),
+    ("mass_fitted", "the fitted mass (unknown-mass locator)"),
+    ("status", "`ok` or why the defect could not be located"),
+    ("t_locate", "measured seconds of data and locator"),
+];
+
+impl Scene {
+    /// Deserialize and check a resolved scene.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the field.
+    pub fn from_value(value: &toml::Value) -> Result<Scene> {
+        let scene: Scene = from_scene(value, FIELDS)?;
+        scene.truth()?;
+        scene.method()?;
+        if let Some(s) = scene.s {
+            check_f64("s", s, s > 0.0, "s > 0 and finite")?;
+        }
+        match scene.data.as_str() {
+            "exact" => {}
+            "simulated" => {
+                check_f64(
+                    "t_end",
+                    scene.t_end,
+                    scene.t_end > 0.0,
+                    "t_end > 0 and finite",
+                )?;
+                check_f64(
+                    "dt",
+                    scene.dt,
+                    scene.dt > 0.0 && scene.dt <= scene.t_end && scene.t_end / scene.dt <= 2e6,
+                    "0 < dt <= t_end, at most 2e6 steps",
+                )?;
+            }
+            other => return Err(Error::invalid("data", other, "\"exact\" or \"simulated\"")),
+        }
+        Ok(scene)
+    }
+
+    /// The true chain and its defect `(at, m)`.
+    fn truth(&self) -> Result<(Chain, usize, f64)> {
+        let chain = self.chain.build().map_err(|e| match e {
+            Error::InvalidParameter {
+                field,
+                value,
+                allowed,
+            } => Error::InvalidParameter {
+                field: format!("chain.{field}"),
+                value,
+                allowed,
+            },
+            other => other,
+        })?;
+        match chain.defects() {
+            [Defect::Mass { at, m }] => Ok((chain.clone(), *at, *m)),
+            d => Err(Error::invalid(
+                "chain.defects",
+                format!("{} defects", d.len()),
+                "exactly one mass defect",
+            )),
+        }
+    }
+
+    fn method(&self) -> Result<Method> {
+        let m = match self.m {
+            Some(m) => check_f64("m", m, m > 0.0, "m > 0 and finite")?,
+            None => self.truth()?.2,
+        };
+        Ok(match self.method.as_str() {
+            "exact" => Method::Exact { m },
+            "asymptotic" => Method::Asymptotic { m },
+            "large" => Method::Large,
+            "large-paper" => Method::LargePaper,
+            "unknown-mass" => Method::UnknownMass,
+            other => {
+                return Err(Error::invalid(
+                    "method",
+                    other,
+                    "exact, asymptotic, large, large-paper or unknown-mass",
+                ))
+            }
+        })
+    }
+}
+
+/// Run one `locate` case.
+///
+/// # Errors
+/// An invalid scene; data that cannot be made (simulator failures).
+pub fn run(scene: &Scene, _seed: u64) -> Result<CaseOutput> {
+    let (chain, at, _) = scene.truth()?;
+    let method = scene.method()?;
+    let large = matches!(method, Method::Large | Method::LargePaper);
+    let (grid, choice) = match scene.s {
+        None => (default_grid(), SChoice::Auto),
+        Some(s) if large => (vec![s / 2.0, s / 2f64.sqrt(), s], SChoice::At(s)),
+        Some(s) => (vec![s], SChoice::At(s)),
+    };
+    let start = Instant::now();
+    let data: LaplaceData<f64> = match scene.data.as_str() {
+        "simulated" => LaplaceData::from_simulation(&chain, scene.t_end, scene.dt, &grid)?,
+        _ => LaplaceData::from_chain(&chain, &grid)?,
+    };
+    let model: Model<f64> = Model::from_chain(&chain);
+    let result = locate(&model, &data, method, choice);
+    let t = start.elapsed().as_secs_f64();
+    let num = |x: f64| {
+        serde_json::Number::from_f64(x)
+            .map(serde_json::Value::Number)
+            .unwrap_or(serde_json::Value::Null)
+    };
+    let mut out = CaseOutput::default();
+    let m = &mut out.metrics;
+    m.insert("truth".into(), at.into());
+    match result {
+        Ok(loc) => {
+            m.insert("resolved".into(), true.into());
+            m.insert("success".into(), (loc.position == at).into());
+            m.insert("position".into(), loc.position.into());
+            m.insert("j".into(), num(loc.j));
+            m.insert("sigma".into(), num(loc.sigma));
+            m.insert("bias".into(), num(loc.bias));
+            m.insert("s_used".into(), num(loc.s));
+            m.insert(
+                "mass_fitted".into(),
+                loc.mass.map_or(serde_json::Value::Null, num),
+            );
+            m.insert("status".into(), "ok".into());
+        }
+        Err(e @ Error::Unresolvable { .. }) => {
+            m.insert("resolved".into(), false.into());
+            m.insert("success".into(), false.into());
+            m.insert("status".into(), e.to_string().into());
+        }
+        Err(e) => return Err(e),
+    }
+    out.timings.insert("t_locate".into(), num(t));
+    if scene.plots {
+        let est = curve(&model, &data, method)?;
+        let pts: Vec<(f64, f64)> = est.iter().map(|e| (e.s, e.j_f64())).collect();
+        let truth: Vec<(f64, f64)> = est.iter().map(|e| (e.s, at as f64)).collect();
+        let chart = LinePlot::new(
+            format!("j(s), {} locator, true j = {at}", method.name()),
+            "s",
+            "j(s)",
+        )
+        .log_x(true)
+        .line(Line::new("j(s)", pts))
+        .line(Line::new("true j", truth).dashed());
+        if let Ok(svg) = chart.to_svg_string() {
+            out.plots.push(CasePlot {
+                name: "js".into(),
+                svg,
+            });
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::study::kinds::Kind;
+
+    #[test]
+    fn locates_and_reports_unresolvable() {
+        let v: toml::Value = toml::from_str(
+            "chain = { n = 5, defects = [ { kind = \"mass\", at = 3, m = 4.0 } ] }\nmethod = \"large\"\nplots = true",
+        )
+        .unwrap();
+        let out = Kind::Locate.run(&v, 0).unwrap();
+        assert_eq!(out.metrics["truth"], 3);
+        assert!(out.metrics["resolved"].is_boolean());
+        assert_eq!(out.plots.len(), 1);
+        for (text, field) in [
+            ("chain = { n = 5 }", "chain.defects"),
+            ("chain = { n = 5, defects = [ { kind = \"mass\", at = 3, m = 4.0 } ] }\nmethod = \"big\"", "method"),
+            ("chain = { n = 5, defects = [ { kind = \"mass\", at = 3, m = 4.0 } ] }\ndata = \"measured\"", "data"),
+        ] {
+            let v: toml::Value = toml::from_str(text).unwrap();
+            match Kind::Locate.validate(&v) {
+                Err(Error::InvalidParameter { field: f, .. }) => assert_eq!(f, field, "{text}"),
+                other => panic!("{text}: {other:?}"),
+            }
+        }
+    }
+}

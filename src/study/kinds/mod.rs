@@ -1,0 +1,246 @@
+//! Case kinds: what one case of a study does.
+//!
+//! Each kind lives in its own file and provides a scene schema (a serde type
+//! with `deny_unknown_fields` plus its [`FieldDoc`] list), the list of the
+//! metrics it records, and `run(scene, seed) -> CaseOutput`. A case never
+//! prints; it returns numbers. Adding a kind is one new file and one arm in
+//! each `match` below.
+
+pub mod fit;
+pub mod forward;
+pub mod locate;
+pub mod suppress;
+
+use super::config::{FieldDoc, Problem};
+use crate::error::{Error, Result};
+use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
+
+/// The numbers (and pictures) one case produces.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CaseOutput {
+    /// Reproducible results (a function of the scene and the seed only).
+    pub metrics: serde_json::Map<String, serde_json::Value>,
+    /// Measured wall-clock numbers (keys start with `t_`); not reproducible.
+    pub timings: serde_json::Map<String, serde_json::Value>,
+    /// Pictures of this case (written as `cases/<id>-<name>.svg`).
+    pub plots: Vec<CasePlot>,
+}
+
+/// One picture of one case.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CasePlot {
+    /// Short name (letters, digits, `_`), part of the file name.
+    pub name: String,
+    /// The SVG text.
+    pub svg: String,
+}
+
+/// The case kinds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Kind {
+    /// Forward-model accuracy and speed: Woodbury closed form against the
+    /// O(n) tridiagonal reference on an s grid.
+    Forward,
+    /// Active suppression (Theorem 3.1, Corollary 3.2) verified by simulation.
+    Suppress,
+    /// Defect detection by fitting (`detect::fit` on a `FitScene`).
+    Fit,
+    /// Explicit single-defect locators (section 4.1).
+    Locate,
+}
+
+/// Every kind, in documentation order.
+pub const ALL: &[Kind] = &[Kind::Forward, Kind::Suppress, Kind::Fit, Kind::Locate];
+
+impl Kind {
+    /// The name used in `study.kind`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Kind::Forward => "forward",
+            Kind::Suppress => "suppress",
+            Kind::Fit => "fit",
+            Kind::Locate => "locate",
+        }
+    }
+
+    /// Parse a kind name.
+    ///
+    /// # Errors
+    /// A message listing the kinds.
+    pub fn from_name(name: &str) -> std::result::Result<Kind, String> {
+        ALL.iter()
+            .copied()
+            .find(|k| k.name() == name)
+            .ok_or_else(|| {
+                format!(
+                    "unknown kind {name:?}; kinds: {}",
+                    ALL.iter().map(|k| k.name()).collect::<Vec<_>>().join(", ")
+                )
+            })
+    }
+
+    /// One paragraph on what a case of this kind does.
+    pub fn summary(&self) -> &'static str {
+        match self {
+            Kind::Forward => forward::SUMMARY,
+            Kind::Suppress => suppress::SUMMARY,
+            Kind::Fit => fit::SUMMARY,
+            Kind::Locate => locate::SUMMARY,
+        }
+    }
+
+    /// The scene fields (paths relative to `[scene]`).
+    pub fn schema(&self) -> &'static [FieldDoc] {
+        match self {
+            Kind::Forward => forward::FIELDS,
+            Kind::Suppress => suppress::FIELDS,
+            Kind::Fit => fit::FIELDS,
+            Kind::Locate => locate::FIELDS,
+        }
+    }
+
+    /// `(column, meaning)` of every metric and timing the kind records.
+    pub fn metrics(&self) -> &'static [(&'static str, &'static str)] {
+        match self {
+            Kind::Forward => forward::METRICS,
+            Kind::Suppress => suppress::METRICS,
+            Kind::Fit => fit::METRICS,
+            Kind::Locate => locate::METRICS,
+        }
+    }
+
+    /// Check a resolved scene without running it: unknown fields, types,
+    /// ranges.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the field (relative to `[scene]`).
+    pub fn validate(&self, scene: &toml::Value) -> Result<()> {
+        match self {
+            Kind::Forward => forward::Scene::from_value(scene).map(|_| ()),
+            Kind::Suppress => suppress::Scene::from_value(scene).map(|_| ()),
+            Kind::Fit => fit::scene(scene).map(|_| ()),
+            Kind::Locate => locate::Scene::from_value(scene).map(|_| ()),
+        }
+    }
+
+    /// Every problem of a resolved scene (a deserialisation error alone, or
+    /// every failed range check).
+    pub fn validate_all(&self, scene: &toml::Value) -> Vec<Error> {
+        match self {
+            Kind::Forward => match from_scene::<forward::Scene>(scene, forward::FIELDS) {
+                Ok(s) => s.problems(),
+                Err(e) => vec![e],
+            },
+            Kind::Suppress => match from_scene::<suppress::Scene>(scene, suppress::FIELDS) {
+                Ok(s) => s.problems(),
+                Err(e) => vec![e],
+            },
+            Kind::Fit => fit::scene(scene).err().into_iter().collect(),
+            Kind::Locate => locate::Scene::from_value(scene).err().into_iter().collect(),
+        }
+    }
+
+    /// Run one case.
+    ///
+    /// # Errors
+    /// Whatever the case's computation reports; the runner records it as a
+    /// failed case.
+    pub fn run(&self, scene: &toml::Value, seed: u64) -> Result<CaseOutput> {
+        match self {
+            Kind::Forward => forward::run(&forward::Scene::from_value(scene)?, seed),
+            Kind::Suppress => suppress::run(&suppress::Scene::from_value(scene)?, seed),
+            Kind::Fit => fit::run(scene, seed),
+            Kind::Locate => locate::run(&locate::Scene::from_value(scene)?, seed),
+        }
+    }
+}
+
+/// Unknown fields of `value` against `schema` (paths relative to the scene).
+pub fn unknown_fields(value: &toml::Value, schema: &[FieldDoc]) -> Vec<Problem> {
+    super::config::unknown_fields(value, schema)
+}
+
+/// Deserialize a scene: first unknown fields (named with their path), then
+/// serde (types and required fields).
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming the field.
+pub fn from_scene<T: DeserializeOwned>(value: &toml::Value, schema: &[FieldDoc]) -> Result<T> {
+    if let Some(p) = unknown_fields(value, schema).into_iter().next() {
+        let path = p.path.strip_prefix("scene.").unwrap_or(&p.path).to_string();
+        return Err(Error::invalid(path, "present", p.message));
+    }
+    // Deserialise through text so that serde's message carries a line we can
+    // map back to the field path.
+    let text = toml::to_string(value).map_err(|e| Error::invalid("scene", "?", e.to_string()))?;
+    toml::from_str(&text).map_err(|e| {
+        let field = e
+            .span()
+            .and_then(|s| field_at(&text, s.start))
+            .unwrap_or_else(|| "scene".to_string());
+        let msg = e.message().split_whitespace().collect::<Vec<_>>().join(" ");
+        Error::invalid(field, "?", msg)
+    })
+}
+
+/// The dotted path of the key whose value starts at byte `at` of a
+/// `toml::to_string` output (best effort; `None` if not found).
+fn field_at(text: &str, at: usize) -> Option<String> {
+    let line_no = super::config::line_of(text, at);
+    let mut table = String::new();
+    for (i, line) in text.lines().enumerate() {
+        let l = line.trim();
+        if l.starts_with('[') {
+            table = l
+                .trim_start_matches('[')
+                .trim_end_matches(']')
+                .trim_end_matches(']')
+                .trim()
+                .to_string();
+        }
+        if i + 1 == line_no {
+            if l.starts_with('[') {
+                return Some(table);
+            }
+            let key = l.split('=').next()?.trim().trim_matches('"');
+            return Some(if table.is_empty() {
+                key.to_string()
+            } else {
+                format!("{table}.{key}")
+            });
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kinds_roundtrip_names() {
+        for k in ALL {
+            assert_eq!(Kind::from_name(k.name()), Ok(*k));
+            assert!(!k.schema().is_empty());
+            assert!(!k.metrics().is_empty());
+        }
+        assert!(Kind::from_name("fwd").unwrap_err().contains("forward"));
+    }
+
+    #[test]
+    fn type_errors_name_the_field() {
+        let v: toml::Value = toml::from_str("chain = { n = 5.5 }").unwrap();
+        let e = Kind::Forward.validate(&v).unwrap_err();
+        match e {
+            Error::InvalidParameter { field, .. } => assert_eq!(field, "chain.n"),
+            other => panic!("{other:?}"),
+        }
+        let v: toml::Value = toml::from_str("chain = { n = 5 }\ns = { count = \"x\" }").unwrap();
+        match Kind::Forward.validate(&v).unwrap_err() {
+            Error::InvalidParameter { field, .. } => assert_eq!(field, "s.count"),
+            other => panic!("{other:?}"),
+        }
+    }
+}

@@ -1,0 +1,142 @@
+//! Config-driven studies: a TOML file describing a base scene and a sweep,
+//! run in parallel into tables and plots.
+//!
+//! ```text
+//! study.toml ──► config (schema, checks) ──► sweep (cases, ids, seeds) ──► run (rayon, results.jsonl)
+//!                                                                           │  shard: a slice per machine
+//!                                                                           ▼
+//!                                                     report (summary.csv, report.md, SVG plots)
+//! ```
+//!
+//! | module | what |
+//! |---|---|
+//! | [`config`] | the study file: schema with defaults, `config check` |
+//! | [`sweep`] | crossing the axes into cases with stable ids and derived seeds |
+//! | [`kinds`] | what one case does (`forward`, ...) |
+//! | [`run`] | the parallel, resumable runner |
+//! | [`report`] | `summary.csv`, `report.md`, SVG plots |
+//! | [`shard`] | `--shard I/N` and `study merge` |
+//!
+//! ```no_run
+//! use springmass::study::{Study, run::{run, RunOptions}};
+//! let study = Study::default_study()?;
+//! let summary = run(&study, &RunOptions::new("out/default"))?;
+//! assert!(summary.complete);
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+pub mod config;
+pub mod kinds;
+pub mod report;
+pub mod run;
+pub mod shard;
+pub mod sweep;
+
+use crate::error::{Error, Result};
+use config::StudyFile;
+use std::collections::HashMap;
+use sweep::Case;
+
+/// The embedded default study (`springmass study` with no file).
+pub const DEFAULT_STUDY: &str = include_str!("../../configs/default.toml");
+
+/// A parsed, expanded and checked study.
+#[derive(Clone, Debug)]
+pub struct Study {
+    /// The parsed file.
+    pub file: StudyFile,
+    /// The file's text (copied into the output folder).
+    pub text: String,
+    /// FNV-1a hash of the text, 16 hex digits.
+    pub hash: String,
+    /// Every case, in expansion order.
+    pub cases: Vec<Case>,
+    by_id: HashMap<String, usize>,
+}
+
+impl Study {
+    /// Parse, expand and check every case of a study file's text.
+    ///
+    /// # Errors
+    /// [`Error::Parse`] with every problem of the file (as
+    /// [`config::check`] lists them), one per line.
+    pub fn from_text(text: &str, origin: &str) -> Result<Study> {
+        let problems = config::check(text);
+        if !problems.is_empty() {
+            let all: Vec<String> = problems.iter().map(|p| p.to_string()).collect();
+            return Err(Error::parse(
+                "study file",
+                origin,
+                format!("{} problem(s):\n  {}", problems.len(), all.join("\n  ")),
+            ));
+        }
+        let file = config::parse(text, origin)?;
+        let cases = sweep::expand(&file)?;
+        let by_id = cases
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (c.id.clone(), i))
+            .collect();
+        Ok(Study {
+            file,
+            text: text.to_string(),
+            hash: format!("{:016x}", sweep::fnv1a(text.as_bytes())),
+            cases,
+            by_id,
+        })
+    }
+
+    /// Read and check a study file.
+    ///
+    /// # Errors
+    /// [`Error::Io`], or as [`Study::from_text`].
+    pub fn from_file(path: impl AsRef<std::path::Path>) -> Result<Study> {
+        let p = path.as_ref();
+        let text = std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?;
+        Study::from_text(&text, &p.display().to_string())
+    }
+
+    /// The embedded default study ([`DEFAULT_STUDY`]).
+    ///
+    /// # Errors
+    /// None in practice (the embedded file is tested).
+    pub fn default_study() -> Result<Study> {
+        Study::from_text(DEFAULT_STUDY, "<default study>")
+    }
+
+    /// The case with this id.
+    pub fn case(&self, id: &str) -> Option<&Case> {
+        self.by_id.get(id).map(|&i| &self.cases[i])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_study_is_valid_and_small() {
+        let s = Study::default_study().unwrap();
+        assert!(!s.cases.is_empty() && s.cases.len() <= 64);
+        assert_eq!(s.case(&s.cases[3].id).unwrap().index, 3);
+    }
+
+    #[test]
+    fn shipped_configs_check() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/configs");
+        let mut n = 0;
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.extension().is_some_and(|x| x == "toml") {
+                let text = std::fs::read_to_string(&p).unwrap();
+                // configs/ also holds scene files of other commands
+                if !text.lines().any(|l| l.trim() == "[study]") {
+                    continue;
+                }
+                assert_eq!(config::check(&text), vec![], "{}", p.display());
+                n += 1;
+            }
+        }
+        assert!(n >= 7, "{n} study files");
+    }
+}

@@ -1,0 +1,597 @@
+//! The report of a finished study: `summary.csv` (one row per case),
+//! `report.md` (aggregated tables, plots, failures, the case list) and the
+//! SVG plots chosen by `[[report.plot]]`.
+//!
+//! Everything is computed from the records sorted by case id, so the files
+//! depend only on the records, never on the order in which cases finished,
+//! the thread count or the sharding. Nothing time-dependent (dates, run
+//! durations) is written.
+
+use super::config::{Aggregate, HeatmapSpec, PlotSpec, TableSpec};
+use super::run::Record;
+use super::sweep::format_float;
+use super::Study;
+use crate::error::{Error, Result};
+use crate::plot::{Heatmap, Line, LinePlot};
+use crate::series::write_atomic;
+use std::path::Path;
+
+/// File name of the Markdown report.
+pub const REPORT: &str = "report.md";
+/// File name of the per-case table.
+pub const SUMMARY: &str = "summary.csv";
+
+/// The columns of a study's tables: axis columns, then metric columns.
+struct Columns {
+    axes: Vec<String>,
+    metrics: Vec<String>,
+}
+
+fn columns(study: &Study) -> Columns {
+    let kind = study.file.study.kind;
+    let timings = study.file.study.timings;
+    Columns {
+        axes: study
+            .file
+            .sweep
+            .iter()
+            .map(|a| a.column().to_string())
+            .collect(),
+        metrics: kind
+            .metrics()
+            .iter()
+            .map(|m| m.0.to_string())
+            .filter(|m| timings || !m.starts_with("t_"))
+            .collect(),
+    }
+}
+
+/// The value of a metric (or timing) of a record as a number (`true` = 1).
+pub fn metric(r: &Record, name: &str) -> Option<f64> {
+    let v = r.metrics.get(name).or_else(|| r.timings.get(name))?;
+    match v {
+        serde_json::Value::Number(n) => n.as_f64(),
+        serde_json::Value::Bool(b) => Some(if *b { 1.0 } else { 0.0 }),
+        _ => None,
+    }
+}
+
+fn metric_text(r: &Record, name: &str) -> String {
+    match r.metrics.get(name).or_else(|| r.timings.get(name)) {
+        None | Some(serde_json::Value::Null) => String::new(),
+        Some(serde_json::Value::String(s)) => s.clone(),
+        Some(v) => v.to_string(),
+    }
+}
+
+/// The label of an axis column (`repeat` included) in a record.
+fn axis_label(r: &Record, column: &str) -> String {
+    if column == "repeat" {
+        return r.repeat.to_string();
+    }
+    r.params
+        .iter()
+        .find(|p| p.column == column)
+        .map(|p| p.label.clone())
+        .unwrap_or_default()
+}
+
+fn axis_number(r: &Record, column: &str) -> Option<f64> {
+    if column == "repeat" {
+        return Some(r.repeat as f64);
+    }
+    let p = r.params.iter().find(|p| p.column == column)?;
+    p.value.as_f64().or_else(|| p.label.parse().ok())
+}
+
+/// Reduce `values` with `agg` (`None` when there is nothing to reduce).
+pub fn aggregate(agg: Aggregate, values: &[f64]) -> Option<f64> {
+    let v: Vec<f64> = values.iter().copied().filter(|x| !x.is_nan()).collect();
+    if agg == Aggregate::Count {
+        return Some(v.len() as f64);
+    }
+    if v.is_empty() {
+        return None;
+    }
+    Some(match agg {
+        Aggregate::Mean => v.iter().sum::<f64>() / v.len() as f64,
+        Aggregate::Min => v.iter().copied().fold(f64::INFINITY, f64::min),
+        Aggregate::Max => v.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        Aggregate::Rate => v.iter().filter(|&&x| x != 0.0).count() as f64 / v.len() as f64,
+        Aggregate::Median => {
+            let mut s = v.clone();
+            s.sort_by(f64::total_cmp);
+            let m = s.len() / 2;
+            if s.len() % 2 == 1 {
+                s[m]
+            } else {
+                0.5 * (s[m - 1] + s[m])
+            }
+        }
+        Aggregate::Count => unreachable!(),
+    })
+}
+
+/// A number for a Markdown table: integers as integers, four significant
+/// digits otherwise.
+pub fn fmt_num(x: f64) -> String {
+    if x.is_nan() {
+        return "NaN".into();
+    }
+    if x.is_infinite() {
+        return if x > 0.0 { "inf" } else { "-inf" }.into();
+    }
+    if x == x.trunc() && x.abs() < 1e9 {
+        return format_float(x);
+    }
+    let a = x.abs();
+    if (1e-3..1e5).contains(&a) {
+        let decimals = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
+        format!("{x:.decimals$}")
+    } else {
+        format!("{x:.3e}")
+    }
+}
+
+/// The `summary.csv` text: one row per record (sorted by id).
+///
+/// # Errors
+/// None in practice (writing CSV to memory).
+pub fn summary_csv(study: &Study, records: &[Record]) -> Result<String> {
+    let cols = columns(study);
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let mut header: Vec<String> = vec!["id".into(), "repeat".into(), "seed".into()];
+    header.extend(cols.axes.iter().cloned());
+    header.extend(["status".to_string(), "error".to_string()]);
+    header.extend(cols.metrics.iter().cloned());
+    let csv_err = |e: csv::Error| Error::invalid("summary.csv", "?", e.to_string());
+    w.write_record(&header).map_err(csv_err)?;
+    for r in records {
+        let mut row: Vec<String> = vec![r.id.clone(), r.repeat.to_string(), r.seed.to_string()];
+        row.extend(cols.axes.iter().map(|a| axis_label(r, a)));
+        row.push(r.status.clone());
+        row.push(r.error.clone().unwrap_or_default());
+        row.extend(cols.metrics.iter().map(|m| metric_text(r, m)));
+        w.write_record(&row).map_err(csv_err)?;
+    }
+    let bytes = w
+        .into_inner()
+        .map_err(|e| Error::invalid("summary.csv", "?", e.to_string()))?;
+    Ok(String::from_utf8_lossy(&bytes).into_owned())
+}
+
+/// Group records by the labels of `rows` columns, in order of first appearance.
+fn group<'a>(records: &'a [Record], rows: &[String]) -> Vec<(Vec<String>, Vec<&'a Record>)> {
+    let mut out: Vec<(Vec<String>, Vec<&Record>)> = Vec::new();
+    for r in records {
+        let key: Vec<String> = rows.iter().map(|c| axis_label(r, c)).collect();
+        match out.iter_mut().find(|(k, _)| *k == key) {
+            Some((_, v)) => v.push(r),
+            None => out.push((key, vec![r])),
+        }
+    }
+    out
+}
+
+fn md_escape(s: &str) -> String {
+    s.replace('|', "\\|").replace('\n', " ")
+}
+
+fn table_md(study: &Study, records: &[Record], spec: &TableSpec) -> String {
+    let cols = columns(study);
+    let rows = spec.rows.clone().unwrap_or_else(|| cols.axes.clone());
+    let metrics = spec.metrics.clone().unwrap_or_else(|| cols.metrics.clone());
+    let title = spec.title.clone().unwrap_or_else(|| {
+        if rows.is_empty() {
+            format!("{} over all cases", spec.aggregate.name())
+        } else {
+            format!("{} by {}", spec.aggregate.name(), rows.join(", "))
+        }
+    });
+    let mut s = format!("## {}\n\n", md_escape(&title));
+    let mut header: Vec<String> = rows.iter().map(|r| format!("`{r}`")).collect();
+    header.push("cases".into());
+    header.push("errors".into());
+    header.extend(
+        metrics
+            .iter()
+            .map(|m| format!("{} `{m}`", spec.aggregate.name())),
+    );
+    s.push_str(&format!("| {} |\n", header.join(" | ")));
+    s.push_str(&format!("|{}\n", "---|".repeat(header.len())));
+    for (key, recs) in group(records, &rows) {
+        let mut cells: Vec<String> = key.iter().map(|k| md_escape(k)).collect();
+        cells.push(recs.len().to_string());
+        cells.push(recs.iter().filter(|r| !r.ok()).count().to_string());
+        for m in &metrics {
+            let vals: Vec<f64> = recs
+                .iter()
+                .filter(|r| r.ok())
+                .filter_map(|r| metric(r, m))
+                .collect();
+            cells.push(aggregate(spec.aggregate, &vals).map_or("–".into(), fmt_num));
+        }
+        s.push_str(&format!("| {} |\n", cells.join(" | ")));
+    }
+    s.push('\n');
+    s
+}
+
+/// File name of a plot (sanitised).
+pub fn plot_file(spec: &PlotSpec) -> String {
+    sanitize(
+        spec.file
+            .clone()
+            .unwrap_or_else(|| format!("{}-vs-{}.svg", spec.y, spec.x)),
+    )
+}
+
+/// Characters outside `A-Za-z0-9._-` become `_`; no leading dot; `.svg` appended if missing.
+fn sanitize(raw: String) -> String {
+    let mut f: String = raw
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "._-".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if f.starts_with('.') {
+        f.insert(0, '_');
+    }
+    if !f.ends_with(".svg") {
+        f.push_str(".svg");
+    }
+    f
+}
+
+/// Build the chart of one plot spec.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] when the x axis has non-numeric values.
+pub fn plot_chart(records: &[Record], spec: &PlotSpec) -> Result<LinePlot> {
+    let title = spec
+        .title
+        .clone()
+        .unwrap_or_else(|| format!("{} of {} against {}", spec.aggregate.name(), spec.y, spec.x));
+    let mut chart = LinePlot::new(
+        title,
+        spec.x.clone(),
+        format!("{} {}", spec.aggregate.name(), spec.y),
+    )
+    .log_x(spec.logx)
+    .log_y(spec.logy);
+    let series: Vec<String> = spec.series.iter().cloned().collect();
+    for (key, recs) in group(records, &series) {
+        let mut xs: Vec<(f64, Vec<f64>)> = Vec::new();
+        for r in recs.iter().filter(|r| r.ok()) {
+            let x = axis_number(r, &spec.x).ok_or_else(|| {
+                Error::invalid(
+                    format!("report.plot x = {:?}", spec.x),
+                    axis_label(r, &spec.x),
+                    "numeric axis values",
+                )
+            })?;
+            let Some(y) = metric(r, &spec.y) else {
+                continue;
+            };
+            match xs.iter_mut().find(|(xx, _)| *xx == x) {
+                Some((_, v)) => v.push(y),
+                None => xs.push((x, vec![y])),
+            }
+        }
+        let mut pts: Vec<(f64, f64)> = xs
+            .into_iter()
+            .filter_map(|(x, v)| aggregate(spec.aggregate, &v).map(|y| (x, y)))
+            .collect();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let label = match &spec.series {
+            Some(s) => format!("{s} = {}", key.join(", ")),
+            None => String::new(),
+        };
+        let line = Line::new(label, pts.clone());
+        chart = chart.line(if pts.len() == 1 { line.markers() } else { line });
+    }
+    Ok(chart)
+}
+
+/// File name of a heatmap (sanitised).
+pub fn heatmap_file(spec: &HeatmapSpec) -> String {
+    sanitize(
+        spec.file
+            .clone()
+            .unwrap_or_else(|| format!("{}-over-{}-{}.svg", spec.z, spec.x, spec.y)),
+    )
+}
+
+/// Build the heatmap of one spec.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] when an axis has non-numeric values.
+pub fn heatmap_chart(records: &[Record], spec: &HeatmapSpec) -> Result<Heatmap> {
+    let number = |r: &Record, col: &str| {
+        axis_number(r, col).ok_or_else(|| {
+            Error::invalid(
+                format!("report.heatmap axis {col:?}"),
+                axis_label(r, col),
+                "numeric axis values",
+            )
+        })
+    };
+    let mut xs: Vec<f64> = Vec::new();
+    let mut ys: Vec<f64> = Vec::new();
+    for r in records {
+        let (x, y) = (number(r, &spec.x)?, number(r, &spec.y)?);
+        if !xs.contains(&x) {
+            xs.push(x);
+        }
+        if !ys.contains(&y) {
+            ys.push(y);
+        }
+    }
+    xs.sort_by(f64::total_cmp);
+    ys.sort_by(f64::total_cmp);
+    let mut cells: Vec<Vec<Vec<f64>>> = vec![vec![Vec::new(); xs.len()]; ys.len()];
+    for r in records.iter().filter(|r| r.ok()) {
+        let (x, y) = (number(r, &spec.x)?, number(r, &spec.y)?);
+        let ix = xs.iter().position(|&v| v == x).unwrap_or(0);
+        let iy = ys.iter().position(|&v| v == y).unwrap_or(0);
+        if let Some(z) = metric(r, &spec.z) {
+            cells[iy][ix].push(z);
+        }
+    }
+    let z: Vec<Vec<f64>> = cells
+        .iter()
+        .map(|row| {
+            row.iter()
+                .map(|c| aggregate(spec.aggregate, c).unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect();
+    Ok(Heatmap {
+        title: spec
+            .title
+            .clone()
+            .unwrap_or_else(|| format!("{} of {}", spec.aggregate.name(), spec.z)),
+        x_label: spec.x.clone(),
+        y_label: spec.y.clone(),
+        x: xs,
+        y: ys,
+        z,
+        log_z: spec.log_z,
+        mark: None,
+    })
+}
+
+/// The `report.md` text; also returns the plots to write `(file, svg)`.
+fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)>) {
+    let f = &study.file;
+    let cols = columns(study);
+    let ok = records.iter().filter(|r| r.ok()).count();
+    let mut s = format!("# Study `{}`\n\n", f.study.name);
+    if !f.study.description.trim().is_empty() {
+        s.push_str(f.study.description.trim());
+        s.push_str("\n\n");
+    }
+    s.push_str("| | |\n|---|---|\n");
+    s.push_str(&format!("| kind | `{}` |\n", f.study.kind.name()));
+    let skipped = records.iter().filter(|r| r.status == "skipped").count();
+    s.push_str(&format!(
+        "| cases | {} ({} ok, {} failed, {} skipped) |\n",
+        records.len(),
+        ok,
+        records.len() - ok - skipped,
+        skipped
+    ));
+    s.push_str(&format!(
+        "| seed | {} |\n| repeats | {} |\n",
+        f.study.seed, f.study.repeats
+    ));
+    for a in &f.sweep {
+        let vals = super::sweep::axis_values(a).unwrap_or_default();
+        let labels: Vec<&str> = vals.iter().map(|v| v.1.as_str()).collect();
+        let shown = if labels.len() <= 8 {
+            labels.join(", ")
+        } else {
+            format!(
+                "{}, {}, ..., {} ({} values)",
+                labels[0],
+                labels[1],
+                labels[labels.len() - 1],
+                labels.len()
+            )
+        };
+        s.push_str(&format!(
+            "| axis `{}` | `{}` = {} |\n",
+            md_escape(a.column()),
+            md_escape(&a.path),
+            md_escape(&shown)
+        ));
+    }
+    s.push_str(&format!("| study hash | `{}` |\n\n", study.hash));
+    s.push_str("The study file is `study.toml` beside this report; every case is a line of `results.jsonl` and a row of `summary.csv`.");
+    if f.study.timings {
+        s.push_str(" Columns `t_*` are wall-clock measurements on the machine that ran the case (with the other cases running beside it): reported, not reproducible.");
+    }
+    s.push_str("\n\n");
+    let mut tables = f.report.table.clone();
+    if tables.is_empty() && !cols.axes.is_empty() {
+        tables.push(TableSpec {
+            title: None,
+            rows: None,
+            metrics: None,
+            aggregate: Aggregate::Mean,
+        });
+    }
+    for t in &tables {
+        s.push_str(&table_md(study, records, t));
+    }
+    let mut plots = Vec::new();
+    if !f.report.plot.is_empty() || !f.report.heatmap.is_empty() {
+        s.push_str("## Plots\n\n");
+        for p in &f.report.plot {
+            let file = plot_file(p);
+            match plot_chart(records, p).and_then(|c| c.to_svg_string()) {
+                Ok(svg) => {
+                    s.push_str(&format!("![{}]({file})\n\n", md_escape(&file)));
+                    plots.push((file, svg));
+                }
+                Err(e) => s.push_str(&format!(
+                    "Plot `{file}` not drawn: {}\n\n",
+                    md_escape(&e.to_string())
+                )),
+            }
+        }
+        for h in &f.report.heatmap {
+            let file = heatmap_file(h);
+            match heatmap_chart(records, h).and_then(|c| c.to_svg_string()) {
+                Ok(svg) => {
+                    s.push_str(&format!("![{}]({file})\n\n", md_escape(&file)));
+                    plots.push((file, svg));
+                }
+                Err(e) => s.push_str(&format!(
+                    "Heatmap `{file}` not drawn: {}\n\n",
+                    md_escape(&e.to_string())
+                )),
+            }
+        }
+    }
+    let failed: Vec<&Record> = records.iter().filter(|r| !r.ok()).collect();
+    if !failed.is_empty() {
+        s.push_str("## Failed and skipped cases\n\n| id | parameters | status | reason |\n|---|---|---|---|\n");
+        for r in failed {
+            let params: Vec<String> = r
+                .params
+                .iter()
+                .map(|p| format!("{} = {}", p.column, p.label))
+                .collect();
+            s.push_str(&format!(
+                "| {} | {} | {} | {} |\n",
+                r.id,
+                md_escape(&params.join(", ")),
+                r.status,
+                md_escape(r.error.as_deref().unwrap_or(""))
+            ));
+        }
+        s.push('\n');
+    }
+    let with_files: Vec<&Record> = records.iter().filter(|r| !r.files.is_empty()).collect();
+    if !with_files.is_empty() {
+        s.push_str("## Case plots\n\n");
+        for r in with_files {
+            let params: Vec<String> = r
+                .params
+                .iter()
+                .map(|p| format!("{} = {}", p.column, p.label))
+                .collect();
+            let links: Vec<String> = r
+                .files
+                .iter()
+                .map(|f| {
+                    let name = f
+                        .rsplit('/')
+                        .next()
+                        .unwrap_or(f)
+                        .trim_start_matches(r.id.as_str())
+                        .trim_start_matches('-')
+                        .trim_end_matches(".svg");
+                    format!("[{name}]({f})")
+                })
+                .collect();
+            s.push_str(&format!(
+                "- {} ({}): {}\n",
+                r.id,
+                md_escape(&params.join(", ")),
+                links.join(", ")
+            ));
+        }
+        s.push('\n');
+    }
+    s.push_str("## Cases\n\n");
+    if records.len() > f.report.max_case_rows {
+        s.push_str(&format!(
+            "{} cases: more than `report.max_case_rows` = {}; see `summary.csv`.\n",
+            records.len(),
+            f.report.max_case_rows
+        ));
+    } else {
+        let mut header: Vec<String> = vec!["id".into()];
+        if f.study.repeats > 1 {
+            header.push("repeat".into());
+        }
+        header.extend(cols.axes.iter().map(|a| format!("`{a}`")));
+        header.push("status".into());
+        header.extend(cols.metrics.iter().map(|m| format!("`{m}`")));
+        s.push_str(&format!(
+            "| {} |\n|{}\n",
+            header.join(" | "),
+            "---|".repeat(header.len())
+        ));
+        for r in records {
+            let mut cells = vec![r.id.clone()];
+            if f.study.repeats > 1 {
+                cells.push(r.repeat.to_string());
+            }
+            cells.extend(cols.axes.iter().map(|a| md_escape(&axis_label(r, a))));
+            cells.push(r.status.clone());
+            cells.extend(cols.metrics.iter().map(|m| match metric(r, m) {
+                Some(x) => fmt_num(x),
+                None => md_escape(&metric_text(r, m)),
+            }));
+            s.push_str(&format!("| {} |\n", cells.join(" | ")));
+        }
+    }
+    (s, plots)
+}
+
+/// Write `summary.csv`, `report.md` and the plots into `out`, atomically.
+/// `records` must be sorted by id (as [`super::run`] and
+/// [`super::shard::merge`] give them).
+///
+/// # Errors
+/// [`Error::Io`].
+pub fn write(study: &Study, records: &[Record], out: &Path) -> Result<()> {
+    write_atomic(&out.join(SUMMARY), summary_csv(study, records)?.as_bytes())?;
+    let (md, plots) = report_md(study, records);
+    for (file, svg) in &plots {
+        write_atomic(&out.join(file), svg.as_bytes())?;
+    }
+    write_atomic(&out.join(REPORT), md.as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn aggregates() {
+        let v = [1.0, 0.0, 3.0, f64::NAN];
+        assert_eq!(aggregate(Aggregate::Mean, &v), Some(4.0 / 3.0));
+        assert_eq!(aggregate(Aggregate::Median, &v), Some(1.0));
+        assert_eq!(aggregate(Aggregate::Median, &[1.0, 2.0]), Some(1.5));
+        assert_eq!(aggregate(Aggregate::Min, &v), Some(0.0));
+        assert_eq!(aggregate(Aggregate::Max, &v), Some(3.0));
+        assert_eq!(aggregate(Aggregate::Rate, &v), Some(2.0 / 3.0));
+        assert_eq!(aggregate(Aggregate::Count, &v), Some(3.0));
+        assert_eq!(aggregate(Aggregate::Mean, &[]), None);
+    }
+
+    #[test]
+    fn number_format() {
+        assert_eq!(fmt_num(3.0), "3");
+        assert_eq!(fmt_num(0.123456), "0.1235");
+        assert_eq!(fmt_num(12.3456), "12.35");
+        assert_eq!(fmt_num(1.5e-12), "1.500e-12");
+        assert_eq!(fmt_num(f64::INFINITY), "inf");
+    }
+
+    #[test]
+    fn plot_names_are_sanitised() {
+        let p: PlotSpec = toml::from_str("x = \"chain.n\"\ny = \"a/b\"").unwrap();
+        assert_eq!(plot_file(&p), "a_b-vs-chain.n.svg");
+        let p: PlotSpec = toml::from_str("x = \"a\"\ny = \"b\"\nfile = \"../x\"").unwrap();
+        assert_eq!(plot_file(&p), "_.._x.svg");
+    }
+}

@@ -1,0 +1,540 @@
+//! Expanding a study into cases, deterministically.
+//!
+//! The axes are crossed in file order, the first axis varying slowest (like
+//! nested loops), with `study.repeats` replicates innermost. Case `i` of the
+//! expansion has
+//!
+//! - the id `c0000i` (zero-padded to at least 4 digits, so that ids sort like
+//!   their positions: the report is ordered by id),
+//! - a content key: the FNV-1a hash of the canonical JSON of its parameters
+//!   (the axis values and the repeat), and
+//! - the seed `splitmix64(study.seed ^ key)`: a function of what the case *is*,
+//!   not of when or where it runs, so it is the same for any thread count,
+//!   completion order or shard.
+//!
+//! ```
+//! use springmass::study::{config::parse, sweep::expand};
+//! let file = parse(r#"
+//!     [study]
+//!     name = "demo"
+//!     kind = "forward"
+//!     repeats = 2
+//!     [scene]
+//!     chain = { n = 5 }
+//!     [[sweep]]
+//!     path = "chain.n"
+//!     range = { from = 5, to = 500, count = 3, spacing = "log", integer = true }
+//! "#, "demo")?;
+//! let cases = expand(&file)?;
+//! assert_eq!(cases.len(), 6);
+//! assert_eq!(cases[2].id, "c0002");
+//! assert_eq!(cases[2].scene["chain"]["n"].as_integer(), Some(50));
+//! assert_ne!(cases[2].seed, cases[3].seed); // the two repeats differ
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+use super::config::{Axis, Spacing, StudyFile};
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// One case of a study.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Case {
+    /// Position in the expansion (0-based).
+    pub index: usize,
+    /// Stable id, `c` and the zero-padded index; ids sort like indices.
+    pub id: String,
+    /// Content hash of the parameters (16 hex digits).
+    pub key: String,
+    /// The case's seed, derived from the study seed and `key`.
+    pub seed: u64,
+    /// Replicate number, `0..repeats`.
+    pub repeat: usize,
+    /// `(column, value, label)` of every axis, in axis order.
+    pub params: Vec<Param>,
+    /// The resolved scene: the base scene with the axis values set.
+    pub scene: toml::Value,
+}
+
+/// The value of one axis in one case.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Param {
+    /// The axis column (its `name` or `path`).
+    pub column: String,
+    /// The value, as JSON.
+    pub value: serde_json::Value,
+    /// The label (the axis `labels` entry, or the value as text).
+    pub label: String,
+}
+
+impl Case {
+    /// `column = label, ...` for messages.
+    pub fn describe(&self) -> String {
+        self.params
+            .iter()
+            .map(|p| format!("{} = {}", p.column, p.label))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+/// One segment of a field path.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Segment {
+    /// A table key.
+    Key(String),
+    /// An array index.
+    Index(usize),
+}
+
+/// Parse `a.b[2].c` into segments.
+///
+/// # Errors
+/// A message naming the bad part (empty key, bad index, characters outside
+/// `A-Za-z0-9_-`).
+pub fn parse_path(path: &str) -> std::result::Result<Vec<Segment>, String> {
+    let mut out = Vec::new();
+    if path.is_empty() {
+        return Err("empty field path".into());
+    }
+    for part in path.split('.') {
+        let (key, mut rest) = match part.find('[') {
+            Some(i) => (&part[..i], &part[i..]),
+            None => (part, ""),
+        };
+        if key.is_empty()
+            || !key
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+        {
+            return Err(format!(
+                "bad key {key:?} in field path {path:?}: keys are letters, digits, '_', '-'"
+            ));
+        }
+        out.push(Segment::Key(key.to_string()));
+        while !rest.is_empty() {
+            let close = rest
+                .find(']')
+                .ok_or_else(|| format!("unclosed '[' in field path {path:?}"))?;
+            let idx: usize = rest[1..close]
+                .parse()
+                .map_err(|_| format!("bad index {:?} in field path {path:?}", &rest[1..close]))?;
+            out.push(Segment::Index(idx));
+            rest = &rest[close + 1..];
+            if !rest.is_empty() && !rest.starts_with('[') {
+                return Err(format!("unexpected {rest:?} in field path {path:?}"));
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Set the field at `path` of `root` to `value`, creating missing tables.
+///
+/// # Errors
+/// A message naming the path: an index past the end of an array, or a
+/// non-table on the way.
+pub fn set_path(
+    root: &mut toml::Value,
+    path: &str,
+    value: toml::Value,
+) -> std::result::Result<(), String> {
+    let segs = parse_path(path)?;
+    let mut cur = root;
+    let last = segs.len() - 1;
+    for (i, seg) in segs.iter().enumerate() {
+        match seg {
+            Segment::Key(k) => {
+                let t = cur.as_table_mut().ok_or_else(|| {
+                    format!("cannot set {path:?}: the part before {k:?} is not a table")
+                })?;
+                if i == last {
+                    t.insert(k.clone(), value);
+                    return Ok(());
+                }
+                let next_is_index = matches!(segs[i + 1], Segment::Index(_));
+                cur = t.entry(k.clone()).or_insert_with(|| {
+                    if next_is_index {
+                        toml::Value::Array(vec![])
+                    } else {
+                        toml::Value::Table(toml::Table::new())
+                    }
+                });
+            }
+            Segment::Index(idx) => {
+                let a = cur.as_array_mut().ok_or_else(|| {
+                    format!("cannot set {path:?}: [{idx}] applied to a non-array")
+                })?;
+                let len = a.len();
+                let slot = a.get_mut(*idx).ok_or_else(|| {
+                    format!("cannot set {path:?}: index {idx} past the end (the array has {len} elements)")
+                })?;
+                if i == last {
+                    *slot = value;
+                    return Ok(());
+                }
+                cur = slot;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The values of one axis, with their labels.
+///
+/// # Errors
+/// A message: neither or both of `values` / `range`, a bad range, labels
+/// of the wrong length, no values.
+pub fn axis_values(axis: &Axis) -> std::result::Result<Vec<(toml::Value, String)>, String> {
+    let values: Vec<toml::Value> = match (&axis.values, &axis.range) {
+        (Some(_), Some(_)) => return Err("give `values` or `range`, not both".into()),
+        (None, None) => return Err("give `values` or `range`".into()),
+        (Some(v), None) => v.clone(),
+        (None, Some(r)) => range_values(r)?,
+    };
+    if values.is_empty() {
+        return Err("the axis has no values".into());
+    }
+    if values.len() > MAX_AXIS {
+        return Err(format!(
+            "the axis has {} values; at most {MAX_AXIS}",
+            values.len()
+        ));
+    }
+    let labels: Vec<String> = match &axis.labels {
+        Some(l) if l.len() != values.len() => {
+            return Err(format!(
+                "`labels` has {} entries for {} values",
+                l.len(),
+                values.len()
+            ))
+        }
+        Some(l) => l.clone(),
+        None => values.iter().map(label_of).collect(),
+    };
+    Ok(values.into_iter().zip(labels).collect())
+}
+
+/// Most values on one axis, and most cases in one study.
+pub const MAX_AXIS: usize = 100_000;
+/// Most cases in one study.
+pub const MAX_CASES: usize = 200_000;
+
+fn range_values(r: &super::config::Range) -> std::result::Result<Vec<toml::Value>, String> {
+    if !r.from.is_finite() || !r.to.is_finite() {
+        return Err("range: `from` and `to` must be finite".into());
+    }
+    let pts: Vec<f64> = match (r.count, r.step) {
+        (Some(_), Some(_)) => return Err("range: give `count` or `step`, not both".into()),
+        (None, None) => return Err("range: give `count` or `step`".into()),
+        (Some(0), None) => return Err("range: `count` must be >= 1".into()),
+        (Some(c), None) if c > MAX_AXIS => {
+            return Err(format!("range: `count` = {c}; at most {MAX_AXIS}"))
+        }
+        (Some(c), None) => match r.spacing {
+            Spacing::Linear => (0..c)
+                .map(|i| {
+                    if c == 1 {
+                        r.from
+                    } else if i == c - 1 {
+                        r.to
+                    } else {
+                        r.from + (r.to - r.from) * i as f64 / (c - 1) as f64
+                    }
+                })
+                .collect(),
+            Spacing::Log => {
+                if r.from <= 0.0 || r.to <= 0.0 {
+                    return Err("range: log spacing needs `from` > 0 and `to` > 0".into());
+                }
+                let (a, b) = (r.from.ln(), r.to.ln());
+                (0..c)
+                    .map(|i| {
+                        if c == 1 {
+                            r.from
+                        } else if i == c - 1 {
+                            r.to
+                        } else if i == 0 {
+                            r.from
+                        } else {
+                            (a + (b - a) * i as f64 / (c - 1) as f64).exp()
+                        }
+                    })
+                    .collect()
+            }
+        },
+        (None, Some(step)) => {
+            if r.spacing == Spacing::Log {
+                return Err("range: `step` needs linear spacing; use `count` with log".into());
+            }
+            if !(step.is_finite() && step > 0.0) {
+                return Err("range: `step` must be > 0 and finite".into());
+            }
+            let span = (r.to - r.from).abs();
+            let n = (span / step + 1e-9).floor();
+            if n + 1.0 > MAX_AXIS as f64 {
+                return Err(format!("range: more than {MAX_AXIS} points"));
+            }
+            let sign = if r.to >= r.from { 1.0 } else { -1.0 };
+            (0..=n as usize)
+                .map(|i| r.from + sign * step * i as f64)
+                .collect()
+        }
+    };
+    if r.integer {
+        let mut out: Vec<i64> = Vec::with_capacity(pts.len());
+        for p in pts {
+            let v = p.round();
+            if v.abs() > 9.0e15 {
+                return Err(format!("range: {p} is too large for an integer"));
+            }
+            let v = v as i64;
+            if !out.contains(&v) {
+                out.push(v);
+            }
+        }
+        Ok(out.into_iter().map(toml::Value::Integer).collect())
+    } else {
+        Ok(pts.into_iter().map(toml::Value::Float).collect())
+    }
+}
+
+/// A short label for a value: numbers and strings as written, others as
+/// compact JSON.
+pub fn label_of(v: &toml::Value) -> String {
+    match v {
+        toml::Value::String(s) => s.clone(),
+        toml::Value::Integer(i) => i.to_string(),
+        toml::Value::Float(f) => format_float(*f),
+        toml::Value::Boolean(b) => b.to_string(),
+        other => serde_json::to_string(&to_json(other)).unwrap_or_default(),
+    }
+}
+
+/// Shortest round-trip text of a float (`1e-5`, `0.25`, `3`).
+pub fn format_float(f: f64) -> String {
+    if f.is_finite() && f == f.trunc() && f.abs() < 1e15 {
+        format!("{f:.0}")
+    } else {
+        format!("{f}")
+    }
+}
+
+/// TOML value to JSON (datetimes become strings).
+pub fn to_json(v: &toml::Value) -> serde_json::Value {
+    match v {
+        toml::Value::String(s) => serde_json::Value::String(s.clone()),
+        toml::Value::Integer(i) => serde_json::Value::from(*i),
+        toml::Value::Float(f) => serde_json::Number::from_f64(*f)
+            .map(serde_json::Value::Number)
+            .unwrap_or(serde_json::Value::Null),
+        toml::Value::Boolean(b) => serde_json::Value::Bool(*b),
+        toml::Value::Datetime(d) => serde_json::Value::String(d.to_string()),
+        toml::Value::Array(a) => serde_json::Value::Array(a.iter().map(to_json).collect()),
+        toml::Value::Table(t) => {
+            serde_json::Value::Object(t.iter().map(|(k, v)| (k.clone(), to_json(v))).collect())
+        }
+    }
+}
+
+/// 64-bit FNV-1a: a hash that is the same on every platform and Rust version.
+pub fn fnv1a(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+/// SplitMix64 finaliser: spreads a 64-bit value over all bits.
+pub fn splitmix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// Expand a study into its cases (axes crossed, first slowest; repeats innermost).
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming the axis (`sweep[i]`) for a bad axis or
+/// path, or when the study has more than [`MAX_CASES`] cases.
+pub fn expand(file: &StudyFile) -> Result<Vec<Case>> {
+    let mut axes: Vec<Vec<(toml::Value, String)>> = Vec::new();
+    for (i, a) in file.sweep.iter().enumerate() {
+        let vals = axis_values(a).map_err(|e| Error::invalid(format!("sweep[{i}]"), &a.path, e))?;
+        parse_path(&a.path).map_err(|e| Error::invalid(format!("sweep[{i}].path"), &a.path, e))?;
+        axes.push(vals);
+    }
+    let repeats = file.study.repeats;
+    if repeats == 0 {
+        return Err(Error::invalid("study.repeats", 0, "repeats >= 1"));
+    }
+    let mut total: usize = repeats;
+    for a in &axes {
+        total = total
+            .checked_mul(a.len())
+            .filter(|&t| t <= MAX_CASES)
+            .ok_or_else(|| {
+                Error::invalid(
+                    "sweep",
+                    "too many cases",
+                    format!("at most {MAX_CASES} cases"),
+                )
+            })?;
+    }
+    let width = (total.saturating_sub(1)).to_string().len().max(4);
+    let base = toml::Value::Table(file.scene.clone());
+    let mut cases = Vec::with_capacity(total);
+    let mut idx = vec![0usize; axes.len()];
+    for index in 0..total {
+        // mixed-radix digits: repeats innermost, then the last axis, ...
+        let mut rest = index / repeats;
+        let repeat = index % repeats;
+        for k in (0..axes.len()).rev() {
+            idx[k] = rest % axes[k].len();
+            rest /= axes[k].len();
+        }
+        let mut scene = base.clone();
+        let mut params = Vec::with_capacity(axes.len());
+        for (k, axis) in file.sweep.iter().enumerate() {
+            let (v, label) = &axes[k][idx[k]];
+            set_path(&mut scene, &axis.path, v.clone())
+                .map_err(|e| Error::invalid(format!("sweep[{k}].path"), &axis.path, e))?;
+            params.push(Param {
+                column: axis.column().to_string(),
+                value: to_json(v),
+                label: label.clone(),
+            });
+        }
+        let content = serde_json::json!({
+            "params": params.iter().map(|p| (p.column.clone(), p.value.clone())).collect::<Vec<_>>(),
+            "repeat": repeat,
+        });
+        let key = fnv1a(content.to_string().as_bytes());
+        cases.push(Case {
+            index,
+            id: format!("c{index:0width$}"),
+            key: format!("{key:016x}"),
+            seed: splitmix64(file.study.seed ^ key),
+            repeat,
+            params,
+            scene,
+        });
+    }
+    Ok(cases)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::study::config::{parse, Range};
+
+    fn range(from: f64, to: f64, count: Option<usize>, step: Option<f64>) -> Range {
+        Range {
+            from,
+            to,
+            count,
+            step,
+            spacing: Spacing::Linear,
+            integer: false,
+        }
+    }
+
+    #[test]
+    fn ranges() {
+        let v = range_values(&range(0.0, 1.0, Some(5), None)).unwrap();
+        assert_eq!(v.last().unwrap().as_float(), Some(1.0));
+        assert_eq!(v[1].as_float(), Some(0.25));
+        let v = range_values(&range(1.0, 2.0, None, Some(0.1))).unwrap();
+        assert_eq!(v.len(), 11); // 2.0 included despite rounding
+        let v = range_values(&range(3.0, 1.0, None, Some(1.0))).unwrap();
+        assert_eq!(v.len(), 3);
+        let mut r = range(5.0, 100000.0, Some(9), None);
+        r.spacing = Spacing::Log;
+        r.integer = true;
+        let v = range_values(&r).unwrap();
+        assert_eq!(v.first().unwrap().as_integer(), Some(5));
+        assert_eq!(v.last().unwrap().as_integer(), Some(100000));
+        assert!(range_values(&range(0.0, 1.0, Some(0), None)).is_err());
+        assert!(range_values(&range(0.0, 1.0, None, Some(-1.0))).is_err());
+        assert!(range_values(&range(0.0, 1.0, Some(2), Some(1.0))).is_err());
+        assert!(range_values(&range(0.0, 1e300, None, Some(1e-300))).is_err());
+        let mut r = range(0.0, 1.0, Some(3), None);
+        r.spacing = Spacing::Log;
+        assert!(range_values(&r).is_err());
+    }
+
+    #[test]
+    fn paths() {
+        assert_eq!(
+            parse_path("a.b[2][0].c").unwrap(),
+            vec![
+                Segment::Key("a".into()),
+                Segment::Key("b".into()),
+                Segment::Index(2),
+                Segment::Index(0),
+                Segment::Key("c".into())
+            ]
+        );
+        for bad in ["", "a..b", "a[", "a[x]", "a[1]b", ".a", "a b"] {
+            assert!(parse_path(bad).is_err(), "{bad}");
+        }
+        let mut v: toml::Value = toml::from_str("x = { y = [ { z = 1 } ] }").unwrap();
+        set_path(&mut v, "x.y[0].z", toml::Value::Integer(5)).unwrap();
+        set_path(&mut v, "p.q", toml::Value::Integer(6)).unwrap();
+        assert_eq!(v["x"]["y"][0]["z"].as_integer(), Some(5));
+        assert_eq!(v["p"]["q"].as_integer(), Some(6));
+        assert!(set_path(&mut v, "x.y[3].z", toml::Value::Integer(1)).is_err());
+        assert!(set_path(&mut v, "p.q.r", toml::Value::Integer(1)).is_err());
+    }
+
+    #[test]
+    fn expansion_is_crossed_first_slowest_and_seeds_follow_content() {
+        let text = r#"
+            [study]
+            name = "t"
+            kind = "forward"
+            seed = 11
+            [scene]
+            chain = { n = 5 }
+            [[sweep]]
+            path = "chain.n"
+            values = [5, 6]
+            [[sweep]]
+            path = "chain.d"
+            values = [0.1, 0.2, 0.3]
+        "#;
+        let f = parse(text, "t").unwrap();
+        let c = expand(&f).unwrap();
+        assert_eq!(c.len(), 6);
+        let pairs: Vec<(i64, f64)> = c
+            .iter()
+            .map(|c| {
+                (
+                    c.scene["chain"]["n"].as_integer().unwrap(),
+                    c.scene["chain"]["d"].as_float().unwrap(),
+                )
+            })
+            .collect();
+        assert_eq!(pairs[0], (5, 0.1));
+        assert_eq!(pairs[2], (5, 0.3));
+        assert_eq!(pairs[3], (6, 0.1));
+        // adding a value to an axis keeps the seeds of the existing points
+        let f2 = parse(&text.replace("[5, 6]", "[5, 6, 7]"), "t").unwrap();
+        let c2 = expand(&f2).unwrap();
+        assert_eq!(c2[4].seed, c[4].seed);
+        assert_eq!(c2[4].key, c[4].key);
+        // another master seed changes every seed
+        let f3 = parse(&text.replace("seed = 11", "seed = 12"), "t").unwrap();
+        assert!(expand(&f3)
+            .unwrap()
+            .iter()
+            .zip(&c)
+            .all(|(a, b)| a.seed != b.seed));
+        let mut seeds: Vec<u64> = c.iter().map(|c| c.seed).collect();
+        seeds.dedup();
+        assert_eq!(seeds.len(), 6);
+    }
+}
