@@ -37,6 +37,7 @@
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
 //! | [`control`] | vibration suppression (Theorem 3.1, Corollary 3.2): Laplace, exact time domain, verification |
 //! | [`linalg`] | the small pivoted solve behind Woodbury |
+//! | [`sensitivity`] | derivatives of X_o(s) with respect to every parameter (reciprocity) |
 //! | [`precision`] | arbitrary-precision reals ([`precision::BigReal`]) and real-only operations |
 //! | [`scenes`] | the paper's reference scenes (P1-P4, Table 1's S1-S4), shared by tests, benches and configs |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
@@ -60,6 +61,7 @@ pub mod plot;
 pub mod precision;
 pub mod scalar;
 pub mod scenes;
+pub mod sensitivity;
 pub mod series;
 pub mod study;
 pub mod time;

@@ -33,6 +33,8 @@ enum Command {
     Fit(cmd::fit::Args),
     /// Residual surfaces r(j, m) and r(j1, j2) (the paper's Figures 16 and 17), CSV + SVG.
     Surface(cmd::surface::Args),
+    /// Noise study: success vs noise per misfit, calibration, damping, number of defects.
+    NoiseStudy(cmd::noise::Args),
 }
 
 fn run() -> anyhow::Result<()> {
@@ -47,6 +49,7 @@ fn run() -> anyhow::Result<()> {
         Command::Laplace(a) => cmd::laplace::run(a),
         Command::Fit(a) => cmd::fit::run(a),
         Command::Surface(a) => cmd::surface::run(a),
+        Command::NoiseStudy(a) => cmd::noise::run(a),
     }
 }
 

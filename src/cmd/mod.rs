@@ -4,6 +4,7 @@ pub mod config;
 pub mod fit;
 pub mod laplace;
 pub mod locate;
+pub mod noise;
 pub mod response;
 pub mod simulate;
 pub mod study;

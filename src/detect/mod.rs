@@ -24,13 +24,27 @@
 //! | [`search`] | optimizers: exhaustive enumeration ([`search::enumerate`]), GA, Nelder-Mead, PSO |
 //! | [`scene`] | the TOML fit scene |
 //! | [`fit`] | `fit(scene, data, options) -> FitReport` |
+//! | [`lsq`] | bounded Levenberg-Marquardt and Gauss-Newton covariance |
+//! | [`misfit_time`] | time-domain chi-square against a sampled series |
+//! | [`identify`] | standard errors, chi-square gaps, noise level of indistinguishability, flags |
+//! | [`select`] | number of defects by AIC, BIC or a chi-square test |
+//! | [`noisefit`] | fits to noisy sampled series with each misfit (noise study) |
+//! | [`noise_study`] | success vs noise, calibration, unknown damping, number of defects |
+//! | [`chainfit`] | continuous fit of defect values and chain parameters (d, k, mass, gamma) |
 //! | [`locate`] | explicit single-defect locators (section 4.1), corrected, any precision |
 
+pub mod chainfit;
 pub mod data;
 pub mod fit;
+pub mod identify;
 pub mod locate;
+pub mod lsq;
 pub mod misfit;
+pub mod misfit_time;
+pub mod noise_study;
+pub mod noisefit;
 pub mod quadrature;
 pub mod scene;
 pub mod search;
+pub mod select;
 pub mod space;

@@ -1,0 +1,301 @@
+//! `springmass noise-study`: success vs noise per misfit, calibration of the
+//! standard errors, unknown damping, and the number-of-defects confusion table.
+
+use anyhow::Context;
+use clap::{Args as ClapArgs, ValueEnum};
+use springmass::detect::noise_study::{
+    calibration, confusion, damping_study, selection_truths, success_table, systems, StudyConfig,
+};
+use springmass::detect::noisefit::{MisfitChoice, Setup};
+use springmass::detect::select::Criterion;
+use springmass::plot::{Line, LinePlot};
+use springmass::series::write_atomic;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+/// Which part of the study.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Part {
+    /// Success rate vs noise level, per system and misfit (table, CSV, SVG).
+    Table,
+    /// Standard errors over noisy repeats (S3, positions known).
+    Calibration,
+    /// Damping fitted with the defects (S3, d unknown).
+    Damping,
+    /// Number of defects chosen for 0..3 true defects (confusion table).
+    Selection,
+    /// Identifiability report of one time-domain fit (S3, 1% noise).
+    Identify,
+    /// All of the above.
+    All,
+}
+
+/// Arguments of `springmass noise-study`.
+#[derive(ClapArgs, Debug)]
+pub struct Args {
+    /// What to run.
+    #[arg(value_enum, default_value = "all")]
+    pub part: Part,
+    /// Seeds per (system, level) for the table.
+    #[arg(long, default_value_t = 20)]
+    pub seeds: usize,
+    /// Noise levels (relative to max |x_1|), comma separated [default: 1e-8,1e-7,...,1e-1].
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    pub levels: Vec<f64>,
+    /// Systems for the table (S1,S2,S3,S4,C3a,C3b) [default: all].
+    #[arg(long, value_delimiter = ',')]
+    pub systems: Vec<String>,
+    /// Misfits for the table (real,bromwich,time) [default: all].
+    #[arg(long, value_delimiter = ',')]
+    pub misfits: Vec<String>,
+    /// Record length.
+    #[arg(long, default_value_t = 200.0)]
+    pub t_end: f64,
+    /// Sampling step.
+    #[arg(long, default_value_t = 0.2)]
+    pub dt: f64,
+    /// Study seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Repeats for the calibration.
+    #[arg(long, default_value_t = 100)]
+    pub repeats: usize,
+    /// Seeds per truth for the damping and selection studies.
+    #[arg(long, default_value_t = 10)]
+    pub part_seeds: usize,
+    /// Criterion for the number of defects: aic, bic, chi2[:ALPHA].
+    #[arg(long, default_value = "bic")]
+    pub criterion: String,
+    /// Output folder for CSV and SVG files.
+    #[arg(long, default_value = "noise-study")]
+    pub out: PathBuf,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let mut cfg = StudyConfig {
+        seeds: a.seeds,
+        t_end: a.t_end,
+        dt: a.dt,
+        seed: a.seed,
+        ..StudyConfig::default()
+    };
+    if !a.levels.is_empty() {
+        for l in &a.levels {
+            if !(l.is_finite() && *l >= 0.0) {
+                anyhow::bail!("invalid --levels value {l}: allowed >= 0 and finite");
+            }
+        }
+        cfg.levels = a.levels.clone();
+    }
+    let setup = Setup::new()?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let mut md = String::new();
+    if matches!(a.part, Part::Table | Part::All) {
+        table(&a, &cfg, &setup, &mut md)?;
+    }
+    if matches!(a.part, Part::Identify | Part::All) {
+        let s3 = &systems()[2];
+        let data = springmass::detect::noise_study::noisy_data(&s3.truth, &cfg, 1e-2, a.seed)?;
+        let ranked = springmass::detect::noisefit::fit_noisy(
+            &s3.truth.uniform(),
+            &data,
+            2,
+            MisfitChoice::Time,
+            &setup,
+        )?;
+        let r = springmass::detect::noisefit::identify_ranked(&ranked, 1.0, data.sigma(), None)?;
+        writeln!(
+            md,
+            "\n## Identifiability (S3, time misfit, 1% noise, seed {})\n",
+            a.seed
+        )?;
+        writeln!(md, "best chi2 {:.2} on {} samples; runner-up gap {:?}; runner-up indistinguishable at noise {:?} (sigma = {:.3e})\n", r.chi2_best, data.len(), r.runner_up_gap, r.sigma_indistinguishable, r.sigma)?;
+        writeln!(
+            md,
+            "| at | mass | SE | sigmas from 1 | position gap | rival | identifiable | reason |"
+        )?;
+        writeln!(md, "|---|---|---|---|---|---|---|---|")?;
+        for d in &r.defects {
+            writeln!(
+                md,
+                "| {} | {:.4} | {:.4} | {:.1} | {:?} | {:?} | {} | {} |",
+                d.at,
+                d.value,
+                d.std_error,
+                d.significance,
+                d.position_gap,
+                d.nearest_rival,
+                d.identifiable,
+                d.reason
+            )?;
+        }
+        writeln!(
+            md,
+            "\nalternatives (positions, chi2 gap): {:?}",
+            r.alternatives
+        )?;
+    }
+    if matches!(a.part, Part::Calibration | Part::All) {
+        let s3 = &systems()[2];
+        let c = calibration(&s3.truth, &cfg, 1e-2, a.repeats)?;
+        writeln!(
+            md,
+            "\n## Calibration of standard errors (S3, positions known, 1% noise, {} repeats)\n",
+            c.repeats
+        )?;
+        writeln!(
+            md,
+            "| defect | true m | mean SE | SD of estimates | within 2 SE |"
+        )?;
+        writeln!(md, "|---|---|---|---|---|")?;
+        for (i, d) in s3.truth.defects().iter().enumerate() {
+            writeln!(
+                md,
+                "| {} | {} | {:.4} | {:.4} | {:.2} |",
+                d.at(),
+                d.value(),
+                c.mean_se[i],
+                c.sd_estimate[i],
+                c.within_2se[i]
+            )?;
+        }
+        writeln!(
+            md,
+            "\noverall within 2 SE: {:.3}; mean reduced chi2 {:.3}",
+            c.overall, c.mean_reduced_chi2
+        )?;
+    }
+    if matches!(a.part, Part::Damping | Part::All) {
+        let s3 = &systems()[2];
+        let fits = damping_study(&s3.truth, &cfg, 1e-2, a.part_seeds, 0.2, &setup)?;
+        writeln!(
+            md,
+            "\n## Unknown damping (S3, true d = 0.1, start d = 0.2, 1% noise)\n"
+        )?;
+        writeln!(md, "| seed | positions | d | SE | rel. error |")?;
+        writeln!(md, "|---|---|---|---|---|")?;
+        for f in &fits {
+            writeln!(
+                md,
+                "| {} | {:?} | {:.5} | {:.5} | {:.4} |",
+                f.seed, f.positions, f.d, f.se, f.rel_err
+            )?;
+        }
+        let within = fits.iter().filter(|f| f.rel_err <= 0.01).count();
+        let mut errs: Vec<f64> = fits.iter().map(|f| f.rel_err).collect();
+        errs.sort_by(f64::total_cmp);
+        writeln!(
+            md,
+            "\nd within 1%: {within}/{}; median rel. error {:.4}; max {:.4}",
+            fits.len(),
+            errs.get(errs.len() / 2).copied().unwrap_or(f64::NAN),
+            errs.last().copied().unwrap_or(f64::NAN)
+        )?;
+    }
+    if matches!(a.part, Part::Selection | Part::All) {
+        let criterion = Criterion::parse(&a.criterion)?;
+        let truths = selection_truths();
+        let t = confusion(&truths, &cfg, 1e-3, a.part_seeds, criterion, &setup)?;
+        writeln!(
+            md,
+            "\n## Number of defects (n = 10, 0.1% noise, {:?}, {} seeds per row)\n",
+            criterion, a.part_seeds
+        )?;
+        writeln!(md, "| true k \\ chosen | 0 | 1 | 2 | 3 |")?;
+        writeln!(md, "|---|---|---|---|---|")?;
+        for (k, row) in t.iter().enumerate() {
+            writeln!(
+                md,
+                "| {k} | {} |",
+                row.iter()
+                    .map(|v| v.to_string())
+                    .collect::<Vec<_>>()
+                    .join(" | ")
+            )?;
+        }
+        let correct: usize = (0..t.len()).map(|k| t[k][k]).sum();
+        let total: usize = t.iter().flatten().sum();
+        writeln!(md, "\ncorrect: {correct}/{total}")?;
+    }
+    print!("{md}");
+    write_atomic(&a.out.join("noise-study.md"), md.as_bytes())?;
+    Ok(())
+}
+
+fn table(a: &Args, cfg: &StudyConfig, setup: &Setup, md: &mut String) -> anyhow::Result<()> {
+    let all = systems();
+    let chosen: Vec<_> = if a.systems.is_empty() {
+        all
+    } else {
+        let mut v = Vec::new();
+        for name in &a.systems {
+            let s = all
+                .iter()
+                .find(|s| s.name.eq_ignore_ascii_case(name))
+                .with_context(|| {
+                    format!("unknown system {name}: allowed S1, S2, S3, S4, C3a, C3b")
+                })?;
+            v.push(s.clone());
+        }
+        v
+    };
+    let misfits: Vec<MisfitChoice> = if a.misfits.is_empty() {
+        MisfitChoice::ALL.to_vec()
+    } else {
+        a.misfits
+            .iter()
+            .map(|m| MisfitChoice::parse(m))
+            .collect::<springmass::Result<_>>()?
+    };
+    let start = std::time::Instant::now();
+    let cells = success_table(&chosen, cfg, &misfits, setup)?;
+    writeln!(
+        md,
+        "## Success rate vs noise (positions exact and masses within {:.0}%; {} seeds; t_end = {}, dt = {}; {:.0} s)\n",
+        cfg.mass_tol * 100.0,
+        cfg.seeds,
+        cfg.t_end,
+        cfg.dt,
+        start.elapsed().as_secs_f64()
+    )?;
+    write!(md, "| system | misfit |")?;
+    for l in &cfg.levels {
+        write!(md, " {l:.0e} |")?;
+    }
+    writeln!(md)?;
+    writeln!(md, "|---|---|{}", "---|".repeat(cfg.levels.len()))?;
+    let mut csv = String::from("system,misfit,level,runs,successes,positions_ok\n");
+    let mut plot = LinePlot::new(
+        "Defect recovery vs noise",
+        "noise level (relative to max |x_1|)",
+        "success rate",
+    )
+    .log_x(true);
+    for s in &chosen {
+        for m in &misfits {
+            write!(md, "| {} | {} |", s.name, m.name())?;
+            let mut pts = Vec::new();
+            for c in cells
+                .iter()
+                .filter(|c| c.system == s.name && c.misfit == m.name())
+            {
+                write!(md, " {:.2} |", c.rate())?;
+                writeln!(
+                    csv,
+                    "{},{},{:e},{},{},{}",
+                    c.system, c.misfit, c.level, c.runs, c.successes, c.positions_ok
+                )?;
+                pts.push((c.level, c.rate()));
+            }
+            writeln!(md)?;
+            let mut line = Line::new(format!("{} {}", s.name, m.name()), pts).markers();
+            if *m == MisfitChoice::RealAxis {
+                line = line.dashed();
+            }
+            plot = plot.line(line);
+        }
+    }
+    write_atomic(&a.out.join("success.csv"), csv.as_bytes())?;
+    plot.write_svg(a.out.join("success.svg"))?;
+    Ok(())
+}

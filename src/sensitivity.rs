@@ -1,0 +1,503 @@
+//! Derivatives of the response `X_o(s)` with respect to every model parameter:
+//! defect values (masses, springs, dampers), the uniform `d`, `k`, `mass`, and
+//! the impulse `gamma`, at real or complex `s`.
+//!
+//! # Formula (reciprocity)
+//!
+//! `K(s) X = gamma e_1` with `K` symmetric, so for any parameter `theta` on
+//! which `K` depends,
+//!
+//! `dX_o/dtheta = -gamma (G e_o)^T (dK/dtheta) (G e_1)`,  `G = K(s)^{-1}`,
+//!
+//! and `dX_o/dgamma = X_o / gamma`. For `o = 1` this is the classical
+//! `dX_1/dtheta = -(1/gamma) X^T (dK/dtheta) X`. `dK/dtheta` is
+//!
+//! | parameter | `dK/dtheta` | `dX_1/dtheta` |
+//! |---|---|---|
+//! | mass `m_j` | `s^2 e_j e_j^T` | `-s^2 X_j^2 / gamma` |
+//! | damper `d_j` | `s e_j e_j^T` | `-s X_j^2 / gamma` |
+//! | spring `k_j` (joins `j`, `j+1`) | `(e_j - e_{j+1})(e_j - e_{j+1})^T` | `-(X_j - X_{j+1})^2 / gamma` |
+//! | uniform `mass` | sum of the above over masses without a mass defect | |
+//! | uniform `d`, `k` | likewise over dampers / springs without a defect | |
+//!
+//! ([`X_0 = X_{n+1} = 0`] at the walls.)
+//!
+//! # Cost
+//!
+//! [`gradient`] needs the whole columns `G e_1` and `G e_o`: O(n) per `s` by
+//! [`green_column`] (elimination in excess-stiffness form from both ends, no
+//! subtraction of nearly equal terms for real `s`). [`defect_gradient`]
+//! (observable `X_1`, defect parameters only) needs `X` only at the defect
+//! sites, which the cancellation-free [`crate::forward::transfer`] sweep gives
+//! in O(k) each: O(k^2) per `s`, whatever `n`.
+//!
+//! ```
+//! use springmass::{Chain, Defect, sensitivity::{gradient, Param}};
+//! let chain = Chain::paper(20)?.with_defect(Defect::Mass { at: 8, m: 5.0 })?;
+//! let params = Param::all(&chain);
+//! let g = gradient(&chain, 0.7_f64, 1, &params)?;
+//! // d X_1 / d m_8 = -s^2 X_8^2 / gamma < 0: a heavier mass lowers X_1
+//! assert!(g.grad[0] < 0.0);
+//! // central difference check
+//! let h = 1e-5;
+//! let up = springmass::forward::response(&params[0].set(&chain, 5.0 + h)?, 0.7, 1)?;
+//! let dn = springmass::forward::response(&params[0].set(&chain, 5.0 - h)?, 0.7, 1)?;
+//! assert!(((up - dn) / (2.0 * h) - g.grad[0]).abs() < 1e-7 * g.value);
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+use crate::chain::{Chain, Defect};
+use crate::error::{Error, Result};
+use crate::forward::{check_s, Forward};
+use crate::scalar::Scalar;
+
+/// One model parameter of a chain.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Param {
+    /// The value of `chain.defects()[i]` (its mass `m`, spring `k` or damper `d`).
+    Defect(usize),
+    /// Uniform damping `d` (every mass without a damper defect).
+    D,
+    /// Uniform spring constant `k` (every spring without a spring defect).
+    K,
+    /// Uniform mass (every mass without a mass defect).
+    Mass,
+    /// Impulse scale `gamma`.
+    Gamma,
+}
+
+impl Param {
+    /// Every parameter of `chain`: its defects in order, then `D`, `K`, `Mass`, `Gamma`.
+    pub fn all(chain: &Chain) -> Vec<Param> {
+        let mut v: Vec<Param> = (0..chain.defects().len()).map(Param::Defect).collect();
+        v.extend([Param::D, Param::K, Param::Mass, Param::Gamma]);
+        v
+    }
+
+    /// The defect parameters of `chain`, in order.
+    pub fn defects(chain: &Chain) -> Vec<Param> {
+        (0..chain.defects().len()).map(Param::Defect).collect()
+    }
+
+    /// A short name: `mass@8`, `spring@3`, `damper@4`, `d`, `k`, `mass`, `gamma`.
+    pub fn name(&self, chain: &Chain) -> String {
+        match *self {
+            Param::Defect(i) => match chain.defects().get(i) {
+                Some(d) => format!("{}@{}", d.kind(), d.at()),
+                None => format!("defect[{i}]"),
+            },
+            Param::D => "d".into(),
+            Param::K => "k".into(),
+            Param::Mass => "mass".into(),
+            Param::Gamma => "gamma".into(),
+        }
+    }
+
+    /// The parameter's current value in `chain`.
+    ///
+    /// # Errors
+    /// A defect index out of range (field `param`).
+    pub fn get(&self, chain: &Chain) -> Result<f64> {
+        Ok(match *self {
+            Param::Defect(i) => self.defect(chain, i)?.value(),
+            Param::D => chain.d(),
+            Param::K => chain.k(),
+            Param::Mass => chain.mass(),
+            Param::Gamma => chain.gamma(),
+        })
+    }
+
+    fn defect<'a>(&self, chain: &'a Chain, i: usize) -> Result<&'a Defect> {
+        chain.defects().get(i).ok_or_else(|| {
+            Error::invalid(
+                "param",
+                format!("defect[{i}]"),
+                format!("defect index < {}", chain.defects().len()),
+            )
+        })
+    }
+
+    /// A copy of `chain` with this parameter set to `value` (validated as the
+    /// chain's builders validate it).
+    ///
+    /// # Errors
+    /// The value is out of the parameter's range, or the defect index is out of range.
+    pub fn set(&self, chain: &Chain, value: f64) -> Result<Chain> {
+        let mut defects = chain.defects().to_vec();
+        let (mut d, mut k, mut mass, mut gamma) =
+            (chain.d(), chain.k(), chain.mass(), chain.gamma());
+        match *self {
+            Param::Defect(i) => {
+                let old = *self.defect(chain, i)?;
+                defects[i] = match old {
+                    Defect::Mass { at, .. } => Defect::Mass { at, m: value },
+                    Defect::Spring { at, .. } => Defect::Spring { at, k: value },
+                    Defect::Damper { at, .. } => Defect::Damper { at, d: value },
+                };
+            }
+            Param::D => d = value,
+            Param::K => k = value,
+            Param::Mass => mass = value,
+            Param::Gamma => gamma = value,
+        }
+        Chain::new(chain.n())?
+            .with_d(d)?
+            .with_k(k)?
+            .with_mass(mass)?
+            .with_gamma(gamma)?
+            .with_defects(defects)
+    }
+}
+
+/// A response value with its derivatives, in the order of the parameters asked for.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Gradient<T> {
+    /// `X_o(s)`.
+    pub value: T,
+    /// `dX_o/dtheta` per parameter.
+    pub grad: Vec<T>,
+}
+
+/// Column `o` of `G = K(s)^{-1}` (0-based vector, `G_{io}` at index `i - 1`), for
+/// any mass, spring and damper profile. O(n).
+///
+/// Method: excess stiffnesses from the right, `E^R_i = l_i + kappa_i E^R_{i+1} / (E^R_{i+1} + kappa_i)`,
+/// and from the left, `E^L_i = l_i + kappa_{i-1} E^L_{i-1} / (E^L_{i-1} + kappa_{i-1})`,
+/// `l_i = m_i s^2 + d_i s` (walls: the tail is the wall spring); then
+/// `G_oo = 1 / (E^R_o + E^L_o - l_o)`, and moving away from `o`,
+/// `G_{i+1,o} = kappa_i G_io / (E^R_{i+1} + kappa_i)`, `G_{i-1,o} = kappa_{i-1} G_io / (E^L_{i-1} + kappa_{i-1})`.
+/// For real `s >= 0` every term is positive.
+///
+/// # Errors
+/// `s` invalid (as [`check_s`]), `o` outside `1..=n`, [`Error::Singular`] when an
+/// elimination pivot vanishes (a pole of the response).
+pub fn green_column<T: Scalar>(chain: &Chain, s: T, o: usize) -> Result<Vec<T>> {
+    check_s(&s)?;
+    chain.check_observe(o)?;
+    let n = chain.n();
+    let m = chain.masses();
+    let kap = chain.springs();
+    let dmp = chain.dampers();
+    let s2 = s.clone() * s.clone();
+    let local: Vec<T> = (0..n).map(|i| s2.scale(m[i]) + s.scale(dmp[i])).collect();
+    // tails: tr[i] = contribution from the right of mass i+1 (0-based i), tl likewise.
+    let mut er: Vec<T> = vec![T::zero(); n];
+    let mut tail_r: Vec<T> = vec![T::zero(); n];
+    for i in (0..n).rev() {
+        let kr = kap[i + 1];
+        let t = if i + 1 == n {
+            T::from_f64(kr)
+        } else {
+            er[i + 1].clone().scale(kr) / (er[i + 1].clone() + T::from_f64(kr))
+        };
+        er[i] = local[i].clone() + t.clone();
+        tail_r[i] = t;
+    }
+    let mut el: Vec<T> = vec![T::zero(); n];
+    let mut tail_l: Vec<T> = vec![T::zero(); n];
+    for i in 0..n {
+        let kl = kap[i];
+        let t = if i == 0 {
+            T::from_f64(kl)
+        } else {
+            el[i - 1].clone().scale(kl) / (el[i - 1].clone() + T::from_f64(kl))
+        };
+        el[i] = local[i].clone() + t.clone();
+        tail_l[i] = t;
+    }
+    let oi = o - 1;
+    let mut g = vec![T::zero(); n];
+    g[oi] = T::one() / (local[oi].clone() + tail_r[oi].clone() + tail_l[oi].clone());
+    for i in oi + 1..n {
+        g[i] = g[i - 1].clone().scale(kap[i]) / (er[i].clone() + T::from_f64(kap[i]));
+    }
+    for i in (0..oi).rev() {
+        g[i] = g[i + 1].clone().scale(kap[i + 1]) / (el[i].clone() + T::from_f64(kap[i + 1]));
+    }
+    if g.iter().all(|v| v.is_finite()) {
+        Ok(g)
+    } else {
+        Err(Error::Singular {
+            s: format!("{}", s.to_c64()),
+        })
+    }
+}
+
+/// `X_o(s)` and its derivatives with respect to `params`, by reciprocity
+/// (module docs). O(n + number of parameters) per `s` (O(n) each for the
+/// uniform parameters `D`, `K`, `Mass`).
+///
+/// # Errors
+/// As [`green_column`]; a defect index out of range.
+pub fn gradient<T: Scalar>(
+    chain: &Chain,
+    s: T,
+    observe: usize,
+    params: &[Param],
+) -> Result<Gradient<T>> {
+    let gamma = chain.gamma();
+    let g1 = green_column(chain, s.clone(), 1)?;
+    let go = if observe == 1 {
+        None
+    } else {
+        Some(green_column(chain, s.clone(), observe)?)
+    };
+    let go_ref: &[T] = go.as_deref().unwrap_or(&g1);
+    let n = chain.n();
+    let value = g1[observe - 1].scale(gamma);
+    // bilinear forms: point p (1-based) and spring j (joins j, j+1; 0 and n walls)
+    let at = |v: &[T], i: usize| -> T {
+        if i == 0 || i > n {
+            T::zero()
+        } else {
+            v[i - 1].clone()
+        }
+    };
+    let point = |p: usize| -> T { at(go_ref, p) * at(&g1, p) };
+    let spring =
+        |j: usize| -> T { (at(go_ref, j) - at(go_ref, j + 1)) * (at(&g1, j) - at(&g1, j + 1)) };
+    let s2 = s.clone() * s.clone();
+    let mut mass_def = vec![false; n + 1];
+    let mut damp_def = vec![false; n + 1];
+    let mut spring_def = vec![false; n + 1];
+    for d in chain.defects() {
+        match *d {
+            Defect::Mass { at, .. } => mass_def[at] = true,
+            Defect::Damper { at, .. } => damp_def[at] = true,
+            Defect::Spring { at, .. } => spring_def[at] = true,
+        }
+    }
+    let mut grad = Vec::with_capacity(params.len());
+    for p in params {
+        // b = (G e_o)^T dK (G e_1); derivative = -gamma b
+        let b = match *p {
+            Param::Defect(i) => match *p.defect(chain, i)? {
+                Defect::Mass { at, .. } => s2.clone() * point(at),
+                Defect::Damper { at, .. } => s.clone() * point(at),
+                Defect::Spring { at, .. } => spring(at),
+            },
+            Param::Mass => {
+                let mut acc = T::zero();
+                for (i, _) in mass_def.iter().enumerate().skip(1).filter(|(_, d)| !**d) {
+                    acc = acc + point(i);
+                }
+                s2.clone() * acc
+            }
+            Param::D => {
+                let mut acc = T::zero();
+                for (i, _) in damp_def.iter().enumerate().skip(1).filter(|(_, d)| !**d) {
+                    acc = acc + point(i);
+                }
+                s.clone() * acc
+            }
+            Param::K => {
+                let mut acc = T::zero();
+                for (j, _) in spring_def.iter().enumerate().filter(|(_, d)| !**d) {
+                    acc = acc + spring(j);
+                }
+                acc
+            }
+            Param::Gamma => {
+                grad.push(go_ref[0].clone());
+                continue;
+            }
+        };
+        grad.push(-b.scale(gamma));
+    }
+    Ok(Gradient { value, grad })
+}
+
+/// `X_1(s)` and its derivatives with respect to every defect value of `chain`
+/// (in `chain.defects()` order), from `X` at the defect sites only: O(k) per
+/// site by the transfer sweep, O(k^2) per `s` whatever `n`.
+///
+/// # Errors
+/// As [`Forward::eval`].
+pub fn defect_gradient<T: Scalar>(chain: &Chain, s: T) -> Result<Gradient<T>> {
+    let fwd = Forward::new(chain);
+    defect_gradient_with(&fwd, s)
+}
+
+/// [`defect_gradient`] for a prepared forward model.
+///
+/// # Errors
+/// As [`Forward::eval`].
+pub fn defect_gradient_with<T: Scalar>(fwd: &Forward, s: T) -> Result<Gradient<T>> {
+    let chain = fwd.chain();
+    let n = chain.n();
+    let gamma = chain.gamma();
+    let value = fwd.eval(s.clone(), 1)?;
+    let x = |i: usize| -> Result<T> {
+        if i == 0 || i > n {
+            Ok(T::zero())
+        } else if i == 1 {
+            Ok(value.clone())
+        } else {
+            fwd.eval(s.clone(), i)
+        }
+    };
+    let inv = if gamma == 0.0 { 0.0 } else { 1.0 / gamma };
+    let mut grad = Vec::with_capacity(chain.defects().len());
+    for d in chain.defects() {
+        let b = match *d {
+            Defect::Mass { at, .. } => {
+                let xa = x(at)?;
+                s.clone() * s.clone() * xa.clone() * xa
+            }
+            Defect::Damper { at, .. } => {
+                let xa = x(at)?;
+                s.clone() * xa.clone() * xa
+            }
+            Defect::Spring { at, .. } => {
+                let dx = x(at)? - x(at + 1)?;
+                dx.clone() * dx
+            }
+        };
+        grad.push(-b.scale(inv));
+    }
+    Ok(Gradient { value, grad })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::forward::{response, tridiag};
+    use num_complex::Complex64;
+
+    fn chains() -> Vec<Chain> {
+        vec![
+            Chain::paper(5)
+                .unwrap()
+                .with_defects([
+                    Defect::Mass { at: 2, m: 3.0 },
+                    Defect::Mass { at: 4, m: 0.5 },
+                ])
+                .unwrap(),
+            Chain::new(9)
+                .unwrap()
+                .with_d(0.3)
+                .unwrap()
+                .with_k(2.0)
+                .unwrap()
+                .with_mass(0.7)
+                .unwrap()
+                .with_gamma(1.7)
+                .unwrap()
+                .with_defects([
+                    Defect::Mass { at: 1, m: 4.0 },
+                    Defect::Spring { at: 0, k: 0.5 },
+                    Defect::Spring { at: 4, k: 3.0 },
+                    Defect::Damper { at: 5, d: 0.05 },
+                    Defect::Mass { at: 9, m: 0.2 },
+                    Defect::Spring { at: 9, k: 1.5 },
+                    Defect::Damper { at: 1, d: 0.9 },
+                ])
+                .unwrap(),
+            Chain::paper(1).unwrap(),
+            Chain::paper(2)
+                .unwrap()
+                .with_defect(Defect::Spring { at: 1, k: 4.0 })
+                .unwrap(),
+        ]
+    }
+
+    #[test]
+    fn column_matches_reference_solvers() {
+        for c in chains() {
+            for s in [0.0, 1e-6, 0.3, 2.0, 40.0] {
+                let x = tridiag::solve_all(&c, s).unwrap();
+                let g1 = green_column(&c, s, 1).unwrap();
+                for i in 0..c.n() {
+                    assert!((g1[i] * c.gamma() - x[i]).abs() <= 1e-13 * x[i].abs() + 1e-300);
+                }
+                // symmetry: G_{1o} = X_o / gamma
+                for o in 1..=c.n() {
+                    let go = green_column(&c, s, o).unwrap();
+                    let xo = response(&c, s, o).unwrap();
+                    assert!((go[0] * c.gamma() - xo).abs() <= 1e-12 * xo.abs() + 1e-300);
+                }
+            }
+            for s in [Complex64::new(0.4, 1.3), Complex64::new(0.02, 0.9)] {
+                for o in 1..=c.n() {
+                    let go = green_column(&c, s, o).unwrap();
+                    let xo = response(&c, s, o).unwrap();
+                    assert!((go[0] * c.gamma() - xo).norm() <= 1e-11 * xo.norm());
+                }
+            }
+        }
+    }
+
+    fn fd<T: Scalar>(c: &Chain, p: Param, s: T, o: usize) -> T {
+        let v = p.get(c).unwrap();
+        let h = 1e-5 * v.abs().max(1e-2);
+        let up = response(&p.set(c, v + h).unwrap(), s.clone(), o).unwrap();
+        let dn = response(&p.set(c, v - h).unwrap(), s, o).unwrap();
+        (up - dn).scale(0.5 / h)
+    }
+
+    #[test]
+    fn gradient_matches_central_differences() {
+        for c in chains() {
+            let params = Param::all(&c);
+            for s in [1e-3, 0.1, 0.7, 3.0] {
+                for o in [1, c.n()] {
+                    let g = gradient(&c, s, o, &params).unwrap();
+                    for (p, gv) in params.iter().zip(&g.grad) {
+                        let f = fd(&c, *p, s, o);
+                        let scale = g.value.abs().max(gv.abs());
+                        assert!(
+                            (f - gv).abs() <= 1e-6 * scale,
+                            "{c:?} s={s} o={o} {}: {gv} vs {f}",
+                            p.name(&c)
+                        );
+                    }
+                }
+            }
+            for s in [Complex64::new(0.1, 0.8), Complex64::new(1.0, 5.0)] {
+                let g = gradient(&c, s, 1, &params).unwrap();
+                for (p, gv) in params.iter().zip(&g.grad) {
+                    let f = fd(&c, *p, s, 1);
+                    let scale = g.value.norm().max(gv.norm());
+                    assert!((f - gv).norm() <= 1e-6 * scale, "{} {s}", p.name(&c));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn defect_gradient_agrees_with_full() {
+        for c in chains() {
+            let params = Param::defects(&c);
+            for s in [0.05, 1.0, 9.0] {
+                let a = defect_gradient(&c, s).unwrap();
+                let b = gradient(&c, s, 1, &params).unwrap();
+                for (x, y) in a.grad.iter().zip(&b.grad) {
+                    assert!(
+                        (x - y).abs() <= 1e-12 * (x.abs() + b.value.abs() * 1e-300),
+                        "{x} {y}"
+                    );
+                }
+            }
+            let s = Complex64::new(0.2, 1.7);
+            let a = defect_gradient(&c, s).unwrap();
+            let b = gradient(&c, s, 1, &params).unwrap();
+            for (x, y) in a.grad.iter().zip(&b.grad) {
+                assert!((x - y).norm() <= 1e-10 * x.norm().max(1e-300));
+            }
+        }
+    }
+
+    #[test]
+    fn set_validates_and_round_trips() {
+        let c = chains().remove(1);
+        for p in Param::all(&c) {
+            let v = p.get(&c).unwrap();
+            assert_eq!(p.set(&c, v).unwrap(), c);
+        }
+        assert!(Param::D.set(&c, -1.0).is_err());
+        assert!(Param::Defect(0).set(&c, 0.0).is_err());
+        assert!(Param::Defect(99).get(&c).is_err());
+        assert!(gradient(&c, -1.0, 1, &[Param::D]).is_err());
+        assert!(green_column(&c, 1.0, 0).is_err());
+    }
+}
