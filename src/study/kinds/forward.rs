@@ -29,7 +29,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::{from_scene, CaseOutput};
+use super::{CaseOutput, KindScene};
 use crate::chain::{ChainSpec, Defect};
 use crate::error::{check_f64, Error, Result};
 use crate::forward::transfer::Transfer;
@@ -225,30 +225,10 @@ pub const METRICS: &[(&str, &str)] = &[
     ("t_speedup", "t_reference / t_woodbury"),
 ];
 
-impl Scene {
-    /// Deserialize and check a resolved scene.
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] naming the field.
-    pub fn from_value(value: &toml::Value) -> Result<Scene> {
-        let scene: Scene = from_scene(value, FIELDS)?;
-        scene.check()?;
-        Ok(scene)
-    }
+impl KindScene for Scene {
+    const FIELDS: &'static [FieldDoc] = FIELDS;
 
-    /// Range checks (the chain is checked by [`ChainSpec::build`]).
-    ///
-    /// # Errors
-    /// The first of [`Scene::problems`].
-    pub fn check(&self) -> Result<()> {
-        match self.problems().into_iter().next() {
-            Some(e) => Err(e),
-            None => Ok(()),
-        }
-    }
-
-    /// Every failed range check, each naming its field.
-    pub fn problems(&self) -> Vec<Error> {
+    fn problems(&self) -> Vec<Error> {
         let r = &self.random_defects;
         let g = &self.s;
         let checks: [&dyn Fn() -> Result<()>; 6] = [
@@ -319,7 +299,9 @@ impl Scene {
         ];
         checks.iter().filter_map(|c| c().err()).collect()
     }
+}
 
+impl Scene {
     /// The grid parameters `t`.
     pub fn grid(&self) -> Vec<f64> {
         let g = &self.s;

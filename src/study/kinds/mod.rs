@@ -162,6 +162,37 @@ pub fn unknown_fields(value: &toml::Value, schema: &[FieldDoc]) -> Vec<Problem> 
     super::config::unknown_fields(value, schema)
 }
 
+/// A kind's scene: deserialized against its field schema, then range-checked.
+/// A kind implements [`KindScene::problems`]; reading and checking come free.
+pub trait KindScene: DeserializeOwned {
+    /// The documented fields of the scene (unknown fields are errors).
+    const FIELDS: &'static [FieldDoc];
+
+    /// Every failed range check, each naming its field.
+    fn problems(&self) -> Vec<Error>;
+
+    /// The first of [`KindScene::problems`].
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the field.
+    fn check(&self) -> Result<()> {
+        match self.problems().into_iter().next() {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+
+    /// Deserialize ([`from_scene`]) and check a resolved scene.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the field.
+    fn from_value(value: &toml::Value) -> Result<Self> {
+        let scene: Self = from_scene(value, Self::FIELDS)?;
+        scene.check()?;
+        Ok(scene)
+    }
+}
+
 /// Deserialize a scene: first unknown fields (named with their path), then
 /// serde (types and required fields).
 ///

@@ -20,7 +20,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::{from_scene, CaseOutput, CasePlot};
+use super::{CaseOutput, CasePlot, KindScene};
 use crate::control::verify::{verify, Input, Perturbation, Run, Target, VerifyOptions};
 use crate::control::{Scheme, Suppression};
 use crate::error::{check_f64, Error, Result};
@@ -198,30 +198,10 @@ pub const METRICS: &[(&str, &str)] = &[
     ("t_verify", "measured seconds of the two simulations and the controls"),
 ];
 
-impl Scene {
-    /// Deserialize and check a resolved scene.
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] naming the field.
-    pub fn from_value(value: &toml::Value) -> Result<Scene> {
-        let scene: Scene = from_scene(value, FIELDS)?;
-        scene.check()?;
-        Ok(scene)
-    }
+impl KindScene for Scene {
+    const FIELDS: &'static [FieldDoc] = FIELDS;
 
-    /// Range checks.
-    ///
-    /// # Errors
-    /// The first of [`Scene::problems`].
-    pub fn check(&self) -> Result<()> {
-        match self.problems().into_iter().next() {
-            Some(e) => Err(e),
-            None => Ok(()),
-        }
-    }
-
-    /// Every failed range check, each naming its field.
-    pub fn problems(&self) -> Vec<Error> {
+    fn problems(&self) -> Vec<Error> {
         let checks: [&dyn Fn() -> Result<()>; 5] = [
             &|| self.suppression().map(|_| ()),
             &|| self.scheme().map(|_| ()),
@@ -231,7 +211,9 @@ impl Scene {
         ];
         checks.iter().filter_map(|c| c().err()).collect()
     }
+}
 
+impl Scene {
     fn check_input(&self) -> Result<()> {
         let i = &self.input;
         match i.kind.as_str() {
