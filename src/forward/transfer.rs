@@ -68,9 +68,8 @@ pub struct Transfer {
 struct Swept<T> {
     /// `E` at the segment's left index.
     e_left: T,
-    /// For runs: `1 - psi` and `psi`.
+    /// For runs: `1 - psi` (in the static limit: `k / E_{r+1}`).
     one_m_psi: T,
-    psi: T,
 }
 
 impl Transfer {
@@ -172,13 +171,12 @@ impl Transfer {
                     swept.push(Swept {
                         e_left: e.clone(),
                         one_m_psi: T::zero(),
-                        psi: T::zero(),
                     });
                     right = Some(e);
                 }
                 Seg::Run { l, r } => {
                     let p = r + 1 - l;
-                    let (e, omp, psi) = if stat {
+                    let (e, omp) = if stat {
                         // springs in series: E_l = 1 / (p/k + 1/E_{r+1})
                         let inv_right = match &right {
                             None => T::zero(),
@@ -186,7 +184,7 @@ impl Transfer {
                         };
                         let e = T::one() / (T::from_f64(p as f64 / k) + inv_right.clone());
                         // store c0 = k / E_{r+1} in `one_m_psi` for the static ratio
-                        (e, inv_right.scale(k), T::zero())
+                        (e, inv_right.scale(k))
                     } else {
                         let omp = match &right {
                             None => T::zero(),
@@ -197,14 +195,13 @@ impl Transfer {
                             }
                         };
                         let psi = T::one() - omp.clone();
-                        let num = T::one() + psi.clone() * qpow(2.0 * p as f64 + 1.0);
+                        let num = T::one() + psi * qpow(2.0 * p as f64 + 1.0);
                         let e = em1.scale(k) * num / big_b(p, &omp);
-                        (e, omp, psi)
+                        (e, omp)
                     };
                     swept.push(Swept {
                         e_left: e.clone(),
                         one_m_psi: omp,
-                        psi,
                     });
                     right = Some(e);
                 }
@@ -249,7 +246,6 @@ impl Transfer {
                         qpow((target - l) as f64) * big_b(pt, &sw.one_m_psi)
                             / big_b(pl, &sw.one_m_psi)
                     };
-                    let _ = &sw.psi;
                     x = xl * ratio;
                     if o <= r {
                         return x;
