@@ -19,11 +19,11 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::{from_scene, CaseOutput};
+use super::{chain_problems, CaseOutput, KindScene};
 use crate::chain::Defect;
-use crate::detect::fit::fit;
-use crate::detect::scene::FitScene;
-use crate::error::Result;
+use crate::detect::fit::{fit, FitMethod};
+use crate::detect::scene::{DataSourceKind, FitScene};
+use crate::error::{check_f64, Error, Result};
 use crate::study::config::FieldDoc;
 use crate::study::sweep::{set_path, splitmix64};
 
@@ -153,15 +153,81 @@ pub fn seeded(value: &toml::Value, seed: u64) -> toml::Value {
     v
 }
 
-/// Deserialize and check a scene.
+/// The fit scene's checks, sub-table by sub-table, so that
+/// `springmass config check` lists every problem of a scene (with
+/// [`KindScene::all_problems`]: every unknown field and every type error
+/// first), not the first one.
+impl KindScene for FitScene {
+    const FIELDS: &'static [FieldDoc] = FIELDS;
+
+    fn problems(&self) -> Vec<Error> {
+        let mut out = chain_problems(&self.chain);
+        // the unknowns need only n (and the number of mass defects)
+        let chain_ok = crate::chain::Chain::new(self.chain.n).is_ok();
+        // [data]
+        let d = &self.data;
+        if let Err(e) = check_f64("data.noise", d.noise, d.noise >= 0.0, ">= 0 and finite") {
+            out.push(e);
+        }
+        let t_end = d.t_end.unwrap_or(300.0);
+        if let Err(e) = check_f64("data.t_end", t_end, t_end > 0.0, "> 0 and finite") {
+            out.push(e);
+        }
+        if let Some(dt) = d.dt {
+            if let Err(e) = check_f64(
+                "data.dt",
+                dt,
+                dt > 0.0 && dt <= t_end.abs() && t_end / dt <= 2e7,
+                "0 < dt <= t_end, at most 2e7 steps",
+            ) {
+                out.push(e);
+            }
+        }
+        if d.source == DataSourceKind::Series && d.path.is_none() {
+            out.push(Error::invalid(
+                "data.path",
+                "(none)",
+                "a CSV file for source = \"series\"",
+            ));
+        }
+        // [unknowns] (against the chain's n and defects)
+        if chain_ok {
+            match self.unknowns() {
+                Err(e) => out.push(e),
+                Ok(u) => {
+                    if self.search.method != FitMethod::Enumerate && !u.interchangeable() {
+                        out.push(Error::invalid(
+                            "search.method",
+                            self.search.method.name(),
+                            "enumerate when the defects at unknown positions differ (known, unequal masses or unequal bounds)",
+                        ));
+                    }
+                }
+            }
+        }
+        // [misfit]
+        if let Err(e) = self.misfit.rule() {
+            out.push(e);
+        }
+        // [search]
+        if self.search.method != FitMethod::Enumerate && self.search.max_evals == 0 {
+            out.push(Error::invalid(
+                "search.max_evals",
+                0,
+                ">= 1 for a stochastic method",
+            ));
+        }
+        out
+    }
+}
+
+/// Deserialize and check a scene (the first of its problems, see
+/// [`KindScene::all_problems`] for all of them).
 ///
 /// # Errors
 /// [`crate::Error::InvalidParameter`] naming the field.
 pub fn scene(value: &toml::Value) -> Result<FitScene> {
-    let s: FitScene = from_scene(value, FIELDS)?;
-    s.truth()?;
-    s.unknowns()?;
-    Ok(s)
+    <FitScene as KindScene>::from_value(value)
 }
 
 /// Run one `fit` case.

@@ -1,11 +1,18 @@
 //! Kind `locate`: the explicit single-defect locators of section 4.1
-//! ([`crate::detect::locate::locate`], in f64), on data of a chain with one
+//! ([`crate::detect::locate::locate`]), in `f64` or in extended precision
+//! ([`crate::precision::BigReal`] at `precision` bits), on data of a chain with one
 //! mass defect: exact closed-form `X_1(s)`, or the paper's pipeline (a
 //! simulated `x_1(t)`, Laplace-transformed).
 //!
 //! An unresolvable defect is a result, not a failure: `resolved = false` and
 //! the reason in `status`. With `plots = true` the case draws its `j(s)`
 //! curve (the paper's Figures 11, 13 and 15).
+//!
+//! With `precision = 256` (any number of bits in `64..=4096`) the data, the
+//! model and the locator all run in [`crate::precision::BigReal`] at that
+//! precision (the same generic locator as `springmass locate --precision`);
+//! `j_error` and `digits` are computed at the working precision, so they show
+//! what the extra bits buy, and `t_locate` what they cost.
 //!
 //! ```
 //! use springmass::study::kinds::Kind;
@@ -17,17 +24,18 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::{from_scene, CaseOutput, CasePlot};
+use super::{chain_problems, CaseOutput, CasePlot, KindScene};
 use crate::chain::{Chain, ChainSpec, Defect};
 use crate::detect::locate::{curve, default_grid, locate, LaplaceData, Method, Model, SChoice};
 use crate::error::{check_f64, Error, Result};
 use crate::plot::{Line, LinePlot};
+use crate::precision::{with_precision, BigReal, RealScalar};
 use crate::study::config::FieldDoc;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
 /// One paragraph for the schema page.
-pub const SUMMARY: &str = "Locates one mass defect from X_1(s) with the section 4.1 locators (exact (4.7), asymptotic (4.10), large-defect (4.17) stable or as printed, unknown mass), in f64, on exact or simulated data; an unresolvable defect is reported as such.";
+pub const SUMMARY: &str = "Locates one mass defect from X_1(s) with the section 4.1 locators (exact (4.7), asymptotic (4.10), large-defect (4.17) stable or as printed, unknown mass), in f64 or extended precision, on exact or simulated data; an unresolvable defect is reported as such.";
 
 /// The scene of a `locate` case.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -56,6 +64,60 @@ pub struct Scene {
     /// Draw the `j(s)` curve (default false).
     #[serde(default)]
     pub plots: bool,
+    /// Working precision: `"f64"` (default) or a number of bits.
+    #[serde(default)]
+    pub precision: Precision,
+}
+
+/// Smallest number of bits of `precision`.
+pub const MIN_PRECISION_BITS: i64 = 64;
+/// Largest number of bits of `precision` (a study case must stay cheap;
+/// `springmass locate --precision` goes further).
+pub const MAX_PRECISION_BITS: i64 = 4096;
+
+/// The working precision of a `locate` case: `"f64"` or a number of bits
+/// ([`MIN_PRECISION_BITS`]`..=`[`MAX_PRECISION_BITS`]) of
+/// [`crate::precision::BigReal`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Precision {
+    /// A number of bits.
+    Bits(i64),
+    /// A name: only `"f64"` is allowed.
+    Name(String),
+}
+
+impl Default for Precision {
+    fn default() -> Self {
+        Precision::Name("f64".into())
+    }
+}
+
+impl Precision {
+    /// `None` for `f64`, `Some(bits)` for extended precision.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] on field `precision` for any other name or
+    /// a number of bits outside `64..=4096`.
+    pub fn bits(&self) -> Result<Option<usize>> {
+        const ALLOWED: &str = "\"f64\" or a number of bits 64..=4096 (e.g. 128, 256, 512)";
+        match self {
+            Precision::Name(n) if n == "f64" => Ok(None),
+            Precision::Name(n) => Err(Error::invalid("precision", format!("{n:?}"), ALLOWED)),
+            Precision::Bits(b) if (MIN_PRECISION_BITS..=MAX_PRECISION_BITS).contains(b) => {
+                Ok(Some(*b as usize))
+            }
+            Precision::Bits(b) => Err(Error::invalid("precision", b, ALLOWED)),
+        }
+    }
+
+    /// `f64` or `<bits> bits`.
+    pub fn label(&self) -> String {
+        match self {
+            Precision::Bits(b) => format!("{b} bits"),
+            Precision::Name(n) => n.clone(),
+        }
+    }
 }
 
 fn default_method() -> String {
@@ -92,6 +154,7 @@ pub const FIELDS: &[FieldDoc] = &[
     FieldDoc::new("t_end", "float > 0", "300", "`simulated`: end of the record."),
     FieldDoc::new("dt", "float > 0", "0.05", "`simulated`: sampling step."),
     FieldDoc::new("plots", "bool", "false", "Draw this case's j(s) curve into `cases/<id>-js.svg`."),
+    FieldDoc::new("precision", "\"f64\" | integer 64..=4096", "\"f64\"", "Working precision of data, model and locator: `f64`, or that many bits of extended precision (BigReal, as `springmass locate --precision`). Sweep it to trade time for digits: `values = [\"f64\", 128, 256, 512]`."),
 ];
 
 /// Every metric and timing of kind `locate`.
@@ -99,11 +162,20 @@ pub const METRICS: &[(&str, &str)] = &[
     ("truth", "true position of the defect"),
     (
         "resolved",
-        "the locator returned a position (not unresolvable at f64 with this data)",
+        "the locator returned a position (not unresolvable at this precision with this data)",
     ),
+    ("bits", "working precision in bits (53 for f64)"),
     ("success", "the position returned is the true one"),
     ("position", "position returned (empty when unresolved)"),
     ("j", "real-valued estimate of j before rounding"),
+    (
+        "j_error",
+        "|j - true position|, computed at the working precision",
+    ),
+    (
+        "digits",
+        "correct significant digits of j: -log10(j_error / truth), at most the precision's",
+    ),
     ("sigma", "its uncertainty from the data's error"),
     ("bias", "its model error (asymptotics, extrapolation)"),
     ("s_used", "the s of the answer"),
@@ -112,37 +184,87 @@ pub const METRICS: &[(&str, &str)] = &[
     ("t_locate", "measured seconds of data and locator"),
 ];
 
+impl KindScene for Scene {
+    const FIELDS: &'static [FieldDoc] = FIELDS;
+
+    /// Every failed check, each naming its field: the chain and its one
+    /// defect, the method and its mass, `s`, the data source and its
+    /// sampling, the precision.
+    fn problems(&self) -> Vec<Error> {
+        let mut out = chain_problems(&self.chain);
+        if out.is_empty() {
+            if let Err(e) = self.truth() {
+                out.push(e);
+            }
+        }
+        if let Some(m) = self.m {
+            if let Err(e) = check_f64("m", m, m > 0.0, "m > 0 and finite") {
+                out.push(e);
+            }
+        }
+        if let Err(e) = method_of(&self.method, 1.0) {
+            out.push(e);
+        }
+        if let Some(s) = self.s {
+            if let Err(e) = check_f64("s", s, s > 0.0, "s > 0 and finite") {
+                out.push(e);
+            }
+        }
+        match self.data.as_str() {
+            "exact" => {}
+            "simulated" => {
+                if let Err(e) = check_f64(
+                    "t_end",
+                    self.t_end,
+                    self.t_end > 0.0,
+                    "t_end > 0 and finite",
+                ) {
+                    out.push(e);
+                }
+                if let Err(e) = check_f64(
+                    "dt",
+                    self.dt,
+                    self.dt > 0.0 && self.dt <= self.t_end && self.t_end / self.dt <= 2e6,
+                    "0 < dt <= t_end, at most 2e6 steps",
+                ) {
+                    out.push(e);
+                }
+            }
+            other => out.push(Error::invalid("data", other, "\"exact\" or \"simulated\"")),
+        }
+        if let Err(e) = self.precision.bits() {
+            out.push(e);
+        }
+        out
+    }
+}
+
+/// The locator named `name`, with the known mass `m` of `exact` /
+/// `asymptotic`.
+fn method_of(name: &str, m: f64) -> Result<Method> {
+    Ok(match name {
+        "exact" => Method::Exact { m },
+        "asymptotic" => Method::Asymptotic { m },
+        "large" => Method::Large,
+        "large-paper" => Method::LargePaper,
+        "unknown-mass" => Method::UnknownMass,
+        other => {
+            return Err(Error::invalid(
+                "method",
+                other,
+                "exact, asymptotic, large, large-paper or unknown-mass",
+            ))
+        }
+    })
+}
+
 impl Scene {
-    /// Deserialize and check a resolved scene.
+    /// Deserialize and check a resolved scene (the first problem).
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] naming the field.
     pub fn from_value(value: &toml::Value) -> Result<Scene> {
-        let scene: Scene = from_scene(value, FIELDS)?;
-        scene.truth()?;
-        scene.method()?;
-        if let Some(s) = scene.s {
-            check_f64("s", s, s > 0.0, "s > 0 and finite")?;
-        }
-        match scene.data.as_str() {
-            "exact" => {}
-            "simulated" => {
-                check_f64(
-                    "t_end",
-                    scene.t_end,
-                    scene.t_end > 0.0,
-                    "t_end > 0 and finite",
-                )?;
-                check_f64(
-                    "dt",
-                    scene.dt,
-                    scene.dt > 0.0 && scene.dt <= scene.t_end && scene.t_end / scene.dt <= 2e6,
-                    "0 < dt <= t_end, at most 2e6 steps",
-                )?;
-            }
-            other => return Err(Error::invalid("data", other, "\"exact\" or \"simulated\"")),
-        }
-        Ok(scene)
+        <Scene as KindScene>::from_value(value)
     }
 
     /// The true chain and its defect `(at, m)`.
@@ -174,28 +296,23 @@ impl Scene {
             Some(m) => check_f64("m", m, m > 0.0, "m > 0 and finite")?,
             None => self.truth()?.2,
         };
-        Ok(match self.method.as_str() {
-            "exact" => Method::Exact { m },
-            "asymptotic" => Method::Asymptotic { m },
-            "large" => Method::Large,
-            "large-paper" => Method::LargePaper,
-            "unknown-mass" => Method::UnknownMass,
-            other => {
-                return Err(Error::invalid(
-                    "method",
-                    other,
-                    "exact, asymptotic, large, large-paper or unknown-mass",
-                ))
-            }
-        })
+        method_of(&self.method, m)
     }
 }
 
-/// Run one `locate` case.
+/// Run one `locate` case, in `f64` or, with `precision = BITS`, in
+/// [`BigReal`] at that many bits (data, model and locator alike).
 ///
 /// # Errors
 /// An invalid scene; data that cannot be made (simulator failures).
-pub fn run(scene: &Scene, _seed: u64) -> Result<CaseOutput> {
+pub fn run(scene: &Scene, seed: u64) -> Result<CaseOutput> {
+    match scene.precision.bits()? {
+        None => run_in::<f64>(scene, seed, 53),
+        Some(bits) => with_precision(bits, || run_in::<BigReal>(scene, seed, bits)),
+    }
+}
+
+fn run_in<T: RealScalar>(scene: &Scene, _seed: u64, bits: usize) -> Result<CaseOutput> {
     let (chain, at, _) = scene.truth()?;
     let method = scene.method()?;
     let large = matches!(method, Method::Large | Method::LargePaper);
@@ -205,11 +322,11 @@ pub fn run(scene: &Scene, _seed: u64) -> Result<CaseOutput> {
         Some(s) => (vec![s], SChoice::At(s)),
     };
     let start = Instant::now();
-    let data: LaplaceData<f64> = match scene.data.as_str() {
+    let data: LaplaceData<T> = match scene.data.as_str() {
         "simulated" => LaplaceData::from_simulation(&chain, scene.t_end, scene.dt, &grid)?,
         _ => LaplaceData::from_chain(&chain, &grid)?,
     };
-    let model: Model<f64> = Model::from_chain(&chain);
+    let model: Model<T> = Model::from_chain(&chain);
     let result = locate(&model, &data, method, choice);
     let t = start.elapsed().as_secs_f64();
     let num = |x: f64| {
@@ -220,12 +337,24 @@ pub fn run(scene: &Scene, _seed: u64) -> Result<CaseOutput> {
     let mut out = CaseOutput::default();
     let m = &mut out.metrics;
     m.insert("truth".into(), at.into());
+    m.insert("bits".into(), bits.into());
     match result {
         Ok(loc) => {
+            // the error of the real estimate, computed in T (it can be far
+            // below f64's epsilon at extended precision)
+            let err = (loc.j.clone() - T::from_f64(at as f64)).abs().to_f64();
+            let max_digits = bits as f64 * std::f64::consts::LOG10_2;
+            let digits = if err > 0.0 {
+                (-(err / at as f64).log10()).clamp(0.0, max_digits)
+            } else {
+                max_digits
+            };
             m.insert("resolved".into(), true.into());
             m.insert("success".into(), (loc.position == at).into());
             m.insert("position".into(), loc.position.into());
-            m.insert("j".into(), num(loc.j));
+            m.insert("j".into(), num(loc.j.to_f64()));
+            m.insert("j_error".into(), num(err));
+            m.insert("digits".into(), num(digits));
             m.insert("sigma".into(), num(loc.sigma));
             m.insert("bias".into(), num(loc.bias));
             m.insert("s_used".into(), num(loc.s));
@@ -248,7 +377,11 @@ pub fn run(scene: &Scene, _seed: u64) -> Result<CaseOutput> {
         let pts: Vec<(f64, f64)> = est.iter().map(|e| (e.s, e.j_f64())).collect();
         let truth: Vec<(f64, f64)> = est.iter().map(|e| (e.s, at as f64)).collect();
         let chart = LinePlot::new(
-            format!("j(s), {} locator, true j = {at}", method.name()),
+            format!(
+                "j(s), {} locator, {}, true j = {at}",
+                method.name(),
+                scene.precision.label()
+            ),
             "s",
             "j(s)",
         )

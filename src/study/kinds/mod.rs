@@ -125,20 +125,15 @@ impl Kind {
         }
     }
 
-    /// Every problem of a resolved scene (a deserialisation error alone, or
-    /// every failed range check).
+    /// Every problem of a resolved scene: every unknown field, every type
+    /// error, and every failed range check of the fields that have the right
+    /// type ([`KindScene::all_problems`]).
     pub fn validate_all(&self, scene: &toml::Value) -> Vec<Error> {
         match self {
-            Kind::Forward => match from_scene::<forward::Scene>(scene, forward::FIELDS) {
-                Ok(s) => s.problems(),
-                Err(e) => vec![e],
-            },
-            Kind::Suppress => match from_scene::<suppress::Scene>(scene, suppress::FIELDS) {
-                Ok(s) => s.problems(),
-                Err(e) => vec![e],
-            },
-            Kind::Fit => fit::scene(scene).err().into_iter().collect(),
-            Kind::Locate => locate::Scene::from_value(scene).err().into_iter().collect(),
+            Kind::Forward => forward::Scene::all_problems(scene),
+            Kind::Suppress => suppress::Scene::all_problems(scene),
+            Kind::Fit => crate::detect::scene::FitScene::all_problems(scene),
+            Kind::Locate => locate::Scene::all_problems(scene),
         }
     }
 
@@ -191,6 +186,151 @@ pub trait KindScene: DeserializeOwned {
         scene.check()?;
         Ok(scene)
     }
+
+    /// Every problem of a resolved scene, each naming its field: every
+    /// unknown field; every field of the wrong type (found one at a time:
+    /// each is reported and removed, so that the next one shows, its default
+    /// standing in); then [`KindScene::problems`] of what remains. Empty
+    /// exactly when [`KindScene::from_value`] succeeds.
+    fn all_problems(value: &toml::Value) -> Vec<Error> {
+        let (mut out, clean) = unknown_errors(value, Self::FIELDS);
+        let (typed, scene) = typed_scene::<Self>(clean);
+        out.extend(typed);
+        if let Some(scene) = scene {
+            out.extend(scene.problems());
+        }
+        out
+    }
+}
+
+/// The unknown fields of `value` as errors (paths relative to the scene),
+/// and `value` without them.
+pub fn unknown_errors(value: &toml::Value, schema: &[FieldDoc]) -> (Vec<Error>, toml::Value) {
+    let mut clean = value.clone();
+    let mut out = Vec::new();
+    for p in unknown_fields(value, schema) {
+        let path = p.path.strip_prefix("scene.").unwrap_or(&p.path).to_string();
+        remove_path(&mut clean, &path);
+        out.push(Error::invalid(path, "present", p.message));
+    }
+    (out, clean)
+}
+
+/// Deserialize `value` as a `T`, collecting type errors: each failing field
+/// is reported and removed (its default stands in) and deserialisation is
+/// tried again. A missing required field ends the search (`None`).
+pub fn typed_scene<T: DeserializeOwned>(mut value: toml::Value) -> (Vec<Error>, Option<T>) {
+    let mut out: Vec<Error> = Vec::new();
+    // at most one pass per field of the scene, and a hard bound
+    for _ in 0..64 {
+        match from_text::<T>(&value) {
+            Ok(t) => return (out, Some(t)),
+            Err(e) => {
+                let field = match &e {
+                    Error::InvalidParameter { field, .. } => field.clone(),
+                    _ => String::new(),
+                };
+                let missing = e.to_string().contains("missing field");
+                let repeated = out.iter().any(|x| x.to_string() == e.to_string());
+                if !repeated {
+                    out.push(e);
+                }
+                if missing || repeated || field == "scene" || !remove_path(&mut value, &field) {
+                    return (out, None);
+                }
+            }
+        }
+    }
+    (out, None)
+}
+
+/// Remove the field at `path` (`a.b[2].c`) from `value`; false when there
+/// is no such field.
+fn remove_path(value: &mut toml::Value, path: &str) -> bool {
+    let Ok(segments) = super::sweep::parse_path(path) else {
+        return false;
+    };
+    let Some((last, parents)) = segments.split_last() else {
+        return false;
+    };
+    let mut cur = value;
+    for seg in parents {
+        let next = match (seg, cur) {
+            (super::sweep::Segment::Key(k), toml::Value::Table(t)) => t.get_mut(k),
+            (super::sweep::Segment::Index(i), toml::Value::Array(a)) => a.get_mut(*i),
+            _ => None,
+        };
+        match next {
+            Some(v) => cur = v,
+            None => return false,
+        }
+    }
+    match (last, cur) {
+        (super::sweep::Segment::Key(k), toml::Value::Table(t)) => t.remove(k).is_some(),
+        (super::sweep::Segment::Index(i), toml::Value::Array(a)) if *i < a.len() => {
+            a.remove(*i);
+            true
+        }
+        _ => false,
+    }
+}
+
+/// Every problem of a chain spec, each naming its field (`chain.n`,
+/// `chain.defects[1].m`): the uniform parameters one by one, each defect
+/// on its own, then the defects together (duplicates).
+pub fn chain_problems(spec: &crate::chain::ChainSpec) -> Vec<Error> {
+    use crate::chain::Chain;
+    let prefix = |e: Error| match e {
+        Error::InvalidParameter {
+            field,
+            value,
+            allowed,
+        } => Error::InvalidParameter {
+            field: format!("chain.{field}"),
+            value,
+            allowed,
+        },
+        other => other,
+    };
+    let base = match Chain::new(spec.n) {
+        Ok(c) => c,
+        Err(e) => return vec![prefix(e)],
+    };
+    let mut out: Vec<Error> = [
+        base.clone().with_k(spec.k).err(),
+        base.clone().with_d(spec.d).err(),
+        base.clone().with_gamma(spec.gamma).err(),
+        base.clone().with_mass(spec.mass).err(),
+    ]
+    .into_iter()
+    .flatten()
+    .map(prefix)
+    .collect();
+    let mut each_ok = true;
+    for (i, d) in spec.defects.iter().enumerate() {
+        if let Err(e) = base.clone().with_defect(*d) {
+            each_ok = false;
+            // with_defect names the defect by its index in the chain (0 here)
+            out.push(match prefix(e) {
+                Error::InvalidParameter {
+                    field,
+                    value,
+                    allowed,
+                } => Error::InvalidParameter {
+                    field: field.replacen("defects[0]", &format!("defects[{i}]"), 1),
+                    value,
+                    allowed: allowed.replacen("defects[0]", &format!("defects[{i}]"), 1),
+                },
+                other => other,
+            });
+        }
+    }
+    if out.is_empty() && each_ok {
+        if let Err(e) = spec.build() {
+            out.push(prefix(e));
+        }
+    }
+    out
 }
 
 /// Deserialize a scene: first unknown fields (named with their path), then
@@ -203,8 +343,12 @@ pub fn from_scene<T: DeserializeOwned>(value: &toml::Value, schema: &[FieldDoc])
         let path = p.path.strip_prefix("scene.").unwrap_or(&p.path).to_string();
         return Err(Error::invalid(path, "present", p.message));
     }
-    // Deserialise through text so that serde's message carries a line we can
-    // map back to the field path.
+    from_text(value)
+}
+
+/// Deserialize through text, so that serde's message carries a line we can
+/// map back to the field path.
+fn from_text<T: DeserializeOwned>(value: &toml::Value) -> Result<T> {
     let text = toml::to_string(value).map_err(|e| Error::invalid("scene", "?", e.to_string()))?;
     toml::from_str(&text).map_err(|e| {
         let field = e
@@ -221,15 +365,24 @@ pub fn from_scene<T: DeserializeOwned>(value: &toml::Value, schema: &[FieldDoc])
 fn field_at(text: &str, at: usize) -> Option<String> {
     let line_no = super::config::line_of(text, at);
     let mut table = String::new();
+    // occurrences of each `[[array.of.tables]]` header so far
+    let mut seen: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
     for (i, line) in text.lines().enumerate() {
         let l = line.trim();
         if l.starts_with('[') {
-            table = l
+            let name = l
                 .trim_start_matches('[')
                 .trim_end_matches(']')
                 .trim_end_matches(']')
                 .trim()
                 .to_string();
+            table = if l.starts_with("[[") {
+                let c = seen.entry(name.clone()).or_insert(0);
+                *c += 1;
+                format!("{name}[{}]", *c - 1)
+            } else {
+                name
+            };
         }
         if i + 1 == line_no {
             if l.starts_with('[') {
