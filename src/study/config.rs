@@ -170,6 +170,9 @@ pub struct ReportSpec {
     /// SVG heatmaps over two axes (default none).
     #[serde(default)]
     pub heatmap: Vec<HeatmapSpec>,
+    /// SVG optimizer-trace plots (kind `fit`; default none).
+    #[serde(default)]
+    pub trace: Vec<TraceSpec>,
 }
 
 impl Default for ReportSpec {
@@ -179,8 +182,46 @@ impl Default for ReportSpec {
             table: Vec::new(),
             plot: Vec::new(),
             heatmap: Vec::new(),
+            trace: Vec::new(),
         }
     }
+}
+
+/// One optimizer-trace plot of the report (kind `fit`, cases run with
+/// `search.trace = true`): best residual so far against evaluations, one
+/// line per group of cases (the values of the `series` axes), the cases of
+/// a group reduced by `aggregate` at every evaluation count.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TraceSpec {
+    /// Output file name (default `trace-<series>.svg`, or `trace.svg`).
+    #[serde(default)]
+    pub file: Option<String>,
+    /// Title (default: `best residual against evaluations`).
+    #[serde(default)]
+    pub title: Option<String>,
+    /// Axis columns giving one line per combination of their values
+    /// (default: one line per case).
+    #[serde(default)]
+    pub series: Option<Vec<String>>,
+    /// Only the cases whose axis columns have these labels, e.g.
+    /// `{ system = "3" }` (default: every case).
+    #[serde(default)]
+    pub filter: toml::Table,
+    /// Reduction over the cases of a line at each evaluation count (default
+    /// `median`; `rate` and `count` are not allowed).
+    #[serde(default = "median")]
+    pub aggregate: Aggregate,
+    /// Logarithmic horizontal axis (default false).
+    #[serde(default)]
+    pub logx: bool,
+    /// Logarithmic vertical axis (default true).
+    #[serde(default = "yes")]
+    pub logy: bool,
+}
+
+fn median() -> Aggregate {
+    Aggregate::Median
 }
 
 /// How the cases of one group are reduced to one number.
@@ -395,6 +436,14 @@ pub const STUDY_FIELDS: &[FieldDoc] = &[
     FieldDoc::new("report.heatmap[].z", "string", "required", "Metric or `t_*` timing coloured."),
     FieldDoc::new("report.heatmap[].aggregate", "\"mean\" | \"median\" | \"min\" | \"max\" | \"rate\" | \"count\"", "\"mean\"", "Reduction over the cases of one cell."),
     FieldDoc::new("report.heatmap[].log_z", "bool", "false", "Colour by log10 z (non-positive cells grey)."),
+    FieldDoc::new("report.trace", "array of tables", "[]", "SVG optimizer-trace plots `[[report.trace]]` (kind `fit`; every case must set `scene.search.trace = true`): best residual so far against residual evaluations, one line per group of cases. The traces are stored in the case records (`results.jsonl`), so resumed, re-threaded and merged runs draw the same plots. Enumeration records no trace."),
+    FieldDoc::new("report.trace[].file", "string", "\"trace-<series>.svg\"", "Output file name inside the output folder (`trace.svg` without `series`)."),
+    FieldDoc::new("report.trace[].title", "string", "\"best residual against evaluations\"", "Plot title."),
+    FieldDoc::new("report.trace[].series", "array of strings", "one line per case", "Axis columns whose values define the lines (e.g. `[\"search\"]`: one line per optimizer and budget)."),
+    FieldDoc::opaque("report.trace[].filter", "table", "{}", "Only the cases whose axis columns have these labels: `{ system = \"3\", data = \"exact\" }` (a label or an array of labels per column)."),
+    FieldDoc::new("report.trace[].aggregate", "\"median\" | \"mean\" | \"min\" | \"max\"", "\"median\"", "Reduction over the cases of a line (repeats, axes not in `series`) of their best residual so far, at every evaluation count where one of them improves."),
+    FieldDoc::new("report.trace[].logx", "bool", "false", "Logarithmic evaluations axis."),
+    FieldDoc::new("report.trace[].logy", "bool", "true", "Logarithmic residual axis (non-positive values are dropped)."),
 ];
 
 /// One problem found in a study file.
@@ -648,6 +697,53 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
             );
         }
     }
+    for (i, t) in file.report.trace.iter().enumerate() {
+        if file.study.kind != Kind::Fit {
+            push(
+                format!("report.trace[{i}]"),
+                format!(
+                    "optimizer traces are recorded by kind fit only, not {}",
+                    file.study.kind.name()
+                ),
+            );
+        }
+        for (j, c) in t.series.iter().flatten().enumerate() {
+            if !columns.contains(c) {
+                push(
+                    format!("report.trace[{i}].series[{j}]"),
+                    format!("{c:?} is not an axis column; axes: {}", columns.join(", ")),
+                );
+            }
+        }
+        for (c, v) in &t.filter {
+            if !columns.contains(c) {
+                push(
+                    format!("report.trace[{i}].filter.{c}"),
+                    format!("{c:?} is not an axis column; axes: {}", columns.join(", ")),
+                );
+            }
+            let ok = match v {
+                toml::Value::String(_) => true,
+                toml::Value::Array(a) => a.iter().all(|x| x.is_str()),
+                _ => false,
+            };
+            if !ok {
+                push(
+                    format!("report.trace[{i}].filter.{c}"),
+                    "a label (string) or an array of labels".into(),
+                );
+            }
+        }
+        if matches!(t.aggregate, Aggregate::Rate | Aggregate::Count) {
+            push(
+                format!("report.trace[{i}].aggregate"),
+                format!(
+                    "{:?} is not allowed here: median, mean, min or max",
+                    t.aggregate.name()
+                ),
+            );
+        }
+    }
     let axes_ok = file
         .sweep
         .iter()
@@ -684,6 +780,27 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
                         Some((_, (_, count))) => *count += 1,
                         None => found.push((key, (ci, 1))),
                     }
+                }
+            }
+            if !file.report.trace.is_empty() && file.study.kind == Kind::Fit {
+                let untraced: Vec<usize> = (0..cases.len())
+                    .filter(|&i| {
+                        cases[i]
+                            .scene
+                            .get("search")
+                            .and_then(|s| s.get("trace"))
+                            .and_then(|t| t.as_bool())
+                            != Some(true)
+                    })
+                    .collect();
+                if let Some(&first) = untraced.first() {
+                    found.push((
+                        (
+                            "scene.search.trace".to_string(),
+                            "report.trace needs the optimizer trace of every case: set search.trace = true (in every value of a swept `search` table too)".to_string(),
+                        ),
+                        (first, untraced.len()),
+                    ));
                 }
             }
             for ((path, message), (first, count)) in found {

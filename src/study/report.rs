@@ -7,7 +7,7 @@
 //! the thread count or the sharding. Nothing time-dependent (dates, run
 //! durations) is written.
 
-use super::config::{Aggregate, HeatmapSpec, PlotSpec, TableSpec};
+use super::config::{Aggregate, HeatmapSpec, PlotSpec, TableSpec, TraceSpec};
 use super::run::Record;
 use super::sweep::format_float;
 use super::Study;
@@ -365,6 +365,111 @@ pub fn heatmap_chart(records: &[Record], spec: &HeatmapSpec) -> Result<Heatmap> 
     })
 }
 
+/// File name of a trace plot (sanitised).
+pub fn trace_file(spec: &TraceSpec) -> String {
+    sanitize(spec.file.clone().unwrap_or_else(|| match &spec.series {
+        Some(s) if !s.is_empty() => format!("trace-{}.svg", s.join("-")),
+        _ => "trace.svg".into(),
+    }))
+}
+
+/// Does a record pass a trace spec's `filter`?
+fn passes(r: &Record, filter: &toml::Table) -> bool {
+    filter.iter().all(|(col, want)| {
+        let label = axis_label(r, col);
+        match want {
+            toml::Value::String(s) => *s == label,
+            toml::Value::Array(a) => a.iter().any(|v| v.as_str() == Some(label.as_str())),
+            _ => false,
+        }
+    })
+}
+
+/// Build the chart of one trace spec: best residual so far against
+/// evaluations, one line per group of ok cases with a trace. The cases of a
+/// group are step functions; at every evaluation count where one of them
+/// improves, the line is `aggregate` over the cases that have started.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] when no selected case recorded a trace.
+pub fn trace_chart(records: &[Record], spec: &TraceSpec) -> Result<LinePlot> {
+    let title = spec
+        .title
+        .clone()
+        .unwrap_or_else(|| "best residual against evaluations".into());
+    let mut chart = LinePlot::new(
+        title,
+        "residual evaluations",
+        format!("{} best residual so far", spec.aggregate.name()),
+    )
+    .log_x(spec.logx)
+    .log_y(spec.logy);
+    let selected: Vec<Record> = records
+        .iter()
+        .filter(|r| r.ok() && !r.trace.is_empty() && passes(r, &spec.filter))
+        .cloned()
+        .collect();
+    if selected.is_empty() {
+        return Err(Error::invalid(
+            "report.trace",
+            "no trace",
+            "cases with a recorded trace (search.trace = true, a stochastic search.method; enumeration records none)",
+        ));
+    }
+    let per_case = spec.series.is_none();
+    let series: Vec<String> = spec.series.clone().unwrap_or_default();
+    let groups: Vec<(String, Vec<&Record>)> = if per_case {
+        selected
+            .iter()
+            .map(|r| {
+                let params: Vec<String> = r.params.iter().map(|p| p.label.clone()).collect();
+                (format!("{} {}", r.id, params.join(", ")), vec![r])
+            })
+            .collect()
+    } else {
+        group(&selected, &series)
+            .into_iter()
+            .map(|(key, recs)| {
+                let label = series
+                    .iter()
+                    .zip(&key)
+                    .map(|(c, v)| format!("{c} = {v}"))
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                (label, recs)
+            })
+            .collect()
+    };
+    for (label, recs) in groups {
+        let mut xs: Vec<f64> = recs
+            .iter()
+            .flat_map(|r| r.trace.iter().map(|p| p[0]))
+            .collect();
+        xs.sort_by(f64::total_cmp);
+        xs.dedup();
+        let pts: Vec<(f64, f64)> = xs
+            .iter()
+            .filter_map(|&x| {
+                // each case's best residual at x: its last point at or before x
+                let vals: Vec<f64> = recs
+                    .iter()
+                    .filter_map(|r| r.trace.iter().rev().find(|p| p[0] <= x).map(|p| p[1]))
+                    .collect();
+                aggregate(spec.aggregate, &vals).map(|y| (x, y))
+            })
+            .collect();
+        let n = recs.len();
+        let label = if per_case || n == 1 {
+            label
+        } else {
+            format!("{label} ({n} cases)")
+        };
+        let line = Line::new(label, pts.clone());
+        chart = chart.line(if pts.len() == 1 { line.markers() } else { line });
+    }
+    Ok(chart)
+}
+
 /// The `report.md` text; also returns the plots to write `(file, svg)`.
 fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)>) {
     let f = &study.file;
@@ -429,7 +534,7 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
         s.push_str(&table_md(study, records, t));
     }
     let mut plots = Vec::new();
-    if !f.report.plot.is_empty() || !f.report.heatmap.is_empty() {
+    if !f.report.plot.is_empty() || !f.report.heatmap.is_empty() || !f.report.trace.is_empty() {
         s.push_str("## Plots\n\n");
         for p in &f.report.plot {
             let file = plot_file(p);
@@ -453,6 +558,19 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
                 }
                 Err(e) => s.push_str(&format!(
                     "Heatmap `{file}` not drawn: {}\n\n",
+                    md_escape(&e.to_string())
+                )),
+            }
+        }
+        for t in &f.report.trace {
+            let file = trace_file(t);
+            match trace_chart(records, t).and_then(|c| c.to_svg_string()) {
+                Ok(svg) => {
+                    s.push_str(&format!("![{}]({file})\n\n", md_escape(&file)));
+                    plots.push((file, svg));
+                }
+                Err(e) => s.push_str(&format!(
+                    "Trace plot `{file}` not drawn: {}\n\n",
                     md_escape(&e.to_string())
                 )),
             }

@@ -76,6 +76,12 @@ pub struct Record {
     /// (`cases/<id>-<name>.svg`), written before the record.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub files: Vec<String>,
+    /// The optimizer's trace, `[evaluations, best residual so far]` at each
+    /// improvement (kind `fit` with `search.trace = true`; empty otherwise).
+    /// Kept in the record so that a resumed or merged run draws the same
+    /// `[[report.trace]]` plots.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub trace: Vec<[f64; 2]>,
 }
 
 impl Record {
@@ -212,6 +218,7 @@ pub fn execute_case(study: &Study, case: &Case) -> (Record, Vec<super::kinds::Ca
             serde_json::Map::new()
         },
         files: Vec::new(),
+        trace: out.trace,
     };
     (rec, out.plots)
 }

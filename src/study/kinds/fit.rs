@@ -131,6 +131,26 @@ fn positions(d: &[Defect]) -> Vec<(usize, f64)> {
     v
 }
 
+/// The trace reduced to its improvements: `[evaluations, best residual so
+/// far]` where the best residual drops, plus the last point (the curve of
+/// best residual against evaluations is the same step function).
+pub fn best_so_far(trace: &[(usize, f64)]) -> Vec<[f64; 2]> {
+    let mut out: Vec<[f64; 2]> = Vec::new();
+    let mut best = f64::INFINITY;
+    for &(e, r) in trace {
+        if r.is_finite() && r < best {
+            best = r;
+            out.push([e as f64, r]);
+        }
+    }
+    if let (Some(&(e, _)), Some(last)) = (trace.last(), out.last()) {
+        if (e as f64) > last[0] {
+            out.push([e as f64, best]);
+        }
+    }
+    out
+}
+
 /// Put the case seed into `data.seed` and `search.seed` unless given.
 pub fn seeded(value: &toml::Value, seed: u64) -> toml::Value {
     let mut v = value.clone();
@@ -296,6 +316,7 @@ pub fn run(value: &toml::Value, seed: u64) -> Result<CaseOutput> {
     m.insert("fits_data".into(), r.fits_data.into());
     m.insert("evaluations".into(), r.evaluations.into());
     m.insert("nodes".into(), r.nodes.into());
+    out.trace = best_so_far(&r.trace);
     out.timings.insert("t_setup".into(), num(r.setup_time_s));
     out.timings.insert("t_search".into(), num(r.wall_time_s));
     Ok(out)

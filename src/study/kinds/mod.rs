@@ -25,6 +25,9 @@ pub struct CaseOutput {
     pub timings: serde_json::Map<String, serde_json::Value>,
     /// Pictures of this case (written as `cases/<id>-<name>.svg`).
     pub plots: Vec<CasePlot>,
+    /// The optimizer's trace, `[evaluations, best residual so far]` at each
+    /// improvement (kind `fit` with `search.trace = true`); reproducible.
+    pub trace: Vec<[f64; 2]>,
 }
 
 /// One picture of one case.
