@@ -49,6 +49,69 @@ pub struct StudyFile {
     /// Tables and plots of the report.
     #[serde(default)]
     pub report: ReportSpec,
+    /// Further parts, each with its own kind, base scene and axes (default
+    /// none). With parts, every case has a `part` column: `main` for the
+    /// cases of `[scene]` / `[[sweep]]`, the part's name for the others.
+    #[serde(default)]
+    pub part: Vec<Part>,
+}
+
+/// One `[[part]]`: more cases in the same study, of any kind (for example
+/// the `locate` cases of a study whose main part fits).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Part {
+    /// Name: its label in the `part` column; required, not `main`.
+    pub name: String,
+    /// Case kind of the part; required.
+    pub kind: Kind,
+    /// Base scene, in the schema of the part's kind.
+    #[serde(default)]
+    pub scene: toml::Table,
+    /// Axes of the part, crossed like `[[sweep]]`.
+    #[serde(default)]
+    pub sweep: Vec<Axis>,
+}
+
+impl StudyFile {
+    /// `(part label, kind)` of the main part and of every `[[part]]`
+    /// (the main part's label is `main`).
+    pub fn parts(&self) -> Vec<(&str, Kind)> {
+        let mut v = vec![(sweep::MAIN_PART, self.study.kind)];
+        v.extend(self.part.iter().map(|p| (p.name.as_str(), p.kind)));
+        v
+    }
+
+    /// The kinds of the parts selected by `part` (all parts for `None`).
+    pub fn kinds_of(&self, part: Option<&str>) -> Vec<Kind> {
+        let mut out: Vec<Kind> = Vec::new();
+        for (name, kind) in self.parts() {
+            if part.is_none_or(|p| p == name) && !out.contains(&kind) {
+                out.push(kind);
+            }
+        }
+        out
+    }
+
+    /// Every axis column of the study in order (main axes, then each part's
+    /// new ones; `part` first when there are parts).
+    pub fn axis_columns(&self) -> Vec<String> {
+        let mut cols: Vec<String> = Vec::new();
+        if !self.part.is_empty() {
+            cols.push(sweep::PART_COLUMN.to_string());
+        }
+        for a in self
+            .sweep
+            .iter()
+            .chain(self.part.iter().flat_map(|p| &p.sweep))
+        {
+            let c = a.column().to_string();
+            if !cols.contains(&c) {
+                cols.push(c);
+            }
+        }
+        cols
+    }
 }
 
 /// The `[study]` table.
@@ -218,6 +281,10 @@ pub struct TraceSpec {
     /// Logarithmic vertical axis (default true).
     #[serde(default = "yes")]
     pub logy: bool,
+    /// Only the cases of this `[[part]]` (`main`: of `[scene]`; default:
+    /// every case).
+    #[serde(default)]
+    pub part: Option<String>,
 }
 
 fn median() -> Aggregate {
@@ -273,6 +340,10 @@ pub struct TableSpec {
     /// Reduction over the cases of a row (default `mean`).
     #[serde(default)]
     pub aggregate: Aggregate,
+    /// Only the cases of this `[[part]]` (`main`: of `[scene]`; default:
+    /// every case).
+    #[serde(default)]
+    pub part: Option<String>,
 }
 
 /// One SVG plot of the report: `aggregate(y)` against axis `x`, one line per
@@ -302,6 +373,10 @@ pub struct PlotSpec {
     /// Logarithmic vertical axis (default false).
     #[serde(default)]
     pub logy: bool,
+    /// Only the cases of this `[[part]]` (`main`: of `[scene]`; default:
+    /// every case).
+    #[serde(default)]
+    pub part: Option<String>,
 }
 
 /// One SVG heatmap of the report: `aggregate(z)` over the grid of the values
@@ -327,6 +402,10 @@ pub struct HeatmapSpec {
     /// Colour by `log10 z` (default false).
     #[serde(default)]
     pub log_z: bool,
+    /// Only the cases of this `[[part]]` (`main`: of `[scene]`; default:
+    /// every case).
+    #[serde(default)]
+    pub part: Option<String>,
 }
 
 fn one_usize() -> usize {
@@ -412,12 +491,29 @@ pub const STUDY_FIELDS: &[FieldDoc] = &[
     FieldDoc::new("sweep[].range.integer", "bool", "false", "Round every point to the nearest integer and drop repeats; required for integer fields such as `chain.n`."),
     FieldDoc::new("sweep[].labels", "array of strings", "the values", "Names of the values in tables and plots; as many as there are values."),
     FieldDoc::new("sweep[].name", "string", "the path", "Column name of the axis in `summary.csv`, tables and plots."),
+    FieldDoc::new("part", "array of tables", "[]", "Further parts `[[part]]` of the study, each with its own kind, base scene and axes, run, resumed, sharded and reported with the main part. With parts, every case has a `part` column (`main` for the cases of `[scene]` and `[[sweep]]`), and tables, plots and heatmaps can be restricted to one part with `part = \"<name>\"`."),
+    FieldDoc::new("part[].name", "string", "required", "Name of the part (letters, digits, `-`, `_`, `.`; not `main`; unique): its label in the `part` column."),
+    FieldDoc::new("part[].kind", "string", "required", "What one case of the part does (`forward`, `suppress`, `fit`, `locate`)."),
+    FieldDoc::opaque("part[].scene", "table", "{}", "Base scene of the part, in the schema of its kind (checked like `[scene]`)."),
+    FieldDoc::new("part[].sweep", "array of tables", "[]", "Axes of the part `[[part.sweep]]`, crossed like `[[sweep]]` (same fields); `study.repeats` applies."),
+    FieldDoc::new("part[].sweep[].path", "string", "required", "As `sweep[].path`, inside the part's scene."),
+    FieldDoc::opaque("part[].sweep[].values", "array", "none", "As `sweep[].values`."),
+    FieldDoc::new("part[].sweep[].range", "table", "none", "As `sweep[].range`."),
+    FieldDoc::new("part[].sweep[].range.from", "float", "required", "As `sweep[].range.from`."),
+    FieldDoc::new("part[].sweep[].range.to", "float", "required", "As `sweep[].range.to`."),
+    FieldDoc::new("part[].sweep[].range.count", "integer >= 1", "none", "As `sweep[].range.count`."),
+    FieldDoc::new("part[].sweep[].range.step", "float > 0", "none", "As `sweep[].range.step`."),
+    FieldDoc::new("part[].sweep[].range.spacing", "\"linear\" | \"log\"", "\"linear\"", "As `sweep[].range.spacing`."),
+    FieldDoc::new("part[].sweep[].range.integer", "bool", "false", "As `sweep[].range.integer`."),
+    FieldDoc::new("part[].sweep[].labels", "array of strings", "the values", "As `sweep[].labels`."),
+    FieldDoc::new("part[].sweep[].name", "string", "the path", "As `sweep[].name`; an axis column may be shared by several parts."),
     FieldDoc::new("report", "table", "{}", "What `report.md` shows besides the case list."),
     FieldDoc::new("report.max_case_rows", "integer", "200", "Largest number of cases listed one per row in `report.md` (`summary.csv` always has every case)."),
     FieldDoc::new("report.table", "array of tables", "one table by every axis", "Aggregated tables `[[report.table]]`: one row per combination of the `rows` axes."),
     FieldDoc::new("report.table[].title", "string", "\"<aggregate> by <rows>\"", "Heading of the table."),
     FieldDoc::new("report.table[].rows", "array of strings", "every axis", "Axis columns (axis `name` or `path`, or `repeat`) that define the rows."),
     FieldDoc::new("report.table[].metrics", "array of strings", "every metric", "Metric (or `t_*` timing) columns shown."),
+    FieldDoc::new("report.table[].part", "string", "every part", "Only the cases of this part (`main` or a `[[part]]` name; studies with parts)."),
     FieldDoc::new("report.table[].aggregate", "\"mean\" | \"median\" | \"min\" | \"max\" | \"rate\" | \"count\"", "\"mean\"", "Reduction over the cases of a row; `rate` is the share of cases where the metric is true or non-zero. Cases that failed are counted in the `errors` column and left out of the reduction."),
     FieldDoc::new("report.plot", "array of tables", "[]", "SVG plots `[[report.plot]]`: `aggregate(y)` against axis `x`, one line per value of `series`."),
     FieldDoc::new("report.plot[].file", "string", "\"<y>-vs-<x>.svg\"", "Output file name inside the output folder (characters outside `A-Za-z0-9._-` become `_`)."),
@@ -426,6 +522,7 @@ pub const STUDY_FIELDS: &[FieldDoc] = &[
     FieldDoc::new("report.plot[].y", "string", "required", "Metric or `t_*` timing on the vertical axis."),
     FieldDoc::new("report.plot[].series", "string", "none", "Axis column giving one line per value (default: one line)."),
     FieldDoc::new("report.plot[].aggregate", "\"mean\" | \"median\" | \"min\" | \"max\" | \"rate\" | \"count\"", "\"mean\"", "Reduction over the cases at one point (repeats and axes not on the plot)."),
+    FieldDoc::new("report.plot[].part", "string", "every part", "Only the cases of this part (`main` or a `[[part]]` name; studies with parts)."),
     FieldDoc::new("report.plot[].logx", "bool", "false", "Logarithmic horizontal axis."),
     FieldDoc::new("report.plot[].logy", "bool", "false", "Logarithmic vertical axis (non-positive values are dropped)."),
     FieldDoc::new("report.heatmap", "array of tables", "[]", "SVG heatmaps `[[report.heatmap]]`: `aggregate(z)` over the grid of the values of two axes (residual surfaces, accuracy maps). Cells without a value are grey."),
@@ -435,6 +532,7 @@ pub const STUDY_FIELDS: &[FieldDoc] = &[
     FieldDoc::new("report.heatmap[].y", "string", "required", "Axis column along the vertical axis; its values must be numbers."),
     FieldDoc::new("report.heatmap[].z", "string", "required", "Metric or `t_*` timing coloured."),
     FieldDoc::new("report.heatmap[].aggregate", "\"mean\" | \"median\" | \"min\" | \"max\" | \"rate\" | \"count\"", "\"mean\"", "Reduction over the cases of one cell."),
+    FieldDoc::new("report.heatmap[].part", "string", "every part", "Only the cases of this part (`main` or a `[[part]]` name; studies with parts)."),
     FieldDoc::new("report.heatmap[].log_z", "bool", "false", "Colour by log10 z (non-positive cells grey)."),
     FieldDoc::new("report.trace", "array of tables", "[]", "SVG optimizer-trace plots `[[report.trace]]` (kind `fit`; every case must set `scene.search.trace = true`): best residual so far against residual evaluations, one line per group of cases. The traces are stored in the case records (`results.jsonl`), so resumed, re-threaded and merged runs draw the same plots. Enumeration records no trace."),
     FieldDoc::new("report.trace[].file", "string", "\"trace-<series>.svg\"", "Output file name inside the output folder (`trace.svg` without `series`)."),
@@ -442,6 +540,7 @@ pub const STUDY_FIELDS: &[FieldDoc] = &[
     FieldDoc::new("report.trace[].series", "array of strings", "one line per case", "Axis columns whose values define the lines (e.g. `[\"search\"]`: one line per optimizer and budget)."),
     FieldDoc::opaque("report.trace[].filter", "table", "{}", "Only the cases whose axis columns have these labels: `{ system = \"3\", data = \"exact\" }` (a label or an array of labels per column)."),
     FieldDoc::new("report.trace[].aggregate", "\"median\" | \"mean\" | \"min\" | \"max\"", "\"median\"", "Reduction over the cases of a line (repeats, axes not in `series`) of their best residual so far, at every evaluation count where one of them improves."),
+    FieldDoc::new("report.trace[].part", "string", "every part", "Only the cases of this part (`main` or a `[[part]]` name; studies with parts)."),
     FieldDoc::new("report.trace[].logx", "bool", "false", "Logarithmic evaluations axis."),
     FieldDoc::new("report.trace[].logy", "bool", "true", "Logarithmic residual axis (non-positive values are dropped)."),
 ];
@@ -557,6 +656,29 @@ fn check_structure(text: &str) -> Vec<Problem> {
         }),
         None => {}
     }
+    // The scene of every part, against its kind's schema.
+    if let Some(toml::Value::Array(parts)) = value.get("part") {
+        for (i, p) in parts.iter().enumerate() {
+            let kind = p.get("kind").and_then(|k| k.as_str());
+            match kind.map(Kind::from_name) {
+                Some(Ok(kind)) => {
+                    if let Some(scene) = p.get("scene") {
+                        let path = format!("part[{i}].scene");
+                        walk(scene, &path, "", kind.schema(), &locate, &mut problems);
+                    }
+                }
+                Some(Err(e)) => {
+                    let path = format!("part[{i}].kind");
+                    problems.push(Problem {
+                        line: locate.line(&path),
+                        path,
+                        message: e,
+                    })
+                }
+                None => {}
+            }
+        }
+    }
     if problems.is_empty() {
         // types, required fields: serde, which gives the first problem only
         // (with its line)
@@ -601,25 +723,92 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
         );
     }
     let mut columns: Vec<String> = vec!["repeat".into()];
-    for (i, axis) in file.sweep.iter().enumerate() {
-        if let Err(e) = sweep::axis_values(axis) {
-            push(format!("sweep[{i}]"), e);
-        }
-        if let Err(e) = sweep::parse_path(&axis.path) {
-            push(format!("sweep[{i}].path"), e);
-        }
-        let col = axis.column().to_string();
-        if columns.contains(&col) {
+    if !file.part.is_empty() {
+        columns.push(sweep::PART_COLUMN.into());
+    }
+    let mut names: Vec<&str> = vec![sweep::MAIN_PART];
+    for (i, p) in file.part.iter().enumerate() {
+        let n = p.name.as_str();
+        if n.is_empty()
+            || !n
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
+        {
             push(
-                format!("sweep[{i}].name"),
-                format!("axis column {col:?} is used twice (give the axes distinct `name`s)"),
+                format!("part[{i}].name"),
+                format!("{n:?} is not allowed: use letters, digits, '-', '_', '.'"),
+            );
+        } else if names.contains(&n) {
+            push(
+                format!("part[{i}].name"),
+                format!("{n:?} is used twice (`main` is the part of [scene] and [[sweep]])"),
             );
         }
-        columns.push(col);
+        names.push(n);
     }
-    let metrics = file.study.kind.metrics();
-    let known_metric = |m: &str| metrics.iter().any(|x| x.0 == m);
-    let metric_list = || metrics.iter().map(|m| m.0).collect::<Vec<_>>().join(", ");
+    let part_axes = std::iter::once((String::new(), &file.sweep)).chain(
+        file.part
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (format!("part[{i}]."), &p.sweep)),
+    );
+    for (prefix, axes) in part_axes {
+        let mut own: Vec<String> = Vec::new();
+        for (i, axis) in axes.iter().enumerate() {
+            if let Err(e) = sweep::axis_values(axis) {
+                push(format!("{prefix}sweep[{i}]"), e);
+            }
+            if let Err(e) = sweep::parse_path(&axis.path) {
+                push(format!("{prefix}sweep[{i}].path"), e);
+            }
+            let col = axis.column().to_string();
+            if own.contains(&col) || col == "repeat" || col == sweep::PART_COLUMN {
+                push(
+                    format!("{prefix}sweep[{i}].name"),
+                    format!("axis column {col:?} is used twice (give the axes distinct `name`s)"),
+                );
+            }
+            own.push(col.clone());
+            if !columns.contains(&col) {
+                columns.push(col);
+            }
+        }
+    }
+    // a report item's `part` must name a part; its metrics are those of the
+    // kinds of the parts it covers
+    let check_part = |path: String, part: &Option<String>| {
+        if let Some(p) = part {
+            if !names.contains(&p.as_str()) {
+                push(
+                    path,
+                    format!("{p:?} is not a part; parts: {}", names.join(", ")),
+                );
+            }
+        }
+    };
+    let kinds_label = |part: &Option<String>| {
+        file.kinds_of(part.as_deref())
+            .iter()
+            .map(|k| k.name())
+            .collect::<Vec<_>>()
+            .join(" or ")
+    };
+    let known_metric = |m: &str, part: &Option<String>| {
+        file.kinds_of(part.as_deref())
+            .iter()
+            .any(|k| k.metrics().iter().any(|x| x.0 == m))
+    };
+    let metric_list = |part: &Option<String>| {
+        let mut v: Vec<&str> = Vec::new();
+        for k in file.kinds_of(part.as_deref()) {
+            for m in k.metrics() {
+                if !v.contains(&m.0) {
+                    v.push(m.0);
+                }
+            }
+        }
+        v.join(", ")
+    };
     for (i, t) in file.report.table.iter().enumerate() {
         for (j, r) in t.rows.iter().flatten().enumerate() {
             if !columns.contains(r) {
@@ -629,14 +818,15 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
                 );
             }
         }
+        check_part(format!("report.table[{i}].part"), &t.part);
         for (j, m) in t.metrics.iter().flatten().enumerate() {
-            if !known_metric(m) {
+            if !known_metric(m, &t.part) {
                 push(
                     format!("report.table[{i}].metrics[{j}]"),
                     format!(
                         "{m:?} is not a metric of kind {}; metrics: {}",
-                        file.study.kind.name(),
-                        metric_list()
+                        kinds_label(&t.part),
+                        metric_list(&t.part)
                     ),
                 );
             }
@@ -661,14 +851,15 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
                 );
             }
         }
-        if !known_metric(&p.y) {
+        check_part(format!("report.plot[{i}].part"), &p.part);
+        if !known_metric(&p.y, &p.part) {
             push(
                 format!("report.plot[{i}].y"),
                 format!(
                     "{:?} is not a metric of kind {}; metrics: {}",
                     p.y,
-                    file.study.kind.name(),
-                    metric_list()
+                    kinds_label(&p.part),
+                    metric_list(&p.part)
                 ),
             );
         }
@@ -685,25 +876,27 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
                 );
             }
         }
-        if !known_metric(&h.z) {
+        check_part(format!("report.heatmap[{i}].part"), &h.part);
+        if !known_metric(&h.z, &h.part) {
             push(
                 format!("report.heatmap[{i}].z"),
                 format!(
                     "{:?} is not a metric of kind {}; metrics: {}",
                     h.z,
-                    file.study.kind.name(),
-                    metric_list()
+                    kinds_label(&h.part),
+                    metric_list(&h.part)
                 ),
             );
         }
     }
     for (i, t) in file.report.trace.iter().enumerate() {
-        if file.study.kind != Kind::Fit {
+        check_part(format!("report.trace[{i}].part"), &t.part);
+        if !file.kinds_of(t.part.as_deref()).contains(&Kind::Fit) {
             push(
                 format!("report.trace[{i}]"),
                 format!(
                     "optimizer traces are recorded by kind fit only, not {}",
-                    file.study.kind.name()
+                    kinds_label(&t.part)
                 ),
             );
         }
@@ -747,6 +940,7 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
     let axes_ok = file
         .sweep
         .iter()
+        .chain(file.part.iter().flat_map(|p| &p.sweep))
         .all(|a| sweep::axis_values(a).is_ok() && sweep::parse_path(&a.path).is_ok());
     if !axes_ok || file.study.repeats == 0 {
         return problems.into_inner();
@@ -761,7 +955,7 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
             // in order of first appearance
             let mut found: Vec<((String, String), (usize, usize))> = Vec::new();
             for (ci, case) in cases.iter().enumerate() {
-                let errs = file.study.kind.validate_all(&case.scene);
+                let errs = case.kind.validate_all(&case.scene);
                 // with `skip`, unknown fields still are errors (a misspelling
                 // would otherwise skip every case)
                 let errs: Vec<Error> = errs
@@ -770,10 +964,24 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
                     .collect();
                 for e in errs {
                     let (path, message) = split_field(&e);
+                    // the scene of the case's part
+                    let scene = match case.params.first() {
+                        Some(p)
+                            if p.column == sweep::PART_COLUMN && p.label != sweep::MAIN_PART =>
+                        {
+                            let i = file
+                                .part
+                                .iter()
+                                .position(|x| x.name == p.label)
+                                .unwrap_or(0);
+                            format!("part[{i}].scene")
+                        }
+                        _ => "scene".to_string(),
+                    };
                     let path = if path.is_empty() {
-                        "scene".to_string()
+                        scene
                     } else {
-                        format!("scene.{path}")
+                        format!("{scene}.{path}")
                     };
                     let key = (path, message);
                     match found.iter_mut().find(|(k, _)| *k == key) {
@@ -782,18 +990,32 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
                     }
                 }
             }
-            if !file.report.trace.is_empty() && file.study.kind == Kind::Fit {
-                let untraced: Vec<usize> = (0..cases.len())
-                    .filter(|&i| {
-                        cases[i]
-                            .scene
-                            .get("search")
-                            .and_then(|s| s.get("trace"))
-                            .and_then(|t| t.as_bool())
-                            != Some(true)
-                    })
-                    .collect();
-                if let Some(&first) = untraced.first() {
+            for t in &file.report.trace {
+                let untraced: Vec<usize> =
+                    (0..cases.len())
+                        .filter(|&i| {
+                            cases[i].kind == Kind::Fit
+                                && t.part.as_deref().is_none_or(|p| {
+                                    cases[i].params.first().is_some_and(|x| {
+                                        x.column == sweep::PART_COLUMN && x.label == p
+                                    }) || (p == sweep::MAIN_PART && file.part.is_empty())
+                                })
+                                && cases[i]
+                                    .scene
+                                    .get("search")
+                                    .and_then(|s| s.get("trace"))
+                                    .and_then(|t| t.as_bool())
+                                    != Some(true)
+                        })
+                        .collect();
+                let key = (
+                    "scene.search.trace".to_string(),
+                    "report.trace needs the optimizer trace of every case: set search.trace = true (in every value of a swept `search` table too)".to_string(),
+                );
+                if let Some(&first) = untraced
+                    .first()
+                    .filter(|_| !found.iter().any(|f| f.0 == key))
+                {
                     found.push((
                         (
                             "scene.search.trace".to_string(),

@@ -9,7 +9,7 @@
 
 use super::config::{Aggregate, HeatmapSpec, PlotSpec, TableSpec, TraceSpec};
 use super::run::Record;
-use super::sweep::format_float;
+use super::sweep::{format_float, MAIN_PART, PART_COLUMN};
 use super::Study;
 use crate::error::{Error, Result};
 use crate::plot::{Heatmap, Line, LinePlot};
@@ -28,21 +28,48 @@ struct Columns {
 }
 
 fn columns(study: &Study) -> Columns {
-    let kind = study.file.study.kind;
-    let timings = study.file.study.timings;
-    Columns {
-        axes: study
-            .file
-            .sweep
-            .iter()
-            .map(|a| a.column().to_string())
-            .collect(),
-        metrics: kind
-            .metrics()
-            .iter()
-            .map(|m| m.0.to_string())
-            .filter(|m| timings || !m.starts_with("t_"))
-            .collect(),
+    columns_of(study, None)
+}
+
+/// The columns of the cases of `part` (every part for `None`): the axes
+/// of those parts and the metrics of their kinds.
+fn columns_of(study: &Study, part: Option<&str>) -> Columns {
+    let f = &study.file;
+    let timings = f.study.timings;
+    let axes: Vec<String> = match part {
+        None => f.axis_columns(),
+        Some(p) => {
+            let sweep = if p == MAIN_PART {
+                Some(&f.sweep)
+            } else {
+                f.part.iter().find(|x| x.name == p).map(|x| &x.sweep)
+            };
+            sweep
+                .into_iter()
+                .flatten()
+                .map(|a| a.column().to_string())
+                .collect()
+        }
+    };
+    let mut metrics: Vec<String> = Vec::new();
+    for k in f.kinds_of(part) {
+        for m in k.metrics() {
+            if (timings || !m.0.starts_with("t_")) && !metrics.iter().any(|x| x == m.0) {
+                metrics.push(m.0.to_string());
+            }
+        }
+    }
+    Columns { axes, metrics }
+}
+
+/// Is the record one of part `part` (any part for `None`)?
+fn in_part(r: &Record, part: Option<&str>) -> bool {
+    let Some(p) = part else {
+        return true;
+    };
+    match r.params.first() {
+        Some(x) if x.column == PART_COLUMN => x.label == p,
+        _ => p == MAIN_PART,
     }
 }
 
@@ -178,7 +205,13 @@ fn md_escape(s: &str) -> String {
 }
 
 fn table_md(study: &Study, records: &[Record], spec: &TableSpec) -> String {
-    let cols = columns(study);
+    let cols = columns_of(study, spec.part.as_deref());
+    let records: Vec<Record> = records
+        .iter()
+        .filter(|r| in_part(r, spec.part.as_deref()))
+        .cloned()
+        .collect();
+    let records = &records[..];
     let rows = spec.rows.clone().unwrap_or_else(|| cols.axes.clone());
     let metrics = spec.metrics.clone().unwrap_or_else(|| cols.metrics.clone());
     let title = spec.title.clone().unwrap_or_else(|| {
@@ -252,6 +285,12 @@ fn sanitize(raw: String) -> String {
 /// # Errors
 /// [`Error::InvalidParameter`] when the x axis has non-numeric values.
 pub fn plot_chart(records: &[Record], spec: &PlotSpec) -> Result<LinePlot> {
+    let records: Vec<Record> = records
+        .iter()
+        .filter(|r| in_part(r, spec.part.as_deref()))
+        .cloned()
+        .collect();
+    let records = &records[..];
     let title = spec
         .title
         .clone()
@@ -311,6 +350,12 @@ pub fn heatmap_file(spec: &HeatmapSpec) -> String {
 /// # Errors
 /// [`Error::InvalidParameter`] when an axis has non-numeric values.
 pub fn heatmap_chart(records: &[Record], spec: &HeatmapSpec) -> Result<Heatmap> {
+    let records: Vec<Record> = records
+        .iter()
+        .filter(|r| in_part(r, spec.part.as_deref()))
+        .cloned()
+        .collect();
+    let records = &records[..];
     let number = |r: &Record, col: &str| {
         axis_number(r, col).ok_or_else(|| {
             Error::invalid(
@@ -393,6 +438,12 @@ fn passes(r: &Record, filter: &toml::Table) -> bool {
 /// # Errors
 /// [`Error::InvalidParameter`] when no selected case recorded a trace.
 pub fn trace_chart(records: &[Record], spec: &TraceSpec) -> Result<LinePlot> {
+    let records: Vec<Record> = records
+        .iter()
+        .filter(|r| in_part(r, spec.part.as_deref()))
+        .cloned()
+        .collect();
+    let records = &records[..];
     let title = spec
         .title
         .clone()
@@ -482,6 +533,7 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
     }
     s.push_str("| | |\n|---|---|\n");
     s.push_str(&format!("| kind | `{}` |\n", f.study.kind.name()));
+    // (the kinds of the parts are listed with their axes below)
     let skipped = records.iter().filter(|r| r.status == "skipped").count();
     s.push_str(&format!(
         "| cases | {} ({} ok, {} failed, {} skipped) |\n",
@@ -515,6 +567,24 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
             md_escape(&shown)
         ));
     }
+    for p in &f.part {
+        s.push_str(&format!(
+            "| part `{}` | kind `{}` |\n",
+            md_escape(&p.name),
+            p.kind.name()
+        ));
+        for a in &p.sweep {
+            let vals = super::sweep::axis_values(a).unwrap_or_default();
+            let labels: Vec<&str> = vals.iter().map(|v| v.1.as_str()).collect();
+            s.push_str(&format!(
+                "| axis `{}` (part `{}`) | `{}` = {} |\n",
+                md_escape(a.column()),
+                md_escape(&p.name),
+                md_escape(&a.path),
+                md_escape(&labels.join(", "))
+            ));
+        }
+    }
     s.push_str(&format!("| study hash | `{}` |\n\n", study.hash));
     s.push_str("The study file is `study.toml` beside this report; every case is a line of `results.jsonl` and a row of `summary.csv`.");
     if f.study.timings {
@@ -523,12 +593,23 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
     s.push_str("\n\n");
     let mut tables = f.report.table.clone();
     if tables.is_empty() && !cols.axes.is_empty() {
-        tables.push(TableSpec {
-            title: None,
-            rows: None,
-            metrics: None,
-            aggregate: Aggregate::Mean,
-        });
+        // one table per part (one table when there are no parts)
+        let parts: Vec<Option<String>> = if f.part.is_empty() {
+            vec![None]
+        } else {
+            f.parts().iter().map(|p| Some(p.0.to_string())).collect()
+        };
+        for part in parts {
+            tables.push(TableSpec {
+                title: part
+                    .as_ref()
+                    .map(|p| format!("mean by every axis, part {p}")),
+                rows: None,
+                metrics: None,
+                aggregate: Aggregate::Mean,
+                part,
+            });
+        }
     }
     for t in &tables {
         s.push_str(&table_md(study, records, t));

@@ -178,7 +178,7 @@ pub fn execute(study: &Study, case: &Case, out: &Path) -> Record {
 
 /// Run one case without writing anything: its record and its pictures.
 pub fn execute_case(study: &Study, case: &Case) -> (Record, Vec<super::kinds::CasePlot>) {
-    let kind = study.file.study.kind;
+    let kind = case.kind;
     let skip = study.file.study.invalid_cases == super::config::InvalidCases::Skip;
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         if skip {

@@ -34,6 +34,7 @@
 //! ```
 
 use super::config::{Axis, Spacing, StudyFile};
+use super::kinds::Kind;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
@@ -54,6 +55,8 @@ pub struct Case {
     pub params: Vec<Param>,
     /// The resolved scene: the base scene with the axis values set.
     pub scene: toml::Value,
+    /// What the case does: `study.kind`, or the kind of its `[[part]]`.
+    pub kind: Kind,
 }
 
 /// The value of one axis in one case.
@@ -361,15 +364,93 @@ pub fn splitmix64(mut z: u64) -> u64 {
 /// [`Error::InvalidParameter`] naming the axis (`sweep[i]`) for a bad axis or
 /// path, or when the study has more than [`MAX_CASES`] cases.
 pub fn expand(file: &StudyFile) -> Result<Vec<Case>> {
-    let mut axes: Vec<Vec<(toml::Value, String)>> = Vec::new();
-    for (i, a) in file.sweep.iter().enumerate() {
-        let vals = axis_values(a).map_err(|e| Error::invalid(format!("sweep[{i}]"), &a.path, e))?;
-        parse_path(&a.path).map_err(|e| Error::invalid(format!("sweep[{i}].path"), &a.path, e))?;
-        axes.push(vals);
-    }
     let repeats = file.study.repeats;
     if repeats == 0 {
         return Err(Error::invalid("study.repeats", 0, "repeats >= 1"));
+    }
+    // (kind, part label, base scene, axes, field prefix of the axes)
+    let mut parts: Vec<(Kind, Option<&str>, &toml::Table, &[Axis], String)> = vec![(
+        file.study.kind,
+        None,
+        &file.scene,
+        &file.sweep,
+        String::new(),
+    )];
+    if !file.part.is_empty() {
+        parts[0].1 = Some(MAIN_PART);
+        for (i, p) in file.part.iter().enumerate() {
+            parts.push((
+                p.kind,
+                Some(p.name.as_str()),
+                &p.scene,
+                &p.sweep,
+                format!("part[{i}]."),
+            ));
+        }
+    }
+    let mut all: Vec<(Kind, Vec<Param>, usize, toml::Value)> = Vec::new();
+    for (kind, label, scene, sweep, prefix) in parts {
+        let head = label.map(|l| Param {
+            column: PART_COLUMN.to_string(),
+            value: serde_json::Value::String(l.to_string()),
+            label: l.to_string(),
+        });
+        for (params, repeat, scene) in expand_part(scene, sweep, repeats, &prefix, head)? {
+            all.push((kind, params, repeat, scene));
+            if all.len() > MAX_CASES {
+                return Err(Error::invalid(
+                    "sweep",
+                    "too many cases",
+                    format!("at most {MAX_CASES} cases"),
+                ));
+            }
+        }
+    }
+    let width = (all.len().saturating_sub(1)).to_string().len().max(4);
+    Ok(all
+        .into_iter()
+        .enumerate()
+        .map(|(index, (kind, params, repeat, scene))| {
+            let content = serde_json::json!({
+                "params": params.iter().map(|p| (p.column.clone(), p.value.clone())).collect::<Vec<_>>(),
+                "repeat": repeat,
+            });
+            let key = fnv1a(content.to_string().as_bytes());
+            Case {
+                index,
+                id: format!("c{index:0width$}"),
+                key: format!("{key:016x}"),
+                seed: splitmix64(file.study.seed ^ key),
+                repeat,
+                params,
+                scene,
+                kind,
+            }
+        })
+        .collect())
+}
+
+/// Column of the part of a case (studies with `[[part]]` only).
+pub const PART_COLUMN: &str = "part";
+/// The `part` label of the cases of the main `[scene]` / `[[sweep]]`.
+pub const MAIN_PART: &str = "main";
+
+/// The `(params, repeat, scene)` of one part: its axes crossed, the first
+/// slowest, repeats innermost; `head` (the part column) first in `params`.
+fn expand_part(
+    base: &toml::Table,
+    sweep: &[Axis],
+    repeats: usize,
+    prefix: &str,
+    head: Option<Param>,
+) -> Result<Vec<(Vec<Param>, usize, toml::Value)>> {
+    let mut axes: Vec<Vec<(toml::Value, String)>> = Vec::new();
+    for (i, a) in sweep.iter().enumerate() {
+        let vals = axis_values(a)
+            .map_err(|e| Error::invalid(format!("{prefix}sweep[{i}]"), &a.path, e))?;
+        parse_path(&a.path)
+            .map_err(|e| Error::invalid(format!("{prefix}sweep[{i}].path"), &a.path, e))?;
+        axes.push(vals);
     }
     let mut total: usize = repeats;
     for a in &axes {
@@ -384,8 +465,7 @@ pub fn expand(file: &StudyFile) -> Result<Vec<Case>> {
                 )
             })?;
     }
-    let width = (total.saturating_sub(1)).to_string().len().max(4);
-    let base = toml::Value::Table(file.scene.clone());
+    let base = toml::Value::Table(base.clone());
     let mut cases = Vec::with_capacity(total);
     let mut idx = vec![0usize; axes.len()];
     for index in 0..total {
@@ -397,31 +477,18 @@ pub fn expand(file: &StudyFile) -> Result<Vec<Case>> {
             rest /= axes[k].len();
         }
         let mut scene = base.clone();
-        let mut params = Vec::with_capacity(axes.len());
-        for (k, axis) in file.sweep.iter().enumerate() {
+        let mut params: Vec<Param> = head.iter().cloned().collect();
+        for (k, axis) in sweep.iter().enumerate() {
             let (v, label) = &axes[k][idx[k]];
             set_path(&mut scene, &axis.path, v.clone())
-                .map_err(|e| Error::invalid(format!("sweep[{k}].path"), &axis.path, e))?;
+                .map_err(|e| Error::invalid(format!("{prefix}sweep[{k}].path"), &axis.path, e))?;
             params.push(Param {
                 column: axis.column().to_string(),
                 value: to_json(v),
                 label: label.clone(),
             });
         }
-        let content = serde_json::json!({
-            "params": params.iter().map(|p| (p.column.clone(), p.value.clone())).collect::<Vec<_>>(),
-            "repeat": repeat,
-        });
-        let key = fnv1a(content.to_string().as_bytes());
-        cases.push(Case {
-            index,
-            id: format!("c{index:0width$}"),
-            key: format!("{key:016x}"),
-            seed: splitmix64(file.study.seed ^ key),
-            repeat,
-            params,
-            scene,
-        });
+        cases.push((params, repeat, scene));
     }
     Ok(cases)
 }
