@@ -403,6 +403,197 @@ values = ["exact", "large", "large-paper", "unknown-mass"]
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A fit study with traced GA runs and a `locate` part sweeping precision.
+const TRACE_PARTS: &str = r#"
+[study]
+name = "traceparts"
+kind = "fit"
+seed = 3
+repeats = 2
+timings = false
+[scene]
+chain = { n = 5, defects = [ { kind = "mass", at = 2, m = 3.0 }, { kind = "mass", at = 4, m = 0.5 } ] }
+data = { noise = 1e-6 }
+search = { method = "ga", max_evals = 1500, parallel = false, trace = true }
+[[sweep]]
+path = "search.method"
+name = "method"
+values = ["ga", "pso"]
+
+[[part]]
+name = "precision"
+kind = "locate"
+scene = { chain = { n = 20, defects = [ { kind = "mass", at = 15, m = 1.01 } ] }, method = "exact", s = 1.0 }
+[[part.sweep]]
+path = "precision"
+name = "bits"
+labels = ["53", "256"]
+values = ["f64", 256]
+
+[[report.table]]
+part = "precision"
+rows = ["bits"]
+metrics = ["success", "digits", "j_error", "bits"]
+[[report.trace]]
+file = "trace.svg"
+part = "main"
+series = ["method"]
+[[report.plot]]
+part = "precision"
+x = "bits"
+y = "digits"
+"#;
+
+#[test]
+fn traces_and_parts_are_deterministic_across_threads_and_shards() {
+    let dir = tmp("traceparts");
+    let file = dir.join("s.toml");
+    std::fs::write(&file, TRACE_PARTS).unwrap();
+    let f = file.to_str().unwrap();
+    let (a, b) = (dir.join("a"), dir.join("b"));
+    for (d, t) in [(&a, "1"), (&b, "2")] {
+        let o = study(&[f, "--out", d.to_str().unwrap(), "--threads", t]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    assert_same_files(&a, &b);
+    // shards (a resumed or merged run reads the traces from the records)
+    let mut shards = Vec::new();
+    for i in 1..=2 {
+        let d = dir.join(format!("shard{i}"));
+        let o = study(&[
+            f,
+            "--out",
+            d.to_str().unwrap(),
+            "--shard",
+            &format!("{i}/2"),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        shards.push(d.display().to_string());
+    }
+    let merged = dir.join("merged");
+    let o = study(&[
+        "merge",
+        &shards[0],
+        &shards[1],
+        "--out",
+        merged.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_same_files(&a, &merged);
+    // the trace plot: one line per method, drawn from the records
+    let svg = std::fs::read_to_string(a.join("trace.svg")).unwrap();
+    assert!(
+        svg.contains("method = ga") && svg.contains("method = pso"),
+        "{svg}"
+    );
+    let records = std::fs::read_to_string(a.join("results.jsonl")).unwrap();
+    let traced = records
+        .lines()
+        .filter(|l| l.contains("\"trace\":[["))
+        .count();
+    assert_eq!(traced, 4, "{records}");
+    // the precision part: f64 and 256 bits both locate; 256 bits has far
+    // more correct digits
+    let csv = std::fs::read_to_string(a.join("summary.csv")).unwrap();
+    assert!(csv.lines().skip(1).all(|l| l.contains(",ok,")), "{csv}");
+    let md = std::fs::read_to_string(a.join("report.md")).unwrap();
+    assert!(md.contains("digits-vs-bits.svg"), "{md}");
+    let digits = |bits: &str| -> f64 {
+        let row = md
+            .lines()
+            .find(|l| l.starts_with(&format!("| {bits} | 2 | 0 |")))
+            .unwrap_or_else(|| panic!("{md}"));
+        row.split('|').nth(5).unwrap().trim().parse().unwrap()
+    };
+    let (d53, d256) = (digits("53"), digits("256"));
+    assert!(d53 > 5.0 && d53 < 16.0, "{d53}");
+    assert!(d256 > 60.0, "{d256}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn config_check_lists_every_problem_of_fit_and_locate_scenes() {
+    let fit = r#"[study]
+name = "badfit"
+kind = "fit"
+[scene]
+chain = { n = 5, d = -1.0, defects = [ { kind = "mass", at = 9, m = 3.0 } ] }
+data = { noise = -0.1 }
+unknowns = { k = 1, mass_bounds = [5.0, 1.0] }
+misfit = { s_max = -3.0, per_panel = "eight" }
+search = { method = "ga", max_evals = "many" }
+"#;
+    let p = check(fit);
+    let paths: Vec<&str> = p.iter().map(|p| p.path.as_str()).collect();
+    for want in [
+        "scene.chain.d",
+        "scene.chain.defects[0].at",
+        "scene.data.noise",
+        "scene.unknowns.mass_bounds",
+        "scene.misfit.s_max",
+        "scene.misfit.per_panel",
+        "scene.search.max_evals",
+    ] {
+        assert!(paths.contains(&want), "{want} missing from {p:?}");
+    }
+    assert_eq!(p.len(), 7, "{p:?}");
+    assert!(p.iter().all(|p| p.line.is_some()), "{p:?}");
+    let by_path = |path: &str| p.iter().find(|x| x.path == path).unwrap();
+    assert_eq!(by_path("scene.data.noise").line, Some(7));
+    assert_eq!(by_path("scene.misfit.s_max").line, Some(9));
+    // the same through the binary, one line per problem
+    let dir = tmp("checkfit");
+    let file = dir.join("bad.toml");
+    std::fs::write(&file, fit).unwrap();
+    let o = Command::new(BIN)
+        .args(["config", "check", file.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("line 7: scene.data.noise"), "{out}");
+    assert!(out.contains("line 10: scene.search.max_evals"), "{out}");
+    assert!(out.contains("line 6: scene.chain.defects[0].at"), "{out}");
+    // a locate scene: a bad precision, method and s, all named
+    let loc = r#"[study]
+name = "badloc"
+kind = "locate"
+[scene]
+chain = { n = 5, defects = [ { kind = "mass", at = 3, m = 4.0 } ] }
+method = "big"
+precision = 12
+s = -1.0
+dt = "x"
+"#;
+    let p = check(loc);
+    let paths: Vec<&str> = p.iter().map(|p| p.path.as_str()).collect();
+    assert_eq!(
+        paths,
+        vec!["scene.dt", "scene.method", "scene.s", "scene.precision"],
+        "{p:?}"
+    );
+    assert!(p[3].message.contains("64..=4096"), "{p:?}");
+    for bad in ["\"f32\"", "5000", "63", "256.0"] {
+        let p = check(
+            &loc.replace("precision = 12", &format!("precision = {bad}"))
+                .replace("method = \"big\"", "method = \"exact\"")
+                .replace("s = -1.0\ndt = \"x\"\n", ""),
+        );
+        assert_eq!(p.len(), 1, "{bad}: {p:?}");
+        assert_eq!(p[0].path, "scene.precision", "{bad}: {p:?}");
+    }
+    let ok = loc
+        .replace("method = \"big\"", "method = \"exact\"")
+        .replace("s = -1.0\ndt = \"x\"\n", "");
+    for good in ["\"f64\"", "64", "128", "4096"] {
+        assert_eq!(
+            check(&ok.replace("precision = 12", &format!("precision = {good}"))),
+            vec![]
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn default_study_runs_and_says_where_the_report_is() {
     let dir = tmp("default");

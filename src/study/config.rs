@@ -23,6 +23,9 @@
 //! series = "random_defects.count"
 //! ```
 //!
+//! `[[part]]` adds cases of another kind (own scene and axes) to the same
+//! study; `[[report.trace]]` draws the optimizer traces of kind `fit`.
+//!
 //! Every table refuses unknown fields (`deny_unknown_fields`); the defaults
 //! are in [`STUDY_FIELDS`] and, per kind, in the kind's own schema
 //! ([`crate::study::kinds::Kind::schema`]). [`check`] reports every problem

@@ -321,6 +321,9 @@ fn run_in<T: RealScalar>(scene: &Scene, _seed: u64, bits: usize) -> Result<CaseO
         Some(s) if large => (vec![s / 2.0, s / 2f64.sqrt(), s], SChoice::At(s)),
         Some(s) => (vec![s], SChoice::At(s)),
     };
+    // warm the thread's constant cache of the number type (a one-off per
+    // worker thread, not a cost of this case)
+    let _ = T::from_f64(2.0).ln();
     let start = Instant::now();
     let data: LaplaceData<T> = match scene.data.as_str() {
         "simulated" => LaplaceData::from_simulation(&chain, scene.t_end, scene.dt, &grid)?,
