@@ -423,7 +423,7 @@ values = ["ga", "pso"]
 [[part]]
 name = "precision"
 kind = "locate"
-scene = { chain = { n = 20, defects = [ { kind = "mass", at = 15, m = 1.01 } ] }, method = "exact", s = 1.0 }
+scene = { chain = { n = 20, defects = [ { kind = "mass", at = 15, m = 1.01 } ] }, method = "exact", s = 0.3 }
 [[part.sweep]]
 path = "precision"
 name = "bits"
@@ -480,6 +480,18 @@ fn traces_and_parts_are_deterministic_across_threads_and_shards() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_same_files(&a, &merged);
+    // interrupted after 3 cases, then resumed: the same files
+    let st = Study::from_text(TRACE_PARTS, f).unwrap();
+    let r = dir.join("resumed");
+    let mut o = springmass::study::run::RunOptions::new(&r);
+    o.progress = false;
+    o.max_cases = Some(3);
+    o.threads = Some(2);
+    assert!(!springmass::study::run::run(&st, &o).unwrap().complete);
+    o.max_cases = None;
+    let done = springmass::study::run::run(&st, &o).unwrap();
+    assert!(done.complete && done.resumed == 3);
+    assert_same_files(&a, &r);
     // the trace plot: one line per method, drawn from the records
     let svg = std::fs::read_to_string(a.join("trace.svg")).unwrap();
     assert!(
@@ -539,8 +551,8 @@ search = { method = "ga", max_evals = "many" }
     assert_eq!(p.len(), 7, "{p:?}");
     assert!(p.iter().all(|p| p.line.is_some()), "{p:?}");
     let by_path = |path: &str| p.iter().find(|x| x.path == path).unwrap();
-    assert_eq!(by_path("scene.data.noise").line, Some(7));
-    assert_eq!(by_path("scene.misfit.s_max").line, Some(9));
+    assert_eq!(by_path("scene.data.noise").line, Some(6));
+    assert_eq!(by_path("scene.misfit.s_max").line, Some(8));
     // the same through the binary, one line per problem
     let dir = tmp("checkfit");
     let file = dir.join("bad.toml");
@@ -551,9 +563,9 @@ search = { method = "ga", max_evals = "many" }
         .unwrap();
     assert_eq!(o.status.code(), Some(1));
     let out = String::from_utf8_lossy(&o.stdout);
-    assert!(out.contains("line 7: scene.data.noise"), "{out}");
-    assert!(out.contains("line 10: scene.search.max_evals"), "{out}");
-    assert!(out.contains("line 6: scene.chain.defects[0].at"), "{out}");
+    assert!(out.contains("line 6: scene.data.noise"), "{out}");
+    assert!(out.contains("line 9: scene.search.max_evals"), "{out}");
+    assert!(out.contains("line 5: scene.chain.defects[0].at"), "{out}");
     // a locate scene: a bad precision, method and s, all named
     let loc = r#"[study]
 name = "badloc"

@@ -369,7 +369,7 @@ pub fn expand(file: &StudyFile) -> Result<Vec<Case>> {
         return Err(Error::invalid("study.repeats", 0, "repeats >= 1"));
     }
     // (kind, part label, base scene, axes, field prefix of the axes)
-    let mut parts: Vec<(Kind, Option<&str>, &toml::Table, &[Axis], String)> = vec![(
+    let mut parts: Vec<PartRef> = vec![(
         file.study.kind,
         None,
         &file.scene,
@@ -429,6 +429,9 @@ pub fn expand(file: &StudyFile) -> Result<Vec<Case>> {
         })
         .collect())
 }
+
+/// (kind, part label, base scene, axes, field prefix of the axes) of one part.
+type PartRef<'a> = (Kind, Option<&'a str>, &'a toml::Table, &'a [Axis], String);
 
 /// Column of the part of a case (studies with `[[part]]` only).
 pub const PART_COLUMN: &str = "part";

@@ -321,3 +321,72 @@ pub fn run(value: &toml::Value, seed: u64) -> Result<CaseOutput> {
     out.timings.insert("t_search".into(), num(r.wall_time_s));
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::study::kinds::Kind;
+
+    #[test]
+    fn best_so_far_keeps_improvements_and_the_end() {
+        let t = [(10, 5.0), (20, 6.0), (30, 2.0), (40, 2.0), (50, f64::NAN)];
+        assert_eq!(best_so_far(&t), vec![[10.0, 5.0], [30.0, 2.0], [50.0, 2.0]]);
+        assert!(best_so_far(&[]).is_empty());
+    }
+
+    #[test]
+    fn every_problem_of_a_scene_is_listed() {
+        let v: toml::Value = toml::from_str(
+            r#"
+            chain = { n = 5, mass = 0.0, defects = [ { kind = "mass", at = 2, m = 3.0 }, { kind = "mass", at = 7, m = -1.0 } ] }
+            data = { noise = -1.0, dt = "x" }
+            unknowns = { k = 9 }
+            misfit = { s_max = 0.0 }
+            search = { methd = "ga" }
+            "#,
+        )
+        .unwrap();
+        let errs = Kind::Fit.validate_all(&v);
+        let fields: Vec<String> = errs
+            .iter()
+            .map(|e| match e {
+                crate::Error::InvalidParameter { field, .. } => field.clone(),
+                other => other.to_string(),
+            })
+            .collect();
+        assert_eq!(
+            fields,
+            vec![
+                "search.methd",
+                "data.dt",
+                "chain.mass",
+                "chain.defects[1].at",
+                "chain.defects[1].m",
+                "data.noise",
+                "unknowns.k",
+                "misfit.s_max",
+            ],
+            "{errs:?}"
+        );
+        // the first problem is what a run reports
+        assert!(Kind::Fit.validate(&v).is_err());
+    }
+
+    #[test]
+    fn traced_runs_record_the_trace() {
+        let v: toml::Value = toml::from_str(
+            r#"
+            chain = { n = 5, defects = [ { kind = "mass", at = 2, m = 3.0 }, { kind = "mass", at = 4, m = 0.5 } ] }
+            search = { method = "ga", max_evals = 600, parallel = false, trace = true }
+            "#,
+        )
+        .unwrap();
+        let a = Kind::Fit.run(&v, 1).unwrap();
+        assert!(a.trace.len() >= 2, "{:?}", a.trace);
+        assert!(a
+            .trace
+            .windows(2)
+            .all(|w| w[0][0] < w[1][0] && w[0][1] >= w[1][1]));
+        assert_eq!(a.trace, Kind::Fit.run(&v, 1).unwrap().trace);
+    }
+}

@@ -428,4 +428,33 @@ mod tests {
             }
         }
     }
+
+    #[test]
+    fn extended_precision_buys_digits() {
+        let base =
+            "chain = { n = 20, defects = [ { kind = \"mass\", at = 15, m = 1.01 } ] }\ns = 0.3\n";
+        let f64_out = Kind::Locate.run(&toml::from_str(base).unwrap(), 0).unwrap();
+        let big: toml::Value = toml::from_str(&format!("{base}precision = 256")).unwrap();
+        let big_out = Kind::Locate.run(&big, 0).unwrap();
+        assert_eq!(f64_out.metrics["bits"], 53);
+        assert_eq!(big_out.metrics["bits"], 256);
+        assert_eq!(big_out.metrics["success"], true);
+        let d = |o: &CaseOutput| o.metrics["digits"].as_f64().unwrap();
+        assert!(d(&f64_out) > 8.0 && d(&f64_out) < 16.0, "{f64_out:?}");
+        assert!(d(&big_out) > 60.0, "{big_out:?}");
+        // the precision left at its default on this thread
+        assert_eq!(
+            crate::precision::precision(),
+            crate::precision::DEFAULT_BITS
+        );
+        for bad in ["precision = 8", "precision = \"double\"", "precision = 1e3"] {
+            let v: toml::Value = toml::from_str(&format!("{base}{bad}")).unwrap();
+            let errs = Kind::Locate.validate_all(&v);
+            assert_eq!(errs.len(), 1, "{bad}: {errs:?}");
+            assert!(
+                matches!(&errs[0], Error::InvalidParameter { field, .. } if field == "precision"),
+                "{bad}: {errs:?}"
+            );
+        }
+    }
 }

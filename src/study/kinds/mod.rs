@@ -282,7 +282,7 @@ fn remove_path(value: &mut toml::Value, path: &str) -> bool {
 /// `chain.defects[1].m`): the uniform parameters one by one, each defect
 /// on its own, then the defects together (duplicates).
 pub fn chain_problems(spec: &crate::chain::ChainSpec) -> Vec<Error> {
-    use crate::chain::Chain;
+    use crate::chain::{Chain, Defect};
     let prefix = |e: Error| match e {
         Error::InvalidParameter {
             field,
@@ -311,7 +311,25 @@ pub fn chain_problems(spec: &crate::chain::ChainSpec) -> Vec<Error> {
     .collect();
     let mut each_ok = true;
     for (i, d) in spec.defects.iter().enumerate() {
-        if let Err(e) = base.clone().with_defect(*d) {
+        // a bad position hides a bad value: check the value at position 1 too
+        let at_one = match *d {
+            Defect::Mass { m, .. } => Defect::Mass { at: 1, m },
+            Defect::Spring { k, .. } => Defect::Spring { at: 1, k },
+            Defect::Damper { d, .. } => Defect::Damper { at: 1, d },
+        };
+        let errs: Vec<Error> = match base.clone().with_defect(*d) {
+            Ok(_) => Vec::new(),
+            Err(e) => {
+                let bad_at =
+                    matches!(&e, Error::InvalidParameter { field, .. } if field.ends_with(".at"));
+                let mut v = vec![e];
+                if bad_at {
+                    v.extend(base.clone().with_defect(at_one).err());
+                }
+                v
+            }
+        };
+        for e in errs {
             each_ok = false;
             // with_defect names the defect by its index in the chain (0 here)
             out.push(match prefix(e) {
