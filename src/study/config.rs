@@ -789,21 +789,26 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
             }
         }
     };
+    // an unknown part is reported once (check_part); its metrics are then
+    // checked against every kind
+    let known_part = |part: &Option<String>| -> Option<String> {
+        part.clone().filter(|p| names.contains(&p.as_str()))
+    };
     let kinds_label = |part: &Option<String>| {
-        file.kinds_of(part.as_deref())
+        file.kinds_of(known_part(part).as_deref())
             .iter()
             .map(|k| k.name())
             .collect::<Vec<_>>()
             .join(" or ")
     };
     let known_metric = |m: &str, part: &Option<String>| {
-        file.kinds_of(part.as_deref())
+        file.kinds_of(known_part(part).as_deref())
             .iter()
             .any(|k| k.metrics().iter().any(|x| x.0 == m))
     };
     let metric_list = |part: &Option<String>| {
         let mut v: Vec<&str> = Vec::new();
-        for k in file.kinds_of(part.as_deref()) {
+        for k in file.kinds_of(known_part(part).as_deref()) {
             for m in k.metrics() {
                 if !v.contains(&m.0) {
                     v.push(m.0);
@@ -894,7 +899,10 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
     }
     for (i, t) in file.report.trace.iter().enumerate() {
         check_part(format!("report.trace[{i}].part"), &t.part);
-        if !file.kinds_of(t.part.as_deref()).contains(&Kind::Fit) {
+        if !file
+            .kinds_of(known_part(&t.part).as_deref())
+            .contains(&Kind::Fit)
+        {
             push(
                 format!("report.trace[{i}]"),
                 format!(
@@ -1202,8 +1210,10 @@ impl Locator {
         for seg in segments {
             let next = match seg {
                 sweep::Segment::Key(k) => {
-                    let t = item.as_table_like()?;
-                    let (key, v) = t.get_key_value(&k)?;
+                    let Some((key, v)) = item.as_table_like().and_then(|t| t.get_key_value(&k))
+                    else {
+                        return best;
+                    };
                     if let Some(span) = key.span().or_else(|| v.span()) {
                         best = Some(line_of(&self.text, span.start));
                     }
@@ -1211,14 +1221,17 @@ impl Locator {
                 }
                 sweep::Segment::Index(i) => {
                     if let Some(aot) = item.as_array_of_tables() {
-                        let t = aot.get(i)?;
+                        let Some(t) = aot.get(i) else {
+                            return best;
+                        };
                         if let Some(span) = t.span() {
                             best = Some(line_of(&self.text, span.start));
                         }
                         toml_edit::Item::Table(t.clone())
                     } else {
-                        let a = item.as_array()?;
-                        let v = a.get(i)?;
+                        let Some(v) = item.as_array().and_then(|a| a.get(i)) else {
+                            return best;
+                        };
                         if let Some(span) = v.span() {
                             best = Some(line_of(&self.text, span.start));
                         }
