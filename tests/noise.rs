@@ -133,7 +133,7 @@ fn damping_fitted_with_the_masses() {
         2,
     )
     .unwrap();
-    assert_eq!(h.positions, vec![3, 7]);
+    assert_eq!(h.positions(), vec![3, 7]);
     let d = rep.chain.d();
     assert!((d - 0.1).abs() < 0.01 * 0.1, "d = {d}");
     assert!((d - 0.1).abs() < 4.0 * rep.std_errors[2]);
@@ -233,4 +233,79 @@ fn cli_rejects_bad_input_and_runs_a_tiny_table() {
     assert!(csv.contains("S1,bromwich,1e-3,1,1,1"), "{csv}");
     assert!(dir.join("success.svg").exists());
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+// ---- general noisy fit: spring, damper and any-kind defects at unknown
+// positions, chain parameters fitted alongside
+
+use springmass::detect::noisefit::{fit_noisy_general, GeneralOptions};
+use springmass::detect::space::{GeneralUnknowns, KindChoice};
+
+fn general(
+    truth: &Chain,
+    start: &Chain,
+    kinds: &[KindChoice],
+    chain: &[Param],
+    level: f64,
+    seed: u64,
+) -> springmass::detect::noisefit::GeneralFit {
+    let data = TimeData::simulate(truth, 200.0, 0.2, NoiseLevel::RelativeMax(level), seed).unwrap();
+    let u = GeneralUnknowns::free(truth.n(), kinds, chain).unwrap();
+    fit_noisy_general(
+        start,
+        &data,
+        &u,
+        MisfitChoice::Time,
+        &Setup::new().unwrap(),
+        &GeneralOptions::default(),
+    )
+    .unwrap()
+}
+
+fn within_se(h: &springmass::detect::noisefit::Hypothesis, truth: &Chain, nse: f64) {
+    for t in truth.defects() {
+        let (i, d) = h
+            .defects
+            .iter()
+            .enumerate()
+            .find(|(_, d)| d.kind() == t.kind() && d.at() == t.at())
+            .unwrap_or_else(|| panic!("{t} not found in {:?}", h.defects));
+        let se = h.std_errors[i];
+        assert!(
+            (d.value() - t.value()).abs() <= nse * se,
+            "{t}: {} +- {se}",
+            d.value()
+        );
+    }
+}
+
+#[test]
+fn spring_and_damper_at_unknown_positions_with_d_fitted() {
+    let truth = Chain::paper(10)
+        .unwrap()
+        .with_defects([
+            Defect::Spring { at: 4, k: 0.5 },
+            Defect::Damper { at: 7, d: 0.6 },
+        ])
+        .unwrap();
+    for (level, seed) in [(1e-3, 1), (1e-2, 2)] {
+        let start = truth.uniform().with_d(0.15).unwrap();
+        let f = general(
+            &truth,
+            &start,
+            &[KindChoice::Spring, KindChoice::Damper],
+            &[Param::D],
+            level,
+            seed,
+        );
+        let best = &f.ranked[0];
+        eprintln!(
+            "level {level}: {:?} (hyps {}, evals {})",
+            best, f.hypotheses, f.evaluations
+        );
+        assert!(best.positions_match(&truth), "{:?}", best);
+        within_se(best, &truth, 4.0);
+        let d = best.param("d").unwrap();
+        assert!((d.value - 0.1).abs() <= 3.0 * d.std_error, "{d:?}");
+    }
 }

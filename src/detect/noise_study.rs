@@ -383,7 +383,7 @@ pub fn damping_study(
             let d = rep.chain.d();
             Ok(DampingFit {
                 seed,
-                positions: h.positions,
+                positions: h.positions(),
                 d,
                 se: *rep.std_errors.last().unwrap_or(&f64::NAN),
                 rel_err: (d - truth.d()).abs() / truth.d(),
