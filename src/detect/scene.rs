@@ -46,8 +46,9 @@ use crate::chain::{Chain, ChainSpec, Defect};
 use crate::detect::data::Data;
 use crate::detect::fit::{FitMethod, FitOptions};
 use crate::detect::misfit::MisfitSpec;
+use crate::detect::misfit_time::TimeData;
 use crate::detect::search::enumerate::EnumerateOptions;
-use crate::detect::space::{Unknowns, UnknownsSpec};
+use crate::detect::space::{DefectKind, GeneralUnknowns, Unknowns, UnknownsSpec};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -94,6 +95,10 @@ pub struct DataSpec {
     /// `simulated`: sampling step (default 0.05).
     #[serde(default)]
     pub dt: Option<f64>,
+    /// `simulated` and `series`: `noise` is relative to the largest `|x_1|` of
+    /// the record (default false: absolute).
+    #[serde(default)]
+    pub relative: bool,
 }
 
 /// The `[search]` table.
@@ -256,7 +261,7 @@ impl FitScene {
                 &self.truth()?,
                 self.data.t_end.unwrap_or(300.0),
                 self.data.dt.unwrap_or(0.05),
-                self.data.noise,
+                self.noise_sigma()?,
                 self.data.seed,
             ),
             DataSourceKind::Series => {
@@ -269,13 +274,104 @@ impl FitScene {
                     self.data.noise >= 0.0,
                     ">= 0 and finite",
                 )?;
+                let sigma = self.noise_sigma()?;
                 Data::from_csv(
                     path,
                     self.data.column.as_deref().unwrap_or("x1"),
-                    (self.data.noise > 0.0).then_some(self.data.noise),
+                    (sigma > 0.0).then_some(sigma),
                 )
             }
         }
+    }
+
+    /// The absolute noise level of the samples (`simulated`, `series`):
+    /// `noise`, times the largest `|x_1|` of the (noise-free simulated, or
+    /// measured) record when `relative`. `exact`: `noise` (relative,
+    /// Laplace domain).
+    ///
+    /// # Errors
+    /// `data.noise` negative or not finite; as the simulation or the CSV.
+    pub fn noise_sigma(&self) -> Result<f64> {
+        let d = &self.data;
+        crate::error::check_f64("data.noise", d.noise, d.noise >= 0.0, ">= 0 and finite")?;
+        if !d.relative || d.noise == 0.0 {
+            return Ok(d.noise);
+        }
+        let level = crate::noise::NoiseLevel::RelativeMax(d.noise);
+        match d.source {
+            DataSourceKind::Exact => Ok(d.noise),
+            DataSourceKind::Simulated => Ok(TimeData::simulate(
+                &self.truth()?,
+                d.t_end.unwrap_or(300.0),
+                d.dt.unwrap_or(0.05),
+                level,
+                d.seed,
+            )?
+            .sigma()),
+            DataSourceKind::Series => {
+                let ts = self.series()?;
+                level.sigma(ts.require(self.data.column.as_deref().unwrap_or("x1"))?)
+            }
+        }
+    }
+
+    fn series(&self) -> Result<crate::series::TimeSeries> {
+        let path = self.data.path.as_ref().ok_or_else(|| {
+            Error::invalid("data.path", "(none)", "a CSV file for source = \"series\"")
+        })?;
+        crate::series::TimeSeries::read_csv(path)
+    }
+
+    /// The sampled series of `[data]` with its noise level, for the
+    /// time-domain misfit: `simulated` (the same samples as [`FitScene::data`])
+    /// or `series`.
+    ///
+    /// # Errors
+    /// `data.source` is `exact` (no series); as [`FitScene::noise_sigma`].
+    pub fn time_data(&self) -> Result<TimeData> {
+        let sigma = self.noise_sigma()?;
+        match self.data.source {
+            DataSourceKind::Exact => Err(Error::invalid(
+                "data.source",
+                "exact",
+                "\"simulated\" or \"series\" (the time misfit needs a sampled series)",
+            )),
+            DataSourceKind::Simulated => TimeData::simulate(
+                &self.truth()?,
+                self.data.t_end.unwrap_or(300.0),
+                self.data.dt.unwrap_or(0.05),
+                crate::noise::NoiseLevel::Absolute(sigma),
+                self.data.seed,
+            ),
+            DataSourceKind::Series => TimeData::from_series(
+                &self.series()?,
+                self.data.column.as_deref().unwrap_or("x1"),
+                sigma,
+            ),
+        }
+    }
+
+    /// Whether the scene needs the general noisy fit
+    /// ([`crate::detect::noisefit::fit_general`]): non-mass defects, chain
+    /// parameters or the time misfit.
+    pub fn is_general(&self) -> bool {
+        self.unknowns.is_general() || self.misfit.kind == crate::detect::misfit::MisfitKind::Time
+    }
+
+    /// The general unknowns (validated against `chain.n`; `k` defaults to the
+    /// number of `[chain]` defects of the table's kind, all of them for `any`).
+    ///
+    /// # Errors
+    /// As [`UnknownsSpec::build_general`].
+    pub fn general_unknowns(&self) -> Result<GeneralUnknowns> {
+        let kinds = self.unknowns.kind.kinds();
+        let k = self
+            .chain
+            .defects
+            .iter()
+            .filter(|d| kinds.contains(&DefectKind::of(d)))
+            .count();
+        self.unknowns.build_general(self.chain.n, k)
     }
 
     /// The fit options described by `[search]`.

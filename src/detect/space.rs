@@ -292,6 +292,7 @@ impl Unknowns {
 /// k = 2
 /// kind = "spring"            # "mass" (default) | "spring" | "damper" | "any"
 /// chain = ["d"]              # chain parameters fitted too: "d", "gamma", "k", "mass" (default [])
+/// chain_start = { d = 0.2 }  # their starting values (default: the [chain] values)
 /// spring_bounds = [0.01, 100]   # default bounds of unknown springs
 /// damper_bounds = [0, 100]      # default bounds of unknown dampers
 /// [[unknowns.defects]]
@@ -328,6 +329,10 @@ pub struct UnknownsSpec {
     /// Default bounds of unknown dampers (default `[0, 100]`, `lo >= 0`).
     #[serde(default = "default_damper_bounds")]
     pub damper_bounds: [f64; 2],
+    /// Starting values of fitted chain parameters, e.g. `{ d = 0.2 }`
+    /// (default: the `[chain]` values).
+    #[serde(default)]
+    pub chain_start: std::collections::BTreeMap<String, f64>,
 }
 
 /// One `[[unknowns.defects]]` entry.
@@ -369,6 +374,7 @@ impl Default for UnknownsSpec {
             chain: Vec::new(),
             spring_bounds: default_spring_bounds(),
             damper_bounds: default_damper_bounds(),
+            chain_start: Default::default(),
         }
     }
 }
@@ -526,6 +532,36 @@ impl UnknownsSpec {
             },
         );
         GeneralUnknowns::new(n, slots, chain, bounds)
+    }
+}
+
+impl UnknownsSpec {
+    /// `model` with the fitted chain parameters at their `chain_start` values.
+    ///
+    /// # Errors
+    /// `unknowns.chain_start` naming a parameter not in `chain`, or a value
+    /// out of its range.
+    pub fn start_chain(&self, model: &Chain) -> Result<Chain> {
+        let mut c = model.uniform();
+        for (name, &v) in &self.chain_start {
+            if !self.chain.iter().any(|c| c.trim() == name) {
+                return Err(Error::invalid(
+                    format!("unknowns.chain_start.{name}"),
+                    v,
+                    "a parameter listed in unknowns.chain",
+                ));
+            }
+            let p = match name.as_str() {
+                "d" => Param::D,
+                "gamma" => Param::Gamma,
+                "k" => Param::K,
+                _ => Param::Mass,
+            };
+            c = p.set(&c, v).map_err(|e| {
+                Error::invalid(format!("unknowns.chain_start.{name}"), v, e.to_string())
+            })?;
+        }
+        Ok(c)
     }
 }
 
