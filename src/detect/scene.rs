@@ -454,4 +454,106 @@ mod tests {
             Err(Error::Parse { .. })
         ));
     }
+
+    #[test]
+    fn general_scenes_parse_and_errors_name_fields() {
+        for text in [
+            include_str!("../../configs/fit-spring.toml"),
+            include_str!("../../configs/fit-any.toml"),
+        ] {
+            let s = FitScene::from_toml(text).unwrap();
+            assert!(s.is_general());
+            let u = s.general_unknowns().unwrap();
+            assert_eq!(u.slots().len(), 2);
+            assert!(s.unknowns().is_err(), "the mass-only path refuses");
+        }
+        let s = FitScene::from_toml(include_str!("../../configs/fit-spring.toml")).unwrap();
+        assert_eq!(
+            s.general_unknowns()
+                .unwrap()
+                .hypotheses(1000)
+                .unwrap()
+                .len(),
+            110
+        );
+        assert_eq!(
+            s.unknowns.start_chain(&s.truth().unwrap()).unwrap().d(),
+            0.15
+        );
+        // 1% of max |x_1|, the same samples as the Laplace data
+        let td = s.time_data().unwrap();
+        let ymax = td.y().iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        assert!((td.sigma() / ymax - 0.01).abs() < 0.002, "{}", td.sigma());
+        let field = |text: &str| -> String {
+            let s = FitScene::from_toml(text).unwrap();
+            match s
+                .general_unknowns()
+                .and_then(|_| s.unknowns.start_chain(&s.truth()?))
+                .and_then(|_| s.time_data())
+            {
+                Err(Error::InvalidParameter { field, .. }) => field,
+                other => panic!("{text}: {other:?}"),
+            }
+        };
+        let sim = "[data]\nsource = \"simulated\"\nt_end = 10\ndt = 0.5\n";
+        let cases = [
+            (
+                "[unknowns]\nkind = \"spring\"\nchain = [\"q\"]\n",
+                "unknowns.chain",
+            ),
+            (
+                "[unknowns]\nkind = \"any\"\nchain = [\"d\", \"k\", \"gamma\", \"mass\"]\n",
+                "unknowns.chain",
+            ),
+            (
+                "[unknowns]\nkind = \"spring\"\nchain = [\"d\", \"d\"]\n",
+                "unknowns.chain",
+            ),
+            (
+                "[unknowns]\nkind = \"spring\"\nspring_bounds = [0, 1]\n",
+                "unknowns.spring_bounds",
+            ),
+            (
+                "[unknowns]\nkind = \"damper\"\ndamper_bounds = [-1, 1]\n",
+                "unknowns.damper_bounds",
+            ),
+            (
+                "[unknowns]\nk = 1\n[[unknowns.defects]]\nkind = \"spring\"\nm = 2.0\n",
+                "unknowns.defects[0].m",
+            ),
+            (
+                "[unknowns]\nk = 1\n[[unknowns.defects]]\nkind = \"damper\"\nat = 0\n",
+                "unknowns.defects[0].at",
+            ),
+            (
+                "[unknowns]\nkind = \"spring\"\nchain = [\"d\"]\nchain_start = { k = 2.0 }\n",
+                "unknowns.chain_start.k",
+            ),
+            (
+                "[unknowns]\nkind = \"spring\"\nchain = [\"d\"]\nchain_start = { d = -1.0 }\n",
+                "unknowns.chain_start.d",
+            ),
+            ("[unknowns]\nkind = \"spring\"\nk = 9\n", "unknowns.k"),
+            (
+                "[unknowns]\nkind = \"spring\"\n[misfit]\nkind = \"time\"\n",
+                "data.source",
+            ),
+        ];
+        for (tail, want) in cases {
+            let tail = if want == "unknowns.k" || tail.contains("k = 1") {
+                tail.to_string()
+            } else {
+                tail.replacen("[unknowns]\n", "[unknowns]\nk = 1\n", 1)
+            };
+            let text = format!("[chain]\nn = 3\n{tail}{sim}");
+            let text = if want == "data.source" {
+                text.replace("simulated", "exact")
+            } else {
+                text
+            };
+            assert_eq!(field(&text), want, "{text}");
+        }
+        assert!(FitScene::from_toml("[chain]\nn = 3\n[unknowns]\nkind = \"rod\"\n").is_err());
+        assert!(FitScene::from_toml("[chain]\nn = 3\n[unknowns]\nchains = []\n").is_err());
+    }
 }
