@@ -16,6 +16,17 @@
 //!   These methods need interchangeable unknown-position defects (the
 //!   optimizers' spaces are unordered).
 //!
+//! **General path.** When the scene asks for what the mass-only Woodbury
+//! path cannot do (spring, damper or `any` defects, chain parameters `d`,
+//! `gamma`, `k`, `mass`, or `[misfit] kind = "time"`,
+//! [`FitScene::is_general`]), `fit` runs the general noisy fit
+//! ([`crate::detect::noisefit::fit_general`]; method `enumerate` only): the
+//! residual is then a chi-square (Laplace data weighted by the rule over the
+//! data's variance at each node, or the time-domain chi-square of the scene's
+//! series), `floor` is the chi-square gap threshold
+//! [`crate::detect::identify::DEFAULT_THRESHOLD`], and the report carries
+//! the standard errors of the defect values and the fitted chain parameters.
+//!
 //! The report gives the defects found, the residual, the runners-up with
 //! their gaps `r_alt - r_best`, the number of residual evaluations, the wall
 //! time, and whether the gap to the first runner-up is above the data's
@@ -140,7 +151,7 @@ pub struct Alternative {
 pub struct FitReport {
     /// The method used.
     pub method: String,
-    /// The defects found (mass defects).
+    /// The defects found (mass defects; any kind on the general path).
     pub defects: Vec<Defect>,
     /// The residual at the defects found.
     pub residual: f64,

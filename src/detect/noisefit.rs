@@ -23,6 +23,34 @@
 //! so it refines the Bromwich shortlist: each of its position sets is refitted
 //! in the time domain and the sets are re-ranked by their time-domain
 //! chi-square. Cost: `C(n, k)` short fits plus `shortlist` full fits.
+//!
+//! **General fit** ([`fit_general`], [`fit_noisy_general`]): defects of kind
+//! mass, spring, damper or any of them ([`GeneralUnknowns`]) at unknown (or
+//! known) positions, and uniform chain parameters (`d`, `gamma`, `k`, `mass`)
+//! fitted alongside. Coarse pass over every `(kind, position)` hypothesis on
+//! Laplace data (defect values only, chain parameters at their starting
+//! values; rayon, result independent of the thread count: ranked by
+//! `(chi2, hypothesis)`), then the shortlist with the chain parameters, in
+//! the time domain for the time misfit. Every [`Hypothesis`] carries its
+//! defects, fitted chain parameters, chi-square and standard errors.
+//!
+//! ```
+//! use springmass::{Chain, Defect, noise::NoiseLevel, sensitivity::Param};
+//! use springmass::detect::misfit_time::TimeData;
+//! use springmass::detect::noisefit::{fit_noisy_general, GeneralOptions, MisfitChoice, Setup};
+//! use springmass::detect::space::{GeneralUnknowns, KindChoice};
+//! let truth = Chain::paper(5)?.with_defect(Defect::Spring { at: 2, k: 0.5 })?;
+//! let data = TimeData::simulate(&truth, 100.0, 0.5, NoiseLevel::RelativeMax(1e-3), 1)?;
+//! let unknowns = GeneralUnknowns::free(5, &[KindChoice::Any], &[Param::D])?;
+//! let fit = fit_noisy_general(&truth.uniform().with_d(0.12)?, &data, &unknowns,
+//!     MisfitChoice::Time, &Setup::new()?, &GeneralOptions::default())?;
+//! let best = &fit.ranked[0];
+//! assert_eq!(best.key()[0].1, 2);
+//! assert_eq!(best.defects[0].kind(), "spring");
+//! let d = best.param("d").unwrap();
+//! assert!((d.value - 0.1).abs() < 4.0 * d.std_error);
+//! # Ok::<(), springmass::Error>(())
+//! ```
 
 use crate::chain::{Chain, Defect};
 use crate::detect::chainfit::{fit_chain, ChainProblem, LaplaceObs, Obs};

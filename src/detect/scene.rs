@@ -17,12 +17,19 @@
 //! # t_end = 300.0    # simulated
 //! # dt = 0.05        # simulated
 //!
+//! # relative = false # simulated/series: noise relative to max |x_1|
+//!
 //! [unknowns]         # optional; see crate::detect::space::UnknownsSpec
 //! k = 2              # default: number of defects in [chain]
 //! mass_bounds = [0.1, 100]
+//! # kind = "mass"    # "mass" | "spring" | "damper" | "any" (per defect:
+//! #                  #   [[unknowns.defects]] kind = ...)
+//! # chain = []       # chain parameters fitted too: "d", "gamma", "k", "mass"
+//! # chain_start = { d = 0.2 }     # their starting values
+//! # spring_bounds = [0.01, 100]   # damper_bounds = [0, 100]
 //!
 //! [misfit]           # optional; see crate::detect::misfit::MisfitSpec
-//! kind = "real-axis" # or "bromwich"
+//! kind = "real-axis" # or "bromwich", or "time" (simulated or series data)
 //! panels = 10
 //! per_panel = 8
 //! s_max = 300
@@ -33,6 +40,12 @@
 //! ```
 //!
 //! Every table rejects unknown fields.
+//!
+//! A scene with another defect kind, chain parameters or the time misfit
+//! ([`FitScene::is_general`]) is fitted by the general noisy fit
+//! ([`crate::detect::noisefit::fit_general`], unknowns from
+//! [`FitScene::general_unknowns`], series from [`FitScene::time_data`]); see
+//! `configs/fit-spring.toml` and `configs/fit-any.toml`.
 //!
 //! ```
 //! use springmass::detect::scene::FitScene;
