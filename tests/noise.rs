@@ -249,6 +249,17 @@ fn general(
     level: f64,
     seed: u64,
 ) -> springmass::detect::noisefit::GeneralFit {
+    general_with_sigma(truth, start, kinds, chain, level, seed).0
+}
+
+fn general_with_sigma(
+    truth: &Chain,
+    start: &Chain,
+    kinds: &[KindChoice],
+    chain: &[Param],
+    level: f64,
+    seed: u64,
+) -> (springmass::detect::noisefit::GeneralFit, f64) {
     let data = TimeData::simulate(truth, 200.0, 0.2, NoiseLevel::RelativeMax(level), seed).unwrap();
     let u = GeneralUnknowns::free(truth.n(), kinds, chain).unwrap();
     fit_noisy_general(
@@ -259,6 +270,7 @@ fn general(
         &Setup::new().unwrap(),
         &GeneralOptions::default(),
     )
+    .map(|f| (f, data.sigma()))
     .unwrap()
 }
 
@@ -319,7 +331,7 @@ fn kind_any_picks_the_right_kind() {
         (Defect::Mass { at: 2, m: 0.5 }, 6),
     ] {
         let truth = Chain::paper(6).unwrap().with_defect(truth_defect).unwrap();
-        let f = general(
+        let (f, sigma) = general_with_sigma(
             &truth,
             &truth.uniform(),
             &[KindChoice::Any],
@@ -327,6 +339,10 @@ fn kind_any_picks_the_right_kind() {
             1e-2,
             seed,
         );
+        // identifiability against the uniform value of each defect's kind
+        let id =
+            springmass::detect::noisefit::identify_general(&f.ranked, &truth, sigma, None).unwrap();
+        assert!(id.all_identifiable(), "{id:?}");
         assert_eq!(f.hypotheses, 6 + 7 + 6);
         let best = &f.ranked[0];
         assert!(best.positions_match(&truth), "{truth_defect}: {best:?}");
