@@ -76,6 +76,31 @@ impl Line {
     }
 }
 
+/// A short tick label: plain decimals with at most 4 significant digits for
+/// `1e-3 <= |v| < 1e5`, otherwise `1e-6`, `2.5e7` (rounding noise such as
+/// `1.0000000000004e-6` is removed).
+pub fn tick_label(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return if v == 0.0 { "0".into() } else { format!("{v}") };
+    }
+    let a = v.abs();
+    let trim = |t: String| -> String {
+        if t.contains('.') {
+            t.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            t
+        }
+    };
+    if (1e-3..1e5).contains(&a) {
+        let decimals = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
+        trim(format!("{v:.decimals$}"))
+    } else {
+        let t = format!("{v:.3e}");
+        let (mant, exp) = t.split_once('e').unwrap_or((&t, "0"));
+        format!("{}e{exp}", trim(mant.to_string()))
+    }
+}
+
 /// A line chart with optional logarithmic axes.
 #[derive(Clone, Debug)]
 pub struct LinePlot {
@@ -190,6 +215,8 @@ impl LinePlot {
                         .x_desc(self.x_label.as_str())
                         .y_desc(self.y_label.as_str())
                         .label_style(("sans-serif", 13))
+                        .x_label_formatter(&|v: &f64| tick_label(*v))
+                        .y_label_formatter(&|v: &f64| tick_label(*v))
                         .light_line_style(RGBColor(235, 235, 235))
                         .draw()
                         .map_err(plot_err)?;
@@ -446,6 +473,12 @@ mod tests {
             .to_svg_string()
             .unwrap();
         assert!(svg.contains("<svg") && svg.contains("sine") && svg.contains("polyline"));
+        assert_eq!(tick_label(1.0000000000004e-6), "1e-6");
+        assert_eq!(tick_label(2.5e7), "2.5e7");
+        assert_eq!(tick_label(0.25), "0.25");
+        assert_eq!(tick_label(300.0), "300");
+        assert_eq!(tick_label(-0.001), "-0.001");
+        assert_eq!(tick_label(0.0), "0");
         let log = LinePlot::new("log", "s", "r")
             .log_x(true)
             .log_y(true)

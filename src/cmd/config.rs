@@ -45,12 +45,33 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             let problems = check(&text);
             if problems.is_empty() {
                 let s = Study::from_text(&text, &file.display().to_string())?;
+                let count = |k: springmass::study::kinds::Kind| {
+                    s.cases.iter().filter(|c| c.kind == k).count()
+                };
+                let mut kinds = vec![s.file.study.kind];
+                kinds.extend(s.file.part.iter().map(|p| p.kind));
+                kinds.dedup();
+                let mut seen = Vec::new();
+                let by_kind: Vec<String> = kinds
+                    .into_iter()
+                    .filter(|k| {
+                        let new = !seen.contains(k);
+                        seen.push(*k);
+                        new
+                    })
+                    .map(|k| format!("{} {}", count(k), k.name()))
+                    .collect();
                 println!(
-                    "{}: ok (study {:?}, kind {}, {} cases)",
+                    "{}: ok (study {:?}, {} cases: {}{})",
                     file.display(),
                     s.file.study.name,
-                    s.file.study.kind.name(),
-                    s.cases.len()
+                    s.cases.len(),
+                    by_kind.join(", "),
+                    if s.file.part.is_empty() {
+                        String::new()
+                    } else {
+                        format!("; {} part(s) besides main", s.file.part.len())
+                    }
                 );
                 Ok(())
             } else {
