@@ -50,17 +50,24 @@ pub const FIELDS: &[FieldDoc] = &[
     FieldDoc::new("data.column", "string", "\"x1\"", "Column of the CSV series."),
     FieldDoc::new("data.noise", "float >= 0", "0", "`exact`: relative Laplace-domain noise; `simulated`: absolute noise on the samples; `series`: the samples' known noise."),
     FieldDoc::new("data.seed", "integer", "the case's seed", "Noise seed (in a study: derived from the case unless given)."),
+    FieldDoc::new("data.relative", "bool", "false", "`simulated`/`series`: `noise` is relative to the largest |x_1|."),
     FieldDoc::new("data.t_end", "float", "300", "`simulated`: end of the record."),
     FieldDoc::new("data.dt", "float", "0.05", "`simulated`: sampling step."),
     FieldDoc::new("unknowns", "table", "{}", "The unknowns."),
     FieldDoc::new("unknowns.k", "integer", "number of true mass defects", "Number of defects sought."),
     FieldDoc::new("unknowns.mass_bounds", "[float, float]", "[0.1, 100]", "Bounds of unknown masses."),
+    FieldDoc::new("unknowns.kind", "\"mass\" | \"spring\" | \"damper\" | \"any\"", "\"mass\"", "Kind of the sought defects; anything but mass (or `chain`, or `misfit.kind = \"time\"`) selects the general noisy fit."),
+    FieldDoc::new("unknowns.chain", "array of \"d\" | \"gamma\" | \"k\" | \"mass\"", "[]", "Uniform chain parameters fitted alongside the defects (not all four: they scale out)."),
+    FieldDoc::opaque("unknowns.chain_start", "table", "the [chain] values", "Starting values of fitted chain parameters, e.g. `{ d = 0.2 }`."),
+    FieldDoc::new("unknowns.spring_bounds", "[float, float]", "[0.01, 100]", "Bounds of unknown springs (lo > 0)."),
+    FieldDoc::new("unknowns.damper_bounds", "[float, float]", "[0, 100]", "Bounds of unknown dampers (lo >= 0)."),
     FieldDoc::new("unknowns.defects", "array of tables", "[]", "Per-defect knowledge (known position and/or mass, bounds)."),
     FieldDoc::new("unknowns.defects[].at", "integer", "unknown", "Known position."),
     FieldDoc::new("unknowns.defects[].m", "float", "unknown", "Known mass."),
-    FieldDoc::new("unknowns.defects[].bounds", "[float, float]", "mass_bounds", "Bounds of this unknown mass."),
+    FieldDoc::new("unknowns.defects[].bounds", "[float, float]", "mass_bounds", "Bounds of this unknown value (mass, spring or damper bounds by kind)."),
+    FieldDoc::new("unknowns.defects[].kind", "\"mass\" | \"spring\" | \"damper\" | \"any\"", "unknowns.kind", "Kind of this defect."),
     FieldDoc::new("misfit", "table", "{}", "The residual."),
-    FieldDoc::new("misfit.kind", "\"real-axis\" | \"bromwich\"", "\"real-axis\"", "L2 residual on [0, s_max] of the real axis, or on the line s = sigma + i omega."),
+    FieldDoc::new("misfit.kind", "\"real-axis\" | \"bromwich\" | \"time\"", "\"real-axis\"", "L2 residual on [0, s_max] of the real axis, on the line s = sigma + i omega, or the time-domain chi-square on the sampled series (needs simulated or series data; general fit)."),
     FieldDoc::new("misfit.rule", "\"gl-log\" | \"gl-uniform\"", "by kind", "Quadrature rule: Gauss-Legendre on log-graded or uniform panels."),
     FieldDoc::new("misfit.panels", "integer", "10 (real axis), 40 (Bromwich)", "Number of panels."),
     FieldDoc::new("misfit.per_panel", "integer", "8", "Gauss points per panel."),
@@ -84,9 +91,12 @@ pub const FIELDS: &[FieldDoc] = &[
 pub const METRICS: &[(&str, &str)] = &[
     (
         "success",
-        "the positions found equal the true mass-defect positions (as sets)",
+        "the defects found equal the true ones in kind and position (as sets)",
     ),
-    ("found", "positions found, e.g. 8;15"),
+    (
+        "found",
+        "positions found, e.g. 8;15 (other kinds prefixed: spring:4;damper:7)",
+    ),
     ("truth", "true positions, e.g. 8;15"),
     (
         "position_error",
@@ -94,7 +104,7 @@ pub const METRICS: &[(&str, &str)] = &[
     ),
     (
         "mass_max_rel_err",
-        "largest |m_found - m_true| / m_true (positions sorted), when the positions are right",
+        "largest relative error of the fitted defect values (masses; springs and dampers too in a general fit), when the positions are right",
     ),
     ("residual", "residual at the answer"),
     (
@@ -111,6 +121,18 @@ pub const METRICS: &[(&str, &str)] = &[
         "the answer's residual is within the data's floor",
     ),
     ("evaluations", "residual evaluations"),
+    (
+        "value_max_se",
+        "general fit: largest |value - truth| / standard error over the defects, when the positions are right",
+    ),
+    ("fit_d", "general fit: the fitted uniform damping d"),
+    ("fit_d_se", "general fit: its standard error"),
+    ("fit_gamma", "general fit: the fitted impulse scale gamma"),
+    ("fit_gamma_se", "general fit: its standard error"),
+    ("fit_k", "general fit: the fitted uniform spring constant k"),
+    ("fit_k_se", "general fit: its standard error"),
+    ("fit_mass", "general fit: the fitted uniform mass"),
+    ("fit_mass_se", "general fit: its standard error"),
     ("nodes", "quadrature nodes of the residual"),
     (
         "t_setup",
@@ -119,16 +141,29 @@ pub const METRICS: &[(&str, &str)] = &[
     ("t_search", "measured seconds of the search"),
 ];
 
-fn positions(d: &[Defect]) -> Vec<(usize, f64)> {
-    let mut v: Vec<(usize, f64)> = d
+/// `(label, value)` of every defect, sorted: the label is the position for a
+/// mass (`8`) and `kind:position` otherwise (`spring:4`).
+fn positions(d: &[Defect]) -> Vec<(String, f64)> {
+    let mut v: Vec<(usize, String, f64)> = d
         .iter()
-        .filter_map(|d| match *d {
-            Defect::Mass { at, m } => Some((at, m)),
-            _ => None,
+        .map(|d| {
+            let label = match d {
+                Defect::Mass { at, .. } => at.to_string(),
+                other => format!("{}:{}", other.kind(), other.at()),
+            };
+            (d.at(), label, d.value())
         })
         .collect();
-    v.sort_by_key(|p| p.0);
-    v
+    v.sort_by(|a, b| (a.0, &a.1).cmp(&(b.0, &b.1)));
+    v.into_iter().map(|(_, l, x)| (l, x)).collect()
+}
+
+fn position_of(label: &str) -> usize {
+    label
+        .rsplit(':')
+        .next()
+        .and_then(|p| p.parse().ok())
+        .unwrap_or(0)
 }
 
 /// The trace reduced to its improvements: `[evaluations, best residual so
@@ -211,7 +246,27 @@ impl KindScene for FitScene {
             ));
         }
         // [unknowns] (against the chain's n and defects)
-        if chain_ok {
+        if chain_ok && self.is_general() {
+            if let Err(e) = self.general_unknowns() {
+                out.push(e);
+            }
+            if self.search.method != FitMethod::Enumerate {
+                out.push(Error::invalid(
+                    "search.method",
+                    self.search.method.name(),
+                    "enumerate for the general fit (non-mass kinds, chain parameters or the time misfit)",
+                ));
+            }
+            if self.misfit.kind == crate::detect::misfit::MisfitKind::Time
+                && self.data.source == crate::detect::scene::DataSourceKind::Exact
+            {
+                out.push(Error::invalid(
+                    "data.source",
+                    "exact",
+                    "simulated or series for misfit.kind = \"time\"",
+                ));
+            }
+        } else if chain_ok {
             match self.unknowns() {
                 Err(e) => out.push(e),
                 Ok(u) => {
@@ -226,8 +281,10 @@ impl KindScene for FitScene {
             }
         }
         // [misfit]
-        if let Err(e) = self.misfit.rule() {
-            out.push(e);
+        if self.misfit.kind != crate::detect::misfit::MisfitKind::Time {
+            if let Err(e) = self.misfit.rule() {
+                out.push(e);
+            }
         }
         // [search]
         if self.search.method != FitMethod::Enumerate && self.search.max_evals == 0 {
@@ -260,18 +317,13 @@ pub fn run(value: &toml::Value, seed: u64) -> Result<CaseOutput> {
     let r = fit(&s, &data, &s.options())?;
     let truth = positions(s.truth()?.defects());
     let found = positions(&r.defects);
-    let list = |p: &[(usize, f64)]| {
-        p.iter()
-            .map(|x| x.0.to_string())
-            .collect::<Vec<_>>()
-            .join(";")
-    };
+    let list = |p: &[(String, f64)]| p.iter().map(|x| x.0.clone()).collect::<Vec<_>>().join(";");
     let same = truth.len() == found.len() && truth.iter().zip(&found).all(|(a, b)| a.0 == b.0);
     let pos_err: usize = if truth.len() == found.len() {
         truth
             .iter()
             .zip(&found)
-            .map(|(a, b)| a.0.abs_diff(b.0))
+            .map(|(a, b)| position_of(&a.0).abs_diff(position_of(&b.0)))
             .sum()
     } else {
         usize::MAX
@@ -304,6 +356,39 @@ pub fn run(value: &toml::Value, seed: u64) -> Result<CaseOutput> {
         f64::NAN
     };
     m.insert("mass_max_rel_err".into(), num(mrel));
+    if !r.std_errors.is_empty() {
+        let mut by_label: Vec<(String, f64, f64)> = r
+            .defects
+            .iter()
+            .zip(&r.std_errors)
+            .map(|(d, &se)| {
+                (
+                    positions(std::slice::from_ref(d))[0].0.clone(),
+                    d.value(),
+                    se,
+                )
+            })
+            .collect();
+        by_label.sort_by(|a, b| a.0.cmp(&b.0));
+        let zmax = if same {
+            truth
+                .iter()
+                .map(|(l, t)| {
+                    by_label
+                        .iter()
+                        .find(|x| &x.0 == l)
+                        .map_or(f64::NAN, |x| (x.1 - t).abs() / x.2)
+                })
+                .fold(0.0, f64::max)
+        } else {
+            f64::NAN
+        };
+        m.insert("value_max_se".into(), num(zmax));
+    }
+    for p in &r.chain_params {
+        m.insert(format!("fit_{}", p.name), num(p.value));
+        m.insert(format!("fit_{}_se", p.name), num(p.std_error));
+    }
     m.insert("residual".into(), num(r.residual));
     m.insert(
         "gap".into(),
@@ -388,5 +473,38 @@ mod tests {
             .windows(2)
             .all(|w| w[0][0] < w[1][0] && w[0][1] >= w[1][1]));
         assert_eq!(a.trace, Kind::Fit.run(&v, 1).unwrap().trace);
+    }
+
+    #[test]
+    fn general_scenes_run_and_are_checked() {
+        let v: toml::Value = toml::from_str(
+            r#"
+            chain = { n = 6, defects = [ { kind = "spring", at = 3, k = 0.5 }, { kind = "damper", at = 5, d = 0.6 } ] }
+            unknowns = { defects = [ { kind = "spring" }, { kind = "damper" } ] }
+            search = { parallel = false }
+            "#,
+        )
+        .unwrap();
+        assert!(FitScene::all_problems(&v).is_empty());
+        let out = Kind::Fit.run(&v, 0).unwrap();
+        assert_eq!(out.metrics["success"], true, "{:?}", out.metrics);
+        assert_eq!(out.metrics["found"], "spring:3;damper:5");
+        assert!(out.metrics["mass_max_rel_err"].as_f64().unwrap() < 1e-6);
+        // the time misfit needs sampled data; the general fit only enumerates
+        let bad: toml::Value = toml::from_str(
+            r#"
+            chain = { n = 6, defects = [ { kind = "spring", at = 3, k = 0.5 } ] }
+            unknowns = { kind = "spring", chain = ["d"] }
+            misfit = { kind = "time" }
+            search = { method = "ga" }
+            "#,
+        )
+        .unwrap();
+        let text: Vec<String> = FitScene::all_problems(&bad)
+            .iter()
+            .map(|e| e.to_string())
+            .collect();
+        assert!(text.iter().any(|t| t.contains("data.source")), "{text:?}");
+        assert!(text.iter().any(|t| t.contains("search.method")), "{text:?}");
     }
 }
