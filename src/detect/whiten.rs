@@ -8,15 +8,25 @@
 //! distribution. With the eigendecomposition `C = V diag(λ) V^T`,
 //!
 //! ```text
-//! W = diag(λ_k^{-1/2}) V_k^T   over the kept components  λ_k > cutoff · λ_max,
+//! W = diag(λ_k^{-1/2}) V_k^T D^{-1}   over the kept components  λ_k > cutoff · λ_max,
 //! chi^2 = ||W r||^2  ~  chi-square with K = #kept degrees of freedom,
 //! ```
+//!
+//! where the eigendecomposition is that of the *equilibrated* (correlation)
+//! matrix `D^{-1} C D^{-1} = V diag(λ) V^T`, `D = diag(sqrt(C_ii))`: the
+//! diagonal of `C` spans many orders of magnitude (the real-axis noise
+//! variance falls from `1e-5` at `s = 0` to `1e-11` at `s = 256`, and a node
+//! whose tail bound is large has a variance of order 1), and a cutoff
+//! relative to the largest eigenvalue of `C` itself would then be set by the
+//! worst-known datum rather than by f64 resolution. Equilibrated, the result
+//! does not depend on the units of each datum and `λ_max <= m`.
 //!
 //! for `r` the stacked real residual vector
 //! ([`crate::time::series::stack_re_im`]). `K` is the effective number of
 //! independent data the Laplace observation really has.
 //!
-//! **Cutoff** ([`DEFAULT_CUTOFF`] `= 1e-12`, relative to `λ_max`): a symmetric
+//! **Cutoff** ([`DEFAULT_CUTOFF`] `= 1e-12`, relative to `λ_max` of the
+//! correlation matrix): a symmetric
 //! eigensolver in f64 returns every eigenvalue with an absolute error of a few
 //! `eps · λ_max ≈ 1e-16 λ_max`, and the eigenvector of an eigenvalue `λ` is
 //! only determined to about `eps λ_max / gap`. Below `1e-12 λ_max` the
@@ -116,8 +126,20 @@ impl Whitening {
         if cov.iter().any(|v| !v.is_finite()) {
             return Err(Error::invalid("cov", "non-finite entry", "finite"));
         }
-        // symmetrise against rounding of the product that formed it
-        let sym = (cov + cov.transpose()) * 0.5;
+        // symmetrise against rounding of the product that formed it, and
+        // equilibrate: the correlation matrix D^-1 C D^-1, D = diag(sqrt(C_ii))
+        let m = cov.nrows();
+        let d: Vec<f64> = (0..m)
+            .map(|i| {
+                let v = cov[(i, i)];
+                if v > 0.0 {
+                    v.sqrt()
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        let sym = DMatrix::from_fn(m, m, |i, j| 0.5 * (cov[(i, j)] + cov[(j, i)]) / (d[i] * d[j]));
         let eig = SymmetricEigen::new(sym);
         let mut order: Vec<usize> = (0..eig.eigenvalues.len()).collect();
         order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
@@ -132,12 +154,11 @@ impl Whitening {
             .copied()
             .filter(|&k| eig.eigenvalues[k] > rel_cutoff * lmax)
             .collect();
-        let m = cov.nrows();
         let mut w = DMatrix::<f64>::zeros(kept.len(), m);
         for (row, &k) in kept.iter().enumerate() {
             let f = eig.eigenvalues[k].sqrt().recip();
             for j in 0..m {
-                w[(row, j)] = eig.eigenvectors[(j, k)] * f;
+                w[(row, j)] = eig.eigenvectors[(j, k)] * f / d[j];
             }
         }
         Ok(Whitening {
@@ -157,7 +178,8 @@ impl Whitening {
         self.matrix.nrows()
     }
 
-    /// Every eigenvalue of the covariance, largest first (kept or not).
+    /// Every eigenvalue of the correlation matrix `D^{-1} C D^{-1}`, largest
+    /// first (kept or not).
     pub fn eigenvalues(&self) -> &[f64] {
         &self.eigenvalues
     }
