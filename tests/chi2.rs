@@ -65,6 +65,65 @@ fn noisy_data_is_what_calibrate_draws() {
 }
 
 #[test]
+fn bromwich_whitened_is_a_calibrated_chi_square() {
+    // S3 at the true chain, 50 seeds, 1e-3 noise: chi2/dof ~ 1 (sd sqrt(2/160)
+    // per seed), while the diagonal weighting is off by a factor of ~60
+    let s3 = &systems()[2].truth;
+    let (dof, red, frac) = calibrate(s3, 1e-3, 50, MisfitChoice::Bromwich, Weighting::Whitened);
+    let m = mean(&red);
+    eprintln!("bromwich whitened: dof {dof}, mean chi2/dof {m:.4}, below chi2_95 {frac:.3}");
+    assert_eq!(dof, 160);
+    assert!((0.85..=1.15).contains(&m), "mean chi2/dof {m}");
+    assert!(
+        (0.85..=1.0).contains(&frac),
+        "fraction below the 95% quantile {frac}"
+    );
+    let (_, red_d, _) = calibrate(s3, 1e-3, 10, MisfitChoice::Bromwich, Weighting::Diagonal);
+    assert!(mean(&red_d) < 0.1, "diagonal: {}", mean(&red_d));
+}
+
+#[test]
+fn real_axis_noise_whitening_is_calibrated_and_has_few_dof() {
+    // noise-only covariance on the real-axis nodes: about 24 independent data
+    // out of 80 nodes; chi2/dof of the transformed noise ~ 1
+    use springmass::detect::whiten::{Whitening, DEFAULT_CUTOFF};
+    use springmass::forward::Forward;
+    use springmass::time::series::{stack_re_im, SeriesTransform, TransformOptions};
+    use springmass::Complex64;
+    let s3 = &systems()[2].truth;
+    let cfg = StudyConfig::default();
+    let setup = Setup::new().unwrap();
+    let s: Vec<Complex64> = setup
+        .real_rule
+        .nodes
+        .iter()
+        .map(|&x| Complex64::new(x, 0.0))
+        .collect();
+    let traj = simulate(s3, &SimOptions::new(cfg.t_end, cfg.dt)).unwrap();
+    let x = traj.x(1).unwrap();
+    let fwd = Forward::new(s3);
+    let model: Vec<Complex64> = s.iter().map(|z| fwd.eval(*z, 1).unwrap()).collect();
+    let mut red = Vec::new();
+    let mut dof = 0;
+    for r in 0..40 {
+        let (y, sigma) = add_noise(x, NoiseLevel::RelativeMax(1e-3), task_seed(&[7, r])).unwrap();
+        let tr = SeriesTransform::new(&traj.t, &y, &TransformOptions::default()).unwrap();
+        let res: Vec<Complex64> = s
+            .iter()
+            .zip(&model)
+            .map(|(z, m)| tr.eval(*z).unwrap().value - m)
+            .collect();
+        let w = Whitening::new(&tr.noise_covariance(&s, sigma).unwrap(), DEFAULT_CUTOFF).unwrap();
+        dof = w.dof();
+        red.push(w.chi2(&stack_re_im(&s, &res)) / dof as f64);
+    }
+    let m = mean(&red);
+    eprintln!("real axis, noise-only whitening: dof {dof}, mean chi2/dof {m:.4}");
+    assert!((15..=35).contains(&dof), "{dof}");
+    assert!((0.8..=1.2).contains(&m), "{m}");
+}
+
+#[test]
 #[ignore = "report: 200 seeds, run with --release --ignored --nocapture"]
 fn calibration_report() {
     let s3 = &systems()[2].truth;
@@ -99,7 +158,12 @@ fn error_budget_report() {
     let s3 = &systems()[2].truth;
     let cfg = StudyConfig::default();
     let setup = Setup::new().unwrap();
-    let real: Vec<Complex64> = setup.real_rule.nodes.iter().map(|&x| Complex64::new(x, 0.0)).collect();
+    let real: Vec<Complex64> = setup
+        .real_rule
+        .nodes
+        .iter()
+        .map(|&x| Complex64::new(x, 0.0))
+        .collect();
     let brom: Vec<Complex64> = setup
         .bromwich_rule
         .nodes
@@ -110,8 +174,20 @@ fn error_budget_report() {
     let x = traj.x(1).unwrap();
     for level in [0.0, 1e-3] {
         let (y, sigma) = add_noise(x, NoiseLevel::RelativeMax(level), 3).unwrap();
-        let sig = if level == 0.0 { 1e-3 * x.iter().fold(0.0f64, |a, v| a.max(v.abs())) } else { sigma };
-        let tr = SeriesTransform::new(&traj.t, &y, &TransformOptions { noise_sigma: Some(sig), ..Default::default() }).unwrap();
+        let sig = if level == 0.0 {
+            1e-3 * x.iter().fold(0.0f64, |a, v| a.max(v.abs()))
+        } else {
+            sigma
+        };
+        let tr = SeriesTransform::new(
+            &traj.t,
+            &y,
+            &TransformOptions {
+                noise_sigma: Some(sig),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         for (name, s) in [("real", &real), ("bromwich", &brom)] {
             let vals = tr.eval_many(s).unwrap();
             println!("level {level:e} {name}:");
@@ -135,7 +211,13 @@ fn error_budget_report() {
             println!();
             let e = Whitening::new(&c, 1e-12).unwrap();
             let ev = e.eigenvalues();
-            println!("  eigenvalues/max: {:?}", ev.iter().step_by(8).map(|v| format!("{:.1e}", v / ev[0])).collect::<Vec<_>>());
+            println!(
+                "  eigenvalues/max: {:?}",
+                ev.iter()
+                    .step_by(8)
+                    .map(|v| format!("{:.1e}", v / ev[0]))
+                    .collect::<Vec<_>>()
+            );
         }
     }
 }
@@ -150,20 +232,38 @@ fn model_error_share() {
     let s3 = &systems()[2].truth;
     let cfg = StudyConfig::default();
     let setup = Setup::new().unwrap();
-    let brom: Vec<Complex64> = setup.real_rule.nodes.iter().map(|&x| Complex64::new(x, 0.0)).collect();
+    let brom: Vec<Complex64> = setup
+        .real_rule
+        .nodes
+        .iter()
+        .map(|&x| Complex64::new(x, 0.0))
+        .collect();
     let traj = simulate(s3, &SimOptions::new(cfg.t_end, cfg.dt)).unwrap();
     let x = traj.x(1).unwrap();
     let fwd = Forward::new(s3);
     let model: Vec<Complex64> = brom.iter().map(|z| fwd.eval(*z, 1).unwrap()).collect();
     // noise-free data: bias of the transform against the exact model, whitened
     let tr0 = SeriesTransform::new(&traj.t, x, &TransformOptions::default()).unwrap();
-    let v0: Vec<Complex64> = tr0.eval_many(&brom).unwrap().iter().map(|v| v.value).collect();
+    let v0: Vec<Complex64> = tr0
+        .eval_many(&brom)
+        .unwrap()
+        .iter()
+        .map(|v| v.value)
+        .collect();
     let bias: Vec<Complex64> = v0.iter().zip(&model).map(|(a, b)| a - b).collect();
     let (mut a, mut b, mut c0) = (0.0, 0.0, 0.0);
     let n = 100;
     for r in 0..n {
         let (y, sigma) = add_noise(x, NoiseLevel::RelativeMax(1e-3), task_seed(&[7, r])).unwrap();
-        let tr = SeriesTransform::new(&traj.t, &y, &TransformOptions { noise_sigma: Some(sigma), ..Default::default() }).unwrap();
+        let tr = SeriesTransform::new(
+            &traj.t,
+            &y,
+            &TransformOptions {
+                noise_sigma: Some(sigma),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         let vals = tr.eval_many(&brom).unwrap();
         let res: Vec<Complex64> = vals.iter().zip(&model).map(|(v, m)| v.value - m).collect();
         let rr = stack_re_im(&brom, &res);
@@ -178,7 +278,12 @@ fn model_error_share() {
             c0 = wn.chi2(&stack_re_im(&brom, &bias)) / wn.dof() as f64;
         }
     }
-    println!("real: noise-only C: {:.4}; data C: {:.4}; noise-free bias chi2/dof {:.3e}", a / n as f64, b / n as f64, c0);
+    println!(
+        "real: noise-only C: {:.4}; data C: {:.4}; noise-free bias chi2/dof {:.3e}",
+        a / n as f64,
+        b / n as f64,
+        c0
+    );
 }
 
 #[test]
@@ -189,12 +294,33 @@ fn model_error_nodes() {
     let s3 = &systems()[2].truth;
     let cfg = StudyConfig::default();
     let setup = Setup::new().unwrap();
-    let brom: Vec<Complex64> = setup.bromwich_rule.nodes.iter().map(|&w| Complex64::new(setup.bromwich_sigma, w)).collect();
+    let brom: Vec<Complex64> = setup
+        .bromwich_rule
+        .nodes
+        .iter()
+        .map(|&w| Complex64::new(setup.bromwich_sigma, w))
+        .collect();
     let traj = simulate(s3, &SimOptions::new(cfg.t_end, cfg.dt)).unwrap();
     let x = traj.x(1).unwrap();
     let (y, sigma) = add_noise(x, NoiseLevel::RelativeMax(1e-3), task_seed(&[7, 0])).unwrap();
-    let tr = SeriesTransform::new(&traj.t, &y, &TransformOptions { noise_sigma: Some(sigma), ..Default::default() }).unwrap();
+    let tr = SeriesTransform::new(
+        &traj.t,
+        &y,
+        &TransformOptions {
+            noise_sigma: Some(sigma),
+            ..Default::default()
+        },
+    )
+    .unwrap();
     for v in tr.eval_many(&brom).unwrap().iter().step_by(5) {
-        println!("{:.3} sd {:.2e} disc {:.2e} trunc {:.2e} model {:.2e} (0: {:.2e})", v.s, v.noise_var.unwrap().sqrt(), v.err_disc, v.err_trunc, tr.model_error(v, sigma), tr.model_error(v, 0.0));
+        println!(
+            "{:.3} sd {:.2e} disc {:.2e} trunc {:.2e} model {:.2e} (0: {:.2e})",
+            v.s,
+            v.noise_var.unwrap().sqrt(),
+            v.err_disc,
+            v.err_trunc,
+            tr.model_error(v, sigma),
+            tr.model_error(v, 0.0)
+        );
     }
 }

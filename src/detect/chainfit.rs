@@ -468,7 +468,10 @@ mod tests {
     fn whitened_with_a_scaled_identity_equals_diagonal_weights() {
         let truth = Chain::paper(6)
             .unwrap()
-            .with_defects([Defect::Mass { at: 2, m: 3.0 }, Defect::Mass { at: 5, m: 0.5 }])
+            .with_defects([
+                Defect::Mass { at: 2, m: 3.0 },
+                Defect::Mass { at: 5, m: 0.5 },
+            ])
             .unwrap();
         let s = vec![
             Complex64::new(0.5, 0.0),
@@ -483,12 +486,18 @@ mod tests {
         assert_eq!((diag.dof(), wh.dof()), (6, 6));
         let guess = Chain::paper(6)
             .unwrap()
-            .with_defects([Defect::Mass { at: 2, m: 2.5 }, Defect::Mass { at: 5, m: 0.7 }])
+            .with_defects([
+                Defect::Mass { at: 2, m: 2.5 },
+                Defect::Mass { at: 5, m: 0.7 },
+            ])
             .unwrap();
         let (a, b) = (diag.chi2(&guess).unwrap(), wh.chi2(&guess).unwrap());
         assert!((a - b).abs() <= 1e-12 * a, "{a} vs {b}");
         let p = Param::defects(&guess);
-        let (ja, jb) = (diag.jacobian(&guess, &p).unwrap(), wh.jacobian(&guess, &p).unwrap());
+        let (ja, jb) = (
+            diag.jacobian(&guess, &p).unwrap(),
+            wh.jacobian(&guess, &p).unwrap(),
+        );
         let (ga, gb) = (ja.transpose() * &ja, jb.transpose() * &jb);
         assert!((ga - &gb).norm() <= 1e-12 * gb.norm());
         // a whitened fit recovers the truth

@@ -174,10 +174,14 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitChoice, setup: &Setup) -> Resu
     let vals = tr.eval_many(&s)?;
     if setup.weighting == crate::detect::whiten::Weighting::Whitened {
         let mut cov = tr.data_covariance(&vals)?;
-        for (r, (q, _)) in crate::time::series::stacked_rows(&s).into_iter().enumerate() {
+        for (r, (q, _)) in crate::time::series::stacked_rows(&s)
+            .into_iter()
+            .enumerate()
+        {
             cov[(r, r)] += (1e-15 * vals[q].value.norm()).powi(2);
         }
-        let wh = crate::detect::whiten::Whitening::new(&cov, crate::detect::whiten::DEFAULT_CUTOFF)?;
+        let wh =
+            crate::detect::whiten::Whitening::new(&cov, crate::detect::whiten::DEFAULT_CUTOFF)?;
         let values = vals.iter().map(|v| v.value).collect();
         return LaplaceObs::whitened(s, values, wh.matrix().clone());
     }

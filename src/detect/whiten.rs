@@ -139,7 +139,9 @@ impl Whitening {
                 }
             })
             .collect();
-        let sym = DMatrix::from_fn(m, m, |i, j| 0.5 * (cov[(i, j)] + cov[(j, i)]) / (d[i] * d[j]));
+        let sym = DMatrix::from_fn(m, m, |i, j| {
+            0.5 * (cov[(i, j)] + cov[(j, i)]) / (d[i] * d[j])
+        });
         let eig = SymmetricEigen::new(sym);
         let mut order: Vec<usize> = (0..eig.eigenvalues.len()).collect();
         order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
@@ -276,7 +278,9 @@ mod tests {
     #[test]
     fn whitening_inverts_the_covariance_on_its_range() {
         // random-ish SPD 5x5 of rank 3 plus a tiny diagonal below the cutoff
-        let b = DMatrix::from_fn(5, 3, |i, j| ((i * 3 + j * 7) % 5) as f64 - 1.7 + 0.1 * j as f64);
+        let b = DMatrix::from_fn(5, 3, |i, j| {
+            ((i * 3 + j * 7) % 5) as f64 - 1.7 + 0.1 * j as f64
+        });
         let mut c = &b * b.transpose();
         for i in 0..5 {
             c[(i, i)] += 1e-20;

@@ -1061,7 +1061,10 @@ mod tests {
             assert!(tr.model_error(v, 1e-3) <= v.err);
         }
         assert_eq!(d[(0, 1)], 0.0);
-        assert_eq!(stack_re_im(&s, &[c(1.0, 2.0), c(3.0, 4.0)]), vec![1.0, 3.0, 4.0]);
+        assert_eq!(
+            stack_re_im(&s, &[c(1.0, 2.0), c(3.0, 4.0)]),
+            vec![1.0, 3.0, 4.0]
+        );
     }
 
     #[test]
