@@ -110,3 +110,20 @@ fn bad_input_exits_nonzero_with_one_line() {
         );
     }
 }
+
+#[test]
+fn fit_scene_with_spring_and_damper_defects() {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/fit-spring.toml");
+    let (code, out, err) = run(&["fit", "--scene", scene]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("found      (spring 4, 0.5"), "{out}");
+    assert!(out.contains("(damper 7, 0.6"), "{out}");
+    assert!(out.contains("chain d"), "{out}");
+    assert!(out.contains("runners-up"), "{out}");
+    let (code, out, err) = run(&["fit", "--scene", scene, "--json"]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let d = &v["chain_params"][0];
+    assert_eq!(d["name"], "d");
+    assert!((d["value"].as_f64().unwrap() - 0.1).abs() <= 3.0 * d["std_error"].as_f64().unwrap());
+}

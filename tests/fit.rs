@@ -425,3 +425,53 @@ fn objective_penalises_invalid_candidates_finitely() {
         assert!(p.is_finite() && p >= PENALTY, "{c:?}: {p}");
     }
 }
+
+#[test]
+fn general_scene_with_laplace_data_finds_a_spring_and_fits_gamma() {
+    // exact Laplace data (no series), Bromwich misfit, spring defect at an
+    // unknown position, gamma unknown (start 1, truth 1.2): routed to the
+    // general noisy fit by `fit`
+    let text = r#"
+[chain]
+n = 6
+d = 0.1
+gamma = 1.2
+defects = [ { kind = "spring", at = 3, k = 0.4 } ]
+[data]
+source = "exact"
+noise = 1e-6
+[unknowns]
+kind = "spring"
+chain = ["gamma"]
+chain_start = { gamma = 1.0 }
+[misfit]
+kind = "bromwich"
+panels = 10
+"#;
+    let scene = springmass::detect::scene::FitScene::from_toml(text).unwrap();
+    let report =
+        springmass::detect::fit::fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
+    assert_eq!(report.defects.len(), 1);
+    assert_eq!(
+        (report.defects[0].kind(), report.defects[0].at()),
+        ("spring", 3)
+    );
+    assert!((report.defects[0].value() - 0.4).abs() < 1e-4, "{report:?}");
+    let g = &report.chain_params[0];
+    assert_eq!(g.name, "gamma");
+    assert!(
+        (g.value - 1.2).abs() < 1e-4 && (g.value - 1.2).abs() < 5.0 * g.std_error.max(1e-9),
+        "{g:?}"
+    );
+    assert_eq!(report.sets, Some(7));
+    assert!(report.resolved && report.runners_up[0].gap > 9.0);
+    // the optimizers are refused on this path, naming the field
+    let mut s2 = scene.clone();
+    s2.search.method = springmass::detect::fit::FitMethod::Ga;
+    match springmass::detect::fit::fit(&s2, &s2.data().unwrap(), &s2.options()) {
+        Err(springmass::Error::InvalidParameter { field, .. }) => {
+            assert_eq!(field, "search.method")
+        }
+        other => panic!("{other:?}"),
+    }
+}

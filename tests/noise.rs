@@ -133,7 +133,7 @@ fn damping_fitted_with_the_masses() {
         2,
     )
     .unwrap();
-    assert_eq!(h.positions, vec![3, 7]);
+    assert_eq!(h.positions(), vec![3, 7]);
     let d = rep.chain.d();
     assert!((d - 0.1).abs() < 0.01 * 0.1, "d = {d}");
     assert!((d - 0.1).abs() < 4.0 * rep.std_errors[2]);
@@ -233,4 +233,180 @@ fn cli_rejects_bad_input_and_runs_a_tiny_table() {
     assert!(csv.contains("S1,bromwich,1e-3,1,1,1"), "{csv}");
     assert!(dir.join("success.svg").exists());
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+// ---- general noisy fit: spring, damper and any-kind defects at unknown
+// positions, chain parameters fitted alongside
+
+use springmass::detect::noisefit::{fit_noisy_general, GeneralOptions};
+use springmass::detect::space::{GeneralUnknowns, KindChoice};
+
+fn general(
+    truth: &Chain,
+    start: &Chain,
+    kinds: &[KindChoice],
+    chain: &[Param],
+    level: f64,
+    seed: u64,
+) -> springmass::detect::noisefit::GeneralFit {
+    general_with_sigma(truth, start, kinds, chain, level, seed).0
+}
+
+fn general_with_sigma(
+    truth: &Chain,
+    start: &Chain,
+    kinds: &[KindChoice],
+    chain: &[Param],
+    level: f64,
+    seed: u64,
+) -> (springmass::detect::noisefit::GeneralFit, f64) {
+    let data = TimeData::simulate(truth, 200.0, 0.2, NoiseLevel::RelativeMax(level), seed).unwrap();
+    let u = GeneralUnknowns::free(truth.n(), kinds, chain).unwrap();
+    fit_noisy_general(
+        start,
+        &data,
+        &u,
+        MisfitChoice::Time,
+        &Setup::new().unwrap(),
+        &GeneralOptions::default(),
+    )
+    .map(|f| (f, data.sigma()))
+    .unwrap()
+}
+
+fn within_se(h: &springmass::detect::noisefit::Hypothesis, truth: &Chain, nse: f64) {
+    for t in truth.defects() {
+        let (i, d) = h
+            .defects
+            .iter()
+            .enumerate()
+            .find(|(_, d)| d.kind() == t.kind() && d.at() == t.at())
+            .unwrap_or_else(|| panic!("{t} not found in {:?}", h.defects));
+        let se = h.std_errors[i];
+        assert!(
+            (d.value() - t.value()).abs() <= nse * se,
+            "{t}: {} +- {se}",
+            d.value()
+        );
+    }
+}
+
+#[test]
+fn spring_and_damper_at_unknown_positions_with_d_fitted() {
+    let truth = Chain::paper(10)
+        .unwrap()
+        .with_defects([
+            Defect::Spring { at: 4, k: 0.5 },
+            Defect::Damper { at: 7, d: 0.6 },
+        ])
+        .unwrap();
+    for (level, seed) in [(1e-3, 1), (1e-2, 2)] {
+        let start = truth.uniform().with_d(0.15).unwrap();
+        let f = general(
+            &truth,
+            &start,
+            &[KindChoice::Spring, KindChoice::Damper],
+            &[Param::D],
+            level,
+            seed,
+        );
+        let best = &f.ranked[0];
+        eprintln!(
+            "level {level}: {:?} (hyps {}, evals {})",
+            best, f.hypotheses, f.evaluations
+        );
+        assert!(best.positions_match(&truth), "{:?}", best);
+        within_se(best, &truth, 4.0);
+        let d = best.param("d").unwrap();
+        assert!((d.value - 0.1).abs() <= 3.0 * d.std_error, "{d:?}");
+    }
+}
+
+#[test]
+fn kind_any_picks_the_right_kind() {
+    // one defect of unknown kind: a damper, then a spring, then a mass
+    for (truth_defect, seed) in [
+        (Defect::Damper { at: 3, d: 0.8 }, 4),
+        (Defect::Spring { at: 5, k: 2.0 }, 5),
+        (Defect::Mass { at: 2, m: 0.5 }, 6),
+    ] {
+        let truth = Chain::paper(6).unwrap().with_defect(truth_defect).unwrap();
+        let (f, sigma) = general_with_sigma(
+            &truth,
+            &truth.uniform(),
+            &[KindChoice::Any],
+            &[],
+            1e-2,
+            seed,
+        );
+        // identifiability against the uniform value of each defect's kind
+        let id =
+            springmass::detect::noisefit::identify_general(&f.ranked, &truth, sigma, None).unwrap();
+        assert!(id.all_identifiable(), "{id:?}");
+        assert_eq!(f.hypotheses, 6 + 7 + 6);
+        let best = &f.ranked[0];
+        assert!(best.positions_match(&truth), "{truth_defect}: {best:?}");
+        within_se(best, &truth, 4.0);
+        // the runner-up is far: another kind or position
+        assert!(f.ranked[1].chi2 - best.chi2 > 25.0, "{:?}", f.ranked[1]);
+    }
+}
+
+#[test]
+fn gamma_and_k_fitted_with_a_spring_defect() {
+    let truth = Chain::paper(6)
+        .unwrap()
+        .with_gamma(1.5)
+        .unwrap()
+        .with_k(0.8)
+        .unwrap()
+        .with_defect(Defect::Spring { at: 2, k: 0.3 })
+        .unwrap();
+    let start = Chain::paper(6).unwrap();
+    let f = general(
+        &truth,
+        &start,
+        &[KindChoice::Spring],
+        &[Param::Gamma, Param::K],
+        1e-2,
+        8,
+    );
+    let best = &f.ranked[0];
+    assert!(best.positions_match(&truth), "{best:?}");
+    within_se(best, &truth, 4.0);
+    for (name, v) in [("gamma", 1.5), ("k", 0.8)] {
+        let p = best.param(name).unwrap();
+        assert!((p.value - v).abs() <= 3.0 * p.std_error, "{p:?}");
+    }
+}
+
+#[test]
+fn general_fit_does_not_depend_on_threads() {
+    let truth = Chain::paper(5)
+        .unwrap()
+        .with_defects([
+            Defect::Damper { at: 2, d: 0.5 },
+            Defect::Mass { at: 4, m: 2.0 },
+        ])
+        .unwrap();
+    let data = TimeData::simulate(&truth, 100.0, 0.5, NoiseLevel::RelativeMax(1e-2), 11).unwrap();
+    let u = GeneralUnknowns::free(5, &[KindChoice::Any, KindChoice::Any], &[Param::D]).unwrap();
+    let setup = Setup::new().unwrap();
+    let run = |parallel| {
+        fit_noisy_general(
+            &truth.uniform(),
+            &data,
+            &u,
+            MisfitChoice::Bromwich,
+            &setup,
+            &GeneralOptions {
+                parallel,
+                ..GeneralOptions::default()
+            },
+        )
+        .unwrap()
+    };
+    let (a, b) = (run(true), run(false));
+    assert_eq!(a, b);
+    assert!(a.ranked[0].positions_match(&truth), "{:?}", a.ranked[0]);
 }

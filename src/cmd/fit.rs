@@ -19,7 +19,8 @@ pub struct Args {
     /// Seed of stochastic methods (overrides [search].seed).
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Relative noise level of synthetic data (overrides [data].noise).
+    /// Noise level of synthetic data (overrides [data].noise; relative or
+    /// absolute as [data].relative says).
     #[arg(long)]
     pub noise: Option<f64>,
     /// Record and print the optimizer's trace.
@@ -54,9 +55,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn fmt_defects(d: &[springmass::Defect]) -> String {
+/// `(at, value)` for masses; `(kind at, value)` for other kinds or when
+/// `kinds` (the general fit).
+fn fmt_defects(d: &[springmass::Defect], kinds: bool) -> String {
     d.iter()
-        .map(|d| format!("({}, {:.6})", d.at(), d.value()))
+        .map(|d| match d {
+            springmass::Defect::Mass { .. } if !kinds => format!("({}, {:.6})", d.at(), d.value()),
+            _ => format!("({} {}, {:.6})", d.kind(), d.at(), d.value()),
+        })
         .collect::<Vec<_>>()
         .join(", ")
 }
@@ -64,14 +70,37 @@ fn fmt_defects(d: &[springmass::Defect]) -> String {
 fn print_text(scene: &FitScene, r: &FitReport) {
     println!("# method   {}", r.method);
     println!("# misfit   {} ({} nodes)", r.misfit, r.nodes);
+    let general = !r.std_errors.is_empty();
     let truth: Vec<springmass::Defect> = scene.chain.defects.clone();
     if !truth.is_empty() {
-        println!("truth      {}", fmt_defects(&truth));
+        println!("truth      {}", fmt_defects(&truth, general));
     }
-    println!("found      {}", fmt_defects(&r.defects));
-    println!("residual   {:.6e}", r.residual);
+    println!("found      {}", fmt_defects(&r.defects, general));
+    if !r.std_errors.is_empty() {
+        for (d, se) in r.defects.iter().zip(&r.std_errors) {
+            println!(
+                "  {:<6} at {:>3}  {:.6} +- {:.2e}",
+                d.kind(),
+                d.at(),
+                d.value(),
+                se
+            );
+        }
+    }
+    for p in &r.chain_params {
+        println!(
+            "  chain {:<6} {:.6} +- {:.2e}",
+            p.name, p.value, p.std_error
+        );
+    }
     println!(
-        "data floor {:.3e}  ({})",
+        "{}   {:.6e}",
+        if general { "chi2    " } else { "residual" },
+        r.residual
+    );
+    println!(
+        "{} {:.3e}  ({})",
+        if general { "gap thr. " } else { "data floor" },
         r.floor,
         if r.resolved {
             "resolved: the first runner-up is above the floor"
@@ -88,8 +117,8 @@ fn print_text(scene: &FitScene, r: &FitReport) {
         println!("runners-up");
         for alt in &r.runners_up {
             println!(
-                "  {:<40} r = {:.6e}  gap = {:.3e}",
-                fmt_defects(&alt.defects),
+                "  {:<48} r = {:.6e}  gap = {:.3e}",
+                fmt_defects(&alt.defects, general),
                 alt.residual,
                 alt.gap
             );

@@ -16,6 +16,17 @@
 //!   These methods need interchangeable unknown-position defects (the
 //!   optimizers' spaces are unordered).
 //!
+//! **General path.** When the scene asks for what the mass-only Woodbury
+//! path cannot do (spring, damper or `any` defects, chain parameters `d`,
+//! `gamma`, `k`, `mass`, or `[misfit] kind = "time"`,
+//! [`FitScene::is_general`]), `fit` runs the general noisy fit
+//! ([`crate::detect::noisefit::fit_general`]; method `enumerate` only): the
+//! residual is then a chi-square (Laplace data weighted by the rule over the
+//! data's variance at each node, or the time-domain chi-square of the scene's
+//! series), `floor` is the chi-square gap threshold
+//! [`crate::detect::identify::DEFAULT_THRESHOLD`], and the report carries
+//! the standard errors of the defect values and the fitted chain parameters.
+//!
 //! The report gives the defects found, the residual, the runners-up with
 //! their gaps `r_alt - r_best`, the number of residual evaluations, the wall
 //! time, and whether the gap to the first runner-up is above the data's
@@ -39,13 +50,19 @@
 //! ```
 
 use crate::chain::Defect;
+use crate::detect::chainfit::LaplaceObs;
 use crate::detect::data::Data;
 use crate::detect::misfit::{Misfit, MisfitKind};
+use crate::detect::misfit_time::TimeMisfit;
+use crate::detect::noisefit::{
+    fit_general, laplace_obs, FittedParam, GeneralOptions, MisfitChoice, Setup,
+};
 use crate::detect::scene::FitScene;
 use crate::detect::search::enumerate::{enumerate, fit_slots, Defects, EnumerateOptions};
 use crate::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
 use crate::detect::space::{MassUnknown, Unknowns};
 use crate::error::{Error, Result};
+use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -134,7 +151,7 @@ pub struct Alternative {
 pub struct FitReport {
     /// The method used.
     pub method: String,
-    /// The defects found (mass defects).
+    /// The defects found (mass defects; any kind on the general path).
     pub defects: Vec<Defect>,
     /// The residual at the defects found.
     pub residual: f64,
@@ -165,7 +182,13 @@ pub struct FitReport {
     /// The residual is within the data's error (`r <= 4 floor`): the
     /// hypothesis explains the data. False means a defect is missing from the
     /// model, or the search (beam search, stochastic methods) missed the truth.
+    /// General path: `chi^2 <= m + 4 sqrt(2 m)` with `m` residuals.
     pub fits_data: bool,
+    /// General path: Gauss-Newton standard errors of the defect values, in the
+    /// order of `defects` (0 for a known value); empty on the mass-only path.
+    pub std_errors: Vec<f64>,
+    /// General path: the fitted chain parameters with their standard errors.
+    pub chain_params: Vec<FittedParam>,
 }
 
 /// Fit the scene's unknowns to `data`.
@@ -174,6 +197,9 @@ pub struct FitReport {
 /// Invalid chain, unknowns or misfit in the scene (typed, naming the field);
 /// a method this build does not provide (`search.method`).
 pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitReport> {
+    if scene.is_general() {
+        return fit_general_scene(scene, data, options);
+    }
     let t0 = Instant::now();
     let model = scene.truth()?.uniform();
     let unknowns = scene.unknowns()?;
@@ -269,6 +295,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitRep
             "bromwich sigma={} omega in [0, {}]",
             scene.misfit.sigma, scene.misfit.omega_max
         ),
+        MisfitKind::Time => "time".into(),
     };
     Ok(FitReport {
         method: options.method.name().into(),
@@ -287,6 +314,120 @@ pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitRep
         floor,
         resolved,
         fits_data,
+        std_errors: Vec::new(),
+        chain_params: Vec::new(),
+    })
+}
+
+/// The general path of [`fit`]: defects of any kind and chain parameters
+/// ([`crate::detect::noisefit::fit_general`]); the residual is a chi-square,
+/// `floor` the gap threshold [`crate::detect::identify::DEFAULT_THRESHOLD`].
+fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitReport> {
+    let t0 = Instant::now();
+    if options.method != FitMethod::Enumerate {
+        return Err(Error::invalid(
+            "search.method",
+            options.method.name(),
+            "enumerate for defects of other kinds, chain parameters or the time misfit",
+        ));
+    }
+    let unknowns = scene.general_unknowns()?;
+    let base = scene.unknowns.start_chain(&scene.truth()?)?;
+    let mut setup = Setup::new()?;
+    let (coarse, fine, misfit_name, nodes) = match scene.misfit.kind {
+        MisfitKind::Time => {
+            let td = scene.time_data()?;
+            let coarse = laplace_obs(&td, MisfitChoice::Bromwich, &setup)?;
+            let name = format!(
+                "time-domain chi-square ({} samples, sigma = {:.3e}; shortlist from the Bromwich line sigma = {})",
+                td.len(),
+                td.sigma(),
+                setup.bromwich_sigma
+            );
+            let n = td.len();
+            (coarse, Some(TimeMisfit::new(td)), name, n)
+        }
+        kind => {
+            let rule = scene.misfit.rule()?;
+            let (s, values, sigma): (Vec<Complex64>, Vec<Complex64>, Vec<f64>) =
+                if kind == MisfitKind::RealAxis {
+                    let sm = data.sample(&rule.nodes)?;
+                    (
+                        rule.nodes.iter().map(|&x| Complex64::new(x, 0.0)).collect(),
+                        sm.values.iter().map(|&x| Complex64::new(x, 0.0)).collect(),
+                        sm.sigma,
+                    )
+                } else {
+                    let s: Vec<Complex64> = rule
+                        .nodes
+                        .iter()
+                        .map(|&w| Complex64::new(scene.misfit.sigma, w))
+                        .collect();
+                    let sm = data.sample(&s)?;
+                    (s, sm.values, sm.sigma)
+                };
+            let weights = rule
+                .weights
+                .iter()
+                .zip(&sigma)
+                .map(|(w, sg)| w / (sg * sg).max(1e-300))
+                .collect();
+            let n = s.len();
+            let name = format!(
+                "{} chi-square on the rule's nodes (weights w_q / sigma_q^2), {}",
+                if kind == MisfitKind::RealAxis {
+                    "real-axis"
+                } else {
+                    "bromwich"
+                },
+                rule.name
+            );
+            (LaplaceObs::new(s, values, weights)?, None, name, n)
+        }
+    };
+    setup.shortlist = setup.shortlist.max(options.enumerate.keep);
+    let gopts = GeneralOptions {
+        parallel: options.enumerate.parallel,
+        max_sets: options.enumerate.max_sets,
+        ..GeneralOptions::default()
+    };
+    let setup_time = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let g = fit_general(&base, &unknowns, &coarse, fine.as_ref(), &setup, &gopts)?;
+    let best = g.ranked.first().ok_or_else(|| Error::Numerical {
+        method: "fit_general".into(),
+        reason: "no hypothesis".into(),
+    })?;
+    let runners: Vec<Alternative> = g.ranked[1..]
+        .iter()
+        .take(options.enumerate.keep.saturating_sub(1))
+        .map(|h| Alternative {
+            defects: h.defects.clone(),
+            residual: h.chi2,
+            gap: h.chi2 - best.chi2,
+        })
+        .collect();
+    let floor = crate::detect::identify::DEFAULT_THRESHOLD;
+    let m = g.residuals as f64;
+    Ok(FitReport {
+        method: "enumerate (general noisy fit)".into(),
+        defects: best.defects.clone(),
+        residual: best.chi2,
+        resolved: runners.first().is_none_or(|r| r.gap > floor),
+        runners_up: runners,
+        evaluations: g.evaluations,
+        probe_evaluations: 0,
+        sets: Some(g.hypotheses),
+        exhaustive: Some(true),
+        wall_time_s: t1.elapsed().as_secs_f64(),
+        setup_time_s: setup_time,
+        trace: Vec::new(),
+        misfit: misfit_name,
+        nodes,
+        floor,
+        fits_data: best.chi2 <= m + 4.0 * (2.0 * m).sqrt(),
+        std_errors: best.std_errors.clone(),
+        chain_params: best.chain.clone(),
     })
 }
 

@@ -52,6 +52,10 @@ pub enum MisfitKind {
     RealAxis,
     /// `int_0^W |X - X*|^2 d omega` on `s = sigma + i omega`.
     Bromwich,
+    /// The time-domain chi-square against the sampled series
+    /// ([`crate::detect::misfit_time`]); no quadrature rule: a fit scene with
+    /// it is fitted by [`crate::detect::noisefit::fit_general`].
+    Time,
 }
 
 /// Which fixed rule.
@@ -71,7 +75,7 @@ pub enum RuleKind {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MisfitSpec {
-    /// `real-axis` or `bromwich`.
+    /// `real-axis`, `bromwich` or `time`.
     #[serde(default)]
     pub kind: MisfitKind,
     /// `gl-log` or `gl-uniform` (default by kind).
@@ -186,8 +190,17 @@ impl MisfitSpec {
                     ),
                 }
             }
+            MisfitKind::Time => Err(time_has_no_rule()),
         }
     }
+}
+
+fn time_has_no_rule() -> Error {
+    Error::invalid(
+        "misfit.kind",
+        "time",
+        "real-axis or bromwich here (the time misfit is fitted by detect::noisefit::fit_general)",
+    )
 }
 
 /// Minimal number interface of the kernels (`f64` and [`Complex64`]).
@@ -291,6 +304,7 @@ impl Misfit {
                 let sm = data.sample(&s)?;
                 (Tab::Complex { g, d: sm.values }, sm.sigma)
             }
+            MisfitKind::Time => return Err(time_has_no_rule()),
         };
         Ok(Misfit {
             spec: spec.clone(),
@@ -439,6 +453,7 @@ impl Misfit {
                 };
                 adaptive.integrate(f, 0.0, self.spec.omega_max)
             }
+            MisfitKind::Time => Err(time_has_no_rule()),
         }
     }
 }

@@ -23,17 +23,50 @@
 //! so it refines the Bromwich shortlist: each of its position sets is refitted
 //! in the time domain and the sets are re-ranked by their time-domain
 //! chi-square. Cost: `C(n, k)` short fits plus `shortlist` full fits.
+//!
+//! **General fit** ([`fit_general`], [`fit_noisy_general`]): defects of kind
+//! mass, spring, damper or any of them ([`GeneralUnknowns`]) at unknown (or
+//! known) positions, and uniform chain parameters (`d`, `gamma`, `k`, `mass`)
+//! fitted alongside. Coarse pass over every `(kind, position)` hypothesis on
+//! Laplace data (defect values only, chain parameters at their starting
+//! values; rayon, result independent of the thread count: ranked by
+//! `(chi2, hypothesis)`), then the shortlist with the chain parameters, in
+//! the time domain for the time misfit. Every [`Hypothesis`] carries its
+//! defects, fitted chain parameters, chi-square and standard errors.
+//!
+//! ```
+//! use springmass::{Chain, Defect, noise::NoiseLevel, sensitivity::Param};
+//! use springmass::detect::misfit_time::TimeData;
+//! use springmass::detect::noisefit::{fit_noisy_general, GeneralOptions, MisfitChoice, Setup};
+//! use springmass::detect::space::{GeneralUnknowns, KindChoice};
+//! let truth = Chain::paper(5)?.with_defect(Defect::Spring { at: 2, k: 0.5 })?;
+//! let data = TimeData::simulate(&truth, 100.0, 0.5, NoiseLevel::RelativeMax(1e-3), 1)?;
+//! let unknowns = GeneralUnknowns::free(5, &[KindChoice::Any], &[Param::D])?;
+//! let fit = fit_noisy_general(&truth.uniform().with_d(0.12)?, &data, &unknowns,
+//!     MisfitChoice::Time, &Setup::new()?, &GeneralOptions::default())?;
+//! let best = &fit.ranked[0];
+//! assert_eq!(best.key()[0].1, 2);
+//! assert_eq!(best.defects[0].kind(), "spring");
+//! let d = best.param("d").unwrap();
+//! assert!((d.value - 0.1).abs() < 4.0 * d.std_error);
+//! # Ok::<(), springmass::Error>(())
+//! ```
 
 use crate::chain::{Chain, Defect};
-use crate::detect::chainfit::{fit_chain, LaplaceObs, Obs};
+use crate::detect::chainfit::{fit_chain, ChainProblem, LaplaceObs, Obs};
 use crate::detect::identify::{identify, Alternative, FittedDefect, Identifiability};
 use crate::detect::lsq::{levenberg_marquardt, LmOptions};
 use crate::detect::misfit_time::{TimeData, TimeMisfit};
 use crate::detect::quadrature::Rule;
+use crate::detect::search::enumerate::subsets;
+use crate::detect::space::{
+    DefectKind, GeneralUnknowns, KindBounds, KindChoice, KindPositions, Slot,
+};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use crate::time::series::{SeriesTransform, TransformOptions};
 use num_complex::Complex64;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Which misfit.
@@ -196,88 +229,489 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitChoice, setup: &Setup) -> Resu
     LaplaceObs::new(s, values, weights)
 }
 
-/// One hypothesis: positions (sorted), fitted masses, chi-square.
+/// A fitted uniform chain parameter.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FittedParam {
+    /// `d`, `gamma`, `k` or `mass`.
+    pub name: String,
+    /// Fitted value.
+    pub value: f64,
+    /// Gauss-Newton standard error (NaN when unconstrained).
+    pub std_error: f64,
+}
+
+/// One hypothesis: the defects (kind, position, fitted value), the fitted
+/// chain parameters, the chi-square and the standard errors of every fitted
+/// value.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Hypothesis {
-    /// Positions, increasing.
-    pub positions: Vec<usize>,
-    /// Fitted masses, in the order of `positions`.
-    pub masses: Vec<f64>,
+    /// The defects. Mass-only fits: increasing positions; general fits: in
+    /// the order of the unknowns' slots.
+    pub defects: Vec<Defect>,
+    /// Standard errors of the defect values, in the order of `defects` (NaN
+    /// when unconstrained; 0 for a known value).
+    pub std_errors: Vec<f64>,
+    /// Fitted chain parameters (empty when none were fitted).
+    pub chain: Vec<FittedParam>,
     /// Misfit value.
     pub chi2: f64,
-    /// Gauss-Newton standard errors of the masses (NaN when unconstrained).
-    pub std_errors: Vec<f64>,
 }
 
 impl Hypothesis {
-    /// The defects.
-    pub fn defects(&self) -> Vec<Defect> {
-        self.positions
+    fn masses_only(positions: &[usize], masses: &[f64], chi2: f64, se: Vec<f64>) -> Hypothesis {
+        Hypothesis {
+            defects: positions
+                .iter()
+                .zip(masses)
+                .map(|(&at, &m)| Defect::Mass { at, m })
+                .collect(),
+            std_errors: se,
+            chain: Vec::new(),
+            chi2,
+        }
+    }
+
+    /// The positions of the defects.
+    pub fn positions(&self) -> Vec<usize> {
+        self.defects.iter().map(Defect::at).collect()
+    }
+
+    /// The fitted values of the defects (masses for a mass-only fit).
+    pub fn masses(&self) -> Vec<f64> {
+        self.defects.iter().map(Defect::value).collect()
+    }
+
+    /// `(kind, position)` of every defect.
+    pub fn key(&self) -> KindPositions {
+        self.defects
             .iter()
-            .zip(&self.masses)
-            .map(|(&at, &m)| Defect::Mass { at, m })
+            .map(|d| (DefectKind::of(d), d.at()))
             .collect()
     }
 
-    /// Positions equal to those of `truth`'s mass defects and every mass within
-    /// `rel` (relative).
-    pub fn matches(&self, truth: &Chain, rel: f64) -> bool {
-        let mut t: Vec<(usize, f64)> = truth
-            .defects()
-            .iter()
-            .filter_map(|d| match *d {
-                Defect::Mass { at, m } => Some((at, m)),
-                _ => None,
-            })
-            .collect();
-        t.sort_by_key(|x| x.0);
-        t.len() == self.positions.len()
-            && t.iter()
-                .zip(self.positions.iter().zip(&self.masses))
-                .all(|((ta, tm), (a, m))| ta == a && (m - tm).abs() <= rel * tm.abs())
+    /// The fitted chain parameter `name` (`d`, `gamma`, `k`, `mass`).
+    pub fn param(&self, name: &str) -> Option<&FittedParam> {
+        self.chain.iter().find(|p| p.name == name)
     }
 
-    /// Positions equal to those of `truth`'s mass defects.
+    /// The chain this hypothesis describes: `base` with the fitted chain
+    /// parameters and the defects.
+    ///
+    /// # Errors
+    /// As the chain's builders.
+    pub fn to_chain(&self, base: &Chain) -> Result<Chain> {
+        let mut c = base.uniform();
+        for p in &self.chain {
+            c = chain_param(&p.name)?.set(&c, p.value)?;
+        }
+        c.with_defects(self.defects.iter().copied())
+    }
+
+    /// The same `(kind, position)` pairs as `truth`'s defects (in any order)
+    /// and every value within `rel` (relative).
+    pub fn matches(&self, truth: &Chain, rel: f64) -> bool {
+        let mut t: Vec<(DefectKind, usize, f64)> = truth
+            .defects()
+            .iter()
+            .map(|d| (DefectKind::of(d), d.at(), d.value()))
+            .collect();
+        let mut h: Vec<(DefectKind, usize, f64)> = self
+            .defects
+            .iter()
+            .map(|d| (DefectKind::of(d), d.at(), d.value()))
+            .collect();
+        t.sort_by_key(|x| (x.0, x.1));
+        h.sort_by_key(|x| (x.0, x.1));
+        t.len() == h.len()
+            && t.iter().zip(&h).all(|(a, b)| {
+                a.0 == b.0 && a.1 == b.1 && (a.2 - b.2).abs() <= rel * a.2.abs().max(1e-12)
+            })
+    }
+
+    /// The same `(kind, position)` pairs as `truth`'s defects (in any order).
     pub fn positions_match(&self, truth: &Chain) -> bool {
-        let mut t: Vec<usize> = truth.defects().iter().map(|d| d.at()).collect();
+        let mut t: KindPositions = truth
+            .defects()
+            .iter()
+            .map(|d| (DefectKind::of(d), d.at()))
+            .collect();
+        let mut h = self.key();
         t.sort_unstable();
-        t == self.positions
+        h.sort_unstable();
+        t == h
     }
 }
 
-/// All `k`-subsets of `1..=n`, increasing, in lexicographic order.
-pub fn combinations(n: usize, k: usize) -> Vec<Vec<usize>> {
-    let mut out = Vec::new();
-    if k > n {
-        return out;
+fn chain_param(name: &str) -> Result<Param> {
+    match name {
+        "d" => Ok(Param::D),
+        "gamma" => Ok(Param::Gamma),
+        "k" => Ok(Param::K),
+        "mass" => Ok(Param::Mass),
+        _ => Err(Error::invalid("param", name, "d, gamma, k or mass")),
     }
-    let mut c: Vec<usize> = (1..=k).collect();
-    loop {
-        out.push(c.clone());
-        let mut i = k;
-        loop {
-            if i == 0 {
-                return out;
+}
+
+/// Rank best first: by chi-square, then by the hypothesis (so that the order
+/// does not depend on the order of the input, nor on the thread count).
+fn rank(mut v: Vec<Hypothesis>) -> Vec<Hypothesis> {
+    v.sort_by(|a, b| {
+        a.chi2
+            .total_cmp(&b.chi2)
+            .then_with(|| a.key().cmp(&b.key()))
+    });
+    v
+}
+
+/// Starting values of a defect value of `kind` on `base`: the first starts
+/// the coarse pass, the second is the alternative start of the fine pass.
+fn starts(kind: DefectKind, base: &Chain) -> [f64; 2] {
+    match kind {
+        DefectKind::Mass => [2.0 * base.mass(), 0.5 * base.mass()],
+        DefectKind::Spring => [2.0 * base.k(), 0.5 * base.k()],
+        DefectKind::Damper => [(5.0 * base.d()).max(0.5), 0.2 * base.d()],
+    }
+}
+
+/// One fitted hypothesis and what it cost.
+struct Fitted {
+    hyp: Hypothesis,
+    evaluations: usize,
+    m: usize,
+}
+
+/// Fit the values of the hypothesis `pairs` of `unknowns` (and, with
+/// `with_chain`, its chain parameters) on `base` (whose uniform parameters
+/// are the current chain estimates), from `values` (one per slot; known
+/// values override), within the bounds (`chain_bounds` per chain parameter).
+#[allow(clippy::too_many_arguments)]
+fn fit_pairs(
+    base: &Chain,
+    unknowns: &GeneralUnknowns,
+    pairs: &[(DefectKind, usize)],
+    values: &[f64],
+    chain_bounds: &[(f64, f64)],
+    with_chain: bool,
+    obs: Obs<'_>,
+    max_iter: usize,
+) -> Result<Fitted> {
+    let slots = unknowns.slots();
+    let mut theta0 = Vec::new();
+    let mut bounds = Vec::new();
+    let mut params = Vec::new();
+    let mut defects = Vec::with_capacity(pairs.len());
+    for (i, (&(kind, at), &v)) in pairs.iter().zip(values).enumerate() {
+        let b = unknowns.bounds(i, kind);
+        match slots[i].known {
+            Some(known) => defects.push(kind.defect(at, known)),
+            None => {
+                let v = v.clamp(b.0, b.1);
+                defects.push(kind.defect(at, v));
+                params.push(Param::Defect(i));
+                theta0.push(v);
+                bounds.push(b);
             }
-            i -= 1;
-            if c[i] < n - (k - 1 - i) {
-                c[i] += 1;
-                for j in i + 1..k {
-                    c[j] = c[j - 1] + 1;
-                }
-                break;
-            }
+        }
+    }
+    if with_chain {
+        for (p, b) in unknowns.chain().iter().zip(chain_bounds) {
+            params.push(*p);
+            theta0.push(p.get(base)?.clamp(b.0, b.1));
+            bounds.push(*b);
+        }
+    }
+    let chain = base.uniform().with_defects(defects)?;
+    if params.is_empty() {
+        let r = match obs {
+            Obs::Laplace(l) => l.residuals(&chain)?,
+            Obs::Time(t) => t.residuals(&chain)?,
+        };
+        return Ok(Fitted {
+            hyp: Hypothesis {
+                defects: chain.defects().to_vec(),
+                std_errors: vec![0.0; pairs.len()],
+                chain: Vec::new(),
+                chi2: r.iter().map(|v| v * v).sum(),
+            },
+            evaluations: 1,
+            m: r.len(),
+        });
+    }
+    let problem = ChainProblem::new(&chain, &params, obs)?;
+    let opts = LmOptions {
+        max_iter,
+        ..LmOptions::default()
+    };
+    let lm = levenberg_marquardt(&problem, &theta0, &bounds, &opts)?;
+    let se = lm
+        .std_errors()
+        .unwrap_or_else(|_| vec![f64::NAN; params.len()]);
+    let fitted = problem.chain(&lm.theta)?;
+    let mut std_errors = vec![0.0; pairs.len()];
+    let mut fitted_chain = Vec::new();
+    for (j, p) in params.iter().enumerate() {
+        match p {
+            Param::Defect(i) => std_errors[*i] = se[j],
+            _ => fitted_chain.push(FittedParam {
+                name: p.name(&fitted),
+                value: lm.theta[j],
+                std_error: se[j],
+            }),
+        }
+    }
+    Ok(Fitted {
+        hyp: Hypothesis {
+            defects: fitted.defects().to_vec(),
+            std_errors,
+            chain: fitted_chain,
+            chi2: lm.chi2,
+        },
+        evaluations: lm.evaluations,
+        m: lm.m,
+    })
+}
+
+/// `f` over `items`, in parallel (rayon) or not; the output keeps the order
+/// of `items`.
+fn map_maybe_par<T: Sync, U: Send>(
+    items: &[T],
+    parallel: bool,
+    f: impl Fn(&T) -> U + Sync + Send,
+) -> Vec<U> {
+    if parallel {
+        items.par_iter().map(f).collect()
+    } else {
+        items.iter().map(f).collect()
+    }
+}
+
+/// Options of [`fit_general`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct GeneralOptions {
+    /// Fit hypotheses in parallel (rayon); the result does not depend on it
+    /// (default true).
+    pub parallel: bool,
+    /// Largest number of hypotheses (default 200 000).
+    pub max_sets: usize,
+    /// Rounds when chain parameters are fitted: after each, the coarse pass
+    /// is repeated with the chain parameters at the best fit's values
+    /// (default 2).
+    pub rounds: usize,
+}
+
+impl Default for GeneralOptions {
+    fn default() -> Self {
+        GeneralOptions {
+            parallel: true,
+            max_sets: 200_000,
+            rounds: 2,
         }
     }
 }
 
-fn with_masses(base: &Chain, positions: &[usize], masses: &[f64]) -> Result<Chain> {
-    base.uniform().with_defects(
-        positions
-            .iter()
-            .zip(masses)
-            .map(|(&at, &m)| Defect::Mass { at, m }),
-    )
+/// The result of [`fit_general`].
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GeneralFit {
+    /// The shortlist, refitted (defect values and chain parameters), best first.
+    pub ranked: Vec<Hypothesis>,
+    /// Hypotheses of the coarse pass (per round).
+    pub hypotheses: usize,
+    /// Residual evaluations, all passes.
+    pub evaluations: usize,
+    /// Number of residuals of the final misfit (chi-square degrees of freedom
+    /// plus the number of fitted values).
+    pub residuals: usize,
+}
+
+/// The general noisy fit: defects of `unknowns` (mass, spring, damper or any,
+/// at unknown or known positions) and its chain parameters, on `base` (its
+/// uniform part and chain-parameter starting values).
+///
+/// * **coarse pass** (parallel, deterministic): every hypothesis
+///   ([`GeneralUnknowns::hypotheses`]) fitted on `coarse` by
+///   `setup.coarse_iter` Levenberg-Marquardt iterations over its defect values
+///   only (chain parameters at their current values), ranked by
+///   `(chi2, hypothesis)`;
+/// * **fine pass** on the best `setup.shortlist`: defect values and chain
+///   parameters together on `coarse` to convergence, from the coarse values
+///   and from a second start (the better kept); then, with `fine`, refitted on
+///   the time-domain chi-square from there and ranked by it.
+/// * with chain parameters, `opts.rounds` rounds: the chain parameters of
+///   the best fit become the starting values of the next coarse pass.
+///
+/// # Errors
+/// `unknowns.n` differing from the chain's (field `unknowns.n`); too many
+/// hypotheses (`search.max_sets`); a shortlist of zero (`shortlist`); no
+/// hypothesis could be fitted.
+pub fn fit_general(
+    base: &Chain,
+    unknowns: &GeneralUnknowns,
+    coarse: &LaplaceObs,
+    fine: Option<&TimeMisfit>,
+    setup: &Setup,
+    opts: &GeneralOptions,
+) -> Result<GeneralFit> {
+    if unknowns.n() != base.n() {
+        return Err(Error::invalid(
+            "unknowns.n",
+            unknowns.n(),
+            format!("the chain's n = {}", base.n()),
+        ));
+    }
+    if setup.shortlist == 0 {
+        return Err(Error::invalid("shortlist", 0, ">= 1"));
+    }
+    let hyps = unknowns.hypotheses(opts.max_sets)?;
+    let chain_bounds = crate::detect::chainfit::default_bounds(base, unknowns.chain());
+    let rounds = if unknowns.chain().is_empty() {
+        1
+    } else {
+        opts.rounds.max(1)
+    };
+    let mut current = base.uniform();
+    let mut evaluations = 0;
+    let mut last: Option<(Vec<Hypothesis>, usize)> = None;
+    for _ in 0..rounds {
+        // coarse pass: defect values only
+        let coarse_fits: Vec<Option<Fitted>> = map_maybe_par(&hyps, opts.parallel, |h| {
+            let v: Vec<f64> = h.iter().map(|&(k, _)| starts(k, &current)[0]).collect();
+            fit_pairs(
+                &current,
+                unknowns,
+                h,
+                &v,
+                &chain_bounds,
+                false,
+                Obs::Laplace(coarse),
+                setup.coarse_iter,
+            )
+            .ok()
+        });
+        let mut ranked = Vec::with_capacity(hyps.len());
+        for (f, h) in coarse_fits.into_iter().zip(&hyps) {
+            if let Some(f) = f {
+                evaluations += f.evaluations;
+                ranked.push((f.hyp, h.clone()));
+            }
+        }
+        ranked.sort_by(|a, b| a.0.chi2.total_cmp(&b.0.chi2).then_with(|| a.1.cmp(&b.1)));
+        ranked.truncate(setup.shortlist);
+        // fine pass: values and chain parameters
+        let fine_fits: Vec<Result<Fitted>> = map_maybe_par(&ranked, opts.parallel, |(h, pairs)| {
+            let a = fit_pairs(
+                &current,
+                unknowns,
+                pairs,
+                &h.masses(),
+                &chain_bounds,
+                true,
+                Obs::Laplace(coarse),
+                100,
+            );
+            let alt: Vec<f64> = pairs.iter().map(|&(k, _)| starts(k, &current)[1]).collect();
+            let b = fit_pairs(
+                &current,
+                unknowns,
+                pairs,
+                &alt,
+                &chain_bounds,
+                true,
+                Obs::Laplace(coarse),
+                100,
+            );
+            let (best, spent) = match (a, b) {
+                (Ok(a), Ok(b)) => {
+                    let s = a.evaluations + b.evaluations;
+                    (if b.hyp.chi2 < a.hyp.chi2 { b } else { a }, s)
+                }
+                (Ok(a), Err(_)) => {
+                    let s = a.evaluations;
+                    (a, s)
+                }
+                (Err(_), Ok(b)) => {
+                    let s = b.evaluations;
+                    (b, s)
+                }
+                (Err(e), Err(_)) => return Err(e),
+            };
+            let mut out = match fine {
+                None => best,
+                Some(t) => {
+                    let start = best.hyp.to_chain(&current)?.uniform();
+                    fit_pairs(
+                        &start,
+                        unknowns,
+                        pairs,
+                        &best.hyp.masses(),
+                        &chain_bounds,
+                        true,
+                        Obs::Time(t),
+                        100,
+                    )?
+                }
+            };
+            out.evaluations += spent;
+            Ok(out)
+        });
+        let mut fitted = Vec::with_capacity(fine_fits.len());
+        let mut m = 0;
+        let mut first_err = None;
+        for f in fine_fits {
+            match f {
+                Ok(f) => {
+                    evaluations += f.evaluations;
+                    m = f.m;
+                    fitted.push(f.hyp);
+                }
+                Err(e) => {
+                    first_err.get_or_insert(e);
+                }
+            }
+        }
+        if fitted.is_empty() {
+            return Err(first_err.unwrap_or_else(|| Error::Numerical {
+                method: "fit_general".into(),
+                reason: "no hypothesis could be fitted".into(),
+            }));
+        }
+        let ranked = rank(fitted);
+        current = ranked[0].to_chain(&current)?.uniform();
+        last = Some((ranked, m));
+    }
+    let (ranked, residuals) = last.expect("at least one round");
+    Ok(GeneralFit {
+        ranked,
+        hypotheses: hyps.len(),
+        evaluations,
+        residuals,
+    })
+}
+
+/// [`fit_general`] on a noisy series with the chosen misfit: real axis or
+/// Bromwich (coarse and fine passes on its Laplace data, [`laplace_obs`]), or
+/// time (coarse pass on the Bromwich data, fine pass in the time domain).
+///
+/// # Errors
+/// As [`laplace_obs`] and [`fit_general`].
+pub fn fit_noisy_general(
+    base: &Chain,
+    data: &TimeData,
+    unknowns: &GeneralUnknowns,
+    choice: MisfitChoice,
+    setup: &Setup,
+    opts: &GeneralOptions,
+) -> Result<GeneralFit> {
+    match choice {
+        MisfitChoice::RealAxis | MisfitChoice::Bromwich => {
+            let obs = laplace_obs(data, choice, setup)?;
+            fit_general(base, unknowns, &obs, None, setup, opts)
+        }
+        MisfitChoice::Time => {
+            let obs = laplace_obs(data, MisfitChoice::Bromwich, setup)?;
+            let t = TimeMisfit::new(data.clone());
+            fit_general(base, unknowns, &obs, Some(&t), setup, opts)
+        }
+    }
 }
 
 fn fit_set(
@@ -288,35 +722,28 @@ fn fit_set(
     setup: &Setup,
     max_iter: usize,
 ) -> Result<Hypothesis> {
-    let chain = with_masses(base, positions, start)?;
-    let params = Param::defects(&chain);
-    let problem = crate::detect::chainfit::ChainProblem::new(&chain, &params, obs)?;
-    let bounds = vec![setup.mass_bounds; positions.len()];
-    let opts = LmOptions {
-        max_iter,
-        ..LmOptions::default()
-    };
-    let lm = levenberg_marquardt(&problem, start, &bounds, &opts)?;
-    let std_errors = match lm.std_errors() {
-        Ok(v) => v,
-        Err(_) => vec![f64::NAN; positions.len()],
-    };
-    Ok(Hypothesis {
-        positions: positions.to_vec(),
-        masses: lm.theta.clone(),
-        chi2: lm.chi2,
-        std_errors,
-    })
-}
-
-fn rank(mut v: Vec<Hypothesis>) -> Vec<Hypothesis> {
-    v.sort_by(|a, b| a.chi2.total_cmp(&b.chi2));
-    v
+    let unknowns = GeneralUnknowns::new(
+        base.n(),
+        positions
+            .iter()
+            .map(|&at| Slot {
+                kind: KindChoice::Mass,
+                at: Some(at),
+                known: None,
+                bounds: Some(setup.mass_bounds),
+            })
+            .collect(),
+        Vec::new(),
+        KindBounds::default(),
+    )?;
+    let pairs: KindPositions = positions.iter().map(|&at| (DefectKind::Mass, at)).collect();
+    Ok(fit_pairs(base, &unknowns, &pairs, start, &[], false, obs, max_iter)?.hyp)
 }
 
 /// Ranked hypotheses for `k` mass defects of `base` (its uniform part) against
-/// Laplace observations (coarse pass over all sets, then the shortlist to
-/// convergence). `k = 0` gives the uniform chain.
+/// Laplace observations (coarse pass over all sets, in parallel, then the
+/// shortlist to convergence; the rest keep their coarse fits, ranked after).
+/// `k = 0` gives the uniform chain.
 ///
 /// # Errors
 /// `k > n` (field `k`); as the model.
@@ -332,17 +759,18 @@ pub fn enumerate_laplace(
     }
     if k == 0 {
         let r = obs.residuals(&base.uniform())?;
-        return Ok(vec![Hypothesis {
-            positions: vec![],
-            masses: vec![],
-            chi2: r.iter().map(|v| v * v).sum(),
-            std_errors: vec![],
-        }]);
+        return Ok(vec![Hypothesis::masses_only(
+            &[],
+            &[],
+            r.iter().map(|v| v * v).sum(),
+            vec![],
+        )]);
     }
-    let sets = combinations(n, k);
+    let all: Vec<usize> = (1..=n).collect();
+    let sets = subsets(&all, k);
     let coarse: Vec<Hypothesis> = sets
-        .iter()
-        .filter_map(|p| {
+        .par_iter()
+        .map(|p| {
             fit_set(
                 base,
                 p,
@@ -353,33 +781,29 @@ pub fn enumerate_laplace(
             )
             .ok()
         })
+        .collect::<Vec<_>>()
+        .into_iter()
+        .flatten()
         .collect();
     let coarse = rank(coarse);
-    let mut fine = Vec::new();
-    for h in coarse.iter().take(setup.shortlist) {
-        let a = fit_set(base, &h.positions, &h.masses, Obs::Laplace(obs), setup, 100);
-        let b = fit_set(
-            base,
-            &h.positions,
-            &vec![0.5; k],
-            Obs::Laplace(obs),
-            setup,
-            100,
-        );
-        let best = match (a, b) {
-            (Ok(a), Ok(b)) => {
-                if b.chi2 < a.chi2 {
-                    b
-                } else {
-                    a
-                }
+    let fine: Vec<Result<Hypothesis>> = coarse
+        .iter()
+        .take(setup.shortlist)
+        .collect::<Vec<_>>()
+        .par_iter()
+        .map(|h| {
+            let p = h.positions();
+            let a = fit_set(base, &p, &h.masses(), Obs::Laplace(obs), setup, 100);
+            let b = fit_set(base, &p, &vec![0.5; k], Obs::Laplace(obs), setup, 100);
+            match (a, b) {
+                (Ok(a), Ok(b)) => Ok(if b.chi2 < a.chi2 { b } else { a }),
+                (Ok(a), Err(_)) => Ok(a),
+                (Err(_), Ok(b)) => Ok(b),
+                (Err(e), Err(_)) => Err(e),
             }
-            (Ok(a), Err(_)) => a,
-            (Err(_), Ok(b)) => b,
-            (Err(e), Err(_)) => return Err(e),
-        };
-        fine.push(best);
-    }
+        })
+        .collect();
+    let fine = fine.into_iter().collect::<Result<Vec<_>>>()?;
     // the rest keep their coarse values (ranked after)
     let mut out = rank(fine);
     out.extend(coarse.into_iter().skip(setup.shortlist));
@@ -399,15 +823,15 @@ pub fn refine_time(
 ) -> Result<Vec<Hypothesis>> {
     let mut out = Vec::with_capacity(shortlist.len());
     for h in shortlist {
-        if h.positions.is_empty() {
+        if h.defects.is_empty() {
             let chi2 = misfit.chi2(&base.uniform())?;
             out.push(Hypothesis { chi2, ..h.clone() });
             continue;
         }
         out.push(fit_set(
             base,
-            &h.positions,
-            &h.masses,
+            &h.positions(),
+            &h.masses(),
             Obs::Time(misfit),
             setup,
             100,
@@ -458,7 +882,7 @@ pub fn time_from_bromwich(
 
 /// The identifiability report of a ranked list (best first), for the data's
 /// noise level `sigma` (see [`crate::detect::identify`]). `uniform` is the
-/// uniform mass.
+/// uniform value of every defect (see [`identify_general`] for mixed kinds).
 ///
 /// # Errors
 /// An empty list; as [`identify`].
@@ -468,25 +892,52 @@ pub fn identify_ranked(
     sigma: f64,
     threshold: Option<f64>,
 ) -> Result<Identifiability> {
+    identify_with(ranked, |_| uniform, sigma, threshold)
+}
+
+/// As [`identify_ranked`], each defect compared with the uniform value of
+/// its kind in `base` (`mass`, `k` or `d`).
+///
+/// # Errors
+/// As [`identify_ranked`].
+pub fn identify_general(
+    ranked: &[Hypothesis],
+    base: &Chain,
+    sigma: f64,
+    threshold: Option<f64>,
+) -> Result<Identifiability> {
+    identify_with(
+        ranked,
+        |d| DefectKind::of(d).uniform(base),
+        sigma,
+        threshold,
+    )
+}
+
+fn identify_with(
+    ranked: &[Hypothesis],
+    uniform: impl Fn(&Defect) -> f64,
+    sigma: f64,
+    threshold: Option<f64>,
+) -> Result<Identifiability> {
     let best = ranked
         .first()
         .ok_or_else(|| Error::invalid("ranked", 0, "at least one hypothesis"))?;
     let defects: Vec<FittedDefect> = best
-        .positions
+        .defects
         .iter()
-        .zip(&best.masses)
         .zip(&best.std_errors)
-        .map(|((&at, &value), &std_error)| FittedDefect {
-            at,
-            value,
+        .map(|(d, &std_error)| FittedDefect {
+            at: d.at(),
+            value: d.value(),
             std_error,
-            uniform,
+            uniform: uniform(d),
         })
         .collect();
     let alts: Vec<Alternative> = ranked[1..]
         .iter()
         .map(|h| Alternative {
-            positions: h.positions.clone(),
+            positions: h.positions(),
             chi2: h.chi2,
         })
         .collect();
@@ -503,7 +954,7 @@ pub fn fit_damping(
     data: &TimeData,
     hyp: &Hypothesis,
 ) -> Result<crate::detect::chainfit::ChainFitReport> {
-    let chain = with_masses(base, &hyp.positions, &hyp.masses)?;
+    let chain = base.uniform().with_defects(hyp.defects.iter().copied())?;
     let mut params = Param::defects(&chain);
     params.push(Param::D);
     let misfit = TimeMisfit::new(data.clone());
@@ -516,14 +967,14 @@ mod tests {
     use crate::noise::NoiseLevel;
 
     #[test]
-    fn combinations_count_and_order() {
-        assert_eq!(combinations(5, 2).len(), 10);
-        assert_eq!(combinations(20, 3).len(), 1140);
-        assert_eq!(combinations(3, 3), vec![vec![1, 2, 3]]);
-        assert_eq!(combinations(3, 0), vec![Vec::<usize>::new()]);
-        assert!(combinations(2, 3).is_empty());
-        let c = combinations(6, 3);
-        assert!(c.windows(2).all(|w| w[0] < w[1]));
+    fn shared_subsets_count_and_order() {
+        let c = |n: usize, k| subsets(&(1..=n).collect::<Vec<_>>(), k);
+        assert_eq!(c(5, 2).len(), 10);
+        assert_eq!(c(20, 3).len(), 1140);
+        assert_eq!(c(3, 3), vec![vec![1, 2, 3]]);
+        assert_eq!(c(3, 0), vec![Vec::<usize>::new()]);
+        assert!(c(2, 3).is_empty());
+        assert!(c(6, 3).windows(2).all(|w| w[0] < w[1]));
     }
 
     #[test]

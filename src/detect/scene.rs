@@ -17,12 +17,19 @@
 //! # t_end = 300.0    # simulated
 //! # dt = 0.05        # simulated
 //!
+//! # relative = false # simulated/series: noise relative to max |x_1|
+//!
 //! [unknowns]         # optional; see crate::detect::space::UnknownsSpec
 //! k = 2              # default: number of defects in [chain]
 //! mass_bounds = [0.1, 100]
+//! # kind = "mass"    # "mass" | "spring" | "damper" | "any" (per defect:
+//! #                  #   [[unknowns.defects]] kind = ...)
+//! # chain = []       # chain parameters fitted too: "d", "gamma", "k", "mass"
+//! # chain_start = { d = 0.2 }     # their starting values
+//! # spring_bounds = [0.01, 100]   # damper_bounds = [0, 100]
 //!
 //! [misfit]           # optional; see crate::detect::misfit::MisfitSpec
-//! kind = "real-axis" # or "bromwich"
+//! kind = "real-axis" # or "bromwich", or "time" (simulated or series data)
 //! panels = 10
 //! per_panel = 8
 //! s_max = 300
@@ -33,6 +40,12 @@
 //! ```
 //!
 //! Every table rejects unknown fields.
+//!
+//! A scene with another defect kind, chain parameters or the time misfit
+//! ([`FitScene::is_general`]) is fitted by the general noisy fit
+//! ([`crate::detect::noisefit::fit_general`], unknowns from
+//! [`FitScene::general_unknowns`], series from [`FitScene::time_data`]); see
+//! `configs/fit-spring.toml` and `configs/fit-any.toml`.
 //!
 //! ```
 //! use springmass::detect::scene::FitScene;
@@ -46,8 +59,9 @@ use crate::chain::{Chain, ChainSpec, Defect};
 use crate::detect::data::Data;
 use crate::detect::fit::{FitMethod, FitOptions};
 use crate::detect::misfit::MisfitSpec;
+use crate::detect::misfit_time::TimeData;
 use crate::detect::search::enumerate::EnumerateOptions;
-use crate::detect::space::{Unknowns, UnknownsSpec};
+use crate::detect::space::{DefectKind, GeneralUnknowns, Unknowns, UnknownsSpec};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -94,6 +108,10 @@ pub struct DataSpec {
     /// `simulated`: sampling step (default 0.05).
     #[serde(default)]
     pub dt: Option<f64>,
+    /// `simulated` and `series`: `noise` is relative to the largest `|x_1|` of
+    /// the record (default false: absolute).
+    #[serde(default)]
+    pub relative: bool,
 }
 
 /// The `[search]` table.
@@ -256,7 +274,7 @@ impl FitScene {
                 &self.truth()?,
                 self.data.t_end.unwrap_or(300.0),
                 self.data.dt.unwrap_or(0.05),
-                self.data.noise,
+                self.noise_sigma()?,
                 self.data.seed,
             ),
             DataSourceKind::Series => {
@@ -269,13 +287,104 @@ impl FitScene {
                     self.data.noise >= 0.0,
                     ">= 0 and finite",
                 )?;
+                let sigma = self.noise_sigma()?;
                 Data::from_csv(
                     path,
                     self.data.column.as_deref().unwrap_or("x1"),
-                    (self.data.noise > 0.0).then_some(self.data.noise),
+                    (sigma > 0.0).then_some(sigma),
                 )
             }
         }
+    }
+
+    /// The absolute noise level of the samples (`simulated`, `series`):
+    /// `noise`, times the largest `|x_1|` of the (noise-free simulated, or
+    /// measured) record when `relative`. `exact`: `noise` (relative,
+    /// Laplace domain).
+    ///
+    /// # Errors
+    /// `data.noise` negative or not finite; as the simulation or the CSV.
+    pub fn noise_sigma(&self) -> Result<f64> {
+        let d = &self.data;
+        crate::error::check_f64("data.noise", d.noise, d.noise >= 0.0, ">= 0 and finite")?;
+        if !d.relative || d.noise == 0.0 {
+            return Ok(d.noise);
+        }
+        let level = crate::noise::NoiseLevel::RelativeMax(d.noise);
+        match d.source {
+            DataSourceKind::Exact => Ok(d.noise),
+            DataSourceKind::Simulated => Ok(TimeData::simulate(
+                &self.truth()?,
+                d.t_end.unwrap_or(300.0),
+                d.dt.unwrap_or(0.05),
+                level,
+                d.seed,
+            )?
+            .sigma()),
+            DataSourceKind::Series => {
+                let ts = self.series()?;
+                level.sigma(ts.require(self.data.column.as_deref().unwrap_or("x1"))?)
+            }
+        }
+    }
+
+    fn series(&self) -> Result<crate::series::TimeSeries> {
+        let path = self.data.path.as_ref().ok_or_else(|| {
+            Error::invalid("data.path", "(none)", "a CSV file for source = \"series\"")
+        })?;
+        crate::series::TimeSeries::read_csv(path)
+    }
+
+    /// The sampled series of `[data]` with its noise level, for the
+    /// time-domain misfit: `simulated` (the same samples as [`FitScene::data`])
+    /// or `series`.
+    ///
+    /// # Errors
+    /// `data.source` is `exact` (no series); as [`FitScene::noise_sigma`].
+    pub fn time_data(&self) -> Result<TimeData> {
+        let sigma = self.noise_sigma()?;
+        match self.data.source {
+            DataSourceKind::Exact => Err(Error::invalid(
+                "data.source",
+                "exact",
+                "\"simulated\" or \"series\" (the time misfit needs a sampled series)",
+            )),
+            DataSourceKind::Simulated => TimeData::simulate(
+                &self.truth()?,
+                self.data.t_end.unwrap_or(300.0),
+                self.data.dt.unwrap_or(0.05),
+                crate::noise::NoiseLevel::Absolute(sigma),
+                self.data.seed,
+            ),
+            DataSourceKind::Series => TimeData::from_series(
+                &self.series()?,
+                self.data.column.as_deref().unwrap_or("x1"),
+                sigma,
+            ),
+        }
+    }
+
+    /// Whether the scene needs the general noisy fit
+    /// ([`crate::detect::noisefit::fit_general`]): non-mass defects, chain
+    /// parameters or the time misfit.
+    pub fn is_general(&self) -> bool {
+        self.unknowns.is_general() || self.misfit.kind == crate::detect::misfit::MisfitKind::Time
+    }
+
+    /// The general unknowns (validated against `chain.n`; `k` defaults to the
+    /// number of `[chain]` defects of the table's kind, all of them for `any`).
+    ///
+    /// # Errors
+    /// As [`UnknownsSpec::build_general`].
+    pub fn general_unknowns(&self) -> Result<GeneralUnknowns> {
+        let kinds = self.unknowns.kind.kinds();
+        let k = self
+            .chain
+            .defects
+            .iter()
+            .filter(|d| kinds.contains(&DefectKind::of(d)))
+            .count();
+        self.unknowns.build_general(self.chain.n, k)
     }
 
     /// The fit options described by `[search]`.
@@ -357,5 +466,107 @@ mod tests {
             FitScene::from_toml("[chain]\nn = 3\n[misfit]\nkind = \"imaginary\"\n"),
             Err(Error::Parse { .. })
         ));
+    }
+
+    #[test]
+    fn general_scenes_parse_and_errors_name_fields() {
+        for text in [
+            include_str!("../../configs/fit-spring.toml"),
+            include_str!("../../configs/fit-any.toml"),
+        ] {
+            let s = FitScene::from_toml(text).unwrap();
+            assert!(s.is_general());
+            let u = s.general_unknowns().unwrap();
+            assert_eq!(u.slots().len(), 2);
+            assert!(s.unknowns().is_err(), "the mass-only path refuses");
+        }
+        let s = FitScene::from_toml(include_str!("../../configs/fit-spring.toml")).unwrap();
+        assert_eq!(
+            s.general_unknowns()
+                .unwrap()
+                .hypotheses(1000)
+                .unwrap()
+                .len(),
+            110
+        );
+        assert_eq!(
+            s.unknowns.start_chain(&s.truth().unwrap()).unwrap().d(),
+            0.15
+        );
+        // 1% of max |x_1|, the same samples as the Laplace data
+        let td = s.time_data().unwrap();
+        let ymax = td.y().iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        assert!((td.sigma() / ymax - 0.01).abs() < 0.002, "{}", td.sigma());
+        let field = |text: &str| -> String {
+            let s = FitScene::from_toml(text).unwrap();
+            match s
+                .general_unknowns()
+                .and_then(|_| s.unknowns.start_chain(&s.truth()?))
+                .and_then(|_| s.time_data())
+            {
+                Err(Error::InvalidParameter { field, .. }) => field,
+                other => panic!("{text}: {other:?}"),
+            }
+        };
+        let sim = "[data]\nsource = \"simulated\"\nt_end = 10\ndt = 0.5\n";
+        let cases = [
+            (
+                "[unknowns]\nkind = \"spring\"\nchain = [\"q\"]\n",
+                "unknowns.chain",
+            ),
+            (
+                "[unknowns]\nkind = \"any\"\nchain = [\"d\", \"k\", \"gamma\", \"mass\"]\n",
+                "unknowns.chain",
+            ),
+            (
+                "[unknowns]\nkind = \"spring\"\nchain = [\"d\", \"d\"]\n",
+                "unknowns.chain",
+            ),
+            (
+                "[unknowns]\nkind = \"spring\"\nspring_bounds = [0, 1]\n",
+                "unknowns.spring_bounds",
+            ),
+            (
+                "[unknowns]\nkind = \"damper\"\ndamper_bounds = [-1, 1]\n",
+                "unknowns.damper_bounds",
+            ),
+            (
+                "[unknowns]\nk = 1\n[[unknowns.defects]]\nkind = \"spring\"\nm = 2.0\n",
+                "unknowns.defects[0].m",
+            ),
+            (
+                "[unknowns]\nk = 1\n[[unknowns.defects]]\nkind = \"damper\"\nat = 0\n",
+                "unknowns.defects[0].at",
+            ),
+            (
+                "[unknowns]\nkind = \"spring\"\nchain = [\"d\"]\nchain_start = { k = 2.0 }\n",
+                "unknowns.chain_start.k",
+            ),
+            (
+                "[unknowns]\nkind = \"spring\"\nchain = [\"d\"]\nchain_start = { d = -1.0 }\n",
+                "unknowns.chain_start.d",
+            ),
+            ("[unknowns]\nkind = \"spring\"\nk = 9\n", "unknowns.k"),
+            (
+                "[unknowns]\nkind = \"spring\"\n[misfit]\nkind = \"time\"\n",
+                "data.source",
+            ),
+        ];
+        for (tail, want) in cases {
+            let tail = if want == "unknowns.k" || tail.contains("k = 1") {
+                tail.to_string()
+            } else {
+                tail.replacen("[unknowns]\n", "[unknowns]\nk = 1\n", 1)
+            };
+            let text = format!("[chain]\nn = 3\n{tail}{sim}");
+            let text = if want == "data.source" {
+                text.replace("simulated", "exact")
+            } else {
+                text
+            };
+            assert_eq!(field(&text), want, "{text}");
+        }
+        assert!(FitScene::from_toml("[chain]\nn = 3\n[unknowns]\nkind = \"rod\"\n").is_err());
+        assert!(FitScene::from_toml("[chain]\nn = 3\n[unknowns]\nchains = []\n").is_err());
     }
 }

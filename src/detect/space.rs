@@ -12,6 +12,16 @@
 //! `pairing[v] = Some(p)` when mass `v` belongs to the defect of unknown
 //! position `p`; known positions are `excluded`.
 //!
+//! **General unknowns** ([`GeneralUnknowns`], from the same `[unknowns]` table
+//! with `kind` and `chain`): defects of kind mass, spring or damper (or `any`
+//! of the three) at unknown or known positions, values within per-kind bounds
+//! (mass in `(0, ..]`, spring `k > 0`, damper `d >= 0`), and uniform chain
+//! parameters (`d`, `gamma`, `k`, `mass`) fitted alongside. Mass and damper
+//! positions are `1..=n`, spring positions `0..=n` (spring `i` joins masses `i`
+//! and `i + 1`; `0` and `n` are the wall springs). A hypothesis is a set of
+//! `(kind, position)` pairs ([`GeneralUnknowns::hypotheses`]); it is fitted by
+//! [`crate::detect::noisefit::fit_general`].
+//!
 //! ```
 //! use springmass::detect::space::{DefectUnknown, MassUnknown, Unknowns};
 //! let u = Unknowns::new(20, vec![DefectUnknown::free(0.1, 100.0); 2])?;
@@ -21,8 +31,10 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+use crate::chain::{Chain, Defect};
 use crate::detect::search::{Candidate, Space};
 use crate::error::{Error, Result};
+use crate::sensitivity::Param;
 use serde::{Deserialize, Serialize};
 
 /// A defect's mass in a fit.
@@ -271,6 +283,27 @@ impl Unknowns {
 /// m = 5.0                    # known mass (omit: unknown)
 /// # bounds = [1, 10]         # bounds of this unknown mass
 /// ```
+///
+/// General unknowns (routed to [`crate::detect::noisefit::fit_general`] by
+/// [`crate::detect::fit::fit`]):
+///
+/// ```toml
+/// [unknowns]
+/// k = 2
+/// kind = "spring"            # "mass" (default) | "spring" | "damper" | "any"
+/// chain = ["d"]              # chain parameters fitted too: "d", "gamma", "k", "mass" (default [])
+/// chain_start = { d = 0.2 }  # their starting values (default: the [chain] values)
+/// spring_bounds = [0.01, 100]   # default bounds of unknown springs
+/// damper_bounds = [0, 100]      # default bounds of unknown dampers
+/// [[unknowns.defects]]
+/// kind = "damper"            # per-defect kind (default: the table's kind)
+/// # at = 4                   # known position; m = known mass (mass kind only)
+/// ```
+///
+/// `kind = "any"`: each defect may be a mass, a spring or a damper; the
+/// hypotheses are sets of `(kind, position)` ranked by chi-square. At most three
+/// of the four chain parameters: `x_1(t)` is unchanged when every mass,
+/// damper, spring and `gamma` are scaled together.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct UnknownsSpec {
@@ -283,6 +316,23 @@ pub struct UnknownsSpec {
     /// Per-defect information (default none: all free).
     #[serde(default)]
     pub defects: Vec<DefectUnknownSpec>,
+    /// Kind of the defects: `mass` (default), `spring`, `damper` or `any`.
+    #[serde(default)]
+    pub kind: KindChoice,
+    /// Uniform chain parameters fitted alongside: `d`, `gamma`, `k`, `mass`
+    /// (default none).
+    #[serde(default)]
+    pub chain: Vec<String>,
+    /// Default bounds of unknown springs (default `[0.01, 100]`, `lo > 0`).
+    #[serde(default = "default_spring_bounds")]
+    pub spring_bounds: [f64; 2],
+    /// Default bounds of unknown dampers (default `[0, 100]`, `lo >= 0`).
+    #[serde(default = "default_damper_bounds")]
+    pub damper_bounds: [f64; 2],
+    /// Starting values of fitted chain parameters, e.g. `{ d = 0.2 }`
+    /// (default: the `[chain]` values).
+    #[serde(default)]
+    pub chain_start: std::collections::BTreeMap<String, f64>,
 }
 
 /// One `[[unknowns.defects]]` entry.
@@ -295,13 +345,23 @@ pub struct DefectUnknownSpec {
     /// Known mass.
     #[serde(default)]
     pub m: Option<f64>,
-    /// Bounds of the unknown mass (default `mass_bounds`).
+    /// Bounds of the unknown value (default `mass_bounds`, `spring_bounds`
+    /// or `damper_bounds` by kind).
     #[serde(default)]
     pub bounds: Option<[f64; 2]>,
+    /// Kind of this defect (default: the table's `kind`).
+    #[serde(default)]
+    pub kind: Option<KindChoice>,
 }
 
 fn default_bounds() -> [f64; 2] {
     [0.1, 100.0]
+}
+fn default_spring_bounds() -> [f64; 2] {
+    [0.01, 100.0]
+}
+fn default_damper_bounds() -> [f64; 2] {
+    [0.0, 100.0]
 }
 
 impl Default for UnknownsSpec {
@@ -310,6 +370,11 @@ impl Default for UnknownsSpec {
             k: None,
             mass_bounds: default_bounds(),
             defects: Vec::new(),
+            kind: KindChoice::Mass,
+            chain: Vec::new(),
+            spring_bounds: default_spring_bounds(),
+            damper_bounds: default_damper_bounds(),
+            chain_start: Default::default(),
         }
     }
 }
@@ -323,6 +388,13 @@ impl UnknownsSpec {
     /// `k`, `unknowns.mass_bounds` for bad default bounds, and
     /// `unknowns.defects[i].bounds` when bounds are given with a known mass.
     pub fn build(&self, n: usize, default_k: usize) -> Result<Unknowns> {
+        if self.is_general() {
+            return Err(Error::invalid(
+                "unknowns.kind",
+                self.kind.name(),
+                "mass defects and no chain parameters on this path (the general noisy fit takes the others)",
+            ));
+        }
         let k = self.k.unwrap_or(default_k.max(self.defects.len()));
         if k == 0 || k > n {
             return Err(Error::invalid(
@@ -364,6 +436,497 @@ impl UnknownsSpec {
         }
         out.resize(k, DefectUnknown::free(lo, hi));
         Unknowns::new(n, out)
+    }
+}
+
+impl UnknownsSpec {
+    /// Whether the table asks for more than the mass-only fit can do: a
+    /// defect kind other than `mass`, or chain parameters.
+    pub fn is_general(&self) -> bool {
+        self.kind != KindChoice::Mass
+            || !self.chain.is_empty()
+            || self
+                .defects
+                .iter()
+                .any(|d| d.kind.is_some_and(|k| k != KindChoice::Mass))
+    }
+
+    /// Validate as [`GeneralUnknowns`] for a chain of `n` masses; `default_k`
+    /// is used when `k` is not given.
+    ///
+    /// # Errors
+    /// As [`GeneralUnknowns::new`]; `unknowns.k`, `unknowns.defects`,
+    /// `unknowns.mass_bounds`, `unknowns.spring_bounds`,
+    /// `unknowns.damper_bounds`, `unknowns.chain` (an unknown name, a repeat,
+    /// or all four), `unknowns.defects[i].m` (a known value of a non-mass
+    /// defect).
+    pub fn build_general(&self, n: usize, default_k: usize) -> Result<GeneralUnknowns> {
+        let k = self.k.unwrap_or(default_k.max(self.defects.len()));
+        if k == 0 || k > 2 * n + 1 {
+            return Err(Error::invalid(
+                "unknowns.k",
+                k,
+                format!("1 <= k <= 2n + 1 = {}", 2 * n + 1),
+            ));
+        }
+        if self.defects.len() > k {
+            return Err(Error::invalid(
+                "unknowns.defects",
+                format!("{} entries", self.defects.len()),
+                format!("at most k = {k} entries"),
+            ));
+        }
+        let bounds = KindBounds {
+            mass: check_bounds("unknowns.mass_bounds", self.mass_bounds, true)?,
+            spring: check_bounds("unknowns.spring_bounds", self.spring_bounds, true)?,
+            damper: check_bounds("unknowns.damper_bounds", self.damper_bounds, false)?,
+        };
+        let mut chain = Vec::with_capacity(self.chain.len());
+        for name in &self.chain {
+            let p = match name.trim() {
+                "d" => Param::D,
+                "gamma" => Param::Gamma,
+                "k" => Param::K,
+                "mass" => Param::Mass,
+                other => {
+                    return Err(Error::invalid(
+                        "unknowns.chain",
+                        other,
+                        "\"d\", \"gamma\", \"k\" or \"mass\"",
+                    ))
+                }
+            };
+            chain.push(p);
+        }
+        let mut slots = Vec::with_capacity(k);
+        for (i, d) in self.defects.iter().enumerate() {
+            let kind = d.kind.unwrap_or(self.kind);
+            if d.m.is_some() && kind != KindChoice::Mass {
+                return Err(Error::invalid(
+                    format!("unknowns.defects[{i}].m"),
+                    format!("{:?}", d.m),
+                    "a known value only for kind = \"mass\"",
+                ));
+            }
+            if let (Some(_), Some(b)) = (d.m, d.bounds) {
+                return Err(Error::invalid(
+                    format!("unknowns.defects[{i}].bounds"),
+                    format!("{b:?}"),
+                    "only with an unknown value (omit m)",
+                ));
+            }
+            slots.push(Slot {
+                kind,
+                at: d.at,
+                known: d.m,
+                bounds: d.bounds.map(|[lo, hi]| (lo, hi)),
+            });
+        }
+        slots.resize(
+            k,
+            Slot {
+                kind: self.kind,
+                at: None,
+                known: None,
+                bounds: None,
+            },
+        );
+        GeneralUnknowns::new(n, slots, chain, bounds)
+    }
+}
+
+impl UnknownsSpec {
+    /// `model` with the fitted chain parameters at their `chain_start` values.
+    ///
+    /// # Errors
+    /// `unknowns.chain_start` naming a parameter not in `chain`, or a value
+    /// out of its range.
+    pub fn start_chain(&self, model: &Chain) -> Result<Chain> {
+        let mut c = model.uniform();
+        for (name, &v) in &self.chain_start {
+            if !self.chain.iter().any(|c| c.trim() == name) {
+                return Err(Error::invalid(
+                    format!("unknowns.chain_start.{name}"),
+                    v,
+                    "a parameter listed in unknowns.chain",
+                ));
+            }
+            let p = match name.as_str() {
+                "d" => Param::D,
+                "gamma" => Param::Gamma,
+                "k" => Param::K,
+                _ => Param::Mass,
+            };
+            c = p.set(&c, v).map_err(|e| {
+                Error::invalid(format!("unknowns.chain_start.{name}"), v, e.to_string())
+            })?;
+        }
+        Ok(c)
+    }
+}
+
+fn check_bounds(field: &str, [lo, hi]: [f64; 2], positive: bool) -> Result<(f64, f64)> {
+    let ok_lo = if positive { lo > 0.0 } else { lo >= 0.0 };
+    if !(lo.is_finite() && hi.is_finite() && ok_lo && lo < hi) {
+        return Err(Error::invalid(
+            field,
+            format!("[{lo}, {hi}]"),
+            if positive {
+                "0 < lo < hi, finite"
+            } else {
+                "0 <= lo < hi, finite"
+            },
+        ));
+    }
+    Ok((lo, hi))
+}
+
+/// A concrete defect kind.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DefectKind {
+    /// A mass (positions `1..=n`).
+    Mass,
+    /// A spring (positions `0..=n`).
+    Spring,
+    /// A damper to ground (positions `1..=n`).
+    Damper,
+}
+
+impl DefectKind {
+    /// The kind of a defect.
+    pub fn of(d: &Defect) -> DefectKind {
+        match d {
+            Defect::Mass { .. } => DefectKind::Mass,
+            Defect::Spring { .. } => DefectKind::Spring,
+            Defect::Damper { .. } => DefectKind::Damper,
+        }
+    }
+
+    /// `mass`, `spring`, `damper`.
+    pub fn name(self) -> &'static str {
+        match self {
+            DefectKind::Mass => "mass",
+            DefectKind::Spring => "spring",
+            DefectKind::Damper => "damper",
+        }
+    }
+
+    /// The positions of this kind in a chain of `n` masses.
+    pub fn positions(self, n: usize) -> std::ops::RangeInclusive<usize> {
+        match self {
+            DefectKind::Spring => 0..=n,
+            _ => 1..=n,
+        }
+    }
+
+    /// The defect of this kind at `at` with `value` (unchecked).
+    pub fn defect(self, at: usize, value: f64) -> Defect {
+        match self {
+            DefectKind::Mass => Defect::Mass { at, m: value },
+            DefectKind::Spring => Defect::Spring { at, k: value },
+            DefectKind::Damper => Defect::Damper { at, d: value },
+        }
+    }
+
+    /// The uniform chain's value of this kind (`mass`, `k` or `d`).
+    pub fn uniform(self, chain: &Chain) -> f64 {
+        match self {
+            DefectKind::Mass => chain.mass(),
+            DefectKind::Spring => chain.k(),
+            DefectKind::Damper => chain.d(),
+        }
+    }
+}
+
+/// The kind of an unknown defect, as the scene states it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum KindChoice {
+    /// A mass (default).
+    #[default]
+    Mass,
+    /// A spring.
+    Spring,
+    /// A damper.
+    Damper,
+    /// Any of the three.
+    Any,
+}
+
+impl KindChoice {
+    /// The concrete kinds allowed.
+    pub fn kinds(self) -> &'static [DefectKind] {
+        match self {
+            KindChoice::Mass => &[DefectKind::Mass],
+            KindChoice::Spring => &[DefectKind::Spring],
+            KindChoice::Damper => &[DefectKind::Damper],
+            KindChoice::Any => &[DefectKind::Mass, DefectKind::Spring, DefectKind::Damper],
+        }
+    }
+
+    /// `mass`, `spring`, `damper`, `any`.
+    pub fn name(self) -> &'static str {
+        match self {
+            KindChoice::Mass => "mass",
+            KindChoice::Spring => "spring",
+            KindChoice::Damper => "damper",
+            KindChoice::Any => "any",
+        }
+    }
+}
+
+/// Default value bounds per kind.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct KindBounds {
+    /// Masses, `0 < lo < hi`.
+    pub mass: (f64, f64),
+    /// Springs, `0 < lo < hi`.
+    pub spring: (f64, f64),
+    /// Dampers, `0 <= lo < hi`.
+    pub damper: (f64, f64),
+}
+
+impl Default for KindBounds {
+    /// `[0.1, 100]`, `[0.01, 100]`, `[0, 100]`.
+    fn default() -> Self {
+        KindBounds {
+            mass: (0.1, 100.0),
+            spring: (0.01, 100.0),
+            damper: (0.0, 100.0),
+        }
+    }
+}
+
+impl KindBounds {
+    /// The bounds of `kind`.
+    pub fn of(&self, kind: DefectKind) -> (f64, f64) {
+        match kind {
+            DefectKind::Mass => self.mass,
+            DefectKind::Spring => self.spring,
+            DefectKind::Damper => self.damper,
+        }
+    }
+}
+
+/// One defect of a general fit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Slot {
+    /// Its kind (or `Any`).
+    pub kind: KindChoice,
+    /// Known position, or `None`.
+    pub at: Option<usize>,
+    /// Known value, or `None` (fitted).
+    pub known: Option<f64>,
+    /// Bounds of the fitted value (default: the kind's).
+    pub bounds: Option<(f64, f64)>,
+}
+
+impl Slot {
+    /// Position and value unknown.
+    pub fn free(kind: KindChoice) -> Slot {
+        Slot {
+            kind,
+            at: None,
+            known: None,
+            bounds: None,
+        }
+    }
+}
+
+/// A hypothesis of a general fit: `(kind, position)` per slot.
+pub type KindPositions = Vec<(DefectKind, usize)>;
+
+/// Validated unknowns of the general fit (see the module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GeneralUnknowns {
+    n: usize,
+    slots: Vec<Slot>,
+    chain: Vec<Param>,
+    bounds: KindBounds,
+}
+
+impl GeneralUnknowns {
+    /// Validate.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the field: `unknowns.k` (no slots);
+    /// `unknowns.defects[i].at` (a known position outside the positions of
+    /// every allowed kind); `unknowns.defects[i].m` (a known value outside the
+    /// kind's range, or with kind `any`); `unknowns.defects[i].bounds`
+    /// (not `lo < hi`, finite, inside the kind's range); `unknowns.chain`
+    /// (not `D`, `K`, `Mass`, `Gamma`, a repeat, or all four).
+    pub fn new(
+        n: usize,
+        slots: Vec<Slot>,
+        chain: Vec<Param>,
+        bounds: KindBounds,
+    ) -> Result<GeneralUnknowns> {
+        if slots.is_empty() {
+            return Err(Error::invalid("unknowns.k", 0, ">= 1"));
+        }
+        for (i, s) in slots.iter().enumerate() {
+            if let Some(at) = s.at {
+                if !s.kind.kinds().iter().any(|k| k.positions(n).contains(&at)) {
+                    return Err(Error::invalid(
+                        format!("unknowns.defects[{i}].at"),
+                        at,
+                        format!(
+                            "a {} position of n = {n} (masses and dampers 1..=n, springs 0..=n)",
+                            s.kind.name()
+                        ),
+                    ));
+                }
+            }
+            if let Some(v) = s.known {
+                let ok = match s.kind {
+                    KindChoice::Mass | KindChoice::Spring => v > 0.0,
+                    KindChoice::Damper => v >= 0.0,
+                    KindChoice::Any => false,
+                };
+                if !(v.is_finite() && ok) {
+                    return Err(Error::invalid(
+                        format!("unknowns.defects[{i}].m"),
+                        v,
+                        "finite, in the kind's range, and a concrete kind",
+                    ));
+                }
+            }
+            if let Some((lo, hi)) = s.bounds {
+                let positive = s.kind.kinds().iter().any(|k| *k != DefectKind::Damper);
+                check_bounds(&format!("unknowns.defects[{i}].bounds"), [lo, hi], positive)?;
+            }
+        }
+        for (i, p) in chain.iter().enumerate() {
+            if matches!(p, Param::Defect(_)) || chain[..i].contains(p) {
+                return Err(Error::invalid(
+                    "unknowns.chain",
+                    format!("{p:?}"),
+                    "distinct names among d, gamma, k, mass",
+                ));
+            }
+        }
+        if chain.len() == 4 {
+            return Err(Error::invalid(
+                "unknowns.chain",
+                "d, gamma, k, mass",
+                "at most three: x_1(t) is unchanged when every mass, damper, spring and gamma are scaled together",
+            ));
+        }
+        Ok(GeneralUnknowns {
+            n,
+            slots,
+            chain,
+            bounds,
+        })
+    }
+
+    /// `k` free defects of one kind, chain parameters `chain`, default bounds.
+    ///
+    /// # Errors
+    /// As [`GeneralUnknowns::new`].
+    pub fn free(n: usize, kinds: &[KindChoice], chain: &[Param]) -> Result<GeneralUnknowns> {
+        GeneralUnknowns::new(
+            n,
+            kinds.iter().map(|&k| Slot::free(k)).collect(),
+            chain.to_vec(),
+            KindBounds::default(),
+        )
+    }
+
+    /// Number of masses.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+    /// The defects.
+    pub fn slots(&self) -> &[Slot] {
+        &self.slots
+    }
+    /// The chain parameters fitted.
+    pub fn chain(&self) -> &[Param] {
+        &self.chain
+    }
+    /// The per-kind default bounds.
+    pub fn kind_bounds(&self) -> &KindBounds {
+        &self.bounds
+    }
+
+    /// Bounds of slot `i` as kind `kind`.
+    pub fn bounds(&self, i: usize, kind: DefectKind) -> (f64, f64) {
+        self.slots[i].bounds.unwrap_or(self.bounds.of(kind))
+    }
+
+    /// Every admissible hypothesis, deterministic order: slots with the same
+    /// description are interchangeable (their `(kind, position)` pairs form a
+    /// set, drawn by [`crate::detect::search::enumerate::subsets`] from the
+    /// candidates ordered by position then kind); no `(kind, position)`
+    /// twice. Stops with an error beyond `max` hypotheses.
+    ///
+    /// # Errors
+    /// More than `max` hypotheses (field `search.max_sets`).
+    pub fn hypotheses(&self, max: usize) -> Result<Vec<KindPositions>> {
+        // groups of identical slots, in order of first appearance
+        let mut groups: Vec<(Slot, Vec<usize>)> = Vec::new();
+        for (i, s) in self.slots.iter().enumerate() {
+            match groups.iter_mut().find(|g| g.0 == *s) {
+                Some(g) => g.1.push(i),
+                None => groups.push((*s, vec![i])),
+            }
+        }
+        let per_group: Vec<Vec<KindPositions>> = groups
+            .iter()
+            .map(|(s, idx)| {
+                let mut cands: KindPositions = Vec::new();
+                for &k in s.kind.kinds() {
+                    for at in k.positions(self.n) {
+                        if s.at.is_none_or(|a| a == at) {
+                            cands.push((k, at));
+                        }
+                    }
+                }
+                cands.sort_by_key(|&(k, at)| (at, k));
+                let all: Vec<usize> = (0..cands.len()).collect();
+                crate::detect::search::enumerate::subsets(&all, idx.len())
+                    .into_iter()
+                    .map(|c| c.into_iter().map(|j| cands[j]).collect())
+                    .collect()
+            })
+            .collect();
+        let mut out: Vec<KindPositions> = vec![vec![(DefectKind::Mass, 0); self.slots.len()]];
+        for ((_, idx), choices) in groups.iter().zip(&per_group) {
+            let mut next = Vec::with_capacity(out.len() * choices.len());
+            for h in &out {
+                for c in choices {
+                    let mut h2 = h.clone();
+                    for (&slot, &pair) in idx.iter().zip(c) {
+                        h2[slot] = pair;
+                    }
+                    next.push(h2);
+                }
+                if next.len() > max.saturating_mul(4) {
+                    break;
+                }
+            }
+            out = next;
+        }
+        let filled: Vec<usize> = groups.iter().flat_map(|g| g.1.iter().copied()).collect();
+        out.retain(|h| {
+            filled
+                .iter()
+                .enumerate()
+                .all(|(a, &i)| filled[..a].iter().all(|&j| h[j] != h[i]))
+        });
+        if out.len() > max {
+            return Err(Error::invalid(
+                "search.max_sets",
+                max,
+                format!(
+                    "at least {} hypotheses (fewer unknowns, or a larger max_sets)",
+                    out.len()
+                ),
+            ));
+        }
+        Ok(out)
     }
 }
 

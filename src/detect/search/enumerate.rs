@@ -190,6 +190,21 @@ fn exhaustive(
     Ok(finish(unknowns, fitted, sets.len(), true, opts.keep))
 }
 
+/// All `p`-subsets of `allowed`, each in the order of `allowed`, in
+/// lexicographic order of their indices (`p = 0`: one empty set; `p >
+/// allowed.len()`: none). The position-set generator shared by the
+/// enumeration and [`crate::detect::noisefit`].
+///
+/// ```
+/// use springmass::detect::search::enumerate::subsets;
+/// assert_eq!(subsets(&[1, 2, 3], 2), vec![vec![1, 2], vec![1, 3], vec![2, 3]]);
+/// ```
+pub fn subsets(allowed: &[usize], p: usize) -> Vec<Vec<usize>> {
+    let mut out = Vec::new();
+    gen_sets(allowed, p, true, 0, &mut Vec::with_capacity(p), &mut out);
+    out
+}
+
 fn gen_sets(
     allowed: &[usize],
     p: usize,
