@@ -64,7 +64,8 @@
 //! let c = DMatrix::from_row_slice(3, 3, &[1.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 4.0]);
 //! let w = Whitening::new(&c, 1e-12)?;
 //! assert_eq!(w.dof(), 2);
-//! assert!((w.chi2(&[1.0, 1.0, 2.0]) - 3.0).abs() < 1e-12);
+//! // (1, 1) is one unit-variance datum seen twice, 2 is one standard deviation
+//! assert!((w.chi2(&[1.0, 1.0, 2.0]) - 2.0).abs() < 1e-12);
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
