@@ -211,7 +211,7 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitChoice, setup: &Setup) -> Resu
             .into_iter()
             .enumerate()
         {
-            cov[(r, r)] += (1e-15 * vals[q].value.norm()).powi(2);
+            cov[(r, r)] = (cov[(r, r)] + (1e-15 * vals[q].value.norm()).powi(2)).max(1e-300);
         }
         let wh =
             crate::detect::whiten::Whitening::new(&cov, crate::detect::whiten::DEFAULT_CUTOFF)?;
