@@ -70,6 +70,9 @@ pub struct Args {
     /// Criterion for the number of defects: aic, bic, chi2[:ALPHA].
     #[arg(long, default_value = "bic")]
     pub criterion: String,
+    /// Weighting of the Laplace misfits: diagonal or whitened.
+    #[arg(long, default_value = "whitened")]
+    pub weighting: String,
     /// Output folder for CSV and SVG files.
     #[arg(long, default_value = "noise-study")]
     pub out: PathBuf,
@@ -91,7 +94,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         cfg.levels = a.levels.clone();
     }
-    let setup = Setup::new()?;
+    let setup = Setup {
+        weighting: springmass::detect::whiten::Weighting::parse(&a.weighting)?,
+        ..Setup::new()?
+    };
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let mut md = String::new();
     if matches!(a.part, Part::Table | Part::All) {

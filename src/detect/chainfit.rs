@@ -8,8 +8,10 @@
 //!   central differences of the exact modal sum;
 //! * [`Obs::Laplace`]: values `d_q` at Laplace nodes `s_q` (real or complex)
 //!   with weights `w_q` (`chi^2 = sum_q w_q |X_1(s_q) - d_q|^2`, for example
-//!   quadrature weights over `sigma^2`); analytic Jacobian by reciprocity
-//!   ([`crate::sensitivity::gradient`]).
+//!   quadrature weights over `sigma^2`), or with a whitening matrix `W`
+//!   ([`LaplaceObs::whitened`]: `chi^2 = ||W r||^2`, `r` the stacked real
+//!   residuals, see [`crate::detect::whiten`]); analytic Jacobian by
+//!   reciprocity ([`crate::sensitivity::gradient`]).
 //!
 //! This is the inner step of the unknown-chain-parameter fit: the positions come
 //! from a discrete search, and this fit refines every continuous unknown
@@ -40,12 +42,17 @@ use crate::sensitivity::{defect_gradient_with, gradient, Param};
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 
-/// Laplace-domain observations: `chi^2 = sum_q w_q |X_1(s_q) - d_q|^2`.
+/// Laplace-domain observations: `chi^2 = sum_q w_q |X_1(s_q) - d_q|^2`
+/// (diagonal weights, [`LaplaceObs::new`]) or `chi^2 = ||W r||^2` with `r`
+/// the stacked real residuals `[Re r_1..r_Q; Im r_q for complex s_q]`
+/// ([`crate::time::series::stack_re_im`]) and a whitening matrix `W`
+/// ([`LaplaceObs::whitened`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct LaplaceObs {
     s: Vec<Complex64>,
     values: Vec<Complex64>,
     weights: Vec<f64>,
+    whitening: Option<DMatrix<f64>>,
 }
 
 impl LaplaceObs {
@@ -79,7 +86,72 @@ impl LaplaceObs {
                 return Err(Error::invalid(format!("values[{i}]"), v, "finite"));
             }
         }
-        Ok(LaplaceObs { s, values, weights })
+        Ok(LaplaceObs {
+            s,
+            values,
+            weights,
+            whitening: None,
+        })
+    }
+
+    /// Nodes, data and a whitening matrix `W` (`K` rows, one column per row of
+    /// the stacked real residual vector: `Q` plus the number of complex
+    /// nodes), typically [`crate::detect::whiten::Whitening::matrix`] of the
+    /// data covariance; `chi^2 = ||W r||^2` has `K` degrees of freedom at the
+    /// true chain.
+    ///
+    /// # Errors
+    /// As [`LaplaceObs::new`]; `W` with the wrong number of columns, no rows,
+    /// or a non-finite entry (field `whitening`).
+    pub fn whitened(
+        s: Vec<Complex64>,
+        values: Vec<Complex64>,
+        whitening: DMatrix<f64>,
+    ) -> Result<LaplaceObs> {
+        let q = s.len();
+        let mut obs = LaplaceObs::new(s, values, vec![1.0; q])?;
+        let m = crate::time::series::stacked_rows(&obs.s).len();
+        if whitening.ncols() != m || whitening.nrows() == 0 {
+            return Err(Error::invalid(
+                "whitening",
+                format!("{}x{}", whitening.nrows(), whitening.ncols()),
+                format!("at least one row and {m} columns (stacked residuals)"),
+            ));
+        }
+        if whitening.iter().any(|v| !v.is_finite()) {
+            return Err(Error::invalid("whitening", "non-finite entry", "finite"));
+        }
+        obs.whitening = Some(whitening);
+        Ok(obs)
+    }
+
+    /// Degrees of freedom of the chi-square at a fixed chain: the rows of `W`
+    /// when whitened, otherwise the number of real residuals (one per real
+    /// node, two per complex node; with diagonal weights this is only a
+    /// count, the misfit is not a chi-square).
+    pub fn dof(&self) -> usize {
+        match &self.whitening {
+            Some(w) => w.nrows(),
+            None => crate::time::series::stacked_rows(&self.s).len(),
+        }
+    }
+
+    /// The whitening matrix, if any.
+    pub fn whitening(&self) -> Option<&DMatrix<f64>> {
+        self.whitening.as_ref()
+    }
+
+    /// The data values.
+    pub fn values(&self) -> &[Complex64] {
+        &self.values
+    }
+
+    /// `chi^2` of `chain` (the sum of squared [`LaplaceObs::residuals`]).
+    ///
+    /// # Errors
+    /// As [`LaplaceObs::residuals`].
+    pub fn chi2(&self, chain: &Chain) -> Result<f64> {
+        Ok(self.residuals(chain)?.iter().map(|v| v * v).sum())
     }
 
     /// Exact data of `truth` at the nodes (for tests and studies).
@@ -107,6 +179,16 @@ impl LaplaceObs {
     /// As [`Forward::eval`].
     pub fn residuals(&self, chain: &Chain) -> Result<Vec<f64>> {
         let fwd = Forward::new(chain);
+        if let Some(w) = &self.whitening {
+            let diff = self
+                .s
+                .iter()
+                .zip(&self.values)
+                .map(|(z, d)| Ok(fwd.eval(*z, 1)? - d))
+                .collect::<Result<Vec<Complex64>>>()?;
+            let r = nalgebra::DVector::from_vec(crate::time::series::stack_re_im(&self.s, &diff));
+            return Ok((w * r).iter().copied().collect());
+        }
         let mut r = Vec::with_capacity(2 * self.s.len());
         for q in 0..self.s.len() {
             let x = fwd.eval(self.s[q], 1)?;
@@ -131,6 +213,7 @@ impl LaplaceObs {
             })
             .collect();
         let fwd = Forward::new(chain);
+        let mut grads: Vec<Vec<Complex64>> = Vec::with_capacity(self.s.len());
         for q in 0..self.s.len() {
             let g = match &defect_idx {
                 Some(idx) => {
@@ -142,11 +225,28 @@ impl LaplaceObs {
                 }
                 None => gradient(chain, self.s[q], 1, params)?,
             };
+            if self.whitening.is_some() {
+                grads.push(g.grad);
+                continue;
+            }
             let sw = self.weights[q].sqrt();
             rows.push(g.grad.iter().map(|v| v.re * sw).collect());
             if self.s[q].im != 0.0 {
                 rows.push(g.grad.iter().map(|v| v.im * sw).collect());
             }
+        }
+        if let Some(w) = &self.whitening {
+            // stacked rows: Re of every node, then Im of the complex nodes
+            let layout = crate::time::series::stacked_rows(&self.s);
+            let j = DMatrix::from_fn(layout.len(), params.len(), |r, c| {
+                let (q, im) = layout[r];
+                if im {
+                    grads[q][c].im
+                } else {
+                    grads[q][c].re
+                }
+            });
+            return Ok(w * j);
         }
         Ok(DMatrix::from_fn(rows.len(), params.len(), |i, j| {
             rows[i][j]
@@ -362,6 +462,48 @@ mod tests {
             );
         }
         assert!(f.chi2() < 1e-12);
+    }
+
+    #[test]
+    fn whitened_with_a_scaled_identity_equals_diagonal_weights() {
+        let truth = Chain::paper(6)
+            .unwrap()
+            .with_defects([
+                Defect::Mass { at: 2, m: 3.0 },
+                Defect::Mass { at: 5, m: 0.5 },
+            ])
+            .unwrap();
+        let s = vec![
+            Complex64::new(0.5, 0.0),
+            Complex64::new(0.1, 0.7),
+            Complex64::new(2.0, 0.0),
+            Complex64::new(0.1, 1.3),
+        ];
+        let data = LaplaceObs::exact(&truth, s.clone(), vec![4.0; 4]).unwrap();
+        let diag = LaplaceObs::new(s.clone(), data.values().to_vec(), vec![4.0; 4]).unwrap();
+        let w = DMatrix::<f64>::identity(6, 6) * 2.0;
+        let wh = LaplaceObs::whitened(s.clone(), data.values().to_vec(), w).unwrap();
+        assert_eq!((diag.dof(), wh.dof()), (6, 6));
+        let guess = Chain::paper(6)
+            .unwrap()
+            .with_defects([
+                Defect::Mass { at: 2, m: 2.5 },
+                Defect::Mass { at: 5, m: 0.7 },
+            ])
+            .unwrap();
+        let (a, b) = (diag.chi2(&guess).unwrap(), wh.chi2(&guess).unwrap());
+        assert!((a - b).abs() <= 1e-12 * a, "{a} vs {b}");
+        let p = Param::defects(&guess);
+        let (ja, jb) = (
+            diag.jacobian(&guess, &p).unwrap(),
+            wh.jacobian(&guess, &p).unwrap(),
+        );
+        let (ga, gb) = (ja.transpose() * &ja, jb.transpose() * &jb);
+        assert!((ga - &gb).norm() <= 1e-12 * gb.norm());
+        // a whitened fit recovers the truth
+        let f = fit_chain(&guess, &p, &Obs::Laplace(&wh), None).unwrap();
+        assert!((f.values[0] - 3.0).abs() < 1e-8 && (f.values[1] - 0.5).abs() < 1e-8);
+        assert!(LaplaceObs::whitened(s, data.values().to_vec(), DMatrix::zeros(3, 5)).is_err());
     }
 
     #[test]

@@ -30,6 +30,7 @@
 //! | [`select`] | number of defects by AIC, BIC or a chi-square test |
 //! | [`noisefit`] | fits to noisy sampled series with each misfit (noise study) |
 //! | [`noise_study`] | success vs noise, calibration, unknown damping, number of defects |
+//! | [`whiten`] | whitening of the correlated Laplace-domain noise: a true chi-square and its degrees of freedom |
 //! | [`chainfit`] | continuous fit of defect values and chain parameters (d, k, mass, gamma) |
 //! | [`locate`] | explicit single-defect locators (section 4.1), corrected, any precision |
 
@@ -48,3 +49,4 @@ pub mod scene;
 pub mod search;
 pub mod select;
 pub mod space;
+pub mod whiten;

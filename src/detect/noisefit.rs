@@ -132,6 +132,8 @@ pub struct Setup {
     pub time_shortlist: usize,
     /// LM iterations of the coarse pass.
     pub coarse_iter: usize,
+    /// Weighting of the Laplace misfits (used by [`laplace_obs`]).
+    pub weighting: crate::detect::whiten::Weighting,
 }
 
 impl Setup {
@@ -149,12 +151,23 @@ impl Setup {
             shortlist: 8,
             time_shortlist: 5,
             coarse_iter: 12,
+            weighting: crate::detect::whiten::Weighting::default(),
         })
     }
 }
 
 /// Laplace data at the nodes of `choice` (real axis or Bromwich) from the
-/// sampled series of `data`, weighted by the rule over the data's variance.
+/// sampled series of `data`, weighted as `setup.weighting` says:
+///
+/// * [`Weighting::Diagonal`](crate::detect::whiten::Weighting::Diagonal): node
+///   `q` by the rule's weight over the node's variance, `w_q / v_q` (not a
+///   chi-square: the transformed noise is correlated between nodes);
+/// * [`Weighting::Whitened`](crate::detect::whiten::Weighting::Whitened): the
+///   full covariance of the transformed data
+///   ([`SeriesTransform::data_covariance`], plus `(1e-15 |X(s_q)|)^2` on the
+///   diagonal for the rounding of the model), whitened with the default
+///   cutoff ([`crate::detect::whiten`]): `chi^2` with [`LaplaceObs::dof`]
+///   degrees of freedom at the true chain.
 ///
 /// # Errors
 /// [`Error::InvalidParameter`] for [`MisfitChoice::Time`]; as [`SeriesTransform`].
@@ -192,6 +205,19 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitChoice, setup: &Setup) -> Resu
     };
     let tr = SeriesTransform::new(data.t(), data.y(), &opts)?;
     let vals = tr.eval_many(&s)?;
+    if setup.weighting == crate::detect::whiten::Weighting::Whitened {
+        let mut cov = tr.data_covariance(&vals)?;
+        for (r, (q, _)) in crate::time::series::stacked_rows(&s)
+            .into_iter()
+            .enumerate()
+        {
+            cov[(r, r)] = (cov[(r, r)] + (1e-15 * vals[q].value.norm()).powi(2)).max(1e-300);
+        }
+        let wh =
+            crate::detect::whiten::Whitening::new(&cov, crate::detect::whiten::DEFAULT_CUTOFF)?;
+        let values = vals.iter().map(|v| v.value).collect();
+        return LaplaceObs::whitened(s, values, wh.matrix().clone());
+    }
     let mut values = Vec::with_capacity(s.len());
     let mut weights = Vec::with_capacity(s.len());
     for (v, wq) in vals.iter().zip(&w) {
