@@ -573,7 +573,7 @@ impl std::fmt::Display for Problem {
 
 /// Parse a study file, failing on the first problem (see [`check`] for all
 /// of them). The semantic checks of every case are done by
-/// [`crate::study::Study::new`].
+/// [`crate::study::Study::from_text`].
 ///
 /// # Errors
 /// [`Error::Parse`] naming the file, the field and the line.

@@ -79,7 +79,7 @@ pub use nelder_mead::NelderMeadOptions;
 pub use pso::PsoOptions;
 
 /// A mixed search space: `n_positions` distinct integer positions in 1..=n (not in `excluded`), unordered,
-/// and real values each within bounds. `pairing[i] = Some(p)` says value i belongs to the defect at positions[p]
+/// and real values each within bounds. `pairing[i] = Some(p)` says value i belongs to the defect at `positions[p]`
 /// (so crossover/moves keep a value with its position); None = a value tied to a known-position defect.
 ///
 /// Because positions are unordered, the defects at unknown positions are

@@ -5,7 +5,7 @@
 //! A particle is `[x_1..x_k, u_1..u_m]`: relaxed positions in
 //! `[0.5, n + 0.5]` and values in unit coordinates `[0, 1]` (log-scaled
 //! values are uniform in `ln v`). Each evaluation rounds the positions to
-//! distinct free integers ([`Space::round_positions`]: nearest integer,
+//! distinct free integers ([`Space::round_positions`](super::Space::round_positions): nearest integer,
 //! collisions and excluded positions moved to the nearest free one).
 //!
 //! Why this and not positions fixed per run: a swarm is a global, population
