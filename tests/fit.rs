@@ -475,3 +475,55 @@ panels = 10
         other => panic!("{other:?}"),
     }
 }
+
+/// A noisy simulated series fitted on the Bromwich line: the transformed data
+/// are whitened by their noise covariance, so the residual is a chi-square
+/// near its degrees of freedom at the answer, and every general fit carries
+/// an identifiability report.
+#[test]
+fn general_scene_with_a_noisy_series_is_a_whitened_chi_square() {
+    let scene = FitScene::from_toml(
+        r#"
+        [chain]
+        n = 8
+        defects = [ { kind = "damper", at = 3, d = 0.8 } ]
+        [data]
+        source = "simulated"
+        t_end = 200.0
+        dt = 0.2
+        noise = 0.001
+        relative = true
+        seed = 4
+        [unknowns]
+        kind = "any"
+        [misfit]
+        kind = "bromwich"
+        rule = "gl-uniform"
+        panels = 10
+        per_panel = 8
+        sigma = 0.05
+        omega_max = 4.0
+        [search]
+        parallel = false
+        "#,
+    )
+    .unwrap();
+    let r = fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
+    assert_eq!(r.defects.len(), 1);
+    assert_eq!((r.defects[0].kind(), r.defects[0].at()), ("damper", 3));
+    assert!((r.defects[0].value() - 0.8).abs() < 4.0 * r.std_errors[0]);
+    // chi-square with `nodes` = dof (160 on the Bromwich line): within 5 sigma
+    let dof = r.nodes as f64;
+    assert!(
+        (r.residual - dof).abs() < 5.0 * (2.0 * dof).sqrt(),
+        "chi2 {} for {dof} dof ({})",
+        r.residual,
+        r.misfit
+    );
+    assert!(r.fits_data && r.resolved);
+    let id = r
+        .identifiability
+        .expect("general fits report identifiability");
+    assert!(id.all_identifiable(), "{id:?}");
+    assert!(id.sigma_indistinguishable.unwrap() > id.sigma);
+}

@@ -124,6 +124,34 @@ fn print_text(scene: &FitScene, r: &FitReport) {
             );
         }
     }
+    if let Some(id) = &r.identifiability {
+        println!(
+            "identifiability (noise level {:.3e}; gap threshold {})",
+            id.sigma, id.threshold
+        );
+        if let (Some(g), Some(s)) = (id.runner_up_gap, id.sigma_indistinguishable) {
+            println!(
+                "  runner-up chi2 gap {g:.4e}: indistinguishable from the answer at noise {s:.3e} ({:.1}x the data's)",
+                if id.sigma > 0.0 { s / id.sigma } else { f64::INFINITY }
+            );
+        }
+        for d in &id.defects {
+            println!(
+                "  at {:>3}: {:.1} SE from the uniform value; {}{}",
+                d.at,
+                d.significance,
+                match (d.nearest_rival, d.position_gap) {
+                    (Some(p), Some(g)) => format!("nearest rival position {p} (chi2 gap {g:.3e})"),
+                    _ => "no listed alternative moves it".to_string(),
+                },
+                if d.identifiable {
+                    String::from("  identifiable")
+                } else {
+                    format!("  NOT identifiable: {}", d.reason)
+                }
+            );
+        }
+    }
     let sets = r
         .sets
         .map(|s| format!(", {s} position sets"))

@@ -55,9 +55,9 @@ use crate::detect::data::Data;
 use crate::detect::misfit::{Misfit, MisfitKind};
 use crate::detect::misfit_time::TimeMisfit;
 use crate::detect::noisefit::{
-    fit_general, laplace_obs, FittedParam, GeneralOptions, MisfitChoice, Setup,
+    fit_general, identify_general, laplace_obs, FittedParam, GeneralOptions, MisfitChoice, Setup,
 };
-use crate::detect::scene::FitScene;
+use crate::detect::scene::{DataSourceKind, FitScene};
 use crate::detect::search::enumerate::{enumerate, fit_slots, Defects, EnumerateOptions};
 use crate::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
 use crate::detect::space::{MassUnknown, Unknowns};
@@ -189,6 +189,11 @@ pub struct FitReport {
     pub std_errors: Vec<f64>,
     /// General path: the fitted chain parameters with their standard errors.
     pub chain_params: Vec<FittedParam>,
+    /// General path: the identifiability report (chi-square gaps of the
+    /// alternatives, the noise level at which the runner-up becomes
+    /// indistinguishable, per-defect significance and flags); see
+    /// [`crate::detect::identify`].
+    pub identifiability: Option<crate::detect::identify::Identifiability>,
 }
 
 /// Fit the scene's unknowns to `data`.
@@ -316,6 +321,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitRep
         fits_data,
         std_errors: Vec::new(),
         chain_params: Vec::new(),
+        identifiability: None,
     })
 }
 
@@ -347,7 +353,33 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Res
             let n = td.len();
             (coarse, Some(TimeMisfit::new(td)), name, n)
         }
+        kind if scene.data.source != DataSourceKind::Exact => {
+            // a sampled series: its transform at the scene's nodes, whitened by
+            // the transform's noise covariance (a true chi-square)
+            let rule = scene.misfit.rule()?;
+            let choice = if kind == MisfitKind::RealAxis {
+                setup.real_rule = rule.clone();
+                MisfitChoice::RealAxis
+            } else {
+                setup.bromwich_rule = rule.clone();
+                setup.bromwich_sigma = scene.misfit.sigma;
+                MisfitChoice::Bromwich
+            };
+            let td = scene.time_data()?;
+            let obs = laplace_obs(&td, choice, &setup)?;
+            let name = format!(
+                "{} chi-square of the transformed series, {:?} ({} dof of {} nodes), {}",
+                choice.name(),
+                setup.weighting,
+                obs.dof(),
+                rule.nodes.len(),
+                rule.name
+            );
+            let n = obs.dof();
+            (obs, None, name, n)
+        }
         kind => {
+            // exact-model data with independent per-node noise: weights 1/sigma_q^2
             let rule = scene.misfit.rule()?;
             let (s, values, sigma): (Vec<Complex64>, Vec<Complex64>, Vec<f64>) =
                 if kind == MisfitKind::RealAxis {
@@ -366,15 +398,10 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Res
                     let sm = data.sample(&s)?;
                     (s, sm.values, sm.sigma)
                 };
-            let weights = rule
-                .weights
-                .iter()
-                .zip(&sigma)
-                .map(|(w, sg)| w / (sg * sg).max(1e-300))
-                .collect();
+            let weights = sigma.iter().map(|sg| 1.0 / (sg * sg).max(1e-300)).collect();
             let n = s.len();
             let name = format!(
-                "{} chi-square on the rule's nodes (weights w_q / sigma_q^2), {}",
+                "{} chi-square on the rule's nodes (independent node noise, weights 1 / sigma_q^2), {}",
                 if kind == MisfitKind::RealAxis {
                     "real-axis"
                 } else {
@@ -384,6 +411,10 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Res
             );
             (LaplaceObs::new(s, values, weights)?, None, name, n)
         }
+    };
+    let noise_level = match scene.data.source {
+        DataSourceKind::Exact => data.noise(),
+        _ => scene.noise_sigma()?,
     };
     setup.shortlist = setup.shortlist.max(options.enumerate.keep);
     let gopts = GeneralOptions {
@@ -409,6 +440,7 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Res
         .collect();
     let floor = crate::detect::identify::DEFAULT_THRESHOLD;
     let m = g.residuals as f64;
+    let identifiability = identify_general(&g.ranked, &base, noise_level, None).ok();
     Ok(FitReport {
         method: "enumerate (general noisy fit)".into(),
         defects: best.defects.clone(),
@@ -428,6 +460,7 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Res
         fits_data: best.chi2 <= m + 4.0 * (2.0 * m).sqrt(),
         std_errors: best.std_errors.clone(),
         chain_params: best.chain.clone(),
+        identifiability,
     })
 }
 
