@@ -108,25 +108,16 @@ fn method(a: &Args) -> anyhow::Result<Method> {
         (None, None, true) => "large",
         (None, None, false) => "unknown-mass",
     };
-    let need_m = || -> anyhow::Result<f64> {
-        a.defect_mass
-            .with_context(|| format!("--method {name} needs the defect mass --m M"))
-    };
-    Ok(match name {
-        "exact" => Method::Exact { m: need_m()? },
-        "asymptotic" => Method::Asymptotic { m: need_m()? },
-        "large" => Method::Large,
-        "large-paper" => Method::LargePaper,
-        "unknown-mass" => Method::UnknownMass,
-        other => {
-            return Err(Error::invalid(
-                "method",
-                other,
-                "exact, asymptotic, large, large-paper or unknown-mass",
+    let defect_mass = a.defect_mass;
+    Ok(Method::from_name(name, || {
+        defect_mass.ok_or_else(|| {
+            springmass::Error::invalid(
+                "--m",
+                "missing",
+                format!("the defect mass for --method {name}"),
             )
-            .into())
-        }
-    })
+        })
+    })?)
 }
 
 /// `(the s values to generate synthetic data at, the choice for the locator)`.

@@ -96,6 +96,29 @@ pub enum Method {
 }
 
 impl Method {
+    /// The locator named `name` (`exact`, `asymptotic`, `large`,
+    /// `large-paper`, `unknown-mass`); `m()` gives the known defect mass that
+    /// `exact` and `asymptotic` need (called only for them).
+    ///
+    /// # Errors
+    /// An unknown name (field `method`); the error of `m()`.
+    pub fn from_name(name: &str, m: impl FnOnce() -> Result<f64>) -> Result<Method> {
+        Ok(match name {
+            "exact" => Method::Exact { m: m()? },
+            "asymptotic" => Method::Asymptotic { m: m()? },
+            "large" => Method::Large,
+            "large-paper" => Method::LargePaper,
+            "unknown-mass" => Method::UnknownMass,
+            other => {
+                return Err(Error::invalid(
+                    "method",
+                    other,
+                    "exact, asymptotic, large, large-paper or unknown-mass",
+                ))
+            }
+        })
+    }
+
     /// Short name (`exact`, `asymptotic`, `large`, `large-paper`, `unknown-mass`).
     pub fn name(&self) -> &'static str {
         match self {

@@ -62,6 +62,15 @@ fn columns_of(study: &Study, part: Option<&str>) -> Columns {
     Columns { axes, metrics }
 }
 
+/// The records of `part` (all of them for `None`), in order.
+fn of_part(records: &[Record], part: Option<&str>) -> Vec<Record> {
+    records
+        .iter()
+        .filter(|r| in_part(r, part))
+        .cloned()
+        .collect()
+}
+
 /// Is the record one of part `part` (any part for `None`)?
 fn in_part(r: &Record, part: Option<&str>) -> bool {
     let Some(p) = part else {
@@ -206,12 +215,7 @@ fn md_escape(s: &str) -> String {
 
 fn table_md(study: &Study, records: &[Record], spec: &TableSpec) -> String {
     let cols = columns_of(study, spec.part.as_deref());
-    let records: Vec<Record> = records
-        .iter()
-        .filter(|r| in_part(r, spec.part.as_deref()))
-        .cloned()
-        .collect();
-    let records = &records[..];
+    let records = &of_part(records, spec.part.as_deref())[..];
     let rows = spec.rows.clone().unwrap_or_else(|| cols.axes.clone());
     let metrics = spec.metrics.clone().unwrap_or_else(|| cols.metrics.clone());
     let title = spec.title.clone().unwrap_or_else(|| {
@@ -285,12 +289,7 @@ fn sanitize(raw: String) -> String {
 /// # Errors
 /// [`Error::InvalidParameter`] when the x axis has non-numeric values.
 pub fn plot_chart(records: &[Record], spec: &PlotSpec) -> Result<LinePlot> {
-    let records: Vec<Record> = records
-        .iter()
-        .filter(|r| in_part(r, spec.part.as_deref()))
-        .cloned()
-        .collect();
-    let records = &records[..];
+    let records = &of_part(records, spec.part.as_deref())[..];
     let title = spec
         .title
         .clone()
@@ -350,12 +349,7 @@ pub fn heatmap_file(spec: &HeatmapSpec) -> String {
 /// # Errors
 /// [`Error::InvalidParameter`] when an axis has non-numeric values.
 pub fn heatmap_chart(records: &[Record], spec: &HeatmapSpec) -> Result<Heatmap> {
-    let records: Vec<Record> = records
-        .iter()
-        .filter(|r| in_part(r, spec.part.as_deref()))
-        .cloned()
-        .collect();
-    let records = &records[..];
+    let records = &of_part(records, spec.part.as_deref())[..];
     let number = |r: &Record, col: &str| {
         axis_number(r, col).ok_or_else(|| {
             Error::invalid(
@@ -438,12 +432,7 @@ fn passes(r: &Record, filter: &toml::Table) -> bool {
 /// # Errors
 /// [`Error::InvalidParameter`] when no selected case recorded a trace.
 pub fn trace_chart(records: &[Record], spec: &TraceSpec) -> Result<LinePlot> {
-    let records: Vec<Record> = records
-        .iter()
-        .filter(|r| in_part(r, spec.part.as_deref()))
-        .cloned()
-        .collect();
-    let records = &records[..];
+    let records = &of_part(records, spec.part.as_deref())[..];
     let title = spec
         .title
         .clone()

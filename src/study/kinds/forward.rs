@@ -29,7 +29,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::{CaseOutput, KindScene};
+use super::{prefix_chain, CaseOutput, KindScene};
 use crate::chain::{ChainSpec, Defect};
 use crate::error::{check_f64, Error, Result};
 use crate::forward::transfer::Transfer;
@@ -359,21 +359,6 @@ impl Scene {
             });
         }
         Ok(spec)
-    }
-}
-
-fn prefix_chain(e: Error) -> Error {
-    match e {
-        Error::InvalidParameter {
-            field,
-            value,
-            allowed,
-        } => Error::InvalidParameter {
-            field: format!("chain.{field}"),
-            value,
-            allowed,
-        },
-        other => other,
     }
 }
 

@@ -242,20 +242,7 @@ impl KindScene for Scene {
 /// The locator named `name`, with the known mass `m` of `exact` /
 /// `asymptotic`.
 fn method_of(name: &str, m: f64) -> Result<Method> {
-    Ok(match name {
-        "exact" => Method::Exact { m },
-        "asymptotic" => Method::Asymptotic { m },
-        "large" => Method::Large,
-        "large-paper" => Method::LargePaper,
-        "unknown-mass" => Method::UnknownMass,
-        other => {
-            return Err(Error::invalid(
-                "method",
-                other,
-                "exact, asymptotic, large, large-paper or unknown-mass",
-            ))
-        }
-    })
+    Method::from_name(name, || Ok(m))
 }
 
 impl Scene {

@@ -278,23 +278,34 @@ fn remove_path(value: &mut toml::Value, path: &str) -> bool {
     }
 }
 
-/// Every problem of a chain spec, each naming its field (`chain.n`,
-/// `chain.defects[1].m`): the uniform parameters one by one, each defect
-/// on its own, then the defects together (duplicates).
-pub fn chain_problems(spec: &crate::chain::ChainSpec) -> Vec<Error> {
-    use crate::chain::{Chain, Defect};
-    let prefix = |e: Error| match e {
+/// `e` with its field put under `prefix` (e.g. `perturbation.`): errors of
+/// a sub-table checked on its own, named by their path in the scene.
+pub fn prefix_field(e: Error, prefix: &str) -> Error {
+    match e {
         Error::InvalidParameter {
             field,
             value,
             allowed,
         } => Error::InvalidParameter {
-            field: format!("chain.{field}"),
+            field: format!("{prefix}{field}"),
             value,
             allowed,
         },
         other => other,
-    };
+    }
+}
+
+/// `e` with its field put under `chain.`.
+pub fn prefix_chain(e: Error) -> Error {
+    prefix_field(e, "chain.")
+}
+
+/// Every problem of a chain spec, each naming its field (`chain.n`,
+/// `chain.defects[1].m`): the uniform parameters one by one, each defect
+/// on its own, then the defects together (duplicates).
+pub fn chain_problems(spec: &crate::chain::ChainSpec) -> Vec<Error> {
+    use crate::chain::{Chain, Defect};
+    let prefix = prefix_chain;
     let base = match Chain::new(spec.n) {
         Ok(c) => c,
         Err(e) => return vec![prefix(e)],

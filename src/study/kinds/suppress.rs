@@ -299,7 +299,7 @@ impl Scene {
             }
         };
         let pert = Perturbation::new(p.delay, p.gain_error, target)
-            .map_err(|e| prefix(e, "perturbation."))?;
+            .map_err(|e| super::prefix_field(e, "perturbation."))?;
         Ok(VerifyOptions::new(self.t_end, self.dt)?
             .with_method(self.method()?)
             .with_perturbation(pert))
@@ -330,21 +330,6 @@ impl Scene {
             }
             _ => Input::Impulse,
         }
-    }
-}
-
-fn prefix(e: Error, p: &str) -> Error {
-    match e {
-        Error::InvalidParameter {
-            field,
-            value,
-            allowed,
-        } => Error::InvalidParameter {
-            field: format!("{p}{field}"),
-            value,
-            allowed,
-        },
-        other => other,
     }
 }
 
