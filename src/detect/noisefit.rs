@@ -67,7 +67,6 @@ use crate::detect::identify::{identify, Alternative, FittedDefect, Identifiabili
 use crate::detect::lsq::{levenberg_marquardt, LmOptions};
 use crate::detect::misfit_time::{TimeData, TimeMisfit};
 use crate::detect::quadrature::Rule;
-use crate::detect::search::enumerate::subsets;
 use crate::detect::space::{
     DefectKind, GeneralUnknowns, KindBounds, KindChoice, KindPositions, Slot,
 };
@@ -794,7 +793,6 @@ fn fit_set(
     obs: Obs<'_>,
     setup: &Setup,
     max_iter: usize,
-    coarse: bool,
 ) -> Result<Hypothesis> {
     let unknowns = GeneralUnknowns::new(
         base.n(),
@@ -811,19 +809,16 @@ fn fit_set(
         KindBounds::default(),
     )?;
     let pairs: KindPositions = positions.iter().map(|&at| (DefectKind::Mass, at)).collect();
-    if coarse {
-        return Ok(fit_pairs_coarse(base, &unknowns, &pairs, start, &[], obs, max_iter)?.hyp);
-    }
     Ok(fit_pairs(base, &unknowns, &pairs, start, &[], false, obs, max_iter)?.hyp)
 }
 
-/// Ranked hypotheses for `k` mass defects of `base` (its uniform part) against
-/// Laplace observations (coarse pass over all sets, in parallel, then the
-/// shortlist to convergence; the rest keep their coarse fits, ranked after).
-/// `k = 0` gives the uniform chain.
+/// Ranked hypotheses for `k` free mass defects of `base` (its uniform part)
+/// against Laplace observations: [`fit_general`] with `k` mass slots in
+/// `setup.mass_bounds` (coarse pass over all position sets, in parallel,
+/// then the shortlist to convergence). `k = 0` gives the uniform chain.
 ///
 /// # Errors
-/// `k > n` (field `k`); as the model.
+/// `k > n` (field `k`); as [`fit_general`].
 pub fn enumerate_laplace(
     base: &Chain,
     obs: &LaplaceObs,
@@ -843,57 +838,22 @@ pub fn enumerate_laplace(
             vec![],
         )]);
     }
-    let all: Vec<usize> = (1..=n).collect();
-    let sets = subsets(&all, k);
-    let coarse: Vec<Hypothesis> = sets
-        .par_iter()
-        .map(|p| {
-            fit_set(
-                base,
-                p,
-                &vec![2.0; k],
-                Obs::Laplace(obs),
-                setup,
-                setup.coarse_iter,
-                true,
-            )
-            .ok()
-        })
-        .collect::<Vec<_>>()
-        .into_iter()
-        .flatten()
-        .collect();
-    let coarse = rank(coarse);
-    let fine: Vec<Result<Hypothesis>> = coarse
-        .iter()
-        .take(setup.shortlist)
-        .collect::<Vec<_>>()
-        .par_iter()
-        .map(|h| {
-            let p = h.positions();
-            let a = fit_set(base, &p, &h.masses(), Obs::Laplace(obs), setup, 100, false);
-            let b = fit_set(
-                base,
-                &p,
-                &vec![0.5; k],
-                Obs::Laplace(obs),
-                setup,
-                100,
-                false,
-            );
-            match (a, b) {
-                (Ok(a), Ok(b)) => Ok(if b.chi2 < a.chi2 { b } else { a }),
-                (Ok(a), Err(_)) => Ok(a),
-                (Err(_), Ok(b)) => Ok(b),
-                (Err(e), Err(_)) => Err(e),
-            }
-        })
-        .collect();
-    let fine = fine.into_iter().collect::<Result<Vec<_>>>()?;
-    // the rest keep their coarse values (ranked after)
-    let mut out = rank(fine);
-    out.extend(coarse.into_iter().skip(setup.shortlist));
-    Ok(out)
+    let slot = Slot {
+        kind: KindChoice::Mass,
+        at: None,
+        known: None,
+        bounds: Some(setup.mass_bounds),
+    };
+    let unknowns = GeneralUnknowns::new(n, vec![slot; k], Vec::new(), KindBounds::default())?;
+    let g = fit_general(
+        base,
+        &unknowns,
+        obs,
+        None,
+        setup,
+        &GeneralOptions::default(),
+    )?;
+    Ok(g.ranked)
 }
 
 /// Refit each hypothesis of `shortlist` in the time domain (masses from its
@@ -921,7 +881,6 @@ pub fn refine_time(
             Obs::Time(misfit),
             setup,
             100,
-            false,
         )?);
     }
     Ok(rank(out))
@@ -1055,7 +1014,9 @@ mod tests {
 
     #[test]
     fn shared_subsets_count_and_order() {
-        let c = |n: usize, k| subsets(&(1..=n).collect::<Vec<_>>(), k);
+        let c = |n: usize, k| {
+            crate::detect::search::enumerate::subsets(&(1..=n).collect::<Vec<_>>(), k)
+        };
         assert_eq!(c(5, 2).len(), 10);
         assert_eq!(c(20, 3).len(), 1140);
         assert_eq!(c(3, 3), vec![vec![1, 2, 3]]);
