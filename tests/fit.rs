@@ -10,7 +10,7 @@ use springmass::detect::search::enumerate::{enumerate, EnumerateOptions};
 use springmass::detect::space::{DefectUnknown, Unknowns};
 use springmass::{scenes, Chain, Error};
 
-/// System `sys` (1..=4) of the paper's Table 1 (NOTES.md): n, the chain and
+/// System `sys` (1..=4) of the paper's Table 1 (docs/paper-notes.md): n, the chain and
 /// the true (j, m) pairs.
 fn table1(sys: usize) -> (usize, Chain, Vec<(usize, f64)>) {
     let chain = scenes::table1(sys).unwrap();

@@ -348,7 +348,7 @@ fn reference_laplace_values() {
     eprintln!("reference scenes: worst relative error {worst:e}");
 }
 
-/// NOTES.md: X_1 of the uniform chain is sinh(n lambda)/sinh((n+1) lambda) (k = 1).
+/// docs/paper-notes.md: X_1 of the uniform chain is sinh(n lambda)/sinh((n+1) lambda) (k = 1).
 #[test]
 fn uniform_chain_closed_form_from_notes() {
     for &n in &[1usize, 4, 19, 20, 300] {

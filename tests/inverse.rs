@@ -1,5 +1,5 @@
 //! Numerical inverse Laplace transform against the exact suppression controls
-//! of `/work/shared/reference/controls.json` (80-digit residue sums).
+//! of `tests/data/controls.json` (80-digit residue sums; see tests/data/README.md).
 //!
 //! F = -sinh(3L)/sinh((n+2)L) = -U_2(c)/U_{n+1}(c), G = U_1(c)/U_{n+1}(c),
 //! F1 = -sinh(L)/sinh(nL) = -1/U_{n-1}(c), c = cosh L = (s^2 + d s + 2)/2, d = 0.1.
@@ -12,15 +12,10 @@ use springmass::{Complex64, Error};
 const D: f64 = 0.1;
 
 fn reference() -> Option<serde_json::Value> {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/reference/controls.json");
-    let path = if path.exists() {
-        path
-    } else {
-        std::path::PathBuf::from("/work/shared/reference/controls.json")
-    };
-    let text = std::fs::read_to_string(&path).ok()?;
-    serde_json::from_str(&text).ok()
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/controls.json");
+    let text = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("reference {} missing: {e}", path.display()));
+    Some(serde_json::from_str(&text).expect("controls.json is valid JSON"))
 }
 
 /// U_a(c) / U_b(c) by the three-term recurrence, rescaled against overflow.

@@ -421,7 +421,7 @@ fn printed_4_17_fails_in_f64_for_deeper_defects_and_is_reported() {
 
 #[test]
 fn asymptotic_4_10_reproduces_notes_values() {
-    // NOTES.md: solving (4.10) for j with exact data (n=20, j=15, m=1.01, d=0.1)
+    // docs/paper-notes.md: solving (4.10) for j with exact data (n=20, j=15, m=1.01, d=0.1)
     let want = [
         (1.0, 15.4258),
         (5.0, 15.0139),

@@ -63,7 +63,7 @@ fn sensitivities_against_differences_on_a_grid() {
 
 #[test]
 fn time_misfit_sees_the_deep_defect_the_real_axis_cannot() {
-    // NOTES.md: System 3 with the second defect moved 15 -> 16 differs by
+    // docs/paper-notes.md: System 3 with the second defect moved 15 -> 16 differs by
     // ~1e-13 in the real-axis residual but by per cents in x_1(t)
     let s3 = &systems()[2].truth;
     let data = TimeData::simulate(s3, 200.0, 0.2, NoiseLevel::RelativeMax(1e-3), 5).unwrap();

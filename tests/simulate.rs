@@ -1,6 +1,6 @@
 //! Simulator and exact residue sums against each other, against the Laplace
 //! model and against the independent reference vectors in
-//! `/work/shared/reference/time_*.json` (copied under `tests/data/` when present).
+//! `tests/data/time_*.json` (see tests/data/README.md).
 
 use num_complex::Complex64;
 use springmass::forward::response;
@@ -27,14 +27,10 @@ fn paper(n: usize, defects: &[(usize, f64)]) -> Chain {
 
 fn reference_path(scene: &str) -> Option<std::path::PathBuf> {
     let name = format!("time_{scene}.json");
-    [
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/reference"),
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data"),
-        std::path::PathBuf::from("/work/shared/reference"),
-    ]
-    .into_iter()
-    .map(|d| d.join(&name))
-    .find(|p| p.exists())
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(&name);
+    p.exists().then_some(p)
 }
 
 #[test]

@@ -18,7 +18,7 @@
 //!
 //! # Resolvability
 //!
-//! The relative defect signal decays like `s^{-4(j-1)}` (NOTES.md): a deep or
+//! The relative defect signal decays like `s^{-4(j-1)}` (docs/paper-notes.md): a deep or
 //! light defect is invisible at large `s` in `f64`, while small `s` still sees it.
 //! Each datum gets an [`Estimate`] with a [`Status`] (`BelowFloor` when the
 //! signal is under twice the error floor, never NaN); [`locate`] with

@@ -8,7 +8,7 @@
 //! * **Bromwich line** `s = sigma + i omega`:
 //!   `r = int_0^{W} |X_1(sigma + i omega) - X_1*(sigma + i omega)|^2 d omega`
 //!   (by Parseval this weights the time-domain misfit by `exp(-2 sigma t)`,
-//!   which keeps the time-domain conditioning; NOTES.md).
+//!   which keeps the time-domain conditioning; docs/paper-notes.md).
 //!
 //! Both are `r = sum_q w_q |X_1(s_q) - d_q|^2` with data `d_q` sampled at the
 //! same nodes as the model, so a rule's quadrature error never moves the zero

@@ -10,7 +10,7 @@
 //!
 //! Unlike the real-axis residual, this misfit keeps the conditioning of the
 //! measurement: moving a deep defect by one position changes `x_1(t)` by per
-//! cents, not by `1e-13` (NOTES.md, "Why deep defects are hard on the real s axis").
+//! cents, not by `1e-13` (docs/paper-notes.md, "Why deep defects are hard on the real s axis").
 //!
 //! ```
 //! use springmass::{Chain, Defect, noise::NoiseLevel};

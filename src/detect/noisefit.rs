@@ -1042,7 +1042,7 @@ mod tests {
             assert!(r[0].matches(&truth, 0.05), "{choice:?}: {:?}", r[0]);
         }
         // the real axis cannot see the light mass at 4 through 1e-3 noise
-        // (NOTES.md): its best set has a chi-square no worse than the truth's
+        // (docs/paper-notes.md): its best set has a chi-square no worse than the truth's
         let obs = laplace_obs(&data, MisfitChoice::RealAxis, &setup).unwrap();
         let r = enumerate_laplace(&truth.uniform(), &obs, 2, &setup).unwrap();
         let t: f64 = obs.residuals(&truth).unwrap().iter().map(|v| v * v).sum();

@@ -18,7 +18,7 @@
 //!   rule on log-graded panels with recursive bisection until the error
 //!   estimate is below `max(rel_tol |r|, abs_tol)`. The default tolerances
 //!   (`rel_tol = 1e-12`, `abs_tol = 1e-28`) resolve residual gaps of `1e-13`:
-//!   a default absolute tolerance such as `1e-10` would not (NOTES.md).
+//!   a default absolute tolerance such as `1e-10` would not (docs/paper-notes.md).
 //!
 //! ```
 //! use springmass::detect::quadrature::{Adaptive, Rule};

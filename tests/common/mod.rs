@@ -1,5 +1,5 @@
 //! Shared helpers for the integration tests: the paper's reference scenes and
-//! the independent test vectors in `../shared/reference/`.
+//! the independent test vectors in `tests/data/` (see its README.md).
 #![allow(dead_code)]
 
 use num_complex::Complex64;
@@ -11,19 +11,18 @@ pub fn rel_err(a: Complex64, b: Complex64) -> f64 {
     (a - b).norm() / b.norm()
 }
 
-/// Folder of the shared reference vectors (`../shared/reference` next to the repo).
+/// Folder of the independent reference vectors (`tests/data/`, in the repository).
+///
+/// # Panics
+/// When the folder or its README is missing: a test without its input must fail.
 pub fn reference_dir() -> PathBuf {
-    let here = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    for cand in [
-        here.join("../shared/reference"),
-        here.join("../../shared/reference"),
-        PathBuf::from("/work/shared/reference"),
-    ] {
-        if cand.join("README.md").exists() {
-            return cand;
-        }
-    }
-    panic!("shared/reference not found next to the repository");
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    assert!(
+        dir.join("README.md").exists(),
+        "reference vectors missing: {} (see tests/data/README.md)",
+        dir.display()
+    );
+    dir
 }
 
 pub struct Point {
