@@ -19,11 +19,11 @@
 
 use criterion::measurement::Measurement;
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use springmass::detect::chainfit::{ChainProblem, Obs};
-use springmass::detect::lsq::LeastSquares;
-use springmass::detect::misfit_time::{TimeData, TimeMisfit};
-use springmass::detect::noisefit::{laplace_obs, MisfitChoice, Setup};
-use springmass::detect::whiten::Weighting;
+use springmass::detect::fit::chainfit::{ChainProblem, Obs};
+use springmass::detect::search::lsq::LeastSquares;
+use springmass::detect::{data::series::TimeData, misfit::time::TimeMisfit};
+use springmass::detect::fit::general::{laplace_obs, MisfitChoice, Setup};
+use springmass::detect::data::whiten::Weighting;
 use springmass::noise::NoiseLevel;
 use springmass::scenes;
 use springmass::sensitivity::Param;

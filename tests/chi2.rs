@@ -1,15 +1,15 @@
 //! The Laplace-domain misfits as true chi-squares: whitening of the
-//! correlated transformed noise ([`springmass::detect::whiten`]), its degrees
+//! correlated transformed noise ([`springmass::detect::data::whiten`]), its degrees
 //! of freedom, and calibration at the true chain.
 //!
 //! The full 200-seed calibration report is `cargo test --release --test chi2
 //! -- --ignored --nocapture`.
 
-use springmass::detect::chainfit::LaplaceObs;
-use springmass::detect::misfit_time::TimeData;
+use springmass::detect::data::laplace::LaplaceObs;
+use springmass::detect::data::series::TimeData;
 use springmass::detect::noise_study::{noisy_data, systems, task_seed, StudyConfig};
-use springmass::detect::noisefit::{laplace_obs, MisfitChoice, Setup};
-use springmass::detect::whiten::{chi2_quantile, Weighting};
+use springmass::detect::fit::general::{laplace_obs, MisfitChoice, Setup};
+use springmass::detect::data::whiten::{chi2_quantile, Weighting};
 use springmass::noise::{add_noise, NoiseLevel};
 use springmass::time::simulate::{simulate, SimOptions};
 use springmass::Chain;
@@ -86,7 +86,7 @@ fn bromwich_whitened_is_a_calibrated_chi_square() {
 fn real_axis_noise_whitening_is_calibrated_and_has_few_dof() {
     // noise-only covariance on the real-axis nodes: about 24 independent data
     // out of 80 nodes; chi2/dof of the transformed noise ~ 1
-    use springmass::detect::whiten::{Whitening, DEFAULT_CUTOFF};
+    use springmass::detect::data::whiten::{Whitening, DEFAULT_CUTOFF};
     use springmass::forward::Forward;
     use springmass::time::series::{stack_re_im, SeriesTransform, TransformOptions};
     use springmass::Complex64;

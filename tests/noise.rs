@@ -2,11 +2,12 @@
 //! damping, model selection, on reduced seed sets (the full study is
 //! `springmass noise-study`).
 
-use springmass::detect::chainfit::{fit_chain, LaplaceObs, Obs};
-use springmass::detect::misfit_time::{TimeData, TimeMisfit};
+use springmass::detect::data::laplace::LaplaceObs;
+use springmass::detect::fit::chainfit::{fit_chain, Obs};
+use springmass::detect::{data::series::TimeData, misfit::time::TimeMisfit};
 use springmass::detect::noise_study::{calibration, choose_k, noisy_data, systems, StudyConfig};
-use springmass::detect::noisefit::{fit_noisy, identify_ranked, MisfitChoice, Setup};
-use springmass::detect::select::Criterion;
+use springmass::detect::fit::general::{fit_noisy, identify_ranked, MisfitChoice, Setup};
+use springmass::detect::fit::select::Criterion;
 use springmass::noise::NoiseLevel;
 use springmass::sensitivity::{gradient, Param};
 use springmass::{Chain, Complex64, Defect};
@@ -238,8 +239,8 @@ fn cli_rejects_bad_input_and_runs_a_tiny_table() {
 // ---- general noisy fit: spring, damper and any-kind defects at unknown
 // positions, chain parameters fitted alongside
 
-use springmass::detect::noisefit::{fit_noisy_general, GeneralOptions};
-use springmass::detect::space::{GeneralUnknowns, KindChoice};
+use springmass::detect::fit::general::{fit_noisy_general, GeneralOptions};
+use springmass::detect::unknowns::{GeneralUnknowns, KindChoice};
 
 fn general(
     truth: &Chain,
@@ -248,7 +249,7 @@ fn general(
     chain: &[Param],
     level: f64,
     seed: u64,
-) -> springmass::detect::noisefit::GeneralFit {
+) -> springmass::detect::fit::general::GeneralFit {
     general_with_sigma(truth, start, kinds, chain, level, seed).0
 }
 
@@ -259,7 +260,7 @@ fn general_with_sigma(
     chain: &[Param],
     level: f64,
     seed: u64,
-) -> (springmass::detect::noisefit::GeneralFit, f64) {
+) -> (springmass::detect::fit::general::GeneralFit, f64) {
     let data = TimeData::simulate(truth, 200.0, 0.2, NoiseLevel::RelativeMax(level), seed).unwrap();
     let u = GeneralUnknowns::free(truth.n(), kinds, chain).unwrap();
     fit_noisy_general(
@@ -274,7 +275,7 @@ fn general_with_sigma(
     .unwrap()
 }
 
-fn within_se(h: &springmass::detect::noisefit::Hypothesis, truth: &Chain, nse: f64) {
+fn within_se(h: &springmass::detect::fit::general::Hypothesis, truth: &Chain, nse: f64) {
     for t in truth.defects() {
         let (i, d) = h
             .defects
@@ -341,7 +342,7 @@ fn kind_any_picks_the_right_kind() {
         );
         // identifiability against the uniform value of each defect's kind
         let id =
-            springmass::detect::noisefit::identify_general(&f.ranked, &truth, sigma, None).unwrap();
+            springmass::detect::fit::general::identify_general(&f.ranked, &truth, sigma, None).unwrap();
         assert!(id.all_identifiable(), "{id:?}");
         assert_eq!(f.hypotheses, 6 + 7 + 6);
         let best = &f.ranked[0];

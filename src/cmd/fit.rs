@@ -3,7 +3,7 @@
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
-use springmass::detect::fit::{fit, FitMethod, FitReport};
+use springmass::detect::fit::paper::{fit, FitMethod, FitReport};
 use springmass::detect::scene::FitScene;
 use std::path::PathBuf;
 

@@ -7,8 +7,8 @@ use springmass::detect::noise_study::{
     calibration, confusion, damping_study, kind_cases, kinds_study, selection_truths,
     success_table, systems, StudyConfig,
 };
-use springmass::detect::noisefit::{MisfitChoice, Setup};
-use springmass::detect::select::Criterion;
+use springmass::detect::fit::general::{MisfitChoice, Setup};
+use springmass::detect::fit::select::Criterion;
 use springmass::plot::{Line, LinePlot};
 use springmass::series::write_atomic;
 use std::fmt::Write as _;
@@ -95,7 +95,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         cfg.levels = a.levels.clone();
     }
     let setup = Setup {
-        weighting: springmass::detect::whiten::Weighting::parse(&a.weighting)?,
+        weighting: springmass::detect::data::whiten::Weighting::parse(&a.weighting)?,
         ..Setup::new()?
     };
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
@@ -106,14 +106,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if matches!(a.part, Part::Identify | Part::All) {
         let s3 = &systems()[2];
         let data = springmass::detect::noise_study::noisy_data(&s3.truth, &cfg, 1e-2, a.seed)?;
-        let ranked = springmass::detect::noisefit::fit_noisy(
+        let ranked = springmass::detect::fit::general::fit_noisy(
             &s3.truth.uniform(),
             &data,
             2,
             MisfitChoice::Time,
             &setup,
         )?;
-        let r = springmass::detect::noisefit::identify_ranked(&ranked, 1.0, data.sigma(), None)?;
+        let r = springmass::detect::fit::general::identify_ranked(&ranked, 1.0, data.sigma(), None)?;
         writeln!(
             md,
             "\n## Identifiability (S3, time misfit, 1% noise, seed {})\n",

@@ -11,7 +11,7 @@
 //!
 //! ```no_run
 //! use springmass::detect::noise_study::{success_table, systems, StudyConfig};
-//! use springmass::detect::noisefit::{MisfitChoice, Setup};
+//! use springmass::detect::fit::general::{MisfitChoice, Setup};
 //! let cfg = StudyConfig { levels: vec![1e-3], seeds: 2, ..StudyConfig::default() };
 //! let cells = success_table(&systems()[..1], &cfg, &MisfitChoice::ALL, &Setup::new()?)?;
 //! assert_eq!(cells.len(), 3);
@@ -19,14 +19,14 @@
 //! ```
 
 use crate::chain::{Chain, Defect};
-use crate::detect::chainfit::ChainFitReport;
-use crate::detect::misfit_time::TimeData;
-use crate::detect::noisefit::{
+use crate::detect::fit::chainfit::ChainFitReport;
+use crate::detect::data::series::TimeData;
+use crate::detect::fit::general::{
     fit_damping, fit_noisy, fit_noisy_general, time_from_bromwich, GeneralOptions, Hypothesis,
     MisfitChoice, Setup,
 };
-use crate::detect::select::{select, Criterion, ModelFit, Selection};
-use crate::detect::space::{GeneralUnknowns, KindChoice};
+use crate::detect::fit::select::{select, Criterion, ModelFit, Selection};
+use crate::detect::unknowns::{GeneralUnknowns, KindChoice};
 use crate::error::Result;
 use crate::noise::NoiseLevel;
 use crate::sensitivity::Param;
@@ -265,7 +265,7 @@ pub fn calibration(
         .into_par_iter()
         .map(|r| {
             let data = noisy_data(truth, cfg, level, task_seed(&[cfg.seed, 77, r as u64]))?;
-            let misfit = crate::detect::misfit_time::TimeMisfit::new(data);
+            let misfit = crate::detect::misfit::time::TimeMisfit::new(data);
             // start 10% off the truth
             let start = truth
                 .uniform()
@@ -274,10 +274,10 @@ pub fn calibration(
                     other => other,
                 }))?;
             let params = crate::sensitivity::Param::defects(&start);
-            let f = crate::detect::chainfit::fit_chain(
+            let f = crate::detect::fit::chainfit::fit_chain(
                 &start,
                 &params,
-                &crate::detect::chainfit::Obs::Time(&misfit),
+                &crate::detect::fit::chainfit::Obs::Time(&misfit),
                 None,
             )?;
             Ok((

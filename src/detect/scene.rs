@@ -19,7 +19,7 @@
 //!
 //! # relative = false # simulated/series: noise relative to max |x_1|
 //!
-//! [unknowns]         # optional; see crate::detect::space::UnknownsSpec
+//! [unknowns]         # optional; see crate::detect::unknowns::UnknownsSpec
 //! k = 2              # default: number of defects in [chain]
 //! mass_bounds = [0.1, 100]
 //! # kind = "mass"    # "mass" | "spring" | "damper" | "any" (per defect:
@@ -43,7 +43,7 @@
 //!
 //! A scene with another defect kind, chain parameters or the time misfit
 //! ([`FitScene::is_general`]) is fitted by the general noisy fit
-//! ([`crate::detect::noisefit::fit_general`], unknowns from
+//! ([`crate::detect::fit::general::fit_general`], unknowns from
 //! [`FitScene::general_unknowns`], series from [`FitScene::time_data`]); see
 //! `configs/fit-spring.toml` and `configs/fit-any.toml`.
 //!
@@ -56,12 +56,12 @@
 //! ```
 
 use crate::chain::{Chain, ChainSpec, Defect};
-use crate::detect::data::Data;
-use crate::detect::fit::{FitMethod, FitOptions};
+use crate::detect::data::exact::Data;
+use crate::detect::fit::paper::{FitMethod, FitOptions};
 use crate::detect::misfit::MisfitSpec;
-use crate::detect::misfit_time::TimeData;
+use crate::detect::data::series::TimeData;
 use crate::detect::search::enumerate::EnumerateOptions;
-use crate::detect::space::{DefectKind, GeneralUnknowns, Unknowns, UnknownsSpec};
+use crate::detect::unknowns::{DefectKind, GeneralUnknowns, Unknowns, UnknownsSpec};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -365,7 +365,7 @@ impl FitScene {
     }
 
     /// Whether the scene needs the general noisy fit
-    /// ([`crate::detect::noisefit::fit_general`]): non-mass defects, chain
+    /// ([`crate::detect::fit::general::fit_general`]): non-mass defects, chain
     /// parameters or the time misfit.
     pub fn is_general(&self) -> bool {
         self.unknowns.is_general() || self.misfit.kind == crate::detect::misfit::MisfitKind::Time

@@ -31,8 +31,8 @@
 //!
 //! ```
 //! use springmass::{Chain, Defect};
-//! use springmass::detect::{data::Data, misfit::{Misfit, MisfitSpec}};
-//! use springmass::detect::space::{DefectUnknown, Unknowns};
+//! use springmass::detect::{data::exact::Data, misfit::{Misfit, MisfitSpec}};
+//! use springmass::detect::unknowns::{DefectUnknown, Unknowns};
 //! use springmass::detect::search::enumerate::{enumerate, EnumerateOptions};
 //! let truth = Chain::paper(5)?.with_defects([
 //!     Defect::Mass { at: 2, m: 3.0 }, Defect::Mass { at: 4, m: 0.5 }])?;
@@ -47,7 +47,7 @@
 //! ```
 
 use crate::detect::misfit::Misfit;
-use crate::detect::space::{MassUnknown, Unknowns};
+use crate::detect::unknowns::{MassUnknown, Unknowns};
 use crate::error::{Error, Result};
 use crate::linalg::solve_in_place;
 use rayon::prelude::*;
@@ -193,7 +193,7 @@ fn exhaustive(
 /// All `p`-subsets of `allowed`, each in the order of `allowed`, in
 /// lexicographic order of their indices (`p = 0`: one empty set; `p >
 /// allowed.len()`: none). The position-set generator shared by the
-/// enumeration and [`crate::detect::noisefit`].
+/// enumeration and [`crate::detect::fit::general`].
 ///
 /// ```
 /// use springmass::detect::search::enumerate::subsets;
@@ -556,9 +556,9 @@ pub fn fit_slots(
 mod tests {
     use super::*;
     use crate::chain::{Chain, Defect};
-    use crate::detect::data::Data;
+    use crate::detect::data::exact::Data;
     use crate::detect::misfit::MisfitSpec;
-    use crate::detect::space::DefectUnknown;
+    use crate::detect::unknowns::DefectUnknown;
 
     fn setup(n: usize, defs: &[(usize, f64)]) -> Misfit {
         let truth = Chain::paper(n)

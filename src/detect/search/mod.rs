@@ -65,6 +65,7 @@
 
 pub mod enumerate;
 pub mod genetic;
+pub mod lsq;
 pub mod nelder_mead;
 pub mod pso;
 

@@ -20,10 +20,10 @@
 //! positions are `1..=n`, spring positions `0..=n` (spring `i` joins masses `i`
 //! and `i + 1`; `0` and `n` are the wall springs). A hypothesis is a set of
 //! `(kind, position)` pairs ([`GeneralUnknowns::hypotheses`]); it is fitted by
-//! [`crate::detect::noisefit::fit_general`].
+//! [`crate::detect::fit::general::fit_general`].
 //!
 //! ```
-//! use springmass::detect::space::{DefectUnknown, MassUnknown, Unknowns};
+//! use springmass::detect::unknowns::{DefectUnknown, MassUnknown, Unknowns};
 //! let u = Unknowns::new(20, vec![DefectUnknown::free(0.1, 100.0); 2])?;
 //! assert_eq!(u.space().n_positions, 2);
 //! assert!(u.interchangeable());
@@ -284,8 +284,8 @@ impl Unknowns {
 /// # bounds = [1, 10]         # bounds of this unknown mass
 /// ```
 ///
-/// General unknowns (routed to [`crate::detect::noisefit::fit_general`] by
-/// [`crate::detect::fit::fit`]):
+/// General unknowns (routed to [`crate::detect::fit::general::fit_general`] by
+/// [`crate::detect::fit::paper::fit`]):
 ///
 /// ```toml
 /// [unknowns]

@@ -24,7 +24,7 @@
 //!
 //! ```
 //! use springmass::{Chain, Defect};
-//! use springmass::detect::{data::Data, misfit::{Misfit, MisfitSpec}};
+//! use springmass::detect::{data::exact::Data, misfit::{Misfit, MisfitSpec}};
 //! let truth = Chain::paper(20)?.with_defects([
 //!     Defect::Mass { at: 8, m: 5.0 }, Defect::Mass { at: 15, m: 2.0 }])?;
 //! let misfit = Misfit::new(&truth.uniform(), &Data::exact(&truth), &MisfitSpec::default())?;
@@ -33,9 +33,12 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+pub mod quadrature;
+pub mod time;
+
 use crate::chain::Chain;
-use crate::detect::data::Data;
-use crate::detect::quadrature::{Adaptive, AdaptiveOutput, GreenTable, Rule};
+use crate::detect::data::exact::Data;
+use crate::detect::misfit::quadrature::{Adaptive, AdaptiveOutput, GreenTable, Rule};
 use crate::error::{Error, Result};
 use crate::forward::{woodbury, Update};
 use crate::green::{Green, Probe};
@@ -53,8 +56,8 @@ pub enum MisfitKind {
     /// `int_0^W |X - X*|^2 d omega` on `s = sigma + i omega`.
     Bromwich,
     /// The time-domain chi-square against the sampled series
-    /// ([`crate::detect::misfit_time`]); no quadrature rule: a fit scene with
-    /// it is fitted by [`crate::detect::noisefit::fit_general`].
+    /// ([`crate::detect::misfit::time`]); no quadrature rule: a fit scene with
+    /// it is fitted by [`crate::detect::fit::general::fit_general`].
     Time,
 }
 
@@ -199,7 +202,7 @@ fn time_has_no_rule() -> Error {
     Error::invalid(
         "misfit.kind",
         "time",
-        "real-axis or bromwich here (the time misfit is fitted by detect::noisefit::fit_general)",
+        "real-axis or bromwich here (the time misfit is fitted by detect::fit::general::fit_general)",
     )
 }
 

@@ -2,7 +2,7 @@
 //! one of three misfits, and the pieces of the noise study.
 //!
 //! * [`MisfitChoice::RealAxis`]: the paper's residual on `[0, 300]` (80-node
-//!   `gl-log` rule of [`crate::detect::quadrature`]), the data being the
+//!   `gl-log` rule of [`crate::detect::misfit::quadrature`]), the data being the
 //!   Laplace transform of the series ([`crate::time::series`]) at the nodes;
 //! * [`MisfitChoice::Bromwich`]: the same on the line `s = sigma_B + i omega`,
 //!   `omega in [0, W]` (default `sigma_B = 0.05`, a few over the record length
@@ -11,15 +11,15 @@
 //! * [`MisfitChoice::Time`]: the time-domain chi-square ([`TimeMisfit`]).
 //!
 //! **Weighting** ([`Setup::weighting`]): the noise level belongs to the data.
-//! By default ([`Weighting::Whitened`](crate::detect::whiten::Weighting::Whitened)) a Laplace misfit is a true chi-square:
+//! By default ([`Weighting::Whitened`](crate::detect::data::whiten::Weighting::Whitened)) a Laplace misfit is a true chi-square:
 //! the transformed values at the nodes carry the noise covariance
 //! `C = sigma^2 B B^T` of the series transform ([`SeriesTransform`], `B` the
 //! stacked real and imaginary transform weights) plus its model-error
 //! estimate, and the residual is whitened by `C^{-1/2}` on the components
-//! `f64` resolves ([`crate::detect::whiten`]), so `chi2 ~ chi-square(dof)`.
+//! `f64` resolves ([`crate::detect::data::whiten`]), so `chi2 ~ chi-square(dof)`.
 //! The real-axis data of a 1001-sample record hold only about 24-30
 //! independent components whatever the number of nodes; the Bromwich line
-//! keeps all 160. [`Weighting::Diagonal`](crate::detect::whiten::Weighting::Diagonal) (the earlier weighting) weights node
+//! keeps all 160. [`Weighting::Diagonal`](crate::detect::data::whiten::Weighting::Diagonal) (the earlier weighting) weights node
 //! `q` by `w_q / v_q` (rule weight over the node's variance): it ignores the
 //! strong correlation between nodes, is not chi-square distributed, and
 //! recovers deep defects less often.
@@ -45,9 +45,9 @@
 //!
 //! ```
 //! use springmass::{Chain, Defect, noise::NoiseLevel, sensitivity::Param};
-//! use springmass::detect::misfit_time::TimeData;
-//! use springmass::detect::noisefit::{fit_noisy_general, GeneralOptions, MisfitChoice, Setup};
-//! use springmass::detect::space::{GeneralUnknowns, KindChoice};
+//! use springmass::detect::data::series::TimeData;
+//! use springmass::detect::fit::general::{fit_noisy_general, GeneralOptions, MisfitChoice, Setup};
+//! use springmass::detect::unknowns::{GeneralUnknowns, KindChoice};
 //! let truth = Chain::paper(5)?.with_defect(Defect::Spring { at: 2, k: 0.5 })?;
 //! let data = TimeData::simulate(&truth, 100.0, 0.5, NoiseLevel::RelativeMax(1e-3), 1)?;
 //! let unknowns = GeneralUnknowns::free(5, &[KindChoice::Any], &[Param::D])?;
@@ -62,12 +62,14 @@
 //! ```
 
 use crate::chain::{Chain, Defect};
-use crate::detect::chainfit::{fit_chain, ChainProblem, LaplaceObs, Obs};
-use crate::detect::identify::{identify, Alternative, FittedDefect, Identifiability};
-use crate::detect::lsq::{levenberg_marquardt, LmOptions};
-use crate::detect::misfit_time::{TimeData, TimeMisfit};
-use crate::detect::quadrature::Rule;
-use crate::detect::space::{
+use crate::detect::data::laplace::LaplaceObs;
+use crate::detect::fit::chainfit::{fit_chain, ChainProblem, Obs};
+use crate::detect::fit::identify::{identify, Alternative, FittedDefect, Identifiability};
+use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
+use crate::detect::data::series::TimeData;
+use crate::detect::misfit::time::TimeMisfit;
+use crate::detect::misfit::quadrature::Rule;
+use crate::detect::unknowns::{
     DefectKind, GeneralUnknowns, KindBounds, KindChoice, KindPositions, Slot,
 };
 use crate::error::{Error, Result};
@@ -141,7 +143,7 @@ pub struct Setup {
     /// LM iterations of the coarse pass.
     pub coarse_iter: usize,
     /// Weighting of the Laplace misfits (used by [`laplace_obs`]).
-    pub weighting: crate::detect::whiten::Weighting,
+    pub weighting: crate::detect::data::whiten::Weighting,
 }
 
 impl Setup {
@@ -159,7 +161,7 @@ impl Setup {
             shortlist: 8,
             time_shortlist: 5,
             coarse_iter: 12,
-            weighting: crate::detect::whiten::Weighting::default(),
+            weighting: crate::detect::data::whiten::Weighting::default(),
         })
     }
 }
@@ -167,14 +169,14 @@ impl Setup {
 /// Laplace data at the nodes of `choice` (real axis or Bromwich) from the
 /// sampled series of `data`, weighted as `setup.weighting` says:
 ///
-/// * [`Weighting::Diagonal`](crate::detect::whiten::Weighting::Diagonal)(crate::detect::whiten::Weighting::Diagonal): node
+/// * [`Weighting::Diagonal`](crate::detect::data::whiten::Weighting::Diagonal)(crate::detect::data::whiten::Weighting::Diagonal): node
 ///   `q` by the rule's weight over the node's variance, `w_q / v_q` (not a
 ///   chi-square: the transformed noise is correlated between nodes);
-/// * [`Weighting::Whitened`](crate::detect::whiten::Weighting::Whitened)(crate::detect::whiten::Weighting::Whitened): the
+/// * [`Weighting::Whitened`](crate::detect::data::whiten::Weighting::Whitened)(crate::detect::data::whiten::Weighting::Whitened): the
 ///   full covariance of the transformed data
 ///   ([`SeriesTransform::data_covariance`], plus `(1e-15 |X(s_q)|)^2` on the
 ///   diagonal for the rounding of the model), whitened with the default
-///   cutoff ([`crate::detect::whiten`]): `chi^2` with [`LaplaceObs::dof`]
+///   cutoff ([`crate::detect::data::whiten`]): `chi^2` with [`LaplaceObs::dof`]
 ///   degrees of freedom at the true chain.
 ///
 /// # Errors
@@ -213,7 +215,7 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitChoice, setup: &Setup) -> Resu
     };
     let tr = SeriesTransform::new(data.t(), data.y(), &opts)?;
     let vals = tr.eval_many(&s)?;
-    if setup.weighting == crate::detect::whiten::Weighting::Whitened {
+    if setup.weighting == crate::detect::data::whiten::Weighting::Whitened {
         let mut cov = tr.data_covariance(&vals)?;
         for (r, (q, _)) in crate::time::series::stacked_rows(&s)
             .into_iter()
@@ -222,7 +224,7 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitChoice, setup: &Setup) -> Resu
             cov[(r, r)] = (cov[(r, r)] + (1e-15 * vals[q].value.norm()).powi(2)).max(1e-300);
         }
         let wh =
-            crate::detect::whiten::Whitening::new(&cov, crate::detect::whiten::DEFAULT_CUTOFF)?;
+            crate::detect::data::whiten::Whitening::new(&cov, crate::detect::data::whiten::DEFAULT_CUTOFF)?;
         let values = vals.iter().map(|v| v.value).collect();
         return LaplaceObs::whitened(s, values, wh.matrix().clone());
     }
@@ -635,7 +637,7 @@ pub fn fit_general(
         return Err(Error::invalid("shortlist", 0, ">= 1"));
     }
     let hyps = unknowns.hypotheses(opts.max_sets)?;
-    let chain_bounds = crate::detect::chainfit::default_bounds(base, unknowns.chain());
+    let chain_bounds = crate::detect::fit::chainfit::default_bounds(base, unknowns.chain());
     let rounds = if unknowns.chain().is_empty() {
         1
     } else {
@@ -927,7 +929,7 @@ pub fn time_from_bromwich(
 }
 
 /// The identifiability report of a ranked list (best first), for the data's
-/// noise level `sigma` (see [`crate::detect::identify`]). `uniform` is the
+/// noise level `sigma` (see [`crate::detect::fit::identify`]). `uniform` is the
 /// uniform value of every defect (see [`identify_general`] for mixed kinds).
 ///
 /// # Errors
@@ -999,7 +1001,7 @@ pub fn fit_damping(
     base: &Chain,
     data: &TimeData,
     hyp: &Hypothesis,
-) -> Result<crate::detect::chainfit::ChainFitReport> {
+) -> Result<crate::detect::fit::chainfit::ChainFitReport> {
     let chain = base.uniform().with_defects(hyp.defects.iter().copied())?;
     let mut params = Param::defects(&chain);
     params.push(Param::D);

@@ -20,11 +20,11 @@
 //! path cannot do (spring, damper or `any` defects, chain parameters `d`,
 //! `gamma`, `k`, `mass`, or `[misfit] kind = "time"`,
 //! [`FitScene::is_general`]), `fit` runs the general noisy fit
-//! ([`crate::detect::noisefit::fit_general`]; method `enumerate` only): the
+//! ([`crate::detect::fit::general::fit_general`]; method `enumerate` only): the
 //! residual is then a chi-square (Laplace data weighted by the rule over the
 //! data's variance at each node, or the time-domain chi-square of the scene's
 //! series), `floor` is the chi-square gap threshold
-//! [`crate::detect::identify::DEFAULT_THRESHOLD`], and the report carries
+//! [`crate::detect::fit::identify::DEFAULT_THRESHOLD`], and the report carries
 //! the standard errors of the defect values and the fitted chain parameters.
 //!
 //! The report gives the defects found, the residual, the runners-up with
@@ -37,7 +37,7 @@
 //!
 //! ```
 //! use springmass::{Chain, Defect};
-//! use springmass::detect::{fit::fit, scene::FitScene};
+//! use springmass::detect::{fit::paper::fit, scene::FitScene};
 //! let truth = Chain::paper(10)?.with_defects([
 //!     Defect::Mass { at: 3, m: 3.0 }, Defect::Mass { at: 7, m: 2.0 }])?;
 //! let scene = FitScene::synthetic(&truth);
@@ -50,17 +50,17 @@
 //! ```
 
 use crate::chain::Defect;
-use crate::detect::chainfit::LaplaceObs;
-use crate::detect::data::Data;
+use crate::detect::data::laplace::LaplaceObs;
+use crate::detect::data::exact::Data;
 use crate::detect::misfit::{Misfit, MisfitKind};
-use crate::detect::misfit_time::TimeMisfit;
-use crate::detect::noisefit::{
+use crate::detect::misfit::time::TimeMisfit;
+use crate::detect::fit::general::{
     fit_general, identify_general, laplace_obs, FittedParam, GeneralOptions, MisfitChoice, Setup,
 };
 use crate::detect::scene::{DataSourceKind, FitScene};
 use crate::detect::search::enumerate::{enumerate, fit_slots, Defects, EnumerateOptions};
 use crate::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
-use crate::detect::space::{MassUnknown, Unknowns};
+use crate::detect::unknowns::{MassUnknown, Unknowns};
 use crate::error::{Error, Result};
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
@@ -192,8 +192,8 @@ pub struct FitReport {
     /// General path: the identifiability report (chi-square gaps of the
     /// alternatives, the noise level at which the runner-up becomes
     /// indistinguishable, per-defect significance and flags); see
-    /// [`crate::detect::identify`].
-    pub identifiability: Option<crate::detect::identify::Identifiability>,
+    /// [`crate::detect::fit::identify`].
+    pub identifiability: Option<crate::detect::fit::identify::Identifiability>,
 }
 
 /// Fit the scene's unknowns to `data`.
@@ -326,8 +326,8 @@ pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitRep
 }
 
 /// The general path of [`fit`]: defects of any kind and chain parameters
-/// ([`crate::detect::noisefit::fit_general`]); the residual is a chi-square,
-/// `floor` the gap threshold [`crate::detect::identify::DEFAULT_THRESHOLD`].
+/// ([`crate::detect::fit::general::fit_general`]); the residual is a chi-square,
+/// `floor` the gap threshold [`crate::detect::fit::identify::DEFAULT_THRESHOLD`].
 fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitReport> {
     let t0 = Instant::now();
     if options.method != FitMethod::Enumerate {
@@ -438,7 +438,7 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Res
             gap: h.chi2 - best.chi2,
         })
         .collect();
-    let floor = crate::detect::identify::DEFAULT_THRESHOLD;
+    let floor = crate::detect::fit::identify::DEFAULT_THRESHOLD;
     let m = g.residuals as f64;
     let identifiability = identify_general(&g.ranked, &base, noise_level, None).ok();
     Ok(FitReport {
@@ -466,7 +466,7 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Res
 
 /// The residual as an optimizer [`Objective`]: the candidate is decoded by
 /// [`Unknowns::decode`] (invalid candidates get its finite penalty, at least
-/// [`crate::detect::space::PENALTY`]) and costed by [`Misfit::residual`].
+/// [`crate::detect::unknowns::PENALTY`]) and costed by [`Misfit::residual`].
 pub struct MisfitObjective<'a> {
     misfit: &'a Misfit,
     unknowns: &'a Unknowns,

@@ -1,0 +1,7 @@
+//! Fitting defects to observations.
+
+pub mod chainfit;
+pub mod general;
+pub mod identify;
+pub mod paper;
+pub mod select;
