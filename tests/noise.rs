@@ -6,7 +6,8 @@ use springmass::detect::data::laplace::LaplaceObs;
 use springmass::detect::fit::chainfit::{fit_chain, Obs};
 use springmass::detect::{data::series::TimeData, misfit::time::TimeMisfit};
 use springmass::detect::noise_study::{calibration, choose_k, noisy_data, systems, StudyConfig};
-use springmass::detect::fit::general::{fit_noisy, identify_ranked, MisfitChoice, Setup};
+use springmass::detect::fit::general::{fit_noisy, identify_ranked, Setup};
+use springmass::detect::misfit::MisfitKind;
 use springmass::detect::fit::select::Criterion;
 use springmass::noise::NoiseLevel;
 use springmass::sensitivity::{gradient, Param};
@@ -94,7 +95,7 @@ fn table1_systems_at_one_percent_noise_reduced_seeds() {
     for s in &systems()[..2] {
         for seed in 0..2 {
             let data = noisy_data(&s.truth, &cfg(), 1e-2, 100 + seed).unwrap();
-            let r = fit_noisy(&s.truth.uniform(), &data, 2, MisfitChoice::Time, &setup).unwrap();
+            let r = fit_noisy(&s.truth.uniform(), &data, 2, MisfitKind::Time, &setup).unwrap();
             assert!(
                 r[0].matches(&s.truth, 0.05),
                 "{} seed {seed}: {:?}",
@@ -267,7 +268,7 @@ fn general_with_sigma(
         start,
         &data,
         &u,
-        MisfitChoice::Time,
+        MisfitKind::Time,
         &Setup::new().unwrap(),
         &GeneralOptions::default(),
     )
@@ -398,7 +399,7 @@ fn general_fit_does_not_depend_on_threads() {
             &truth.uniform(),
             &data,
             &u,
-            MisfitChoice::Bromwich,
+            MisfitKind::Bromwich,
             &setup,
             &GeneralOptions {
                 parallel,

@@ -7,7 +7,8 @@ use springmass::detect::noise_study::{
     calibration, confusion, damping_study, kind_cases, kinds_study, selection_truths,
     success_table, systems, StudyConfig,
 };
-use springmass::detect::fit::general::{MisfitChoice, Setup};
+use springmass::detect::fit::general::{Setup};
+use springmass::detect::misfit::MisfitKind;
 use springmass::detect::fit::select::Criterion;
 use springmass::plot::{Line, LinePlot};
 use springmass::series::write_atomic;
@@ -110,7 +111,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             &s3.truth.uniform(),
             &data,
             2,
-            MisfitChoice::Time,
+            MisfitKind::Time,
             &setup,
         )?;
         let r = springmass::detect::fit::general::identify_ranked(&ranked, 1.0, data.sigma(), None)?;
@@ -277,12 +278,12 @@ fn table(a: &Args, cfg: &StudyConfig, setup: &Setup, md: &mut String) -> anyhow:
         }
         v
     };
-    let misfits: Vec<MisfitChoice> = if a.misfits.is_empty() {
-        MisfitChoice::ALL.to_vec()
+    let misfits: Vec<MisfitKind> = if a.misfits.is_empty() {
+        MisfitKind::ALL.to_vec()
     } else {
         a.misfits
             .iter()
-            .map(|m| MisfitChoice::parse(m))
+            .map(|m| MisfitKind::parse(m))
             .collect::<springmass::Result<_>>()?
     };
     let start = std::time::Instant::now();
@@ -327,7 +328,7 @@ fn table(a: &Args, cfg: &StudyConfig, setup: &Setup, md: &mut String) -> anyhow:
             }
             writeln!(md)?;
             let mut line = Line::new(format!("{} {}", s.name, m.name()), pts).markers();
-            if *m == MisfitChoice::RealAxis {
+            if *m == MisfitKind::RealAxis {
                 line = line.dashed();
             }
             plot = plot.line(line);

@@ -11,9 +11,10 @@
 //!
 //! ```no_run
 //! use springmass::detect::noise_study::{success_table, systems, StudyConfig};
-//! use springmass::detect::fit::general::{MisfitChoice, Setup};
+//! use springmass::detect::fit::general::{Setup};
+//! use springmass::detect::misfit::MisfitKind;
 //! let cfg = StudyConfig { levels: vec![1e-3], seeds: 2, ..StudyConfig::default() };
-//! let cells = success_table(&systems()[..1], &cfg, &MisfitChoice::ALL, &Setup::new()?)?;
+//! let cells = success_table(&systems()[..1], &cfg, &MisfitKind::ALL, &Setup::new()?)?;
 //! assert_eq!(cells.len(), 3);
 //! # Ok::<(), springmass::Error>(())
 //! ```
@@ -21,9 +22,10 @@
 use crate::chain::{Chain, Defect};
 use crate::detect::fit::chainfit::ChainFitReport;
 use crate::detect::data::series::TimeData;
+use crate::detect::misfit::MisfitKind;
 use crate::detect::fit::general::{
     fit_damping, fit_noisy, fit_noisy_general, time_from_bromwich, GeneralOptions, Hypothesis,
-    MisfitChoice, Setup,
+    Setup,
 };
 use crate::detect::fit::select::{select, Criterion, ModelFit, Selection};
 use crate::detect::unknowns::{GeneralUnknowns, KindChoice};
@@ -158,7 +160,7 @@ pub fn noisy_data(truth: &Chain, cfg: &StudyConfig, level: f64, seed: u64) -> Re
 pub fn success_table(
     systems: &[System],
     cfg: &StudyConfig,
-    misfits: &[MisfitChoice],
+    misfits: &[MisfitKind],
     setup: &Setup,
 ) -> Result<Vec<Cell>> {
     let mut tasks = Vec::new();
@@ -181,14 +183,14 @@ pub fn success_table(
             let mut out = Vec::with_capacity(misfits.len());
             for &m in misfits {
                 let h = match m {
-                    MisfitChoice::RealAxis => fit_noisy(&base, &data, k, m, setup)?,
-                    MisfitChoice::Bromwich | MisfitChoice::Time => {
+                    MisfitKind::RealAxis => fit_noisy(&base, &data, k, m, setup)?,
+                    MisfitKind::Bromwich | MisfitKind::Time => {
                         if bromwich.is_none() {
                             bromwich =
-                                Some(fit_noisy(&base, &data, k, MisfitChoice::Bromwich, setup)?);
+                                Some(fit_noisy(&base, &data, k, MisfitKind::Bromwich, setup)?);
                         }
                         let b = bromwich.as_ref().expect("set above");
-                        if m == MisfitChoice::Time {
+                        if m == MisfitKind::Time {
                             time_from_bromwich(&base, &data, b, setup)?
                         } else {
                             b.clone()
@@ -353,7 +355,7 @@ pub fn fit_unknown_damping(
     let mut base = guess.uniform();
     let mut last = None;
     for _ in 0..rounds.max(1) {
-        let h = fit_noisy(&base, data, k, MisfitChoice::Time, setup)?;
+        let h = fit_noisy(&base, data, k, MisfitKind::Time, setup)?;
         let best = h[0].clone();
         let rep = fit_damping(&base, data, &best)?;
         base = base.with_d(rep.chain.d())?;
@@ -409,7 +411,7 @@ pub fn choose_k(
 ) -> Result<Selection> {
     let mut fits = Vec::new();
     for k in 0..=kmax {
-        let h = fit_noisy(base, data, k, MisfitChoice::Time, setup)?;
+        let h = fit_noisy(base, data, k, MisfitKind::Time, setup)?;
         fits.push(ModelFit::new(k, h[0].chi2, 2 * k));
     }
     select(&fits, data.len(), criterion)
@@ -598,7 +600,7 @@ pub fn kinds_study(
             let unknowns = GeneralUnknowns::free(truth.n(), &case.kinds, &case.params)?;
             let start = truth.uniform().with_d(case.d_start)?;
             let fit =
-                fit_noisy_general(&start, &data, &unknowns, MisfitChoice::Time, setup, &opts)?;
+                fit_noisy_general(&start, &data, &unknowns, MisfitKind::Time, setup, &opts)?;
             let best = &fit.ranked[0];
             let found = best.positions_match(truth);
             let value_ok = |rel: Option<f64>| {

@@ -1,14 +1,14 @@
 //! Fitting defects to a noisy sampled series `y_i = x_1(t_i) + sigma z_i`, with
 //! one of three misfits, and the pieces of the noise study.
 //!
-//! * [`MisfitChoice::RealAxis`]: the paper's residual on `[0, 300]` (80-node
+//! * [`MisfitKind::RealAxis`]: the paper's residual on `[0, 300]` (80-node
 //!   `gl-log` rule of [`crate::detect::misfit::quadrature`]), the data being the
 //!   Laplace transform of the series ([`crate::time::series`]) at the nodes;
-//! * [`MisfitChoice::Bromwich`]: the same on the line `s = sigma_B + i omega`,
+//! * [`MisfitKind::Bromwich`]: the same on the line `s = sigma_B + i omega`,
 //!   `omega in [0, W]` (default `sigma_B = 0.05`, a few over the record length
 //!   `T = 200` so that the unrecorded tail weighs `e^{-sigma_B T}`; `W = 4`, above
 //!   the chain's band `2 sqrt(k/mass)`), 80 nodes (`gl-uniform` 10x8);
-//! * [`MisfitChoice::Time`]: the time-domain chi-square ([`TimeMisfit`]).
+//! * [`MisfitKind::Time`]: the time-domain chi-square ([`TimeMisfit`]).
 //!
 //! **Weighting** ([`Setup::weighting`]): the noise level belongs to the data.
 //! By default ([`Weighting::Whitened`](crate::detect::data::whiten::Weighting::Whitened)) a Laplace misfit is a true chi-square:
@@ -46,13 +46,14 @@
 //! ```
 //! use springmass::{Chain, Defect, noise::NoiseLevel, sensitivity::Param};
 //! use springmass::detect::data::series::TimeData;
-//! use springmass::detect::fit::general::{fit_noisy_general, GeneralOptions, MisfitChoice, Setup};
+//! use springmass::detect::fit::general::{fit_noisy_general, GeneralOptions, Setup};
+//! use springmass::detect::misfit::MisfitKind;
 //! use springmass::detect::unknowns::{GeneralUnknowns, KindChoice};
 //! let truth = Chain::paper(5)?.with_defect(Defect::Spring { at: 2, k: 0.5 })?;
 //! let data = TimeData::simulate(&truth, 100.0, 0.5, NoiseLevel::RelativeMax(1e-3), 1)?;
 //! let unknowns = GeneralUnknowns::free(5, &[KindChoice::Any], &[Param::D])?;
 //! let fit = fit_noisy_general(&truth.uniform().with_d(0.12)?, &data, &unknowns,
-//!     MisfitChoice::Time, &Setup::new()?, &GeneralOptions::default())?;
+//!     MisfitKind::Time, &Setup::new()?, &GeneralOptions::default())?;
 //! let best = &fit.ranked[0];
 //! assert_eq!(best.key()[0].1, 2);
 //! assert_eq!(best.defects[0].kind(), "spring");
@@ -68,6 +69,7 @@ use crate::detect::fit::identify::{identify, Alternative, FittedDefect, Identifi
 use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
 use crate::detect::data::series::TimeData;
 use crate::detect::misfit::time::TimeMisfit;
+use crate::detect::misfit::MisfitKind;
 use crate::detect::misfit::quadrature::Rule;
 use crate::detect::unknowns::{
     DefectKind, GeneralUnknowns, KindBounds, KindChoice, KindPositions, Slot,
@@ -78,52 +80,6 @@ use crate::time::series::{SeriesTransform, TransformOptions};
 use num_complex::Complex64;
 use rayon::prelude::*;
 use serde::Serialize;
-
-/// Which misfit.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
-pub enum MisfitChoice {
-    /// Paper's real-axis residual on `[0, 300]`.
-    RealAxis,
-    /// Bromwich line `sigma_B + i omega`.
-    Bromwich,
-    /// Time-domain chi-square.
-    Time,
-}
-
-impl MisfitChoice {
-    /// All three.
-    pub const ALL: [MisfitChoice; 3] = [
-        MisfitChoice::RealAxis,
-        MisfitChoice::Bromwich,
-        MisfitChoice::Time,
-    ];
-
-    /// `real`, `bromwich`, `time`.
-    pub fn name(self) -> &'static str {
-        match self {
-            MisfitChoice::RealAxis => "real",
-            MisfitChoice::Bromwich => "bromwich",
-            MisfitChoice::Time => "time",
-        }
-    }
-
-    /// Parse a name.
-    ///
-    /// # Errors
-    /// [`Error::Parse`].
-    pub fn parse(text: &str) -> Result<MisfitChoice> {
-        match text.trim() {
-            "real" => Ok(MisfitChoice::RealAxis),
-            "bromwich" => Ok(MisfitChoice::Bromwich),
-            "time" => Ok(MisfitChoice::Time),
-            _ => Err(Error::parse(
-                "misfit",
-                text,
-                "expected real, bromwich or time",
-            )),
-        }
-    }
-}
 
 /// Settings of a noisy fit.
 #[derive(Clone, Debug)]
@@ -180,10 +136,10 @@ impl Setup {
 ///   degrees of freedom at the true chain.
 ///
 /// # Errors
-/// [`Error::InvalidParameter`] for [`MisfitChoice::Time`]; as [`SeriesTransform`].
-pub fn laplace_obs(data: &TimeData, choice: MisfitChoice, setup: &Setup) -> Result<LaplaceObs> {
+/// [`Error::InvalidParameter`] for [`MisfitKind::Time`]; as [`SeriesTransform`].
+pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result<LaplaceObs> {
     let (s, w): (Vec<Complex64>, Vec<f64>) = match choice {
-        MisfitChoice::RealAxis => (
+        MisfitKind::RealAxis => (
             setup
                 .real_rule
                 .nodes
@@ -192,7 +148,7 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitChoice, setup: &Setup) -> Resu
                 .collect(),
             setup.real_rule.weights.clone(),
         ),
-        MisfitChoice::Bromwich => (
+        MisfitKind::Bromwich => (
             setup
                 .bromwich_rule
                 .nodes
@@ -201,7 +157,7 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitChoice, setup: &Setup) -> Resu
                 .collect(),
             setup.bromwich_rule.weights.clone(),
         ),
-        MisfitChoice::Time => {
+        MisfitKind::Time => {
             return Err(Error::invalid(
                 "misfit",
                 "time",
@@ -771,17 +727,17 @@ pub fn fit_noisy_general(
     base: &Chain,
     data: &TimeData,
     unknowns: &GeneralUnknowns,
-    choice: MisfitChoice,
+    choice: MisfitKind,
     setup: &Setup,
     opts: &GeneralOptions,
 ) -> Result<GeneralFit> {
     match choice {
-        MisfitChoice::RealAxis | MisfitChoice::Bromwich => {
+        MisfitKind::RealAxis | MisfitKind::Bromwich => {
             let obs = laplace_obs(data, choice, setup)?;
             fit_general(base, unknowns, &obs, None, setup, opts)
         }
-        MisfitChoice::Time => {
-            let obs = laplace_obs(data, MisfitChoice::Bromwich, setup)?;
+        MisfitKind::Time => {
+            let obs = laplace_obs(data, MisfitKind::Bromwich, setup)?;
             let t = TimeMisfit::new(data.clone());
             fit_general(base, unknowns, &obs, Some(&t), setup, opts)
         }
@@ -897,16 +853,16 @@ pub fn fit_noisy(
     base: &Chain,
     data: &TimeData,
     k: usize,
-    choice: MisfitChoice,
+    choice: MisfitKind,
     setup: &Setup,
 ) -> Result<Vec<Hypothesis>> {
     match choice {
-        MisfitChoice::RealAxis | MisfitChoice::Bromwich => {
+        MisfitKind::RealAxis | MisfitKind::Bromwich => {
             let obs = laplace_obs(data, choice, setup)?;
             enumerate_laplace(base, &obs, k, setup)
         }
-        MisfitChoice::Time => {
-            let obs = laplace_obs(data, MisfitChoice::Bromwich, setup)?;
+        MisfitKind::Time => {
+            let obs = laplace_obs(data, MisfitKind::Bromwich, setup)?;
             let ranked = enumerate_laplace(base, &obs, k, setup)?;
             time_from_bromwich(base, data, &ranked, setup)
         }
@@ -1039,13 +995,13 @@ mod tests {
         let data =
             TimeData::simulate(&truth, 200.0, 0.2, NoiseLevel::RelativeMax(1e-3), 3).unwrap();
         let setup = Setup::new().unwrap();
-        for choice in [MisfitChoice::Bromwich, MisfitChoice::Time] {
+        for choice in [MisfitKind::Bromwich, MisfitKind::Time] {
             let r = fit_noisy(&truth.uniform(), &data, 2, choice, &setup).unwrap();
             assert!(r[0].matches(&truth, 0.05), "{choice:?}: {:?}", r[0]);
         }
         // the real axis cannot see the light mass at 4 through 1e-3 noise
         // (docs/paper-notes.md): its best set has a chi-square no worse than the truth's
-        let obs = laplace_obs(&data, MisfitChoice::RealAxis, &setup).unwrap();
+        let obs = laplace_obs(&data, MisfitKind::RealAxis, &setup).unwrap();
         let r = enumerate_laplace(&truth.uniform(), &obs, 2, &setup).unwrap();
         let t: f64 = obs.residuals(&truth).unwrap().iter().map(|v| v * v).sum();
         eprintln!("real axis: best {:?}, truth chi2 {t}", r[0]);

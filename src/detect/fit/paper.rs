@@ -55,7 +55,7 @@ use crate::detect::data::exact::Data;
 use crate::detect::misfit::{Misfit, MisfitKind};
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::fit::general::{
-    fit_general, identify_general, laplace_obs, FittedParam, GeneralOptions, MisfitChoice, Setup,
+    fit_general, identify_general, laplace_obs, FittedParam, GeneralOptions, Setup,
 };
 use crate::detect::scene::{DataSourceKind, FitScene};
 use crate::detect::search::enumerate::{enumerate, fit_slots, Defects, EnumerateOptions};
@@ -343,7 +343,7 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Res
     let (coarse, fine, misfit_name, nodes) = match scene.misfit.kind {
         MisfitKind::Time => {
             let td = scene.time_data()?;
-            let coarse = laplace_obs(&td, MisfitChoice::Bromwich, &setup)?;
+            let coarse = laplace_obs(&td, MisfitKind::Bromwich, &setup)?;
             let name = format!(
                 "time-domain chi-square ({} samples, sigma = {:.3e}; shortlist from the Bromwich line sigma = {})",
                 td.len(),
@@ -359,11 +359,11 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Res
             let rule = scene.misfit.rule()?;
             let choice = if kind == MisfitKind::RealAxis {
                 setup.real_rule = rule.clone();
-                MisfitChoice::RealAxis
+                MisfitKind::RealAxis
             } else {
                 setup.bromwich_rule = rule.clone();
                 setup.bromwich_sigma = scene.misfit.sigma;
-                MisfitChoice::Bromwich
+                MisfitKind::Bromwich
             };
             let td = scene.time_data()?;
             let obs = laplace_obs(&td, choice, &setup)?;

@@ -47,11 +47,12 @@ use serde::{Deserialize, Serialize};
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// Which residual.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum MisfitKind {
     /// `int_0^{s_max} |X - X*|^2 ds` on the real axis (the paper's).
     #[default]
+    #[serde(alias = "real")]
     RealAxis,
     /// `int_0^W |X - X*|^2 d omega` on `s = sigma + i omega`.
     Bromwich,
@@ -59,6 +60,37 @@ pub enum MisfitKind {
     /// ([`crate::detect::misfit::time`]); no quadrature rule: a fit scene with
     /// it is fitted by [`crate::detect::fit::general::fit_general`].
     Time,
+}
+
+impl MisfitKind {
+    /// All three, in table order.
+    pub const ALL: [MisfitKind; 3] = [MisfitKind::RealAxis, MisfitKind::Bromwich, MisfitKind::Time];
+
+    /// `real-axis`, `bromwich`, `time`.
+    pub fn name(self) -> &'static str {
+        match self {
+            MisfitKind::RealAxis => "real-axis",
+            MisfitKind::Bromwich => "bromwich",
+            MisfitKind::Time => "time",
+        }
+    }
+
+    /// Parse `real-axis` (or `real`), `bromwich`, `time`.
+    ///
+    /// # Errors
+    /// [`Error::Parse`] naming the allowed names.
+    pub fn parse(text: &str) -> Result<MisfitKind> {
+        match text.trim().to_ascii_lowercase().as_str() {
+            "real-axis" | "real" => Ok(MisfitKind::RealAxis),
+            "bromwich" => Ok(MisfitKind::Bromwich),
+            "time" => Ok(MisfitKind::Time),
+            _ => Err(Error::parse(
+                "misfit",
+                text,
+                "expected real-axis, bromwich or time",
+            )),
+        }
+    }
 }
 
 /// Which fixed rule.
