@@ -64,13 +64,13 @@
 
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
+use crate::detect::data::series::TimeData;
 use crate::detect::fit::chainfit::{fit_chain, ChainProblem, Obs};
 use crate::detect::fit::identify::{identify, Alternative, FittedDefect, Identifiability};
-use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
-use crate::detect::data::series::TimeData;
+use crate::detect::misfit::quadrature::Rule;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::MisfitKind;
-use crate::detect::misfit::quadrature::Rule;
+use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
 use crate::detect::unknowns::{
     DefectKind, GeneralUnknowns, KindBounds, KindChoice, KindPositions, Slot,
 };
@@ -179,8 +179,10 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result
         {
             cov[(r, r)] = (cov[(r, r)] + (1e-15 * vals[q].value.norm()).powi(2)).max(1e-300);
         }
-        let wh =
-            crate::detect::data::whiten::Whitening::new(&cov, crate::detect::data::whiten::DEFAULT_CUTOFF)?;
+        let wh = crate::detect::data::whiten::Whitening::new(
+            &cov,
+            crate::detect::data::whiten::DEFAULT_CUTOFF,
+        )?;
         let values = vals.iter().map(|v| v.value).collect();
         return LaplaceObs::whitened(s, values, wh.matrix().clone());
     }
@@ -224,6 +226,22 @@ pub struct Hypothesis {
 }
 
 impl Hypothesis {
+    /// A hypothesis from its parts (defects, their standard errors, fitted
+    /// chain parameters, misfit value).
+    pub fn from_parts(
+        defects: Vec<Defect>,
+        std_errors: Vec<f64>,
+        chain: Vec<FittedParam>,
+        chi2: f64,
+    ) -> Hypothesis {
+        Hypothesis {
+            defects,
+            std_errors,
+            chain,
+            chi2,
+        }
+    }
+
     fn masses_only(positions: &[usize], masses: &[f64], chi2: f64, se: Vec<f64>) -> Hypothesis {
         Hypothesis {
             defects: positions
@@ -305,6 +323,18 @@ impl Hypothesis {
         t.sort_unstable();
         h.sort_unstable();
         t == h
+    }
+}
+
+/// The name of a uniform chain parameter (`d`, `gamma`, `k`, `mass`) as the
+/// fitted parameters carry it.
+pub fn param_name(p: &Param) -> &'static str {
+    match p {
+        Param::D => "d",
+        Param::Gamma => "gamma",
+        Param::K => "k",
+        Param::Mass => "mass",
+        Param::Defect(_) => "defect",
     }
 }
 
