@@ -18,7 +18,10 @@ fn record(truth: &Chain, t_end: f64, dt: f64, level: f64, seed: u64) -> Series {
 fn s1() -> Chain {
     Chain::paper(5)
         .unwrap()
-        .with_defects([Defect::Mass { at: 2, m: 3.0 }, Defect::Mass { at: 4, m: 0.5 }])
+        .with_defects([
+            Defect::Mass { at: 2, m: 3.0 },
+            Defect::Mass { at: 4, m: 0.5 },
+        ])
         .unwrap()
 }
 
@@ -49,7 +52,11 @@ fn csv_round_trip_recovers_system1_with_sigma_and_k_unknown() {
     }
     assert!(r.noise_estimated);
     let sigma_true = 1e-3 * rec.x().iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    assert!((r.noise_sigma / sigma_true - 1.0).abs() < 0.2, "{} vs {sigma_true}", r.noise_sigma);
+    assert!(
+        (r.noise_sigma / sigma_true - 1.0).abs() < 0.2,
+        "{} vs {sigma_true}",
+        r.noise_sigma
+    );
     assert_eq!(r.k_selection.len(), 4);
     assert!(r.fits_data, "{}", r.summary());
     let p = r.predicted.as_ref().unwrap();
@@ -105,7 +112,9 @@ fn bromwich_and_stochastic_methods_agree_on_system1() {
 #[test]
 fn laplace_values_without_errors_scale_the_standard_errors() {
     let truth = s1();
-    let s: Vec<Complex64> = (1..=60).map(|i| Complex64::new(0.1, 0.05 * i as f64)).collect();
+    let s: Vec<Complex64> = (1..=60)
+        .map(|i| Complex64::new(0.1, 0.05 * i as f64))
+        .collect();
     let fwd = springmass::forward::Forward::new(&truth);
     let values: Vec<Complex64> = s.iter().map(|z| fwd.eval(*z, 1).unwrap()).collect();
     let obs = Observations::Laplace(LaplaceValues::new(s, values, None).unwrap());
@@ -125,7 +134,10 @@ fn laplace_values_without_errors_scale_the_standard_errors() {
 
 #[test]
 fn any_kind_with_fitted_damping() {
-    let truth = Chain::paper(5).unwrap().with_defect(Defect::Spring { at: 2, k: 0.5 }).unwrap();
+    let truth = Chain::paper(5)
+        .unwrap()
+        .with_defect(Defect::Spring { at: 2, k: 0.5 })
+        .unwrap();
     let obs = Observations::Series(record(&truth, 100.0, 0.25, 1e-3, 4));
     let model = Model::new(5)
         .unwrap()
@@ -143,7 +155,12 @@ fn any_kind_with_fitted_damping() {
         },
     )
     .unwrap();
-    assert_eq!((r.defects[0].kind, r.defects[0].at), ("spring", 2), "{}", r.summary());
+    assert_eq!(
+        (r.defects[0].kind, r.defects[0].at),
+        ("spring", 2),
+        "{}",
+        r.summary()
+    );
     let d = &r.params[0];
     assert!((d.value - 0.1).abs() < 4.0 * d.se, "{d:?}");
 }
@@ -158,21 +175,41 @@ fn bad_input_is_a_typed_error_naming_the_field() {
         e => panic!("unexpected {e}"),
     };
     assert_eq!(
-        field(FitOptions { defects: DefectCount::Exactly(6), ..FitOptions::default() }, &model),
+        field(
+            FitOptions {
+                defects: DefectCount::Exactly(6),
+                ..FitOptions::default()
+            },
+            &model
+        ),
         "defects"
     );
     assert_eq!(
-        field(FitOptions { defects: DefectCount::Auto { k_max: 6 }, ..FitOptions::default() }, &model),
+        field(
+            FitOptions {
+                defects: DefectCount::Auto { k_max: 6 },
+                ..FitOptions::default()
+            },
+            &model
+        ),
         "k_max"
     );
     assert_eq!(
         field(
-            FitOptions { method: FitMethod::Ga, kinds: KindChoice::Spring, ..FitOptions::default() },
+            FitOptions {
+                method: FitMethod::Ga,
+                kinds: KindChoice::Spring,
+                ..FitOptions::default()
+            },
             &model
         ),
         "method"
     );
-    assert!(NoiseSpec::parse("0").is_err() && NoiseSpec::parse("-1").is_err() && NoiseSpec::parse("nan").is_err());
+    assert!(
+        NoiseSpec::parse("0").is_err()
+            && NoiseSpec::parse("-1").is_err()
+            && NoiseSpec::parse("nan").is_err()
+    );
     assert!(DefectCount::parse("many").is_err());
     let _ = Status::Converged;
 }

@@ -58,9 +58,9 @@
 use crate::chain::{Chain, ChainSpec, Defect};
 use crate::detect::data::exact::Data;
 use crate::detect::data::series::TimeData;
-use crate::detect::fit::paper::{FitMethod, FitOptions};
 use crate::detect::misfit::MisfitSpec;
 use crate::detect::search::enumerate::EnumerateOptions;
+use crate::detect::search::FitMethod;
 use crate::detect::unknowns::{DefectKind, GeneralUnknowns, Unknowns, UnknownsSpec};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -179,6 +179,27 @@ impl Default for SearchSpec {
             parallel: true,
             trace: false,
         }
+    }
+}
+
+/// Options of the scene's fit [`crate::detect::fit::paper::fit`] (from its `[search]` with [`FitScene::options`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneOptions {
+    /// The method.
+    pub method: FitMethod,
+    /// Seed of stochastic methods.
+    pub seed: u64,
+    /// Evaluation budget of stochastic methods.
+    pub max_evals: usize,
+    /// Record the optimizer's trace.
+    pub trace: bool,
+    /// Enumeration options (`keep` also sets the number of hypotheses reported).
+    pub enumerate: EnumerateOptions,
+}
+
+impl Default for SceneOptions {
+    fn default() -> Self {
+        FitScene::synthetic(&crate::Chain::new(1).expect("n = 1 is valid")).options()
     }
 }
 
@@ -388,9 +409,9 @@ impl FitScene {
     }
 
     /// The fit options described by `[search]`.
-    pub fn options(&self) -> FitOptions {
+    pub fn options(&self) -> SceneOptions {
         let s = &self.search;
-        FitOptions {
+        SceneOptions {
             method: s.method,
             seed: s.seed,
             max_evals: s.max_evals,

@@ -1002,9 +1002,7 @@ mod tests {
 
     #[test]
     fn shared_subsets_count_and_order() {
-        let c = |n: usize, k| {
-            crate::detect::search::enumerate::subsets(&(1..=n).collect::<Vec<_>>(), k)
-        };
+        let c = |n: usize, k| crate::detect::unknowns::subsets(&(1..=n).collect::<Vec<_>>(), k);
         assert_eq!(c(5, 2).len(), 10);
         assert_eq!(c(20, 3).len(), 1140);
         assert_eq!(c(3, 3), vec![vec![1, 2, 3]]);

@@ -52,7 +52,7 @@ pub mod paper;
 pub mod report;
 pub mod select;
 
-pub use paper::FitMethod;
+pub use crate::detect::search::FitMethod;
 pub use report::{Alternative, DefectEstimate, FitReport, KRow, ParamEstimate, Predicted, Status};
 pub use select::Criterion;
 
@@ -519,6 +519,8 @@ struct KFit {
     sigma_hat: f64,
     /// The misfit's own chi-square and dof at the sigma of the fit.
     chi2: f64,
+    /// The noise level the fit was made at.
+    sigma_fit: f64,
     dof: usize,
     misfit_name: String,
     method_name: String,
@@ -807,6 +809,7 @@ impl Engine<'_> {
             params,
             sigma_hat,
             chi2,
+            sigma_fit: sigma,
             dof,
             misfit_name,
             method_name,
@@ -861,10 +864,27 @@ impl Engine<'_> {
         evaluations: usize,
         t0: Instant,
     ) -> Result<FitReport> {
-        let best = &f.ranked[0];
+        // the fit was made at f.sigma_fit: chi-squares and standard errors at the final sigma
+        let scale = sigma / f.sigma_fit;
+        let chi2_final = f.chi2 / (scale * scale);
+        let ranked: Vec<Hypothesis> = f
+            .ranked
+            .iter()
+            .map(|h| {
+                let mut h = h.clone();
+                h.chi2 /= scale * scale;
+                for se in &mut h.std_errors {
+                    *se *= scale;
+                }
+                for p in &mut h.chain {
+                    p.std_error *= scale;
+                }
+                h
+            })
+            .collect();
+        let best = &ranked[0];
         let base = &self.model.chain;
-        let ident =
-            identify_general(&f.ranked, base, if estimated { sigma } else { sigma }, None).ok();
+        let ident = identify_general(&ranked, base, sigma, None).ok();
         let bounds = KindBounds::default();
         let known: Vec<(usize, DefectKind)> = base
             .defects()
@@ -885,7 +905,11 @@ impl Engine<'_> {
                 kind: kind.name(),
                 at: d.at(),
                 value: v,
-                se: best.std_errors.get(i).copied().unwrap_or(f64::NAN),
+                se: if is_known {
+                    0.0
+                } else {
+                    best.std_errors.get(i).copied().unwrap_or(f64::NAN)
+                },
                 at_bound: !is_known && (v <= lo + tol || v >= hi - tol),
                 known: is_known,
                 significance: rep.map_or(f64::NAN, |r| r.significance),
@@ -913,7 +937,7 @@ impl Engine<'_> {
                 }
             })
             .collect();
-        let alternatives: Vec<Alternative> = f.ranked[1..]
+        let alternatives: Vec<Alternative> = ranked[1..]
             .iter()
             .take(self.opts.alternatives)
             .map(|h| Alternative {
@@ -929,7 +953,7 @@ impl Engine<'_> {
                 (p >= 0.001, p)
             }
             _ => {
-                let p = select::chi2_sf(f.chi2, f.dof.max(1) as f64);
+                let p = select::chi2_sf(chi2_final, f.dof.max(1) as f64);
                 (p >= 0.001, p)
             }
         };
@@ -994,7 +1018,7 @@ impl Engine<'_> {
             params,
             noise_sigma: sigma,
             noise_estimated: estimated,
-            chi2: f.chi2,
+            chi2: chi2_final,
             dof: f.dof,
             status,
             message,

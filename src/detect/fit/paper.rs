@@ -57,83 +57,15 @@ use crate::detect::fit::general::{
 };
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::{Misfit, MisfitKind};
-use crate::detect::scene::{DataSourceKind, FitScene};
+use crate::detect::scene::{DataSourceKind, FitScene, SceneOptions};
 use crate::detect::search::enumerate::{enumerate, fit_slots, Defects, EnumerateOptions};
+use crate::detect::search::FitMethod;
 use crate::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
 use crate::detect::unknowns::{MassUnknown, Unknowns};
 use crate::error::{Error, Result};
 use num_complex::Complex64;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use std::time::Instant;
-
-/// Fitting methods.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum FitMethod {
-    /// Exhaustive enumeration of position sets with a mass fit per set.
-    #[default]
-    Enumerate,
-    /// Genetic algorithm.
-    #[serde(alias = "genetic")]
-    Ga,
-    /// Nelder-Mead.
-    NelderMead,
-    /// Particle swarm.
-    #[serde(alias = "particle-swarm")]
-    Pso,
-}
-
-impl FitMethod {
-    /// Parse `enumerate`, `ga`, `nelder-mead`, `pso` (aliases `genetic`,
-    /// `particle-swarm`, `nm`).
-    ///
-    /// # Errors
-    /// [`Error::Parse`] naming the allowed names.
-    pub fn parse(text: &str) -> Result<FitMethod> {
-        match text.trim().to_ascii_lowercase().as_str() {
-            "enumerate" | "enum" => Ok(FitMethod::Enumerate),
-            "ga" | "genetic" => Ok(FitMethod::Ga),
-            "nelder-mead" | "nm" => Ok(FitMethod::NelderMead),
-            "pso" | "particle-swarm" => Ok(FitMethod::Pso),
-            _ => Err(Error::parse(
-                "method",
-                text,
-                "expected enumerate, ga, nelder-mead or pso",
-            )),
-        }
-    }
-
-    /// The canonical name.
-    pub fn name(self) -> &'static str {
-        match self {
-            FitMethod::Enumerate => "enumerate",
-            FitMethod::Ga => "ga",
-            FitMethod::NelderMead => "nelder-mead",
-            FitMethod::Pso => "pso",
-        }
-    }
-}
-
-/// Options of [`fit`] (from a scene's `[search]` with [`FitScene::options`]).
-#[derive(Clone, Debug, PartialEq)]
-pub struct FitOptions {
-    /// The method.
-    pub method: FitMethod,
-    /// Seed of stochastic methods.
-    pub seed: u64,
-    /// Evaluation budget of stochastic methods.
-    pub max_evals: usize,
-    /// Record the optimizer's trace.
-    pub trace: bool,
-    /// Enumeration options (`keep` also sets the number of hypotheses reported).
-    pub enumerate: EnumerateOptions,
-}
-
-impl Default for FitOptions {
-    fn default() -> Self {
-        FitScene::synthetic(&crate::Chain::new(1).expect("n = 1 is valid")).options()
-    }
-}
 
 /// An alternative hypothesis.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -201,7 +133,7 @@ pub struct FitReport {
 /// # Errors
 /// Invalid chain, unknowns or misfit in the scene (typed, naming the field);
 /// a method this build does not provide (`search.method`).
-pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitReport> {
+pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<FitReport> {
     if scene.is_general() {
         return fit_general_scene(scene, data, options);
     }
@@ -328,7 +260,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitRep
 /// The general path of [`fit`]: defects of any kind and chain parameters
 /// ([`crate::detect::fit::general::fit_general`]); the residual is a chi-square,
 /// `floor` the gap threshold [`crate::detect::fit::identify::DEFAULT_THRESHOLD`].
-fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitReport> {
+fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<FitReport> {
     let t0 = Instant::now();
     if options.method != FitMethod::Enumerate {
         return Err(Error::invalid(
