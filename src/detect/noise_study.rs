@@ -702,6 +702,53 @@ pub struct DataFirstRow {
     pub seconds: f64,
 }
 
+/// How a data-first answer compares with the truth.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Score {
+    /// Every true position found, none extra.
+    pub positions_ok: bool,
+    /// Fitted values at true positions.
+    pub values: usize,
+    /// Of which the truth lies within 3 reported standard errors.
+    pub within_3se: usize,
+    /// A wrong answer flagged resolved, or a wrong position flagged identifiable.
+    pub wrong_flagged: bool,
+}
+
+/// Score `rep` against `truth` (positions of every kind, values within 3 SE).
+pub fn score(rep: &crate::detect::fit::FitReport, truth: &Chain) -> Score {
+    let t: Vec<(usize, f64)> = truth
+        .defects()
+        .iter()
+        .map(|d| (d.at(), d.value()))
+        .collect();
+    let mut tp: Vec<usize> = t.iter().map(|x| x.0).collect();
+    tp.sort_unstable();
+    let mut fp: Vec<usize> = rep.found().iter().map(|d| d.at()).collect();
+    fp.sort_unstable();
+    let positions_ok = tp == fp;
+    let mut values = 0;
+    let mut within_3se = 0;
+    let mut wrong_flagged = !positions_ok && rep.resolved;
+    for d in rep.defects.iter().filter(|d| !d.known) {
+        match t.iter().find(|x| x.0 == d.at) {
+            Some(&(_, v)) => {
+                values += 1;
+                if (d.value - v).abs() <= 3.0 * d.se {
+                    within_3se += 1;
+                }
+            }
+            None => wrong_flagged |= d.identifiable,
+        }
+    }
+    Score {
+        positions_ok,
+        values,
+        within_3se,
+        wrong_flagged,
+    }
+}
+
 /// A seed from values (not list positions): a subset of systems, levels or
 /// repeats reproduces the full table's cells.
 pub fn value_seed(system: &str, level: f64, repeat: usize, study_seed: u64) -> u64 {
@@ -759,42 +806,17 @@ pub fn data_first(
             };
             let t0 = std::time::Instant::now();
             let rep = fit(&obs, &Model::from_chain(&s.truth.uniform()), &opts)?;
-            let truth: Vec<(usize, f64)> = s
-                .truth
-                .defects()
-                .iter()
-                .map(|d| (d.at(), d.value()))
-                .collect();
-            let found: Vec<usize> = rep.defects.iter().map(|d| d.at).collect();
-            let mut tp: Vec<usize> = truth.iter().map(|t| t.0).collect();
-            tp.sort_unstable();
-            let mut fp = found.clone();
-            fp.sort_unstable();
-            let positions_ok = tp == fp;
-            let mut values = 0;
-            let mut within = 0;
-            let mut wrong_flagged = !positions_ok && rep.resolved;
-            for d in &rep.defects {
-                match truth.iter().find(|t| t.0 == d.at) {
-                    Some(&(_, v)) => {
-                        values += 1;
-                        if (d.value - v).abs() <= 3.0 * d.se {
-                            within += 1;
-                        }
-                    }
-                    None => wrong_flagged |= d.identifiable,
-                }
-            }
+            let sc = score(&rep, &s.truth);
             Ok(DataFirstRow {
                 system: s.name.clone(),
                 level,
                 repeat: r,
                 k_true,
                 k_found: rep.k,
-                positions_ok,
-                values,
-                within_3se: within,
-                wrong_flagged,
+                positions_ok: sc.positions_ok,
+                values: sc.values,
+                within_3se: sc.within_3se,
+                wrong_flagged: sc.wrong_flagged,
                 sigma_ratio: rep.noise_sigma / data.sigma(),
                 status: rep.status.name().to_string(),
                 seconds: t0.elapsed().as_secs_f64(),

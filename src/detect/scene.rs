@@ -2,7 +2,7 @@
 //! the residual and the search.
 //!
 //! ```toml
-//! [chain]            # the chain (crate::ChainSpec); defects = the TRUE defects
+//! [truth]            # or [chain]: the chain (crate::ChainSpec); defects = the TRUE defects
 //! n = 20             #   used to synthesise data (ignored by the model, which
 //! d = 0.1            #   is the uniform part n, k, d, gamma, mass)
 //! defects = [ { kind = "mass", at = 8, m = 5.0 }, { kind = "mass", at = 15, m = 2.0 } ]
@@ -207,7 +207,9 @@ impl Default for SceneOptions {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FitScene {
-    /// The chain; its defects are the truth used for synthetic data.
+    /// The chain; its defects are the truth used for synthetic data and for
+    /// scoring (written `[truth]` or, as before, `[chain]`).
+    #[serde(alias = "truth")]
     pub chain: ChainSpec,
     /// The data.
     #[serde(default)]

@@ -171,6 +171,11 @@ pub struct SeriesTransform {
 }
 
 impl SeriesTransform {
+    /// The samples the transform was built from: times and values.
+    pub fn samples(&self) -> (&[f64], &[f64]) {
+        (&self.t, &self.x)
+    }
+
     /// Prepare the transform of samples `x[i] = x(t[i])`.
     ///
     /// # Errors

@@ -506,6 +506,8 @@ fn krow(f: &KFit, sigma: f64, estimated: bool, criterion: f64) -> KRow {
 /// The best fits with `k` defects at one noise level.
 struct KFit {
     k: usize,
+    /// Position (and kind) sets fitted.
+    hypotheses: usize,
     ranked: Vec<Hypothesis>,
     evaluations: usize,
     /// Residual sum of squares of the best fit in the time domain (series),
@@ -645,6 +647,7 @@ impl Engine<'_> {
         let known_positions = self.model.chain.defects().len();
         let mut budget_exhausted = false;
         let mut method_name = self.opts.method.name().to_string();
+        let mut hypotheses = 1;
         let (ranked, evaluations) = match self.unknowns(k)? {
             None => {
                 // the uniform chain, chain parameters fitted if any
@@ -709,6 +712,7 @@ impl Engine<'_> {
                         &setup,
                         &gopts,
                     )?;
+                    hypotheses = g.hypotheses;
                     (g.ranked, g.evaluations)
                 } else {
                     let (positions, evals, exhausted) = self.stochastic(k, &coarse)?;
@@ -737,6 +741,7 @@ impl Engine<'_> {
                     }
                     let mut all = Vec::new();
                     let mut spent = evals;
+                    hypotheses = sets.len();
                     for q in sets {
                         let mut slots = unknowns.slots().to_vec();
                         for (slot, &at) in slots[known_positions..].iter_mut().zip(&q) {
@@ -802,6 +807,7 @@ impl Engine<'_> {
         let sigma_hat = (rss / (n_data.saturating_sub(params).max(1)) as f64).sqrt();
         Ok(KFit {
             k,
+            hypotheses,
             ranked,
             evaluations,
             rss,
@@ -1031,6 +1037,7 @@ impl Engine<'_> {
             misfit: f.misfit_name.clone(),
             method: f.method_name.clone(),
             evaluations,
+            hypotheses: f.hypotheses,
             wall_time_s: t0.elapsed().as_secs_f64(),
             predicted,
             identifiability: ident,

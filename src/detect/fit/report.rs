@@ -175,6 +175,8 @@ pub struct FitReport {
     pub method: String,
     /// Misfit evaluations spent.
     pub evaluations: usize,
+    /// Position (and kind) sets fitted for the chosen number of defects.
+    pub hypotheses: usize,
     /// Wall time, seconds.
     pub wall_time_s: f64,
     /// The predicted series (series data only).
