@@ -49,7 +49,7 @@ pub struct Args {
     pub kinds: Option<String>,
     /// Noise standard deviation of the samples: auto (estimated) or SIGMA [default: auto].
     /// With --scene: the synthetic data's noise level.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true)]
     pub noise: Option<String>,
     /// time, bromwich or real-axis [default: time].
     #[arg(long, requires = "data")]

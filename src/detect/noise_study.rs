@@ -183,7 +183,6 @@ pub fn success_table(
             let mut out = Vec::with_capacity(misfits.len());
             for &m in misfits {
                 let h = match m {
-                    MisfitKind::RealAxis => fit_noisy(&base, &data, k, m, setup)?,
                     MisfitKind::Bromwich | MisfitKind::Time => {
                         if bromwich.is_none() {
                             bromwich =
@@ -196,6 +195,7 @@ pub fn success_table(
                             b.clone()
                         }
                     }
+                    other => fit_noisy(&base, &data, k, other, setup)?,
                 };
                 out.push((
                     h[0].matches(&s.truth, cfg.mass_tol),

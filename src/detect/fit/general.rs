@@ -77,7 +77,6 @@ use crate::detect::unknowns::{
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use crate::time::series::{SeriesTransform, TransformOptions};
-use num_complex::Complex64;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -138,33 +137,15 @@ impl Setup {
 /// # Errors
 /// [`Error::InvalidParameter`] for [`MisfitKind::Time`]; as [`SeriesTransform`].
 pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result<LaplaceObs> {
-    let (s, w): (Vec<Complex64>, Vec<f64>) = match choice {
-        MisfitKind::RealAxis => (
-            setup
-                .real_rule
-                .nodes
-                .iter()
-                .map(|&x| Complex64::new(x, 0.0))
-                .collect(),
-            setup.real_rule.weights.clone(),
-        ),
-        MisfitKind::Bromwich => (
-            setup
-                .bromwich_rule
-                .nodes
-                .iter()
-                .map(|&w| Complex64::new(setup.bromwich_sigma, w))
-                .collect(),
-            setup.bromwich_rule.weights.clone(),
-        ),
-        MisfitKind::Time => {
-            return Err(Error::invalid(
+    let (s, w) = choice
+        .laplace_nodes(&setup.real_rule, setup.bromwich_sigma, &setup.bromwich_rule)
+        .ok_or_else(|| {
+            Error::invalid(
                 "misfit",
-                "time",
-                "a Laplace misfit (real or bromwich)",
-            ))
-        }
-    };
+                choice.name(),
+                "a Laplace misfit (real-axis or bromwich)",
+            )
+        })?;
     let opts = TransformOptions {
         noise_sigma: Some(data.sigma()),
         ..TransformOptions::default()
@@ -762,14 +743,14 @@ pub fn fit_noisy_general(
     opts: &GeneralOptions,
 ) -> Result<GeneralFit> {
     match choice {
-        MisfitKind::RealAxis | MisfitKind::Bromwich => {
-            let obs = laplace_obs(data, choice, setup)?;
-            fit_general(base, unknowns, &obs, None, setup, opts)
-        }
         MisfitKind::Time => {
             let obs = laplace_obs(data, MisfitKind::Bromwich, setup)?;
             let t = TimeMisfit::new(data.clone());
             fit_general(base, unknowns, &obs, Some(&t), setup, opts)
+        }
+        laplace => {
+            let obs = laplace_obs(data, laplace, setup)?;
+            fit_general(base, unknowns, &obs, None, setup, opts)
         }
     }
 }
@@ -887,14 +868,14 @@ pub fn fit_noisy(
     setup: &Setup,
 ) -> Result<Vec<Hypothesis>> {
     match choice {
-        MisfitKind::RealAxis | MisfitKind::Bromwich => {
-            let obs = laplace_obs(data, choice, setup)?;
-            enumerate_laplace(base, &obs, k, setup)
-        }
         MisfitKind::Time => {
             let obs = laplace_obs(data, MisfitKind::Bromwich, setup)?;
             let ranked = enumerate_laplace(base, &obs, k, setup)?;
             time_from_bromwich(base, data, &ranked, setup)
+        }
+        laplace => {
+            let obs = laplace_obs(data, laplace, setup)?;
+            enumerate_laplace(base, &obs, k, setup)
         }
     }
 }

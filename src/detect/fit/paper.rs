@@ -228,7 +228,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<FitR
             "bromwich sigma={} omega in [0, {}]",
             scene.misfit.sigma, scene.misfit.omega_max
         ),
-        MisfitKind::Time => "time".into(),
+        other => other.name().into(),
     };
     Ok(FitReport {
         method: options.method.name().into(),
