@@ -196,6 +196,34 @@ pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
     linear_ticks(lo, hi, 4)
 }
 
+/// Labels of log-axis ticks given in data units: [`tick_label`] each, or,
+/// when ticks lie closer than its 4 significant digits tell apart (a log
+/// axis spanning a tiny factor), [`tick_label_step`] with the smallest
+/// spacing.
+pub fn log_tick_labels(ticks: &[f64]) -> Vec<String> {
+    let plain: Vec<String> = ticks.iter().map(|v| tick_label(*v)).collect();
+    if plain.windows(2).all(|w| w[0] != w[1]) {
+        return plain;
+    }
+    let step = ticks
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .fold(f64::INFINITY, f64::min);
+    ticks.iter().map(|v| tick_label_step(*v, step)).collect()
+}
+
+/// The label of the tick nearest `v` (plotted coordinates `ticks`, labels
+/// `labels` of the same length); empty when there is none.
+#[cfg_attr(not(feature = "plot"), allow(dead_code))]
+fn nearest_label(v: f64, ticks: &[f64], labels: &[String]) -> String {
+    ticks
+        .iter()
+        .zip(labels)
+        .min_by(|a, b| (a.0 - v).abs().total_cmp(&(b.0 - v).abs()))
+        .map(|(_, l)| l.clone())
+        .unwrap_or_default()
+}
+
 /// `10^e` without the rounding of `powi` for negative `e` (`1e-7`, not
 /// `9.999999999999999e-8`).
 fn pow10(e: i32) -> f64 {
@@ -528,7 +556,7 @@ impl LinePlot {
             Some(names) => {
                 let n = names.len().max(1) as f64;
                 (
-                    (-0.5_f64.min(x0 - 0.5), (n - 0.5).max(x1 + 0.5)),
+                    ((-0.5f64).min(x0 - 0.5), (n - 0.5).max(x1 + 0.5)),
                     (0..names.len()).map(|i| i as f64).collect(),
                 )
             }
@@ -925,6 +953,10 @@ mod render {
             let (bw, _) = body.dim_in_pixel();
             let (plots, legend) = body.split_horizontally(bw.saturating_sub(legend_w));
             let cells = plots.split_evenly((rows, cols));
+            let log_labels = |t: &[f64]| -> Vec<String> {
+                log_tick_labels(&t.iter().map(|v| 10f64.powf(*v)).collect::<Vec<_>>())
+            };
+            let (xl, yl) = (log_labels(&l.x_ticks), log_labels(&l.y_ticks));
             let fx = |v: f64| -> String {
                 if let Some(names) = &p.categories {
                     let i = v.round();
@@ -934,14 +966,14 @@ mod render {
                     return String::new();
                 }
                 if p.log_x {
-                    tick_label(10f64.powf(v))
+                    nearest_label(v, &l.x_ticks, &xl)
                 } else {
                     tick_label_step(v, step_of(&l.x_ticks))
                 }
             };
             let fy = |v: f64| -> String {
                 if p.log_y {
-                    tick_label(10f64.powf(v))
+                    nearest_label(v, &l.y_ticks, &yl)
                 } else {
                     tick_label_step(v, step_of(&l.y_ticks))
                 }
@@ -1263,7 +1295,7 @@ mod tests {
             let t = log_ticks(lo, hi);
             assert!(t.len() >= 2, "{lo}..{hi}: {t:?}");
             assert!(t.iter().all(|v| *v >= lo * 0.999 && *v <= hi * 1.001), "{t:?}");
-            let labels: Vec<String> = t.iter().map(|v| tick_label(*v)).collect();
+            let labels = log_tick_labels(&t);
             let mut d = labels.clone();
             d.dedup();
             assert_eq!(d, labels, "distinct labels");
