@@ -27,7 +27,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let (runs, ok): (f64, f64) = (f[3].parse()?, f[4].parse()?);
         cells.push((f[0].into(), f[1].into(), f[2].parse()?, ok / runs));
     }
-    let mut order = |pick: fn(&(String, String, f64, f64)) -> &String| {
+    let order = |pick: fn(&(String, String, f64, f64)) -> &String| {
         let mut v: Vec<String> = Vec::new();
         for c in &cells {
             if !v.contains(pick(c)) {

@@ -201,6 +201,24 @@ pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
 /// axis spanning a tiny factor), [`tick_label_step`] with the smallest
 /// spacing.
 pub fn log_tick_labels(ticks: &[f64]) -> Vec<String> {
+    // decades over a wide range: one notation for all (1e-8 ... 1e-1)
+    let exps: Vec<Option<i32>> = ticks
+        .iter()
+        .map(|v| {
+            let e = v.log10().round();
+            (e.is_finite() && (v / pow10(e as i32) - 1.0).abs() < 1e-9).then_some(e as i32)
+        })
+        .collect();
+    if ticks.len() >= 2
+        && exps.iter().all(Option::is_some)
+        && exps.iter().flatten().any(|e| e.abs() >= 4)
+    {
+        return exps
+            .iter()
+            .flatten()
+            .map(|e| if *e == 0 { "1".into() } else { format!("1e{e}") })
+            .collect();
+    }
     let plain: Vec<String> = ticks.iter().map(|v| tick_label(*v)).collect();
     if plain.windows(2).all(|w| w[0] != w[1]) {
         return plain;
@@ -582,7 +600,18 @@ impl LinePlot {
                 (pad(a, b, &[]), t)
             }
             None => {
-                let t = ticks(y0, y1, self.log_y, self.integer_y);
+                // loose ticks: the axis reaches the next tick beyond the data
+                let (a, b) = if self.log_y || y1 <= y0 {
+                    (y0, y1)
+                } else {
+                    let step = nice_step(y1 - y0, 6);
+                    let step = if self.integer_y { step.max(1.0) } else { step };
+                    (
+                        (y0 / step - 1e-9).floor() * step,
+                        (y1 / step + 1e-9).ceil() * step,
+                    )
+                };
+                let t = ticks(a, b, self.log_y, self.integer_y);
                 let t: Vec<f64> = t
                     .into_iter()
                     .filter(|&v| {
@@ -1097,7 +1126,7 @@ mod render {
                 legend
                     .draw(&Text::new(
                         label.clone(),
-                        (x1 + 10, y - 8),
+                        (x1 + 10, y - 6),
                         legend_font.into_font(),
                     ))
                     .map_err(plot_err)?;
@@ -1301,6 +1330,12 @@ mod tests {
             assert_eq!(d, labels, "distinct labels");
         }
         assert!(log_ticks(0.0, 1.0).is_empty());
+        // decades over a wide range share one notation
+        assert_eq!(
+            log_tick_labels(&log_ticks(1e-8, 0.1)),
+            ["1e-8", "1e-7", "1e-6", "1e-5", "1e-4", "1e-3", "1e-2", "1e-1"]
+        );
+        assert_eq!(log_tick_labels(&[1.0, 10.0, 100.0]), ["1", "10", "100"]);
         assert_eq!(tick_label(1e-7), "1e-7");
     }
 
