@@ -12,7 +12,9 @@ use springmass::plot::{Line, LinePlot};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let input = args.first().map_or("docs/noise-success.csv", |s| s.as_str());
+    let input = args
+        .first()
+        .map_or("docs/noise-success.csv", |s| s.as_str());
     let output = args
         .get(1)
         .map_or("out/examples/noise-success.svg", |s| s.as_str());
@@ -37,7 +39,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         v
     };
     let (systems, misfits) = (order(|c| &c.0), order(|c| &c.1));
-    let runs = text.lines().nth(1).and_then(|l| l.split(',').nth(3)).unwrap_or("?");
+    let runs = text
+        .lines()
+        .nth(1)
+        .and_then(|l| l.split(',').nth(3))
+        .unwrap_or("?");
     let mut plot = LinePlot::new(
         format!("Both positions found ({runs} seeds per point), one panel per system"),
         "noise level (relative to max |x_1|)",
@@ -59,6 +65,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         std::fs::create_dir_all(dir)?;
     }
     plot.write_svg(output)?;
-    println!("wrote {output}: {} systems x {} misfits", systems.len(), misfits.len());
+    println!(
+        "wrote {output}: {} systems x {} misfits",
+        systems.len(),
+        misfits.len()
+    );
     Ok(())
 }

@@ -14,7 +14,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let chain = Chain::paper(20)?
         .with_defect(Defect::Mass { at: 8, m: 5.0 })?
         .with_defect(Defect::Mass { at: 15, m: 2.0 })?;
-    let run = simulate(&chain, &SimOptions::new(100.0, 0.05).with_observe(vec![1, 20]))?;
+    let run = simulate(
+        &chain,
+        &SimOptions::new(100.0, 0.05).with_observe(vec![1, 20]),
+    )?;
     std::fs::create_dir_all("out/examples")?;
     run.to_series()?.write_csv("out/examples/simulate.csv")?;
     let curve = |i: usize| -> Vec<(f64, f64)> {

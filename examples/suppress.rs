@@ -12,7 +12,12 @@ use springmass::control::{Scheme, Suppression};
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let sup = Suppression::paper(4)?; // 5 masses, k = 1, d = 0.1, gamma = 1
     for (name, scheme) in [("cloak", Scheme::Cloak), ("single", Scheme::Single)] {
-        let run = verify(&sup, scheme, &Input::Impulse, &VerifyOptions::new(60.0, 0.05)?)?;
+        let run = verify(
+            &sup,
+            scheme,
+            &Input::Impulse,
+            &VerifyOptions::new(60.0, 0.05)?,
+        )?;
         let m = &run.metrics;
         println!(
             "{:<7} max|x_5| / max|y_1| = {:.1e}   max|x_1 - y_1| / max|y_1| = {:.1e}   controls on masses {:?}",

@@ -130,9 +130,9 @@ pub fn integer_ticks(lo: f64, hi: f64, target: usize) -> Vec<f64> {
     let step = if step <= 1.0 {
         1.0
     } else if step.fract() != 0.0 {
-        // 2.5 * 10^k: the next nice integer step up
+        // 2.5 * 10^k (k = 0): step 2
         let p = 10f64.powf(step.log10().floor());
-        (step / p).ceil().max(1.0) * p
+        (step / p).floor().max(1.0) * p
     } else {
         step
     };
@@ -167,10 +167,16 @@ pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
     let (e0, e1) = ((a - 1e-9).ceil() as i32, (b + 1e-9).floor() as i32);
     if e1 - e0 >= 2 {
         let n = (e1 - e0 + 1) as usize;
-        let every = n.div_ceil(8).max(1);
+        let every = match n.div_ceil(8) {
+            0 | 1 => 1,
+            2 => 2,
+            3..=5 => 5,
+            k => 10 * k.div_ceil(10),
+        };
+        // multiples of `every` in the exponent: 1e-30, 1e-25, ... not 1e-31, 1e-27
         return (e0..=e1)
-            .filter(|e| (e - e0) as usize % every == 0)
-            .map(|e| pow10(e))
+            .filter(|e| e.rem_euclid(every as i32) == 0)
+            .map(pow10)
             .collect();
     }
     let multiples = |ms: &[f64]| -> Vec<f64> {
@@ -216,7 +222,13 @@ pub fn log_tick_labels(ticks: &[f64]) -> Vec<String> {
         return exps
             .iter()
             .flatten()
-            .map(|e| if *e == 0 { "1".into() } else { format!("1e{e}") })
+            .map(|e| {
+                if *e == 0 {
+                    "1".into()
+                } else {
+                    format!("1e{e}")
+                }
+            })
             .collect();
     }
     let plain: Vec<String> = ticks.iter().map(|v| tick_label(*v)).collect();
@@ -332,7 +344,12 @@ pub enum Marker {
 /// every series, so series `i` and `i + 8` never look alike.
 pub fn series_style(i: usize) -> ((u8, u8, u8), Dash, Marker) {
     const DASHES: [Dash; 3] = [Dash::Solid, Dash::Dashed, Dash::Dotted];
-    const MARKERS: [Marker; 4] = [Marker::Circle, Marker::Square, Marker::Triangle, Marker::Cross];
+    const MARKERS: [Marker; 4] = [
+        Marker::Circle,
+        Marker::Square,
+        Marker::Triangle,
+        Marker::Cross,
+    ];
     (
         PALETTE[i % 8],
         DASHES[(i / 8) % 3],
@@ -546,13 +563,21 @@ impl LinePlot {
         // ticks over the data (or fixed) range, then a margin around it
         let ticks = |lo: f64, hi: f64, log: bool, integer: bool| -> Vec<f64> {
             if log {
-                let (a, b) = if hi > lo { (lo, hi) } else { (lo - 0.5, hi + 0.5) };
+                let (a, b) = if hi > lo {
+                    (lo, hi)
+                } else {
+                    (lo - 0.5, hi + 0.5)
+                };
                 log_ticks(10f64.powf(a), 10f64.powf(b))
                     .into_iter()
                     .map(f64::log10)
                     .collect()
             } else if integer {
-                let (a, b) = if hi > lo { (lo, hi) } else { (lo - 1.0, hi + 1.0) };
+                let (a, b) = if hi > lo {
+                    (lo, hi)
+                } else {
+                    (lo - 1.0, hi + 1.0)
+                };
                 integer_ticks(a, b, 6)
             } else {
                 let (a, b) = if hi > lo {
@@ -660,7 +685,8 @@ impl LinePlot {
             }
         } else if self.lines.len() > MAX_SERIES {
             for (i, l) in self.lines.iter().enumerate() {
-                style[i] = i;
+                // one curve per panel: colours only, always solid
+                style[i] = i % PALETTE.len();
                 panels.push(Panel {
                     title: if l.label.is_empty() {
                         format!("series {}", i + 1)
@@ -1094,7 +1120,9 @@ mod render {
                 if !only_markers {
                     let style = color.stroke_width(2);
                     match dash {
-                        Dash::Solid => legend.draw(&PathElement::new(vec![(x0, y), (x1, y)], style)),
+                        Dash::Solid => {
+                            legend.draw(&PathElement::new(vec![(x0, y), (x1, y)], style))
+                        }
                         Dash::Dashed => legend.draw(&DashedPathElement::new(
                             vec![(x0, y), (x1, y)],
                             8,
@@ -1115,9 +1143,8 @@ mod render {
                     let s = color.filled();
                     match marker {
                         Marker::Circle => legend.draw(&Circle::new(m, 4, s)),
-                        Marker::Square => {
-                            legend.draw(&Rectangle::new([(m.0 - 3, m.1 - 3), (m.0 + 4, m.1 + 4)], s))
-                        }
+                        Marker::Square => legend
+                            .draw(&Rectangle::new([(m.0 - 3, m.1 - 3), (m.0 + 4, m.1 + 4)], s)),
                         Marker::Triangle => legend.draw(&TriangleMarker::new(m, 5, s)),
                         Marker::Cross => legend.draw(&Cross::new(m, 4, color.stroke_width(2))),
                     }
@@ -1193,6 +1220,8 @@ mod render {
             linear_ticks(lo, hi, 6)
         };
         let (sx, sy, sz) = (step_of(&xt), step_of(&yt), step_of(&zt));
+        let zl = log_tick_labels(&zt.iter().map(|v| 10f64.powf(*v)).collect::<Vec<_>>());
+        let zt_plotted = zt.clone();
         let mut buf = String::new();
         {
             let root = SVGBackend::with_string(&mut buf, (900, 640)).into_drawing_area();
@@ -1203,10 +1232,7 @@ mod render {
                 .margin(12)
                 .x_label_area_size(45)
                 .y_label_area_size(70)
-                .build_cartesian_2d(
-                    Axis::new(ex[0], ex[nx], xt),
-                    Axis::new(ey[0], ey[ny], yt),
-                )
+                .build_cartesian_2d(Axis::new(ex[0], ex[nx], xt), Axis::new(ey[0], ey[ny], yt))
                 .map_err(plot_err)?;
             chart
                 .configure_mesh()
@@ -1247,7 +1273,7 @@ mod render {
                 .label_style(("sans-serif", 12))
                 .y_label_formatter(&|v: &f64| {
                     if h.log_z {
-                        tick_label(10f64.powf(*v))
+                        nearest_label(*v, &zt_plotted, &zl)
                     } else {
                         tick_label_step(*v, sz)
                     }
@@ -1316,6 +1342,10 @@ mod tests {
         assert_eq!(log_ticks(1.0, 1e3), vec![1.0, 10.0, 100.0, 1000.0]);
         // many decades: thinned to at most 8
         assert!(log_ticks(1e-300, 1e300).len() <= 8);
+        assert_eq!(
+            log_tick_labels(&log_ticks(1e-31, 1e-3)),
+            ["1e-30", "1e-25", "1e-20", "1e-15", "1e-10", "1e-5"]
+        );
         // about one decade: 1-2-5
         assert_eq!(log_ticks(0.3, 2.5), vec![0.5, 1.0, 2.0]);
         assert_eq!(log_ticks(64.0, 512.0), vec![100.0, 200.0, 500.0]);
@@ -1323,7 +1353,10 @@ mod tests {
         for (lo, hi) in [(2.1, 2.9), (128.0, 256.0), (0.9995, 1.0005), (3e-7, 5e-7)] {
             let t = log_ticks(lo, hi);
             assert!(t.len() >= 2, "{lo}..{hi}: {t:?}");
-            assert!(t.iter().all(|v| *v >= lo * 0.999 && *v <= hi * 1.001), "{t:?}");
+            assert!(
+                t.iter().all(|v| *v >= lo * 0.999 && *v <= hi * 1.001),
+                "{t:?}"
+            );
             let labels = log_tick_labels(&t);
             let mut d = labels.clone();
             d.dedup();
@@ -1395,7 +1428,11 @@ mod tests {
             .line(Line::new("", vec![(1.0, 1.0), (3.0, 2.0)]))
             .layout()
             .unwrap();
-        assert!(l.x_ticks.iter().all(|v| v.fract() == 0.0), "{:?}", l.x_ticks);
+        assert!(
+            l.x_ticks.iter().all(|v| v.fract() == 0.0),
+            "{:?}",
+            l.x_ticks
+        );
         assert!(LinePlot::new("empty", "x", "y").layout().is_err());
     }
 
@@ -1429,7 +1466,10 @@ mod tests {
         // small multiples carry each series' name as a panel caption
         let mut many = LinePlot::new("many", "x", "y");
         for i in 0..9 {
-            many = many.line(Line::new(format!("series-{i}"), vec![(0.0, 0.0), (1.0, i as f64)]));
+            many = many.line(Line::new(
+                format!("series-{i}"),
+                vec![(0.0, 0.0), (1.0, i as f64)],
+            ));
         }
         let svg = many.to_svg_string().unwrap();
         assert!((0..9).all(|i| svg.contains(&format!("series-{i}"))));

@@ -285,11 +285,11 @@ fn sanitize(raw: String) -> String {
 }
 
 /// The unit of a column or metric, for axis labels: seconds for timings
-/// (`t_*`), bits for a precision in bits; `None` for dimensionless
+/// (`t_*`, except the ratio `t_speedup`), bits for a precision in bits; `None` for dimensionless
 /// quantities (the model's masses, springs and times are in units of the
 /// chain's own `m = k = 1`).
 fn unit_of(name: &str) -> Option<&'static str> {
-    if name.starts_with("t_") {
+    if name.starts_with("t_") && !name.contains("speedup") && !name.contains("ratio") {
         Some("s")
     } else if name == "bits" {
         Some("bits")

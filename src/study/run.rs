@@ -26,13 +26,13 @@
 //! identical for any `--threads` (timings apart, see `study.timings`).
 
 use super::kinds::CaseOutput;
+#[cfg(not(feature = "cli"))]
+use super::progress::progress_bar;
 use super::shard::Shard;
 use super::sweep::{Case, Param};
 use super::Study;
 use crate::error::{Error, Result};
 use crate::series::write_atomic;
-#[cfg(not(feature = "cli"))]
-use super::progress::progress_bar;
 #[cfg(feature = "cli")]
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
