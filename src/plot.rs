@@ -296,7 +296,7 @@ pub fn tick_label(v: f64) -> String {
 pub fn tick_label_step(v: f64, step: f64) -> String {
     let v = snap(v, step);
     let a = v.abs().max(step.abs());
-    if !(step.is_finite() && step > 0.0) || !(1e-3..1e5).contains(&a) {
+    if !(step.is_finite() && step > 0.0 && (1e-3..1e5).contains(&a)) {
         return tick_label(v);
     }
     let decimals = (-(step.log10().floor()) as i32 + 1).clamp(0, 8) as usize;
