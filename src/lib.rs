@@ -48,6 +48,15 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 //!
+//! ## Cargo features
+//!
+//! `cli` (the `springmass` binary: clap, anyhow, indicatif), `plot` (SVG plots
+//! with the bundled DejaVu Sans font) and `bigfloat` (extended precision,
+//! astro-float) are on by default. With `default-features = false` the library
+//! needs only its numerical dependencies; a plot then returns an
+//! [`Error::InvalidParameter`] naming `plot`, and a precision other than `f64`
+//! one naming `precision`.
+//!
 //! ## Where each piece lives, in data-flow order
 //!
 //! | module | what |

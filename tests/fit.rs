@@ -283,7 +283,7 @@ fn cli_fit_and_surface() {
         .args([
             "fit",
             "--scene",
-            &format!("{root}/configs/table1-system3.toml"),
+            &format!("{root}/configs/scenes/table1-system3.toml"),
             "--json",
         ])
         .output()
@@ -320,7 +320,7 @@ fn cli_fit_and_surface() {
             .args([
                 "surface",
                 "--scene",
-                &format!("{root}/configs/{cfg}.toml"),
+                &format!("{root}/configs/scenes/{cfg}.toml"),
                 "--kind",
                 kind,
                 "--out",

@@ -17,7 +17,7 @@ use std::path::PathBuf;
     after_help = "Data-first: springmass fit --data x1.csv --n 37 [--d 0.05 | --fit d,gamma] \
 [--defects auto|K] [--kinds mass|spring|damper|any] [--noise auto|SIGMA] [--misfit time|bromwich|real-axis] \
 [--method enumerate|ga|nelder-mead|pso] [--plot fit.svg] [--out-csv fit.csv] [--json]\n\
-Scene file: springmass fit --scene configs/table1-system3.toml (its [chain] defects are the truth that synthesises the data)."
+Scene file: springmass fit --scene configs/scenes/table1-system3.toml (its [chain] defects are the truth that synthesises the data)."
 )]
 pub struct Args {
     /// A measured series: CSV with a time column `t` and one or more value columns.

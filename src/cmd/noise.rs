@@ -316,11 +316,12 @@ fn table(a: &Args, cfg: &StudyConfig, setup: &Setup, md: &mut String) -> anyhow:
     writeln!(md, "|---|---|{}", "---|".repeat(cfg.levels.len()))?;
     let mut csv = String::from("system,misfit,level,runs,successes,positions_ok\n");
     let mut plot = LinePlot::new(
-        "Defect recovery vs noise",
+        "Defect recovery vs noise, one panel per system",
         "noise level (relative to max |x_1|)",
         "success rate",
     )
-    .log_x(true);
+    .log_x(true)
+    .rate();
     for s in &chosen {
         for m in &misfits {
             write!(md, "| {} | {} |", s.name, m.name())?;
@@ -338,11 +339,7 @@ fn table(a: &Args, cfg: &StudyConfig, setup: &Setup, md: &mut String) -> anyhow:
                 pts.push((c.level, c.rate()));
             }
             writeln!(md)?;
-            let mut line = Line::new(format!("{} {}", s.name, m.name()), pts).markers();
-            if *m == MisfitKind::RealAxis {
-                line = line.dashed();
-            }
-            plot = plot.line(line);
+            plot = plot.line(Line::new(m.name(), pts).panel(s.name.clone()));
         }
     }
     write_atomic(&a.out.join("success.csv"), csv.as_bytes())?;

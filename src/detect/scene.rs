@@ -45,7 +45,7 @@
 //! ([`FitScene::is_general`]) is fitted by the general noisy fit
 //! ([`crate::detect::fit::general::fit_general`], unknowns from
 //! [`FitScene::general_unknowns`], series from [`FitScene::time_data`]); see
-//! `configs/fit-spring.toml` and `configs/fit-any.toml`.
+//! `configs/scenes/fit-spring.toml` and `configs/scenes/fit-any.toml`.
 //!
 //! ```
 //! use springmass::detect::scene::FitScene;
@@ -436,15 +436,15 @@ mod tests {
 
     #[test]
     fn example_config_parses() {
-        let text = include_str!("../../configs/table1-system3.toml");
+        let text = include_str!("../../configs/scenes/table1-system3.toml");
         let s = FitScene::from_toml(text).unwrap();
         assert_eq!(s.chain.n, 20);
         assert_eq!(s.unknowns().unwrap().k(), 2);
         s.data().unwrap();
         for text in [
-            include_str!("../../configs/table1-system3-series.toml"),
-            include_str!("../../configs/figure16.toml"),
-            include_str!("../../configs/figure17.toml"),
+            include_str!("../../configs/scenes/table1-system3-series.toml"),
+            include_str!("../../configs/scenes/figure16.toml"),
+            include_str!("../../configs/scenes/figure17.toml"),
         ] {
             let s = FitScene::from_toml(text).unwrap();
             s.unknowns().unwrap();
@@ -494,8 +494,8 @@ mod tests {
     #[test]
     fn general_scenes_parse_and_errors_name_fields() {
         for text in [
-            include_str!("../../configs/fit-spring.toml"),
-            include_str!("../../configs/fit-any.toml"),
+            include_str!("../../configs/scenes/fit-spring.toml"),
+            include_str!("../../configs/scenes/fit-any.toml"),
         ] {
             let s = FitScene::from_toml(text).unwrap();
             assert!(s.is_general());
@@ -503,7 +503,7 @@ mod tests {
             assert_eq!(u.slots().len(), 2);
             assert!(s.unknowns().is_err(), "the mass-only path refuses");
         }
-        let s = FitScene::from_toml(include_str!("../../configs/fit-spring.toml")).unwrap();
+        let s = FitScene::from_toml(include_str!("../../configs/scenes/fit-spring.toml")).unwrap();
         assert_eq!(
             s.general_unknowns()
                 .unwrap()
