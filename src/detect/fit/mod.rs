@@ -784,7 +784,7 @@ impl Engine<'_> {
             method: "fit".into(),
             reason: "no hypothesis".into(),
         })?;
-        let params = 2 * k + (known_positions > 0) as usize * 0 + self.model.fit.len();
+        let params = 2 * k + self.model.fit.len();
         let (rss, n_data, predicted, chi2, dof) = match self.obs {
             Observations::Series(s) => {
                 let chain = best.to_chain(&self.model.chain)?;
