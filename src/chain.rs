@@ -338,7 +338,10 @@ impl Chain {
             ));
         }
         if at < lo || at > hi {
-            let why = match (self.left.is_free() && at == 0, self.right.is_free() && at == self.n) {
+            let why = match (
+                self.left.is_free() && at == 0,
+                self.right.is_free() && at == self.n,
+            ) {
                 (true, _) => " (the left end is free: spring 0 does not exist)",
                 (_, true) => " (the right end is free: spring n does not exist)",
                 _ => "",
@@ -580,7 +583,11 @@ impl Chain {
     /// Invalid scales; a product that leaves the f64 range.
     pub fn to_si(&self, units: &Units) -> Result<Chain> {
         units.check()?;
-        let (ms, ks, ds) = (units.mass_kg, units.stiffness_n_per_m, units.damping_n_s_per_m);
+        let (ms, ks, ds) = (
+            units.mass_kg,
+            units.stiffness_n_per_m,
+            units.damping_n_s_per_m,
+        );
         let defects: Vec<Defect> = self
             .defects
             .iter()
@@ -742,14 +749,23 @@ mod tests {
             ff.clone().with_defect(Defect::Spring { at: 0, k: 2.0 }),
             Err(Error::InvalidParameter { field, .. }) if field == "defects[0].at"
         ));
-        assert!(ff.clone().with_defect(Defect::Spring { at: 4, k: 2.0 }).is_ok());
+        assert!(ff
+            .clone()
+            .with_defect(Defect::Spring { at: 4, k: 2.0 })
+            .is_ok());
         let fr = c.clone().with_boundaries(Fixed, Free).unwrap();
-        assert!(fr.clone().with_defect(Defect::Spring { at: 4, k: 2.0 }).is_err());
+        assert!(fr
+            .clone()
+            .with_defect(Defect::Spring { at: 4, k: 2.0 })
+            .is_err());
         assert!(fr.with_defect(Defect::Spring { at: 0, k: 2.0 }).is_ok());
         // a wall-spring defect present before the end is freed
         let w = c.with_defect(Defect::Spring { at: 0, k: 2.0 }).unwrap();
         assert!(w.with_boundaries(Free, Fixed).is_err());
-        let one = Chain::paper(1).unwrap().with_boundaries(Free, Free).unwrap();
+        let one = Chain::paper(1)
+            .unwrap()
+            .with_boundaries(Free, Free)
+            .unwrap();
         assert_eq!(one.springs(), vec![0.0, 0.0]);
         assert!(one.with_defect(Defect::Spring { at: 0, k: 1.0 }).is_err());
         assert_eq!("FREE".parse::<Boundary>().unwrap(), Free);

@@ -224,10 +224,7 @@ impl<T: Scalar> Green<T> {
                     (-(lambda.scale(-2.0 * (nf + 1.0))).expm1(), 2 * n + 4)
                 }
                 (Boundary::Free, Boundary::Free) => (-(lambda.scale(-2.0 * nf)).expm1(), 2 * n + 2),
-                _ => (
-                    T::one() + lambda.scale(-(2.0 * nf + 1.0)).exp(),
-                    2 * n + 3,
-                ),
+                _ => (T::one() + lambda.scale(-(2.0 * nf + 1.0)).exp(), 2 * n + 3),
             };
             (one_m_q, (one_m_q2 * second).scale(0.25 * k), half)
         };
@@ -660,7 +657,13 @@ mod tests {
         assert!(g.is_singular() && !g.entry(1, 1).is_finite());
     }
 
-    fn dense_matrix(n: usize, k: f64, mass: f64, d: f64, s: Complex64) -> nalgebra::DMatrix<Complex64> {
+    fn dense_matrix(
+        n: usize,
+        k: f64,
+        mass: f64,
+        d: f64,
+        s: Complex64,
+    ) -> nalgebra::DMatrix<Complex64> {
         let diag = s * s * mass + s * d + 2.0 * k;
         let mut m = nalgebra::DMatrix::<Complex64>::zeros(n, n);
         for i in 0..n {

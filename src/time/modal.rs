@@ -940,12 +940,13 @@ pub fn natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
                 0.0
             }
         });
-        let eig = nalgebra::SymmetricEigen::try_new(kt, f64::EPSILON, 100 * n).ok_or_else(|| {
-            Error::Numerical {
-                method: "symmetric eigen".into(),
-                reason: "did not converge".into(),
-            }
-        })?;
+        let eig =
+            nalgebra::SymmetricEigen::try_new(kt, f64::EPSILON, 100 * n).ok_or_else(|| {
+                Error::Numerical {
+                    method: "symmetric eigen".into(),
+                    reason: "did not converge".into(),
+                }
+            })?;
         (0..n)
             .map(|c| {
                 let q = eig.eigenvectors.column(c);
