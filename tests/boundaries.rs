@@ -63,7 +63,9 @@ struct Tally {
 }
 
 impl Tally {
-    /// Compare `got` with the dense value `want`, whose own error bound is `bound`.
+    /// Compare `got` with the dense value `want`, whose own (first-order,
+    /// componentwise) error bound is `bound`: within 1e-12 relative, or, where
+    /// the dense LU itself cannot certify 1e-12, within that bound (counted).
     fn check(&mut self, got: Complex64, want: Complex64, bound: f64, what: &dyn Fn() -> String) {
         const TOL: f64 = 1e-12;
         if want.norm() < 1e-280 {
@@ -71,27 +73,24 @@ impl Tally {
             self.underflow += 1;
             return;
         }
-        if bound > 0.1 * TOL * want.norm() {
-            // the dense LU cannot certify 1e-12 here; still require agreement
-            // within its own bound
-            self.unresolved += 1;
-            assert!(
-                (got - want).norm() <= TOL * want.norm() + 10.0 * bound,
-                "{}: {got} vs {want} (dense bound {bound:e})",
-                what()
-            );
+        let e = (got - want).norm() / want.norm();
+        if e <= TOL {
+            self.worst = self.worst.max(e);
+            self.checked += 1;
             return;
         }
-        let e = (got - want).norm() / want.norm();
-        self.worst = self.worst.max(e);
-        self.checked += 1;
-        assert!(e <= TOL, "{}: {got} vs {want}, rel err {e:e}", what());
+        assert!(
+            bound > 0.1 * TOL * want.norm() && (got - want).norm() <= 10.0 * bound,
+            "{}: {got} vs {want}, rel err {e:e} (dense bound {bound:e})",
+            what()
+        );
+        self.unresolved += 1;
     }
     fn report(&self, name: &str) {
         eprintln!(
-            "{name}: {} entries within 1e-12 (worst {:.2e}); skipped {} where the dense LU's own \
-             error bound exceeds 1e-12 (agreement within that bound asserted), {} below 1e-280 \
-             (underflow)",
+            "{name}: {} entries within 1e-12 (worst {:.2e}); {} beyond 1e-12 where the dense LU's \
+             own error bound exceeds 1e-12 (agreement within that bound asserted), {} below \
+             1e-280 skipped (underflow)",
             self.checked, self.worst, self.unresolved, self.underflow
         );
         assert!(self.checked > 0, "{name}: nothing compared");
@@ -172,8 +171,9 @@ fn green_every_boundary_matches_tridiagonal_large_n() {
                     for s in s_grid() {
                         let x = tridiag::solve_all(&chain, s).unwrap();
                         let g = Green::of_chain(&chain, s);
-                        let idx: Vec<usize> =
-                            [1, 2, n / 2 + 1, n.saturating_sub(1).max(1), n].to_vec();
+                        let mut idx: Vec<usize> =
+                            vec![1, 2, n / 2 + 1, n.saturating_sub(1).max(1), n];
+                        idx.retain(|&i| i <= n);
                         for i in idx {
                             let want = x[i - 1];
                             if want.norm() < 1e-280 {
@@ -357,14 +357,12 @@ fn free_fixed_natural_frequencies() {
             assert!((eig[j] - exact[j]).abs() <= 1e-12, "eigen n={n} j={j}");
             assert_eq!(closed[j].zeta, Some(0.0));
         }
-        // a pole of X_1 at s = i omega_j: 1/|X_1| -> 0 there
+        // a simple pole of X_1 at s = i omega_j: |X_1(i omega + eps)| eps is
+        // the same residue for eps = 1e-9 and 1e-7
         for &w in &exact {
-            let near = response(&chain, Complex64::new(1e-9, w), 1);
-            match near {
-                Err(Error::Singular { .. }) => {}
-                Ok(x) => assert!(x.norm() > 1e6, "n={n} w={w}: |X_1| = {}", x.norm()),
-                Err(e) => panic!("{e}"),
-            }
+            let res = |eps: f64| response(&chain, Complex64::new(eps, w), 1).unwrap().norm() * eps;
+            let ratio = res(1e-9) / res(1e-7);
+            assert!((ratio - 1.0).abs() < 0.02, "n={n} w={w}: ratio {ratio}");
         }
     }
 }
@@ -439,8 +437,14 @@ fn modal_and_inverse_transforms_every_boundary() {
                 }
                 assert!(r.eval(0.0).abs() < 1e-13);
                 let f = |s: Complex64| response(c, s, o).unwrap();
+                // de Hoog only: Talbot's contour enters Re s < 0, outside the
+                // forward model's domain
+                let io = InverseOptions {
+                    talbot_m: 0,
+                    ..InverseOptions::default()
+                };
                 for t in [0.5, 5.0, 15.0] {
-                    let inv = invert(&f, t, &InverseOptions::default()).unwrap();
+                    let inv = invert(&f, t, &io).unwrap();
                     assert!(
                         (inv.value - r.eval(t)).abs() <= 1e-9 + 10.0 * inv.err,
                         "{left:?}-{right:?} o={o} t={t}: {} vs {}",
