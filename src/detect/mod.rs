@@ -4,7 +4,7 @@
 //!
 //! ```
 //! use springmass::{Chain, Defect};
-//! use springmass::detect::{fit::fit, scene::FitScene};
+//! use springmass::detect::{fit::paper::fit, scene::FitScene};
 //! // the paper's Table 1, System 1: synthetic data, both positions and masses unknown
 //! let truth = Chain::paper(5)?.with_defects([
 //!     Defect::Mass { at: 2, m: 3.0 }, Defect::Mass { at: 4, m: 0.5 }])?;
@@ -34,19 +34,11 @@
 //! | [`chainfit`] | continuous fit of defect values and chain parameters (d, k, mass, gamma) |
 //! | [`locate`] | explicit single-defect locators (section 4.1), corrected, any precision |
 
-pub mod chainfit;
 pub mod data;
 pub mod fit;
-pub mod identify;
 pub mod locate;
-pub mod lsq;
 pub mod misfit;
-pub mod misfit_time;
 pub mod noise_study;
-pub mod noisefit;
-pub mod quadrature;
 pub mod scene;
 pub mod search;
-pub mod select;
-pub mod space;
-pub mod whiten;
+pub mod unknowns;

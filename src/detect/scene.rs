@@ -19,7 +19,7 @@
 //!
 //! # relative = false # simulated/series: noise relative to max |x_1|
 //!
-//! [unknowns]         # optional; see crate::detect::space::UnknownsSpec
+//! [unknowns]         # optional; see crate::detect::unknowns::UnknownsSpec
 //! k = 2              # default: number of defects in [chain]
 //! mass_bounds = [0.1, 100]
 //! # kind = "mass"    # "mass" | "spring" | "damper" | "any" (per defect:
@@ -43,7 +43,7 @@
 //!
 //! A scene with another defect kind, chain parameters or the time misfit
 //! ([`FitScene::is_general`]) is fitted by the general noisy fit
-//! ([`crate::detect::noisefit::fit_general`], unknowns from
+//! ([`crate::detect::fit::general::fit_general`], unknowns from
 //! [`FitScene::general_unknowns`], series from [`FitScene::time_data`]); see
 //! `configs/fit-spring.toml` and `configs/fit-any.toml`.
 //!
@@ -56,12 +56,12 @@
 //! ```
 
 use crate::chain::{Chain, ChainSpec, Defect};
-use crate::detect::data::Data;
-use crate::detect::fit::{FitMethod, FitOptions};
+use crate::detect::data::exact::Data;
+use crate::detect::data::series::TimeData;
 use crate::detect::misfit::MisfitSpec;
-use crate::detect::misfit_time::TimeData;
 use crate::detect::search::enumerate::EnumerateOptions;
-use crate::detect::space::{DefectKind, GeneralUnknowns, Unknowns, UnknownsSpec};
+use crate::detect::search::FitMethod;
+use crate::detect::unknowns::{DefectKind, GeneralUnknowns, Unknowns, UnknownsSpec};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -179,6 +179,27 @@ impl Default for SearchSpec {
             parallel: true,
             trace: false,
         }
+    }
+}
+
+/// Options of the scene's fit [`crate::detect::fit::paper::fit`] (from its `[search]` with [`FitScene::options`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneOptions {
+    /// The method.
+    pub method: FitMethod,
+    /// Seed of stochastic methods.
+    pub seed: u64,
+    /// Evaluation budget of stochastic methods.
+    pub max_evals: usize,
+    /// Record the optimizer's trace.
+    pub trace: bool,
+    /// Enumeration options (`keep` also sets the number of hypotheses reported).
+    pub enumerate: EnumerateOptions,
+}
+
+impl Default for SceneOptions {
+    fn default() -> Self {
+        FitScene::synthetic(&crate::Chain::new(1).expect("n = 1 is valid")).options()
     }
 }
 
@@ -365,7 +386,7 @@ impl FitScene {
     }
 
     /// Whether the scene needs the general noisy fit
-    /// ([`crate::detect::noisefit::fit_general`]): non-mass defects, chain
+    /// ([`crate::detect::fit::general::fit_general`]): non-mass defects, chain
     /// parameters or the time misfit.
     pub fn is_general(&self) -> bool {
         self.unknowns.is_general() || self.misfit.kind == crate::detect::misfit::MisfitKind::Time
@@ -388,9 +409,9 @@ impl FitScene {
     }
 
     /// The fit options described by `[search]`.
-    pub fn options(&self) -> FitOptions {
+    pub fn options(&self) -> SceneOptions {
         let s = &self.search;
-        FitOptions {
+        SceneOptions {
             method: s.method,
             seed: s.seed,
             max_evals: s.max_evals,

@@ -45,7 +45,7 @@
 //!   strongly correlated between nodes: [`SeriesTransform::noise_covariance`]
 //!   gives the full covariance of the stacked real and imaginary parts
 //!   ([`stack_re_im`]) and [`SeriesTransform::data_covariance`] adds the error
-//!   estimate as model-error variance (whitened in [`crate::detect::whiten`]).
+//!   estimate as model-error variance (whitened in [`crate::detect::data::whiten`]).
 //!
 //! # Velocity and acceleration records
 //!

@@ -12,7 +12,7 @@
 //! or after `max_iter` (default 100) Jacobians.
 //!
 //! ```
-//! use springmass::detect::lsq::{levenberg_marquardt, LeastSquares, LmOptions};
+//! use springmass::detect::search::lsq::{levenberg_marquardt, LeastSquares, LmOptions};
 //! struct Line;  // fit y = a + b x to three points, sigma = 0.1
 //! impl LeastSquares for Line {
 //!     fn residuals(&self, p: &[f64]) -> springmass::Result<Vec<f64>> {

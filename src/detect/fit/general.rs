@@ -1,25 +1,25 @@
 //! Fitting defects to a noisy sampled series `y_i = x_1(t_i) + sigma z_i`, with
 //! one of three misfits, and the pieces of the noise study.
 //!
-//! * [`MisfitChoice::RealAxis`]: the paper's residual on `[0, 300]` (80-node
-//!   `gl-log` rule of [`crate::detect::quadrature`]), the data being the
+//! * [`MisfitKind::RealAxis`]: the paper's residual on `[0, 300]` (80-node
+//!   `gl-log` rule of [`crate::detect::misfit::quadrature`]), the data being the
 //!   Laplace transform of the series ([`crate::time::series`]) at the nodes;
-//! * [`MisfitChoice::Bromwich`]: the same on the line `s = sigma_B + i omega`,
+//! * [`MisfitKind::Bromwich`]: the same on the line `s = sigma_B + i omega`,
 //!   `omega in [0, W]` (default `sigma_B = 0.05`, a few over the record length
 //!   `T = 200` so that the unrecorded tail weighs `e^{-sigma_B T}`; `W = 4`, above
 //!   the chain's band `2 sqrt(k/mass)`), 80 nodes (`gl-uniform` 10x8);
-//! * [`MisfitChoice::Time`]: the time-domain chi-square ([`TimeMisfit`]).
+//! * [`MisfitKind::Time`]: the time-domain chi-square ([`TimeMisfit`]).
 //!
 //! **Weighting** ([`Setup::weighting`]): the noise level belongs to the data.
-//! By default ([`Weighting::Whitened`](crate::detect::whiten::Weighting::Whitened)) a Laplace misfit is a true chi-square:
+//! By default ([`Weighting::Whitened`](crate::detect::data::whiten::Weighting::Whitened)) a Laplace misfit is a true chi-square:
 //! the transformed values at the nodes carry the noise covariance
 //! `C = sigma^2 B B^T` of the series transform ([`SeriesTransform`], `B` the
 //! stacked real and imaginary transform weights) plus its model-error
 //! estimate, and the residual is whitened by `C^{-1/2}` on the components
-//! `f64` resolves ([`crate::detect::whiten`]), so `chi2 ~ chi-square(dof)`.
+//! `f64` resolves ([`crate::detect::data::whiten`]), so `chi2 ~ chi-square(dof)`.
 //! The real-axis data of a 1001-sample record hold only about 24-30
 //! independent components whatever the number of nodes; the Bromwich line
-//! keeps all 160. [`Weighting::Diagonal`](crate::detect::whiten::Weighting::Diagonal) (the earlier weighting) weights node
+//! keeps all 160. [`Weighting::Diagonal`](crate::detect::data::whiten::Weighting::Diagonal) (the earlier weighting) weights node
 //! `q` by `w_q / v_q` (rule weight over the node's variance): it ignores the
 //! strong correlation between nodes, is not chi-square distributed, and
 //! recovers deep defects less often.
@@ -45,14 +45,15 @@
 //!
 //! ```
 //! use springmass::{Chain, Defect, noise::NoiseLevel, sensitivity::Param};
-//! use springmass::detect::misfit_time::TimeData;
-//! use springmass::detect::noisefit::{fit_noisy_general, GeneralOptions, MisfitChoice, Setup};
-//! use springmass::detect::space::{GeneralUnknowns, KindChoice};
+//! use springmass::detect::data::series::TimeData;
+//! use springmass::detect::fit::general::{fit_noisy_general, GeneralOptions, Setup};
+//! use springmass::detect::misfit::MisfitKind;
+//! use springmass::detect::unknowns::{GeneralUnknowns, KindChoice};
 //! let truth = Chain::paper(5)?.with_defect(Defect::Spring { at: 2, k: 0.5 })?;
 //! let data = TimeData::simulate(&truth, 100.0, 0.5, NoiseLevel::RelativeMax(1e-3), 1)?;
 //! let unknowns = GeneralUnknowns::free(5, &[KindChoice::Any], &[Param::D])?;
 //! let fit = fit_noisy_general(&truth.uniform().with_d(0.12)?, &data, &unknowns,
-//!     MisfitChoice::Time, &Setup::new()?, &GeneralOptions::default())?;
+//!     MisfitKind::Time, &Setup::new()?, &GeneralOptions::default())?;
 //! let best = &fit.ranked[0];
 //! assert_eq!(best.key()[0].1, 2);
 //! assert_eq!(best.defects[0].kind(), "spring");
@@ -62,12 +63,15 @@
 //! ```
 
 use crate::chain::{Chain, Defect};
-use crate::detect::chainfit::{fit_chain, ChainProblem, LaplaceObs, Obs};
-use crate::detect::identify::{identify, Alternative, FittedDefect, Identifiability};
-use crate::detect::lsq::{levenberg_marquardt, LmOptions};
-use crate::detect::misfit_time::{TimeData, TimeMisfit};
-use crate::detect::quadrature::Rule;
-use crate::detect::space::{
+use crate::detect::data::laplace::LaplaceObs;
+use crate::detect::data::series::TimeData;
+use crate::detect::fit::chainfit::{fit_chain, ChainProblem, Obs};
+use crate::detect::fit::identify::{identify, Alternative, FittedDefect, Identifiability};
+use crate::detect::misfit::quadrature::Rule;
+use crate::detect::misfit::time::TimeMisfit;
+use crate::detect::misfit::MisfitKind;
+use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
+use crate::detect::unknowns::{
     DefectKind, GeneralUnknowns, KindBounds, KindChoice, KindPositions, Slot,
 };
 use crate::error::{Error, Result};
@@ -76,52 +80,6 @@ use crate::time::series::{SeriesTransform, TransformOptions};
 use num_complex::Complex64;
 use rayon::prelude::*;
 use serde::Serialize;
-
-/// Which misfit.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
-pub enum MisfitChoice {
-    /// Paper's real-axis residual on `[0, 300]`.
-    RealAxis,
-    /// Bromwich line `sigma_B + i omega`.
-    Bromwich,
-    /// Time-domain chi-square.
-    Time,
-}
-
-impl MisfitChoice {
-    /// All three.
-    pub const ALL: [MisfitChoice; 3] = [
-        MisfitChoice::RealAxis,
-        MisfitChoice::Bromwich,
-        MisfitChoice::Time,
-    ];
-
-    /// `real`, `bromwich`, `time`.
-    pub fn name(self) -> &'static str {
-        match self {
-            MisfitChoice::RealAxis => "real",
-            MisfitChoice::Bromwich => "bromwich",
-            MisfitChoice::Time => "time",
-        }
-    }
-
-    /// Parse a name.
-    ///
-    /// # Errors
-    /// [`Error::Parse`].
-    pub fn parse(text: &str) -> Result<MisfitChoice> {
-        match text.trim() {
-            "real" => Ok(MisfitChoice::RealAxis),
-            "bromwich" => Ok(MisfitChoice::Bromwich),
-            "time" => Ok(MisfitChoice::Time),
-            _ => Err(Error::parse(
-                "misfit",
-                text,
-                "expected real, bromwich or time",
-            )),
-        }
-    }
-}
 
 /// Settings of a noisy fit.
 #[derive(Clone, Debug)]
@@ -141,7 +99,7 @@ pub struct Setup {
     /// LM iterations of the coarse pass.
     pub coarse_iter: usize,
     /// Weighting of the Laplace misfits (used by [`laplace_obs`]).
-    pub weighting: crate::detect::whiten::Weighting,
+    pub weighting: crate::detect::data::whiten::Weighting,
 }
 
 impl Setup {
@@ -159,7 +117,7 @@ impl Setup {
             shortlist: 8,
             time_shortlist: 5,
             coarse_iter: 12,
-            weighting: crate::detect::whiten::Weighting::default(),
+            weighting: crate::detect::data::whiten::Weighting::default(),
         })
     }
 }
@@ -167,21 +125,21 @@ impl Setup {
 /// Laplace data at the nodes of `choice` (real axis or Bromwich) from the
 /// sampled series of `data`, weighted as `setup.weighting` says:
 ///
-/// * [`Weighting::Diagonal`](crate::detect::whiten::Weighting::Diagonal)(crate::detect::whiten::Weighting::Diagonal): node
+/// * [`Weighting::Diagonal`](crate::detect::data::whiten::Weighting::Diagonal)(crate::detect::data::whiten::Weighting::Diagonal): node
 ///   `q` by the rule's weight over the node's variance, `w_q / v_q` (not a
 ///   chi-square: the transformed noise is correlated between nodes);
-/// * [`Weighting::Whitened`](crate::detect::whiten::Weighting::Whitened)(crate::detect::whiten::Weighting::Whitened): the
+/// * [`Weighting::Whitened`](crate::detect::data::whiten::Weighting::Whitened)(crate::detect::data::whiten::Weighting::Whitened): the
 ///   full covariance of the transformed data
 ///   ([`SeriesTransform::data_covariance`], plus `(1e-15 |X(s_q)|)^2` on the
 ///   diagonal for the rounding of the model), whitened with the default
-///   cutoff ([`crate::detect::whiten`]): `chi^2` with [`LaplaceObs::dof`]
+///   cutoff ([`crate::detect::data::whiten`]): `chi^2` with [`LaplaceObs::dof`]
 ///   degrees of freedom at the true chain.
 ///
 /// # Errors
-/// [`Error::InvalidParameter`] for [`MisfitChoice::Time`]; as [`SeriesTransform`].
-pub fn laplace_obs(data: &TimeData, choice: MisfitChoice, setup: &Setup) -> Result<LaplaceObs> {
+/// [`Error::InvalidParameter`] for [`MisfitKind::Time`]; as [`SeriesTransform`].
+pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result<LaplaceObs> {
     let (s, w): (Vec<Complex64>, Vec<f64>) = match choice {
-        MisfitChoice::RealAxis => (
+        MisfitKind::RealAxis => (
             setup
                 .real_rule
                 .nodes
@@ -190,7 +148,7 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitChoice, setup: &Setup) -> Resu
                 .collect(),
             setup.real_rule.weights.clone(),
         ),
-        MisfitChoice::Bromwich => (
+        MisfitKind::Bromwich => (
             setup
                 .bromwich_rule
                 .nodes
@@ -199,7 +157,7 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitChoice, setup: &Setup) -> Resu
                 .collect(),
             setup.bromwich_rule.weights.clone(),
         ),
-        MisfitChoice::Time => {
+        MisfitKind::Time => {
             return Err(Error::invalid(
                 "misfit",
                 "time",
@@ -213,7 +171,7 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitChoice, setup: &Setup) -> Resu
     };
     let tr = SeriesTransform::new(data.t(), data.y(), &opts)?;
     let vals = tr.eval_many(&s)?;
-    if setup.weighting == crate::detect::whiten::Weighting::Whitened {
+    if setup.weighting == crate::detect::data::whiten::Weighting::Whitened {
         let mut cov = tr.data_covariance(&vals)?;
         for (r, (q, _)) in crate::time::series::stacked_rows(&s)
             .into_iter()
@@ -221,8 +179,10 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitChoice, setup: &Setup) -> Resu
         {
             cov[(r, r)] = (cov[(r, r)] + (1e-15 * vals[q].value.norm()).powi(2)).max(1e-300);
         }
-        let wh =
-            crate::detect::whiten::Whitening::new(&cov, crate::detect::whiten::DEFAULT_CUTOFF)?;
+        let wh = crate::detect::data::whiten::Whitening::new(
+            &cov,
+            crate::detect::data::whiten::DEFAULT_CUTOFF,
+        )?;
         let values = vals.iter().map(|v| v.value).collect();
         return LaplaceObs::whitened(s, values, wh.matrix().clone());
     }
@@ -266,6 +226,22 @@ pub struct Hypothesis {
 }
 
 impl Hypothesis {
+    /// A hypothesis from its parts (defects, their standard errors, fitted
+    /// chain parameters, misfit value).
+    pub fn from_parts(
+        defects: Vec<Defect>,
+        std_errors: Vec<f64>,
+        chain: Vec<FittedParam>,
+        chi2: f64,
+    ) -> Hypothesis {
+        Hypothesis {
+            defects,
+            std_errors,
+            chain,
+            chi2,
+        }
+    }
+
     fn masses_only(positions: &[usize], masses: &[f64], chi2: f64, se: Vec<f64>) -> Hypothesis {
         Hypothesis {
             defects: positions
@@ -347,6 +323,18 @@ impl Hypothesis {
         t.sort_unstable();
         h.sort_unstable();
         t == h
+    }
+}
+
+/// The name of a uniform chain parameter (`d`, `gamma`, `k`, `mass`) as the
+/// fitted parameters carry it.
+pub fn param_name(p: &Param) -> &'static str {
+    match p {
+        Param::D => "d",
+        Param::Gamma => "gamma",
+        Param::K => "k",
+        Param::Mass => "mass",
+        Param::Defect(_) => "defect",
     }
 }
 
@@ -635,7 +623,7 @@ pub fn fit_general(
         return Err(Error::invalid("shortlist", 0, ">= 1"));
     }
     let hyps = unknowns.hypotheses(opts.max_sets)?;
-    let chain_bounds = crate::detect::chainfit::default_bounds(base, unknowns.chain());
+    let chain_bounds = crate::detect::fit::chainfit::default_bounds(base, unknowns.chain());
     let rounds = if unknowns.chain().is_empty() {
         1
     } else {
@@ -769,17 +757,17 @@ pub fn fit_noisy_general(
     base: &Chain,
     data: &TimeData,
     unknowns: &GeneralUnknowns,
-    choice: MisfitChoice,
+    choice: MisfitKind,
     setup: &Setup,
     opts: &GeneralOptions,
 ) -> Result<GeneralFit> {
     match choice {
-        MisfitChoice::RealAxis | MisfitChoice::Bromwich => {
+        MisfitKind::RealAxis | MisfitKind::Bromwich => {
             let obs = laplace_obs(data, choice, setup)?;
             fit_general(base, unknowns, &obs, None, setup, opts)
         }
-        MisfitChoice::Time => {
-            let obs = laplace_obs(data, MisfitChoice::Bromwich, setup)?;
+        MisfitKind::Time => {
+            let obs = laplace_obs(data, MisfitKind::Bromwich, setup)?;
             let t = TimeMisfit::new(data.clone());
             fit_general(base, unknowns, &obs, Some(&t), setup, opts)
         }
@@ -895,16 +883,16 @@ pub fn fit_noisy(
     base: &Chain,
     data: &TimeData,
     k: usize,
-    choice: MisfitChoice,
+    choice: MisfitKind,
     setup: &Setup,
 ) -> Result<Vec<Hypothesis>> {
     match choice {
-        MisfitChoice::RealAxis | MisfitChoice::Bromwich => {
+        MisfitKind::RealAxis | MisfitKind::Bromwich => {
             let obs = laplace_obs(data, choice, setup)?;
             enumerate_laplace(base, &obs, k, setup)
         }
-        MisfitChoice::Time => {
-            let obs = laplace_obs(data, MisfitChoice::Bromwich, setup)?;
+        MisfitKind::Time => {
+            let obs = laplace_obs(data, MisfitKind::Bromwich, setup)?;
             let ranked = enumerate_laplace(base, &obs, k, setup)?;
             time_from_bromwich(base, data, &ranked, setup)
         }
@@ -927,7 +915,7 @@ pub fn time_from_bromwich(
 }
 
 /// The identifiability report of a ranked list (best first), for the data's
-/// noise level `sigma` (see [`crate::detect::identify`]). `uniform` is the
+/// noise level `sigma` (see [`crate::detect::fit::identify`]). `uniform` is the
 /// uniform value of every defect (see [`identify_general`] for mixed kinds).
 ///
 /// # Errors
@@ -999,7 +987,7 @@ pub fn fit_damping(
     base: &Chain,
     data: &TimeData,
     hyp: &Hypothesis,
-) -> Result<crate::detect::chainfit::ChainFitReport> {
+) -> Result<crate::detect::fit::chainfit::ChainFitReport> {
     let chain = base.uniform().with_defects(hyp.defects.iter().copied())?;
     let mut params = Param::defects(&chain);
     params.push(Param::D);
@@ -1014,9 +1002,7 @@ mod tests {
 
     #[test]
     fn shared_subsets_count_and_order() {
-        let c = |n: usize, k| {
-            crate::detect::search::enumerate::subsets(&(1..=n).collect::<Vec<_>>(), k)
-        };
+        let c = |n: usize, k| crate::detect::unknowns::subsets(&(1..=n).collect::<Vec<_>>(), k);
         assert_eq!(c(5, 2).len(), 10);
         assert_eq!(c(20, 3).len(), 1140);
         assert_eq!(c(3, 3), vec![vec![1, 2, 3]]);
@@ -1037,13 +1023,13 @@ mod tests {
         let data =
             TimeData::simulate(&truth, 200.0, 0.2, NoiseLevel::RelativeMax(1e-3), 3).unwrap();
         let setup = Setup::new().unwrap();
-        for choice in [MisfitChoice::Bromwich, MisfitChoice::Time] {
+        for choice in [MisfitKind::Bromwich, MisfitKind::Time] {
             let r = fit_noisy(&truth.uniform(), &data, 2, choice, &setup).unwrap();
             assert!(r[0].matches(&truth, 0.05), "{choice:?}: {:?}", r[0]);
         }
         // the real axis cannot see the light mass at 4 through 1e-3 noise
         // (docs/paper-notes.md): its best set has a chi-square no worse than the truth's
-        let obs = laplace_obs(&data, MisfitChoice::RealAxis, &setup).unwrap();
+        let obs = laplace_obs(&data, MisfitKind::RealAxis, &setup).unwrap();
         let r = enumerate_laplace(&truth.uniform(), &obs, 2, &setup).unwrap();
         let t: f64 = obs.residuals(&truth).unwrap().iter().map(|v| v * v).sum();
         eprintln!("real axis: best {:?}, truth chi2 {t}", r[0]);

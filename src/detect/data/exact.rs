@@ -19,7 +19,7 @@
 //!   error estimate `hypot(level |X*|, 4 eps |X*|)`.
 //!
 //! ```
-//! use springmass::{Chain, Defect, detect::data::Data};
+//! use springmass::{Chain, Defect, detect::data::exact::Data};
 //! let truth = Chain::paper(5)?.with_defect(Defect::Mass { at: 2, m: 3.0 })?;
 //! let data = Data::exact(&truth);
 //! let at = data.sample(&[0.5_f64, 1.0])?;

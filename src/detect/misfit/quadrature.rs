@@ -21,7 +21,7 @@
 //!   a default absolute tolerance such as `1e-10` would not (docs/paper-notes.md).
 //!
 //! ```
-//! use springmass::detect::quadrature::{Adaptive, Rule};
+//! use springmass::detect::misfit::quadrature::{Adaptive, Rule};
 //! let rule = Rule::gauss_legendre_log(0.0, 300.0, 10, 8, 0.05)?;
 //! assert_eq!(rule.len(), 80);
 //! let f = |s: f64| (-s).exp() / (1.0 + s);
@@ -40,7 +40,7 @@ use crate::scalar::Scalar;
 /// Legendre recurrence; nodes accurate to a few ulps for `npts <= 200`).
 ///
 /// ```
-/// let (x, w) = springmass::detect::quadrature::gauss_legendre(5);
+/// let (x, w) = springmass::detect::misfit::quadrature::gauss_legendre(5);
 /// let exact = 2.0 / 9.0; // int x^8 dx over [-1, 1], degree 8 <= 2*5-1
 /// let got: f64 = x.iter().zip(&w).map(|(x, w)| w * x.powi(8)).sum();
 /// assert!((got - exact).abs() < 1e-15);

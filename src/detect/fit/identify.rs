@@ -21,7 +21,7 @@
 //! between two hypotheses with the same number of parameters.
 //!
 //! ```
-//! use springmass::detect::identify::{identify, Alternative, FittedDefect};
+//! use springmass::detect::fit::identify::{identify, Alternative, FittedDefect};
 //! let best = vec![FittedDefect { at: 8, value: 5.0, std_error: 0.02, uniform: 1.0 },
 //!                 FittedDefect { at: 15, value: 2.0, std_error: 0.3, uniform: 1.0 }];
 //! let alts = [Alternative { positions: vec![8, 16], chi2: 402.0 },

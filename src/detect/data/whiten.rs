@@ -58,7 +58,7 @@
 //! with a heavy tail (real axis): not a chi-square.
 //!
 //! ```
-//! use springmass::detect::whiten::Whitening;
+//! use springmass::detect::data::whiten::Whitening;
 //! use nalgebra::DMatrix;
 //! // two perfectly correlated unit-variance data and one independent datum
 //! let c = DMatrix::from_row_slice(3, 3, &[1.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 4.0]);

@@ -14,10 +14,10 @@
 //!   `alpha`, default 0.01).
 //!
 //! `chi^2` must be a true chi-square (whitened residuals of independent
-//! data, such as the time-domain misfit [`crate::detect::misfit_time`]).
+//! data, such as the time-domain misfit [`crate::detect::misfit::time`]).
 //!
 //! ```
-//! use springmass::detect::select::{select, Criterion, ModelFit};
+//! use springmass::detect::fit::select::{select, Criterion, ModelFit};
 //! // 400 data; the 2-defect model fits to noise, the 1-defect model does not
 //! let fits = [ModelFit::new(0, 9000.0, 0), ModelFit::new(1, 1500.0, 2),
 //!             ModelFit::new(2, 395.0, 4), ModelFit::new(3, 390.0, 6)];

@@ -20,11 +20,11 @@
 //! path cannot do (spring, damper or `any` defects, chain parameters `d`,
 //! `gamma`, `k`, `mass`, or `[misfit] kind = "time"`,
 //! [`FitScene::is_general`]), `fit` runs the general noisy fit
-//! ([`crate::detect::noisefit::fit_general`]; method `enumerate` only): the
+//! ([`crate::detect::fit::general::fit_general`]; method `enumerate` only): the
 //! residual is then a chi-square (Laplace data weighted by the rule over the
 //! data's variance at each node, or the time-domain chi-square of the scene's
 //! series), `floor` is the chi-square gap threshold
-//! [`crate::detect::identify::DEFAULT_THRESHOLD`], and the report carries
+//! [`crate::detect::fit::identify::DEFAULT_THRESHOLD`], and the report carries
 //! the standard errors of the defect values and the fitted chain parameters.
 //!
 //! The report gives the defects found, the residual, the runners-up with
@@ -37,7 +37,7 @@
 //!
 //! ```
 //! use springmass::{Chain, Defect};
-//! use springmass::detect::{fit::fit, scene::FitScene};
+//! use springmass::detect::{fit::paper::fit, scene::FitScene};
 //! let truth = Chain::paper(10)?.with_defects([
 //!     Defect::Mass { at: 3, m: 3.0 }, Defect::Mass { at: 7, m: 2.0 }])?;
 //! let scene = FitScene::synthetic(&truth);
@@ -50,90 +50,22 @@
 //! ```
 
 use crate::chain::Defect;
-use crate::detect::chainfit::LaplaceObs;
-use crate::detect::data::Data;
-use crate::detect::misfit::{Misfit, MisfitKind};
-use crate::detect::misfit_time::TimeMisfit;
-use crate::detect::noisefit::{
-    fit_general, identify_general, laplace_obs, FittedParam, GeneralOptions, MisfitChoice, Setup,
+use crate::detect::data::exact::Data;
+use crate::detect::data::laplace::LaplaceObs;
+use crate::detect::fit::general::{
+    fit_general, identify_general, laplace_obs, FittedParam, GeneralOptions, Setup,
 };
-use crate::detect::scene::{DataSourceKind, FitScene};
+use crate::detect::misfit::time::TimeMisfit;
+use crate::detect::misfit::{Misfit, MisfitKind};
+use crate::detect::scene::{DataSourceKind, FitScene, SceneOptions};
 use crate::detect::search::enumerate::{enumerate, fit_slots, Defects, EnumerateOptions};
+use crate::detect::search::FitMethod;
 use crate::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
-use crate::detect::space::{MassUnknown, Unknowns};
+use crate::detect::unknowns::{MassUnknown, Unknowns};
 use crate::error::{Error, Result};
 use num_complex::Complex64;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use std::time::Instant;
-
-/// Fitting methods.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum FitMethod {
-    /// Exhaustive enumeration of position sets with a mass fit per set.
-    #[default]
-    Enumerate,
-    /// Genetic algorithm.
-    #[serde(alias = "genetic")]
-    Ga,
-    /// Nelder-Mead.
-    NelderMead,
-    /// Particle swarm.
-    #[serde(alias = "particle-swarm")]
-    Pso,
-}
-
-impl FitMethod {
-    /// Parse `enumerate`, `ga`, `nelder-mead`, `pso` (aliases `genetic`,
-    /// `particle-swarm`, `nm`).
-    ///
-    /// # Errors
-    /// [`Error::Parse`] naming the allowed names.
-    pub fn parse(text: &str) -> Result<FitMethod> {
-        match text.trim().to_ascii_lowercase().as_str() {
-            "enumerate" | "enum" => Ok(FitMethod::Enumerate),
-            "ga" | "genetic" => Ok(FitMethod::Ga),
-            "nelder-mead" | "nm" => Ok(FitMethod::NelderMead),
-            "pso" | "particle-swarm" => Ok(FitMethod::Pso),
-            _ => Err(Error::parse(
-                "method",
-                text,
-                "expected enumerate, ga, nelder-mead or pso",
-            )),
-        }
-    }
-
-    /// The canonical name.
-    pub fn name(self) -> &'static str {
-        match self {
-            FitMethod::Enumerate => "enumerate",
-            FitMethod::Ga => "ga",
-            FitMethod::NelderMead => "nelder-mead",
-            FitMethod::Pso => "pso",
-        }
-    }
-}
-
-/// Options of [`fit`] (from a scene's `[search]` with [`FitScene::options`]).
-#[derive(Clone, Debug, PartialEq)]
-pub struct FitOptions {
-    /// The method.
-    pub method: FitMethod,
-    /// Seed of stochastic methods.
-    pub seed: u64,
-    /// Evaluation budget of stochastic methods.
-    pub max_evals: usize,
-    /// Record the optimizer's trace.
-    pub trace: bool,
-    /// Enumeration options (`keep` also sets the number of hypotheses reported).
-    pub enumerate: EnumerateOptions,
-}
-
-impl Default for FitOptions {
-    fn default() -> Self {
-        FitScene::synthetic(&crate::Chain::new(1).expect("n = 1 is valid")).options()
-    }
-}
 
 /// An alternative hypothesis.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -192,8 +124,8 @@ pub struct FitReport {
     /// General path: the identifiability report (chi-square gaps of the
     /// alternatives, the noise level at which the runner-up becomes
     /// indistinguishable, per-defect significance and flags); see
-    /// [`crate::detect::identify`].
-    pub identifiability: Option<crate::detect::identify::Identifiability>,
+    /// [`crate::detect::fit::identify`].
+    pub identifiability: Option<crate::detect::fit::identify::Identifiability>,
 }
 
 /// Fit the scene's unknowns to `data`.
@@ -201,7 +133,7 @@ pub struct FitReport {
 /// # Errors
 /// Invalid chain, unknowns or misfit in the scene (typed, naming the field);
 /// a method this build does not provide (`search.method`).
-pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitReport> {
+pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<FitReport> {
     if scene.is_general() {
         return fit_general_scene(scene, data, options);
     }
@@ -326,9 +258,9 @@ pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitRep
 }
 
 /// The general path of [`fit`]: defects of any kind and chain parameters
-/// ([`crate::detect::noisefit::fit_general`]); the residual is a chi-square,
-/// `floor` the gap threshold [`crate::detect::identify::DEFAULT_THRESHOLD`].
-fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitReport> {
+/// ([`crate::detect::fit::general::fit_general`]); the residual is a chi-square,
+/// `floor` the gap threshold [`crate::detect::fit::identify::DEFAULT_THRESHOLD`].
+fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<FitReport> {
     let t0 = Instant::now();
     if options.method != FitMethod::Enumerate {
         return Err(Error::invalid(
@@ -343,7 +275,7 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Res
     let (coarse, fine, misfit_name, nodes) = match scene.misfit.kind {
         MisfitKind::Time => {
             let td = scene.time_data()?;
-            let coarse = laplace_obs(&td, MisfitChoice::Bromwich, &setup)?;
+            let coarse = laplace_obs(&td, MisfitKind::Bromwich, &setup)?;
             let name = format!(
                 "time-domain chi-square ({} samples, sigma = {:.3e}; shortlist from the Bromwich line sigma = {})",
                 td.len(),
@@ -359,11 +291,11 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Res
             let rule = scene.misfit.rule()?;
             let choice = if kind == MisfitKind::RealAxis {
                 setup.real_rule = rule.clone();
-                MisfitChoice::RealAxis
+                MisfitKind::RealAxis
             } else {
                 setup.bromwich_rule = rule.clone();
                 setup.bromwich_sigma = scene.misfit.sigma;
-                MisfitChoice::Bromwich
+                MisfitKind::Bromwich
             };
             let td = scene.time_data()?;
             let obs = laplace_obs(&td, choice, &setup)?;
@@ -438,7 +370,7 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Res
             gap: h.chi2 - best.chi2,
         })
         .collect();
-    let floor = crate::detect::identify::DEFAULT_THRESHOLD;
+    let floor = crate::detect::fit::identify::DEFAULT_THRESHOLD;
     let m = g.residuals as f64;
     let identifiability = identify_general(&g.ranked, &base, noise_level, None).ok();
     Ok(FitReport {
@@ -466,7 +398,7 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Res
 
 /// The residual as an optimizer [`Objective`]: the candidate is decoded by
 /// [`Unknowns::decode`] (invalid candidates get its finite penalty, at least
-/// [`crate::detect::space::PENALTY`]) and costed by [`Misfit::residual`].
+/// [`crate::detect::unknowns::PENALTY`]) and costed by [`Misfit::residual`].
 pub struct MisfitObjective<'a> {
     misfit: &'a Misfit,
     unknowns: &'a Unknowns,

@@ -24,7 +24,7 @@
 //!
 //! ```
 //! use springmass::{Chain, Defect};
-//! use springmass::detect::{data::Data, misfit::{Misfit, MisfitSpec}};
+//! use springmass::detect::{data::exact::Data, misfit::{Misfit, MisfitSpec}};
 //! let truth = Chain::paper(20)?.with_defects([
 //!     Defect::Mass { at: 8, m: 5.0 }, Defect::Mass { at: 15, m: 2.0 }])?;
 //! let misfit = Misfit::new(&truth.uniform(), &Data::exact(&truth), &MisfitSpec::default())?;
@@ -33,9 +33,12 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+pub mod quadrature;
+pub mod time;
+
 use crate::chain::Chain;
-use crate::detect::data::Data;
-use crate::detect::quadrature::{Adaptive, AdaptiveOutput, GreenTable, Rule};
+use crate::detect::data::exact::Data;
+use crate::detect::misfit::quadrature::{Adaptive, AdaptiveOutput, GreenTable, Rule};
 use crate::error::{Error, Result};
 use crate::forward::{woodbury, Update};
 use crate::green::{Green, Probe};
@@ -44,18 +47,50 @@ use serde::{Deserialize, Serialize};
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// Which residual.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum MisfitKind {
     /// `int_0^{s_max} |X - X*|^2 ds` on the real axis (the paper's).
     #[default]
+    #[serde(alias = "real")]
     RealAxis,
     /// `int_0^W |X - X*|^2 d omega` on `s = sigma + i omega`.
     Bromwich,
     /// The time-domain chi-square against the sampled series
-    /// ([`crate::detect::misfit_time`]); no quadrature rule: a fit scene with
-    /// it is fitted by [`crate::detect::noisefit::fit_general`].
+    /// ([`crate::detect::misfit::time`]); no quadrature rule: a fit scene with
+    /// it is fitted by [`crate::detect::fit::general::fit_general`].
     Time,
+}
+
+impl MisfitKind {
+    /// All three, in table order.
+    pub const ALL: [MisfitKind; 3] = [MisfitKind::RealAxis, MisfitKind::Bromwich, MisfitKind::Time];
+
+    /// `real-axis`, `bromwich`, `time`.
+    pub fn name(self) -> &'static str {
+        match self {
+            MisfitKind::RealAxis => "real-axis",
+            MisfitKind::Bromwich => "bromwich",
+            MisfitKind::Time => "time",
+        }
+    }
+
+    /// Parse `real-axis` (or `real`), `bromwich`, `time`.
+    ///
+    /// # Errors
+    /// [`Error::Parse`] naming the allowed names.
+    pub fn parse(text: &str) -> Result<MisfitKind> {
+        match text.trim().to_ascii_lowercase().as_str() {
+            "real-axis" | "real" => Ok(MisfitKind::RealAxis),
+            "bromwich" => Ok(MisfitKind::Bromwich),
+            "time" => Ok(MisfitKind::Time),
+            _ => Err(Error::parse(
+                "misfit",
+                text,
+                "expected real-axis, bromwich or time",
+            )),
+        }
+    }
 }
 
 /// Which fixed rule.
@@ -199,7 +234,7 @@ fn time_has_no_rule() -> Error {
     Error::invalid(
         "misfit.kind",
         "time",
-        "real-axis or bromwich here (the time misfit is fitted by detect::noisefit::fit_general)",
+        "real-axis or bromwich here (the time misfit is fitted by detect::fit::general::fit_general)",
     )
 }
 
