@@ -55,6 +55,8 @@ impl ChainArgs {
                 gamma: 1.0,
                 mass: 1.0,
                 defects: vec![],
+                left: Default::default(),
+                right: Default::default(),
             },
         };
         if let Some(n) = self.n {

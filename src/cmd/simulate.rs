@@ -8,6 +8,7 @@
 use super::ChainArgs;
 use anyhow::Context;
 use clap::Args as ClapArgs;
+use springmass::forward::Observable;
 use springmass::noise::{add_noise, NoiseLevel};
 use springmass::plot::{Line, LinePlot};
 use springmass::series::TimeSeries;
@@ -50,6 +51,12 @@ pub struct Args {
     /// Plot the series as SVG.
     #[arg(long, value_name = "FILE.svg")]
     pub plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub setup: super::response::SetupArgs,
+    /// What is recorded: displacement (columns x<i>), velocity (v<i>) or
+    /// acceleration (a<i>, for t > 0: the impulse's delta is not a sample).
+    #[arg(long, default_value = "displacement")]
+    pub observe_kind: String,
 }
 
 /// Parse `--noise`: a bare number is an absolute standard deviation.
@@ -74,7 +81,8 @@ fn noisy(ts: &TimeSeries, level: NoiseLevel, seed: u64) -> anyhow::Result<TimeSe
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let chain = a.chain.chain()?;
+    let chain = a.setup.apply(a.chain.chain()?)?;
+    let kind: Observable = a.observe_kind.parse()?;
     let method: Method = a.method.parse()?;
     let level = a.noise.as_deref().map(noise_level).transpose()?;
     let forcing = match &a.force {
@@ -87,7 +95,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let opts = SimOptions::new(a.t_end, a.dt)
         .with_observe(a.observe.clone())
-        .with_method(method);
+        .with_method(method)
+        .with_observe_kind(kind);
     let traj = simulate_forced(&chain, &opts, &forcing)?;
     let series = match level {
         Some(l) => noisy(&traj.to_series()?, l, a.seed)?,
@@ -113,7 +122,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         if let Some(text) = &a.noise {
             title.push_str(&format!(", noise {text}"));
         }
-        let mut plot = LinePlot::new(title, "t", "displacement");
+        if !chain.is_fixed_fixed() {
+            title.push_str(&format!(", ends {}-{}", chain.left(), chain.right()));
+        }
+        let mut plot = LinePlot::new(title, "t", kind.name());
         for name in series.names() {
             let col = series.column(name).unwrap_or_default();
             let pts = series
@@ -122,7 +134,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 .copied()
                 .zip(col.iter().copied())
                 .collect();
-            plot = plot.line(Line::new(name.replacen('x', "x_", 1), pts));
+            plot = plot.line(Line::new(
+                name.replacen(kind.prefix(), &format!("{}_", kind.prefix()), 1),
+                pts,
+            ));
         }
         plot.write_svg(path)?;
     }
