@@ -306,6 +306,22 @@ impl Chain {
     pub fn right(&self) -> Boundary {
         self.right
     }
+    /// Refuse a chain with a free end where a method is derived for walls
+    /// at both ends (the explicit locators, the mass-only Woodbury kernel).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `boundaries` and `what`.
+    pub fn require_fixed_ends(&self, what: &str) -> Result<()> {
+        if self.is_fixed_fixed() {
+            Ok(())
+        } else {
+            Err(Error::invalid(
+                "boundaries",
+                format!("left = {:?}, right = {:?}", self.left, self.right),
+                format!("fixed at both ends for {what}"),
+            ))
+        }
+    }
     /// Both ends fixed (the paper's setup).
     pub fn is_fixed_fixed(&self) -> bool {
         self.left == Boundary::Fixed && self.right == Boundary::Fixed

@@ -281,11 +281,13 @@ fn run_in<T: RealScalar>(a: &Args) -> anyhow::Result<Outcome> {
             synthetic(svals)
         }
     };
-    let model: Model<T> = Model::from_chain(&if measured {
+    let model_of = if measured {
         model_chain()?
     } else {
         a.chain.chain()?
-    });
+    };
+    model_of.require_fixed_ends("the explicit locators of section 4.1")?;
+    let model: Model<T> = Model::from_chain(&model_of);
     let data = source(&s_values)?;
     let precision = match a.precision {
         Some(b) => format!("{b} bits"),

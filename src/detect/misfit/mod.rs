@@ -351,6 +351,9 @@ impl Misfit {
     /// # Errors
     /// Bad `spec` (fields `misfit.*`); a chain too long to table.
     pub fn new(model: &Chain, data: &Data, spec: &MisfitSpec) -> Result<Misfit> {
+        model.require_fixed_ends(
+            "the mass-only Woodbury kernel of the paper's residual (the data-first fit handles free ends)",
+        )?;
         let rule = spec.rule()?;
         let chain = model.uniform();
         let (tab, sigma) = match spec.kind {
