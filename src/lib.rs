@@ -41,6 +41,7 @@
 //! | [`precision`] | arbitrary-precision reals ([`precision::BigReal`]) and real-only operations |
 //! | [`scenes`] | the paper's reference scenes (P1-P4, Table 1's S1-S4), shared by tests, benches and configs |
 //! | [`series`] | sampled time series, CSV in and out, atomic writes |
+//! | [`io`] | safe atomic writes (never a device, FIFO or directory), size-capped reads, memory budget and limits |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
 //! | [`study`] | config-driven studies: sweeps, parallel resumable runs, reports |
 //! | [`detect::locate`] | explicit single-defect locators (section 4.1), error floors, any precision |
@@ -55,6 +56,7 @@ pub mod detect;
 pub mod error;
 pub mod forward;
 pub mod green;
+pub mod io;
 pub mod linalg;
 pub mod noise;
 pub mod plot;

@@ -27,16 +27,46 @@ pub struct Args {
     pub json: bool,
 }
 
+/// `X_observe(s)`, real arithmetic on the real axis.
+fn eval(fwd: &Forward, s: Complex64, observe: usize) -> springmass::Result<Complex64> {
+    if s.im == 0.0 {
+        Ok(fwd.eval(s.re, observe)?.into())
+    } else {
+        fwd.eval(s, observe)
+    }
+}
+
 pub fn run(a: Args) -> anyhow::Result<()> {
     let chain = a.chain.chain()?;
     let fwd = Forward::new(&chain);
     let mut rows = Vec::with_capacity(a.s.len());
-    for t in &a.s {
-        let s = parse_complex(t)?;
-        let x: Complex64 = if s.im == 0.0 {
-            fwd.eval(s.re, a.observe)?.into()
-        } else {
-            fwd.eval(s, a.observe)?
+    let s_values = a
+        .s
+        .iter()
+        .map(|t| parse_complex(t))
+        .collect::<Result<Vec<_>, _>>()?;
+    for s in s_values {
+        let x = match eval(&fwd, s, a.observe) {
+            Err(springmass::Error::Singular { s: at }) if chain.gamma() != 1.0 => {
+                // a pole, or X = gamma * G overflowing f64: decide with gamma = 1
+                let unit = chain.clone().with_gamma(1.0)?;
+                match eval(&Forward::new(&unit), s, a.observe) {
+                    Ok(g) => {
+                        return Err(springmass::Error::Unresolvable {
+                            reason: format!(
+                                "X_{}({at}) = gamma * ({} {:+}i) with gamma = {} overflows f64",
+                                a.observe,
+                                g.re,
+                                g.im,
+                                chain.gamma()
+                            ),
+                        }
+                        .into())
+                    }
+                    Err(_) => return Err(springmass::Error::Singular { s: at }.into()),
+                }
+            }
+            other => other?,
         };
         rows.push((s, x));
     }
