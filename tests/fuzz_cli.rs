@@ -12,7 +12,9 @@
 //!   folder, a missing, empty or binary file, or `/dev/urandom` as an input).
 //!
 //! Scale with `SPRINGMASS_FUZZ_CASES` (default 10000), `SPRINGMASS_FUZZ_JOBS`
-//! (parallel cases, default 4), `SPRINGMASS_FUZZ_SEED` (default 17). Generated
+//! (parallel cases, default 4), `SPRINGMASS_FUZZ_SEED` (default 17); leave
+//! subcommands out with `SPRINGMASS_FUZZ_SKIP=study,config` (comma separated
+//! first words, also skips the mutated `config check` files). Generated
 //! cases use tiny chains and short records so that the whole run stays within
 //! a few minutes on 2 cores. Heavy subcommands (`study`, `fit`, `noise-study`)
 //! only get mutations that make them invalid, so that they fail in validation.
@@ -173,7 +175,7 @@ fn setup(root: &Path, worker: usize, study_text: &str) -> Files {
     let empty = dir.join("empty.csv");
     std::fs::write(&empty, "").unwrap();
     let binary = dir.join("binary.csv");
-    std::fs::write(&binary, (0..4096u32).map(|i| (i * 2654435761 >> 13) as u8).collect::<Vec<_>>()).unwrap();
+    std::fs::write(&binary, (0..4096u64).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8).collect::<Vec<_>>()).unwrap();
     Files {
         dir,
         fifo,
@@ -416,7 +418,12 @@ const HOSTILE_TEXT: &[&str] = &[
 
 /// Build one case: (arguments, invalid by construction, owner).
 fn gen_case(rng: &mut ChaCha8Rng, tpls: &[Template], fl: &Files) -> (Vec<String>, bool, &'static str) {
-    let tpl = &tpls[rng.random_range(0..tpls.len())];
+    let skip = std::env::var("SPRINGMASS_FUZZ_SKIP").unwrap_or_default();
+    let tpls: Vec<&Template> = tpls
+        .iter()
+        .filter(|t| !skip.split(',').any(|w| !w.is_empty() && t.toks[0].flag == w))
+        .collect();
+    let tpl = tpls[rng.random_range(0..tpls.len())];
     let mut toks = tpl.toks.clone();
     let mut invalid = false;
     let p = |x: &Path| x.display().to_string();
@@ -428,69 +435,77 @@ fn gen_case(rng: &mut ChaCha8Rng, tpls: &[Template], fl: &Files) -> (Vec<String>
         p(&fl.dir.join("missing.csv")),
         "/dev/urandom".to_string(),
     ];
-    let n_mut = 1 + rng.random_range(0..3);
-    for _ in 0..n_mut {
-        let i = rng.random_range(0..toks.len());
-        // invalid-by-construction mutations (always allowed)
-        let op = if tpl.heavy {
-            rng.random_range(0..4)
-        } else {
-            rng.random_range(0..10)
-        };
-        let kind = toks[i].kind;
-        match op {
-            0 if toks[i].value.is_some() && kind == Kind::Num => {
-                toks[i].value = Some(NOT_NUMBERS[rng.random_range(0..NOT_NUMBERS.len())].into());
-                invalid = true;
-            }
-            1 if kind == Kind::Out => {
-                toks[i].value = Some(p(bad_outputs[rng.random_range(0..bad_outputs.len())]));
-                invalid = true;
-            }
-            1 if kind == Kind::OutDir => {
-                // a FIFO, socket or symlink to a FIFO is not a folder
-                toks[i].value = Some(p(bad_outputs[[0, 1, 3][rng.random_range(0..3)]]));
-                invalid = true;
-            }
-            2 if kind == Kind::In => {
-                toks[i].value = Some(bad_inputs[rng.random_range(0..bad_inputs.len())].clone());
-                invalid = true;
-            }
-            3 => {
-                let pos = rng.random_range(1..=toks.len());
-                toks.insert(pos, f(["--bogus", "--nn", "--out-put", "-z"][rng.random_range(0..4)]));
-                invalid = true;
-            }
-            // exploratory mutations, validity unknown
-            4 if toks[i].value.is_some() && kind == Kind::Num => {
-                toks[i].value = Some(HOSTILE_NUM[rng.random_range(0..HOSTILE_NUM.len())].into());
-            }
-            5 if toks[i].value.is_some() && kind != Kind::In => {
-                toks[i].value = Some(HOSTILE_TEXT[rng.random_range(0..HOSTILE_TEXT.len())].into());
-            }
-            6 if kind == Kind::Out => {
-                toks[i].value = Some(p(&fl.link_file));
-            }
-            7 if i > 0 && kind != Kind::Word => {
-                toks.remove(i);
-            }
-            8 if i > 0 && kind != Kind::Word => {
-                let dup = toks[i].clone();
-                toks.push(dup);
-            }
-            9 if toks[i].value.is_some() => {
-                let v = toks[i].value.clone().unwrap();
-                let cut = rng.random_range(0..=v.len());
-                if v.is_char_boundary(cut) {
-                    toks[i].value = Some(v[..cut].to_string());
+    // exploratory mutations first (validity unknown), light commands only
+    if !tpl.heavy {
+        for _ in 0..rng.random_range(0..3) {
+            let i = rng.random_range(0..toks.len());
+            let kind = toks[i].kind;
+            match rng.random_range(0..6) {
+                0 if toks[i].value.is_some() && kind == Kind::Num => {
+                    toks[i].value = Some(HOSTILE_NUM[rng.random_range(0..HOSTILE_NUM.len())].into());
                 }
+                1 if toks[i].value.is_some() && kind != Kind::In => {
+                    toks[i].value = Some(HOSTILE_TEXT[rng.random_range(0..HOSTILE_TEXT.len())].into());
+                }
+                2 if kind == Kind::Out => {
+                    toks[i].value = Some(p(&fl.link_file));
+                }
+                3 if i > 0 && kind != Kind::Word => {
+                    toks.remove(i);
+                }
+                4 if i > 0 && kind != Kind::Word => {
+                    let dup = toks[i].clone();
+                    toks.push(dup);
+                }
+                5 if toks[i].value.is_some() => {
+                    let v = toks[i].value.clone().unwrap();
+                    let cut = rng.random_range(0..=v.len());
+                    if v.is_char_boundary(cut) {
+                        toks[i].value = Some(v[..cut].to_string());
+                    }
+                }
+                _ => {}
             }
-            _ => {}
         }
     }
-    if tpl.heavy && !invalid {
-        toks.insert(1, f("--bogus"));
+    // then, for heavy commands always and otherwise in half of the cases, one
+    // mutation that makes the command line invalid by construction
+    if tpl.heavy || rng.random_range(0..2) == 0 {
         invalid = true;
+        let applicable: Vec<(usize, u8)> = toks
+            .iter()
+            .enumerate()
+            .flat_map(|(i, tok)| {
+                let mut ops = Vec::new();
+                if tok.value.is_some() && tok.kind == Kind::Num && !tok.flag.is_empty() {
+                    ops.push((i, 0));
+                }
+                if matches!(tok.kind, Kind::Out | Kind::OutDir) {
+                    ops.push((i, 1));
+                }
+                if tok.kind == Kind::In {
+                    ops.push((i, 2));
+                }
+                ops
+            })
+            .collect();
+        let pick = rng.random_range(0..=applicable.len());
+        match applicable.get(pick) {
+            Some(&(i, 0)) => {
+                toks[i].value = Some(NOT_NUMBERS[rng.random_range(0..NOT_NUMBERS.len())].into());
+            }
+            Some(&(i, 1)) => {
+                let choices: &[usize] = if toks[i].kind == Kind::Out { &[0, 1, 2, 3] } else { &[0, 1, 3] };
+                toks[i].value = Some(p(bad_outputs[choices[rng.random_range(0..choices.len())]]));
+            }
+            Some(&(i, _)) => {
+                toks[i].value = Some(bad_inputs[rng.random_range(0..bad_inputs.len())].clone());
+            }
+            None => {
+                let pos = rng.random_range(1..=toks.len());
+                toks.insert(pos, f(["--bogus", "--nn", "--out-put", "-z"][rng.random_range(0..4)]));
+            }
+        }
     }
     let mut args = Vec::new();
     for tok in toks {
@@ -653,9 +668,11 @@ fn fuzz_command_lines() {
                 }
                 let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(1_000_003).wrapping_add(idx as u64));
                 // one case in eight: a mutated scene or study file
+                let skip = std::env::var("SPRINGMASS_FUZZ_SKIP").unwrap_or_default();
+                let skip_config = skip.split(',').any(|w| w == "config");
                 let (args, invalid, owner) = if rng.random_range(0..8) == 0 {
                     let (base, path, args, owner): (&str, PathBuf, Vec<String>, &str) =
-                        match rng.random_range(0..3) {
+                        match rng.random_range(skip_config as u32..3) {
                             0 => {
                                 let p = fl.dir.join(format!("m{idx}.toml"));
                                 (&study_text, p.clone(), vec!["config".into(), "check".into(), p.display().to_string()], "src/cmd/config.rs (not io-cli's)")

@@ -69,7 +69,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for (i, m) in a.masses.iter().enumerate() {
         check_magnitude(&format!("--masses[{i}]"), *m)?;
     }
-    let scene = FitScene::load(&a.scene)?;
+    // read with the input cap (FitScene::load reads without one)
+    let text = springmass::io::read_to_string_capped(&a.scene)?;
+    let scene = FitScene::from_toml(&text)
+        .with_context(|| format!("{}", a.scene.display()))?;
     let truth = scene.truth()?;
     let data = scene.data().context("in [data]")?;
     let misfit = Misfit::new(&truth.uniform(), &data, &scene.misfit)?;
