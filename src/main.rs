@@ -152,10 +152,7 @@ fn install_io_handlers() {
             .or_else(|| info.payload().downcast_ref::<&str>().copied())
             .unwrap_or("");
         if let Some(reason) = msg.strip_prefix("failed printing to stdout") {
-            let _ = writeln!(
-                std::io::stderr(),
-                "error: writing to stdout{reason}"
-            );
+            let _ = writeln!(std::io::stderr(), "error: writing to stdout{reason}");
             std::process::exit(exit::IO);
         }
         if msg.starts_with("failed printing to stderr") {

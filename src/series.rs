@@ -564,11 +564,20 @@ mod tests {
             ("trailing empty fields", "t,x1,\n0,1,\n0.5,2,\n"),
             ("trailing delimiter on rows only", "t,x1\n0,1,\n0.5,2,,\n"),
             ("pandas to_csv()", ",t,x1\n0,0.0,1.0\n1,0.5,2.0\n"),
-            ("pandas Unnamed: 0", "Unnamed: 0,t,x1\n0,0.0,1.0\n1,0.5,2.0\n"),
+            (
+                "pandas Unnamed: 0",
+                "Unnamed: 0,t,x1\n0,0.0,1.0\n1,0.5,2.0\n",
+            ),
             ("pandas series indexed by time", ",x1\n0.0,1.0\n0.5,2.0\n"),
-            ("comments and blank lines", "# logger v2\n\nt,x1\n# start\n0,1\n\n0.5,2\n"),
+            (
+                "comments and blank lines",
+                "# logger v2\n\nt,x1\n# start\n0,1\n\n0.5,2\n",
+            ),
             ("CRLF and BOM", "\u{feff}t,x1\r\n0,1\r\n0.5,2\r\n"),
-            ("quoted values", "\"t\";\"x1\"\n\"0\";\"1\"\n\"0.5\";\"2\"\n"),
+            (
+                "quoted values",
+                "\"t\";\"x1\"\n\"0\";\"1\"\n\"0.5\";\"2\"\n",
+            ),
             ("time not first", "x1,t\n1,0\n2,0.5\n"),
         ];
         for (what, text) in forms {

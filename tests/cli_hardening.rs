@@ -53,11 +53,16 @@ fn out_on_fifo_symlink_and_folder_is_refused_or_followed() {
     let d = tmpdir("out");
     let fifo = d.join("p.csv");
     mkfifo(&fifo);
-    let sim = ["simulate", "--n", "3", "--t-end", "1", "--dt", "0.5", "--out"];
+    let sim = [
+        "simulate", "--n", "3", "--t-end", "1", "--dt", "0.5", "--out",
+    ];
     let (code, _, err) = run(&[&sim[..], &[s(&fifo)]].concat());
     assert_eq!(code, 3, "{err}");
     assert!(err.contains(s(&fifo)) && err.contains("FIFO"), "{err}");
-    assert!(std::fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
+    assert!(std::fs::symlink_metadata(&fifo)
+        .unwrap()
+        .file_type()
+        .is_fifo());
     // a folder
     let (code, _, err) = run(&[&sim[..], &[s(&d)]].concat());
     assert_eq!(code, 3, "{err}");
@@ -73,34 +78,65 @@ fn out_on_fifo_symlink_and_folder_is_refused_or_followed() {
     std::os::unix::fs::symlink("target.csv", &link).unwrap();
     let (code, _, err) = run(&[&sim[..], &[s(&link)]].concat());
     assert_eq!(code, 0, "{err}");
-    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
-    assert!(std::fs::read_to_string(&target).unwrap().starts_with("t,x1"));
+    assert!(std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert!(std::fs::read_to_string(&target)
+        .unwrap()
+        .starts_with("t,x1"));
     // a symlink to the FIFO: refused, both stay
     let lf = d.join("lf.csv");
     std::os::unix::fs::symlink("p.csv", &lf).unwrap();
     let (code, _, err) = run(&[&sim[..], &[s(&lf)]].concat());
     assert_eq!(code, 3, "{err}");
-    assert!(std::fs::symlink_metadata(&lf).unwrap().file_type().is_symlink());
-    assert!(std::fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
+    assert!(std::fs::symlink_metadata(&lf)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert!(std::fs::symlink_metadata(&fifo)
+        .unwrap()
+        .file_type()
+        .is_fifo());
     // surface: both outputs checked before the work
     let scene = d.join("scene.toml");
-    std::fs::write(&scene, "[chain]\nn = 4\ndefects = [{ kind = \"mass\", at = 2, m = 3.0 }]\n").unwrap();
+    std::fs::write(
+        &scene,
+        "[chain]\nn = 4\ndefects = [{ kind = \"mass\", at = 2, m = 3.0 }]\n",
+    )
+    .unwrap();
     let svg_fifo = d.join("surf.svg");
     mkfifo(&svg_fifo);
     let (code, _, err) = run(&[
-        "surface", "--scene", s(&scene), "--kind", "jm", "--m-steps", "3", "--out",
+        "surface",
+        "--scene",
+        s(&scene),
+        "--kind",
+        "jm",
+        "--m-steps",
+        "3",
+        "--out",
         s(&d.join("surf")),
     ]);
     assert_eq!(code, 3, "{err}");
-    assert!(!d.join("surf.csv").exists(), "csv written before the svg was checked");
-    assert!(std::fs::symlink_metadata(&svg_fifo).unwrap().file_type().is_fifo());
+    assert!(
+        !d.join("surf.csv").exists(),
+        "csv written before the svg was checked"
+    );
+    assert!(std::fs::symlink_metadata(&svg_fifo)
+        .unwrap()
+        .file_type()
+        .is_fifo());
     std::fs::remove_dir_all(&d).ok();
 }
 
 #[cfg(unix)]
 #[test]
 fn full_stdout_is_an_io_error_and_closed_pipes_are_quiet() {
-    let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    let full = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/full")
+        .unwrap();
     let out = Command::new(BIN)
         .args(["response", "--n", "5", "--s", "1", "--json"])
         .stdout(full)
@@ -137,7 +173,10 @@ fn libc_sigpipe() -> i32 {
 fn exit_codes_by_class() {
     assert_eq!(run(&["--help"]).0, 0);
     let (_, help, _) = run(&["--help"]);
-    assert!(help.contains("Exit status") && help.contains("SPRINGMASS_MEMORY_BUDGET"), "{help}");
+    assert!(
+        help.contains("Exit status") && help.contains("SPRINGMASS_MEMORY_BUDGET"),
+        "{help}"
+    );
     assert_eq!(run(&["response", "--bogus"]).0, 2);
     assert_eq!(run(&["response", "--n", "0", "--s", "1"]).0, 2);
     let (code, _, err) = run(&["laplace", "--series", "no-such-file.csv", "--s", "1"]);
@@ -155,12 +194,26 @@ fn negative_numbers_in_every_form() {
 #[test]
 fn overflow_is_not_a_pole() {
     let (code, _, err) = run(&[
-        "response", "--n", "3", "--s", "1+5i", "--gamma", "1.7976931348623157e308",
+        "response",
+        "--n",
+        "3",
+        "--s",
+        "1+5i",
+        "--gamma",
+        "1.7976931348623157e308",
     ]);
     assert_eq!(code, 4, "{err}");
     assert!(err.contains("overflows") && !err.contains("pole"), "{err}");
     // a true pole stays a pole (undamped chain on the imaginary axis)
-    let (code, _, err) = run(&["response", "--n", "1", "--d", "0", "--s", "0+1.4142135623730951i"]);
+    let (code, _, err) = run(&[
+        "response",
+        "--n",
+        "1",
+        "--d",
+        "0",
+        "--s",
+        "0+1.4142135623730951i",
+    ]);
     assert!(code == 2 || code == 0, "{err}");
 }
 
@@ -183,7 +236,14 @@ fn laplace_refuses_negative_times_and_unrepresentable_results() {
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("t >= 0"), "{err}");
     let pos = series_file(&d, 0.0);
-    let (code, out, err) = run(&["laplace", "--series", s(&pos), "--s", "1e308+1e308i", "--json"]);
+    let (code, out, err) = run(&[
+        "laplace",
+        "--series",
+        s(&pos),
+        "--s",
+        "1e308+1e308i",
+        "--json",
+    ]);
     assert_ne!(code, 0, "{out} {err}");
     assert!(!out.contains("null"), "{out}");
     no_panic(&err);
@@ -207,7 +267,15 @@ fn inputs_are_read_with_a_cap() {
 
 #[test]
 fn limits_are_checked_before_work() {
-    let (code, _, err) = run(&["simulate", "--n", "1000000000", "--t-end", "1", "--dt", "0.5"]);
+    let (code, _, err) = run(&[
+        "simulate",
+        "--n",
+        "1000000000",
+        "--t-end",
+        "1",
+        "--dt",
+        "0.5",
+    ]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("SPRINGMASS_MEMORY_BUDGET"), "{err}");
     // the budget is an override: a tiny budget refuses a small job
@@ -223,17 +291,36 @@ fn limits_are_checked_before_work() {
     assert_eq!(code, 2, "{err}");
     let d = tmpdir("limits");
     let (code, _, err) = run(&[
-        "suppress", "--n", "3", "--t-end", "2", "--robust-delays", "1e308", "--out-dir",
+        "suppress",
+        "--n",
+        "3",
+        "--t-end",
+        "2",
+        "--robust-delays",
+        "1e308",
+        "--out-dir",
         s(&d.join("sup")),
     ]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("--robust-delays"), "{err}");
     let scene = d.join("scene.toml");
-    std::fs::write(&scene, "[chain]\nn = 4\ndefects = [{ kind = \"mass\", at = 2, m = 3.0 }]\n").unwrap();
+    std::fs::write(
+        &scene,
+        "[chain]\nn = 4\ndefects = [{ kind = \"mass\", at = 2, m = 3.0 }]\n",
+    )
+    .unwrap();
     for range in [["1e-320", "10"], ["0.1", "1e308"]] {
         let (code, _, err) = run(&[
-            "surface", "--scene", s(&scene), "--kind", "jm", "--m-range", range[0], range[1],
-            "--out", s(&d.join("surf")),
+            "surface",
+            "--scene",
+            s(&scene),
+            "--kind",
+            "jm",
+            "--m-range",
+            range[0],
+            range[1],
+            "--out",
+            s(&d.join("surf")),
         ]);
         assert_eq!(code, 2, "{range:?}: {err}");
         assert!(err.contains("--m-range"), "{err}");
@@ -246,7 +333,10 @@ fn completions_and_man_page() {
     for shell in ["bash", "zsh", "fish"] {
         let (code, out, err) = run(&["completions", shell]);
         assert_eq!(code, 0, "{err}");
-        assert!(out.contains("springmass") && out.contains("simulate"), "{shell}");
+        assert!(
+            out.contains("springmass") && out.contains("simulate"),
+            "{shell}"
+        );
     }
     let (code, out, err) = run(&["man"]);
     assert_eq!(code, 0, "{err}");
@@ -267,22 +357,77 @@ fn laplace_reads_logger_and_pandas_csv() {
         .chain(rows.iter().map(|(t, x)| format!("{t},{x}\n")))
         .collect();
     let forms = [
-        ("quoted", std::iter::once("\"t\",\"x1\"\n".to_string()).chain(rows.iter().map(|(t, x)| format!("{t},{x}\n"))).collect::<String>()),
-        ("units", std::iter::once("time [s],x1 [m]\n".to_string()).chain(rows.iter().map(|(t, x)| format!("{t},{x}\n"))).collect()),
-        ("semicolon", std::iter::once("t;x1\n".to_string()).chain(rows.iter().map(|(t, x)| format!("{t};{x}\n"))).collect()),
-        ("tab", std::iter::once("t\tx1\n".to_string()).chain(rows.iter().map(|(t, x)| format!("{t}\t{x}\n"))).collect()),
-        ("trailing", std::iter::once("t,x1,\n".to_string()).chain(rows.iter().map(|(t, x)| format!("{t},{x},\n"))).collect()),
-        ("pandas", std::iter::once(",t,x1\n".to_string()).chain(rows.iter().enumerate().map(|(i, (t, x))| format!("{i},{t},{x}\n"))).collect()),
-        ("comments", std::iter::once("# logger\nt,x1\n".to_string()).chain(rows.iter().map(|(t, x)| format!("{t},{x}\n"))).collect()),
+        (
+            "quoted",
+            std::iter::once("\"t\",\"x1\"\n".to_string())
+                .chain(rows.iter().map(|(t, x)| format!("{t},{x}\n")))
+                .collect::<String>(),
+        ),
+        (
+            "units",
+            std::iter::once("time [s],x1 [m]\n".to_string())
+                .chain(rows.iter().map(|(t, x)| format!("{t},{x}\n")))
+                .collect(),
+        ),
+        (
+            "semicolon",
+            std::iter::once("t;x1\n".to_string())
+                .chain(rows.iter().map(|(t, x)| format!("{t};{x}\n")))
+                .collect(),
+        ),
+        (
+            "tab",
+            std::iter::once("t\tx1\n".to_string())
+                .chain(rows.iter().map(|(t, x)| format!("{t}\t{x}\n")))
+                .collect(),
+        ),
+        (
+            "trailing",
+            std::iter::once("t,x1,\n".to_string())
+                .chain(rows.iter().map(|(t, x)| format!("{t},{x},\n")))
+                .collect(),
+        ),
+        (
+            "pandas",
+            std::iter::once(",t,x1\n".to_string())
+                .chain(
+                    rows.iter()
+                        .enumerate()
+                        .map(|(i, (t, x))| format!("{i},{t},{x}\n")),
+                )
+                .collect(),
+        ),
+        (
+            "comments",
+            std::iter::once("# logger\nt,x1\n".to_string())
+                .chain(rows.iter().map(|(t, x)| format!("{t},{x}\n")))
+                .collect(),
+        ),
     ];
     let ref_path = d.join("plain.csv");
     std::fs::write(&ref_path, plain).unwrap();
-    let (code, want, err) = run(&["laplace", "--series", s(&ref_path), "--s", "0.5,1+2i", "--json"]);
+    let (code, want, err) = run(&[
+        "laplace",
+        "--series",
+        s(&ref_path),
+        "--s",
+        "0.5,1+2i",
+        "--json",
+    ]);
     assert_eq!(code, 0, "{err}");
     for (name, text) in forms {
         let p = d.join(format!("{name}.csv"));
         std::fs::write(&p, text).unwrap();
-        let (code, out, err) = run(&["laplace", "--series", s(&p), "--s", "0.5,1+2i", "--json", "--column", "1"]);
+        let (code, out, err) = run(&[
+            "laplace",
+            "--series",
+            s(&p),
+            "--s",
+            "0.5,1+2i",
+            "--json",
+            "--column",
+            "1",
+        ]);
         assert_eq!(code, 0, "{name}: {err}");
         assert_eq!(out, want, "{name}");
     }

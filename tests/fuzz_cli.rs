@@ -175,7 +175,13 @@ fn setup(root: &Path, worker: usize, study_text: &str) -> Files {
     let empty = dir.join("empty.csv");
     std::fs::write(&empty, "").unwrap();
     let binary = dir.join("binary.csv");
-    std::fs::write(&binary, (0..4096u64).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8).collect::<Vec<_>>()).unwrap();
+    std::fs::write(
+        &binary,
+        (0..4096u64)
+            .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+            .collect::<Vec<_>>(),
+    )
+    .unwrap();
     Files {
         dir,
         fifo,
@@ -417,11 +423,19 @@ const HOSTILE_TEXT: &[&str] = &[
 ];
 
 /// Build one case: (arguments, invalid by construction, owner).
-fn gen_case(rng: &mut ChaCha8Rng, tpls: &[Template], fl: &Files) -> (Vec<String>, bool, &'static str) {
+fn gen_case(
+    rng: &mut ChaCha8Rng,
+    tpls: &[Template],
+    fl: &Files,
+) -> (Vec<String>, bool, &'static str) {
     let skip = std::env::var("SPRINGMASS_FUZZ_SKIP").unwrap_or_default();
     let tpls: Vec<&Template> = tpls
         .iter()
-        .filter(|t| !skip.split(',').any(|w| !w.is_empty() && t.toks[0].flag == w))
+        .filter(|t| {
+            !skip
+                .split(',')
+                .any(|w| !w.is_empty() && t.toks[0].flag == w)
+        })
         .collect();
     let tpl = tpls[rng.random_range(0..tpls.len())];
     let mut toks = tpl.toks.clone();
@@ -435,6 +449,13 @@ fn gen_case(rng: &mut ChaCha8Rng, tpls: &[Template], fl: &Files) -> (Vec<String>
         p(&fl.dir.join("missing.csv")),
         "/dev/urandom".to_string(),
     ];
+    // SPRINGMASS_FUZZ_NO_DEVICES=1 leaves /dev/urandom out (to look past
+    // commands that still read it without a cap)
+    let n_inputs = if std::env::var_os("SPRINGMASS_FUZZ_NO_DEVICES").is_some() {
+        bad_inputs.len() - 1
+    } else {
+        bad_inputs.len()
+    };
     // exploratory mutations first (validity unknown), light commands only
     if !tpl.heavy {
         for _ in 0..rng.random_range(0..3) {
@@ -442,10 +463,12 @@ fn gen_case(rng: &mut ChaCha8Rng, tpls: &[Template], fl: &Files) -> (Vec<String>
             let kind = toks[i].kind;
             match rng.random_range(0..6) {
                 0 if toks[i].value.is_some() && kind == Kind::Num => {
-                    toks[i].value = Some(HOSTILE_NUM[rng.random_range(0..HOSTILE_NUM.len())].into());
+                    toks[i].value =
+                        Some(HOSTILE_NUM[rng.random_range(0..HOSTILE_NUM.len())].into());
                 }
                 1 if toks[i].value.is_some() && kind != Kind::In => {
-                    toks[i].value = Some(HOSTILE_TEXT[rng.random_range(0..HOSTILE_TEXT.len())].into());
+                    toks[i].value =
+                        Some(HOSTILE_TEXT[rng.random_range(0..HOSTILE_TEXT.len())].into());
                 }
                 2 if kind == Kind::Out => {
                     toks[i].value = Some(p(&fl.link_file));
@@ -495,15 +518,22 @@ fn gen_case(rng: &mut ChaCha8Rng, tpls: &[Template], fl: &Files) -> (Vec<String>
                 toks[i].value = Some(NOT_NUMBERS[rng.random_range(0..NOT_NUMBERS.len())].into());
             }
             Some(&(i, 1)) => {
-                let choices: &[usize] = if toks[i].kind == Kind::Out { &[0, 1, 2, 3] } else { &[0, 1, 3] };
+                let choices: &[usize] = if toks[i].kind == Kind::Out {
+                    &[0, 1, 2, 3]
+                } else {
+                    &[0, 1, 3]
+                };
                 toks[i].value = Some(p(bad_outputs[choices[rng.random_range(0..choices.len())]]));
             }
             Some(&(i, _)) => {
-                toks[i].value = Some(bad_inputs[rng.random_range(0..bad_inputs.len())].clone());
+                toks[i].value = Some(bad_inputs[rng.random_range(0..n_inputs)].clone());
             }
             None => {
                 let pos = rng.random_range(1..=toks.len());
-                toks.insert(pos, f(["--bogus", "--nn", "--out-put", "-z"][rng.random_range(0..4)]));
+                toks.insert(
+                    pos,
+                    f(["--bogus", "--nn", "--out-put", "-z"][rng.random_range(0..4)]),
+                );
             }
         }
     }
@@ -562,7 +592,12 @@ fn mutate_toml(rng: &mut ChaCha8Rng, text: &str) -> String {
                 }
             }
             _ => {
-                lines.insert(i, ["nn = 3", "[bogus]", "x = ", "panels = 9223372036854775807"][rng.random_range(0..4)].to_string());
+                lines.insert(
+                    i,
+                    ["nn = 3", "[bogus]", "x = ", "panels = 9223372036854775807"]
+                        [rng.random_range(0..4)]
+                    .to_string(),
+                );
             }
         }
     }
@@ -617,7 +652,9 @@ fn run_case(args: &[String], timeout: Duration, dir: &Path) -> Outcome {
 fn quote(args: &[String]) -> String {
     args.iter()
         .map(|a| {
-            if a.is_empty() || a.contains(|c: char| c.is_whitespace() || "\"'$\\|&;<>()*?[]#~".contains(c)) {
+            if a.is_empty()
+                || a.contains(|c: char| c.is_whitespace() || "\"'$\\|&;<>()*?[]#~".contains(c))
+            {
                 format!("'{}'", a.replace('\'', "'\\''"))
             } else {
                 a.clone()
@@ -644,7 +681,10 @@ fn fuzz_command_lines() {
         .expect("springmass config show-default");
     assert!(show.status.success(), "config show-default failed");
     let study_text = String::from_utf8(show.stdout).unwrap();
-    assert!(study_text.contains("[study]"), "unexpected default study: {study_text}");
+    assert!(
+        study_text.contains("[study]"),
+        "unexpected default study: {study_text}"
+    );
 
     let next = Arc::new(AtomicUsize::new(0));
     let failures = Arc::new(Mutex::new(Vec::<String>::new()));
@@ -666,28 +706,64 @@ fn fuzz_command_lines() {
                 if idx >= cases {
                     break;
                 }
-                let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(1_000_003).wrapping_add(idx as u64));
+                let mut rng = ChaCha8Rng::seed_from_u64(
+                    seed.wrapping_mul(1_000_003).wrapping_add(idx as u64),
+                );
                 // one case in eight: a mutated scene or study file
                 let skip = std::env::var("SPRINGMASS_FUZZ_SKIP").unwrap_or_default();
                 let skip_config = skip.split(',').any(|w| w == "config");
+                let mut mutated: Option<String> = None;
                 let (args, invalid, owner) = if rng.random_range(0..8) == 0 {
                     let (base, path, args, owner): (&str, PathBuf, Vec<String>, &str) =
                         match rng.random_range(skip_config as u32..3) {
                             0 => {
                                 let p = fl.dir.join(format!("m{idx}.toml"));
-                                (&study_text, p.clone(), vec!["config".into(), "check".into(), p.display().to_string()], "src/cmd/config.rs (not io-cli's)")
+                                (
+                                    &study_text,
+                                    p.clone(),
+                                    vec!["config".into(), "check".into(), p.display().to_string()],
+                                    "src/cmd/config.rs (not io-cli's)",
+                                )
                             }
                             1 => {
                                 let p = fl.dir.join(format!("m{idx}.toml"));
                                 let out = fl.dir.join("surf-m").display().to_string();
-                                (SCENE, p.clone(), vec!["surface".into(), "--scene".into(), p.display().to_string(), "--kind".into(), "jm".into(), "--m-steps".into(), "3".into(), "--out".into(), out], "src/cmd/surface.rs + src/detect/scene.rs")
+                                (
+                                    SCENE,
+                                    p.clone(),
+                                    vec![
+                                        "surface".into(),
+                                        "--scene".into(),
+                                        p.display().to_string(),
+                                        "--kind".into(),
+                                        "jm".into(),
+                                        "--m-steps".into(),
+                                        "3".into(),
+                                        "--out".into(),
+                                        out,
+                                    ],
+                                    "src/cmd/surface.rs + src/detect/scene.rs",
+                                )
                             }
                             _ => {
                                 let p = fl.dir.join(format!("m{idx}.toml"));
-                                (SCENE, p.clone(), vec!["response".into(), "--scene".into(), p.display().to_string(), "--s".into(), "1".into()], "src/cmd/mod.rs")
+                                (
+                                    SCENE,
+                                    p.clone(),
+                                    vec![
+                                        "response".into(),
+                                        "--scene".into(),
+                                        p.display().to_string(),
+                                        "--s".into(),
+                                        "1".into(),
+                                    ],
+                                    "src/cmd/mod.rs",
+                                )
                             }
                         };
-                    std::fs::write(&path, mutate_toml(&mut rng, base)).unwrap();
+                    let text = mutate_toml(&mut rng, base);
+                    std::fs::write(&path, &text).unwrap();
+                    mutated = Some(text);
                     (args, false, owner)
                 } else {
                     gen_case(&mut rng, &tpls, &fl)
@@ -698,7 +774,10 @@ fn fuzz_command_lines() {
                     problems.push(format!("hang (killed after {} s)", timeout.as_secs()));
                 }
                 if o.code == Some(101) || o.stderr.contains("panicked") {
-                    problems.push(format!("panic: {}", o.stderr.lines().take(3).collect::<Vec<_>>().join(" | ")));
+                    problems.push(format!(
+                        "panic: {}",
+                        o.stderr.lines().take(3).collect::<Vec<_>>().join(" | ")
+                    ));
                 }
                 if invalid && o.code == Some(0) {
                     problems.push("exit 0 on invalid input".into());
@@ -713,8 +792,19 @@ fn fuzz_command_lines() {
                     s[2] += invalid as usize;
                 }
                 if !problems.is_empty() {
+                    let file = mutated
+                        .map(|t| {
+                            format!(
+                                "\n    with the file:\n{}",
+                                t.lines()
+                                    .map(|l| format!("      {l}"))
+                                    .collect::<Vec<_>>()
+                                    .join("\n")
+                            )
+                        })
+                        .unwrap_or_default();
                     failures.lock().unwrap().push(format!(
-                        "[{owner}] case {idx}: {}\n    springmass {}",
+                        "[{owner}] case {idx}: {}\n    springmass {}{file}",
                         problems.join("; "),
                         quote(&args)
                     ));

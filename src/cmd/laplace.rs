@@ -5,8 +5,8 @@ use anyhow::Context;
 use clap::Args as ClapArgs;
 use springmass::scalar::parse_complex;
 use springmass::series::TimeSeries;
-use springmass::Error;
 use springmass::time::series::{SeriesTransform, Tail, TransformOptions, DEFAULT_DEGREE};
+use springmass::Error;
 use std::path::PathBuf;
 
 /// The tail model on the command line.
@@ -56,11 +56,10 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let s_values = a
-        .s
-        .iter()
-        .map(|text| parse_complex(text))
-        .collect::<Result<Vec<_>, _>>()?;
+    let s_values =
+        a.s.iter()
+            .map(|text| parse_complex(text))
+            .collect::<Result<Vec<_>, _>>()?;
     let ts = TimeSeries::read_csv(&a.series)?;
     if ts.t()[0] < 0.0 {
         return Err(Error::invalid(

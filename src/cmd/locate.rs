@@ -190,7 +190,7 @@ fn parse_curve(text: &str) -> anyhow::Result<Vec<f64>> {
         .collect())
 }
 
-fn read_laplace<T: RealScalar>(path: &PathBuf) -> anyhow::Result<LaplaceData<T>> {
+fn read_laplace<T: RealScalar>(path: &std::path::Path) -> anyhow::Result<LaplaceData<T>> {
     let bytes = springmass::io::read_capped(path)?;
     let mut rdr = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)

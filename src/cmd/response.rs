@@ -40,11 +40,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let chain = a.chain.chain()?;
     let fwd = Forward::new(&chain);
     let mut rows = Vec::with_capacity(a.s.len());
-    let s_values = a
-        .s
-        .iter()
-        .map(|t| parse_complex(t))
-        .collect::<Result<Vec<_>, _>>()?;
+    let s_values =
+        a.s.iter()
+            .map(|t| parse_complex(t))
+            .collect::<Result<Vec<_>, _>>()?;
     for s in s_values {
         let x = match eval(&fwd, s, a.observe) {
             Err(springmass::Error::Singular { s: at }) if chain.gamma() != 1.0 => {

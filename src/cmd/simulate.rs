@@ -132,6 +132,26 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         Some(l) => noisy(&traj.to_series()?, l, a.seed)?,
         None => traj.to_series()?,
     };
+    if let Some(text) = &a.noise {
+        // samples beyond 1e300 are meaningless (and hang the plot's axes)
+        for (c, name) in series.names().iter().enumerate() {
+            let col = series.column_at(c).unwrap_or_default();
+            if let Some(i) = col
+                .iter()
+                .position(|v| v.abs() > springmass::io::MAX_MAGNITUDE)
+            {
+                return Err(springmass::Error::invalid(
+                    "--noise",
+                    text,
+                    format!(
+                        "a level that keeps the samples within 1e300 in magnitude ({name}[{i}] = {:e})",
+                        col[i]
+                    ),
+                )
+                .into());
+            }
+        }
+    }
     if let Some(path) = &a.out {
         series.write_csv(path)?;
     }

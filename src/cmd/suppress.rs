@@ -177,7 +177,8 @@ fn check_limits(a: &Args) -> anyhow::Result<()> {
     } else {
         0.0
     };
-    let bytes = 8.0 * 12.0 * samples * runs.min(4.0) + 8.0 * 32.0 * m + dense + 40.0 * samples * 8.0;
+    let bytes =
+        8.0 * 12.0 * samples * runs.min(4.0) + 8.0 * 32.0 * m + dense + 40.0 * samples * 8.0;
     springmass::io::check_alloc(
         &format!("suppress (n = {}, {samples:.0} samples)", a.n),
         bytes,

@@ -9,12 +9,12 @@
 //! Writes `<out>.csv` and `<out>.svg` (heatmap of `log10 r`, the minimum marked).
 
 use anyhow::Context;
-use springmass::io::{check_alloc, check_magnitude, check_outputs, write_atomic};
-use springmass::Error;
 use clap::{Args as ClapArgs, ValueEnum};
 use springmass::detect::misfit::Misfit;
 use springmass::detect::scene::FitScene;
+use springmass::io::{check_alloc, check_magnitude, check_outputs, write_atomic};
 use springmass::plot::Heatmap;
+use springmass::Error;
 use std::path::PathBuf;
 
 /// Which surface.
@@ -71,8 +71,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     // read with the input cap (FitScene::load reads without one)
     let text = springmass::io::read_to_string_capped(&a.scene)?;
-    let scene = FitScene::from_toml(&text)
-        .with_context(|| format!("{}", a.scene.display()))?;
+    let scene = FitScene::from_toml(&text).with_context(|| format!("{}", a.scene.display()))?;
     let truth = scene.truth()?;
     let data = scene.data().context("in [data]")?;
     let misfit = Misfit::new(&truth.uniform(), &data, &scene.misfit)?;

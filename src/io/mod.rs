@@ -121,7 +121,10 @@ pub fn resolve_output(path: &Path) -> Result<PathBuf> {
             Ok(meta) if meta.file_type().is_file() => return Ok(p),
             Ok(meta) => {
                 let what = if p == path {
-                    format!("is {}; only a regular file or a new path can be written", kind_of(&meta))
+                    format!(
+                        "is {}; only a regular file or a new path can be written",
+                        kind_of(&meta)
+                    )
                 } else {
                     format!(
                         "is a symbolic link to {} which is {}; only a regular file or a new path can be written",
@@ -221,20 +224,28 @@ pub fn parse_size(text: &str) -> Result<u64> {
         Some('T') => (&stripped[..stripped.len() - 1], 1 << 40),
         _ => (stripped, 1),
     };
-    let v: f64 = num
-        .trim()
-        .parse()
-        .map_err(|_| Error::parse("size", t, "expected bytes or a number with K, M, G or T (e.g. 4G)"))?;
+    let v: f64 = num.trim().parse().map_err(|_| {
+        Error::parse(
+            "size",
+            t,
+            "expected bytes or a number with K, M, G or T (e.g. 4G)",
+        )
+    })?;
     let bytes = v * mult as f64;
     if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
-        return Err(Error::parse("size", t, "a size of at least 1 byte, below 16 EiB"));
+        return Err(Error::parse(
+            "size",
+            t,
+            "a size of at least 1 byte, below 16 EiB",
+        ));
     }
     Ok(bytes as u64)
 }
 
 fn env_size(var: &str, default: u64) -> Result<u64> {
     match std::env::var(var) {
-        Ok(v) => parse_size(&v).map_err(|e| Error::invalid(var, v, format!("a size such as 4G or 512M ({e})"))),
+        Ok(v) => parse_size(&v)
+            .map_err(|e| Error::invalid(var, v, format!("a size such as 4G or 512M ({e})"))),
         Err(_) => Ok(default),
     }
 }
@@ -288,7 +299,10 @@ pub fn check_alloc(what: &str, bytes: f64) -> Result<()> {
         return Err(Error::ResourceLimit {
             what: what.to_string(),
             need: human(bytes),
-            budget: format!("{} (set {MEMORY_BUDGET_ENV} to change it)", human(budget as f64)),
+            budget: format!(
+                "{} (set {MEMORY_BUDGET_ENV} to change it)",
+                human(budget as f64)
+            ),
         });
     }
     Ok(())
@@ -318,7 +332,11 @@ pub fn check_magnitude(field: &str, v: f64) -> Result<f64> {
     if v.is_finite() && (a == 0.0 || (1.0 / MAX_MAGNITUDE..=MAX_MAGNITUDE).contains(&a)) {
         Ok(v)
     } else {
-        Err(Error::invalid(field, v, "0 or a magnitude within 1e-300..=1e300"))
+        Err(Error::invalid(
+            field,
+            v,
+            "0 or a magnitude within 1e-300..=1e300",
+        ))
     }
 }
 
@@ -369,7 +387,10 @@ pub fn read_to_string_capped(path: &Path) -> Result<String> {
         Error::parse(
             path.display().to_string(),
             "",
-            format!("not UTF-8 text (invalid byte at offset {})", e.utf8_error().valid_up_to()),
+            format!(
+                "not UTF-8 text (invalid byte at offset {})",
+                e.utf8_error().valid_up_to()
+            ),
         )
     })
 }
@@ -422,7 +443,10 @@ mod tests {
         let link = d.join("link.csv");
         std::os::unix::fs::symlink("target.csv", &link).unwrap();
         write_atomic(&link, b"new").unwrap();
-        assert!(fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+        assert!(fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
         assert_eq!(fs::read(&target).unwrap(), b"new");
         // dangling link: creates its target
         let dangling = d.join("dangling.csv");
