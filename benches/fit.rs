@@ -18,10 +18,10 @@
 
 use criterion::measurement::Measurement;
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use springmass::detect::data::Data;
+use springmass::detect::data::exact::Data;
 use springmass::detect::misfit::{Misfit, MisfitSpec};
 use springmass::detect::search::enumerate::{enumerate, EnumerateOptions};
-use springmass::detect::space::{DefectUnknown, Unknowns};
+use springmass::detect::unknowns::{DefectUnknown, Unknowns};
 use springmass::scenes;
 
 #[path = "common/cputime.rs"]

@@ -19,11 +19,12 @@
 
 use criterion::measurement::Measurement;
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use springmass::detect::chainfit::{ChainProblem, Obs};
-use springmass::detect::lsq::LeastSquares;
-use springmass::detect::misfit_time::{TimeData, TimeMisfit};
-use springmass::detect::noisefit::{laplace_obs, MisfitChoice, Setup};
-use springmass::detect::whiten::Weighting;
+use springmass::detect::data::whiten::Weighting;
+use springmass::detect::fit::chainfit::{ChainProblem, Obs};
+use springmass::detect::fit::general::{laplace_obs, Setup};
+use springmass::detect::misfit::MisfitKind;
+use springmass::detect::search::lsq::LeastSquares;
+use springmass::detect::{data::series::TimeData, misfit::time::TimeMisfit};
 use springmass::noise::NoiseLevel;
 use springmass::scenes;
 use springmass::sensitivity::Param;
@@ -38,7 +39,7 @@ fn bench_generic<M: Measurement + 'static>(c: &mut Criterion<M>) {
     let params = Param::defects(&truth);
     let theta: Vec<f64> = truth.defects().iter().map(|d| d.value()).collect();
     let mut group = c.benchmark_group("cpu/noisy");
-    for choice in [MisfitChoice::RealAxis, MisfitChoice::Bromwich] {
+    for choice in [MisfitKind::RealAxis, MisfitKind::Bromwich] {
         for weighting in [Weighting::Diagonal, Weighting::Whitened] {
             let setup = Setup {
                 weighting,

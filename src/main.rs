@@ -52,7 +52,7 @@ enum Command {
     Suppress(cmd::suppress::Args),
     /// Laplace transform X(s) of a sampled series (CSV), with error estimates.
     Laplace(cmd::laplace::Args),
-    /// Fit defect positions and masses to X_1 data (enumerate, ga, nelder-mead, pso).
+    /// Fit defects to a measured series (--data; noise and number of defects estimated) or a scene (--scene).
     Fit(cmd::fit::Args),
     /// Residual surfaces r(j, m) and r(j1, j2) (the paper's Figures 16 and 17), CSV + SVG.
     Surface(cmd::surface::Args),

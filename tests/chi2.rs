@@ -1,15 +1,16 @@
 //! The Laplace-domain misfits as true chi-squares: whitening of the
-//! correlated transformed noise ([`springmass::detect::whiten`]), its degrees
+//! correlated transformed noise ([`springmass::detect::data::whiten`]), its degrees
 //! of freedom, and calibration at the true chain.
 //!
 //! The full 200-seed calibration report is `cargo test --release --test chi2
 //! -- --ignored --nocapture`.
 
-use springmass::detect::chainfit::LaplaceObs;
-use springmass::detect::misfit_time::TimeData;
+use springmass::detect::data::laplace::LaplaceObs;
+use springmass::detect::data::series::TimeData;
+use springmass::detect::data::whiten::{chi2_quantile, Weighting};
+use springmass::detect::fit::general::{laplace_obs, Setup};
+use springmass::detect::misfit::MisfitKind;
 use springmass::detect::noise_study::{noisy_data, systems, task_seed, StudyConfig};
-use springmass::detect::noisefit::{laplace_obs, MisfitChoice, Setup};
-use springmass::detect::whiten::{chi2_quantile, Weighting};
 use springmass::noise::{add_noise, NoiseLevel};
 use springmass::time::simulate::{simulate, SimOptions};
 use springmass::Chain;
@@ -21,7 +22,7 @@ fn calibrate(
     truth: &Chain,
     level: f64,
     seeds: u64,
-    choice: MisfitChoice,
+    choice: MisfitKind,
     weighting: Weighting,
 ) -> (usize, Vec<f64>, f64) {
     let cfg = StudyConfig::default();
@@ -69,7 +70,7 @@ fn bromwich_whitened_is_a_calibrated_chi_square() {
     // S3 at the true chain, 50 seeds, 1e-3 noise: chi2/dof ~ 1 (sd sqrt(2/160)
     // per seed), while the diagonal weighting is off by a factor of ~60
     let s3 = &systems()[2].truth;
-    let (dof, red, frac) = calibrate(s3, 1e-3, 50, MisfitChoice::Bromwich, Weighting::Whitened);
+    let (dof, red, frac) = calibrate(s3, 1e-3, 50, MisfitKind::Bromwich, Weighting::Whitened);
     let m = mean(&red);
     eprintln!("bromwich whitened: dof {dof}, mean chi2/dof {m:.4}, below chi2_95 {frac:.3}");
     assert_eq!(dof, 160);
@@ -78,7 +79,7 @@ fn bromwich_whitened_is_a_calibrated_chi_square() {
         (0.85..=1.0).contains(&frac),
         "fraction below the 95% quantile {frac}"
     );
-    let (_, red_d, _) = calibrate(s3, 1e-3, 10, MisfitChoice::Bromwich, Weighting::Diagonal);
+    let (_, red_d, _) = calibrate(s3, 1e-3, 10, MisfitKind::Bromwich, Weighting::Diagonal);
     assert!(mean(&red_d) < 0.1, "diagonal: {}", mean(&red_d));
 }
 
@@ -86,7 +87,7 @@ fn bromwich_whitened_is_a_calibrated_chi_square() {
 fn real_axis_noise_whitening_is_calibrated_and_has_few_dof() {
     // noise-only covariance on the real-axis nodes: about 24 independent data
     // out of 80 nodes; chi2/dof of the transformed noise ~ 1
-    use springmass::detect::whiten::{Whitening, DEFAULT_CUTOFF};
+    use springmass::detect::data::whiten::{Whitening, DEFAULT_CUTOFF};
     use springmass::forward::Forward;
     use springmass::time::series::{stack_re_im, SeriesTransform, TransformOptions};
     use springmass::Complex64;
@@ -128,7 +129,7 @@ fn real_axis_noise_whitening_is_calibrated_and_has_few_dof() {
 fn calibration_report() {
     let s3 = &systems()[2].truth;
     for level in [1e-3, 1e-2] {
-        for choice in [MisfitChoice::RealAxis, MisfitChoice::Bromwich] {
+        for choice in [MisfitKind::RealAxis, MisfitKind::Bromwich] {
             for w in [Weighting::Diagonal, Weighting::Whitened] {
                 let (dof, red, frac) = calibrate(s3, level, 200, choice, w);
                 let mut sorted = red.clone();

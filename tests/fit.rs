@@ -1,13 +1,14 @@
 //! Integration tests of defect fitting: the paper's Table 1 systems, bad
 //! scenes, determinism, and the fixed rules against the adaptive reference.
 
-use springmass::detect::data::Data;
-use springmass::detect::fit::{fit, FitMethod};
+use springmass::detect::data::exact::Data;
+use springmass::detect::fit::paper::fit;
+use springmass::detect::fit::FitMethod;
+use springmass::detect::misfit::quadrature::Adaptive;
 use springmass::detect::misfit::{Misfit, MisfitKind, MisfitSpec};
-use springmass::detect::quadrature::Adaptive;
 use springmass::detect::scene::FitScene;
 use springmass::detect::search::enumerate::{enumerate, EnumerateOptions};
-use springmass::detect::space::{DefectUnknown, Unknowns};
+use springmass::detect::unknowns::{DefectUnknown, Unknowns};
 use springmass::{scenes, Chain, Error};
 
 /// System `sys` (1..=4) of the paper's Table 1 (docs/paper-notes.md): n, the chain and
@@ -282,7 +283,7 @@ fn cli_fit_and_surface() {
         .args([
             "fit",
             "--scene",
-            &format!("{root}/configs/table1-system3.toml"),
+            &format!("{root}/configs/scenes/table1-system3.toml"),
             "--json",
         ])
         .output()
@@ -319,7 +320,7 @@ fn cli_fit_and_surface() {
             .args([
                 "surface",
                 "--scene",
-                &format!("{root}/configs/{cfg}.toml"),
+                &format!("{root}/configs/scenes/{cfg}.toml"),
                 "--kind",
                 kind,
                 "--out",
@@ -381,9 +382,9 @@ fn measured_csv_series_through_the_scene() {
 
 #[test]
 fn objective_penalises_invalid_candidates_finitely() {
-    use springmass::detect::fit::MisfitObjective;
+    use springmass::detect::fit::paper::MisfitObjective;
     use springmass::detect::search::{Candidate, Objective};
-    use springmass::detect::space::PENALTY;
+    use springmass::detect::unknowns::PENALTY;
     let chain = scenes::table1(1).unwrap();
     let n = chain.n();
     let mis = Misfit::new(
@@ -450,7 +451,8 @@ panels = 10
 "#;
     let scene = springmass::detect::scene::FitScene::from_toml(text).unwrap();
     let report =
-        springmass::detect::fit::fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
+        springmass::detect::fit::paper::fit(&scene, &scene.data().unwrap(), &scene.options())
+            .unwrap();
     assert_eq!(report.defects.len(), 1);
     assert_eq!(
         (report.defects[0].kind(), report.defects[0].at()),
@@ -468,7 +470,7 @@ panels = 10
     // the optimizers are refused on this path, naming the field
     let mut s2 = scene.clone();
     s2.search.method = springmass::detect::fit::FitMethod::Ga;
-    match springmass::detect::fit::fit(&s2, &s2.data().unwrap(), &s2.options()) {
+    match springmass::detect::fit::paper::fit(&s2, &s2.data().unwrap(), &s2.options()) {
         Err(springmass::Error::InvalidParameter { field, .. }) => {
             assert_eq!(field, "search.method")
         }

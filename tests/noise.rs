@@ -2,11 +2,13 @@
 //! damping, model selection, on reduced seed sets (the full study is
 //! `springmass noise-study`).
 
-use springmass::detect::chainfit::{fit_chain, LaplaceObs, Obs};
-use springmass::detect::misfit_time::{TimeData, TimeMisfit};
+use springmass::detect::data::laplace::LaplaceObs;
+use springmass::detect::fit::chainfit::{fit_chain, Obs};
+use springmass::detect::fit::general::{fit_noisy, identify_ranked, Setup};
+use springmass::detect::fit::select::Criterion;
+use springmass::detect::misfit::MisfitKind;
 use springmass::detect::noise_study::{calibration, choose_k, noisy_data, systems, StudyConfig};
-use springmass::detect::noisefit::{fit_noisy, identify_ranked, MisfitChoice, Setup};
-use springmass::detect::select::Criterion;
+use springmass::detect::{data::series::TimeData, misfit::time::TimeMisfit};
 use springmass::noise::NoiseLevel;
 use springmass::sensitivity::{gradient, Param};
 use springmass::{Chain, Complex64, Defect};
@@ -93,7 +95,7 @@ fn table1_systems_at_one_percent_noise_reduced_seeds() {
     for s in &systems()[..2] {
         for seed in 0..2 {
             let data = noisy_data(&s.truth, &cfg(), 1e-2, 100 + seed).unwrap();
-            let r = fit_noisy(&s.truth.uniform(), &data, 2, MisfitChoice::Time, &setup).unwrap();
+            let r = fit_noisy(&s.truth.uniform(), &data, 2, MisfitKind::Time, &setup).unwrap();
             assert!(
                 r[0].matches(&s.truth, 0.05),
                 "{} seed {seed}: {:?}",
@@ -238,8 +240,8 @@ fn cli_rejects_bad_input_and_runs_a_tiny_table() {
 // ---- general noisy fit: spring, damper and any-kind defects at unknown
 // positions, chain parameters fitted alongside
 
-use springmass::detect::noisefit::{fit_noisy_general, GeneralOptions};
-use springmass::detect::space::{GeneralUnknowns, KindChoice};
+use springmass::detect::fit::general::{fit_noisy_general, GeneralOptions};
+use springmass::detect::unknowns::{GeneralUnknowns, KindChoice};
 
 fn general(
     truth: &Chain,
@@ -248,7 +250,7 @@ fn general(
     chain: &[Param],
     level: f64,
     seed: u64,
-) -> springmass::detect::noisefit::GeneralFit {
+) -> springmass::detect::fit::general::GeneralFit {
     general_with_sigma(truth, start, kinds, chain, level, seed).0
 }
 
@@ -259,14 +261,14 @@ fn general_with_sigma(
     chain: &[Param],
     level: f64,
     seed: u64,
-) -> (springmass::detect::noisefit::GeneralFit, f64) {
+) -> (springmass::detect::fit::general::GeneralFit, f64) {
     let data = TimeData::simulate(truth, 200.0, 0.2, NoiseLevel::RelativeMax(level), seed).unwrap();
     let u = GeneralUnknowns::free(truth.n(), kinds, chain).unwrap();
     fit_noisy_general(
         start,
         &data,
         &u,
-        MisfitChoice::Time,
+        MisfitKind::Time,
         &Setup::new().unwrap(),
         &GeneralOptions::default(),
     )
@@ -274,7 +276,7 @@ fn general_with_sigma(
     .unwrap()
 }
 
-fn within_se(h: &springmass::detect::noisefit::Hypothesis, truth: &Chain, nse: f64) {
+fn within_se(h: &springmass::detect::fit::general::Hypothesis, truth: &Chain, nse: f64) {
     for t in truth.defects() {
         let (i, d) = h
             .defects
@@ -340,8 +342,8 @@ fn kind_any_picks_the_right_kind() {
             seed,
         );
         // identifiability against the uniform value of each defect's kind
-        let id =
-            springmass::detect::noisefit::identify_general(&f.ranked, &truth, sigma, None).unwrap();
+        let id = springmass::detect::fit::general::identify_general(&f.ranked, &truth, sigma, None)
+            .unwrap();
         assert!(id.all_identifiable(), "{id:?}");
         assert_eq!(f.hypotheses, 6 + 7 + 6);
         let best = &f.ranked[0];
@@ -397,7 +399,7 @@ fn general_fit_does_not_depend_on_threads() {
             &truth.uniform(),
             &data,
             &u,
-            MisfitChoice::Bromwich,
+            MisfitKind::Bromwich,
             &setup,
             &GeneralOptions {
                 parallel,

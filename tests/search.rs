@@ -4,11 +4,11 @@
 //! space, traces, bad input, non-finite objectives.
 
 use proptest::prelude::*;
-use springmass::detect::data::Data;
-use springmass::detect::fit::MisfitObjective;
+use springmass::detect::data::exact::Data;
+use springmass::detect::fit::paper::MisfitObjective;
 use springmass::detect::misfit::{Misfit, MisfitSpec};
 use springmass::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
-use springmass::detect::space::{DefectUnknown, Unknowns};
+use springmass::detect::unknowns::{DefectUnknown, Unknowns};
 use springmass::forward::response;
 use springmass::{scenes, Chain, Defect, Error};
 use std::sync::atomic::{AtomicUsize, Ordering};

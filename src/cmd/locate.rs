@@ -19,7 +19,9 @@ use springmass::detect::locate::{
     curve, default_grid, locate, Estimate, LaplaceData, Location, Method, Model, Point, SChoice,
 };
 use springmass::plot::{Line, LinePlot};
-use springmass::precision::{check_bits, with_precision, BigReal, RealScalar};
+use springmass::precision::RealScalar;
+#[cfg(feature = "bigfloat")]
+use springmass::precision::{check_bits, with_precision, BigReal};
 use springmass::series::TimeSeries;
 use springmass::time::series::{SeriesTransform, TransformOptions};
 use springmass::Error;
@@ -95,10 +97,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let outcome = match a.precision {
         None => run_in::<f64>(&a)?,
+        #[cfg(feature = "bigfloat")]
         Some(bits) => {
             let bits = check_bits(bits)?;
             with_precision(bits, || run_in::<BigReal>(&a))?
         }
+        #[cfg(not(feature = "bigfloat"))]
+        Some(bits) => return Err(springmass::precision::unavailable(bits).into()),
     };
     if let Outcome::Unresolvable = outcome {
         use std::io::Write;

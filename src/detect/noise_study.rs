@@ -11,22 +11,24 @@
 //!
 //! ```no_run
 //! use springmass::detect::noise_study::{success_table, systems, StudyConfig};
-//! use springmass::detect::noisefit::{MisfitChoice, Setup};
+//! use springmass::detect::fit::general::{Setup};
+//! use springmass::detect::misfit::MisfitKind;
 //! let cfg = StudyConfig { levels: vec![1e-3], seeds: 2, ..StudyConfig::default() };
-//! let cells = success_table(&systems()[..1], &cfg, &MisfitChoice::ALL, &Setup::new()?)?;
+//! let cells = success_table(&systems()[..1], &cfg, &MisfitKind::ALL, &Setup::new()?)?;
 //! assert_eq!(cells.len(), 3);
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
 use crate::chain::{Chain, Defect};
-use crate::detect::chainfit::ChainFitReport;
-use crate::detect::misfit_time::TimeData;
-use crate::detect::noisefit::{
+use crate::detect::data::series::TimeData;
+use crate::detect::fit::chainfit::ChainFitReport;
+use crate::detect::fit::general::{
     fit_damping, fit_noisy, fit_noisy_general, time_from_bromwich, GeneralOptions, Hypothesis,
-    MisfitChoice, Setup,
+    Setup,
 };
-use crate::detect::select::{select, Criterion, ModelFit, Selection};
-use crate::detect::space::{GeneralUnknowns, KindChoice};
+use crate::detect::fit::select::{select, Criterion, ModelFit, Selection};
+use crate::detect::misfit::MisfitKind;
+use crate::detect::unknowns::{GeneralUnknowns, KindChoice};
 use crate::error::Result;
 use crate::noise::NoiseLevel;
 use crate::sensitivity::Param;
@@ -158,7 +160,7 @@ pub fn noisy_data(truth: &Chain, cfg: &StudyConfig, level: f64, seed: u64) -> Re
 pub fn success_table(
     systems: &[System],
     cfg: &StudyConfig,
-    misfits: &[MisfitChoice],
+    misfits: &[MisfitKind],
     setup: &Setup,
 ) -> Result<Vec<Cell>> {
     let mut tasks = Vec::new();
@@ -181,19 +183,19 @@ pub fn success_table(
             let mut out = Vec::with_capacity(misfits.len());
             for &m in misfits {
                 let h = match m {
-                    MisfitChoice::RealAxis => fit_noisy(&base, &data, k, m, setup)?,
-                    MisfitChoice::Bromwich | MisfitChoice::Time => {
+                    MisfitKind::Bromwich | MisfitKind::Time => {
                         if bromwich.is_none() {
                             bromwich =
-                                Some(fit_noisy(&base, &data, k, MisfitChoice::Bromwich, setup)?);
+                                Some(fit_noisy(&base, &data, k, MisfitKind::Bromwich, setup)?);
                         }
                         let b = bromwich.as_ref().expect("set above");
-                        if m == MisfitChoice::Time {
+                        if m == MisfitKind::Time {
                             time_from_bromwich(&base, &data, b, setup)?
                         } else {
                             b.clone()
                         }
                     }
+                    other => fit_noisy(&base, &data, k, other, setup)?,
                 };
                 out.push((
                     h[0].matches(&s.truth, cfg.mass_tol),
@@ -265,7 +267,7 @@ pub fn calibration(
         .into_par_iter()
         .map(|r| {
             let data = noisy_data(truth, cfg, level, task_seed(&[cfg.seed, 77, r as u64]))?;
-            let misfit = crate::detect::misfit_time::TimeMisfit::new(data);
+            let misfit = crate::detect::misfit::time::TimeMisfit::new(data);
             // start 10% off the truth
             let start = truth
                 .uniform()
@@ -274,10 +276,10 @@ pub fn calibration(
                     other => other,
                 }))?;
             let params = crate::sensitivity::Param::defects(&start);
-            let f = crate::detect::chainfit::fit_chain(
+            let f = crate::detect::fit::chainfit::fit_chain(
                 &start,
                 &params,
-                &crate::detect::chainfit::Obs::Time(&misfit),
+                &crate::detect::fit::chainfit::Obs::Time(&misfit),
                 None,
             )?;
             Ok((
@@ -353,7 +355,7 @@ pub fn fit_unknown_damping(
     let mut base = guess.uniform();
     let mut last = None;
     for _ in 0..rounds.max(1) {
-        let h = fit_noisy(&base, data, k, MisfitChoice::Time, setup)?;
+        let h = fit_noisy(&base, data, k, MisfitKind::Time, setup)?;
         let best = h[0].clone();
         let rep = fit_damping(&base, data, &best)?;
         base = base.with_d(rep.chain.d())?;
@@ -409,7 +411,7 @@ pub fn choose_k(
 ) -> Result<Selection> {
     let mut fits = Vec::new();
     for k in 0..=kmax {
-        let h = fit_noisy(base, data, k, MisfitChoice::Time, setup)?;
+        let h = fit_noisy(base, data, k, MisfitKind::Time, setup)?;
         fits.push(ModelFit::new(k, h[0].chi2, 2 * k));
     }
     select(&fits, data.len(), criterion)
@@ -597,8 +599,7 @@ pub fn kinds_study(
             )?;
             let unknowns = GeneralUnknowns::free(truth.n(), &case.kinds, &case.params)?;
             let start = truth.uniform().with_d(case.d_start)?;
-            let fit =
-                fit_noisy_general(&start, &data, &unknowns, MisfitChoice::Time, setup, &opts)?;
+            let fit = fit_noisy_general(&start, &data, &unknowns, MisfitKind::Time, setup, &opts)?;
             let best = &fit.ranked[0];
             let found = best.positions_match(truth);
             let value_ok = |rel: Option<f64>| {
@@ -669,4 +670,157 @@ mod tests {
             assert_eq!(r.d_within_3se, None);
         }
     }
+}
+
+/// One case of the data-first study: the default fit of a noisy record,
+/// told only `n` (and `k` when `k_given`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DataFirstRow {
+    /// System name.
+    pub system: String,
+    /// Noise level (relative to `max |x_1|`).
+    pub level: f64,
+    /// Repeat.
+    pub repeat: usize,
+    /// True number of defects.
+    pub k_true: usize,
+    /// Number of defects of the answer.
+    pub k_found: usize,
+    /// Every position right (and no extra one).
+    pub positions_ok: bool,
+    /// Values of the right positions.
+    pub values: usize,
+    /// Of which the truth lies within 3 reported standard errors.
+    pub within_3se: usize,
+    /// A wrong answer flagged resolved, or a wrong position flagged identifiable.
+    pub wrong_flagged: bool,
+    /// Estimated over true noise level.
+    pub sigma_ratio: f64,
+    /// Status of the fit.
+    pub status: String,
+    /// Wall time of the fit.
+    pub seconds: f64,
+}
+
+/// How a data-first answer compares with the truth.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Score {
+    /// Every true position found, none extra.
+    pub positions_ok: bool,
+    /// Fitted values at true positions.
+    pub values: usize,
+    /// Of which the truth lies within 3 reported standard errors.
+    pub within_3se: usize,
+    /// A wrong answer flagged resolved, or a wrong position flagged identifiable.
+    pub wrong_flagged: bool,
+}
+
+/// Score `rep` against `truth` (positions of every kind, values within 3 SE).
+pub fn score(rep: &crate::detect::fit::FitReport, truth: &Chain) -> Score {
+    let t: Vec<(usize, f64)> = truth
+        .defects()
+        .iter()
+        .map(|d| (d.at(), d.value()))
+        .collect();
+    let mut tp: Vec<usize> = t.iter().map(|x| x.0).collect();
+    tp.sort_unstable();
+    let mut fp: Vec<usize> = rep.found().iter().map(|d| d.at()).collect();
+    fp.sort_unstable();
+    let positions_ok = tp == fp;
+    let mut values = 0;
+    let mut within_3se = 0;
+    let mut wrong_flagged = !positions_ok && rep.resolved;
+    for d in rep.defects.iter().filter(|d| !d.known) {
+        match t.iter().find(|x| x.0 == d.at) {
+            Some(&(_, v)) => {
+                values += 1;
+                if (d.value - v).abs() <= 3.0 * d.se {
+                    within_3se += 1;
+                }
+            }
+            None => wrong_flagged |= d.identifiable,
+        }
+    }
+    Score {
+        positions_ok,
+        values,
+        within_3se,
+        wrong_flagged,
+    }
+}
+
+/// A seed from values (not list positions): a subset of systems, levels or
+/// repeats reproduces the full table's cells.
+pub fn value_seed(system: &str, level: f64, repeat: usize, study_seed: u64) -> u64 {
+    let name = system.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+        (h ^ b as u64).wrapping_mul(0x100_0000_01b3)
+    });
+    task_seed(&[study_seed, name, level.to_bits(), repeat as u64])
+}
+
+/// The data-first study: for every (system, level, repeat) a noisy record
+/// (seed [`value_seed`]), fitted by [`crate::detect::fit::fit`] with its
+/// default settings (time misfit, noise estimated), `k` given (`k_given`)
+/// or chosen by BIC among `0..=4`. Cases in parallel (rayon), each fit
+/// sequential: the result does not depend on the thread count.
+///
+/// # Errors
+/// The first failing fit.
+pub fn data_first(
+    systems: &[System],
+    cfg: &StudyConfig,
+    k_given: bool,
+) -> Result<Vec<DataFirstRow>> {
+    use crate::detect::data::observations::{Observations, Series};
+    use crate::detect::fit::{fit, DefectCount, FitOptions, Model};
+    let mut tasks = Vec::new();
+    for s in systems {
+        for &level in &cfg.levels {
+            for r in 0..cfg.seeds {
+                tasks.push((s, level, r));
+            }
+        }
+    }
+    tasks
+        .par_iter()
+        .map(|&(s, level, r)| {
+            let data = noisy_data(
+                &s.truth,
+                cfg,
+                level,
+                value_seed(&s.name, level, r, cfg.seed),
+            )?;
+            let obs =
+                Observations::Series(Series::new(data.t().to_vec(), data.y().to_vec(), None)?);
+            let k_true = s.truth.defects().len();
+            let opts = FitOptions {
+                defects: if k_given {
+                    DefectCount::Exactly(k_true)
+                } else {
+                    DefectCount::Auto {
+                        k_max: crate::detect::fit::DEFAULT_K_MAX.min(s.truth.n()),
+                    }
+                },
+                parallel: false,
+                ..FitOptions::default()
+            };
+            let t0 = std::time::Instant::now();
+            let rep = fit(&obs, &Model::from_chain(&s.truth.uniform()), &opts)?;
+            let sc = score(&rep, &s.truth);
+            Ok(DataFirstRow {
+                system: s.name.clone(),
+                level,
+                repeat: r,
+                k_true,
+                k_found: rep.k,
+                positions_ok: sc.positions_ok,
+                values: sc.values,
+                within_3se: sc.within_3se,
+                wrong_flagged: sc.wrong_flagged,
+                sigma_ratio: rep.noise_sigma / data.sigma(),
+                status: rep.status.name().to_string(),
+                seconds: t0.elapsed().as_secs_f64(),
+            })
+        })
+        .collect()
 }

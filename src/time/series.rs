@@ -45,7 +45,7 @@
 //!   strongly correlated between nodes: [`SeriesTransform::noise_covariance`]
 //!   gives the full covariance of the stacked real and imaginary parts
 //!   ([`stack_re_im`]) and [`SeriesTransform::data_covariance`] adds the error
-//!   estimate as model-error variance (whitened in [`crate::detect::whiten`]).
+//!   estimate as model-error variance (whitened in [`crate::detect::data::whiten`]).
 //!
 //! ```
 //! use springmass::time::series::{SeriesTransform, TransformOptions};
@@ -171,6 +171,11 @@ pub struct SeriesTransform {
 }
 
 impl SeriesTransform {
+    /// The samples the transform was built from: times and values.
+    pub fn samples(&self) -> (&[f64], &[f64]) {
+        (&self.t, &self.x)
+    }
+
     /// Prepare the transform of samples `x[i] = x(t[i])`.
     ///
     /// # Errors

@@ -31,8 +31,8 @@
 //!
 //! ```
 //! use springmass::{Chain, Defect};
-//! use springmass::detect::{data::Data, misfit::{Misfit, MisfitSpec}};
-//! use springmass::detect::space::{DefectUnknown, Unknowns};
+//! use springmass::detect::{data::exact::Data, misfit::{Misfit, MisfitSpec}};
+//! use springmass::detect::unknowns::{DefectUnknown, Unknowns};
 //! use springmass::detect::search::enumerate::{enumerate, EnumerateOptions};
 //! let truth = Chain::paper(5)?.with_defects([
 //!     Defect::Mass { at: 2, m: 3.0 }, Defect::Mass { at: 4, m: 0.5 }])?;
@@ -47,7 +47,7 @@
 //! ```
 
 use crate::detect::misfit::Misfit;
-use crate::detect::space::{MassUnknown, Unknowns};
+use crate::detect::unknowns::{gen_sets, MassUnknown, Unknowns};
 use crate::error::{Error, Result};
 use crate::linalg::solve_in_place;
 use rayon::prelude::*;
@@ -188,45 +188,6 @@ fn exhaustive(
         opts,
     );
     Ok(finish(unknowns, fitted, sets.len(), true, opts.keep))
-}
-
-/// All `p`-subsets of `allowed`, each in the order of `allowed`, in
-/// lexicographic order of their indices (`p = 0`: one empty set; `p >
-/// allowed.len()`: none). The position-set generator shared by the
-/// enumeration and [`crate::detect::noisefit`].
-///
-/// ```
-/// use springmass::detect::search::enumerate::subsets;
-/// assert_eq!(subsets(&[1, 2, 3], 2), vec![vec![1, 2], vec![1, 3], vec![2, 3]]);
-/// ```
-pub fn subsets(allowed: &[usize], p: usize) -> Vec<Vec<usize>> {
-    let mut out = Vec::new();
-    gen_sets(allowed, p, true, 0, &mut Vec::with_capacity(p), &mut out);
-    out
-}
-
-fn gen_sets(
-    allowed: &[usize],
-    p: usize,
-    comb: bool,
-    from: usize,
-    cur: &mut Vec<usize>,
-    out: &mut Vec<Vec<usize>>,
-) {
-    if cur.len() == p {
-        out.push(cur.clone());
-        return;
-    }
-    let start = if comb { from } else { 0 };
-    for i in start..allowed.len() {
-        let a = allowed[i];
-        if !comb && cur.contains(&a) {
-            continue;
-        }
-        cur.push(a);
-        gen_sets(allowed, p, comb, i + 1, cur, out);
-        cur.pop();
-    }
 }
 
 /// The slots `(position, mass)` of the known-position defects and of the
@@ -556,9 +517,9 @@ pub fn fit_slots(
 mod tests {
     use super::*;
     use crate::chain::{Chain, Defect};
-    use crate::detect::data::Data;
+    use crate::detect::data::exact::Data;
     use crate::detect::misfit::MisfitSpec;
-    use crate::detect::space::DefectUnknown;
+    use crate::detect::unknowns::DefectUnknown;
 
     fn setup(n: usize, defs: &[(usize, f64)]) -> Misfit {
         let truth = Chain::paper(n)

@@ -1,4 +1,4 @@
-//! Kind `fit`: defect detection by fitting ([`crate::detect::fit::fit`]) on a
+//! Kind `fit`: defect detection by fitting ([`crate::detect::fit::paper::fit`]) on a
 //! [`FitScene`]: synthetic data of the scene's true chain (exact, or
 //! simulated and Laplace-transformed, with optional noise), the unknowns, the
 //! residual (quadrature rule and nodes) and the search (method, budget).
@@ -21,7 +21,8 @@
 
 use super::{chain_problems, CaseOutput, KindScene};
 use crate::chain::Defect;
-use crate::detect::fit::{fit, FitMethod};
+use crate::detect::fit::paper::fit;
+use crate::detect::fit::FitMethod;
 use crate::detect::scene::{DataSourceKind, FitScene};
 use crate::error::{check_f64, Error, Result};
 use crate::study::config::FieldDoc;

@@ -29,7 +29,9 @@ use crate::chain::{Chain, ChainSpec, Defect};
 use crate::detect::locate::{curve, default_grid, locate, LaplaceData, Method, Model, SChoice};
 use crate::error::{check_f64, Error, Result};
 use crate::plot::{Line, LinePlot};
-use crate::precision::{with_precision, BigReal, RealScalar};
+use crate::precision::RealScalar;
+#[cfg(feature = "bigfloat")]
+use crate::precision::{with_precision, BigReal};
 use crate::study::config::FieldDoc;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -295,7 +297,10 @@ impl Scene {
 pub fn run(scene: &Scene, seed: u64) -> Result<CaseOutput> {
     match scene.precision.bits()? {
         None => run_in::<f64>(scene, seed, 53),
+        #[cfg(feature = "bigfloat")]
         Some(bits) => with_precision(bits, || run_in::<BigReal>(scene, seed, bits)),
+        #[cfg(not(feature = "bigfloat"))]
+        Some(bits) => Err(crate::precision::unavailable(bits)),
     }
 }
 
@@ -417,6 +422,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(feature = "bigfloat")]
     fn extended_precision_buys_digits() {
         let base =
             "chain = { n = 20, defects = [ { kind = \"mass\", at = 15, m = 1.01 } ] }\ns = 0.3\n";

@@ -1,0 +1,1104 @@
+//! The unknowns of a fit: `k` mass defects, each with its position known or
+//! unknown and its mass known or unknown within bounds.
+//!
+//! Positions are distinct integers in `1..=n`. Unknown positions never take a
+//! known defect's position. When every defect with an unknown position also
+//! has an unknown mass with the same bounds, the defects are interchangeable
+//! and a hypothesis is a *set* of positions (order does not matter);
+//! otherwise it is an ordered assignment.
+//!
+//! [`Unknowns::space`] is the search [`Space`] for the optimizers: one integer
+//! per unknown position, one log-scaled real per unknown mass,
+//! `pairing[v] = Some(p)` when mass `v` belongs to the defect of unknown
+//! position `p`; known positions are `excluded`.
+//!
+//! **General unknowns** ([`GeneralUnknowns`], from the same `[unknowns]` table
+//! with `kind` and `chain`): defects of kind mass, spring or damper (or `any`
+//! of the three) at unknown or known positions, values within per-kind bounds
+//! (mass in `(0, ..]`, spring `k > 0`, damper `d >= 0`), and uniform chain
+//! parameters (`d`, `gamma`, `k`, `mass`) fitted alongside. Mass and damper
+//! positions are `1..=n`, spring positions `0..=n` (spring `i` joins masses `i`
+//! and `i + 1`; `0` and `n` are the wall springs). A hypothesis is a set of
+//! `(kind, position)` pairs ([`GeneralUnknowns::hypotheses`]); it is fitted by
+//! [`crate::detect::fit::general::fit_general`].
+//!
+//! ```
+//! use springmass::detect::unknowns::{DefectUnknown, MassUnknown, Unknowns};
+//! let u = Unknowns::new(20, vec![DefectUnknown::free(0.1, 100.0); 2])?;
+//! assert_eq!(u.space().n_positions, 2);
+//! assert!(u.interchangeable());
+//! assert!(Unknowns::new(20, vec![DefectUnknown::free(5.0, 1.0)]).is_err());
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+use crate::chain::{Chain, Defect};
+use crate::detect::search::{Candidate, Space};
+use crate::error::{Error, Result};
+use crate::sensitivity::Param;
+use serde::{Deserialize, Serialize};
+
+/// A defect's mass in a fit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MassUnknown {
+    /// Known mass.
+    Known(f64),
+    /// Unknown, in `[lo, hi]`, `0 < lo < hi`.
+    Free {
+        /// Lower bound.
+        lo: f64,
+        /// Upper bound.
+        hi: f64,
+    },
+}
+
+/// One defect of a fit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DefectUnknown {
+    /// Known position, or `None`.
+    pub at: Option<usize>,
+    /// The mass.
+    pub mass: MassUnknown,
+}
+
+impl DefectUnknown {
+    /// Position and mass unknown, mass in `[lo, hi]`.
+    pub fn free(lo: f64, hi: f64) -> DefectUnknown {
+        DefectUnknown {
+            at: None,
+            mass: MassUnknown::Free { lo, hi },
+        }
+    }
+}
+
+/// Penalty floor for invalid candidates (any valid residual is far below).
+pub const PENALTY: f64 = 1e6;
+
+/// Validated unknowns of a fit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Unknowns {
+    n: usize,
+    defects: Vec<DefectUnknown>,
+    /// Indices of defects with an unknown position.
+    free_pos: Vec<usize>,
+    /// Indices of defects with an unknown mass.
+    free_mass: Vec<usize>,
+    space: Space,
+}
+
+impl Unknowns {
+    /// Validate the unknowns of a chain of `n` masses.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the field: `unknowns.k` when there
+    /// are no defects or more than `n`; `unknowns.defects[i].at` for a known
+    /// position outside `1..=n` or equal to another known position;
+    /// `unknowns.defects[i].m` for a known mass that is not positive and finite;
+    /// `unknowns.defects[i].bounds` for bounds that are not `0 < lo < hi`, finite.
+    pub fn new(n: usize, defects: Vec<DefectUnknown>) -> Result<Unknowns> {
+        let k = defects.len();
+        if k == 0 || k > n {
+            return Err(Error::invalid(
+                "unknowns.k",
+                k,
+                format!("1 <= k <= n = {n}"),
+            ));
+        }
+        for (i, d) in defects.iter().enumerate() {
+            if let Some(at) = d.at {
+                if at == 0 || at > n {
+                    return Err(Error::invalid(
+                        format!("unknowns.defects[{i}].at"),
+                        at,
+                        format!("1 <= at <= n = {n}"),
+                    ));
+                }
+                if let Some(j) = defects[..i].iter().position(|e| e.at == Some(at)) {
+                    return Err(Error::invalid(
+                        format!("unknowns.defects[{i}].at"),
+                        at,
+                        format!("distinct from unknowns.defects[{j}].at"),
+                    ));
+                }
+            }
+            match d.mass {
+                MassUnknown::Known(m) => {
+                    if !(m.is_finite() && m > 0.0) {
+                        return Err(Error::invalid(
+                            format!("unknowns.defects[{i}].m"),
+                            m,
+                            "m > 0 and finite",
+                        ));
+                    }
+                }
+                MassUnknown::Free { lo, hi } => {
+                    if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo < hi) {
+                        return Err(Error::invalid(
+                            format!("unknowns.defects[{i}].bounds"),
+                            format!("[{lo}, {hi}]"),
+                            "0 < lo < hi, finite",
+                        ));
+                    }
+                }
+            }
+        }
+        let free_pos: Vec<usize> = (0..k).filter(|&i| defects[i].at.is_none()).collect();
+        let free_mass: Vec<usize> = (0..k)
+            .filter(|&i| matches!(defects[i].mass, MassUnknown::Free { .. }))
+            .collect();
+        let mut excluded: Vec<usize> = defects.iter().filter_map(|d| d.at).collect();
+        excluded.sort_unstable();
+        let space = Space {
+            n,
+            n_positions: free_pos.len(),
+            excluded,
+            bounds: free_mass
+                .iter()
+                .map(|&i| match defects[i].mass {
+                    MassUnknown::Free { lo, hi } => (lo, hi),
+                    MassUnknown::Known(_) => unreachable!(),
+                })
+                .collect(),
+            log_scale: vec![true; free_mass.len()],
+            pairing: free_mass
+                .iter()
+                .map(|&i| free_pos.iter().position(|&p| p == i))
+                .collect(),
+        };
+        Ok(Unknowns {
+            n,
+            defects,
+            free_pos,
+            free_mass,
+            space,
+        })
+    }
+
+    /// Number of masses of the chain.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
+    /// Number of defects.
+    pub fn k(&self) -> usize {
+        self.defects.len()
+    }
+
+    /// The defects.
+    pub fn defects(&self) -> &[DefectUnknown] {
+        &self.defects
+    }
+
+    /// Indices of the defects whose position is unknown.
+    pub fn free_positions(&self) -> &[usize] {
+        &self.free_pos
+    }
+
+    /// Indices of the defects whose mass is unknown.
+    pub fn free_masses(&self) -> &[usize] {
+        &self.free_mass
+    }
+
+    /// The search space.
+    pub fn space(&self) -> &Space {
+        &self.space
+    }
+
+    /// Positions that unknown positions may take (`1..=n` minus known positions).
+    pub fn allowed_positions(&self) -> Vec<usize> {
+        (1..=self.n)
+            .filter(|p| self.space.excluded.binary_search(p).is_err())
+            .collect()
+    }
+
+    /// Whether the defects with unknown positions are interchangeable (all
+    /// with unknown masses of equal bounds, or all with one known mass).
+    pub fn interchangeable(&self) -> bool {
+        let first = match self.free_pos.first() {
+            Some(&i) => self.defects[i].mass,
+            None => return true,
+        };
+        self.free_pos.iter().all(|&i| self.defects[i].mass == first)
+    }
+
+    /// The full defect list `(position, mass)` in defect order from the
+    /// unknown positions (in [`Unknowns::free_positions`] order) and the
+    /// unknown masses (in [`Unknowns::free_masses`] order). Unchecked.
+    pub fn assemble(&self, positions: &[usize], masses: &[f64]) -> Vec<(usize, f64)> {
+        let mut pi = positions.iter();
+        let mut mi = masses.iter();
+        self.defects
+            .iter()
+            .map(|d| {
+                let at =
+                    d.at.unwrap_or_else(|| *pi.next().expect("one per unknown position"));
+                let m = match d.mass {
+                    MassUnknown::Known(m) => m,
+                    MassUnknown::Free { .. } => *mi.next().expect("one per unknown mass"),
+                };
+                (at, m)
+            })
+            .collect()
+    }
+
+    /// Map a candidate of [`Unknowns::space`] to defects, or return a finite
+    /// penalty `>= PENALTY` growing with the size of the violation (wrong
+    /// lengths, positions out of range, repeated or excluded, masses outside
+    /// their bounds or not finite).
+    pub fn decode(&self, c: &Candidate) -> std::result::Result<Vec<(usize, f64)>, f64> {
+        if c.positions.len() != self.free_pos.len() || c.values.len() != self.free_mass.len() {
+            return Err(PENALTY * 10.0);
+        }
+        let mut viol = 0.0;
+        for (i, &p) in c.positions.iter().enumerate() {
+            if p == 0 || p > self.n {
+                viol += 1.0 + p.abs_diff(self.n.min(p.max(1))) as f64;
+            } else if self.space.excluded.binary_search(&p).is_ok() || c.positions[..i].contains(&p)
+            {
+                viol += 1.0;
+            }
+        }
+        for (v, &(lo, hi)) in c.values.iter().zip(&self.space.bounds) {
+            if !v.is_finite() {
+                viol += 10.0;
+            } else if *v < lo || *v > hi {
+                viol += 1.0 + ((v / lo).ln().abs().min((v / hi).ln().abs())).min(1e3);
+            }
+        }
+        if viol > 0.0 {
+            return Err(PENALTY * (1.0 + viol));
+        }
+        Ok(self.assemble(&c.positions, &c.values))
+    }
+}
+
+/// The `[unknowns]` table of a fit scene.
+///
+/// ```toml
+/// [unknowns]
+/// k = 2                      # default: the number of true defects in [chain]
+/// mass_bounds = [0.1, 100]   # default bounds of every unknown mass
+/// # optional per-defect entries (the first len(defects) defects; the rest are free)
+/// [[unknowns.defects]]
+/// at = 8                     # known position (omit: unknown)
+/// m = 5.0                    # known mass (omit: unknown)
+/// # bounds = [1, 10]         # bounds of this unknown mass
+/// ```
+///
+/// General unknowns (routed to [`crate::detect::fit::general::fit_general`] by
+/// [`crate::detect::fit::paper::fit`]):
+///
+/// ```toml
+/// [unknowns]
+/// k = 2
+/// kind = "spring"            # "mass" (default) | "spring" | "damper" | "any"
+/// chain = ["d"]              # chain parameters fitted too: "d", "gamma", "k", "mass" (default [])
+/// chain_start = { d = 0.2 }  # their starting values (default: the [chain] values)
+/// spring_bounds = [0.01, 100]   # default bounds of unknown springs
+/// damper_bounds = [0, 100]      # default bounds of unknown dampers
+/// [[unknowns.defects]]
+/// kind = "damper"            # per-defect kind (default: the table's kind)
+/// # at = 4                   # known position; m = known mass (mass kind only)
+/// ```
+///
+/// `kind = "any"`: each defect may be a mass, a spring or a damper; the
+/// hypotheses are sets of `(kind, position)` ranked by chi-square. At most three
+/// of the four chain parameters: `x_1(t)` is unchanged when every mass,
+/// damper, spring and `gamma` are scaled together.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UnknownsSpec {
+    /// Number of defects (default: the number of defects of the true chain).
+    #[serde(default)]
+    pub k: Option<usize>,
+    /// Default bounds of unknown masses (default `[0.1, 100]`).
+    #[serde(default = "default_bounds")]
+    pub mass_bounds: [f64; 2],
+    /// Per-defect information (default none: all free).
+    #[serde(default)]
+    pub defects: Vec<DefectUnknownSpec>,
+    /// Kind of the defects: `mass` (default), `spring`, `damper` or `any`.
+    #[serde(default)]
+    pub kind: KindChoice,
+    /// Uniform chain parameters fitted alongside: `d`, `gamma`, `k`, `mass`
+    /// (default none).
+    #[serde(default)]
+    pub chain: Vec<String>,
+    /// Default bounds of unknown springs (default `[0.01, 100]`, `lo > 0`).
+    #[serde(default = "default_spring_bounds")]
+    pub spring_bounds: [f64; 2],
+    /// Default bounds of unknown dampers (default `[0, 100]`, `lo >= 0`).
+    #[serde(default = "default_damper_bounds")]
+    pub damper_bounds: [f64; 2],
+    /// Starting values of fitted chain parameters, e.g. `{ d = 0.2 }`
+    /// (default: the `[chain]` values).
+    #[serde(default)]
+    pub chain_start: std::collections::BTreeMap<String, f64>,
+}
+
+/// One `[[unknowns.defects]]` entry.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DefectUnknownSpec {
+    /// Known position.
+    #[serde(default)]
+    pub at: Option<usize>,
+    /// Known mass.
+    #[serde(default)]
+    pub m: Option<f64>,
+    /// Bounds of the unknown value (default `mass_bounds`, `spring_bounds`
+    /// or `damper_bounds` by kind).
+    #[serde(default)]
+    pub bounds: Option<[f64; 2]>,
+    /// Kind of this defect (default: the table's `kind`).
+    #[serde(default)]
+    pub kind: Option<KindChoice>,
+}
+
+fn default_bounds() -> [f64; 2] {
+    [0.1, 100.0]
+}
+fn default_spring_bounds() -> [f64; 2] {
+    [0.01, 100.0]
+}
+fn default_damper_bounds() -> [f64; 2] {
+    [0.0, 100.0]
+}
+
+impl Default for UnknownsSpec {
+    fn default() -> Self {
+        UnknownsSpec {
+            k: None,
+            mass_bounds: default_bounds(),
+            defects: Vec::new(),
+            kind: KindChoice::Mass,
+            chain: Vec::new(),
+            spring_bounds: default_spring_bounds(),
+            damper_bounds: default_damper_bounds(),
+            chain_start: Default::default(),
+        }
+    }
+}
+
+impl UnknownsSpec {
+    /// Validate against a chain of `n` masses; `default_k` is used when `k`
+    /// is not given.
+    ///
+    /// # Errors
+    /// As [`Unknowns::new`]; also `unknowns.defects` when more entries than
+    /// `k`, `unknowns.mass_bounds` for bad default bounds, and
+    /// `unknowns.defects[i].bounds` when bounds are given with a known mass.
+    pub fn build(&self, n: usize, default_k: usize) -> Result<Unknowns> {
+        if self.is_general() {
+            return Err(Error::invalid(
+                "unknowns.kind",
+                self.kind.name(),
+                "mass defects and no chain parameters on this path (the general noisy fit takes the others)",
+            ));
+        }
+        let k = self.k.unwrap_or(default_k.max(self.defects.len()));
+        if k == 0 || k > n {
+            return Err(Error::invalid(
+                "unknowns.k",
+                k,
+                format!("1 <= k <= n = {n}"),
+            ));
+        }
+        if self.defects.len() > k {
+            return Err(Error::invalid(
+                "unknowns.defects",
+                format!("{} entries", self.defects.len()),
+                format!("at most k = {k} entries"),
+            ));
+        }
+        let [lo, hi] = self.mass_bounds;
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo < hi) {
+            return Err(Error::invalid(
+                "unknowns.mass_bounds",
+                format!("[{lo}, {hi}]"),
+                "0 < lo < hi, finite",
+            ));
+        }
+        let mut out = Vec::with_capacity(k);
+        for (i, d) in self.defects.iter().enumerate() {
+            let mass = match (d.m, d.bounds) {
+                (Some(_), Some(b)) => {
+                    return Err(Error::invalid(
+                        format!("unknowns.defects[{i}].bounds"),
+                        format!("{b:?}"),
+                        "only with an unknown mass (omit m)",
+                    ))
+                }
+                (Some(m), None) => MassUnknown::Known(m),
+                (None, Some([lo, hi])) => MassUnknown::Free { lo, hi },
+                (None, None) => MassUnknown::Free { lo, hi },
+            };
+            out.push(DefectUnknown { at: d.at, mass });
+        }
+        out.resize(k, DefectUnknown::free(lo, hi));
+        Unknowns::new(n, out)
+    }
+}
+
+impl UnknownsSpec {
+    /// Whether the table asks for more than the mass-only fit can do: a
+    /// defect kind other than `mass`, or chain parameters.
+    pub fn is_general(&self) -> bool {
+        self.kind != KindChoice::Mass
+            || !self.chain.is_empty()
+            || self
+                .defects
+                .iter()
+                .any(|d| d.kind.is_some_and(|k| k != KindChoice::Mass))
+    }
+
+    /// Validate as [`GeneralUnknowns`] for a chain of `n` masses; `default_k`
+    /// is used when `k` is not given.
+    ///
+    /// # Errors
+    /// As [`GeneralUnknowns::new`]; `unknowns.k`, `unknowns.defects`,
+    /// `unknowns.mass_bounds`, `unknowns.spring_bounds`,
+    /// `unknowns.damper_bounds`, `unknowns.chain` (an unknown name, a repeat,
+    /// or all four), `unknowns.defects[i].m` (a known value of a non-mass
+    /// defect).
+    pub fn build_general(&self, n: usize, default_k: usize) -> Result<GeneralUnknowns> {
+        let k = self.k.unwrap_or(default_k.max(self.defects.len()));
+        if k == 0 || k > 2 * n + 1 {
+            return Err(Error::invalid(
+                "unknowns.k",
+                k,
+                format!("1 <= k <= 2n + 1 = {}", 2 * n + 1),
+            ));
+        }
+        if self.defects.len() > k {
+            return Err(Error::invalid(
+                "unknowns.defects",
+                format!("{} entries", self.defects.len()),
+                format!("at most k = {k} entries"),
+            ));
+        }
+        let bounds = KindBounds {
+            mass: check_bounds("unknowns.mass_bounds", self.mass_bounds, true)?,
+            spring: check_bounds("unknowns.spring_bounds", self.spring_bounds, true)?,
+            damper: check_bounds("unknowns.damper_bounds", self.damper_bounds, false)?,
+        };
+        let mut chain = Vec::with_capacity(self.chain.len());
+        for name in &self.chain {
+            let p = match name.trim() {
+                "d" => Param::D,
+                "gamma" => Param::Gamma,
+                "k" => Param::K,
+                "mass" => Param::Mass,
+                other => {
+                    return Err(Error::invalid(
+                        "unknowns.chain",
+                        other,
+                        "\"d\", \"gamma\", \"k\" or \"mass\"",
+                    ))
+                }
+            };
+            chain.push(p);
+        }
+        let mut slots = Vec::with_capacity(k);
+        for (i, d) in self.defects.iter().enumerate() {
+            let kind = d.kind.unwrap_or(self.kind);
+            if d.m.is_some() && kind != KindChoice::Mass {
+                return Err(Error::invalid(
+                    format!("unknowns.defects[{i}].m"),
+                    format!("{:?}", d.m),
+                    "a known value only for kind = \"mass\"",
+                ));
+            }
+            if let (Some(_), Some(b)) = (d.m, d.bounds) {
+                return Err(Error::invalid(
+                    format!("unknowns.defects[{i}].bounds"),
+                    format!("{b:?}"),
+                    "only with an unknown value (omit m)",
+                ));
+            }
+            slots.push(Slot {
+                kind,
+                at: d.at,
+                known: d.m,
+                bounds: d.bounds.map(|[lo, hi]| (lo, hi)),
+            });
+        }
+        slots.resize(
+            k,
+            Slot {
+                kind: self.kind,
+                at: None,
+                known: None,
+                bounds: None,
+            },
+        );
+        GeneralUnknowns::new(n, slots, chain, bounds)
+    }
+}
+
+impl UnknownsSpec {
+    /// `model` with the fitted chain parameters at their `chain_start` values.
+    ///
+    /// # Errors
+    /// `unknowns.chain_start` naming a parameter not in `chain`, or a value
+    /// out of its range.
+    pub fn start_chain(&self, model: &Chain) -> Result<Chain> {
+        let mut c = model.uniform();
+        for (name, &v) in &self.chain_start {
+            if !self.chain.iter().any(|c| c.trim() == name) {
+                return Err(Error::invalid(
+                    format!("unknowns.chain_start.{name}"),
+                    v,
+                    "a parameter listed in unknowns.chain",
+                ));
+            }
+            let p = match name.as_str() {
+                "d" => Param::D,
+                "gamma" => Param::Gamma,
+                "k" => Param::K,
+                _ => Param::Mass,
+            };
+            c = p.set(&c, v).map_err(|e| {
+                Error::invalid(format!("unknowns.chain_start.{name}"), v, e.to_string())
+            })?;
+        }
+        Ok(c)
+    }
+}
+
+fn check_bounds(field: &str, [lo, hi]: [f64; 2], positive: bool) -> Result<(f64, f64)> {
+    let ok_lo = if positive { lo > 0.0 } else { lo >= 0.0 };
+    if !(lo.is_finite() && hi.is_finite() && ok_lo && lo < hi) {
+        return Err(Error::invalid(
+            field,
+            format!("[{lo}, {hi}]"),
+            if positive {
+                "0 < lo < hi, finite"
+            } else {
+                "0 <= lo < hi, finite"
+            },
+        ));
+    }
+    Ok((lo, hi))
+}
+
+/// A concrete defect kind.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DefectKind {
+    /// A mass (positions `1..=n`).
+    Mass,
+    /// A spring (positions `0..=n`).
+    Spring,
+    /// A damper to ground (positions `1..=n`).
+    Damper,
+}
+
+impl DefectKind {
+    /// The kind of a defect.
+    pub fn of(d: &Defect) -> DefectKind {
+        match d {
+            Defect::Mass { .. } => DefectKind::Mass,
+            Defect::Spring { .. } => DefectKind::Spring,
+            Defect::Damper { .. } => DefectKind::Damper,
+        }
+    }
+
+    /// `mass`, `spring`, `damper`.
+    pub fn name(self) -> &'static str {
+        match self {
+            DefectKind::Mass => "mass",
+            DefectKind::Spring => "spring",
+            DefectKind::Damper => "damper",
+        }
+    }
+
+    /// The positions of this kind in a chain of `n` masses.
+    pub fn positions(self, n: usize) -> std::ops::RangeInclusive<usize> {
+        match self {
+            DefectKind::Spring => 0..=n,
+            _ => 1..=n,
+        }
+    }
+
+    /// The defect of this kind at `at` with `value` (unchecked).
+    pub fn defect(self, at: usize, value: f64) -> Defect {
+        match self {
+            DefectKind::Mass => Defect::Mass { at, m: value },
+            DefectKind::Spring => Defect::Spring { at, k: value },
+            DefectKind::Damper => Defect::Damper { at, d: value },
+        }
+    }
+
+    /// The uniform chain's value of this kind (`mass`, `k` or `d`).
+    pub fn uniform(self, chain: &Chain) -> f64 {
+        match self {
+            DefectKind::Mass => chain.mass(),
+            DefectKind::Spring => chain.k(),
+            DefectKind::Damper => chain.d(),
+        }
+    }
+}
+
+/// The kind of an unknown defect, as the scene states it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum KindChoice {
+    /// A mass (default).
+    #[default]
+    Mass,
+    /// A spring.
+    Spring,
+    /// A damper.
+    Damper,
+    /// Any of the three.
+    Any,
+}
+
+impl KindChoice {
+    /// The concrete kinds allowed.
+    pub fn kinds(self) -> &'static [DefectKind] {
+        match self {
+            KindChoice::Mass => &[DefectKind::Mass],
+            KindChoice::Spring => &[DefectKind::Spring],
+            KindChoice::Damper => &[DefectKind::Damper],
+            KindChoice::Any => &[DefectKind::Mass, DefectKind::Spring, DefectKind::Damper],
+        }
+    }
+
+    /// `mass`, `spring`, `damper`, `any`.
+    pub fn name(self) -> &'static str {
+        match self {
+            KindChoice::Mass => "mass",
+            KindChoice::Spring => "spring",
+            KindChoice::Damper => "damper",
+            KindChoice::Any => "any",
+        }
+    }
+}
+
+/// Default value bounds per kind.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct KindBounds {
+    /// Masses, `0 < lo < hi`.
+    pub mass: (f64, f64),
+    /// Springs, `0 < lo < hi`.
+    pub spring: (f64, f64),
+    /// Dampers, `0 <= lo < hi`.
+    pub damper: (f64, f64),
+}
+
+impl Default for KindBounds {
+    /// `[0.1, 100]`, `[0.01, 100]`, `[0, 100]`.
+    fn default() -> Self {
+        KindBounds {
+            mass: (0.1, 100.0),
+            spring: (0.01, 100.0),
+            damper: (0.0, 100.0),
+        }
+    }
+}
+
+impl KindBounds {
+    /// The bounds of `kind`.
+    pub fn of(&self, kind: DefectKind) -> (f64, f64) {
+        match kind {
+            DefectKind::Mass => self.mass,
+            DefectKind::Spring => self.spring,
+            DefectKind::Damper => self.damper,
+        }
+    }
+}
+
+/// One defect of a general fit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Slot {
+    /// Its kind (or `Any`).
+    pub kind: KindChoice,
+    /// Known position, or `None`.
+    pub at: Option<usize>,
+    /// Known value, or `None` (fitted).
+    pub known: Option<f64>,
+    /// Bounds of the fitted value (default: the kind's).
+    pub bounds: Option<(f64, f64)>,
+}
+
+impl Slot {
+    /// Position and value unknown.
+    pub fn free(kind: KindChoice) -> Slot {
+        Slot {
+            kind,
+            at: None,
+            known: None,
+            bounds: None,
+        }
+    }
+}
+
+/// A hypothesis of a general fit: `(kind, position)` per slot.
+pub type KindPositions = Vec<(DefectKind, usize)>;
+
+/// Validated unknowns of the general fit (see the module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GeneralUnknowns {
+    n: usize,
+    slots: Vec<Slot>,
+    chain: Vec<Param>,
+    bounds: KindBounds,
+}
+
+impl GeneralUnknowns {
+    /// Validate.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the field: `unknowns.k` (no slots);
+    /// `unknowns.defects[i].at` (a known position outside the positions of
+    /// every allowed kind); `unknowns.defects[i].m` (a known value outside the
+    /// kind's range, or with kind `any`); `unknowns.defects[i].bounds`
+    /// (not `lo < hi`, finite, inside the kind's range); `unknowns.chain`
+    /// (not `D`, `K`, `Mass`, `Gamma`, a repeat, or all four).
+    pub fn new(
+        n: usize,
+        slots: Vec<Slot>,
+        chain: Vec<Param>,
+        bounds: KindBounds,
+    ) -> Result<GeneralUnknowns> {
+        if slots.is_empty() {
+            return Err(Error::invalid("unknowns.k", 0, ">= 1"));
+        }
+        for (i, s) in slots.iter().enumerate() {
+            if let Some(at) = s.at {
+                if !s.kind.kinds().iter().any(|k| k.positions(n).contains(&at)) {
+                    return Err(Error::invalid(
+                        format!("unknowns.defects[{i}].at"),
+                        at,
+                        format!(
+                            "a {} position of n = {n} (masses and dampers 1..=n, springs 0..=n)",
+                            s.kind.name()
+                        ),
+                    ));
+                }
+            }
+            if let Some(v) = s.known {
+                let ok = match s.kind {
+                    KindChoice::Mass | KindChoice::Spring => v > 0.0,
+                    KindChoice::Damper => v >= 0.0,
+                    KindChoice::Any => false,
+                };
+                if !(v.is_finite() && ok) {
+                    return Err(Error::invalid(
+                        format!("unknowns.defects[{i}].m"),
+                        v,
+                        "finite, in the kind's range, and a concrete kind",
+                    ));
+                }
+            }
+            if let Some((lo, hi)) = s.bounds {
+                let positive = s.kind.kinds().iter().any(|k| *k != DefectKind::Damper);
+                check_bounds(&format!("unknowns.defects[{i}].bounds"), [lo, hi], positive)?;
+            }
+        }
+        for (i, p) in chain.iter().enumerate() {
+            if matches!(p, Param::Defect(_)) || chain[..i].contains(p) {
+                return Err(Error::invalid(
+                    "unknowns.chain",
+                    format!("{p:?}"),
+                    "distinct names among d, gamma, k, mass",
+                ));
+            }
+        }
+        if chain.len() == 4 {
+            return Err(Error::invalid(
+                "unknowns.chain",
+                "d, gamma, k, mass",
+                "at most three: x_1(t) is unchanged when every mass, damper, spring and gamma are scaled together",
+            ));
+        }
+        Ok(GeneralUnknowns {
+            n,
+            slots,
+            chain,
+            bounds,
+        })
+    }
+
+    /// `k` free defects of one kind, chain parameters `chain`, default bounds.
+    ///
+    /// # Errors
+    /// As [`GeneralUnknowns::new`].
+    pub fn free(n: usize, kinds: &[KindChoice], chain: &[Param]) -> Result<GeneralUnknowns> {
+        GeneralUnknowns::new(
+            n,
+            kinds.iter().map(|&k| Slot::free(k)).collect(),
+            chain.to_vec(),
+            KindBounds::default(),
+        )
+    }
+
+    /// Number of masses.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+    /// The defects.
+    pub fn slots(&self) -> &[Slot] {
+        &self.slots
+    }
+    /// The chain parameters fitted.
+    pub fn chain(&self) -> &[Param] {
+        &self.chain
+    }
+    /// The per-kind default bounds.
+    pub fn kind_bounds(&self) -> &KindBounds {
+        &self.bounds
+    }
+
+    /// Bounds of slot `i` as kind `kind`.
+    pub fn bounds(&self, i: usize, kind: DefectKind) -> (f64, f64) {
+        self.slots[i].bounds.unwrap_or(self.bounds.of(kind))
+    }
+
+    /// Every admissible hypothesis, deterministic order: slots with the same
+    /// description are interchangeable (their `(kind, position)` pairs form a
+    /// set, drawn by [`subsets`] from the
+    /// candidates ordered by position then kind); no `(kind, position)`
+    /// twice. Stops with an error beyond `max` hypotheses.
+    ///
+    /// # Errors
+    /// More than `max` hypotheses (field `search.max_sets`).
+    pub fn hypotheses(&self, max: usize) -> Result<Vec<KindPositions>> {
+        // groups of identical slots, in order of first appearance
+        let mut groups: Vec<(Slot, Vec<usize>)> = Vec::new();
+        for (i, s) in self.slots.iter().enumerate() {
+            match groups.iter_mut().find(|g| g.0 == *s) {
+                Some(g) => g.1.push(i),
+                None => groups.push((*s, vec![i])),
+            }
+        }
+        let per_group: Vec<Vec<KindPositions>> = groups
+            .iter()
+            .map(|(s, idx)| {
+                let mut cands: KindPositions = Vec::new();
+                for &k in s.kind.kinds() {
+                    for at in k.positions(self.n) {
+                        if s.at.is_none_or(|a| a == at) {
+                            cands.push((k, at));
+                        }
+                    }
+                }
+                cands.sort_by_key(|&(k, at)| (at, k));
+                let all: Vec<usize> = (0..cands.len()).collect();
+                crate::detect::unknowns::subsets(&all, idx.len())
+                    .into_iter()
+                    .map(|c| c.into_iter().map(|j| cands[j]).collect())
+                    .collect()
+            })
+            .collect();
+        let mut out: Vec<KindPositions> = vec![vec![(DefectKind::Mass, 0); self.slots.len()]];
+        for ((_, idx), choices) in groups.iter().zip(&per_group) {
+            let mut next = Vec::with_capacity(out.len() * choices.len());
+            for h in &out {
+                for c in choices {
+                    let mut h2 = h.clone();
+                    for (&slot, &pair) in idx.iter().zip(c) {
+                        h2[slot] = pair;
+                    }
+                    next.push(h2);
+                }
+                if next.len() > max.saturating_mul(4) {
+                    break;
+                }
+            }
+            out = next;
+        }
+        let filled: Vec<usize> = groups.iter().flat_map(|g| g.1.iter().copied()).collect();
+        out.retain(|h| {
+            filled
+                .iter()
+                .enumerate()
+                .all(|(a, &i)| filled[..a].iter().all(|&j| h[j] != h[i]))
+        });
+        if out.len() > max {
+            return Err(Error::invalid(
+                "search.max_sets",
+                max,
+                format!(
+                    "at least {} hypotheses (fewer unknowns, or a larger max_sets)",
+                    out.len()
+                ),
+            ));
+        }
+        Ok(out)
+    }
+}
+
+/// All `p`-subsets of `allowed`, each in the order of `allowed`, in
+/// lexicographic order of their indices (`p = 0`: one empty set; `p >
+/// allowed.len()`: none). The position-set generator shared by the
+/// enumeration and [`crate::detect::fit::general`].
+///
+/// ```
+/// use springmass::detect::unknowns::subsets;
+/// assert_eq!(subsets(&[1, 2, 3], 2), vec![vec![1, 2], vec![1, 3], vec![2, 3]]);
+/// ```
+pub fn subsets(allowed: &[usize], p: usize) -> Vec<Vec<usize>> {
+    let mut out = Vec::new();
+    gen_sets(allowed, p, true, 0, &mut Vec::with_capacity(p), &mut out);
+    out
+}
+
+pub(crate) fn gen_sets(
+    allowed: &[usize],
+    p: usize,
+    comb: bool,
+    from: usize,
+    cur: &mut Vec<usize>,
+    out: &mut Vec<Vec<usize>>,
+) {
+    if cur.len() == p {
+        out.push(cur.clone());
+        return;
+    }
+    let start = if comb { from } else { 0 };
+    for i in start..allowed.len() {
+        let a = allowed[i];
+        if !comb && cur.contains(&a) {
+            continue;
+        }
+        cur.push(a);
+        gen_sets(allowed, p, comb, i + 1, cur, out);
+        cur.pop();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn field(r: Result<Unknowns>) -> String {
+        match r {
+            Err(Error::InvalidParameter { field, .. }) => field,
+            other => panic!("expected an invalid-parameter error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn bad_unknowns_name_the_field() {
+        let f = DefectUnknown::free(0.1, 10.0);
+        assert_eq!(field(Unknowns::new(3, vec![f; 4])), "unknowns.k");
+        assert_eq!(field(Unknowns::new(3, vec![])), "unknowns.k");
+        let known = |at| DefectUnknown {
+            at: Some(at),
+            mass: MassUnknown::Known(2.0),
+        };
+        assert_eq!(
+            field(Unknowns::new(5, vec![f, known(6)])),
+            "unknowns.defects[1].at"
+        );
+        assert_eq!(
+            field(Unknowns::new(5, vec![known(0)])),
+            "unknowns.defects[0].at"
+        );
+        assert_eq!(
+            field(Unknowns::new(5, vec![known(2), f, known(2)])),
+            "unknowns.defects[2].at"
+        );
+        assert_eq!(
+            field(Unknowns::new(5, vec![DefectUnknown::free(3.0, 3.0)])),
+            "unknowns.defects[0].bounds"
+        );
+        assert_eq!(
+            field(Unknowns::new(5, vec![DefectUnknown::free(-1.0, 3.0)])),
+            "unknowns.defects[0].bounds"
+        );
+        assert_eq!(
+            field(Unknowns::new(
+                5,
+                vec![DefectUnknown {
+                    at: None,
+                    mass: MassUnknown::Known(f64::NAN)
+                }]
+            )),
+            "unknowns.defects[0].m"
+        );
+        let spec = UnknownsSpec {
+            mass_bounds: [2.0, 1.0],
+            ..UnknownsSpec::default()
+        };
+        assert_eq!(field(spec.build(5, 2)), "unknowns.mass_bounds");
+        let spec = UnknownsSpec {
+            k: Some(6),
+            ..UnknownsSpec::default()
+        };
+        assert_eq!(field(spec.build(5, 2)), "unknowns.k");
+    }
+
+    #[test]
+    fn space_and_decode() {
+        let u = Unknowns::new(
+            10,
+            vec![
+                DefectUnknown {
+                    at: Some(3),
+                    mass: MassUnknown::Free { lo: 1.0, hi: 9.0 },
+                },
+                DefectUnknown::free(0.1, 10.0),
+                DefectUnknown {
+                    at: None,
+                    mass: MassUnknown::Known(7.0),
+                },
+            ],
+        )
+        .unwrap();
+        let sp = u.space();
+        assert_eq!(sp.n_positions, 2);
+        assert_eq!(sp.excluded, vec![3]);
+        assert_eq!(sp.bounds, vec![(1.0, 9.0), (0.1, 10.0)]);
+        assert_eq!(sp.pairing, vec![None, Some(0)]);
+        assert!(!u.interchangeable());
+        let c = Candidate {
+            positions: vec![5, 9],
+            values: vec![2.0, 0.5],
+        };
+        assert_eq!(u.decode(&c).unwrap(), vec![(3, 2.0), (5, 0.5), (9, 7.0)]);
+        for bad in [
+            Candidate {
+                positions: vec![3, 9],
+                values: vec![2.0, 0.5],
+            },
+            Candidate {
+                positions: vec![9, 9],
+                values: vec![2.0, 0.5],
+            },
+            Candidate {
+                positions: vec![0, 11],
+                values: vec![2.0, 0.5],
+            },
+            Candidate {
+                positions: vec![5, 9],
+                values: vec![f64::NAN, 0.5],
+            },
+            Candidate {
+                positions: vec![5, 9],
+                values: vec![2.0, 50.0],
+            },
+            Candidate {
+                positions: vec![5],
+                values: vec![2.0, 0.5],
+            },
+        ] {
+            let p = u.decode(&bad).unwrap_err();
+            assert!(p.is_finite() && p >= PENALTY, "{bad:?} {p}");
+        }
+    }
+
+    #[test]
+    fn spec_from_toml() {
+        let s: UnknownsSpec =
+            toml::from_str("k = 3\nmass_bounds = [0.5, 20]\n[[defects]]\nat = 4\nm = 2.0\n")
+                .unwrap();
+        let u = s.build(10, 2).unwrap();
+        assert_eq!(u.k(), 3);
+        assert_eq!(u.free_positions(), &[1, 2]);
+        assert_eq!(u.space().bounds, vec![(0.5, 20.0); 2]);
+        assert!(toml::from_str::<UnknownsSpec>("kk = 3").is_err());
+    }
+}
