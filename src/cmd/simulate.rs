@@ -127,6 +127,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let opts = SimOptions::new(a.t_end, a.dt)
         .with_observe(a.observe.clone())
         .with_method(method);
+    opts.samples(&chain)?; // the simulation's own checks first (dt, t_end, stored values)
     check_memory(chain.n(), &a, method)?;
     let outs = [&a.out, &a.plot];
     springmass::io::check_outputs(outs.iter().filter_map(|p| p.as_deref()))?;
