@@ -69,7 +69,8 @@
 //! | [`sensitivity`] | derivatives of X_o(s) with respect to every parameter (reciprocity) |
 //! | [`time`] | simulation ([`time::simulate`]), exact ([`time::modal`]) and numerical ([`time::inverse`]) inverse Laplace transforms, transform of sampled series ([`time::series`]) |
 //! | [`noise`] | seeded additive white Gaussian noise (synthetic data) |
-//! | [`series`] | sampled time series, CSV in and out, atomic writes |
+//! | [`series`] | sampled time series, CSV in (pandas, loggers) and out |
+//! | [`io`] | safe atomic writes (never a device, FIFO or directory), size-capped reads, memory budget and limits |
 //! | [`control`] | vibration suppression (Theorem 3.1, Corollary 3.2): Laplace, exact time domain, verification |
 //! | [`detect::data`] | the inverse side starts here: observations (a series or Laplace values), their noise model, whitening |
 //! | [`detect::misfit`] | one [`detect::misfit::MisfitKind`] (real axis, Bromwich, time), quadrature rules, the mass-only Woodbury kernel |
@@ -89,6 +90,7 @@ pub mod detect;
 pub mod error;
 pub mod forward;
 pub mod green;
+pub mod io;
 pub mod linalg;
 pub mod noise;
 pub mod plot;

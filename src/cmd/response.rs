@@ -113,6 +113,24 @@ pub fn modes_text(chain: &Chain, si: bool) -> anyhow::Result<Vec<String>> {
         .collect())
 }
 
+/// The observable of mass `observe` at `s` (impulse response, or the
+/// transfer function of a unit force with `force`), real arithmetic on the
+/// real axis.
+fn eval(
+    fwd: &Forward,
+    s: Complex64,
+    observe: usize,
+    kind: Observable,
+    force: bool,
+) -> springmass::Result<Complex64> {
+    Ok(match (s.im == 0.0, force) {
+        (true, false) => fwd.observe(s.re, observe, kind)?.into(),
+        (false, false) => fwd.observe(s, observe, kind)?,
+        (true, true) => fwd.transfer_function(s.re, observe, kind)?.into(),
+        (false, true) => fwd.transfer_function(s, observe, kind)?,
+    })
+}
+
 pub fn run(a: Args) -> anyhow::Result<()> {
     let chain = a.setup.apply(a.chain.chain()?)?;
     let kind: Observable = a.observe_kind.parse()?;
@@ -123,13 +141,32 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let fwd = Forward::new(&chain);
     let mut rows = Vec::with_capacity(a.s.len());
-    for t in &a.s {
-        let s = parse_complex(t)?;
-        let x: Complex64 = match (s.im == 0.0, force) {
-            (true, false) => fwd.observe(s.re, a.observe, kind)?.into(),
-            (false, false) => fwd.observe(s, a.observe, kind)?,
-            (true, true) => fwd.transfer_function(s.re, a.observe, kind)?.into(),
-            (false, true) => fwd.transfer_function(s, a.observe, kind)?,
+    let s_values =
+        a.s.iter()
+            .map(|t| parse_complex(t))
+            .collect::<Result<Vec<_>, _>>()?;
+    for s in s_values {
+        let x = match eval(&fwd, s, a.observe, kind, force) {
+            Err(springmass::Error::Singular { s: at }) if chain.gamma() != 1.0 => {
+                // a pole, or X = gamma * G overflowing f64: decide with gamma = 1
+                let unit = chain.clone().with_gamma(1.0)?;
+                match eval(&Forward::new(&unit), s, a.observe, kind, force) {
+                    Ok(g) => {
+                        return Err(springmass::Error::Unresolvable {
+                            reason: format!(
+                                "X_{}({at}) = gamma * ({} {:+}i) with gamma = {} overflows f64",
+                                a.observe,
+                                g.re,
+                                g.im,
+                                chain.gamma()
+                            ),
+                        }
+                        .into())
+                    }
+                    Err(_) => return Err(springmass::Error::Singular { s: at }.into()),
+                }
+            }
+            other => other?,
         };
         rows.push((s, x));
     }
