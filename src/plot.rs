@@ -560,6 +560,17 @@ impl LinePlot {
             y0 = y0.min(y);
             y1 = y1.max(y);
         }
+        // a range f64 cannot subdivide into ticks (|v| near the top of f64)
+        // would loop: refuse it with a typed error
+        for (name, lo, hi) in [("plot.x", x0, x1), ("plot.y", y0, y1)] {
+            if lo.abs() > 1e300 || hi.abs() > 1e300 || !(hi - lo).is_finite() {
+                return Err(Error::invalid(
+                    name,
+                    format!("[{lo:e}, {hi:e}]"),
+                    "a data range within +-1e300",
+                ));
+            }
+        }
         // ticks over the data (or fixed) range, then a margin around it
         let ticks = |lo: f64, hi: f64, log: bool, integer: bool| -> Vec<f64> {
             if log {

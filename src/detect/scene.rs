@@ -239,8 +239,7 @@ impl FitScene {
     /// # Errors
     /// [`Error::Io`]; [`Error::Parse`].
     pub fn load(path: impl AsRef<Path>) -> Result<FitScene> {
-        let text =
-            std::fs::read_to_string(path.as_ref()).map_err(|e| Error::io(path.as_ref(), e))?;
+        let text = crate::io::read_to_string_capped(path.as_ref())?;
         toml::from_str(&text).map_err(|e| {
             Error::parse(
                 "fit scene",

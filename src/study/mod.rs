@@ -94,7 +94,7 @@ impl Study {
     /// [`Error::Io`], or as [`Study::from_text`].
     pub fn from_file(path: impl AsRef<std::path::Path>) -> Result<Study> {
         let p = path.as_ref();
-        let text = std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?;
+        let text = crate::io::read_to_string_capped(p)?;
         Study::from_text(&text, &p.display().to_string())
     }
 

@@ -274,6 +274,9 @@ pub struct FitOptions {
     pub defects: DefectCount,
     /// Their kinds (default mass).
     pub kinds: KindChoice,
+    /// One kind per free defect, overriding `kinds` (empty: every defect of
+    /// kind `kinds`); needs `defects` = exactly that many.
+    pub slot_kinds: Vec<KindChoice>,
     /// Noise level (default estimated).
     pub noise: NoiseSpec,
     /// Misfit (default: `time` for a series, the nodes' chi-square for Laplace values).
@@ -301,6 +304,7 @@ impl Default for FitOptions {
                 k_max: DEFAULT_K_MAX,
             },
             kinds: KindChoice::Mass,
+            slot_kinds: Vec::new(),
             noise: NoiseSpec::Auto,
             misfit: None,
             method: FitMethod::Enumerate,
@@ -334,9 +338,18 @@ impl FitOptions {
             }
             _ => {}
         }
-        if self.method != FitMethod::Enumerate
-            && (self.kinds != KindChoice::Mass || !model.fit.is_empty())
+        if !self.slot_kinds.is_empty()
+            && self.defects != DefectCount::Exactly(self.slot_kinds.len())
         {
+            return Err(Error::invalid(
+                "kinds",
+                format!("{} kinds", self.slot_kinds.len()),
+                "one kind per defect: as many kinds as defects, with a given number of defects",
+            ));
+        }
+        let all_mass = self.kinds == KindChoice::Mass
+            && self.slot_kinds.iter().all(|k| *k == KindChoice::Mass);
+        if self.method != FitMethod::Enumerate && (!all_mass || !model.fit.is_empty()) {
             return Err(Error::invalid(
                 "method",
                 self.method.name(),
@@ -586,7 +599,11 @@ impl Engine<'_> {
                 bounds: None,
             })
             .collect();
-        slots.extend((0..k).map(|_| Slot::free(self.opts.kinds)));
+        if self.opts.slot_kinds.len() == k && k > 0 {
+            slots.extend(self.opts.slot_kinds.iter().map(|&kind| Slot::free(kind)));
+        } else {
+            slots.extend((0..k).map(|_| Slot::free(self.opts.kinds)));
+        }
         Ok(Some(GeneralUnknowns::new(
             self.model.n(),
             slots,

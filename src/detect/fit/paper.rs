@@ -274,18 +274,14 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
     let unknowns = scene.general_unknowns()?;
     let start = scene.unknowns.start_chain(&scene.truth()?)?;
     let mut model = Model::from_chain(&start.uniform());
-    let mut free = 0;
-    let mut kinds = None;
+    let mut kinds = Vec::new();
     for slot in unknowns.slots() {
         match (slot.at, slot.known) {
             (Some(at), Some(v)) => {
                 let kind = slot.kind.kinds()[0];
                 model = model.with_known(kind.defect(at, v))?;
             }
-            (None, None) => {
-                free += 1;
-                kinds.get_or_insert(slot.kind);
-            }
+            (None, None) => kinds.push(slot.kind),
             _ => {
                 return Err(Error::invalid(
                     "unknowns.defects",
@@ -336,8 +332,8 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
         }
     };
     let opts = FitOptions {
-        defects: DefectCount::Exactly(free),
-        kinds: kinds.unwrap_or_default(),
+        defects: DefectCount::Exactly(kinds.len()),
+        slot_kinds: kinds,
         noise,
         misfit: Some(scene.misfit.kind),
         method: FitMethod::Enumerate,

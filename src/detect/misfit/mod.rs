@@ -123,6 +123,14 @@ impl MisfitKind {
     }
 }
 
+/// Most panels of a fixed rule (`misfit.panels`): 10 000 panels of 8
+/// points are 80 000 nodes, far beyond any accuracy need, and a bounded
+/// allocation.
+pub const MAX_PANELS: usize = 10_000;
+
+/// Most Gauss points per panel (`misfit.per_panel`).
+pub const MAX_PER_PANEL: usize = 64;
+
 /// Which fixed rule.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -207,6 +215,22 @@ impl MisfitSpec {
     /// Bad rule parameters (fields `misfit.*`).
     pub fn rule(&self) -> Result<Rule> {
         let per = self.per_panel.unwrap_or(8);
+        if !(1..=MAX_PER_PANEL).contains(&per) {
+            return Err(Error::invalid(
+                "misfit.per_panel",
+                per,
+                format!("1..={MAX_PER_PANEL} Gauss points per panel"),
+            ));
+        }
+        if let Some(p) = self.panels {
+            if !(1..=MAX_PANELS).contains(&p) {
+                return Err(Error::invalid(
+                    "misfit.panels",
+                    p,
+                    format!("1..={MAX_PANELS} panels"),
+                ));
+            }
+        }
         match self.kind {
             MisfitKind::RealAxis => {
                 if !(self.s_max.is_finite() && self.s_max > 0.0) {
