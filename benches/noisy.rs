@@ -19,12 +19,12 @@
 
 use criterion::measurement::Measurement;
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
+use springmass::detect::data::whiten::Weighting;
 use springmass::detect::fit::chainfit::{ChainProblem, Obs};
-use springmass::detect::search::lsq::LeastSquares;
-use springmass::detect::{data::series::TimeData, misfit::time::TimeMisfit};
 use springmass::detect::fit::general::{laplace_obs, Setup};
 use springmass::detect::misfit::MisfitKind;
-use springmass::detect::data::whiten::Weighting;
+use springmass::detect::search::lsq::LeastSquares;
+use springmass::detect::{data::series::TimeData, misfit::time::TimeMisfit};
 use springmass::noise::NoiseLevel;
 use springmass::scenes;
 use springmass::sensitivity::Param;

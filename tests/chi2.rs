@@ -7,10 +7,10 @@
 
 use springmass::detect::data::laplace::LaplaceObs;
 use springmass::detect::data::series::TimeData;
-use springmass::detect::noise_study::{noisy_data, systems, task_seed, StudyConfig};
+use springmass::detect::data::whiten::{chi2_quantile, Weighting};
 use springmass::detect::fit::general::{laplace_obs, Setup};
 use springmass::detect::misfit::MisfitKind;
-use springmass::detect::data::whiten::{chi2_quantile, Weighting};
+use springmass::detect::noise_study::{noisy_data, systems, task_seed, StudyConfig};
 use springmass::noise::{add_noise, NoiseLevel};
 use springmass::time::simulate::{simulate, SimOptions};
 use springmass::Chain;

@@ -3,8 +3,8 @@
 
 use springmass::detect::data::exact::Data;
 use springmass::detect::fit::paper::{fit, FitMethod};
-use springmass::detect::misfit::{Misfit, MisfitKind, MisfitSpec};
 use springmass::detect::misfit::quadrature::Adaptive;
+use springmass::detect::misfit::{Misfit, MisfitKind, MisfitSpec};
 use springmass::detect::scene::FitScene;
 use springmass::detect::search::enumerate::{enumerate, EnumerateOptions};
 use springmass::detect::unknowns::{DefectUnknown, Unknowns};
@@ -450,7 +450,8 @@ panels = 10
 "#;
     let scene = springmass::detect::scene::FitScene::from_toml(text).unwrap();
     let report =
-        springmass::detect::fit::paper::fit(&scene, &scene.data().unwrap(), &scene.options()).unwrap();
+        springmass::detect::fit::paper::fit(&scene, &scene.data().unwrap(), &scene.options())
+            .unwrap();
     assert_eq!(report.defects.len(), 1);
     assert_eq!(
         (report.defects[0].kind(), report.defects[0].at()),

@@ -4,11 +4,11 @@
 
 use springmass::detect::data::laplace::LaplaceObs;
 use springmass::detect::fit::chainfit::{fit_chain, Obs};
-use springmass::detect::{data::series::TimeData, misfit::time::TimeMisfit};
-use springmass::detect::noise_study::{calibration, choose_k, noisy_data, systems, StudyConfig};
 use springmass::detect::fit::general::{fit_noisy, identify_ranked, Setup};
-use springmass::detect::misfit::MisfitKind;
 use springmass::detect::fit::select::Criterion;
+use springmass::detect::misfit::MisfitKind;
+use springmass::detect::noise_study::{calibration, choose_k, noisy_data, systems, StudyConfig};
+use springmass::detect::{data::series::TimeData, misfit::time::TimeMisfit};
 use springmass::noise::NoiseLevel;
 use springmass::sensitivity::{gradient, Param};
 use springmass::{Chain, Complex64, Defect};
@@ -342,8 +342,8 @@ fn kind_any_picks_the_right_kind() {
             seed,
         );
         // identifiability against the uniform value of each defect's kind
-        let id =
-            springmass::detect::fit::general::identify_general(&f.ranked, &truth, sigma, None).unwrap();
+        let id = springmass::detect::fit::general::identify_general(&f.ranked, &truth, sigma, None)
+            .unwrap();
         assert!(id.all_identifiable(), "{id:?}");
         assert_eq!(f.hypotheses, 6 + 7 + 6);
         let best = &f.ranked[0];

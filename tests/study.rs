@@ -3,7 +3,7 @@
 //! `config check`, and a property test of the config parser.
 
 use proptest::prelude::*;
-use springmass::study::config::check;
+use springmass::study::check::check;
 use springmass::study::Study;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

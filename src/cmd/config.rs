@@ -1,7 +1,8 @@
 //! `springmass config`: check a study file, print the schema.
 
 use clap::{Args as ClapArgs, Subcommand};
-use springmass::study::config::{check, schema_markdown, schema_text};
+use springmass::study::check::check;
+use springmass::study::config::{schema_markdown, schema_text};
 use springmass::study::kinds::ALL;
 use springmass::study::{Study, DEFAULT_STUDY};
 use std::path::PathBuf;

@@ -3,13 +3,13 @@
 
 use anyhow::Context;
 use clap::{Args as ClapArgs, ValueEnum};
+use springmass::detect::fit::general::Setup;
+use springmass::detect::fit::select::Criterion;
+use springmass::detect::misfit::MisfitKind;
 use springmass::detect::noise_study::{
     calibration, confusion, damping_study, kind_cases, kinds_study, selection_truths,
     success_table, systems, StudyConfig,
 };
-use springmass::detect::fit::general::{Setup};
-use springmass::detect::misfit::MisfitKind;
-use springmass::detect::fit::select::Criterion;
 use springmass::plot::{Line, LinePlot};
 use springmass::series::write_atomic;
 use std::fmt::Write as _;
@@ -114,7 +114,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             MisfitKind::Time,
             &setup,
         )?;
-        let r = springmass::detect::fit::general::identify_ranked(&ranked, 1.0, data.sigma(), None)?;
+        let r =
+            springmass::detect::fit::general::identify_ranked(&ranked, 1.0, data.sigma(), None)?;
         writeln!(
             md,
             "\n## Identifiability (S3, time misfit, 1% noise, seed {})\n",

@@ -20,14 +20,14 @@
 //! ```
 
 use crate::chain::{Chain, Defect};
-use crate::detect::fit::chainfit::ChainFitReport;
 use crate::detect::data::series::TimeData;
-use crate::detect::misfit::MisfitKind;
+use crate::detect::fit::chainfit::ChainFitReport;
 use crate::detect::fit::general::{
     fit_damping, fit_noisy, fit_noisy_general, time_from_bromwich, GeneralOptions, Hypothesis,
     Setup,
 };
 use crate::detect::fit::select::{select, Criterion, ModelFit, Selection};
+use crate::detect::misfit::MisfitKind;
 use crate::detect::unknowns::{GeneralUnknowns, KindChoice};
 use crate::error::Result;
 use crate::noise::NoiseLevel;
@@ -599,8 +599,7 @@ pub fn kinds_study(
             )?;
             let unknowns = GeneralUnknowns::free(truth.n(), &case.kinds, &case.params)?;
             let start = truth.uniform().with_d(case.d_start)?;
-            let fit =
-                fit_noisy_general(&start, &data, &unknowns, MisfitKind::Time, setup, &opts)?;
+            let fit = fit_noisy_general(&start, &data, &unknowns, MisfitKind::Time, setup, &opts)?;
             let best = &fit.ranked[0];
             let found = best.positions_match(truth);
             let value_ok = |rel: Option<f64>| {

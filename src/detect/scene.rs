@@ -57,9 +57,9 @@
 
 use crate::chain::{Chain, ChainSpec, Defect};
 use crate::detect::data::exact::Data;
+use crate::detect::data::series::TimeData;
 use crate::detect::fit::paper::{FitMethod, FitOptions};
 use crate::detect::misfit::MisfitSpec;
-use crate::detect::data::series::TimeData;
 use crate::detect::search::enumerate::EnumerateOptions;
 use crate::detect::unknowns::{DefectKind, GeneralUnknowns, Unknowns, UnknownsSpec};
 use crate::error::{Error, Result};

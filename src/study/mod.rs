@@ -25,10 +25,15 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+pub mod check;
 pub mod config;
 pub mod kinds;
+pub mod paths;
+pub mod records;
 pub mod report;
 pub mod run;
+pub mod schema;
+pub mod seeds;
 pub mod shard;
 pub mod sweep;
 
@@ -61,7 +66,7 @@ impl Study {
     /// [`Error::Parse`] with every problem of the file (as
     /// [`config::check`] lists them), one per line.
     pub fn from_text(text: &str, origin: &str) -> Result<Study> {
-        let problems = config::check(text);
+        let problems = check::check(text);
         if !problems.is_empty() {
             let all: Vec<String> = problems.iter().map(|p| p.to_string()).collect();
             return Err(Error::parse(
@@ -133,7 +138,7 @@ mod tests {
                 if !text.lines().any(|l| l.trim() == "[study]") {
                     continue;
                 }
-                assert_eq!(config::check(&text), vec![], "{}", p.display());
+                assert_eq!(check::check(&text), vec![], "{}", p.display());
                 n += 1;
             }
         }

@@ -8,7 +8,7 @@
 //! durations) is written.
 
 use super::config::{Aggregate, HeatmapSpec, PlotSpec, TableSpec, TraceSpec};
-use super::run::Record;
+use super::records::Record;
 use super::sweep::{format_float, MAIN_PART, PART_COLUMN};
 use super::Study;
 use crate::error::{Error, Result};

@@ -26,84 +26,22 @@
 //! identical for any `--threads` (timings apart, see `study.timings`).
 
 use super::kinds::CaseOutput;
+pub use super::records::{
+    load_records, write_records, Manifest, Record, CASES, MANIFEST, RESULTS, STUDY_COPY,
+};
 use super::shard::Shard;
-use super::sweep::{Case, Param};
+use super::sweep::Case;
 use super::Study;
 use crate::error::{Error, Result};
 use crate::series::write_atomic;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fs::{File, OpenOptions};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
-
-/// File names inside an output folder.
-pub const RESULTS: &str = "results.jsonl";
-/// The copy of the study file.
-pub const STUDY_COPY: &str = "study.toml";
-/// The manifest.
-pub const MANIFEST: &str = "manifest.json";
-
-/// The record of one finished case: one line of `results.jsonl`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Record {
-    /// Case id (`c0042`).
-    pub id: String,
-    /// Case content key (see [`Case::key`]).
-    pub key: String,
-    /// The case's seed.
-    pub seed: u64,
-    /// Replicate number.
-    pub repeat: usize,
-    /// Axis values.
-    pub params: Vec<Param>,
-    /// `ok`, `error` or `skipped` (an invalid scene with `study.invalid_cases = "skip"`).
-    pub status: String,
-    /// The error message of a failed case.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub error: Option<String>,
-    /// Reproducible results.
-    pub metrics: serde_json::Map<String, serde_json::Value>,
-    /// Measured timings (empty when `study.timings = false`).
-    #[serde(default, skip_serializing_if = "serde_json::Map::is_empty")]
-    pub timings: serde_json::Map<String, serde_json::Value>,
-    /// Pictures of this case, relative to the output folder
-    /// (`cases/<id>-<name>.svg`), written before the record.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub files: Vec<String>,
-    /// The optimizer's trace, `[evaluations, best residual so far]` at each
-    /// improvement (kind `fit` with `search.trace = true`; empty otherwise).
-    /// Kept in the record so that a resumed or merged run draws the same
-    /// `[[report.trace]]` plots.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub trace: Vec<[f64; 2]>,
-}
-
-impl Record {
-    /// Did the case succeed?
-    pub fn ok(&self) -> bool {
-        self.status == "ok"
-    }
-}
-
-/// What identifies the study an output folder belongs to.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Manifest {
-    /// Study name.
-    pub study: String,
-    /// Content hash of the study file text (16 hex digits).
-    pub hash: String,
-    /// Number of cases of the whole study.
-    pub cases: usize,
-    /// The shard (`I/N`), if this folder holds one.
-    pub shard: Option<String>,
-}
 
 /// Options of a run.
 #[derive(Clone, Debug)]
@@ -152,9 +90,6 @@ pub struct RunSummary {
     /// The report, when written (complete, unsharded runs).
     pub report: Option<PathBuf>,
 }
-
-/// Folder of the per-case pictures inside an output folder.
-pub const CASES: &str = "cases";
 
 /// Run one case and write its pictures into `out/cases/` (atomically, before
 /// the record that lists them is appended). Never panics: a panic in a kind,
@@ -429,51 +364,6 @@ pub fn read_records(out: &Path, study: &Study) -> Result<BTreeMap<String, Record
         write_records(out, &v)?;
     }
     Ok(by_id)
-}
-
-/// Parse a `results.jsonl`: the records of its complete, valid lines, and
-/// whether anything (a partial last line, a damaged line) was dropped.
-///
-/// # Errors
-/// [`Error::Io`] other than a missing file.
-pub fn load_records(path: &Path) -> Result<(Vec<Record>, bool)> {
-    let bytes = match std::fs::read(path) {
-        Ok(b) => b,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok((vec![], false)),
-        Err(e) => return Err(Error::io(path, e)),
-    };
-    let mut dirty = false;
-    let mut out = Vec::new();
-    let complete_len = bytes.iter().rposition(|&b| b == b'\n').map_or(0, |p| p + 1);
-    if complete_len < bytes.len() {
-        dirty = true; // a partial last line: the case is run again
-    }
-    for line in bytes[..complete_len].split(|&b| b == b'\n') {
-        if line.is_empty() {
-            continue;
-        }
-        match std::str::from_utf8(line)
-            .ok()
-            .and_then(|l| serde_json::from_str::<Record>(l).ok())
-        {
-            Some(r) => out.push(r),
-            None => dirty = true,
-        }
-    }
-    Ok((out, dirty))
-}
-
-/// Write `records` as `results.jsonl` atomically, in the order given.
-pub fn write_records(out: &Path, records: &[Record]) -> Result<()> {
-    let mut text = String::new();
-    for r in records {
-        text.push_str(
-            &serde_json::to_string(r)
-                .map_err(|e| Error::invalid("record", &r.id, e.to_string()))?,
-        );
-        text.push('\n');
-    }
-    write_atomic(&out.join(RESULTS), text.as_bytes())
 }
 
 /// Appends one line per `write` call, `fsync`ing at most once a second.

@@ -15,7 +15,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::run::{self, load_records, Manifest, Record, MANIFEST, STUDY_COPY};
+use super::records::{self as run, load_records, Manifest, Record, MANIFEST, STUDY_COPY};
 use super::Study;
 use crate::error::{Error, Result};
 use std::collections::BTreeMap;

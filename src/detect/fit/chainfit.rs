@@ -34,9 +34,9 @@
 //! ```
 
 use crate::chain::Chain;
-use crate::detect::search::lsq::{covariance, levenberg_marquardt, LeastSquares, LmFit, LmOptions};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::misfit::time::TimeMisfit;
+use crate::detect::search::lsq::{covariance, levenberg_marquardt, LeastSquares, LmFit, LmOptions};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use nalgebra::DMatrix;
@@ -203,8 +203,8 @@ pub fn fit_chain(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use num_complex::Complex64;
     use crate::Defect;
+    use num_complex::Complex64;
 
     #[test]
     fn laplace_fit_recovers_all_chain_parameters_exactly() {

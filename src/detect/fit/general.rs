@@ -64,13 +64,13 @@
 
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
+use crate::detect::data::series::TimeData;
 use crate::detect::fit::chainfit::{fit_chain, ChainProblem, Obs};
 use crate::detect::fit::identify::{identify, Alternative, FittedDefect, Identifiability};
-use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
-use crate::detect::data::series::TimeData;
+use crate::detect::misfit::quadrature::Rule;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::MisfitKind;
-use crate::detect::misfit::quadrature::Rule;
+use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
 use crate::detect::unknowns::{
     DefectKind, GeneralUnknowns, KindBounds, KindChoice, KindPositions, Slot,
 };
@@ -179,8 +179,10 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result
         {
             cov[(r, r)] = (cov[(r, r)] + (1e-15 * vals[q].value.norm()).powi(2)).max(1e-300);
         }
-        let wh =
-            crate::detect::data::whiten::Whitening::new(&cov, crate::detect::data::whiten::DEFAULT_CUTOFF)?;
+        let wh = crate::detect::data::whiten::Whitening::new(
+            &cov,
+            crate::detect::data::whiten::DEFAULT_CUTOFF,
+        )?;
         let values = vals.iter().map(|v| v.value).collect();
         return LaplaceObs::whitened(s, values, wh.matrix().clone());
     }

@@ -50,13 +50,13 @@
 //! ```
 
 use crate::chain::Defect;
-use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::exact::Data;
-use crate::detect::misfit::{Misfit, MisfitKind};
-use crate::detect::misfit::time::TimeMisfit;
+use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::fit::general::{
     fit_general, identify_general, laplace_obs, FittedParam, GeneralOptions, Setup,
 };
+use crate::detect::misfit::time::TimeMisfit;
+use crate::detect::misfit::{Misfit, MisfitKind};
 use crate::detect::scene::{DataSourceKind, FitScene};
 use crate::detect::search::enumerate::{enumerate, fit_slots, Defects, EnumerateOptions};
 use crate::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};

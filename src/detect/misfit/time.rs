@@ -27,8 +27,8 @@
 //! ```
 
 use crate::chain::Chain;
-use crate::error::Result;
 use crate::detect::data::series::TimeData;
+use crate::error::Result;
 use crate::time::modal::ModalResponse;
 
 /// The time-domain chi-square of a candidate chain against [`TimeData`].
