@@ -1,8 +1,11 @@
 //! `config check`: every problem of a study file in one pass.
 
-use super::config::{check_structure, Aggregate, InvalidCases, StudyFile, MAIN_PART, PART_COLUMN};
-use super::kinds::Kind;
-use super::schema::{line_of, one_line, Locator, Problem};
+use super::config::{
+    check_structure, Aggregate, InvalidCases, StudyFile, MAIN_PART, PART_COLUMN, STUDY_FIELDS,
+};
+use super::kinds::{typed_scene, Kind};
+use super::paths::remove_path;
+use super::schema::{line_of, one_line, plain_message, Locator, Problem};
 use super::sweep;
 use crate::error::Error;
 
@@ -21,22 +24,48 @@ use crate::error::Error;
 /// assert!(problems[0].message.contains("did you mean `seed`"));
 /// ```
 pub fn check(text: &str) -> Vec<Problem> {
-    let mut problems = check_structure(text);
-    if !problems.is_empty() {
-        return problems;
-    }
-    let file: StudyFile = match toml::from_str(text) {
-        Ok(f) => f,
+    let value: toml::Table = match toml::from_str(text) {
+        Ok(v) => v,
         Err(e) => {
             return vec![Problem {
                 path: String::new(),
                 line: e.span().map(|s| line_of(text, s.start)),
-                message: one_line(e.message()),
+                message: format!("not valid TOML: {}", one_line(e.message())),
             }]
         }
     };
     let locate = Locator::new(text);
-    problems.extend(check_semantics(&file, &locate));
+    // unknown fields everywhere (the scenes against their kinds' schemas)
+    let mut problems = check_structure(text);
+    // types of the fields outside the scenes: every wrong field is reported
+    // and left out (its default stands in), so that the checks below still
+    // see the rest of the file
+    let root = toml::Value::Table(value);
+    let mut clean = root.clone();
+    for p in &problems {
+        remove_path(&mut clean, &p.path);
+    }
+    let (typed, file) = typed_scene::<StudyFile>(clean);
+    for e in typed {
+        let (path, message) = plain_message(&e, Some(&root), STUDY_FIELDS);
+        let path = if path == "scene" { String::new() } else { path };
+        problems.push(Problem {
+            line: locate.line(&path),
+            path,
+            message,
+        });
+    }
+    if let Some(file) = file {
+        problems.extend(check_semantics(&file, &locate));
+    }
+    let mut seen = Vec::new();
+    problems.retain(|p| {
+        let new = !seen.contains(p);
+        seen.push(p.clone());
+        new
+    });
+    // in file order (problems without a line last)
+    problems.sort_by_key(|p| p.line.unwrap_or(usize::MAX));
     problems
 }
 
@@ -308,38 +337,67 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
         Ok(cases) => {
             // (path, message) -> (first failing case, number of failing cases),
             // in order of first appearance
-            let mut found: Vec<((String, String), (usize, usize))> = Vec::new();
+            let mut found: Vec<((String, String), (usize, usize, Option<usize>))> = Vec::new();
             for (ci, case) in cases.iter().enumerate() {
                 let errs = case.kind.validate_all(&case.scene);
-                // with `skip`, unknown fields still are errors (a misspelling
-                // would otherwise skip every case)
+                // with `skip`, unknown fields and values of the wrong type
+                // still are errors (a misspelling or a type error would
+                // otherwise skip every case): only failed range checks skip
                 let errs: Vec<Error> = errs
                     .into_iter()
-                    .filter(|e| !skip || e.to_string().contains("unknown field"))
+                    .filter(|e| {
+                        !skip
+                            || matches!(e, Error::InvalidParameter { value, .. } if value == "present" || value == "?")
+                    })
                     .collect();
+                // the scene and the axes of the case's part
+                let (scene, prefix, axes) = match case.params.first() {
+                    Some(p) if p.column == PART_COLUMN && p.label != MAIN_PART => {
+                        let i = file
+                            .part
+                            .iter()
+                            .position(|x| x.name == p.label)
+                            .unwrap_or(0);
+                        (
+                            format!("part[{i}].scene"),
+                            format!("part[{i}]."),
+                            file.part.get(i).map(|p| &p.sweep[..]).unwrap_or(&[]),
+                        )
+                    }
+                    _ => ("scene".to_string(), String::new(), &file.sweep[..]),
+                };
                 for e in errs {
-                    let (path, message) = split_field(&e);
-                    // the scene of the case's part
-                    let scene = match case.params.first() {
-                        Some(p) if p.column == PART_COLUMN && p.label != MAIN_PART => {
-                            let i = file
-                                .part
-                                .iter()
-                                .position(|x| x.name == p.label)
-                                .unwrap_or(0);
-                            format!("part[{i}].scene")
-                        }
-                        _ => "scene".to_string(),
-                    };
-                    let path = if path.is_empty() {
-                        scene
+                    let (path, message) =
+                        plain_message(&e, Some(&case.scene), case.kind.schema());
+                    // a field set by an axis is reported at the axis
+                    let line = axes
+                        .iter()
+                        .position(|a| {
+                            path == a.path
+                                || path.starts_with(&format!("{}.", a.path))
+                                || path.starts_with(&format!("{}[", a.path))
+                        })
+                        .and_then(|i| {
+                            let field = if message.starts_with("unknown field") {
+                                "path"
+                            } else if axes[i].values.is_some() {
+                                "values"
+                            } else {
+                                "range"
+                            };
+                            locate
+                                .line(&format!("{prefix}sweep[{i}].{field}"))
+                                .or_else(|| locate.line(&format!("{prefix}sweep[{i}]")))
+                        });
+                    let path = if path.is_empty() || path == "scene" {
+                        scene.clone()
                     } else {
                         format!("{scene}.{path}")
                     };
                     let key = (path, message);
                     match found.iter_mut().find(|(k, _)| *k == key) {
-                        Some((_, (_, count))) => *count += 1,
-                        None => found.push((key, (ci, 1))),
+                        Some((_, (_, count, _))) => *count += 1,
+                        None => found.push((key, (ci, 1, line))),
                     }
                 }
             }
@@ -375,11 +433,11 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
                             "scene.search.trace".to_string(),
                             "report.trace needs the optimizer trace of every case: set search.trace = true (in every value of a swept `search` table too)".to_string(),
                         ),
-                        (first, untraced.len()),
+                        (first, untraced.len(), None),
                     ));
                 }
             }
-            for ((path, message), (first, count)) in found {
+            for ((path, message), (first, count, line)) in found {
                 let case = &cases[first];
                 let where_ = if count == cases.len() || case.params.is_empty() {
                     String::new()
@@ -391,20 +449,111 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
                         case.describe()
                     )
                 };
-                push(path, format!("{message}{where_}"));
+                let message = format!("{message}{where_}");
+                match line {
+                    Some(l) => problems.borrow_mut().push(Problem {
+                        path,
+                        line: Some(l),
+                        message,
+                    }),
+                    None => push(path, message),
+                }
             }
         }
     }
     problems.into_inner()
 }
 
-/// The field named by an error, and the message.
-fn split_field(e: &Error) -> (String, String) {
-    match e {
-        Error::InvalidParameter { field, .. } => (field.clone(), e.to_string()),
-        Error::Parse { input, reason, .. } => (input.clone(), reason.clone()),
-        _ => (String::new(), e.to_string()),
+/// What a TOML file is, for `config check`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FileKind {
+    /// A study file (`[study]`, `[scene]`, `[[sweep]]`, ...): `springmass study FILE`.
+    Study,
+    /// A fit scene (`[chain]` at the top level, the format of
+    /// [`crate::detect::scene::FitScene`]): `springmass fit --scene FILE`.
+    FitScene,
+}
+
+impl FileKind {
+    /// What the file is and how to run it, in one line.
+    pub fn describe(&self) -> &'static str {
+        match self {
+            FileKind::Study => "this is a study file; run `springmass study FILE`",
+            FileKind::FitScene => "this is a fit scene; run `springmass fit --scene FILE`",
+        }
     }
+}
+
+/// What `text` is: a fit scene when it has a top-level `[chain]` table and
+/// no `[study]` table, a study file otherwise (also when it does not parse).
+pub fn file_kind(text: &str) -> FileKind {
+    match toml::from_str::<toml::Table>(text) {
+        Ok(t) if t.contains_key("chain") && !t.contains_key("study") => FileKind::FitScene,
+        _ => FileKind::Study,
+    }
+}
+
+/// What the file is and every problem of it: [`check`] for a study file,
+/// [`check_fit_scene`] for a fit scene.
+///
+/// ```
+/// use springmass::study::check::{check_file, FileKind};
+/// let (kind, problems) = check_file("[chain]\nn = 5\nnn = 3\n");
+/// assert_eq!(kind, FileKind::FitScene);
+/// assert_eq!(problems[0].path, "chain.nn");
+/// assert_eq!(problems[0].line, Some(3));
+/// assert!(problems[0].message.contains("did you mean 'n'"));
+/// ```
+pub fn check_file(text: &str) -> (FileKind, Vec<Problem>) {
+    match file_kind(text) {
+        FileKind::Study => (FileKind::Study, check(text)),
+        FileKind::FitScene => (FileKind::FitScene, check_fit_scene(text)),
+    }
+}
+
+/// Every problem of a fit scene (the file of `springmass fit --scene`):
+/// every unknown field, every value of the wrong type and every failed
+/// check of the scene (the checks of kind `fit`), each with its field path
+/// and line; then parsing it with
+/// [`crate::detect::scene::FitScene::from_toml`] and building its truth and
+/// unknowns, in case those refuse what the checks let through.
+pub fn check_fit_scene(text: &str) -> Vec<Problem> {
+    let value: toml::Value = match toml::from_str::<toml::Table>(text) {
+        Ok(v) => toml::Value::Table(v),
+        Err(e) => {
+            return vec![Problem {
+                path: String::new(),
+                line: e.span().map(|s| line_of(text, s.start)),
+                message: format!("not valid TOML: {}", one_line(e.message())),
+            }]
+        }
+    };
+    let locate = Locator::new(text);
+    let mut problems: Vec<Problem> = Vec::new();
+    for e in Kind::Fit.validate_all(&value) {
+        let (path, message) = plain_message(&e, Some(&value), Kind::Fit.schema());
+        problems.push(Problem {
+            line: locate.line(&path),
+            path,
+            message,
+        });
+    }
+    if problems.is_empty() {
+        let scene = crate::detect::scene::FitScene::from_toml(text);
+        let err = match scene {
+            Err(e) => Some(e),
+            Ok(s) => s.truth().err().or_else(|| s.unknowns().err()),
+        };
+        if let Some(e) = err {
+            let (path, message) = plain_message(&e, Some(&value), Kind::Fit.schema());
+            problems.push(Problem {
+                line: locate.line(&path),
+                path,
+                message,
+            });
+        }
+    }
+    problems
 }
 
 #[cfg(test)]

@@ -581,17 +581,6 @@ pub fn check_structure(text: &str) -> Vec<Problem> {
             }
         }
     }
-    if problems.is_empty() {
-        // types, required fields: serde, which gives the first problem only
-        // (with its line)
-        if let Err(e) = toml::from_str::<StudyFile>(text) {
-            problems.push(Problem {
-                path: String::new(),
-                line: e.span().map(|s| line_of(text, s.start)),
-                message: one_line(e.message()),
-            });
-        }
-    }
     problems
 }
 

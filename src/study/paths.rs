@@ -133,3 +133,16 @@ pub fn remove_path(value: &mut toml::Value, path: &str) -> bool {
         _ => false,
     }
 }
+
+/// The value at `path` (`a.b[2].c`) of `root`, if there is one.
+pub fn get_path<'a>(root: &'a toml::Value, path: &str) -> Option<&'a toml::Value> {
+    let mut cur = root;
+    for seg in parse_path(path).ok()? {
+        cur = match (seg, cur) {
+            (Segment::Key(k), toml::Value::Table(t)) => t.get(&k)?,
+            (Segment::Index(i), toml::Value::Array(a)) => a.get(i)?,
+            _ => return None,
+        };
+    }
+    Some(cur)
+}

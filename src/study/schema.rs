@@ -3,7 +3,8 @@
 //! its "did you mean" suggestion. Imports nothing of the study module but
 //! [`super::paths`].
 
-use super::paths::{parse_path, Segment};
+use super::paths::{get_path, parse_path, Segment};
+use crate::error::Error;
 use serde::Serialize;
 
 /// Documentation of one field: its path, type, default and meaning.
@@ -127,19 +128,20 @@ pub(crate) fn walk(
                                 (!rest.contains('.') && !rest.contains('[')).then_some(rest)
                             })
                             .collect();
-                        let hint = match closest(key, &siblings) {
-                            Some(s) => format!("; did you mean `{s}`?"),
-                            None => String::new(),
-                        };
-                        let allowed = if siblings.is_empty() {
-                            "no fields here".to_string()
-                        } else {
-                            format!("expected one of {}", siblings.join(", "))
+                        let message = match closest(key, &siblings) {
+                            Some(s) => format!("unknown field '{key}' (did you mean '{s}'?)"),
+                            None if siblings.is_empty() => {
+                                format!("unknown field '{key}'; no fields here")
+                            }
+                            None => format!(
+                                "unknown field '{key}'; fields here: {}",
+                                siblings.join(", ")
+                            ),
                         };
                         out.push(Problem {
                             line: locate.line(&full),
                             path: full,
-                            message: format!("unknown field `{key}`, {allowed}{hint}"),
+                            message,
                         });
                     }
                 }
@@ -271,4 +273,95 @@ pub fn line_of(text: &str, at: usize) -> usize {
 
 pub(crate) fn one_line(s: &str) -> String {
     s.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// The [`FieldDoc`] of a concrete path (`chain.defects[1].m` is documented
+/// as `chain.defects[].m`).
+pub fn doc_of<'a>(schema: &'a [FieldDoc], path: &str) -> Option<&'a FieldDoc> {
+    let mut generic = String::with_capacity(path.len());
+    let mut in_index = false;
+    for c in path.chars() {
+        match c {
+            '[' => {
+                in_index = true;
+                generic.push('[');
+            }
+            ']' => {
+                in_index = false;
+                generic.push(']');
+            }
+            _ if in_index => {}
+            _ => generic.push(c),
+        }
+    }
+    schema.iter().find(|f| f.path == generic)
+}
+
+/// The field path an error names and a plain one-line message for it:
+/// `unknown field 'nn' (did you mean 'n'?)`, `n must be an integer >= 1,
+/// got -3` (a value of the wrong type, described by the field's type in
+/// `schema` and the value found in `root`), `m = 0 is not allowed: m > 0 and
+/// finite` (a failed range check). Paths are relative to `root`.
+pub fn plain_message(e: &Error, root: Option<&toml::Value>, schema: &[FieldDoc]) -> (String, String) {
+    match e {
+        Error::InvalidParameter {
+            field,
+            value,
+            allowed,
+        } => {
+            let key = field
+                .rsplit('.')
+                .next()
+                .unwrap_or(field)
+                .split('[')
+                .next()
+                .unwrap_or(field);
+            let message = if value == "present" {
+                // an unknown field: the walk's message
+                allowed.clone()
+            } else if value == "?" {
+                // serde: a wrong type, a bad enum value, a missing field
+                let found = root.and_then(|r| get_path(r, field));
+                match (allowed.starts_with("missing field"), doc_of(schema, field), found) {
+                    (true, _, _) => allowed.replace('`', "'"),
+                    (false, Some(doc), Some(v)) => format!(
+                        "{key} must be {}{}, got {}",
+                        article(doc.ty),
+                        doc.ty.replace('`', ""),
+                        show(v)
+                    ),
+                    _ => format!("{key}: {}", allowed.replace('`', "'")),
+                }
+            } else {
+                format!("{key} = {value} is not allowed: {allowed}")
+            };
+            (field.clone(), message)
+        }
+        Error::Parse { input, reason, .. } => (input.clone(), reason.clone()),
+        other => (String::new(), other.to_string()),
+    }
+}
+
+/// `a ` or `an ` before a type in words (nothing before a list of values).
+fn article(ty: &str) -> &'static str {
+    match ty.chars().next() {
+        Some(c) if "aeiou".contains(c) => "an ",
+        Some(c) if c.is_ascii_alphabetic() => "a ",
+        _ => "",
+    }
+}
+
+/// A TOML value as written in a file (short).
+fn show(v: &toml::Value) -> String {
+    let s = match v {
+        toml::Value::String(s) => format!("{s:?}"),
+        toml::Value::Table(_) => "a table".to_string(),
+        toml::Value::Array(_) => "an array".to_string(),
+        other => other.to_string(),
+    };
+    if s.chars().count() > 40 {
+        format!("{}...", s.chars().take(40).collect::<String>())
+    } else {
+        s
+    }
 }

@@ -100,6 +100,8 @@ pub fn unknown_errors(value: &toml::Value, schema: &[FieldDoc]) -> (Vec<Error>, 
 /// tried again. A missing required field ends the search (`None`).
 pub fn typed_scene<T: DeserializeOwned>(mut value: toml::Value) -> (Vec<Error>, Option<T>) {
     let mut out: Vec<Error> = Vec::new();
+    // fields removed for their type: their absence is no second problem
+    let mut removed: Vec<String> = Vec::new();
     // at most one pass per field of the scene, and a hard bound
     for _ in 0..64 {
         match from_text::<T>(&value) {
@@ -109,14 +111,21 @@ pub fn typed_scene<T: DeserializeOwned>(mut value: toml::Value) -> (Vec<Error>, 
                     Error::InvalidParameter { field, .. } => field.clone(),
                     _ => String::new(),
                 };
-                let missing = e.to_string().contains("missing field");
-                let repeated = out.iter().any(|x| x.to_string() == e.to_string());
-                if !repeated {
+                let text = e.to_string();
+                let missing = text.contains("missing field");
+                let repeated = out.iter().any(|x| x.to_string() == text);
+                let was_removed = missing
+                    && removed.iter().any(|r| {
+                        let name = r.rsplit('.').next().unwrap_or(r);
+                        text.contains(&format!("missing field `{name}`"))
+                    });
+                if !repeated && !was_removed {
                     out.push(e);
                 }
                 if missing || repeated || field == "scene" || !remove_path(&mut value, &field) {
                     return (out, None);
                 }
+                removed.push(field);
             }
         }
     }
