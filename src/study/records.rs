@@ -57,6 +57,41 @@ impl Record {
     pub fn ok(&self) -> bool {
         self.status == "ok"
     }
+
+    /// Was the case skipped (an invalid scene with
+    /// `study.invalid_cases = "skip"`)? A skipped case is not a failed one.
+    pub fn skipped(&self) -> bool {
+        self.status == "skipped"
+    }
+}
+
+/// How many records succeeded, failed (status `error`) and were skipped:
+/// counted the same way on the console, in `report.md` and by `study merge`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// Records with status `ok`.
+    pub ok: usize,
+    /// Records with status `error` (the case ran and failed, or panicked).
+    pub failed: usize,
+    /// Records with status `skipped`.
+    pub skipped: usize,
+}
+
+impl Counts {
+    /// The counts of `records`.
+    pub fn of<'a>(records: impl IntoIterator<Item = &'a Record>) -> Counts {
+        let mut c = Counts::default();
+        for r in records {
+            if r.ok() {
+                c.ok += 1;
+            } else if r.skipped() {
+                c.skipped += 1;
+            } else {
+                c.failed += 1;
+            }
+        }
+        c
+    }
 }
 
 /// What identifies the study an output folder belongs to.
@@ -119,4 +154,51 @@ pub fn write_records(out: &Path, records: &[Record]) -> Result<()> {
         text.push('\n');
     }
     write_atomic(&out.join(RESULTS), text.as_bytes())
+}
+
+/// May a run (or a merge) write into `out`? Yes when it does not exist, is
+/// an empty folder, or holds the [`MANIFEST`] of a study (the caller then
+/// compares the manifest with its own). Never over results this tool did
+/// not write: a non-empty folder without a manifest is refused, and so is a
+/// path that is not a folder.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming the path, what is in it and what to
+/// do; [`Error::Io`] when the folder cannot be read.
+pub fn check_out_folder(out: &Path) -> Result<()> {
+    let meta = match std::fs::metadata(out) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(Error::io(out, e)),
+    };
+    if !meta.is_dir() {
+        return Err(Error::invalid(
+            "out",
+            out.display(),
+            "a folder (new, empty, or written by `springmass study`); this path is not a folder",
+        ));
+    }
+    if out.join(MANIFEST).is_file() {
+        return Ok(());
+    }
+    let mut names: Vec<String> = Vec::new();
+    for e in std::fs::read_dir(out).map_err(|e| Error::io(out, e))? {
+        let e = e.map_err(|e| Error::io(out, e))?;
+        names.push(e.file_name().to_string_lossy().into_owned());
+    }
+    if names.is_empty() {
+        return Ok(());
+    }
+    names.sort();
+    let shown: Vec<&str> = names.iter().take(3).map(|s| s.as_str()).collect();
+    Err(Error::invalid(
+        "out",
+        out.display(),
+        format!(
+            "a new or empty folder, or one written by `springmass study` (with {MANIFEST}); this folder holds {} file(s) it did not write ({}{}): choose another --out, or move those files away",
+            names.len(),
+            shown.join(", "),
+            if names.len() > shown.len() { ", ..." } else { "" }
+        ),
+    ))
 }

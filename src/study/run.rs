@@ -27,7 +27,7 @@
 
 use super::kinds::CaseOutput;
 pub use super::records::{
-    load_records, write_records, Manifest, Record, CASES, MANIFEST, RESULTS, STUDY_COPY,
+    check_out_folder, load_records, write_records, Counts, Manifest, Record, CASES, MANIFEST, RESULTS, STUDY_COPY,
 };
 use super::shard::Shard;
 use super::sweep::Case;
@@ -42,6 +42,24 @@ use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
+
+/// Most worker threads of a run (`--threads`).
+pub const MAX_THREADS: usize = 1024;
+
+/// Check a thread count: `1 <= n <=` [`MAX_THREADS`].
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming `threads` and the allowed range.
+pub fn check_threads(n: usize) -> Result<()> {
+    if n == 0 || n > MAX_THREADS {
+        return Err(Error::invalid(
+            "threads",
+            n,
+            format!("1 <= threads <= {MAX_THREADS}"),
+        ));
+    }
+    Ok(())
+}
 
 /// Options of a run.
 #[derive(Clone, Debug)]
@@ -83,8 +101,12 @@ pub struct RunSummary {
     pub resumed: usize,
     /// Cases run now.
     pub ran: usize,
-    /// Failed cases among all finished ones of the slice.
+    /// Failed cases (status `error`) among all finished ones of the slice.
     pub failed: usize,
+    /// Skipped cases (status `skipped`: invalid scenes with
+    /// `study.invalid_cases = "skip"`) among all finished ones of the slice;
+    /// not counted in `failed`.
+    pub skipped: usize,
     /// Every case of the slice is finished.
     pub complete: bool,
     /// The report, when written (complete, unsharded runs).
@@ -161,9 +183,11 @@ pub fn execute_case(study: &Study, case: &Case) -> (Record, Vec<super::kinds::Ca
 /// Run a study (or one shard of it) into `opts.out`, resuming what is there.
 ///
 /// # Errors
-/// [`Error::Io`] on the output folder; [`Error::InvalidParameter`] when the
-/// folder belongs to another study or shard, or when a record in it does not
-/// match this study's cases.
+/// [`Error::InvalidParameter`] for a thread count outside `1..=`
+/// [`MAX_THREADS`], an output path that is not a folder or a non-empty
+/// folder without a manifest (results this tool did not write: refused, never
+/// overwritten), a folder of another study or shard, or a record in it that
+/// does not match this study's cases; [`Error::Io`] on the output folder.
 ///
 /// ```no_run
 /// use springmass::study::{Study, run::{run, RunOptions}};
@@ -174,6 +198,10 @@ pub fn execute_case(study: &Study, case: &Case) -> (Record, Vec<super::kinds::Ca
 /// ```
 pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
     let out = &opts.out;
+    if let Some(n) = opts.threads {
+        check_threads(n)?;
+    }
+    check_out_folder(out)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let manifest = Manifest {
         study: study.file.study.name.clone(),
@@ -251,7 +279,7 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
     }
     let records = read_records(out, study)?;
     let complete = selected.iter().all(|c| records.contains_key(&c.id));
-    let failed = records.values().filter(|r| !r.ok()).count();
+    let counts = Counts::of(records.values());
     let mut report = None;
     if complete {
         let sorted: Vec<Record> = records.into_values().collect();
@@ -266,7 +294,8 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
         selected: selected.len(),
         resumed,
         ran: todo.len(),
-        failed,
+        failed: counts.failed,
+        skipped: counts.skipped,
         complete,
         report,
     })
@@ -320,10 +349,16 @@ fn prepare_folder(out: &Path, study: &Study, manifest: &Manifest) -> Result<()> 
                 ),
             ));
         }
+        if !out.join(STUDY_COPY).is_file() {
+            // a run killed between the manifest and the copy of the study
+            write_atomic(&out.join(STUDY_COPY), study.text.as_bytes())?;
+        }
     } else {
-        write_atomic(&out.join(STUDY_COPY), study.text.as_bytes())?;
+        // the manifest first: from then on the folder is ours (a run killed
+        // before the copy of the study resumes and writes it)
         let text = serde_json::to_string_pretty(manifest).unwrap_or_default() + "\n";
         write_atomic(&mpath, text.as_bytes())?;
+        write_atomic(&out.join(STUDY_COPY), study.text.as_bytes())?;
     }
     Ok(())
 }
