@@ -3,8 +3,8 @@
 
 use anyhow::Context;
 use clap::{Args as ClapArgs, Subcommand};
-use springmass::study::run::{run as run_study, RunOptions};
 use springmass::study::run::check_threads;
+use springmass::study::run::{run as run_study, RunOptions};
 use springmass::study::shard::{merge, ShardSpec};
 use springmass::study::Study;
 use std::path::PathBuf;

@@ -21,7 +21,7 @@ use crate::error::Error;
 /// assert_eq!(problems.len(), 1);
 /// assert_eq!(problems[0].path, "study.seeed");
 /// assert_eq!(problems[0].line, Some(4));
-/// assert!(problems[0].message.contains("did you mean `seed`"));
+/// assert!(problems[0].message.contains("did you mean 'seed'"));
 /// ```
 pub fn check(text: &str) -> Vec<Problem> {
     let value: toml::Table = match toml::from_str(text) {
@@ -367,8 +367,7 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
                     _ => ("scene".to_string(), String::new(), &file.sweep[..]),
                 };
                 for e in errs {
-                    let (path, message) =
-                        plain_message(&e, Some(&case.scene), case.kind.schema());
+                    let (path, message) = plain_message(&e, Some(&case.scene), case.kind.schema());
                     // a field set by an axis is reported at the axis
                     let line = axes
                         .iter()
@@ -586,7 +585,7 @@ values = [5, 10]
         assert!(
             p.iter().any(|p| p.path == "sweep[0].pth"
                 && p.line == Some(10)
-                && p.message.contains("did you mean `path`")),
+                && p.message.contains("did you mean 'path'")),
             "{p:?}"
         );
         let bad = GOOD.replace("kind = \"mass\"", "kind = \"mass\", mm = 3");

@@ -27,7 +27,8 @@
 
 use super::kinds::CaseOutput;
 pub use super::records::{
-    check_out_folder, load_records, write_records, Counts, Manifest, Record, CASES, MANIFEST, RESULTS, STUDY_COPY,
+    check_out_folder, load_records, write_records, Counts, Manifest, Record, CASES, MANIFEST,
+    RESULTS, STUDY_COPY,
 };
 use super::shard::Shard;
 use super::sweep::Case;

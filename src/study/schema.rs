@@ -302,7 +302,11 @@ pub fn doc_of<'a>(schema: &'a [FieldDoc], path: &str) -> Option<&'a FieldDoc> {
 /// got -3` (a value of the wrong type, described by the field's type in
 /// `schema` and the value found in `root`), `m = 0 is not allowed: m > 0 and
 /// finite` (a failed range check). Paths are relative to `root`.
-pub fn plain_message(e: &Error, root: Option<&toml::Value>, schema: &[FieldDoc]) -> (String, String) {
+pub fn plain_message(
+    e: &Error,
+    root: Option<&toml::Value>,
+    schema: &[FieldDoc],
+) -> (String, String) {
     match e {
         Error::InvalidParameter {
             field,
@@ -322,7 +326,11 @@ pub fn plain_message(e: &Error, root: Option<&toml::Value>, schema: &[FieldDoc])
             } else if value == "?" {
                 // serde: a wrong type, a bad enum value, a missing field
                 let found = root.and_then(|r| get_path(r, field));
-                match (allowed.starts_with("missing field"), doc_of(schema, field), found) {
+                match (
+                    allowed.starts_with("missing field"),
+                    doc_of(schema, field),
+                    found,
+                ) {
                     (true, _, _) => allowed.replace('`', "'"),
                     (false, Some(doc), Some(v)) => format!(
                         "{key} must be {}{}, got {}",
