@@ -641,4 +641,32 @@ values = [5, 10]
         let paths: Vec<&str> = p.iter().map(|p| p.path.as_str()).collect();
         assert_eq!(paths, vec!["report.plot[0].x", "report.plot[0].y"], "{p:?}");
     }
+
+    #[test]
+    fn plain_messages_name_the_field_and_the_value() {
+        let bad = GOOD
+            .replace("name = \"t\"", "name = \"t\"\nrepeats = \"two\"")
+            .replace("m = 2.0", "m = \"heavy\"");
+        let p = check(&bad);
+        let find = |path: &str| p.iter().find(|x| x.path == path).cloned();
+        let r = find("study.repeats").unwrap_or_else(|| panic!("{p:?}"));
+        assert_eq!(r.message, "repeats must be an integer >= 1, got \"two\"");
+        assert_eq!(r.line, Some(4));
+        // the [scene] problem is found although [study] has one
+        let m = find("scene.chain.defects[0].m").unwrap_or_else(|| panic!("{p:?}"));
+        assert_eq!(m.message, "m must be a float > 0, got \"heavy\"");
+        assert_eq!(m.line, Some(8));
+    }
+
+    #[test]
+    fn fit_scenes_are_recognised() {
+        assert_eq!(file_kind("[chain]\nn = 3\n"), FileKind::FitScene);
+        assert_eq!(file_kind(GOOD), FileKind::Study);
+        assert_eq!(file_kind("not toml ["), FileKind::Study);
+        let (k, p) = check_file("[chain]\nn = 0\n");
+        assert_eq!(k, FileKind::FitScene);
+        assert_eq!(p.len(), 1, "{p:?}");
+        assert_eq!(p[0].path, "chain.n");
+        assert_eq!(p[0].line, Some(2));
+    }
 }

@@ -353,4 +353,54 @@ mod tests {
         }
         assert_eq!("2/5".parse::<Shard>().unwrap().to_string(), "2/5");
     }
+
+    #[test]
+    fn slurm_variables_give_the_shard() {
+        let vars = |pairs: &'static [(&'static str, &'static str)]| {
+            move |name: &str| {
+                pairs
+                    .iter()
+                    .find(|(k, _)| *k == name)
+                    .map(|(_, v)| v.to_string())
+            }
+        };
+        let id = "SLURM_ARRAY_TASK_ID";
+        let count = "SLURM_ARRAY_TASK_COUNT";
+        let min = "SLURM_ARRAY_TASK_MIN";
+        let step = "SLURM_ARRAY_TASK_STEP";
+        // --array=0-7 and --array=1-8 give the same shards
+        let a = Shard::from_vars(vars(&[(id, "0"), (count, "8"), (min, "0")])).unwrap();
+        let b = Shard::from_vars(vars(&[(id, "1"), (count, "8"), (min, "1")])).unwrap();
+        assert_eq!(
+            (a, b),
+            (Shard::new(1, 8).unwrap(), Shard::new(1, 8).unwrap())
+        );
+        // --array=10-40:10
+        let c = Shard::from_vars(vars(&[(id, "30"), (count, "4"), (min, "10"), (step, "10")]));
+        assert_eq!(c.unwrap(), Shard::new(3, 4).unwrap());
+        // missing, not a number, inconsistent: each names its variable
+        for (v, want) in [
+            (vars(&[]), id),
+            (vars(&[(id, "1")]), count),
+            (vars(&[(id, "one"), (count, "2")]), id),
+            (vars(&[(id, "2"), (count, "2")]), id),
+            (vars(&[(id, "0"), (count, "0")]), count),
+            (vars(&[(id, "0"), (count, "2"), (min, "1")]), id),
+            (
+                vars(&[(id, "15"), (count, "4"), (min, "10"), (step, "10")]),
+                id,
+            ),
+        ] {
+            match Shard::from_vars(v) {
+                Err(Error::InvalidParameter { field, .. }) => assert_eq!(field, want),
+                other => panic!("{want}: {other:?}"),
+            }
+        }
+        assert_eq!("auto".parse::<ShardSpec>().unwrap(), ShardSpec::Auto);
+        assert_eq!(
+            "2/3".parse::<ShardSpec>().unwrap(),
+            ShardSpec::Fixed(Shard::new(2, 3).unwrap())
+        );
+        assert!("auto/2".parse::<ShardSpec>().is_err());
+    }
 }
