@@ -1,8 +1,14 @@
-//! The physical model: a chain of `n` masses in series between two fixed walls.
+//! The physical model: a chain of `n` masses in series, each end fixed to a
+//! wall by a spring or free ([`Boundary`]).
 //!
 //! ```text
 //! wall ─k_0─ m_1 ─k_1─ m_2 ─ ... ─ m_n ─k_n─ wall      (each mass also has a damper d_i to ground)
 //! ```
+//!
+//! A free end has no wall spring (`k_0 = 0` on the left, `k_n = 0` on the
+//! right): the roof of a shear building or the tip of a cantilever. With
+//! both ends free the chain has a rigid-body mode (a pole of every response at
+//! `s = 0`).
 //!
 //! Equations of motion (impulse `gamma * delta(t)` on mass 1, zero initial state):
 //!
@@ -14,6 +20,59 @@
 
 use crate::error::{check_f64, Error, Result};
 use serde::{Deserialize, Serialize};
+
+/// How one end of the chain is held.
+///
+/// `Fixed` (the default, the paper's setup): a wall spring `k_0` (left) or
+/// `k_n` (right) of the uniform stiffness, changeable by a spring defect at
+/// index `0` or `n`. `Free`: no wall spring; spring index `0` (or `n`) does
+/// not exist.
+///
+/// ```
+/// use springmass::chain::Boundary;
+/// assert_eq!("free".parse::<Boundary>().unwrap(), Boundary::Free);
+/// assert_eq!(Boundary::default(), Boundary::Fixed);
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Boundary {
+    /// Attached to a wall by a spring.
+    #[default]
+    Fixed,
+    /// No wall spring.
+    Free,
+}
+
+impl Boundary {
+    /// `fixed` or `free`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Boundary::Fixed => "fixed",
+            Boundary::Free => "free",
+        }
+    }
+    /// `true` for [`Boundary::Free`].
+    pub fn is_free(self) -> bool {
+        self == Boundary::Free
+    }
+}
+
+impl std::fmt::Display for Boundary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Boundary {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Boundary> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "fixed" | "wall" | "clamped" => Ok(Boundary::Fixed),
+            "free" => Ok(Boundary::Free),
+            _ => Err(Error::invalid("boundary", s, "fixed or free")),
+        }
+    }
+}
 
 /// Largest chain length accepted (the closed-form model is O(1) in `n`; the
 /// O(n) reference solver and the simulator are not).
@@ -156,6 +215,12 @@ pub struct Chain {
     gamma: f64,
     mass: f64,
     defects: Vec<Defect>,
+    /// Left end (default fixed).
+    #[serde(default)]
+    left: Boundary,
+    /// Right end (default fixed).
+    #[serde(default)]
+    right: Boundary,
 }
 
 impl Chain {
@@ -174,6 +239,8 @@ impl Chain {
             gamma: 1.0,
             mass: 1.0,
             defects: Vec::new(),
+            left: Boundary::Fixed,
+            right: Boundary::Fixed,
         })
     }
 
@@ -206,11 +273,111 @@ impl Chain {
         Ok(self)
     }
 
-    /// Add one defect, validated against `n` and the defects already present.
+    /// The ends of the chain: `left` holds mass 1, `right` mass `n`.
     ///
     /// # Errors
-    /// Position out of range, value out of range, or a second defect of the
-    /// same kind at the same place.
+    /// A spring defect on a wall spring that a free end removes (spring `0`
+    /// with a free left end, spring `n` with a free right end), field
+    /// `defects[i].at`.
+    ///
+    /// ```
+    /// use springmass::{Chain, chain::Boundary};
+    /// // a shear building seen from its roof: mass 1 at the free end
+    /// let c = Chain::paper(5)?.with_boundaries(Boundary::Free, Boundary::Fixed)?;
+    /// assert_eq!(c.springs(), vec![0.0, 1.0, 1.0, 1.0, 1.0, 1.0]);
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    pub fn with_boundaries(mut self, left: Boundary, right: Boundary) -> Result<Chain> {
+        self.left = left;
+        self.right = right;
+        for (idx, d) in self.defects.iter().enumerate() {
+            if let Defect::Spring { at, .. } = *d {
+                self.check_spring_at(idx, at)?;
+            }
+        }
+        Ok(self)
+    }
+
+    /// Left end (mass 1's side).
+    pub fn left(&self) -> Boundary {
+        self.left
+    }
+    /// Right end (mass `n`'s side).
+    pub fn right(&self) -> Boundary {
+        self.right
+    }
+    /// Refuse a chain with a free end where a method is derived for walls
+    /// at both ends (the explicit locators, the mass-only Woodbury kernel).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `boundaries` and `what`.
+    pub fn require_fixed_ends(&self, what: &str) -> Result<()> {
+        if self.is_fixed_fixed() {
+            Ok(())
+        } else {
+            Err(Error::invalid(
+                "boundaries",
+                format!("left = {:?}, right = {:?}", self.left, self.right),
+                format!("fixed at both ends for {what}"),
+            ))
+        }
+    }
+    /// Both ends fixed (the paper's setup).
+    pub fn is_fixed_fixed(&self) -> bool {
+        self.left == Boundary::Fixed && self.right == Boundary::Fixed
+    }
+    /// Both ends free: a rigid-body mode, a pole at `s = 0`.
+    pub fn is_free_free(&self) -> bool {
+        self.left == Boundary::Free && self.right == Boundary::Free
+    }
+    /// The range of spring indices that exist: `lo..=hi` (`0..=n` with both
+    /// ends fixed; `1` and `n - 1` at free ends). Empty (`lo > hi`) for a
+    /// single mass with both ends free.
+    pub fn spring_range(&self) -> (usize, usize) {
+        let lo = usize::from(self.left.is_free());
+        let hi = if self.right.is_free() {
+            self.n.wrapping_sub(1)
+        } else {
+            self.n
+        };
+        (lo, hi)
+    }
+
+    fn check_spring_at(&self, idx: usize, at: usize) -> Result<()> {
+        let (lo, hi) = self.spring_range();
+        let field = format!("defects[{idx}].at");
+        if self.n == 1 && self.is_free_free() {
+            return Err(Error::invalid(
+                field,
+                at,
+                "no spring exists: a single mass with both ends free",
+            ));
+        }
+        if at < lo || at > hi {
+            let why = match (
+                self.left.is_free() && at == 0,
+                self.right.is_free() && at == self.n,
+            ) {
+                (true, _) => " (the left end is free: spring 0 does not exist)",
+                (_, true) => " (the right end is free: spring n does not exist)",
+                _ => "",
+            };
+            return Err(Error::invalid(
+                field,
+                at,
+                format!("{lo} <= spring index <= {hi}{why}"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Add one defect, validated against `n`, the boundaries and the defects
+    /// already present.
+    ///
+    /// # Errors
+    /// Position out of range (a spring index that a free end removes
+    /// included), value out of range, or a second defect of the same kind at
+    /// the same place.
     pub fn with_defect(mut self, defect: Defect) -> Result<Chain> {
         let idx = self.defects.len();
         let n = self.n;
@@ -230,6 +397,7 @@ impl Chain {
             }
             Defect::Spring { at, k } => {
                 check_pos(&format!("defects[{idx}].at"), at, 0, n)?;
+                self.check_spring_at(idx, at)?;
                 check_f64(&format!("defects[{idx}].k"), k, k > 0.0, "k > 0 and finite")?;
             }
         }
@@ -296,14 +464,32 @@ impl Chain {
         v
     }
 
+    /// The mass of mass `i` (1-based), O(number of defects); the uniform
+    /// mass for an index out of range.
+    pub fn mass_at(&self, i: usize) -> f64 {
+        self.defects
+            .iter()
+            .find_map(|d| match *d {
+                Defect::Mass { at, m } if at == i => Some(m),
+                _ => None,
+            })
+            .unwrap_or(self.mass)
+    }
+
     /// All `n + 1` spring constants, `springs()[i]` joining mass `i` and `i+1`
-    /// (`springs()[0]` and `springs()[n]` attach to the walls).
+    /// (`springs()[0]` and `springs()[n]` attach to the walls; `0` at a free end).
     pub fn springs(&self) -> Vec<f64> {
         let mut v = vec![self.k; self.n + 1];
         for d in &self.defects {
             if let Defect::Spring { at, k } = *d {
                 v[at] = k;
             }
+        }
+        if self.left.is_free() {
+            v[0] = 0.0;
+        }
+        if self.right.is_free() {
+            v[self.n] = 0.0;
         }
         v
     }
@@ -322,6 +508,118 @@ impl Chain {
     /// Check a 1-based observed mass index.
     pub fn check_observe(&self, i: usize) -> Result<usize> {
         check_pos("observe", i, 1, self.n)
+    }
+}
+
+/// Physical scales of a chain given in the user's units: one unit of mass is
+/// `mass_kg` kg, one unit of stiffness `stiffness_n_per_m` N/m, one unit of
+/// damping `damping_n_s_per_m` N s/m (the impulse `gamma` is in N s).
+///
+/// [`Chain::to_si`] multiplies every mass, spring and damper by its scale;
+/// the equations of motion are dimensionally homogeneous, so the SI chain's
+/// time is in seconds, `s` in 1/s, natural frequencies in rad/s
+/// ([`crate::time::modal::natural_modes`]) and displacements in metres.
+/// The default (all scales 1) leaves the chain unchanged: the dimensionless
+/// paper setup, read as SI with unit values.
+///
+/// ```
+/// use springmass::{Chain, chain::Units};
+/// // masses in tonnes, stiffness in kN/m, damping in kN s/m
+/// let u = Units::new(1000.0, 1000.0, 1000.0)?;
+/// let si = Chain::paper(3)?.to_si(&u)?;
+/// assert_eq!((si.mass(), si.k(), si.d()), (1000.0, 1000.0, 100.0));
+/// # Ok::<(), springmass::Error>(())
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Units {
+    /// kg per unit of mass (default 1).
+    #[serde(default = "one")]
+    pub mass_kg: f64,
+    /// N/m per unit of stiffness (default 1).
+    #[serde(default = "one")]
+    pub stiffness_n_per_m: f64,
+    /// N s/m per unit of damping (default 1).
+    #[serde(default = "one")]
+    pub damping_n_s_per_m: f64,
+}
+
+impl Default for Units {
+    fn default() -> Self {
+        Units {
+            mass_kg: 1.0,
+            stiffness_n_per_m: 1.0,
+            damping_n_s_per_m: 1.0,
+        }
+    }
+}
+
+impl Units {
+    /// Validated scales.
+    ///
+    /// # Errors
+    /// A scale that is not finite and `> 0` (fields `mass_kg`,
+    /// `stiffness_n_per_m`, `damping_n_s_per_m`).
+    pub fn new(mass_kg: f64, stiffness_n_per_m: f64, damping_n_s_per_m: f64) -> Result<Units> {
+        let u = Units {
+            mass_kg,
+            stiffness_n_per_m,
+            damping_n_s_per_m,
+        };
+        u.check()?;
+        Ok(u)
+    }
+
+    /// Check every scale is finite and `> 0`.
+    ///
+    /// # Errors
+    /// As [`Units::new`].
+    pub fn check(&self) -> Result<()> {
+        for (f, v) in [
+            ("mass_kg", self.mass_kg),
+            ("stiffness_n_per_m", self.stiffness_n_per_m),
+            ("damping_n_s_per_m", self.damping_n_s_per_m),
+        ] {
+            check_f64(f, v, v > 0.0, "> 0 and finite")?;
+        }
+        Ok(())
+    }
+
+    /// All scales 1.
+    pub fn is_identity(&self) -> bool {
+        *self == Units::default()
+    }
+}
+
+impl Chain {
+    /// The chain in SI units (see [`Units`]): masses times `mass_kg`, springs
+    /// times `stiffness_n_per_m`, dampers times `damping_n_s_per_m`.
+    ///
+    /// # Errors
+    /// Invalid scales; a product that leaves the f64 range.
+    pub fn to_si(&self, units: &Units) -> Result<Chain> {
+        units.check()?;
+        let (ms, ks, ds) = (
+            units.mass_kg,
+            units.stiffness_n_per_m,
+            units.damping_n_s_per_m,
+        );
+        let defects: Vec<Defect> = self
+            .defects
+            .iter()
+            .map(|d| match *d {
+                Defect::Mass { at, m } => Defect::Mass { at, m: m * ms },
+                Defect::Spring { at, k } => Defect::Spring { at, k: k * ks },
+                Defect::Damper { at, d } => Defect::Damper { at, d: d * ds },
+            })
+            .collect();
+        Chain::new(self.n)?
+            .with_k(self.k * ks)?
+            .with_d(self.d * ds)?
+            .with_mass(self.mass * ms)?
+            .with_gamma(self.gamma)?
+            .with_boundaries(self.left, self.right)?
+            .with_defects(defects)
     }
 }
 
@@ -359,6 +657,12 @@ pub struct ChainSpec {
     /// Defects (default none).
     #[serde(default)]
     pub defects: Vec<Defect>,
+    /// Left end, `fixed` or `free` (default fixed).
+    #[serde(default)]
+    pub left: Boundary,
+    /// Right end, `fixed` or `free` (default fixed).
+    #[serde(default)]
+    pub right: Boundary,
 }
 
 fn one() -> f64 {
@@ -376,6 +680,7 @@ impl ChainSpec {
             .with_d(self.d)?
             .with_gamma(self.gamma)?
             .with_mass(self.mass)?
+            .with_boundaries(self.left, self.right)?
             .with_defects(self.defects.iter().copied())
     }
 }
@@ -389,6 +694,8 @@ impl From<&Chain> for ChainSpec {
             gamma: c.gamma,
             mass: c.mass,
             defects: c.defects.clone(),
+            left: c.left,
+            right: c.right,
         }
     }
 }
@@ -447,6 +754,73 @@ mod tests {
         assert_eq!(c.masses(), vec![1.0, 1.0, 1.0, 2.0]);
         assert_eq!(c.springs(), vec![3.0, 1.0, 1.0, 1.0, 5.0]);
         assert_eq!(c.dampers(), vec![0.7, 0.1, 0.1, 0.1]);
+    }
+
+    #[test]
+    fn boundaries_validate_wall_springs() {
+        use Boundary::*;
+        let c = Chain::paper(4).unwrap();
+        let ff = c.clone().with_boundaries(Free, Fixed).unwrap();
+        assert!(matches!(
+            ff.clone().with_defect(Defect::Spring { at: 0, k: 2.0 }),
+            Err(Error::InvalidParameter { field, .. }) if field == "defects[0].at"
+        ));
+        assert!(ff
+            .clone()
+            .with_defect(Defect::Spring { at: 4, k: 2.0 })
+            .is_ok());
+        let fr = c.clone().with_boundaries(Fixed, Free).unwrap();
+        assert!(fr
+            .clone()
+            .with_defect(Defect::Spring { at: 4, k: 2.0 })
+            .is_err());
+        assert!(fr.with_defect(Defect::Spring { at: 0, k: 2.0 }).is_ok());
+        // a wall-spring defect present before the end is freed
+        let w = c.with_defect(Defect::Spring { at: 0, k: 2.0 }).unwrap();
+        assert!(w.with_boundaries(Free, Fixed).is_err());
+        let one = Chain::paper(1)
+            .unwrap()
+            .with_boundaries(Free, Free)
+            .unwrap();
+        assert_eq!(one.springs(), vec![0.0, 0.0]);
+        assert!(one.with_defect(Defect::Spring { at: 0, k: 1.0 }).is_err());
+        assert_eq!("FREE".parse::<Boundary>().unwrap(), Free);
+        assert!("loose".parse::<Boundary>().is_err());
+    }
+
+    #[test]
+    fn boundaries_default_in_toml_and_json() {
+        let spec: ChainSpec = toml::from_str("n = 3").unwrap();
+        assert_eq!((spec.left, spec.right), (Boundary::Fixed, Boundary::Fixed));
+        let spec: ChainSpec = toml::from_str("n = 3\nleft = \"free\"").unwrap();
+        let c = spec.build().unwrap();
+        assert_eq!(c.left(), Boundary::Free);
+        assert_eq!(ChainSpec::from(&c), spec);
+        let json = r#"{"n":2,"k":1.0,"d":0.1,"gamma":1.0,"mass":1.0,"defects":[]}"#;
+        let c: Chain = serde_json::from_str(json).unwrap();
+        assert!(c.is_fixed_fixed());
+        assert!(toml::from_str::<ChainSpec>("n = 3\nleft = \"loose\"").is_err());
+    }
+
+    #[test]
+    fn units_scale_every_parameter() {
+        let c = Chain::paper(3)
+            .unwrap()
+            .with_boundaries(Boundary::Free, Boundary::Fixed)
+            .unwrap()
+            .with_defects([
+                Defect::Mass { at: 2, m: 2.0 },
+                Defect::Spring { at: 3, k: 0.5 },
+                Defect::Damper { at: 1, d: 0.3 },
+            ])
+            .unwrap();
+        let si = c.to_si(&Units::new(10.0, 100.0, 1000.0).unwrap()).unwrap();
+        assert_eq!(si.masses(), vec![10.0, 20.0, 10.0]);
+        assert_eq!(si.springs(), vec![0.0, 100.0, 100.0, 50.0]);
+        assert_eq!(si.dampers(), vec![300.0, 100.0, 100.0]);
+        assert_eq!(si.left(), Boundary::Free);
+        assert_eq!(c.to_si(&Units::default()).unwrap(), c);
+        assert!(Units::new(0.0, 1.0, 1.0).is_err());
     }
 
     #[test]

@@ -74,9 +74,71 @@ pub enum Error {
         /// The OS message.
         reason: String,
     },
+
+    /// An output path that must not be written: a directory, a device, a FIFO,
+    /// a socket, or a symbolic link to one of them (see [`crate::io::write_atomic`]).
+    #[error("refusing to write {path}: {reason}")]
+    UnsafeOutput {
+        /// The path as given.
+        path: String,
+        /// What it is and what is allowed.
+        reason: String,
+    },
+
+    /// A job whose estimated memory exceeds the budget (see [`crate::io::check_alloc`]).
+    #[error("{what} needs about {need} of memory, above the budget of {budget}")]
+    ResourceLimit {
+        /// The job and the parameters that drive its size.
+        what: String,
+        /// The estimate.
+        need: String,
+        /// The budget, and how to change it.
+        budget: String,
+    },
+}
+
+/// Process exit statuses of the `springmass` command, one per class of error
+/// ([`Error::exit_code`]).
+pub mod exit {
+    /// Success.
+    pub const OK: i32 = 0;
+    /// Anything else (a numerical method that failed, an internal error).
+    pub const OTHER: i32 = 1;
+    /// Usage error or invalid input (bad option, value out of range, unparsable
+    /// file, a job above the memory budget).
+    pub const USAGE: i32 = 2;
+    /// Input/output error (a file that cannot be read or written, an output
+    /// path that is a device, FIFO, socket or directory, a full disk or stdout).
+    pub const IO: i32 = 3;
+    /// The data cannot resolve the requested result (signal below the
+    /// rounding or noise floor).
+    pub const UNRESOLVABLE: i32 = 4;
 }
 
 impl Error {
+    /// The process exit status for this error (see [`exit`]): 2 for invalid
+    /// input (parameters, parse errors, duplicates, poles, limits), 3 for I/O,
+    /// 4 for [`Error::Unresolvable`], 1 for [`Error::Numerical`].
+    ///
+    /// ```
+    /// use springmass::Error;
+    /// assert_eq!(Error::invalid("n", 0, ">= 1").exit_code(), 2);
+    /// assert_eq!(Error::io("a.csv", "denied").exit_code(), 3);
+    /// assert_eq!(Error::Unresolvable { reason: "floor".into() }.exit_code(), 4);
+    /// ```
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            Error::InvalidParameter { .. }
+            | Error::DuplicateDefect { .. }
+            | Error::Parse { .. }
+            | Error::Singular { .. }
+            | Error::ResourceLimit { .. } => exit::USAGE,
+            Error::Io { .. } | Error::UnsafeOutput { .. } => exit::IO,
+            Error::Unresolvable { .. } => exit::UNRESOLVABLE,
+            Error::Numerical { .. } => exit::OTHER,
+        }
+    }
+
     /// Shorthand for [`Error::InvalidParameter`].
     pub fn invalid(
         field: impl Into<String>,

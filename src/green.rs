@@ -1,4 +1,5 @@
-//! Closed-form Green's function of the uniform chain (Theorem 2.1, any `k`).
+//! Closed-form Green's function of the uniform chain (Theorem 2.1, any `k`),
+//! for each end fixed or free ([`Boundary`]).
 //!
 //! The uniform chain's dynamic stiffness is `K(s) = tridiag(-k, mass s^2 + d s + 2k, -k)`
 //! and its Green's function is `G(s) = K(s)^{-1}`. With
@@ -27,6 +28,45 @@
 //! `sinh((i+1) lambda) - sinh(i lambda) = 2 cosh((i + 1/2) lambda) sinh(lambda/2)`,
 //! so they do not cancel either. Every entry costs O(1) whatever `n`.
 //!
+//! # Free ends (derivation)
+//!
+//! Away from the ends every column of `G` solves the interior recurrence
+//! `-k x_{i-1} + (mass s^2 + d s + 2k) x_i - k x_{i+1} = 0`, whose solutions
+//! are `e^{+-i lambda}`. Let `L_i` solve it with the left end condition and
+//! `R_j` with the right one; then for `i <= j`
+//!
+//! `G_ij = L_i R_j / (k C)`,  `C = L_1 R_0 - L_0 R_1` (the Casoratian, constant in `i`),
+//!
+//! because row `j` of `K G e_j` is `R_j (a L_j - k L_{j-1}) - k L_j R_{j+1} = k (L_{j+1} R_j - L_j R_{j+1}) = k C`
+//! and every other row vanishes. A fixed end is `x_0 = 0` (`x_{n+1} = 0`);
+//! a free end has no wall spring, so row 1 reads `(a - k) x_1 - k x_2 = 0`,
+//! which is the interior row with the ghost value `x_0 = x_1` (and
+//! `x_{n+1} = x_n` on the right). Hence
+//!
+//! | end | `L_i` (left) | `R_j` (right) |
+//! |---|---|---|
+//! | fixed | `sinh(i lambda)` | `sinh((n+1-j) lambda)` |
+//! | free | `cosh((i - 1/2) lambda)` | `cosh((n + 1/2 - j) lambda)` |
+//!
+//! and `C` is `sinh(lambda) sinh((n+1) lambda)` (fixed-fixed),
+//! `sinh(lambda) cosh((n + 1/2) lambda)` (one end free, either one), and
+//! `sinh(lambda) sinh(n lambda)` (free-free). The poles are the zeros of `C`:
+//! with `lambda = i theta`, `cosh(lambda) = 1 - mass omega^2/(2k)` gives
+//! `omega = 2 sqrt(k/mass) sin(theta/2)` with `theta = j pi/(n+1)` (fixed-fixed),
+//! `theta = (2j-1) pi/(2n+1)` (one end free) and `theta = (j-1) pi / n`
+//! (free-free, `j = 1` the rigid-body mode at `s = 0`). Differences for the
+//! strain probes stay products: at a free end
+//! `L_i - L_{i+1} = -2 sinh(i lambda) sinh(lambda/2)` and
+//! `R_j - R_{j+1} = 2 sinh((n-j) lambda) sinh(lambda/2)`.
+//!
+//! In `q` form the half-integer multiples of `lambda` appear, so every factor
+//! is kept as `e^{h lambda / 2} * mantissa` with an integer `h`; e.g.
+//! `cosh((i - 1/2) lambda) = e^{(2i-1) lambda/2} (1 + q^{2i-1}) / 2`. No
+//! mantissa exceeds 1 in size and no difference of nearly equal terms is
+//! formed, exactly as in the fixed-fixed case. Static limits (`lambda -> 0`):
+//! `G_ij = (n+1-j)/k` (left free), `i/k` (right free); with both ends free
+//! `s = 0` is the rigid-body pole ([`Green::is_singular`]).
+//!
 //! ```
 //! use springmass::green::{Green, Probe};
 //! let g = Green::new(20, 1.0, 1.0, 0.1, 0.5_f64);
@@ -37,11 +77,13 @@
 //! assert_eq!(g.bilinear(Probe::Point(3), Probe::Point(7)), g.entry(3, 7));
 //! ```
 
+use crate::chain::{Boundary, Chain};
 use crate::scalar::Scalar;
 
 /// A vector the Green's function is applied to: a point load `e_j` (mass
 /// and damper defects, observations) or a strain `e_i - e_{i+1}` (spring `i`,
-/// `0..=n`, with `e_0 = e_{n+1} = 0`).
+/// `0..=n`, with `e_0 = e_{n+1} = 0`; spring `0` and `n` exist only at a
+/// fixed end).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Probe {
     /// `e_j`, `1 <= j <= n`.
@@ -59,11 +101,11 @@ impl Probe {
     }
 }
 
-/// A factor `e^{e lambda} * mantissa` (the exponent is kept as an integer and
-/// cancelled analytically against the denominator).
+/// A factor `e^{h lambda / 2} * mantissa` (the exponent is kept as an integer
+/// number of half-`lambda`s and cancelled analytically against the denominator).
 #[derive(Clone, Debug)]
 struct Factor<T> {
-    exp: usize,
+    half_exp: usize,
     mant: T,
 }
 
@@ -86,50 +128,115 @@ impl<T> ProbeFactors<T> {
 /// The Green's function of a uniform chain at one value of `s`.
 ///
 /// Construction costs a few transcendental functions; every entry after that
-/// costs three. What depends only on `(n, k, mass, d, s)` lives here, so a
-/// caller that evaluates many defect hypotheses at one `s` builds it once.
+/// costs three. What depends only on `(n, k, mass, d, s)` and the ends lives
+/// here, so a caller that evaluates many defect hypotheses at one `s` builds
+/// it once.
 #[derive(Clone, Debug)]
 pub struct Green<T: Scalar> {
     n: usize,
     lambda: T,
+    left: Boundary,
+    right: Boundary,
     /// `lambda == 0`: use the static limit.
     stat: bool,
     /// `1 - q`
     one_m_q: T,
-    /// `k (1 - q^2)(1 - q^{2(n+1)}) / 4` (or `k (n+1)` in the static limit)
+    /// mantissa of `k C` (see the module docs), or its static limit
     den: T,
+    /// `k C = e^{den_half lambda / 2} den`
+    den_half: usize,
 }
 
 impl<T: Scalar> Green<T> {
-    /// Green's function of the uniform chain `(n, k, mass, d)` at `s`.
+    /// Green's function of the uniform chain `(n, k, mass, d)` with both ends
+    /// fixed, at `s`.
     ///
     /// The parameters are assumed validated (see [`crate::Chain`]); `s` must have
     /// `Re s >= 0`. Use [`crate::forward`] for the checked entry point.
     pub fn new(n: usize, k: f64, mass: f64, d: f64, s: T) -> Green<T> {
-        // lambda = 2 asinh( sqrt(s) * sqrt((mass s + d)/k) / 2 )
-        let inner = (s.scale(mass) + T::from_f64(d)).scale(1.0 / k);
-        let root = s.sqrt() * inner.sqrt();
-        let lambda = root.scale(0.5).asinh().scale(2.0);
-        Self::from_lambda(n, k, lambda)
+        Self::with_ends(n, k, mass, d, s, Boundary::Fixed, Boundary::Fixed)
     }
 
-    /// Green's function for a given `lambda` (`Re lambda >= 0`).
+    /// Green's function of the uniform chain `(n, k, mass, d)` with the given
+    /// ends, at `s` (unchecked, as [`Green::new`]).
+    pub fn with_ends(
+        n: usize,
+        k: f64,
+        mass: f64,
+        d: f64,
+        s: T,
+        left: Boundary,
+        right: Boundary,
+    ) -> Green<T> {
+        Self::from_lambda_ends(n, k, lambda_of(k, mass, d, &s), left, right)
+    }
+
+    /// Green's function of the uniform part of `chain` (its `n`, `k`, `mass`,
+    /// `d` and ends; defects ignored) at `s` (unchecked, as [`Green::new`]).
+    ///
+    /// ```
+    /// use springmass::{Chain, chain::Boundary, green::Green};
+    /// let c = Chain::new(1)?.with_boundaries(Boundary::Free, Boundary::Fixed)?;
+    /// // one mass on one spring: 1 / (s^2 + 1)
+    /// let g = Green::of_chain(&c, 2.0_f64);
+    /// assert!((g.entry(1, 1) - 0.2).abs() < 1e-15);
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    pub fn of_chain(chain: &Chain, s: T) -> Green<T> {
+        Self::with_ends(
+            chain.n(),
+            chain.k(),
+            chain.mass(),
+            chain.d(),
+            s,
+            chain.left(),
+            chain.right(),
+        )
+    }
+
+    /// Green's function for a given `lambda` (`Re lambda >= 0`), both ends fixed.
     pub fn from_lambda(n: usize, k: f64, lambda: T) -> Green<T> {
+        Self::from_lambda_ends(n, k, lambda, Boundary::Fixed, Boundary::Fixed)
+    }
+
+    /// Green's function for a given `lambda` (`Re lambda >= 0`) and ends.
+    pub fn from_lambda_ends(
+        n: usize,
+        k: f64,
+        lambda: T,
+        left: Boundary,
+        right: Boundary,
+    ) -> Green<T> {
         let stat = lambda.is_zero();
-        let (one_m_q, den) = if stat {
-            (T::zero(), T::from_f64(k * (n as f64 + 1.0)))
+        let nf = n as f64;
+        let (one_m_q, den, den_half) = if stat {
+            let den = match (left, right) {
+                (Boundary::Fixed, Boundary::Fixed) => k * (nf + 1.0),
+                (Boundary::Free, Boundary::Free) => 0.0,
+                _ => k,
+            };
+            (T::zero(), T::from_f64(den), 0)
         } else {
             let one_m_q = -(-lambda.clone()).expm1();
             let one_m_q2 = -(lambda.scale(-2.0)).expm1();
-            let one_m_qn = -(lambda.scale(-2.0 * (n as f64 + 1.0))).expm1();
-            (one_m_q, (one_m_q2 * one_m_qn).scale(0.25 * k))
+            let (second, half) = match (left, right) {
+                (Boundary::Fixed, Boundary::Fixed) => {
+                    (-(lambda.scale(-2.0 * (nf + 1.0))).expm1(), 2 * n + 4)
+                }
+                (Boundary::Free, Boundary::Free) => (-(lambda.scale(-2.0 * nf)).expm1(), 2 * n + 2),
+                _ => (T::one() + lambda.scale(-(2.0 * nf + 1.0)).exp(), 2 * n + 3),
+            };
+            (one_m_q, (one_m_q2 * second).scale(0.25 * k), half)
         };
         Green {
             n,
             lambda,
+            left,
+            right,
             stat,
             one_m_q,
             den,
+            den_half,
         }
     }
 
@@ -138,18 +245,29 @@ impl<T: Scalar> Green<T> {
         self.n
     }
 
+    /// The ends `(left, right)`.
+    pub fn ends(&self) -> (Boundary, Boundary) {
+        (self.left, self.right)
+    }
+
     /// `lambda(s)`, with `cosh(lambda) = 1 + (mass s^2 + d s)/(2k)` and `Re lambda >= 0`.
     pub fn lambda(&self) -> T {
         self.lambda.clone()
     }
 
-    /// `q^p = exp(-p lambda)`.
+    /// `true` at the rigid-body pole (`s = 0` with both ends free): every
+    /// entry is infinite there.
+    pub fn is_singular(&self) -> bool {
+        self.den.is_zero()
+    }
+
+    /// `exp(-h lambda / 2)`.
     #[inline]
-    fn qpow(&self, p: usize) -> T {
-        if p == 0 {
+    fn qhalf(&self, h: usize) -> T {
+        if h == 0 {
             T::one()
         } else {
-            self.lambda.scale(-(p as f64)).exp()
+            self.lambda.scale(-0.5 * h as f64).exp()
         }
     }
 
@@ -163,63 +281,114 @@ impl<T: Scalar> Green<T> {
         }
     }
 
-    /// `sinh(a lambda)` as a left factor.
+    /// `(1 + q^{h}) / 2`.
+    #[inline]
+    fn half_one_plus_q(&self, h: usize) -> T {
+        (T::one() + self.lambda.scale(-(h as f64)).exp()).scale(0.5)
+    }
+
+    /// `L_a`: `sinh(a lambda)` (fixed) or `cosh((a - 1/2) lambda)` (free).
     fn left_point(&self, a: usize) -> Factor<T> {
-        if self.stat {
-            return Factor {
-                exp: 0,
+        match (self.left, self.stat) {
+            (Boundary::Fixed, true) => Factor {
+                half_exp: 0,
                 mant: T::from_f64(a as f64),
-            };
-        }
-        Factor {
-            exp: a,
-            mant: self.half_one_minus_q2p(a),
+            },
+            (Boundary::Fixed, false) => Factor {
+                half_exp: 2 * a,
+                mant: self.half_one_minus_q2p(a),
+            },
+            (Boundary::Free, true) => Factor {
+                half_exp: 0,
+                mant: T::one(),
+            },
+            (Boundary::Free, false) => Factor {
+                half_exp: 2 * a - 1,
+                mant: self.half_one_plus_q(2 * a - 1),
+            },
         }
     }
 
-    /// `sinh((n+1-b) lambda)` as a right factor.
+    /// `R_b`: `sinh(p lambda)` (fixed) or `cosh((p - 1/2) lambda)` (free), `p = n + 1 - b`.
     fn right_point(&self, b: usize) -> Factor<T> {
         let p = self.n + 1 - b;
-        if self.stat {
-            return Factor {
-                exp: 0,
+        match (self.right, self.stat) {
+            (Boundary::Fixed, true) => Factor {
+                half_exp: 0,
                 mant: T::from_f64(p as f64),
-            };
-        }
-        Factor {
-            exp: p,
-            mant: self.half_one_minus_q2p(p),
-        }
-    }
-
-    /// `sinh(i lambda) - sinh((i+1) lambda) = -e^{(i+1) lambda} (1 + q^{2i+1}) (1 - q) / 2`.
-    fn left_diff(&self, i: usize) -> Factor<T> {
-        if self.stat {
-            return Factor {
-                exp: 0,
-                mant: T::from_f64(-1.0),
-            };
-        }
-        let m = (T::one() + self.qpow(2 * i + 1)) * self.one_m_q.clone();
-        Factor {
-            exp: i + 1,
-            mant: m.scale(-0.5),
-        }
-    }
-
-    /// `sinh((n+1-j) lambda) - sinh((n-j) lambda) = e^{(n+1-j) lambda} (1 + q^{2(n-j)+1}) (1 - q) / 2`.
-    fn right_diff(&self, j: usize) -> Factor<T> {
-        if self.stat {
-            return Factor {
-                exp: 0,
+            },
+            (Boundary::Fixed, false) => Factor {
+                half_exp: 2 * p,
+                mant: self.half_one_minus_q2p(p),
+            },
+            (Boundary::Free, true) => Factor {
+                half_exp: 0,
                 mant: T::one(),
-            };
+            },
+            (Boundary::Free, false) => Factor {
+                half_exp: 2 * p - 1,
+                mant: self.half_one_plus_q(2 * p - 1),
+            },
         }
+    }
+
+    /// `L_i - L_{i+1}`: fixed `-e^{(i+1) lambda} (1 + q^{2i+1}) (1 - q) / 2`,
+    /// free `-2 sinh(i lambda) sinh(lambda/2) = -e^{(i+1/2) lambda} (1 - q^{2i}) (1 - q) / 2`.
+    fn left_diff(&self, i: usize) -> Factor<T> {
+        match (self.left, self.stat) {
+            (Boundary::Fixed, true) => Factor {
+                half_exp: 0,
+                mant: T::from_f64(-1.0),
+            },
+            (Boundary::Fixed, false) => {
+                let m = (T::one() + self.qhalf(2 * (2 * i + 1))) * self.one_m_q.clone();
+                Factor {
+                    half_exp: 2 * i + 2,
+                    mant: m.scale(-0.5),
+                }
+            }
+            (Boundary::Free, true) => Factor {
+                half_exp: 0,
+                mant: T::zero(),
+            },
+            (Boundary::Free, false) => {
+                let m = self.half_one_minus_q2p(i) * self.one_m_q.clone();
+                Factor {
+                    half_exp: 2 * i + 1,
+                    mant: -m,
+                }
+            }
+        }
+    }
+
+    /// `R_j - R_{j+1}` with `p = n + 1 - j`: fixed
+    /// `e^{p lambda} (1 + q^{2p-1}) (1 - q) / 2`, free
+    /// `2 sinh((p-1) lambda) sinh(lambda/2) = e^{(p - 1/2) lambda} (1 - q^{2(p-1)}) (1 - q) / 2`.
+    fn right_diff(&self, j: usize) -> Factor<T> {
         let p = self.n + 1 - j;
-        let m = (T::one() + self.qpow(2 * p - 1)) * self.one_m_q.clone();
-        Factor {
-            exp: p,
-            mant: m.scale(0.5),
+        match (self.right, self.stat) {
+            (Boundary::Fixed, true) => Factor {
+                half_exp: 0,
+                mant: T::one(),
+            },
+            (Boundary::Fixed, false) => {
+                let m = (T::one() + self.qhalf(2 * (2 * p - 1))) * self.one_m_q.clone();
+                Factor {
+                    half_exp: 2 * p,
+                    mant: m.scale(0.5),
+                }
+            }
+            (Boundary::Free, true) => Factor {
+                half_exp: 0,
+                mant: T::zero(),
+            },
+            (Boundary::Free, false) => {
+                let m = self.half_one_minus_q2p(p - 1) * self.one_m_q.clone();
+                Factor {
+                    half_exp: 2 * p - 1,
+                    mant: m,
+                }
+            }
         }
     }
 
@@ -237,7 +406,7 @@ impl<T: Scalar> Green<T> {
         }
     }
 
-    /// `L R / (k sinh(lambda) sinh((n+1) lambda))` with the exponentials cancelled.
+    /// `L R / (k C)` with the exponentials cancelled.
     #[inline]
     fn combine(&self, l: Factor<T>, r: Factor<T>) -> T {
         self.combine_ref(&l, &r)
@@ -249,9 +418,10 @@ impl<T: Scalar> Green<T> {
         if self.stat {
             return num / self.den.clone();
         }
-        // exponent of the quotient: l.exp + r.exp - (n + 2) <= 0
-        let p = self.n + 2 - l.exp - r.exp;
-        self.qpow(p) * num / self.den.clone()
+        // exponent of the quotient: l + r - den <= 0 (see the module docs)
+        debug_assert!(l.half_exp + r.half_exp <= self.den_half);
+        let p = self.den_half - l.half_exp - r.half_exp;
+        self.qhalf(p) * num / self.den.clone()
     }
 
     /// `G_ij` (1-based, `1 <= i, j <= n`), symmetric.
@@ -292,19 +462,37 @@ impl<T: Scalar> Green<T> {
             self.combine(self.left(v), self.right(u))
         } else {
             // Only Diff(i) with itself overlaps:
-            // G_ii - 2 G_{i,i+1} + G_{i+1,i+1} = [S(i) dT(i) + T(i+1) dS(i)] / den,
+            // G_ii - 2 G_{i,i+1} + G_{i+1,i+1} = [L_i dR_i - R_{i+1} dL_i] / (k C),
             // both terms positive for real s.
             let i = match (u, v) {
                 (Probe::Diff(i), Probe::Diff(_)) => i,
                 _ => unreachable!("point probes never overlap other probes"),
             };
-            let t1 = self.combine(self.left_point(i), self.right_diff(i));
-            let mut ld = self.left_diff(i);
-            ld.mant = -ld.mant;
-            let t2 = self.combine(ld, self.right_point(i + 1));
+            // L_0 = 0 at a fixed left end, R_{n+1} = 0 at a fixed right end
+            // (spring 0 / n exist only there)
+            let t1 = if i == 0 {
+                T::zero()
+            } else {
+                self.combine(self.left_point(i), self.right_diff(i))
+            };
+            let t2 = if i == self.n {
+                T::zero()
+            } else {
+                let mut ld = self.left_diff(i);
+                ld.mant = -ld.mant;
+                self.combine(ld, self.right_point(i + 1))
+            };
             t1 + t2
         }
     }
+}
+
+/// `lambda = 2 asinh( sqrt(s) sqrt((mass s + d)/k) / 2 )`: no cancellation at
+/// small `|s|`, no overflow at large `|s|`.
+pub fn lambda_of<T: Scalar>(k: f64, mass: f64, d: f64, s: &T) -> T {
+    let inner = (s.scale(mass) + T::from_f64(d)).scale(1.0 / k);
+    let root = s.sqrt() * inner.sqrt();
+    root.scale(0.5).asinh().scale(2.0)
 }
 
 #[cfg(test)]
@@ -403,6 +591,89 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn free_ends_match_dense_inverse() {
+        use Boundary::*;
+        for (left, right) in [(Free, Fixed), (Fixed, Free), (Free, Free)] {
+            for &n in &[1usize, 2, 3, 8] {
+                for &s in &[
+                    Complex64::new(0.3, 0.0),
+                    Complex64::new(2e-3, 0.0),
+                    Complex64::new(0.2, 1.3),
+                    Complex64::new(5.0, -40.0),
+                ] {
+                    let (k, mass, d) = (1.7, 0.6, 0.2);
+                    let mut m = dense_matrix(n, k, mass, d, s);
+                    if left == Free {
+                        m[(0, 0)] -= k;
+                    }
+                    if right == Free {
+                        m[(n - 1, n - 1)] -= k;
+                    }
+                    let inv = m.lu().try_inverse().unwrap();
+                    let g = Green::with_ends(n, k, mass, d, s, left, right);
+                    let scale = inv.iter().map(|z| z.norm()).fold(0.0, f64::max);
+                    for i in 1..=n {
+                        for j in 1..=n {
+                            let e = g.entry(i, j);
+                            assert!(
+                                (e - inv[(i - 1, j - 1)]).norm() < 1e-12 * scale,
+                                "{left:?}-{right:?} n={n} s={s} ({i},{j}) {e} vs {}",
+                                inv[(i - 1, j - 1)]
+                            );
+                        }
+                    }
+                    let lo = usize::from(left == Free);
+                    let hi = if right == Free { n - 1 } else { n };
+                    for i in lo..=hi {
+                        if lo > hi || (n == 1 && left == Free && right == Free) {
+                            break;
+                        }
+                        let mut u = nalgebra::DVector::<Complex64>::zeros(n);
+                        if i >= 1 {
+                            u[i - 1] += Complex64::from(1.0);
+                        }
+                        if i < n {
+                            u[i] -= Complex64::from(1.0);
+                        }
+                        let want = (u.transpose() * &inv * &u)[(0, 0)];
+                        let got = g.bilinear(Probe::Diff(i), Probe::Diff(i));
+                        assert!((got - want).norm() < 1e-12 * scale, "diff {i}");
+                        let want1 = (u.transpose() * inv.column(0))[(0, 0)];
+                        let got1 = g.bilinear(Probe::Diff(i), Probe::Point(1));
+                        assert!((got1 - want1).norm() < 1e-12 * scale, "diff {i} x 1");
+                    }
+                }
+            }
+        }
+        // static limits
+        let g = Green::with_ends(4, 2.0, 1.0, 0.1, 0.0_f64, Free, Fixed);
+        assert!((g.entry(1, 3) - 1.0).abs() < 1e-15);
+        let g = Green::with_ends(4, 2.0, 1.0, 0.1, 0.0_f64, Fixed, Free);
+        assert!((g.entry(2, 3) - 1.0).abs() < 1e-15);
+        let g = Green::with_ends(4, 2.0, 1.0, 0.1, 0.0_f64, Free, Free);
+        assert!(g.is_singular() && !g.entry(1, 1).is_finite());
+    }
+
+    fn dense_matrix(
+        n: usize,
+        k: f64,
+        mass: f64,
+        d: f64,
+        s: Complex64,
+    ) -> nalgebra::DMatrix<Complex64> {
+        let diag = s * s * mass + s * d + 2.0 * k;
+        let mut m = nalgebra::DMatrix::<Complex64>::zeros(n, n);
+        for i in 0..n {
+            m[(i, i)] = diag;
+            if i + 1 < n {
+                m[(i, i + 1)] = Complex64::new(-k, 0.0);
+                m[(i + 1, i)] = Complex64::new(-k, 0.0);
+            }
+        }
+        m
     }
 
     #[test]

@@ -27,27 +27,62 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 //!
-//! ## Where each piece lives
+//! ## A fit from data, in five lines
+//!
+//! A user's record of mass 1 (here a CSV this example writes first), the
+//! number of masses, nothing else: the number of defects, their positions,
+//! values, standard errors and the noise level all come from the data.
+//!
+//! ```
+//! # use springmass::{Chain, Defect, noise::NoiseLevel, series::TimeSeries};
+//! # let truth = Chain::paper(6)?.with_defect(Defect::Mass { at: 4, m: 2.5 })?;
+//! # let rec = springmass::detect::data::series::TimeData::simulate(&truth, 120.0, 0.25, NoiseLevel::RelativeMax(1e-3), 7)?;
+//! # let path = std::env::temp_dir().join(format!("springmass-lib-doc-{}.csv", std::process::id()));
+//! # TimeSeries::new(rec.t().to_vec(), vec![("x1".into(), rec.y().to_vec())])?.write_csv(&path)?;
+//! use springmass::detect::{data::observations::{Observations, Series}, fit};
+//! let obs = Observations::Series(Series::from_csv(&path, Some("x1"), None)?);
+//! let report = fit::fit(&obs, &fit::Model::new(6)?, &fit::FitOptions::default())?;
+//! println!("{}", report.summary());           // the answer with error bars first
+//! assert_eq!((report.k, report.defects[0].at), (1, 4));
+//! # std::fs::remove_file(&path).ok();
+//! # Ok::<(), springmass::Error>(())
+//! ```
+//!
+//! ## Cargo features
+//!
+//! `cli` (the `springmass` binary: clap, anyhow, indicatif), `plot` (SVG plots
+//! with the bundled DejaVu Sans font) and `bigfloat` (extended precision,
+//! astro-float) are on by default. With `default-features = false` the library
+//! needs only its numerical dependencies; a plot then returns an
+//! [`Error::InvalidParameter`] naming `plot`, and a precision other than `f64`
+//! one naming `precision`.
+//!
+//! ## Where each piece lives, in data-flow order
 //!
 //! | module | what |
 //! |---|---|
-//! | [`chain`] | the chain and its defects, validated |
-//! | [`scalar`] | the number types the model is generic over (`f64`, `Complex64`, extended precision) |
+//! | [`chain`] | the model: a chain and its defects, validated |
+//! | [`scenes`] | the paper's reference scenes (P1-P4, Table 1's S1-S4), shared by tests, benches and configs |
+//! | [`scalar`], [`precision`], [`linalg`] | number types (`f64`, `Complex64`, extended precision) and the small pivoted solve |
 //! | [`green`] | closed-form Green's function, overflow-free for every `n` and `s` |
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
-//! | [`control`] | vibration suppression (Theorem 3.1, Corollary 3.2): Laplace, exact time domain, verification |
-//! | [`linalg`] | the small pivoted solve behind Woodbury |
 //! | [`sensitivity`] | derivatives of X_o(s) with respect to every parameter (reciprocity) |
-//! | [`precision`] | arbitrary-precision reals ([`precision::BigReal`]) and real-only operations |
-//! | [`scenes`] | the paper's reference scenes (P1-P4, Table 1's S1-S4), shared by tests, benches and configs |
-//! | [`series`] | sampled time series, CSV in and out, atomic writes |
-//! | [`plot`] | SVG line plots and heatmaps (bundled font) |
-//! | [`study`] | config-driven studies: sweeps, parallel resumable runs, reports |
-//! | [`detect::locate`] | explicit single-defect locators (section 4.1), error floors, any precision |
 //! | [`time`] | simulation ([`time::simulate`]), exact ([`time::modal`]) and numerical ([`time::inverse`]) inverse Laplace transforms, transform of sampled series ([`time::series`]) |
-//! | [`noise`] | seeded additive white Gaussian noise |
+//! | [`noise`] | seeded additive white Gaussian noise (synthetic data) |
+//! | [`series`] | sampled time series, CSV in (pandas, loggers) and out |
+//! | [`io`] | safe atomic writes (never a device, FIFO or directory), size-capped reads, memory budget and limits |
+//! | [`control`] | vibration suppression (Theorem 3.1, Corollary 3.2): Laplace, exact time domain, verification |
+//! | [`detect::data`] | the inverse side starts here: observations (a series or Laplace values), their noise model, whitening |
+//! | [`detect::misfit`] | one [`detect::misfit::MisfitKind`] (real axis, Bromwich, time), quadrature rules, the mass-only Woodbury kernel |
+//! | [`detect::unknowns`] | what is unknown: positions, kinds, values, chain parameters |
+//! | [`detect::search`] | enumeration, genetic algorithm, Nelder-Mead, particle swarm, bounded Levenberg-Marquardt |
+//! | [`detect::fit`] | `fit(observations, model, options) -> FitReport`: noise and number of defects estimated, standard errors, status |
+//! | [`detect::scene`] | TOML fit scenes (truth for synthetic data + unknowns + misfit + search) |
+//! | [`detect::locate`] | explicit single-defect locators (section 4.1), error floors, any precision |
+//! | [`detect::noise_study`] | success against noise, calibration, number of defects |
+//! | [`study`] | config-driven studies: sweeps, parallel resumable runs, reports |
+//! | [`plot`] | SVG line plots and heatmaps (bundled font) |
 //! | [`error`] | one error type; every variant names the field and its range |
-//! | [`detect`] | defect fitting: data, quadrature, residuals, unknowns, [`detect::search`] (enumeration, GA, Nelder-Mead, particle swarm), `fit` |
 
 pub mod chain;
 pub mod control;
@@ -55,6 +90,7 @@ pub mod detect;
 pub mod error;
 pub mod forward;
 pub mod green;
+pub mod io;
 pub mod linalg;
 pub mod noise;
 pub mod plot;

@@ -1,13 +1,36 @@
 //! `springmass` command-line interface: a thin layer over the library.
 //! Every subcommand lives in its own file under `src/cmd/`.
+//!
+//! Exit statuses are decided here, in one place ([`exit_code`]), from the
+//! typed error at the root of a failure ([`springmass::Error::exit_code`]).
 
 mod cmd;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
+use springmass::error::exit;
+use std::io::Write;
+
+/// The exit statuses and environment variables, shown by `--help`.
+const AFTER_HELP: &str = "\
+Exit status:
+  0    success
+  1    any other failure (a numerical method that failed, an internal error)
+  2    usage error or invalid input (unknown option, value out of range,
+       unreadable data or scene file, a job above the memory budget)
+  3    input/output error (a file that cannot be read or written; an output
+       path that is a directory, device, FIFO or socket; a full stdout)
+  4    the data cannot resolve the requested result (signal below the
+       rounding or noise floor, e.g. `locate` on an unresolvable defect)
+  141  stdout or stderr is a closed pipe (killed by SIGPIPE, no message)
+
+Environment:
+  SPRINGMASS_MEMORY_BUDGET  memory one job may allocate (default 4G); larger
+                            jobs are refused before they start
+  SPRINGMASS_MAX_INPUT      largest input file read (default 256M)";
 
 /// Vibration suppression and defect detection in 1D spring-mass chains.
 #[derive(Parser)]
-#[command(name = "springmass", version, about, long_about = None)]
+#[command(name = "springmass", version, about, long_about = None, after_help = AFTER_HELP)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -29,12 +52,20 @@ enum Command {
     Suppress(cmd::suppress::Args),
     /// Laplace transform X(s) of a sampled series (CSV), with error estimates.
     Laplace(cmd::laplace::Args),
-    /// Fit defect positions and masses to X_1 data (enumerate, ga, nelder-mead, pso).
+    /// Fit defects to a measured series (--data; noise and number of defects estimated) or a scene (--scene).
     Fit(cmd::fit::Args),
     /// Residual surfaces r(j, m) and r(j1, j2) (the paper's Figures 16 and 17), CSV + SVG.
     Surface(cmd::surface::Args),
     /// Noise study: success vs noise per misfit, calibration, damping, number of defects.
     NoiseStudy(cmd::noise::Args),
+    /// Print a shell completion script: `springmass completions bash > ~/.local/share/bash-completion/completions/springmass`.
+    Completions {
+        /// The shell.
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
+    /// Print the man page (roff): `springmass man > springmass.1; man ./springmass.1`.
+    Man,
 }
 
 fn run() -> anyhow::Result<()> {
@@ -50,13 +81,97 @@ fn run() -> anyhow::Result<()> {
         Command::Fit(a) => cmd::fit::run(a),
         Command::Surface(a) => cmd::surface::run(a),
         Command::NoiseStudy(a) => cmd::noise::run(a),
+        Command::Completions { shell } => {
+            let mut buf = Vec::new();
+            clap_complete::generate(shell, &mut Cli::command(), "springmass", &mut buf);
+            write_stdout(&buf)
+        }
+        Command::Man => {
+            let mut buf = Vec::new();
+            clap_mangen::Man::new(Cli::command()).render(&mut buf)?;
+            write_stdout(&buf)
+        }
     }
 }
 
+/// Write bytes to stdout, reporting a failure as an I/O error (exit 3).
+fn write_stdout(bytes: &[u8]) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    out.write_all(bytes)
+        .and_then(|_| out.flush())
+        .map_err(|e| springmass::Error::io("stdout", e))?;
+    Ok(())
+}
+
+/// The exit status of a failure: the first typed error in the chain decides
+/// ([`springmass::Error::exit_code`]; an OS error is I/O); an error that is
+/// only a message comes from an argument check in `cmd/` and counts as
+/// invalid input.
+fn exit_code(e: &anyhow::Error) -> i32 {
+    for cause in e.chain() {
+        if let Some(se) = cause.downcast_ref::<springmass::Error>() {
+            return se.exit_code();
+        }
+        if cause.is::<std::io::Error>() {
+            return exit::IO;
+        }
+        if cause.is::<toml::de::Error>()
+            || cause.is::<serde_json::Error>()
+            || cause.is::<csv::Error>()
+            || cause.is::<std::num::ParseFloatError>()
+            || cause.is::<std::num::ParseIntError>()
+        {
+            return exit::USAGE;
+        }
+    }
+    if e.chain().count() == 1 {
+        exit::USAGE
+    } else {
+        exit::OTHER
+    }
+}
+
+/// Conventional behaviour on pipes and full outputs:
+/// * a closed stdout or stderr pipe ends the process quietly by SIGPIPE
+///   (status 141 in a shell), as `cat` or `grep` do;
+/// * a failed write to stdout or stderr (`> /dev/full`) that `println!`
+///   would turn into a panic ends the process with status 3 and one line.
+fn install_io_handlers() {
+    #[cfg(unix)]
+    // SAFETY: restoring the default disposition of SIGPIPE at the start of
+    // main, before any thread exists; no handler function is involved.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if let Some(reason) = msg.strip_prefix("failed printing to stdout") {
+            let _ = writeln!(std::io::stderr(), "error: writing to stdout{reason}");
+            std::process::exit(exit::IO);
+        }
+        if msg.starts_with("failed printing to stderr") {
+            std::process::exit(exit::IO);
+        }
+        default(info)
+    }));
+}
+
 fn main() {
-    if let Err(e) = run() {
+    install_io_handlers();
+    let result = run().and_then(|()| {
+        std::io::stdout()
+            .flush()
+            .map_err(|e| springmass::Error::io("stdout", e).into())
+    });
+    if let Err(e) = result {
         // one line: the error and its causes joined by ": "
         eprintln!("error: {e:#}");
-        std::process::exit(2);
+        std::process::exit(exit_code(&e));
     }
 }

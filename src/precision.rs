@@ -40,12 +40,10 @@
 //! ```
 
 use crate::scalar::Scalar;
-use astro_float::{BigFloat, Consts, Radix, RoundingMode, Sign};
-use num_complex::Complex64;
-use std::cell::{Cell, RefCell};
-use std::cmp::Ordering;
-use std::fmt;
-use std::ops::{Add, Div, Mul, Neg, Sub};
+use std::cell::Cell;
+
+#[cfg(feature = "bigfloat")]
+pub use big::BigReal;
 
 /// Default working precision in bits.
 pub const DEFAULT_BITS: usize = 256;
@@ -54,11 +52,8 @@ pub const MIN_BITS: usize = 64;
 /// Largest accepted precision.
 pub const MAX_BITS: usize = 1 << 16;
 
-const RM: RoundingMode = RoundingMode::ToEven;
-
 thread_local! {
     static PRECISION: Cell<usize> = const { Cell::new(DEFAULT_BITS) };
-    static CONSTS: RefCell<Option<Consts>> = const { RefCell::new(None) };
 }
 
 /// The working precision (bits) on this thread.
@@ -69,8 +64,13 @@ pub fn precision() -> usize {
 /// Check a precision request.
 ///
 /// # Errors
-/// [`crate::Error::InvalidParameter`] for `bits` outside `64..=65536`.
+/// [`crate::Error::InvalidParameter`] for `bits` outside `64..=65536`, and
+/// for every `bits` when the crate is built without the `bigfloat` feature
+/// (extended precision is then unavailable; use `f64`).
 pub fn check_bits(bits: usize) -> crate::Result<usize> {
+    if cfg!(not(feature = "bigfloat")) {
+        return Err(unavailable(bits));
+    }
     if (MIN_BITS..=MAX_BITS).contains(&bits) {
         Ok(bits)
     } else {
@@ -80,6 +80,17 @@ pub fn check_bits(bits: usize) -> crate::Result<usize> {
             format!("{MIN_BITS} <= bits <= {MAX_BITS}"),
         ))
     }
+}
+
+/// The error for a request of `bits` of extended precision in a build
+/// without the `bigfloat` feature: an [`crate::Error::InvalidParameter`]
+/// naming `precision`, allowing `f64` only.
+pub fn unavailable(bits: usize) -> crate::Error {
+    crate::Error::invalid(
+        "precision",
+        bits,
+        "f64 only: this build has no extended precision (enable the `bigfloat` feature)",
+    )
 }
 
 /// Run `f` with the working precision set to `bits` on this thread (clamped to
@@ -94,14 +105,6 @@ pub fn with_precision<R>(bits: usize, f: impl FnOnce() -> R) -> R {
     let bits = bits.clamp(MIN_BITS, MAX_BITS);
     let _restore = Restore(PRECISION.with(|p| p.replace(bits)));
     f()
-}
-
-fn with_consts<R>(f: impl FnOnce(&mut Consts) -> R) -> R {
-    CONSTS.with(|c| {
-        let mut c = c.borrow_mut();
-        let cc = c.get_or_insert_with(|| Consts::new().expect("astro-float constants cache"));
-        f(cc)
-    })
 }
 
 /// Real-only operations the locators need on top of [`Scalar`]: order,
@@ -167,322 +170,347 @@ impl RealScalar for f64 {
     }
 }
 
-/// An arbitrary-precision real number (see the module documentation for the
-/// thread-local working precision).
-#[derive(Clone)]
-pub struct BigReal(BigFloat);
+#[cfg(feature = "bigfloat")]
+mod big {
+    use super::*;
+    use astro_float::{BigFloat, Consts, Radix, RoundingMode, Sign};
+    use num_complex::Complex64;
+    use std::cell::RefCell;
+    use std::cmp::Ordering;
+    use std::fmt;
+    use std::ops::{Add, Div, Mul, Neg, Sub};
 
-impl BigReal {
-    /// Wrap an `astro_float::BigFloat`.
-    pub fn from_bigfloat(x: BigFloat) -> BigReal {
-        BigReal(x)
+    const RM: RoundingMode = RoundingMode::ToEven;
+
+    thread_local! {
+        static CONSTS: RefCell<Option<Consts>> = const { RefCell::new(None) };
     }
 
-    /// The wrapped `BigFloat`.
-    pub fn as_bigfloat(&self) -> &BigFloat {
-        &self.0
+    fn with_consts<R>(f: impl FnOnce(&mut Consts) -> R) -> R {
+        CONSTS.with(|c| {
+            let mut c = c.borrow_mut();
+            let cc = c.get_or_insert_with(|| Consts::new().expect("astro-float constants cache"));
+            f(cc)
+        })
     }
 
-    /// Binary exponent `e` with `2^(e-1) <= |x| < 2^e` (`None` for 0, NaN, inf).
-    pub fn exponent(&self) -> Option<i32> {
-        if self.0.is_zero() || self.0.is_nan() || self.0.is_inf() {
-            None
-        } else {
-            self.0.exponent()
+    /// An arbitrary-precision real number (see the module documentation for the
+    /// thread-local working precision).
+    #[derive(Clone)]
+    pub struct BigReal(BigFloat);
+
+    impl BigReal {
+        /// Wrap an `astro_float::BigFloat`.
+        pub fn from_bigfloat(x: BigFloat) -> BigReal {
+            BigReal(x)
         }
-    }
 
-    /// Decimal text with `digits` significant digits (scientific notation).
-    pub fn to_string_digits(&self, digits: usize) -> String {
-        if self.0.is_nan() {
-            return "NaN".into();
+        /// The wrapped `BigFloat`.
+        pub fn as_bigfloat(&self) -> &BigFloat {
+            &self.0
         }
-        if self.0.is_inf() {
-            return if self.0.is_inf_pos() { "inf" } else { "-inf" }.into();
-        }
-        // round to about digits * log2(10) bits first, then format
-        let bits = ((digits as f64) * std::f64::consts::LOG2_10).ceil() as usize + 8;
-        let mut v = self.0.clone();
-        let _ = v.set_precision(bits.max(MIN_BITS), RM);
-        let s = with_consts(|cc| v.format(Radix::Dec, RM, cc)).unwrap_or_else(|_| "NaN".into());
-        shorten_decimal(&s, digits)
-    }
 
-    fn with_guard(bits: usize, f: impl FnOnce() -> BigReal) -> BigReal {
-        let p = precision();
-        let mut r = with_precision(p + bits, f);
-        let _ = r.0.set_precision(p, RM);
-        r
-    }
-}
-
-/// Cut an astro-float decimal rendering (`1.2345e-3` style) to `digits`
-/// significant digits (truncating; the value was already rounded to about
-/// that many bits).
-fn shorten_decimal(s: &str, digits: usize) -> String {
-    let (mant, exp) = match s.find(['e', 'E']) {
-        Some(i) => (&s[..i], &s[i..]),
-        None => (s, ""),
-    };
-    let mut out = String::new();
-    let mut count = 0;
-    for c in mant.chars() {
-        if c.is_ascii_digit() {
-            if count >= digits {
-                continue;
-            }
-            count += 1;
-        }
-        out.push(c);
-    }
-    out.push_str(exp);
-    out
-}
-
-impl fmt::Debug for BigReal {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "BigReal({})", self.to_string_digits(24))
-    }
-}
-
-impl fmt::Display for BigReal {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let digits = f
-            .precision()
-            .unwrap_or(((precision() as f64) / std::f64::consts::LOG2_10) as usize);
-        write!(f, "{}", self.to_string_digits(digits.max(1)))
-    }
-}
-
-impl PartialEq for BigReal {
-    fn eq(&self, other: &Self) -> bool {
-        self.0 == other.0
-    }
-}
-
-impl PartialOrd for BigReal {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        self.0.partial_cmp(&other.0)
-    }
-}
-
-macro_rules! binop {
-    ($tr:ident, $m:ident) => {
-        impl $tr for BigReal {
-            type Output = BigReal;
-            #[inline]
-            fn $m(self, rhs: BigReal) -> BigReal {
-                BigReal(self.0.$m(&rhs.0, precision(), RM))
+        /// Binary exponent `e` with `2^(e-1) <= |x| < 2^e` (`None` for 0, NaN, inf).
+        pub fn exponent(&self) -> Option<i32> {
+            if self.0.is_zero() || self.0.is_nan() || self.0.is_inf() {
+                None
+            } else {
+                self.0.exponent()
             }
         }
-    };
-}
-binop!(Add, add);
-binop!(Sub, sub);
-binop!(Mul, mul);
-binop!(Div, div);
 
-impl Neg for BigReal {
-    type Output = BigReal;
-    #[inline]
-    fn neg(self) -> BigReal {
-        BigReal(self.0.neg())
-    }
-}
-
-/// `f64` nearest to a `BigFloat` (round to nearest on the top word).
-fn big_to_f64(x: &BigFloat) -> f64 {
-    if x.is_nan() {
-        return f64::NAN;
-    }
-    if x.is_inf_pos() {
-        return f64::INFINITY;
-    }
-    if x.is_inf_neg() {
-        return f64::NEG_INFINITY;
-    }
-    if x.is_zero() {
-        return 0.0;
-    }
-    let Some((words, _, sign, e, _)) = x.as_raw_parts() else {
-        return f64::NAN;
-    };
-    let top = *words.last().unwrap_or(&0);
-    // value = top / 2^64 * 2^e (mantissa normalised to [1/2, 1))
-    let mut v = top as f64 / 18446744073709551616.0;
-    let mut e = e as i64;
-    if e > 1100 {
-        v = f64::INFINITY;
-    } else if e < -1200 {
-        v = 0.0;
-    } else {
-        while e > 0 {
-            let step = e.min(1000);
-            v *= 2f64.powi(step as i32);
-            e -= step;
+        /// Decimal text with `digits` significant digits (scientific notation).
+        pub fn to_string_digits(&self, digits: usize) -> String {
+            if self.0.is_nan() {
+                return "NaN".into();
+            }
+            if self.0.is_inf() {
+                return if self.0.is_inf_pos() { "inf" } else { "-inf" }.into();
+            }
+            // round to about digits * log2(10) bits first, then format
+            let bits = ((digits as f64) * std::f64::consts::LOG2_10).ceil() as usize + 8;
+            let mut v = self.0.clone();
+            let _ = v.set_precision(bits.max(MIN_BITS), RM);
+            let s = with_consts(|cc| v.format(Radix::Dec, RM, cc)).unwrap_or_else(|_| "NaN".into());
+            shorten_decimal(&s, digits)
         }
-        while e < 0 {
-            let step = (-e).min(1000);
-            v *= 2f64.powi(-(step as i32));
-            e += step;
+
+        fn with_guard(bits: usize, f: impl FnOnce() -> BigReal) -> BigReal {
+            let p = precision();
+            let mut r = with_precision(p + bits, f);
+            let _ = r.0.set_precision(p, RM);
+            r
         }
     }
-    if sign == Sign::Neg {
-        -v
-    } else {
-        v
-    }
-}
 
-impl Scalar for BigReal {
-    fn from_f64(x: f64) -> Self {
-        // exact: an f64 fits in 53 bits
-        BigReal(BigFloat::from_f64(x, precision().max(MIN_BITS)))
+    /// Cut an astro-float decimal rendering (`1.2345e-3` style) to `digits`
+    /// significant digits (truncating; the value was already rounded to about
+    /// that many bits).
+    fn shorten_decimal(s: &str, digits: usize) -> String {
+        let (mant, exp) = match s.find(['e', 'E']) {
+            Some(i) => (&s[..i], &s[i..]),
+            None => (s, ""),
+        };
+        let mut out = String::new();
+        let mut count = 0;
+        for c in mant.chars() {
+            if c.is_ascii_digit() {
+                if count >= digits {
+                    continue;
+                }
+                count += 1;
+            }
+            out.push(c);
+        }
+        out.push_str(exp);
+        out
     }
-    fn from_c64(z: Complex64) -> Option<Self> {
-        (z.im == 0.0).then(|| Self::from_f64(z.re))
+
+    impl fmt::Debug for BigReal {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            write!(f, "BigReal({})", self.to_string_digits(24))
+        }
     }
-    fn to_c64(&self) -> Complex64 {
-        Complex64::new(big_to_f64(&self.0), 0.0)
+
+    impl fmt::Display for BigReal {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            let digits = f
+                .precision()
+                .unwrap_or(((precision() as f64) / std::f64::consts::LOG2_10) as usize);
+            write!(f, "{}", self.to_string_digits(digits.max(1)))
+        }
     }
-    fn re_f64(&self) -> f64 {
-        big_to_f64(&self.0)
+
+    impl PartialEq for BigReal {
+        fn eq(&self, other: &Self) -> bool {
+            self.0 == other.0
+        }
     }
-    fn magnitude(&self) -> f64 {
-        big_to_f64(&self.0).abs()
+
+    impl PartialOrd for BigReal {
+        fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+            self.0.partial_cmp(&other.0)
+        }
     }
-    fn sqrt(&self) -> Self {
-        BigReal(self.0.sqrt(precision(), RM))
-    }
-    fn exp(&self) -> Self {
-        let p = precision();
-        BigReal(with_consts(|cc| self.0.exp(p, RM, cc)))
-    }
-    /// `exp(x) - 1`: for `|x| < 1/2` the exponential is taken with
-    /// `-log2|x|` guard bits so that the subtraction loses nothing; below
-    /// `2^-(p+8)` the series `x + x^2/2` is exact to the working precision.
-    fn expm1(&self) -> Self {
-        let p = precision();
-        match self.exponent() {
-            None => {
-                if self.0.is_zero() {
-                    self.clone()
-                } else {
-                    self.exp() - BigReal::one()
+
+    macro_rules! binop {
+        ($tr:ident, $m:ident) => {
+            impl $tr for BigReal {
+                type Output = BigReal;
+                #[inline]
+                fn $m(self, rhs: BigReal) -> BigReal {
+                    BigReal(self.0.$m(&rhs.0, precision(), RM))
                 }
             }
-            Some(e) if e < -(p as i32) - 8 => {
-                let x = self.clone();
-                x.clone() + (x.clone() * x).scale(0.5)
-            }
-            Some(e) if e < 0 => {
-                let guard = (-e) as usize + 16;
-                BigReal::with_guard(guard, || self.exp() - BigReal::one())
-            }
-            Some(_) => self.exp() - BigReal::one(),
-        }
+        };
     }
-    /// Principal `asinh`, with guard bits for small arguments.
-    fn asinh(&self) -> Self {
-        let p = precision();
-        match self.exponent() {
-            None => self.clone(),
-            Some(e) if e < -(p as i32) / 2 - 8 => {
-                // asinh x = x - x^3/6 + O(x^5)
-                let x = self.clone();
-                x.clone() - (x.clone() * x.clone() * x).scale(1.0 / 6.0)
-            }
-            Some(e) => {
-                let guard = if e < 0 { (-e) as usize } else { 0 } + 16;
-                BigReal::with_guard(guard, || {
-                    let q = precision();
-                    BigReal(with_consts(|cc| self.0.asinh(q, RM, cc)))
-                })
-            }
-        }
-    }
-    fn is_zero(&self) -> bool {
-        self.0.is_zero()
-    }
-    fn is_finite(&self) -> bool {
-        !(self.0.is_nan() || self.0.is_inf())
-    }
-    fn scale(&self, x: f64) -> Self {
-        self.clone() * Self::from_f64(x)
-    }
-}
+    binop!(Add, add);
+    binop!(Sub, sub);
+    binop!(Mul, mul);
+    binop!(Div, div);
 
-impl RealScalar for BigReal {
-    fn ln(&self) -> Self {
-        let p = precision();
-        BigReal(with_consts(|cc| self.0.ln(p, RM, cc)))
-    }
-    /// `ln(1 + x)`: for `|x| < 1/2` the sum `1 + x` is formed with
-    /// `-log2|x|` guard bits (exactly, when `x` carries the working precision).
-    fn ln_1p(&self) -> Self {
-        let p = precision();
-        match self.exponent() {
-            None => {
-                if self.0.is_zero() {
-                    self.clone()
-                } else {
-                    (BigReal::one() + self.clone()).ln()
-                }
-            }
-            Some(e) if e < -(p as i32) - 8 => {
-                let x = self.clone();
-                x.clone() - (x.clone() * x).scale(0.5)
-            }
-            Some(e) if e < 0 => {
-                let guard = (-e) as usize + 16;
-                BigReal::with_guard(guard, || (BigReal::one() + self.clone()).ln())
-            }
-            Some(_) => (BigReal::one() + self.clone()).ln(),
+    impl Neg for BigReal {
+        type Output = BigReal;
+        #[inline]
+        fn neg(self) -> BigReal {
+            BigReal(self.0.neg())
         }
     }
-    fn acosh(&self) -> Self {
-        let p = precision();
-        BigReal(with_consts(|cc| self.0.acosh(p, RM, cc)))
-    }
-    fn abs(&self) -> Self {
-        BigReal(self.0.abs())
-    }
-    fn to_f64(&self) -> f64 {
-        big_to_f64(&self.0)
-    }
-    fn epsilon() -> f64 {
-        2f64.powi(-(precision() as i32).min(1000))
-    }
-    fn parse_decimal(text: &str) -> Option<Self> {
-        let t = text.trim();
-        // reject what astro-float would turn into NaN/inf, and non-numbers
-        if t.is_empty()
-            || !t
-                .chars()
-                .all(|c| c.is_ascii_digit() || matches!(c, '.' | 'e' | 'E' | '+' | '-'))
-        {
-            return None;
+
+    /// `f64` nearest to a `BigFloat` (round to nearest on the top word).
+    fn big_to_f64(x: &BigFloat) -> f64 {
+        if x.is_nan() {
+            return f64::NAN;
         }
-        let p = precision();
-        let v = with_consts(|cc| BigFloat::parse(t, Radix::Dec, p, RM, cc));
-        (!v.is_nan() && !v.is_inf()).then_some(BigReal(v))
-    }
-    fn ln_abs_f64(&self) -> f64 {
-        if self.0.is_zero() {
+        if x.is_inf_pos() {
+            return f64::INFINITY;
+        }
+        if x.is_inf_neg() {
             return f64::NEG_INFINITY;
         }
-        let Some((words, _, _, e, _)) = self.0.as_raw_parts() else {
+        if x.is_zero() {
+            return 0.0;
+        }
+        let Some((words, _, sign, e, _)) = x.as_raw_parts() else {
             return f64::NAN;
         };
-        let top = *words.last().unwrap_or(&0) as f64 / 18446744073709551616.0;
-        top.ln() + (e as f64) * std::f64::consts::LN_2
+        let top = *words.last().unwrap_or(&0);
+        // value = top / 2^64 * 2^e (mantissa normalised to [1/2, 1))
+        let mut v = top as f64 / 18446744073709551616.0;
+        let mut e = e as i64;
+        if e > 1100 {
+            v = f64::INFINITY;
+        } else if e < -1200 {
+            v = 0.0;
+        } else {
+            while e > 0 {
+                let step = e.min(1000);
+                v *= 2f64.powi(step as i32);
+                e -= step;
+            }
+            while e < 0 {
+                let step = (-e).min(1000);
+                v *= 2f64.powi(-(step as i32));
+                e += step;
+            }
+        }
+        if sign == Sign::Neg {
+            -v
+        } else {
+            v
+        }
     }
-    fn to_decimal(&self, digits: usize) -> String {
-        self.to_string_digits(digits.max(1))
+
+    impl Scalar for BigReal {
+        fn from_f64(x: f64) -> Self {
+            // exact: an f64 fits in 53 bits
+            BigReal(BigFloat::from_f64(x, precision().max(MIN_BITS)))
+        }
+        fn from_c64(z: Complex64) -> Option<Self> {
+            (z.im == 0.0).then(|| Self::from_f64(z.re))
+        }
+        fn to_c64(&self) -> Complex64 {
+            Complex64::new(big_to_f64(&self.0), 0.0)
+        }
+        fn re_f64(&self) -> f64 {
+            big_to_f64(&self.0)
+        }
+        fn magnitude(&self) -> f64 {
+            big_to_f64(&self.0).abs()
+        }
+        fn sqrt(&self) -> Self {
+            BigReal(self.0.sqrt(precision(), RM))
+        }
+        fn exp(&self) -> Self {
+            let p = precision();
+            BigReal(with_consts(|cc| self.0.exp(p, RM, cc)))
+        }
+        /// `exp(x) - 1`: for `|x| < 1/2` the exponential is taken with
+        /// `-log2|x|` guard bits so that the subtraction loses nothing; below
+        /// `2^-(p+8)` the series `x + x^2/2` is exact to the working precision.
+        fn expm1(&self) -> Self {
+            let p = precision();
+            match self.exponent() {
+                None => {
+                    if self.0.is_zero() {
+                        self.clone()
+                    } else {
+                        self.exp() - BigReal::one()
+                    }
+                }
+                Some(e) if e < -(p as i32) - 8 => {
+                    let x = self.clone();
+                    x.clone() + (x.clone() * x).scale(0.5)
+                }
+                Some(e) if e < 0 => {
+                    let guard = (-e) as usize + 16;
+                    BigReal::with_guard(guard, || self.exp() - BigReal::one())
+                }
+                Some(_) => self.exp() - BigReal::one(),
+            }
+        }
+        /// Principal `asinh`, with guard bits for small arguments.
+        fn asinh(&self) -> Self {
+            let p = precision();
+            match self.exponent() {
+                None => self.clone(),
+                Some(e) if e < -(p as i32) / 2 - 8 => {
+                    // asinh x = x - x^3/6 + O(x^5)
+                    let x = self.clone();
+                    x.clone() - (x.clone() * x.clone() * x).scale(1.0 / 6.0)
+                }
+                Some(e) => {
+                    let guard = if e < 0 { (-e) as usize } else { 0 } + 16;
+                    BigReal::with_guard(guard, || {
+                        let q = precision();
+                        BigReal(with_consts(|cc| self.0.asinh(q, RM, cc)))
+                    })
+                }
+            }
+        }
+        fn is_zero(&self) -> bool {
+            self.0.is_zero()
+        }
+        fn is_finite(&self) -> bool {
+            !(self.0.is_nan() || self.0.is_inf())
+        }
+        fn scale(&self, x: f64) -> Self {
+            self.clone() * Self::from_f64(x)
+        }
+    }
+
+    impl RealScalar for BigReal {
+        fn ln(&self) -> Self {
+            let p = precision();
+            BigReal(with_consts(|cc| self.0.ln(p, RM, cc)))
+        }
+        /// `ln(1 + x)`: for `|x| < 1/2` the sum `1 + x` is formed with
+        /// `-log2|x|` guard bits (exactly, when `x` carries the working precision).
+        fn ln_1p(&self) -> Self {
+            let p = precision();
+            match self.exponent() {
+                None => {
+                    if self.0.is_zero() {
+                        self.clone()
+                    } else {
+                        (BigReal::one() + self.clone()).ln()
+                    }
+                }
+                Some(e) if e < -(p as i32) - 8 => {
+                    let x = self.clone();
+                    x.clone() - (x.clone() * x).scale(0.5)
+                }
+                Some(e) if e < 0 => {
+                    let guard = (-e) as usize + 16;
+                    BigReal::with_guard(guard, || (BigReal::one() + self.clone()).ln())
+                }
+                Some(_) => (BigReal::one() + self.clone()).ln(),
+            }
+        }
+        fn acosh(&self) -> Self {
+            let p = precision();
+            BigReal(with_consts(|cc| self.0.acosh(p, RM, cc)))
+        }
+        fn abs(&self) -> Self {
+            BigReal(self.0.abs())
+        }
+        fn to_f64(&self) -> f64 {
+            big_to_f64(&self.0)
+        }
+        fn epsilon() -> f64 {
+            2f64.powi(-(precision() as i32).min(1000))
+        }
+        fn parse_decimal(text: &str) -> Option<Self> {
+            let t = text.trim();
+            // reject what astro-float would turn into NaN/inf, and non-numbers
+            if t.is_empty()
+                || !t
+                    .chars()
+                    .all(|c| c.is_ascii_digit() || matches!(c, '.' | 'e' | 'E' | '+' | '-'))
+            {
+                return None;
+            }
+            let p = precision();
+            let v = with_consts(|cc| BigFloat::parse(t, Radix::Dec, p, RM, cc));
+            (!v.is_nan() && !v.is_inf()).then_some(BigReal(v))
+        }
+        fn ln_abs_f64(&self) -> f64 {
+            if self.0.is_zero() {
+                return f64::NEG_INFINITY;
+            }
+            let Some((words, _, _, e, _)) = self.0.as_raw_parts() else {
+                return f64::NAN;
+            };
+            let top = *words.last().unwrap_or(&0) as f64 / 18446744073709551616.0;
+            top.ln() + (e as f64) * std::f64::consts::LN_2
+        }
+        fn to_decimal(&self, digits: usize) -> String {
+            self.to_string_digits(digits.max(1))
+        }
     }
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "bigfloat"))]
 mod tests {
     use super::*;
 

@@ -69,6 +69,35 @@ pub fn truth(name: &str) -> Result<Vec<(usize, f64)>> {
         .ok_or_else(|| Error::invalid("scene", name, NAMES.join(", ")))
 }
 
+/// A shear frame of `storeys` floors seen from its roof: mass 1 is the roof
+/// at the free (left) end, spring `i` (`1..=storeys`) is the storey between
+/// floor `i` and floor `i + 1`, spring `storeys` ties the lowest floor to the
+/// ground (the fixed right end); unit floor masses and storey stiffnesses,
+/// damping `d` to ground on every floor (light damping: `d = 0.05` gives a
+/// first-mode damping ratio of about `0.09` for 5 storeys). `weakened`,
+/// if given, is `(storey, factor)`: that storey's stiffness times `factor`.
+///
+/// ```
+/// use springmass::{scenes, chain::Boundary};
+/// let c = scenes::shear_frame(5, 0.05, Some((3, 0.7)))?;
+/// assert_eq!(c.left(), Boundary::Free);
+/// assert_eq!(c.springs(), vec![0.0, 1.0, 1.0, 0.7, 1.0, 1.0]);
+/// # Ok::<(), springmass::Error>(())
+/// ```
+///
+/// # Errors
+/// `storeys == 0`, `d < 0`, a storey outside `1..=storeys` or a factor that
+/// is not `> 0`.
+pub fn shear_frame(storeys: usize, d: f64, weakened: Option<(usize, f64)>) -> Result<Chain> {
+    let c = Chain::new(storeys)?
+        .with_d(d)?
+        .with_boundaries(crate::chain::Boundary::Free, crate::chain::Boundary::Fixed)?;
+    match weakened {
+        None => Ok(c),
+        Some((at, factor)) => c.with_defect(Defect::Spring { at, k: factor }),
+    }
+}
+
 /// System `i` (1..=4) of the paper's Table 1.
 pub fn table1(i: usize) -> Result<Chain> {
     if !(1..=4).contains(&i) {

@@ -48,7 +48,7 @@
 
 use crate::chain::{Chain, Defect};
 use crate::error::{Error, Result};
-use crate::forward::{check_s, Forward};
+use crate::forward::{check_s, Forward, Observable};
 use crate::scalar::Scalar;
 
 /// One model parameter of a chain.
@@ -145,6 +145,7 @@ impl Param {
             .with_k(k)?
             .with_mass(mass)?
             .with_gamma(gamma)?
+            .with_boundaries(chain.left(), chain.right())?
             .with_defects(defects)
     }
 }
@@ -291,8 +292,14 @@ pub fn gradient<T: Scalar>(
                 s.clone() * acc
             }
             Param::K => {
+                // the springs that exist (a free end has no wall spring)
+                let (lo, hi) = chain.spring_range();
                 let mut acc = T::zero();
-                for (j, _) in spring_def.iter().enumerate().filter(|(_, d)| !**d) {
+                for (j, _) in spring_def
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, d)| !**d && *j >= lo && *j <= hi)
+                {
                     acc = acc + spring(j);
                 }
                 acc
@@ -305,6 +312,116 @@ pub fn gradient<T: Scalar>(
         grad.push(-b.scale(gamma));
     }
     Ok(Gradient { value, grad })
+}
+
+/// Does `param` change the mass of mass 1?
+fn moves_m1(chain: &Chain, param: &Param) -> bool {
+    let defect_at_1 = chain
+        .defects()
+        .iter()
+        .any(|d| matches!(*d, Defect::Mass { at: 1, .. }));
+    match *param {
+        Param::Mass => !defect_at_1,
+        Param::Defect(i) => matches!(chain.defects().get(i), Some(Defect::Mass { at: 1, .. })),
+        _ => false,
+    }
+}
+
+/// Turn a displacement gradient into the gradient of `obs` (impulse
+/// `gamma` on mass 1): `V = s X`, `A = s^2 X - [at = 1] gamma/m_1`, so
+/// `dA/dm_1 = s^2 dX/dm_1 + gamma/m_1^2` and `dA/dgamma = s^2 dX/dgamma - 1/m_1`.
+/// `value`, if given, replaces the value (a cancellation-free one).
+fn to_observable<T: Scalar>(
+    chain: &Chain,
+    s: &T,
+    at: usize,
+    obs: Observable,
+    params: &[Param],
+    g: Gradient<T>,
+    value: Option<T>,
+) -> Gradient<T> {
+    let gamma = chain.gamma();
+    let m1 = chain.mass_at(1);
+    let sp = match obs.power() {
+        0 => return g,
+        1 => s.clone(),
+        _ => s.clone() * s.clone(),
+    };
+    let jump = obs == Observable::Acceleration && at == 1;
+    let value = value.unwrap_or_else(|| obs.from_displacement(g.value, s, at, gamma, m1));
+    let grad = params
+        .iter()
+        .zip(g.grad)
+        .map(|(p, d)| {
+            let mut v = sp.clone() * d;
+            if jump && moves_m1(chain, p) {
+                v = v + T::from_f64(gamma / (m1 * m1));
+            }
+            if jump && *p == Param::Gamma {
+                v = v - T::from_f64(1.0 / m1);
+            }
+            v
+        })
+        .collect();
+    Gradient { value, grad }
+}
+
+/// The observable `obs` of mass `at` (see [`crate::forward::Observable`])
+/// and its derivatives with respect to `params`: the function a misfit on
+/// velocity or acceleration data calls. The value is the cancellation-free
+/// [`Forward::observe`]; derivatives by reciprocity ([`gradient`]) times
+/// `s^p`, plus the derivative of the jump `gamma/m_1` for the acceleration of
+/// mass 1. O(n) per `s`.
+///
+/// # Errors
+/// As [`gradient`].
+///
+/// ```
+/// use springmass::{Chain, Defect, forward::Observable};
+/// use springmass::sensitivity::{observe_gradient, Param};
+/// let c = Chain::paper(6)?.with_defect(Defect::Mass { at: 1, m: 2.0 })?;
+/// let g = observe_gradient(&c, 0.8_f64, 1, Observable::Acceleration, &[Param::Defect(0)])?;
+/// let h = 1e-6;
+/// let a = |m: f64| springmass::forward::observe(
+///     &Param::Defect(0).set(&c, m).unwrap(), 0.8_f64, 1, Observable::Acceleration).unwrap();
+/// assert!(((a(2.0 + h) - a(2.0 - h)) / (2.0 * h) - g.grad[0]).abs() < 1e-7);
+/// # Ok::<(), springmass::Error>(())
+/// ```
+pub fn observe_gradient<T: Scalar>(
+    chain: &Chain,
+    s: T,
+    at: usize,
+    obs: Observable,
+    params: &[Param],
+) -> Result<Gradient<T>> {
+    let g = gradient(chain, s.clone(), at, params)?;
+    let value = if obs == Observable::Displacement {
+        None
+    } else {
+        Some(Forward::new(chain).observe(s.clone(), at, obs)?)
+    };
+    Ok(to_observable(chain, &s, at, obs, params, g, value))
+}
+
+/// [`defect_gradient_with`] for another observable of mass 1: the value
+/// and its derivatives with respect to every defect value, O(k^2) per `s`.
+///
+/// # Errors
+/// As [`Forward::eval`].
+pub fn observe_defect_gradient_with<T: Scalar>(
+    fwd: &Forward,
+    s: T,
+    obs: Observable,
+) -> Result<Gradient<T>> {
+    let g = defect_gradient_with(fwd, s.clone())?;
+    let chain = fwd.chain();
+    let params = Param::defects(chain);
+    let value = if obs == Observable::Displacement {
+        None
+    } else {
+        Some(fwd.observe(s.clone(), 1, obs)?)
+    };
+    Ok(to_observable(chain, &s, 1, obs, &params, g, value))
 }
 
 /// `X_1(s)` and its derivatives with respect to every defect value of `chain`
@@ -483,6 +600,58 @@ mod tests {
             let b = gradient(&c, s, 1, &params).unwrap();
             for (x, y) in a.grad.iter().zip(&b.grad) {
                 assert!((x - y).norm() <= 1e-10 * x.norm().max(1e-300));
+            }
+        }
+    }
+
+    #[test]
+    fn boundaries_and_observables_match_central_differences() {
+        use crate::chain::Boundary::*;
+        use crate::forward::observe;
+        for (l, r) in [(Free, Fixed), (Fixed, Free), (Free, Free)] {
+            let c = Chain::paper(6)
+                .unwrap()
+                .with_boundaries(l, r)
+                .unwrap()
+                .with_gamma(1.3)
+                .unwrap()
+                .with_defects([
+                    Defect::Mass { at: 1, m: 2.0 },
+                    Defect::Spring { at: 3, k: 0.6 },
+                    Defect::Damper { at: 5, d: 0.4 },
+                ])
+                .unwrap();
+            let params = Param::all(&c);
+            for obs in [
+                Observable::Displacement,
+                Observable::Velocity,
+                Observable::Acceleration,
+            ] {
+                for s in [0.05, 0.9, 4.0] {
+                    for at in [1, 4] {
+                        let g = observe_gradient(&c, s, at, obs, &params).unwrap();
+                        let direct = observe(&c, s, at, obs).unwrap();
+                        assert!((g.value - direct).abs() <= 1e-12 * direct.abs());
+                        for (p, gv) in params.iter().zip(&g.grad) {
+                            let v = p.get(&c).unwrap();
+                            let h = 1e-5 * v.abs().max(1e-2);
+                            let f = |x: f64| observe(&p.set(&c, x).unwrap(), s, at, obs).unwrap();
+                            let fd = (f(v + h) - f(v - h)) / (2.0 * h);
+                            let scale = g.value.abs().max(gv.abs());
+                            assert!(
+                                (fd - gv).abs() <= 1e-6 * scale,
+                                "{l:?}-{r:?} {obs} s={s} at={at} {}: {gv} vs {fd}",
+                                p.name(&c)
+                            );
+                        }
+                    }
+                }
+                let fwd = Forward::new(&c);
+                let a = observe_defect_gradient_with(&fwd, 0.7, obs).unwrap();
+                let b = observe_gradient(&c, 0.7, 1, obs, &Param::defects(&c)).unwrap();
+                for (x, y) in a.grad.iter().zip(&b.grad) {
+                    assert!((x - y).abs() <= 1e-12 * x.abs().max(1e-300), "{x} {y}");
+                }
             }
         }
     }

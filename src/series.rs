@@ -3,8 +3,10 @@
 //!
 //! CSV form: a header line `t,name1,name2,...` then one row per sample. Times
 //! must be finite and strictly increasing (uniform or not); values finite.
-//! Files are written atomically (to a temporary file, then renamed), so a
-//! reader never sees half a file.
+//! Reading accepts what data loggers and pandas write (see
+//! [`TimeSeries::from_csv_str`]). Files are written atomically through
+//! [`crate::io::write_atomic`], so a reader never sees half a file and a device
+//! or FIFO is never replaced.
 //!
 //! ```
 //! use springmass::series::TimeSeries;
@@ -15,7 +17,6 @@
 //! ```
 
 use crate::error::{Error, Result};
-use std::io::Write;
 use std::path::Path;
 
 /// Check a time grid: every `t[i]` finite and strictly greater than `t[i-1]`
@@ -56,6 +57,8 @@ pub struct TimeSeries {
     t: Vec<f64>,
     names: Vec<String>,
     columns: Vec<Vec<f64>>,
+    units: Vec<Option<String>>,
+    time_unit: Option<String>,
 }
 
 impl TimeSeries {
@@ -94,8 +97,10 @@ impl TimeSeries {
         }
         Ok(TimeSeries {
             t,
+            units: vec![None; names.len()],
             names,
             columns: cols,
+            time_unit: None,
         })
     }
 
@@ -145,59 +150,163 @@ impl TimeSeries {
         ok.then_some(h)
     }
 
-    /// Parse CSV text (header `t,<names>`).
+    /// Parse CSV text.
+    ///
+    /// Accepted forms (read with the `csv` crate):
+    /// * delimiter `,`, `;` or tab, sniffed from the header line (with `;`, a
+    ///   decimal comma `0,5` is read as `0.5`);
+    /// * quoted fields and headers (`"t","x1"`), a UTF-8 byte-order mark;
+    /// * units in headers: `time [s]` or `time (s)` is column `time` with unit
+    ///   `s` ([`TimeSeries::unit`], [`TimeSeries::time_unit`]);
+    /// * pandas' index column: an unnamed (or `Unnamed: 0`) first column is
+    ///   dropped when another column is named `t` or `time`, and is the time
+    ///   otherwise (a series indexed by time);
+    /// * comment lines starting with `#`, blank lines, trailing empty fields
+    ///   (`t,x1,` or a trailing delimiter on every row).
+    ///
+    /// The time column is the first one named `t` or `time` (any case), else
+    /// the first column; every other column is a value column.
+    ///
+    /// ```
+    /// use springmass::series::TimeSeries;
+    /// let ts = TimeSeries::from_csv_str(",time [s],x1 [m]\n0,0.0,1.5\n1,0.5,2.5\n")?;
+    /// assert_eq!(ts.names(), ["x1"]);
+    /// assert_eq!(ts.unit("x1"), Some("m"));
+    /// assert_eq!(ts.time_unit(), Some("s"));
+    /// let ts = TimeSeries::from_csv_str("t;x1\n0;0,5\n1;1,5\n")?;
+    /// assert_eq!(ts.column("x1").unwrap(), [0.5, 1.5]);
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
     ///
     /// # Errors
-    /// [`Error::Parse`] naming the line (1-based) for a missing header, a
-    /// missing or extra field, or a number that does not parse or is NaN/inf;
-    /// unsorted or duplicate times name the line too.
+    /// [`Error::Parse`] naming the row (1-based data row), the line of the
+    /// text and the column (name and 1-based position in the file) for a
+    /// missing header, a missing or empty field, a number that does not parse
+    /// or is NaN/inf, and unsorted or duplicate times.
     pub fn from_csv_str(text: &str) -> Result<TimeSeries> {
-        let mut lines = text
-            .lines()
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let delim = sniff_delimiter(text);
+        let mut rdr = csv::ReaderBuilder::new()
+            .delimiter(delim)
+            .has_headers(false)
+            .flexible(true)
+            .comment(Some(b'#'))
+            .trim(csv::Trim::All)
+            .from_reader(text.as_bytes());
+        let mut records = rdr.records();
+        let header = loop {
+            match records.next() {
+                None => {
+                    return Err(Error::parse(
+                        "CSV",
+                        "",
+                        "empty file; expected a header such as t,x1",
+                    ))
+                }
+                Some(Err(e)) => return Err(csv_error(&e)),
+                Some(Ok(r)) if r.iter().all(str::is_empty) => continue,
+                Some(Ok(r)) => break r,
+            }
+        };
+        let hline = header.position().map_or(1, |p| p.line());
+        let header_text = header.iter().collect::<Vec<_>>().join(delim_str(delim));
+        // (name, unit, file column index 0-based)
+        let mut cols: Vec<(String, Option<String>, usize)> = header
+            .iter()
             .enumerate()
-            .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
-        let (hline, header) = lines
-            .next()
-            .ok_or_else(|| Error::parse("CSV", "", "empty file; expected a header t,x1,..."))?;
-        let names: Vec<String> = header.split(',').map(|h| h.trim().to_string()).collect();
-        if names.len() < 2 || !matches!(names[0].as_str(), "t" | "time") {
+            .map(|(i, h)| {
+                let (name, unit) = split_unit(h);
+                (name, unit, i)
+            })
+            .collect();
+        while cols.last().is_some_and(|c| c.0.is_empty()) {
+            cols.pop();
+        }
+        let is_time = |n: &str| n.eq_ignore_ascii_case("t") || n.eq_ignore_ascii_case("time");
+        let first_unnamed = cols
+            .first()
+            .is_some_and(|c| c.0.is_empty() || c.0 == "Unnamed: 0" || c.0 == "index");
+        if first_unnamed && cols[1..].iter().any(|c| is_time(&c.0)) {
+            cols.remove(0);
+        }
+        if cols.len() < 2 {
             return Err(Error::parse(
-                format!("CSV header (line {})", hline + 1),
-                header,
-                "expected `t,<name>[,<name>...]` with at least one value column",
+                format!("CSV header (line {hline})"),
+                header_text,
+                "expected a time column and at least one value column, e.g. `t,x1` (delimiter `,`, `;` or tab)",
             ));
         }
-        let ncol = names.len();
-        let mut t = Vec::new();
-        let mut cols: Vec<Vec<f64>> = vec![Vec::new(); ncol - 1];
-        for (ln, line) in lines {
-            let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-            let where_ = format!("CSV line {}", ln + 1);
-            if fields.len() != ncol {
+        let ti = cols.iter().position(|c| is_time(&c.0)).unwrap_or(0);
+        let time = cols.remove(ti);
+        for c in cols.iter_mut() {
+            if c.0.is_empty() {
+                c.0 = format!("column{}", c.2 + 1);
+            }
+        }
+        let used: Vec<(String, usize)> = std::iter::once((
+            if time.0.is_empty() {
+                "t".to_string()
+            } else {
+                time.0.clone()
+            },
+            time.2,
+        ))
+        .chain(cols.iter().map(|c| (c.0.clone(), c.2)))
+        .collect();
+        let ncol_needed = used.iter().map(|u| u.1).max().unwrap_or(0) + 1;
+        let decimal_comma = delim == b';';
+        let mut t: Vec<f64> = Vec::new();
+        let mut values: Vec<Vec<f64>> = vec![Vec::new(); cols.len()];
+        let mut row = 0usize;
+        for rec in records {
+            let rec = rec.map_err(|e| csv_error(&e))?;
+            if rec.iter().all(str::is_empty) {
+                continue;
+            }
+            row += 1;
+            let line = rec.position().map_or(0, |p| p.line());
+            let raw = rec.iter().collect::<Vec<_>>().join(delim_str(delim));
+            let at = |name: &str, c: usize| {
+                format!("CSV row {row} (line {line}), column {} `{name}`", c + 1)
+            };
+            // trailing empty fields beyond the needed columns are ignored
+            let mut n_fields = rec.len();
+            while n_fields > ncol_needed && rec.get(n_fields - 1) == Some("") {
+                n_fields -= 1;
+            }
+            if n_fields < ncol_needed {
+                let (name, c) = used
+                    .iter()
+                    .find(|u| u.1 >= n_fields)
+                    .cloned()
+                    .unwrap_or_default();
                 return Err(Error::parse(
-                    where_,
-                    line,
+                    at(&name, c),
+                    raw,
                     format!(
-                        "expected {ncol} fields ({}), found {}",
-                        names.join(","),
-                        fields.len()
+                        "missing field: expected {ncol_needed} fields as in the header, found {n_fields}"
                     ),
                 ));
             }
-            let mut vals = Vec::with_capacity(ncol);
-            for (f, name) in fields.iter().zip(&names) {
-                let v: f64 = f.parse().map_err(|_| {
-                    Error::parse(
-                        where_.clone(),
-                        line,
-                        format!("field `{name}` = {f:?} is not a number"),
-                    )
+            let mut vals = Vec::with_capacity(used.len());
+            for (name, c) in &used {
+                let f = rec.get(*c).unwrap_or("");
+                if f.is_empty() {
+                    return Err(Error::parse(at(name, *c), raw, "empty field"));
+                }
+                let parsed = if decimal_comma && f.contains(',') && !f.contains('.') {
+                    f.replacen(',', ".", 1).parse::<f64>()
+                } else {
+                    f.parse::<f64>()
+                };
+                let v = parsed.map_err(|_| {
+                    Error::parse(at(name, *c), raw.clone(), format!("{f:?} is not a number"))
                 })?;
                 if !v.is_finite() {
                     return Err(Error::parse(
-                        where_.clone(),
-                        line,
-                        format!("field `{name}` is {v}; values must be finite"),
+                        at(name, *c),
+                        raw,
+                        format!("{v}: values must be finite"),
                     ));
                 }
                 vals.push(v);
@@ -205,27 +314,40 @@ impl TimeSeries {
             if let Some(&prev) = t.last() {
                 if vals[0] <= prev {
                     return Err(Error::parse(
-                        where_,
-                        line,
+                        at(&used[0].0, used[0].1),
+                        raw,
                         format!("time {} is not greater than the previous time {prev}: times must be sorted and distinct", vals[0]),
                     ));
                 }
             }
             t.push(vals[0]);
-            for (c, v) in cols.iter_mut().zip(&vals[1..]) {
-                c.push(*v);
+            for (col, v) in values.iter_mut().zip(&vals[1..]) {
+                col.push(*v);
             }
         }
         if t.is_empty() {
-            return Err(Error::parse("CSV", header, "no data rows after the header"));
+            return Err(Error::parse(
+                "CSV",
+                header_text,
+                "no data rows after the header",
+            ));
         }
-        TimeSeries::new(t, names[1..].iter().cloned().zip(cols).collect())
+        let units: Vec<Option<String>> = cols.iter().map(|c| c.1.clone()).collect();
+        let mut ts = TimeSeries::new(t, cols.into_iter().map(|c| c.0).zip(values).collect())?;
+        ts.units = units;
+        ts.time_unit = time.1;
+        Ok(ts)
     }
 
-    /// Read a CSV file (see [`TimeSeries::from_csv_str`]).
+    /// Read a CSV file (see [`TimeSeries::from_csv_str`]), at most
+    /// [`crate::io::max_input_bytes`] bytes (256 MiB by default).
+    ///
+    /// # Errors
+    /// [`Error::Io`] naming the file (missing, unreadable, a directory, above
+    /// the cap); the errors of [`TimeSeries::from_csv_str`] prefixed with the file.
     pub fn read_csv(path: impl AsRef<Path>) -> Result<TimeSeries> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::read_to_string_capped(path)?;
         TimeSeries::from_csv_str(&text).map_err(|e| match e {
             Error::Parse {
                 what,
@@ -240,13 +362,68 @@ impl TimeSeries {
         })
     }
 
+    /// The unit of a value column, if its header gave one (`x1 [m]`).
+    pub fn unit(&self, name: &str) -> Option<&str> {
+        let i = self.names.iter().position(|n| n == name)?;
+        self.units.get(i)?.as_deref()
+    }
+
+    /// The unit of the time column, if its header gave one (`time [s]`).
+    pub fn time_unit(&self) -> Option<&str> {
+        self.time_unit.as_deref()
+    }
+
+    /// A value column by name, or else by its 1-based number among the value
+    /// columns (`1` is the first column after the time).
+    ///
+    /// ```
+    /// use springmass::series::TimeSeries;
+    /// let ts = TimeSeries::from_csv_str("t,a,b\n0,1,2\n1,3,4\n")?;
+    /// assert_eq!(ts.select("b")?.0, "b");
+    /// assert_eq!(ts.select("1")?.0, "a");
+    /// assert!(ts.select("3").is_err());
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] listing the columns present.
+    pub fn select(&self, key: &str) -> Result<(&str, &[f64])> {
+        let i = match self.names.iter().position(|n| n == key) {
+            Some(i) => Some(i),
+            None => key
+                .trim()
+                .parse::<usize>()
+                .ok()
+                .filter(|&k| (1..=self.names.len()).contains(&k))
+                .map(|k| k - 1),
+        };
+        match i {
+            Some(i) => Ok((&self.names[i], &self.columns[i])),
+            None => Err(Error::invalid(
+                "column",
+                key,
+                format!(
+                    "a name (one of: {}) or a number 1..={}",
+                    self.names.join(", "),
+                    self.names.len()
+                ),
+            )),
+        }
+    }
+
     /// CSV text with 17 significant digits (round-trips `f64`).
     pub fn to_csv_string(&self) -> String {
         let mut out = String::with_capacity(self.t.len() * 24 * (1 + self.columns.len()));
         out.push('t');
-        for n in &self.names {
+        if let Some(u) = &self.time_unit {
+            out.push_str(&format!(" [{u}]"));
+        }
+        for (n, u) in self.names.iter().zip(&self.units) {
             out.push(',');
             out.push_str(n);
+            if let Some(u) = u {
+                out.push_str(&format!(" [{u}]"));
+            }
         }
         out.push('\n');
         for i in 0..self.t.len() {
@@ -265,23 +442,78 @@ impl TimeSeries {
     }
 }
 
-/// Write `bytes` to `path` atomically: a temporary sibling file, `fsync`, rename.
-/// Creates parent folders.
+/// Write `bytes` to `path` atomically; see [`crate::io::write_atomic`]
+/// (kept here for existing callers): refuses directories, devices, FIFOs and
+/// sockets, follows symbolic links to their target.
+///
+/// # Errors
+/// As [`crate::io::write_atomic`].
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    crate::io::write_atomic(path, bytes)
+}
+
+/// The delimiter of a CSV text: the most frequent of `,`, `;` and tab (outside
+/// quotes) on its first line that is neither blank nor a `#` comment.
+fn sniff_delimiter(text: &str) -> u8 {
+    let line = text
+        .lines()
+        .find(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+        .unwrap_or("");
+    let mut counts = [0usize; 3];
+    let mut quoted = false;
+    for ch in line.chars() {
+        match ch {
+            '"' => quoted = !quoted,
+            ',' if !quoted => counts[0] += 1,
+            ';' if !quoted => counts[1] += 1,
+            '\t' if !quoted => counts[2] += 1,
+            _ => {}
+        }
     }
-    let file_name = path
-        .file_name()
-        .map(|f| f.to_string_lossy().to_string())
-        .unwrap_or_default();
-    let tmp = path.with_file_name(format!(".{file_name}.tmp{}", std::process::id()));
-    {
-        let mut f = std::fs::File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
-        f.write_all(bytes).map_err(|e| Error::io(&tmp, e))?;
-        f.sync_all().map_err(|e| Error::io(&tmp, e))?;
+    let delims = [b',', b';', b'\t'];
+    let mut best = 0;
+    for i in 1..3 {
+        if counts[i] > counts[best] {
+            best = i;
+        }
     }
-    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+    delims[best]
+}
+
+fn delim_str(d: u8) -> &'static str {
+    match d {
+        b';' => ";",
+        b'\t' => "\t",
+        _ => ",",
+    }
+}
+
+/// `time [s]` -> (`time`, `s`); `x1 (m)` -> (`x1`, `m`); `x1` -> (`x1`, none).
+fn split_unit(h: &str) -> (String, Option<String>) {
+    let h = h.trim();
+    for (open, close) in [('[', ']'), ('(', ')')] {
+        if let Some(body) = h.strip_suffix(close) {
+            if let Some(i) = body.rfind(open) {
+                let name = body[..i].trim();
+                let unit = body[i + 1..].trim();
+                if !name.is_empty() {
+                    return (
+                        name.to_string(),
+                        (!unit.is_empty()).then(|| unit.to_string()),
+                    );
+                }
+            }
+        }
+    }
+    (h.to_string(), None)
+}
+
+fn csv_error(e: &csv::Error) -> Error {
+    let at = e
+        .position()
+        .map(|p| format!("CSV line {}", p.line()))
+        .unwrap_or_else(|| "CSV".to_string());
+    Error::parse(at, "", e.to_string())
 }
 
 #[cfg(test)]
@@ -311,6 +543,78 @@ mod tests {
         for (text, needle) in cases {
             let e = TimeSeries::from_csv_str(text).unwrap_err().to_string();
             assert!(e.contains(needle), "{text:?}: {e}");
+        }
+    }
+
+    fn x1(text: &str) -> TimeSeries {
+        TimeSeries::from_csv_str(text).unwrap_or_else(|e| panic!("{text:?}: {e}"))
+    }
+
+    #[test]
+    fn csv_forms_of_loggers_and_pandas() {
+        let want_t = [0.0, 0.5];
+        let want_x = [1.0, 2.0];
+        let forms = [
+            ("quoted headers", "\"t\",\"x1\"\n0,1\n0.5,2\n"),
+            ("units", "time [s],x1 [m]\n0,1\n0.5,2\n"),
+            ("units in parentheses", "Time (s),x1 (m)\n0,1\n0.5,2\n"),
+            ("semicolon", "t;x1\n0;1\n0.5;2\n"),
+            ("semicolon, decimal comma", "t;x1\n0;1\n0,5;2,0\n"),
+            ("tab", "t\tx1\n0\t1\n0.5\t2\n"),
+            ("trailing empty fields", "t,x1,\n0,1,\n0.5,2,\n"),
+            ("trailing delimiter on rows only", "t,x1\n0,1,\n0.5,2,,\n"),
+            ("pandas to_csv()", ",t,x1\n0,0.0,1.0\n1,0.5,2.0\n"),
+            (
+                "pandas Unnamed: 0",
+                "Unnamed: 0,t,x1\n0,0.0,1.0\n1,0.5,2.0\n",
+            ),
+            ("pandas series indexed by time", ",x1\n0.0,1.0\n0.5,2.0\n"),
+            (
+                "comments and blank lines",
+                "# logger v2\n\nt,x1\n# start\n0,1\n\n0.5,2\n",
+            ),
+            ("CRLF and BOM", "\u{feff}t,x1\r\n0,1\r\n0.5,2\r\n"),
+            (
+                "quoted values",
+                "\"t\";\"x1\"\n\"0\";\"1\"\n\"0.5\";\"2\"\n",
+            ),
+            ("time not first", "x1,t\n1,0\n2,0.5\n"),
+        ];
+        for (what, text) in forms {
+            let ts = x1(text);
+            assert_eq!(ts.t(), want_t, "{what}");
+            assert_eq!(ts.names(), ["x1"], "{what}");
+            assert_eq!(ts.column("x1").unwrap(), want_x, "{what}");
+        }
+        let ts = x1("time [s],x1 [m]\n0,1\n0.5,2\n");
+        assert_eq!(ts.time_unit(), Some("s"));
+        assert_eq!(ts.unit("x1"), Some("m"));
+        // units survive a round trip
+        assert_eq!(x1(&ts.to_csv_string()), ts);
+        // columns by name or number
+        let ts = x1("t,a,b\n0,1,2\n1,3,4\n");
+        assert_eq!(ts.select("b").unwrap().1, [2.0, 4.0]);
+        assert_eq!(ts.select("2").unwrap().0, "b");
+        assert!(ts.select("0").is_err());
+        assert!(ts.select("c").unwrap_err().to_string().contains("a, b"));
+    }
+
+    #[test]
+    fn malformed_csv_names_row_and_column() {
+        let cases = [
+            ("t,x1\n0,1\n1,\n", "row 2 (line 3), column 2 `x1`"),
+            ("t,x1,x2\n0,1,2\n1,2\n", "column 3 `x2`"),
+            ("t;x1\n0;1\n1;abc\n", "row 2 (line 3), column 2 `x1`"),
+            ("# c\nt,x1\n0,1\n1,inf\n", "row 2 (line 4), column 2 `x1`"),
+            ("t,x1\n0,1\n0,2\n", "row 2 (line 3), column 1 `t`"),
+            ("t\tx1\n0\t1\n\"1\t2\n", "line"),
+            ("t,x1\n", "no data rows"),
+            ("# only a comment\n", "empty"),
+        ];
+        for (text, needle) in cases {
+            let e = TimeSeries::from_csv_str(text).unwrap_err();
+            assert!(matches!(e, Error::Parse { .. }), "{text:?}: {e}");
+            assert!(e.to_string().contains(needle), "{text:?}: {e}");
         }
     }
 

@@ -113,7 +113,10 @@ fn bad_input_exits_nonzero_with_one_line() {
 
 #[test]
 fn fit_scene_with_spring_and_damper_defects() {
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/fit-spring.toml");
+    let scene = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/configs/scenes/fit-spring.toml"
+    );
     let (code, out, err) = run(&["fit", "--scene", scene]);
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("found      (spring 4, 0.5"), "{out}");

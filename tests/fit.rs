@@ -2,7 +2,8 @@
 //! scenes, determinism, and the fixed rules against the adaptive reference.
 
 use springmass::detect::data::exact::Data;
-use springmass::detect::fit::paper::{fit, FitMethod};
+use springmass::detect::fit::paper::fit;
+use springmass::detect::fit::FitMethod;
 use springmass::detect::misfit::quadrature::Adaptive;
 use springmass::detect::misfit::{Misfit, MisfitKind, MisfitSpec};
 use springmass::detect::scene::FitScene;
@@ -282,7 +283,7 @@ fn cli_fit_and_surface() {
         .args([
             "fit",
             "--scene",
-            &format!("{root}/configs/table1-system3.toml"),
+            &format!("{root}/configs/scenes/table1-system3.toml"),
             "--json",
         ])
         .output()
@@ -319,7 +320,7 @@ fn cli_fit_and_surface() {
             .args([
                 "surface",
                 "--scene",
-                &format!("{root}/configs/{cfg}.toml"),
+                &format!("{root}/configs/scenes/{cfg}.toml"),
                 "--kind",
                 kind,
                 "--out",
@@ -468,7 +469,7 @@ panels = 10
     assert!(report.resolved && report.runners_up[0].gap > 9.0);
     // the optimizers are refused on this path, naming the field
     let mut s2 = scene.clone();
-    s2.search.method = springmass::detect::fit::paper::FitMethod::Ga;
+    s2.search.method = springmass::detect::fit::FitMethod::Ga;
     match springmass::detect::fit::paper::fit(&s2, &s2.data().unwrap(), &s2.options()) {
         Err(springmass::Error::InvalidParameter { field, .. }) => {
             assert_eq!(field, "search.method")

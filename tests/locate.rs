@@ -617,7 +617,7 @@ fn cli_locates_refuses_and_rejects() {
         "--s",
         "5",
     ]);
-    assert_eq!(rc, 1);
+    assert_eq!(rc, 4); // exit status 4: the data cannot resolve the result
     assert!(out.starts_with("not resolvable"), "{out}");
     // bad input: exit 2 with a one-line message
     for bad in [

@@ -144,7 +144,7 @@ fn config_check_says_which_kind_of_file_and_checks_fit_scenes() {
     let dir = tmp("kind");
     let root = env!("CARGO_MANIFEST_DIR");
     // a shipped fit scene
-    let scene = Path::new(root).join("configs/table1-system3.toml");
+    let scene = Path::new(root).join("configs/scenes/table1-system3.toml");
     assert!(scene.is_file(), "missing {}", scene.display());
     let o = run(&["config", "check", scene.to_str().unwrap()], &[]);
     assert!(o.status.success(), "{}", text(&o));

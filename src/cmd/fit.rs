@@ -1,29 +1,81 @@
-//! `springmass fit`: fit defect positions and masses to data described by a
-//! TOML scene (see `springmass::detect::scene`).
+//! `springmass fit`: fit defects to a measured series (`--data`, the
+//! data-first pipeline `springmass::detect::fit::fit`) or to the data a TOML
+//! scene describes (`--scene`, see `springmass::detect::scene`).
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
-use springmass::detect::fit::paper::{fit, FitMethod, FitReport};
+use springmass::detect::fit::paper::{fit, FitReport};
+use springmass::detect::fit::FitMethod;
+use springmass::detect::misfit::MisfitKind;
 use springmass::detect::scene::FitScene;
+use springmass::detect::unknowns::KindChoice;
 use std::path::PathBuf;
 
 /// Arguments of `springmass fit`.
 #[derive(ClapArgs, Debug)]
+#[command(
+    after_help = "Data-first: springmass fit --data x1.csv --n 37 [--d 0.05 | --fit d,gamma] \
+[--defects auto|K] [--kinds mass|spring|damper|any] [--noise auto|SIGMA] [--misfit time|bromwich|real-axis] \
+[--method enumerate|ga|nelder-mead|pso] [--plot fit.svg] [--out-csv fit.csv] [--json]\n\
+Scene file: springmass fit --scene configs/scenes/table1-system3.toml (its [chain] defects are the truth that synthesises the data)."
+)]
 pub struct Args {
+    /// A measured series: CSV with a time column `t` and one or more value columns.
+    #[arg(long, conflicts_with = "scene")]
+    pub data: Option<PathBuf>,
+    /// The column of --data to fit [default: the first after t].
+    #[arg(long, requires = "data")]
+    pub column: Option<String>,
+    /// Number of masses of the chain (--data).
+    #[arg(long, requires = "data")]
+    pub n: Option<usize>,
+    /// Uniform damping (known, or the starting value with --fit d) [default: 0.1].
+    #[arg(long, requires = "data", allow_negative_numbers = true)]
+    pub d: Option<f64>,
+    /// Impulse on mass 1 [default: 1].
+    #[arg(long, requires = "data", allow_negative_numbers = true)]
+    pub gamma: Option<f64>,
+    /// Chain parameters fitted too: a comma-separated subset of d,gamma,k,mass.
+    #[arg(long, requires = "data")]
+    pub fit: Option<String>,
+    /// A known defect `kind:at:value` (repeatable).
+    #[arg(long = "known", value_name = "KIND:AT:VALUE", requires = "data")]
+    pub known: Vec<String>,
+    /// Number of defects: auto (0..=4 by the criterion), auto:KMAX, or K [default: auto].
+    #[arg(long, requires = "data")]
+    pub defects: Option<String>,
+    /// Kinds of defect sought: mass, spring, damper or any [default: mass].
+    #[arg(long, requires = "data")]
+    pub kinds: Option<String>,
+    /// Noise standard deviation of the samples: auto (estimated) or SIGMA [default: auto].
+    /// With --scene: the synthetic data's noise level.
+    #[arg(long, allow_hyphen_values = true)]
+    pub noise: Option<String>,
+    /// time, bromwich or real-axis [default: time].
+    #[arg(long, requires = "data")]
+    pub misfit: Option<String>,
+    /// Criterion of --defects auto: bic, aic, chi2 or chi2:ALPHA [default: bic].
+    #[arg(long, requires = "data")]
+    pub criterion: Option<String>,
+    /// Evaluation budget of ga, nelder-mead and pso [default: 20000].
+    #[arg(long)]
+    pub max_evals: Option<usize>,
+    /// Draw data, model and residual to this SVG (--data).
+    #[arg(long, requires = "data")]
+    pub plot: Option<PathBuf>,
+    /// Write t, observed, model, residual to this CSV (--data).
+    #[arg(long, requires = "data")]
+    pub out_csv: Option<PathBuf>,
     /// The fit scene (TOML with [chain], [data], [unknowns], [misfit], [search]).
     #[arg(long)]
-    pub scene: PathBuf,
-    /// enumerate | ga | nelder-mead | pso (overrides [search].method).
+    pub scene: Option<PathBuf>,
+    /// enumerate | ga | nelder-mead | pso.
     #[arg(long)]
     pub method: Option<String>,
-    /// Seed of stochastic methods (overrides [search].seed).
+    /// Seed of stochastic methods.
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Noise level of synthetic data (overrides [data].noise; relative or
-    /// absolute as [data].relative says).
-    #[arg(long)]
-    pub noise: Option<f64>,
-    /// Record and print the optimizer's trace.
+    /// Record and print the optimizer's trace (--scene).
     #[arg(long)]
     pub trace: bool,
     /// Print the report as JSON.
@@ -32,15 +84,36 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let mut scene = FitScene::load(&a.scene)?;
+    if a.data.is_some() {
+        return run_data(a);
+    }
+    let Some(scene_path) = a.scene.clone() else {
+        anyhow::bail!(springmass::Error::invalid(
+            "data",
+            "(none)",
+            "--data FILE (a measured series) or --scene FILE (a fit scene)"
+        ));
+    };
+    let mut scene = FitScene::load(&scene_path)?;
     if let Some(m) = &a.method {
         scene.search.method = FitMethod::parse(m)?;
     }
     if let Some(s) = a.seed {
         scene.search.seed = s;
     }
-    if let Some(x) = a.noise {
-        scene.data.noise = x;
+    if let Some(x) = &a.noise {
+        let v: f64 = x.parse().map_err(|_| {
+            springmass::Error::invalid(
+                "noise",
+                x,
+                "a number >= 0 (the synthetic data's noise level)",
+            )
+        })?;
+        springmass::error::check_f64("noise", v, v >= 0.0, ">= 0 and finite")?;
+        scene.data.noise = v;
+    }
+    if let Some(m) = a.max_evals {
+        scene.search.max_evals = m;
     }
     if a.trace {
         scene.search.trace = true;
@@ -53,6 +126,120 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         print_text(&scene, &report);
     }
     Ok(())
+}
+
+/// `springmass fit --data`: the data-first pipeline.
+fn run_data(a: Args) -> anyhow::Result<()> {
+    use springmass::detect::data::observations::{Observations, Series};
+    use springmass::detect::fit::{self as dfit, DefectCount, FitOptions, Model, NoiseSpec};
+    use springmass::Error;
+    let path = a.data.clone().expect("checked by the caller");
+    let n = a
+        .n
+        .ok_or_else(|| Error::invalid("n", "(none)", "--n N, the number of masses of the chain"))?;
+    // every option is parsed before the data are read or any work starts
+    let mut opts = FitOptions::default();
+    if let Some(d) = &a.defects {
+        opts.defects = DefectCount::parse(d)?;
+    }
+    if let Some(k) = &a.kinds {
+        opts.kinds = match k.trim() {
+            "mass" => KindChoice::Mass,
+            "spring" => KindChoice::Spring,
+            "damper" => KindChoice::Damper,
+            "any" => KindChoice::Any,
+            _ => return Err(Error::invalid("kinds", k, "mass, spring, damper or any").into()),
+        };
+    }
+    if let Some(x) = &a.noise {
+        opts.noise = NoiseSpec::parse(x)?;
+    }
+    if let Some(m) = &a.misfit {
+        opts.misfit = Some(MisfitKind::parse(m)?);
+    }
+    if let Some(m) = &a.method {
+        opts.method = FitMethod::parse(m)?;
+    }
+    if let Some(c) = &a.criterion {
+        opts.criterion = dfit::Criterion::parse(c)?;
+    }
+    if let Some(s) = a.seed {
+        opts.seed = s;
+    }
+    if let Some(m) = a.max_evals {
+        opts.max_evals = m;
+    }
+    let mut model = Model::new(n)?;
+    if let Some(d) = a.d {
+        model = model.with_d(d)?;
+    }
+    if let Some(g) = a.gamma {
+        model = model.with_gamma(g)?;
+    }
+    for k in &a.known {
+        model = model.with_known(springmass::Defect::parse(k)?)?;
+    }
+    if let Some(f) = &a.fit {
+        model = model.fitting(&dfit::parse_params(f)?)?;
+    }
+    let sigma = match opts.noise {
+        NoiseSpec::Sigma(s) => Some(s),
+        NoiseSpec::Auto => None,
+    };
+    let obs = Observations::Series(Series::from_csv(&path, a.column.as_deref(), sigma)?);
+    opts.validate(&obs, &model)?;
+    let report = dfit::fit(&obs, &model, &opts)?;
+    if let Some(p) = &report.predicted {
+        if let Some(out) = &a.out_csv {
+            springmass::series::TimeSeries::new(
+                p.t.clone(),
+                vec![
+                    ("observed".into(), p.observed.clone()),
+                    ("model".into(), p.model.clone()),
+                    ("residual".into(), p.residual.clone()),
+                ],
+            )?
+            .write_csv(out)?;
+        }
+        if let Some(svg) = &a.plot {
+            let pts = |y: &[f64]| {
+                p.t.iter()
+                    .copied()
+                    .zip(y.iter().copied())
+                    .collect::<Vec<_>>()
+            };
+            springmass::plot::LinePlot::new(
+                format!(
+                    "fit of {} (k = {}, {})",
+                    path.display(),
+                    report.k,
+                    report.status.name()
+                ),
+                "t",
+                "x",
+            )
+            .line(springmass::plot::Line::new("observed", pts(&p.observed)))
+            .line(springmass::plot::Line::new("model", pts(&p.model)).dashed())
+            .line(springmass::plot::Line::new("residual", pts(&p.residual)))
+            .write_svg(svg)?;
+        }
+    }
+    if a.json {
+        println!("{}", json_report(&report)?);
+    } else {
+        print!("{}", report.summary());
+    }
+    Ok(())
+}
+
+/// The JSON form of a data-first report: the answer first, the predicted
+/// series left out (see --out-csv).
+fn json_report(r: &springmass::detect::fit::FitReport) -> anyhow::Result<String> {
+    let mut v = serde_json::to_value(r)?;
+    if let Some(o) = v.as_object_mut() {
+        o.remove("predicted");
+    }
+    Ok(serde_json::to_string_pretty(&v)?)
 }
 
 /// `(at, value)` for masses; `(kind at, value)` for other kinds or when

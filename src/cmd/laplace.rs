@@ -6,6 +6,7 @@ use clap::Args as ClapArgs;
 use springmass::scalar::parse_complex;
 use springmass::series::TimeSeries;
 use springmass::time::series::{SeriesTransform, Tail, TransformOptions, DEFAULT_DEGREE};
+use springmass::Error;
 use std::path::PathBuf;
 
 /// The tail model on the command line.
@@ -19,10 +20,12 @@ pub enum TailArg {
 /// Arguments of `springmass laplace`.
 #[derive(ClapArgs, Debug)]
 pub struct Args {
-    /// CSV time series with a header `t,<name>,...` (uniform or not).
+    /// CSV time series with a header `t,<name>,...` (uniform or not; times
+    /// >= 0; `,` `;` or tab; units, pandas index and `#` comments accepted).
     #[arg(long)]
     pub series: PathBuf,
-    /// Column to transform [default: the first value column].
+    /// Column to transform, by name or number (1 = the first column after the
+    /// time) [default: 1].
     #[arg(long)]
     pub column: Option<String>,
     /// Values of s, comma separated or repeated: 0.5,1+5i,0.05+2i.
@@ -38,7 +41,7 @@ pub struct Args {
     pub degree: usize,
     /// Known white-noise standard deviation of the samples: adds the noise
     /// standard deviation of each X(s).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub noise_sigma: Option<f64>,
     /// After the last sample: `envelope` (bound the tail by a fitted
     /// exponential envelope), `modes` (fit decaying modes and add their
@@ -53,9 +56,21 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    let s_values =
+        a.s.iter()
+            .map(|text| parse_complex(text))
+            .collect::<Result<Vec<_>, _>>()?;
     let ts = TimeSeries::read_csv(&a.series)?;
+    if ts.t()[0] < 0.0 {
+        return Err(Error::invalid(
+            format!("{}: t[0]", a.series.display()),
+            ts.t()[0],
+            "t >= 0: the Laplace transform integrates from t = 0 (shift the times)",
+        )
+        .into());
+    }
     let column = match &a.column {
-        Some(c) => c.clone(),
+        Some(c) => ts.select(c)?.0.to_string(),
         None => ts.names()[0].clone(),
     };
     let opts = TransformOptions {
@@ -70,9 +85,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let tr = SeriesTransform::from_series(&ts, &column, &opts)
         .with_context(|| format!("{}: column {column}", a.series.display()))?;
     let mut rows = Vec::with_capacity(a.s.len());
-    for text in &a.s {
-        let s = parse_complex(text)?;
-        rows.push(tr.eval(s).with_context(|| format!("at s = {text}"))?);
+    for (text, &s) in a.s.iter().zip(&s_values) {
+        let v = tr.eval(s).with_context(|| format!("at s = {text}"))?;
+        let finite = [v.value.re, v.value.im, v.err, v.err_disc, v.err_trunc]
+            .iter()
+            .chain(v.noise_var.as_ref())
+            .all(|x| x.is_finite());
+        if !finite {
+            return Err(Error::Unresolvable {
+                reason: format!(
+                    "X({text}) or its error estimate is not representable in f64 (got {} {:+}i, err {})",
+                    v.value.re, v.value.im, v.err
+                ),
+            }
+            .into());
+        }
+        rows.push(v);
     }
     if a.json {
         let points: Vec<serde_json::Value> = rows

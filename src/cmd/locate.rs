@@ -9,7 +9,8 @@
 //! (columns `s`, `x` and optionally `err`; numbers are read as decimals at
 //! the working precision).
 //!
-//! Exit status: 0 located, 1 not resolvable (the reason is printed), 2 bad input.
+//! Exit status: 0 located, 4 not resolvable (the reason is printed), 2 bad
+//! input, 3 I/O (see `springmass --help`).
 
 use super::ChainArgs;
 use anyhow::{bail, Context};
@@ -18,7 +19,9 @@ use springmass::detect::locate::{
     curve, default_grid, locate, Estimate, LaplaceData, Location, Method, Model, Point, SChoice,
 };
 use springmass::plot::{Line, LinePlot};
-use springmass::precision::{check_bits, with_precision, BigReal, RealScalar};
+use springmass::precision::RealScalar;
+#[cfg(feature = "bigfloat")]
+use springmass::precision::{check_bits, with_precision, BigReal};
 use springmass::series::TimeSeries;
 use springmass::time::series::{SeriesTransform, TransformOptions};
 use springmass::Error;
@@ -47,7 +50,8 @@ pub struct Args {
     /// Laplace-transformed with a per-s error estimate.
     #[arg(long, value_name = "FILE.csv", conflicts_with = "simulate")]
     pub series: Option<PathBuf>,
-    /// Column of --series to use [default: the first value column].
+    /// Column of --series to use, by name or number (1 = the first column
+    /// after the time) [default: 1].
     #[arg(long, requires = "series")]
     pub column: Option<String>,
     /// White-noise standard deviation of the --series samples (adds the
@@ -88,15 +92,25 @@ enum Outcome {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    if let Some(p) = &a.plot {
+        springmass::io::resolve_output(p)?;
+    }
     let outcome = match a.precision {
         None => run_in::<f64>(&a)?,
+        #[cfg(feature = "bigfloat")]
         Some(bits) => {
             let bits = check_bits(bits)?;
             with_precision(bits, || run_in::<BigReal>(&a))?
         }
+        #[cfg(not(feature = "bigfloat"))]
+        Some(bits) => return Err(springmass::precision::unavailable(bits).into()),
     };
     if let Outcome::Unresolvable = outcome {
-        std::process::exit(1);
+        use std::io::Write;
+        std::io::stdout()
+            .flush()
+            .map_err(|e| Error::io("stdout", e))?;
+        std::process::exit(springmass::error::exit::UNRESOLVABLE);
     }
     Ok(())
 }
@@ -181,13 +195,16 @@ fn parse_curve(text: &str) -> anyhow::Result<Vec<f64>> {
         .collect())
 }
 
-fn read_laplace<T: RealScalar>(path: &PathBuf) -> anyhow::Result<LaplaceData<T>> {
+fn read_laplace<T: RealScalar>(path: &std::path::Path) -> anyhow::Result<LaplaceData<T>> {
+    let bytes = springmass::io::read_capped(path)?;
     let mut rdr = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
-        .from_path(path)
-        .map_err(|e| Error::io(path, e))?;
-    let headers = rdr.headers().map_err(|e| Error::io(path, e))?.clone();
+        .from_reader(bytes.as_slice());
+    let headers = rdr
+        .headers()
+        .map_err(|e| Error::parse(path.display().to_string(), "", e.to_string()))?
+        .clone();
     let col = |names: &[&str]| headers.iter().position(|h| names.contains(&h));
     let (Some(is), Some(ix)) = (col(&["s"]), col(&["x", "x1", "X1"])) else {
         bail!(
@@ -199,7 +216,7 @@ fn read_laplace<T: RealScalar>(path: &PathBuf) -> anyhow::Result<LaplaceData<T>>
     let ie = col(&["err", "error"]);
     let mut points = Vec::new();
     for (line, rec) in rdr.records().enumerate() {
-        let rec = rec.map_err(|e| Error::io(path, e))?;
+        let rec = rec.map_err(|e| Error::parse(path.display().to_string(), "", e.to_string()))?;
         let what = format!("{} line {}", path.display(), line + 2);
         let field = |i: usize| -> anyhow::Result<T> {
             let t = rec.get(i).unwrap_or("");
@@ -222,7 +239,7 @@ fn read_laplace<T: RealScalar>(path: &PathBuf) -> anyhow::Result<LaplaceData<T>>
 fn read_series(a: &Args, path: &PathBuf) -> anyhow::Result<SeriesTransform> {
     let ts = TimeSeries::read_csv(path)?;
     let column = match &a.column {
-        Some(c) => c.clone(),
+        Some(c) => ts.select(c)?.0.to_string(),
         None => ts
             .names()
             .first()
@@ -276,11 +293,13 @@ fn run_in<T: RealScalar>(a: &Args) -> anyhow::Result<Outcome> {
             synthetic(svals)
         }
     };
-    let model: Model<T> = Model::from_chain(&if measured {
+    let model_of = if measured {
         model_chain()?
     } else {
         a.chain.chain()?
-    });
+    };
+    model_of.require_fixed_ends("the explicit locators of section 4.1")?;
+    let model: Model<T> = Model::from_chain(&model_of);
     let data = source(&s_values)?;
     let precision = match a.precision {
         Some(b) => format!("{b} bits"),

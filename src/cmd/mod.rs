@@ -24,16 +24,16 @@ pub struct ChainArgs {
     #[arg(long)]
     pub n: Option<usize>,
     /// Uniform spring constant [default: 1].
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true)]
     pub k: Option<f64>,
     /// Uniform damping [default: 0.1].
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true)]
     pub d: Option<f64>,
     /// Impulse on mass 1 [default: 1].
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true)]
     pub gamma: Option<f64>,
     /// Uniform mass [default: 1].
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true)]
     pub mass: Option<f64>,
     /// A defect `kind:at:value` (repeatable): mass:8:5, spring:3:0.5, damper:4:0.3.
     #[arg(long = "defect", value_name = "KIND:AT:VALUE")]
@@ -55,6 +55,8 @@ impl ChainArgs {
                 gamma: 1.0,
                 mass: 1.0,
                 defects: vec![],
+                left: Default::default(),
+                right: Default::default(),
             },
         };
         if let Some(n) = self.n {
@@ -81,8 +83,7 @@ impl ChainArgs {
 
 /// Read the `[chain]` table of a scene file (other tables are ignored here).
 pub fn read_chain_spec(path: &std::path::Path) -> anyhow::Result<ChainSpec> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let text = springmass::io::read_to_string_capped(path)?;
     let value: toml::Table =
         toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
     let chain = value

@@ -31,7 +31,14 @@ pub enum Part {
     /// Spring, damper and any-kind defects at unknown positions, with the
     /// damping fitted alongside (time misfit, 1% noise, `--part-seeds` seeds).
     Kinds,
-    /// All of the above.
+    /// The data-first fit with its defaults (time misfit, noise estimated)
+    /// and k given: positions right, truth within 3 standard errors, wrong
+    /// answers flagged (S1-S4, C3a, C3b; `--levels`, default 1e-4,1e-3,1e-2).
+    DataFirst,
+    /// The same with the number of defects chosen by BIC (0..=4) on the
+    /// selection truths (0 to 3 defects, n = 10).
+    DataFirstK,
+    /// All of the above but the data-first parts.
     All,
 }
 
@@ -101,6 +108,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let mut md = String::new();
+    if matches!(a.part, Part::DataFirst | Part::DataFirstK) {
+        return data_first(&a, &cfg);
+    }
     if matches!(a.part, Part::Table | Part::All) {
         table(&a, &cfg, &setup, &mut md)?;
     }
@@ -306,11 +316,12 @@ fn table(a: &Args, cfg: &StudyConfig, setup: &Setup, md: &mut String) -> anyhow:
     writeln!(md, "|---|---|{}", "---|".repeat(cfg.levels.len()))?;
     let mut csv = String::from("system,misfit,level,runs,successes,positions_ok\n");
     let mut plot = LinePlot::new(
-        "Defect recovery vs noise",
+        "Defect recovery vs noise, one panel per system",
         "noise level (relative to max |x_1|)",
         "success rate",
     )
-    .log_x(true);
+    .log_x(true)
+    .rate();
     for s in &chosen {
         for m in &misfits {
             write!(md, "| {} | {} |", s.name, m.name())?;
@@ -328,14 +339,113 @@ fn table(a: &Args, cfg: &StudyConfig, setup: &Setup, md: &mut String) -> anyhow:
                 pts.push((c.level, c.rate()));
             }
             writeln!(md)?;
-            let mut line = Line::new(format!("{} {}", s.name, m.name()), pts).markers();
-            if *m == MisfitKind::RealAxis {
-                line = line.dashed();
-            }
-            plot = plot.line(line);
+            plot = plot.line(Line::new(m.name(), pts).panel(s.name.clone()));
         }
     }
     write_atomic(&a.out.join("success.csv"), csv.as_bytes())?;
     plot.write_svg(a.out.join("success.svg"))?;
+    Ok(())
+}
+
+/// `noise-study data-first` and `data-first-k`.
+fn data_first(a: &Args, cfg: &StudyConfig) -> anyhow::Result<()> {
+    use springmass::detect::noise_study::{data_first, System};
+    let mut cfg = cfg.clone();
+    if a.levels.is_empty() {
+        cfg.levels = vec![1e-4, 1e-3, 1e-2];
+    }
+    let k_given = a.part == Part::DataFirst;
+    let systems: Vec<System> = if k_given {
+        let all = systems();
+        if a.systems.is_empty() {
+            all
+        } else {
+            let mut v = Vec::new();
+            for name in &a.systems {
+                v.push(
+                    all.iter()
+                        .find(|s| &s.name == name)
+                        .cloned()
+                        .ok_or_else(|| {
+                            springmass::Error::invalid(
+                                "systems",
+                                name,
+                                "S1, S2, S3, S4, C3a or C3b",
+                            )
+                        })?,
+                );
+            }
+            v
+        }
+    } else {
+        selection_truths()
+            .into_iter()
+            .enumerate()
+            .map(|(i, truth)| System {
+                name: format!("k{i}"),
+                truth,
+            })
+            .collect()
+    };
+    let rows = data_first(&systems, &cfg, k_given)?;
+    let mut csv = String::from("system,level,repeat,k_true,k_found,positions_ok,values,within_3se,wrong_flagged,sigma_ratio,status,seconds\n");
+    for r in &rows {
+        let _ = writeln!(
+            csv,
+            "{},{:e},{},{},{},{},{},{},{},{:.4},{},{:.3}",
+            r.system,
+            r.level,
+            r.repeat,
+            r.k_true,
+            r.k_found,
+            r.positions_ok,
+            r.values,
+            r.within_3se,
+            r.wrong_flagged,
+            r.sigma_ratio,
+            r.status,
+            r.seconds
+        );
+    }
+    let name = if k_given {
+        "data-first.csv"
+    } else {
+        "data-first-k.csv"
+    };
+    write_atomic(&a.out.join(name), csv.as_bytes())?;
+    println!("| system | level | positions right | k right | truth within 3 SE | wrong flagged | median sigma ratio | mean s |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for s in &systems {
+        for &level in &cfg.levels {
+            let cell: Vec<_> = rows
+                .iter()
+                .filter(|r| r.system == s.name && r.level == level)
+                .collect();
+            let pos = cell.iter().filter(|r| r.positions_ok).count();
+            let k_ok = cell.iter().filter(|r| r.k_found == r.k_true).count();
+            let vals: usize = cell.iter().map(|r| r.values).sum();
+            let within: usize = cell.iter().map(|r| r.within_3se).sum();
+            let wrong = cell.iter().filter(|r| r.wrong_flagged).count();
+            let mut ratios: Vec<f64> = cell.iter().map(|r| r.sigma_ratio).collect();
+            ratios.sort_by(f64::total_cmp);
+            let med = ratios.get(ratios.len() / 2).copied().unwrap_or(f64::NAN);
+            let secs: f64 = cell.iter().map(|r| r.seconds).sum::<f64>() / cell.len().max(1) as f64;
+            println!(
+                "| {} | {:e} | {}/{} | {}/{} | {}/{} | {} | {:.3} | {:.2} |",
+                s.name,
+                level,
+                pos,
+                cell.len(),
+                k_ok,
+                cell.len(),
+                within,
+                vals,
+                wrong,
+                med,
+                secs
+            );
+        }
+    }
+    println!("(rows in {})", a.out.join(name).display());
     Ok(())
 }

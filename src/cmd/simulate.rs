@@ -8,6 +8,7 @@
 use super::ChainArgs;
 use anyhow::Context;
 use clap::Args as ClapArgs;
+use springmass::forward::Observable;
 use springmass::noise::{add_noise, NoiseLevel};
 use springmass::plot::{Line, LinePlot};
 use springmass::series::TimeSeries;
@@ -31,7 +32,7 @@ pub struct Args {
     /// Additive white Gaussian noise: SIGMA (absolute), abs:SIGMA, snr:DB or rel:R.
     #[arg(long, allow_hyphen_values = true)]
     pub noise: Option<String>,
-    /// Seed of the noise.
+    /// Seed of the noise (every random choice is seeded).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Method: auto, expm, modal or rk.
@@ -50,6 +51,12 @@ pub struct Args {
     /// Plot the series as SVG.
     #[arg(long, value_name = "FILE.svg")]
     pub plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub setup: super::response::SetupArgs,
+    /// What is recorded: displacement (columns x<i>), velocity (v<i>) or
+    /// acceleration (a<i>, for t > 0: the impulse's delta is not a sample).
+    #[arg(long, default_value = "displacement")]
+    pub observe_kind: String,
 }
 
 /// Parse `--noise`: a bare number is an absolute standard deviation.
@@ -73,8 +80,48 @@ fn noisy(ts: &TimeSeries, level: NoiseLevel, seed: u64) -> anyhow::Result<TimeSe
     Ok(TimeSeries::new(ts.t().to_vec(), cols)?)
 }
 
+/// Estimated peak memory of a simulation (bytes): the stored series (time,
+/// observed columns, noisy copy and CSV text: about 40 bytes per value), the
+/// state vectors (2n values, about 16 work vectors for the Runge-Kutta
+/// stages) and, for `expm` / `modal` (or `auto` with n <= 2000), dense
+/// (2n x 2n) matrices (about 8 of them).
+pub fn memory_estimate(n: usize, samples: f64, observed: usize, method: Method) -> f64 {
+    let n = n as f64;
+    let series = 40.0 * samples * (observed as f64 + 1.0);
+    let state = 8.0 * 16.0 * 2.0 * n;
+    let dense_possible = match method {
+        Method::Rk => false,
+        Method::Auto => n <= springmass::time::simulate::MAX_N_EXPM as f64,
+        _ => true,
+    };
+    let dense = if dense_possible {
+        8.0 * 8.0 * (2.0 * n) * (2.0 * n)
+    } else {
+        0.0
+    };
+    series + state + dense
+}
+
+fn check_memory(n: usize, a: &Args, method: Method) -> anyhow::Result<()> {
+    if !(a.dt > 0.0 && a.dt.is_finite() && a.t_end.is_finite()) {
+        return Ok(()); // the simulation's own validation names the field
+    }
+    let samples = (a.t_end / a.dt).abs() + 1.0;
+    let bytes = memory_estimate(n, samples, a.observe.len(), method);
+    springmass::io::check_alloc(
+        &format!(
+            "simulate (n = {n}, {samples:.0} samples of {} masses, method {})",
+            a.observe.len(),
+            a.method
+        ),
+        bytes,
+    )?;
+    Ok(())
+}
+
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let chain = a.chain.chain()?;
+    let chain = a.setup.apply(a.chain.chain()?)?;
+    let kind: Observable = a.observe_kind.parse()?;
     let method: Method = a.method.parse()?;
     let level = a.noise.as_deref().map(noise_level).transpose()?;
     let forcing = match &a.force {
@@ -87,12 +134,37 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let opts = SimOptions::new(a.t_end, a.dt)
         .with_observe(a.observe.clone())
-        .with_method(method);
+        .with_method(method)
+        .with_observe_kind(kind);
+    opts.samples(&chain)?; // the simulation's own checks first (dt, t_end, stored values)
+    check_memory(chain.n(), &a, method)?;
+    let outs = [&a.out, &a.plot];
+    springmass::io::check_outputs(outs.iter().filter_map(|p| p.as_deref()))?;
     let traj = simulate_forced(&chain, &opts, &forcing)?;
     let series = match level {
         Some(l) => noisy(&traj.to_series()?, l, a.seed)?,
         None => traj.to_series()?,
     };
+    if let Some(text) = &a.noise {
+        // samples beyond 1e300 are meaningless (and hang the plot's axes)
+        for (c, name) in series.names().iter().enumerate() {
+            let col = series.column_at(c).unwrap_or_default();
+            if let Some(i) = col
+                .iter()
+                .position(|v| v.abs() > springmass::io::MAX_MAGNITUDE)
+            {
+                return Err(springmass::Error::invalid(
+                    "--noise",
+                    text,
+                    format!(
+                        "a level that keeps the samples within 1e300 in magnitude ({name}[{i}] = {:e})",
+                        col[i]
+                    ),
+                )
+                .into());
+            }
+        }
+    }
     if let Some(path) = &a.out {
         series.write_csv(path)?;
     }
@@ -113,7 +185,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         if let Some(text) = &a.noise {
             title.push_str(&format!(", noise {text}"));
         }
-        let mut plot = LinePlot::new(title, "t", "displacement");
+        if !chain.is_fixed_fixed() {
+            title.push_str(&format!(", ends {}-{}", chain.left(), chain.right()));
+        }
+        let mut plot = LinePlot::new(title, "t", kind.name());
         for name in series.names() {
             let col = series.column(name).unwrap_or_default();
             let pts = series
@@ -122,7 +197,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 .copied()
                 .zip(col.iter().copied())
                 .collect();
-            plot = plot.line(Line::new(name.replacen('x', "x_", 1), pts));
+            plot = plot.line(Line::new(
+                name.replacen(kind.prefix(), &format!("{}_", kind.prefix()), 1),
+                pts,
+            ));
         }
         plot.write_svg(path)?;
     }

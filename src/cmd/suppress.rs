@@ -50,10 +50,11 @@ pub struct Args {
     /// Relative gain error of the applied controls (|eps| <= 1).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub gain_error: f64,
-    /// Delays of the robustness curves.
+    /// Delays of the robustness curves (each within 0..=t_end).
     #[arg(
         long,
         value_delimiter = ',',
+        allow_hyphen_values = true,
         default_value = "0,0.001,0.003,0.01,0.03,0.1,0.3,1"
     )]
     pub robust_delays: Vec<f64>,
@@ -61,6 +62,7 @@ pub struct Args {
     #[arg(
         long,
         value_delimiter = ',',
+        allow_hyphen_values = true,
         default_value = "0,0.0001,0.001,0.01,0.03,0.1,0.3"
     )]
     pub robust_gains: Vec<f64>,
@@ -140,6 +142,50 @@ fn robust_csv(path: &Path, r: &Robustness) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Delays within the horizon (a delay beyond `t_end` never acts, and a huge
+/// one made the delayed stepping hang), an existing `--out-dir` that is a
+/// folder, and the memory of the simulated series: about 12 stored series of
+/// `t_end / dt + 1` samples, each run on a chain of n + 1 masses (dense
+/// (2n x 2n) matrices when n <= 2000).
+fn check_limits(a: &Args) -> anyhow::Result<()> {
+    for (field, tau) in std::iter::once(("--delay", a.delay))
+        .chain(a.robust_delays.iter().map(|&t| ("--robust-delays", t)))
+    {
+        if !(tau.is_finite() && (0.0..=a.t_end).contains(&tau)) {
+            return Err(springmass::Error::invalid(
+                field,
+                tau,
+                format!("0 <= delay <= t_end = {} (the simulated horizon)", a.t_end),
+            )
+            .into());
+        }
+    }
+    if let Ok(meta) = std::fs::metadata(&a.out_dir) {
+        if !meta.is_dir() {
+            return Err(springmass::Error::UnsafeOutput {
+                path: a.out_dir.display().to_string(),
+                reason: "--out-dir exists and is not a folder".into(),
+            }
+            .into());
+        }
+    }
+    let samples = a.t_end / a.dt + 1.0;
+    let m = a.n as f64 + 1.0;
+    let runs = (a.robust_delays.len() + a.robust_gains.len() + 4) as f64;
+    let dense = if m <= springmass::time::simulate::MAX_N_EXPM as f64 {
+        64.0 * (2.0 * m) * (2.0 * m)
+    } else {
+        0.0
+    };
+    let bytes =
+        8.0 * 12.0 * samples * runs.min(4.0) + 8.0 * 32.0 * m + dense + 40.0 * samples * 8.0;
+    springmass::io::check_alloc(
+        &format!("suppress (n = {}, {samples:.0} samples)", a.n),
+        bytes,
+    )?;
+    Ok(())
+}
+
 pub fn run(a: Args) -> anyhow::Result<()> {
     let sup = Suppression::new(a.n, a.k, a.d, a.mass, a.gamma)?;
     let perturbation = Perturbation::new(a.delay, a.gain_error, Target::All)?;
@@ -158,6 +204,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     };
     let opts = VerifyOptions::new(a.t_end, a.dt)?;
+    check_limits(&a)?;
     let out = &a.out_dir;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let n = sup.n();

@@ -8,11 +8,13 @@
 //!
 //! Writes `<out>.csv` and `<out>.svg` (heatmap of `log10 r`, the minimum marked).
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use clap::{Args as ClapArgs, ValueEnum};
 use springmass::detect::misfit::Misfit;
 use springmass::detect::scene::FitScene;
+use springmass::io::{check_alloc, check_magnitude, check_outputs, write_atomic};
 use springmass::plot::Heatmap;
+use springmass::Error;
 use std::path::PathBuf;
 
 /// Which surface.
@@ -36,19 +38,40 @@ pub struct Args {
     /// Output prefix: writes PREFIX.csv and PREFIX.svg.
     #[arg(long, default_value = "surface")]
     pub out: PathBuf,
-    /// jm: mass range [default: the scene's mass_bounds].
-    #[arg(long, num_args = 2, value_names = ["LO", "HI"])]
+    /// jm: mass range, 1e-300 <= LO < HI <= 1e300 [default: the scene's mass_bounds].
+    #[arg(long, num_args = 2, value_names = ["LO", "HI"], allow_hyphen_values = true)]
     pub m_range: Option<Vec<f64>>,
-    /// jm: number of masses on the log grid.
+    /// jm: number of masses on the log grid (2..=100000).
     #[arg(long, default_value_t = 60)]
     pub m_steps: usize,
     /// pair: the two known masses, comma separated [default: the scene's true masses].
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub masses: Vec<f64>,
 }
 
+/// Largest `--m-steps`.
+pub const MAX_M_STEPS: usize = 100_000;
+
+/// Bytes per grid cell: the f64 in the heatmap, a CSV line (about 40 bytes)
+/// and its share of the SVG (about 200 bytes per drawn cell).
+const BYTES_PER_CELL: f64 = 8.0 + 40.0 + 200.0;
+
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let scene = FitScene::load(&a.scene)?;
+    let csv_path = a.out.with_extension("csv");
+    let svg_path = a.out.with_extension("svg");
+    check_outputs([csv_path.as_path(), svg_path.as_path()])?;
+    if let Some(v) = &a.m_range {
+        check_range(v[0], v[1])?;
+    }
+    if !(2..=MAX_M_STEPS).contains(&a.m_steps) {
+        return Err(Error::invalid("--m-steps", a.m_steps, format!("2..={MAX_M_STEPS}")).into());
+    }
+    for (i, m) in a.masses.iter().enumerate() {
+        check_magnitude(&format!("--masses[{i}]"), *m)?;
+    }
+    // read with the input cap (FitScene::load reads without one)
+    let text = springmass::io::read_to_string_capped(&a.scene)?;
+    let scene = FitScene::from_toml(&text).with_context(|| format!("{}", a.scene.display()))?;
     let truth = scene.truth()?;
     let data = scene.data().context("in [data]")?;
     let misfit = Misfit::new(&truth.uniform(), &data, &scene.misfit)?;
@@ -60,12 +83,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 Some(v) => [v[0], v[1]],
                 None => scene.unknowns.mass_bounds,
             };
-            if !(lo > 0.0 && hi > lo && lo.is_finite() && hi.is_finite()) {
-                bail!("invalid --m-range = [{lo}, {hi}]: allowed 0 < LO < HI, finite");
-            }
-            if a.m_steps < 2 {
-                bail!("invalid --m-steps = {}: allowed >= 2", a.m_steps);
-            }
+            check_range(lo, hi)?;
+            check_alloc(
+                &format!("surface --kind jm (n = {n}, {} masses)", a.m_steps),
+                BYTES_PER_CELL * n as f64 * a.m_steps as f64,
+            )?;
             let ms: Vec<f64> = (0..a.m_steps)
                 .map(|i| lo * (hi / lo).powf(i as f64 / (a.m_steps - 1) as f64))
                 .collect();
@@ -104,8 +126,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 a.masses.clone()
             };
             if masses.len() != 2 || masses.iter().any(|m| !(m.is_finite() && *m > 0.0)) {
-                bail!("invalid --masses = {masses:?}: allowed two masses > 0 (or a scene with two true defects)");
+                return Err(Error::invalid(
+                    "--masses",
+                    format!("{masses:?}"),
+                    "two masses > 0 (or a scene with two true defects)",
+                )
+                .into());
             }
+            check_alloc(
+                &format!("surface --kind pair (n = {n})"),
+                BYTES_PER_CELL * n as f64 * n as f64,
+            )?;
             csv.push_str("j1,j2,r\n");
             let mut z = vec![vec![f64::NAN; n]; n];
             let mut best = (f64::INFINITY, 0.0, 0.0);
@@ -137,10 +168,23 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
         }
     };
-    let csv_path = a.out.with_extension("csv");
-    let svg_path = a.out.with_extension("svg");
-    std::fs::write(&csv_path, csv).with_context(|| format!("writing {}", csv_path.display()))?;
+    write_atomic(&csv_path, csv.as_bytes())?;
     heat.write_svg(&svg_path)?;
     println!("wrote {} and {}", csv_path.display(), svg_path.display());
+    Ok(())
+}
+
+/// A log-grid mass range: 0 < LO < HI, both within 1e-300..=1e300 (beyond,
+/// the grid holds subnormal or overflowing masses and the residuals hang).
+fn check_range(lo: f64, hi: f64) -> springmass::Result<()> {
+    check_magnitude("--m-range LO", lo)?;
+    check_magnitude("--m-range HI", hi)?;
+    if !(lo > 0.0 && hi > lo) {
+        return Err(Error::invalid(
+            "--m-range",
+            format!("[{lo}, {hi}]"),
+            "0 < LO < HI, within 1e-300..=1e300",
+        ));
+    }
     Ok(())
 }

@@ -137,14 +137,23 @@ impl Suppression {
     /// The scheme on a given chain of `n + 1 >= 3` masses.
     ///
     /// # Errors
-    /// Fewer than 3 masses; a chain with defects (the closed forms are for
-    /// the uniform chain).
+    /// Fewer than 3 masses; an end that is not fixed (field `boundaries`);
+    /// a chain with defects (the closed forms are for the uniform chain
+    /// between two walls).
     pub fn from_chain(chain: &Chain) -> Result<Suppression> {
         if chain.n() < 3 {
             return Err(Error::invalid(
                 "n",
                 chain.n().saturating_sub(1),
                 "n >= 2 (the chain has n+1 masses; g acts on mass n-1 >= 1)",
+            ));
+        }
+        if !chain.is_fixed_fixed() {
+            return Err(Error::invalid(
+                "boundaries",
+                format!("left {}, right {}", chain.left(), chain.right()),
+                "left fixed and right fixed: the suppression laws (Theorem 3.1, \
+                 Corollary 3.2) are derived for a chain between two walls",
             ));
         }
         if !chain.defects().is_empty() {
@@ -251,6 +260,16 @@ mod tests {
             .unwrap();
         assert!(Suppression::from_chain(&c).is_err());
         assert!(Suppression::from_chain(&Chain::paper(2).unwrap()).is_err());
+        for (l, r) in [
+            (crate::chain::Boundary::Free, crate::chain::Boundary::Fixed),
+            (crate::chain::Boundary::Fixed, crate::chain::Boundary::Free),
+        ] {
+            let c = Chain::paper(6).unwrap().with_boundaries(l, r).unwrap();
+            assert!(matches!(
+                Suppression::from_chain(&c),
+                Err(Error::InvalidParameter { ref field, .. }) if field == "boundaries"
+            ));
+        }
         assert_eq!(
             Suppression::from_chain(&Chain::paper(6).unwrap())
                 .unwrap()

@@ -1,6 +1,10 @@
-//! Defect detection: explicit locators for one defect ([`locate`]), and
-//! fitting the positions and masses of defects to observed `X_1` data by
-//! minimising an L2 residual.
+//! Defect detection: fitting the defects of a chain (masses, springs,
+//! dampers that differ) to a measured record or to Laplace data
+//! ([`fit::fit`], see its example), and explicit locators for one defect
+//! ([`locate`]).
+//!
+//! The paper's Table 1 from a scene (exact-model data, the real-axis
+//! residual (4.18), the mass-only Woodbury kernel):
 //!
 //! ```
 //! use springmass::{Chain, Defect};
@@ -15,23 +19,23 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 //!
+//! Data flow: [`data`] (observations and their noise) -> [`misfit`] (one
+//! misfit kind each: real axis, Bromwich line, time) -> [`unknowns`]
+//! (positions, kinds, values, chain parameters) -> [`search`] (enumeration,
+//! GA, Nelder-Mead, PSO, bounded Levenberg-Marquardt) -> [`fit`] (the report
+//! with standard errors, noise level, number of defects, status). Scenes
+//! ([`scene`]) and studies describe synthetic data and call the same fit;
+//! the explicit locators ([`locate`]) stand apart.
+//!
 //! | module | what |
 //! |---|---|
-//! | [`data`] | observed data `X_1*(s)`: source, noise, values at nodes |
-//! | [`quadrature`] | fixed rules with tabled Green's functions; adaptive reference |
-//! | [`misfit`] | the residuals (real axis, Bromwich line) and per-position-set tables |
-//! | [`space`] | the unknowns and the search space |
-//! | [`search`] | optimizers: exhaustive enumeration ([`search::enumerate`]), GA, Nelder-Mead, PSO |
+//! | [`data`] | observations: a sampled series or Laplace values; [`data::exact`] the exact-model values of synthetic data; whitening |
+//! | [`misfit`] | [`misfit::MisfitKind`], the quadrature rules ([`misfit::quadrature`]), the mass-only Woodbury kernel, the time-domain chi-square ([`misfit::time`]) |
+//! | [`unknowns`] | the unknowns of a fit |
+//! | [`search`] | optimizers and [`search::enumerate`], [`search::lsq`] (bounded Levenberg-Marquardt) |
+//! | [`fit`] | [`fit::fit`] from data; [`fit::paper::fit`] the scene's fit (the paper's Table 1 path); [`fit::general`], [`fit::chainfit`], [`fit::identify`], [`fit::select`], [`fit::noise`] |
 //! | [`scene`] | the TOML fit scene |
-//! | [`fit`] | `fit(scene, data, options) -> FitReport` |
-//! | [`lsq`] | bounded Levenberg-Marquardt and Gauss-Newton covariance |
-//! | [`misfit_time`] | time-domain chi-square against a sampled series |
-//! | [`identify`] | standard errors, chi-square gaps, noise level of indistinguishability, flags |
-//! | [`select`] | number of defects by AIC, BIC or a chi-square test |
-//! | [`noisefit`] | fits to noisy sampled series with each misfit (noise study) |
-//! | [`noise_study`] | success vs noise, calibration, unknown damping, number of defects |
-//! | [`whiten`] | whitening of the correlated Laplace-domain noise: a true chi-square and its degrees of freedom |
-//! | [`chainfit`] | continuous fit of defect values and chain parameters (d, k, mass, gamma) |
+//! | [`noise_study`] | success vs noise, calibration, unknown damping, number of defects, the data-first study |
 //! | [`locate`] | explicit single-defect locators (section 4.1), corrected, any precision |
 
 pub mod data;

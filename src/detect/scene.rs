@@ -2,7 +2,7 @@
 //! the residual and the search.
 //!
 //! ```toml
-//! [chain]            # the chain (crate::ChainSpec); defects = the TRUE defects
+//! [truth]            # or [chain]: the chain (crate::ChainSpec); defects = the TRUE defects
 //! n = 20             #   used to synthesise data (ignored by the model, which
 //! d = 0.1            #   is the uniform part n, k, d, gamma, mass)
 //! defects = [ { kind = "mass", at = 8, m = 5.0 }, { kind = "mass", at = 15, m = 2.0 } ]
@@ -45,7 +45,7 @@
 //! ([`FitScene::is_general`]) is fitted by the general noisy fit
 //! ([`crate::detect::fit::general::fit_general`], unknowns from
 //! [`FitScene::general_unknowns`], series from [`FitScene::time_data`]); see
-//! `configs/fit-spring.toml` and `configs/fit-any.toml`.
+//! `configs/scenes/fit-spring.toml` and `configs/scenes/fit-any.toml`.
 //!
 //! ```
 //! use springmass::detect::scene::FitScene;
@@ -58,9 +58,9 @@
 use crate::chain::{Chain, ChainSpec, Defect};
 use crate::detect::data::exact::Data;
 use crate::detect::data::series::TimeData;
-use crate::detect::fit::paper::{FitMethod, FitOptions};
 use crate::detect::misfit::MisfitSpec;
 use crate::detect::search::enumerate::EnumerateOptions;
+use crate::detect::search::FitMethod;
 use crate::detect::unknowns::{DefectKind, GeneralUnknowns, Unknowns, UnknownsSpec};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -182,11 +182,34 @@ impl Default for SearchSpec {
     }
 }
 
+/// Options of the scene's fit [`crate::detect::fit::paper::fit`] (from its `[search]` with [`FitScene::options`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneOptions {
+    /// The method.
+    pub method: FitMethod,
+    /// Seed of stochastic methods.
+    pub seed: u64,
+    /// Evaluation budget of stochastic methods.
+    pub max_evals: usize,
+    /// Record the optimizer's trace.
+    pub trace: bool,
+    /// Enumeration options (`keep` also sets the number of hypotheses reported).
+    pub enumerate: EnumerateOptions,
+}
+
+impl Default for SceneOptions {
+    fn default() -> Self {
+        FitScene::synthetic(&crate::Chain::new(1).expect("n = 1 is valid")).options()
+    }
+}
+
 /// A fit scene (see the module documentation for the format).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FitScene {
-    /// The chain; its defects are the truth used for synthetic data.
+    /// The chain; its defects are the truth used for synthetic data and for
+    /// scoring (written `[truth]` or, as before, `[chain]`).
+    #[serde(alias = "truth")]
     pub chain: ChainSpec,
     /// The data.
     #[serde(default)]
@@ -388,9 +411,9 @@ impl FitScene {
     }
 
     /// The fit options described by `[search]`.
-    pub fn options(&self) -> FitOptions {
+    pub fn options(&self) -> SceneOptions {
         let s = &self.search;
-        FitOptions {
+        SceneOptions {
             method: s.method,
             seed: s.seed,
             max_evals: s.max_evals,
@@ -413,15 +436,15 @@ mod tests {
 
     #[test]
     fn example_config_parses() {
-        let text = include_str!("../../configs/table1-system3.toml");
+        let text = include_str!("../../configs/scenes/table1-system3.toml");
         let s = FitScene::from_toml(text).unwrap();
         assert_eq!(s.chain.n, 20);
         assert_eq!(s.unknowns().unwrap().k(), 2);
         s.data().unwrap();
         for text in [
-            include_str!("../../configs/table1-system3-series.toml"),
-            include_str!("../../configs/figure16.toml"),
-            include_str!("../../configs/figure17.toml"),
+            include_str!("../../configs/scenes/table1-system3-series.toml"),
+            include_str!("../../configs/scenes/figure16.toml"),
+            include_str!("../../configs/scenes/figure17.toml"),
         ] {
             let s = FitScene::from_toml(text).unwrap();
             s.unknowns().unwrap();
@@ -471,8 +494,8 @@ mod tests {
     #[test]
     fn general_scenes_parse_and_errors_name_fields() {
         for text in [
-            include_str!("../../configs/fit-spring.toml"),
-            include_str!("../../configs/fit-any.toml"),
+            include_str!("../../configs/scenes/fit-spring.toml"),
+            include_str!("../../configs/scenes/fit-any.toml"),
         ] {
             let s = FitScene::from_toml(text).unwrap();
             assert!(s.is_general());
@@ -480,7 +503,7 @@ mod tests {
             assert_eq!(u.slots().len(), 2);
             assert!(s.unknowns().is_err(), "the mass-only path refuses");
         }
-        let s = FitScene::from_toml(include_str!("../../configs/fit-spring.toml")).unwrap();
+        let s = FitScene::from_toml(include_str!("../../configs/scenes/fit-spring.toml")).unwrap();
         assert_eq!(
             s.general_unknowns()
                 .unwrap()

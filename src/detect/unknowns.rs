@@ -858,7 +858,7 @@ impl GeneralUnknowns {
 
     /// Every admissible hypothesis, deterministic order: slots with the same
     /// description are interchangeable (their `(kind, position)` pairs form a
-    /// set, drawn by [`crate::detect::search::enumerate::subsets`] from the
+    /// set, drawn by [`subsets`] from the
     /// candidates ordered by position then kind); no `(kind, position)`
     /// twice. Stops with an error beyond `max` hypotheses.
     ///
@@ -886,7 +886,7 @@ impl GeneralUnknowns {
                 }
                 cands.sort_by_key(|&(k, at)| (at, k));
                 let all: Vec<usize> = (0..cands.len()).collect();
-                crate::detect::search::enumerate::subsets(&all, idx.len())
+                crate::detect::unknowns::subsets(&all, idx.len())
                     .into_iter()
                     .map(|c| c.into_iter().map(|j| cands[j]).collect())
                     .collect()
@@ -927,6 +927,45 @@ impl GeneralUnknowns {
             ));
         }
         Ok(out)
+    }
+}
+
+/// All `p`-subsets of `allowed`, each in the order of `allowed`, in
+/// lexicographic order of their indices (`p = 0`: one empty set; `p >
+/// allowed.len()`: none). The position-set generator shared by the
+/// enumeration and [`crate::detect::fit::general`].
+///
+/// ```
+/// use springmass::detect::unknowns::subsets;
+/// assert_eq!(subsets(&[1, 2, 3], 2), vec![vec![1, 2], vec![1, 3], vec![2, 3]]);
+/// ```
+pub fn subsets(allowed: &[usize], p: usize) -> Vec<Vec<usize>> {
+    let mut out = Vec::new();
+    gen_sets(allowed, p, true, 0, &mut Vec::with_capacity(p), &mut out);
+    out
+}
+
+pub(crate) fn gen_sets(
+    allowed: &[usize],
+    p: usize,
+    comb: bool,
+    from: usize,
+    cur: &mut Vec<usize>,
+    out: &mut Vec<Vec<usize>>,
+) {
+    if cur.len() == p {
+        out.push(cur.clone());
+        return;
+    }
+    let start = if comb { from } else { 0 };
+    for i in start..allowed.len() {
+        let a = allowed[i];
+        if !comb && cur.contains(&a) {
+            continue;
+        }
+        cur.push(a);
+        gen_sets(allowed, p, comb, i + 1, cur, out);
+        cur.pop();
     }
 }
 

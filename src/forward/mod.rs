@@ -30,6 +30,24 @@
 //! [`transfer`] sweep. The two are tested against each other and against
 //! [`tridiag`] over the whole grid of extremes (`tests/forward.rs`).
 //!
+//! # Boundaries, observables, excitations
+//!
+//! Every path honours the chain's ends ([`crate::chain::Boundary`]): the
+//! Green's function has a closed form for each of the four cases
+//! ([`crate::green`]), the transfer sweep and the O(n) solver treat a free end
+//! as a wall spring of 0. With both ends free `s = 0` is the rigid-body pole:
+//! [`Error::Singular`] there, ordinary values at every `s != 0`.
+//!
+//! [`Observable`]: the displacement `X`, the velocity `V = s X` or the
+//! acceleration `A = s^2 X - s x(0) - x'(0+)` of any mass. `x(0) = 0`, and
+//! the impulse `gamma delta(t)` on mass 1 makes `x_1'(0+) = gamma/m_1`: the
+//! acceleration series sampled at `t > 0` excludes the delta, and its
+//! transform is `s^2 X_1 - gamma/m_1` ([`observe`], computed as
+//! `-Z_1 X_1/m_1` without cancellation). For a force `f(t)` on mass 1
+//! instead of the impulse, `X_o(s) = H_o(s) F(s)` with the transfer function
+//! `H_o` ([`transfer_function`], the response to a unit impulse) and no jump:
+//! `V = s H F`, `A = s^2 H F`.
+//!
 //! ```
 //! use springmass::{Chain, Defect, forward::Forward};
 //! let chain = Chain::paper(20)?.with_defect(Defect::Mass { at: 8, m: 5.0 })?;
@@ -83,6 +101,101 @@ impl Update {
             c = c + s.scale(self.dd);
         }
         c
+    }
+}
+
+/// What is measured at a mass.
+///
+/// ```
+/// use springmass::forward::Observable;
+/// assert_eq!("acceleration".parse::<Observable>()?, Observable::Acceleration);
+/// assert_eq!(Observable::Velocity.power(), 1);
+/// # Ok::<(), springmass::Error>(())
+/// ```
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Observable {
+    /// `x(t)`, transform `X(s)` (the paper's observable; the default).
+    #[default]
+    Displacement,
+    /// `x'(t)`, transform `s X(s)`.
+    Velocity,
+    /// `x''(t)` for `t > 0`, transform `s^2 X(s) - x'(0+)`.
+    Acceleration,
+}
+
+impl Observable {
+    /// `displacement`, `velocity` or `acceleration`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Observable::Displacement => "displacement",
+            Observable::Velocity => "velocity",
+            Observable::Acceleration => "acceleration",
+        }
+    }
+    /// The number of time derivatives: 0, 1 or 2.
+    pub fn power(self) -> u32 {
+        match self {
+            Observable::Displacement => 0,
+            Observable::Velocity => 1,
+            Observable::Acceleration => 2,
+        }
+    }
+    /// The column prefix used in series: `x`, `v` or `a`.
+    pub fn prefix(self) -> &'static str {
+        match self {
+            Observable::Displacement => "x",
+            Observable::Velocity => "v",
+            Observable::Acceleration => "a",
+        }
+    }
+
+    /// The observable's transform from the displacement's, `X_at(s)`, for
+    /// the impulse `gamma` on mass 1 (`m1` the mass of mass 1):
+    /// `X`, `s X`, or `s^2 X - [at = 1] gamma/m1`.
+    ///
+    /// For the acceleration of mass 1 this subtraction loses about
+    /// `log10(m1 |s|^2 / |Z_1|)` digits at large `|s|` (`Z_1` the impedance
+    /// behind mass 1; 4 digits at `|s| = 100` for the paper's chain);
+    /// [`Forward::observe`] avoids it. For a force input use
+    /// `gamma = 0` here (no jump) with `x = H F`.
+    pub fn from_displacement<T: Scalar>(self, x: T, s: &T, at: usize, gamma: f64, m1: f64) -> T {
+        match self {
+            Observable::Displacement => x,
+            Observable::Velocity => s.clone() * x,
+            Observable::Acceleration => {
+                let a = s.clone() * s.clone() * x;
+                if at == 1 && gamma != 0.0 {
+                    a - T::from_f64(gamma / m1)
+                } else {
+                    a
+                }
+            }
+        }
+    }
+}
+
+impl std::fmt::Display for Observable {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Observable {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Observable> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "displacement" | "x" | "disp" => Ok(Observable::Displacement),
+            "velocity" | "v" | "vel" => Ok(Observable::Velocity),
+            "acceleration" | "a" | "acc" => Ok(Observable::Acceleration),
+            _ => Err(Error::invalid(
+                "observe_kind",
+                s,
+                "displacement, velocity or acceleration",
+            )),
+        }
     }
 }
 
@@ -150,10 +263,72 @@ impl Forward {
         &self.updates
     }
 
-    /// Green's function of the underlying uniform chain at `s`.
+    /// Green's function of the underlying uniform chain (with the chain's
+    /// ends) at `s`.
     pub fn green<T: Scalar>(&self, s: T) -> Green<T> {
-        let c = &self.chain;
-        Green::new(c.n(), c.k(), c.mass(), c.d(), s)
+        Green::of_chain(&self.chain, s)
+    }
+
+    /// The observable `obs` of mass `at` after the impulse `gamma` on mass 1
+    /// (module docs): `X`, `s X` or `s^2 X - [at = 1] gamma/m_1`, by the
+    /// cancellation-free transfer sweep.
+    ///
+    /// # Errors
+    /// As [`Forward::eval`].
+    ///
+    /// ```
+    /// use springmass::{Chain, forward::{Forward, Observable}};
+    /// let c = Chain::paper(10)?;
+    /// let f = Forward::new(&c);
+    /// let s = 30.0_f64;
+    /// let x = f.eval(s, 1)?;
+    /// let a = f.observe(s, 1, Observable::Acceleration)?;
+    /// assert!((a - (s * s * x - 1.0)).abs() < 1e-10 * a.abs());
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    pub fn observe<T: Scalar>(&self, s: T, at: usize, obs: Observable) -> Result<T> {
+        self.observe_scaled(s, at, obs, self.chain.gamma())
+    }
+
+    /// The transfer function `H^obs_at(s)` from a force on mass 1 to the
+    /// observable of mass `at`: `s^p X_at(s) / gamma` computed with a unit
+    /// impulse (no jump term: a force has no delta). The response to a
+    /// force with transform `F(s)` is `H F`.
+    ///
+    /// # Errors
+    /// As [`Forward::eval`].
+    pub fn transfer_function<T: Scalar>(&self, s: T, at: usize, obs: Observable) -> Result<T> {
+        check_s(&s)?;
+        self.chain.check_observe(at)?;
+        let x = self.transfer.eval_parts(&s, at, 1.0).0;
+        let x = self.finish_unit(x, s.clone(), at)?;
+        Ok(Observable::from_displacement(obs, x, &s, at, 0.0, 1.0))
+    }
+
+    fn finish_unit<T: Scalar>(&self, x: T, s: T, at: usize) -> Result<T> {
+        if x.is_finite() {
+            return Ok(x);
+        }
+        let unit = self.chain.clone().with_gamma(1.0)?;
+        if unit.n() <= FALLBACK_MAX_N {
+            return tridiag::solve(&unit, s, at);
+        }
+        Err(Error::Singular {
+            s: format!("{}", s.to_c64()),
+        })
+    }
+
+    fn observe_scaled<T: Scalar>(&self, s: T, at: usize, obs: Observable, gamma: f64) -> Result<T> {
+        check_s(&s)?;
+        self.chain.check_observe(at)?;
+        let (x, z1) = self.transfer.eval_parts(&s, at, gamma);
+        let m1 = self.chain.mass_at(1);
+        if obs == Observable::Acceleration && at == 1 && x.is_finite() && z1.is_finite() {
+            // s^2 X_1 - gamma/m_1 = -Z_1 X_1 / m_1
+            return Ok(-(z1 * x).scale(1.0 / m1));
+        }
+        let x = self.finish(x, s.clone(), at)?;
+        Ok(obs.from_displacement(x, &s, at, gamma, m1))
     }
 
     /// `X_observe(s)` by the cancellation-free transfer sweep (O(k) per `s`).
@@ -264,6 +439,32 @@ pub fn woodbury<T: Scalar>(
 /// `X_observe(s)` of `chain` (see [`Forward::eval`]).
 pub fn response<T: Scalar>(chain: &Chain, s: T, observe: usize) -> Result<T> {
     Forward::new(chain).eval(s, observe)
+}
+
+/// The observable `obs` of mass `at` after the impulse on mass 1 (see
+/// [`Forward::observe`]).
+///
+/// # Errors
+/// As [`Forward::eval`].
+pub fn observe<T: Scalar>(chain: &Chain, s: T, at: usize, obs: Observable) -> Result<T> {
+    Forward::new(chain).observe(s, at, obs)
+}
+
+/// The transfer function from a force on mass 1 to the observable `obs` of
+/// mass `at` (see [`Forward::transfer_function`]).
+///
+/// # Errors
+/// As [`Forward::eval`].
+///
+/// ```
+/// use springmass::{Chain, forward::{transfer_function, response, Observable}};
+/// let c = Chain::paper(8)?.with_gamma(2.5)?;
+/// let h = transfer_function(&c, 0.4_f64, 3, Observable::Displacement)?;
+/// assert!((2.5 * h - response(&c, 0.4_f64, 3)?).abs() < 1e-15);
+/// # Ok::<(), springmass::Error>(())
+/// ```
+pub fn transfer_function<T: Scalar>(chain: &Chain, s: T, at: usize, obs: Observable) -> Result<T> {
+    Forward::new(chain).transfer_function(s, at, obs)
 }
 
 #[cfg(test)]

@@ -32,6 +32,11 @@
 //! `X_{i+1} = kappa_i X_i / D_{i+1}`, crosses a run with
 //! `X_o / X_l = e^{-(o - l) lambda} B(p_o) / B(p_l)`. All of it costs O(number of
 //! defects) per `s`, whatever `n`.
+//!
+//! A free end is a wall spring of 0: the end mass becomes a special mass
+//! with `kappa_0 = 0` (or `kappa_n = 0`), so the runs' closed form is the
+//! fixed-end one and nothing else changes. Mass 1 is always a special mass,
+//! which gives the impedance it sees as a plain sum ([`Transfer::eval_parts`]).
 
 use crate::chain::Chain;
 use crate::scalar::Scalar;
@@ -92,6 +97,14 @@ impl Transfer {
                 }
             }
         }
+        // mass 1 is always its own segment: its local sum gives the
+        // impedance `Z_1` behind the acceleration of mass 1 without
+        // cancellation ([`Transfer::eval_parts`]); a free end is a special
+        // mass whose wall spring is 0.
+        special.push(1);
+        if chain.right().is_free() {
+            special.push(n);
+        }
         special.sort_unstable();
         special.dedup();
         let value = |i: usize| -> (f64, f64, f64, f64) {
@@ -106,6 +119,12 @@ impl Transfer {
                     crate::Defect::Spring { at, k: v } if at == i => kr = v,
                     _ => {}
                 }
+            }
+            if i == 1 && chain.left().is_free() {
+                kl = 0.0;
+            }
+            if i == n && chain.right().is_free() {
+                kr = 0.0;
             }
             (m, dd, kl, kr)
         };
@@ -135,7 +154,18 @@ impl Transfer {
     /// `X_o(s)` (1-based `o`, unchecked: validate `s` and `o` first). Returns a
     /// non-finite value only at a pole of the response.
     pub fn eval<T: Scalar>(&self, s: &T, o: usize) -> T {
+        self.eval_parts(s, o, self.gamma).0
+    }
+
+    /// `(X_o(s), Z_1(s))` for an impulse `gamma` on mass 1, where
+    /// `Z_1 = D_1 - m_1 s^2 = d_1 s + kappa_0 + kappa_1 E_2 / (E_2 + kappa_1)` is
+    /// the impedance mass 1 sees (its damper, its wall spring and the chain
+    /// behind it), formed as a sum (no cancellation for real `s`). With it
+    /// the acceleration of mass 1 after the impulse is
+    /// `s^2 X_1 - gamma/m_1 = -Z_1 X_1 / m_1`. Unchecked, as [`Transfer::eval`].
+    pub fn eval_parts<T: Scalar>(&self, s: &T, o: usize, gamma: f64) -> (T, T) {
         let k = self.k;
+        let mut z1 = T::zero();
         // lambda as in green.rs
         let inner = (s.scale(self.mass) + T::from_f64(self.d)).scale(1.0 / k);
         let lam = (s.sqrt() * inner.sqrt()).scale(0.5).asinh().scale(2.0);
@@ -162,11 +192,14 @@ impl Transfer {
         let mut right: Option<T> = None;
         for seg in self.segs.iter().rev() {
             match *seg {
-                Seg::Special { m, d, kr, .. } => {
+                Seg::Special { i, m, d, kl, kr } => {
                     let tail = match &right {
                         None => T::from_f64(kr),
                         Some(e) => e.clone().scale(kr) / (e.clone() + T::from_f64(kr)),
                     };
+                    if i == 1 {
+                        z1 = s.scale(d) + T::from_f64(kl) + tail.clone();
+                    }
                     let e = local(m, d) + tail;
                     swept.push(Swept {
                         e_left: e.clone(),
@@ -218,19 +251,19 @@ impl Transfer {
                 Seg::Special { i, kl, kr, .. } => {
                     let dd = sw.e_left.clone() + T::from_f64(kl);
                     x = if i == 1 {
-                        T::from_f64(self.gamma) / dd
+                        T::from_f64(gamma) / dd
                     } else {
                         x.scale(kappa_left) / dd
                     };
                     if i == o {
-                        return x;
+                        return (x, z1);
                     }
                     kappa_left = kr;
                 }
                 Seg::Run { l, r } => {
                     let dd = sw.e_left.clone() + T::from_f64(k);
                     let xl = if l == 1 {
-                        T::from_f64(self.gamma) / dd
+                        T::from_f64(gamma) / dd
                     } else {
                         x.scale(kappa_left) / dd
                     };
@@ -248,14 +281,14 @@ impl Transfer {
                     };
                     x = xl * ratio;
                     if o <= r {
-                        return x;
+                        return (x, z1);
                     }
                     kappa_left = k;
                 }
             }
         }
         debug_assert!(o > self.n, "observe out of range");
-        T::from_f64(f64::NAN)
+        (T::from_f64(f64::NAN), z1)
     }
 }
 

@@ -53,7 +53,7 @@ pub fn solve_all<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
     let mut b: Vec<T> = vec![T::zero(); n];
     b[0] = T::from_f64(chain.gamma());
     let singular = || Error::Singular {
-        s: format!("{:?}", s.to_c64()),
+        s: format!("{}", s.to_c64()),
     };
     for i in 0..n.saturating_sub(1) {
         if diag[i].magnitude() >= dl[i].magnitude() {
@@ -128,7 +128,7 @@ fn solve_all_real<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
     }
     if x.iter().any(|v| !v.is_finite()) {
         return Err(Error::Singular {
-            s: format!("{:?}", s.to_c64()),
+            s: format!("{}", s.to_c64()),
         });
     }
     Ok(x)

@@ -29,6 +29,8 @@ pub mod check;
 pub mod config;
 pub mod kinds;
 pub mod paths;
+#[cfg(not(feature = "cli"))]
+mod progress;
 pub mod records;
 pub mod report;
 pub mod run;
@@ -43,7 +45,7 @@ use std::collections::HashMap;
 use sweep::Case;
 
 /// The embedded default study (`springmass study` with no file).
-pub const DEFAULT_STUDY: &str = include_str!("../../configs/default.toml");
+pub const DEFAULT_STUDY: &str = include_str!("../../configs/studies/default.toml");
 
 /// A parsed, expanded and checked study.
 #[derive(Clone, Debug)]
@@ -128,13 +130,13 @@ mod tests {
 
     #[test]
     fn shipped_configs_check() {
-        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/configs");
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/studies");
         let mut n = 0;
         for e in std::fs::read_dir(dir).unwrap() {
             let p = e.unwrap().path();
             if p.extension().is_some_and(|x| x == "toml") {
                 let text = std::fs::read_to_string(&p).unwrap();
-                // configs/ also holds scene files of other commands
+                // configs/studies/ holds study files only (scenes: configs/scenes/)
                 if !text.lines().any(|l| l.trim() == "[study]") {
                     continue;
                 }

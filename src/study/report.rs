@@ -300,28 +300,91 @@ fn sanitize(raw: String) -> String {
     f
 }
 
-/// Build the chart of one plot spec.
+/// The unit of a column or metric, for axis labels: seconds for timings
+/// (`t_*`, except the ratio `t_speedup`), bits for a precision in bits; `None` for dimensionless
+/// quantities (the model's masses, springs and times are in units of the
+/// chain's own `m = k = 1`).
+fn unit_of(name: &str) -> Option<&'static str> {
+    if name.starts_with("t_") && !name.contains("speedup") && !name.contains("ratio") {
+        Some("s")
+    } else if name == "bits" {
+        Some("bits")
+    } else {
+        None
+    }
+}
+
+/// `name (unit)` or `name`.
+fn with_unit(text: String, name: &str) -> String {
+    match unit_of(name) {
+        Some(u) => format!("{text} ({u})"),
+        None => text,
+    }
+}
+
+/// The categories of a categorical axis column, in case order: `Some` when
+/// a value of the column is not a number (a table such as a `chain` swept
+/// as `system`, a string, a boolean), `None` for a numeric axis.
+fn categories(records: &[Record], column: &str) -> Option<Vec<String>> {
+    if column == "repeat" {
+        return None;
+    }
+    let categorical = records.iter().any(|r| {
+        r.params
+            .iter()
+            .any(|p| p.column == column && p.value.as_f64().is_none())
+    });
+    if !categorical {
+        return None;
+    }
+    let mut names: Vec<String> = Vec::new();
+    for r in records {
+        let l = axis_label(r, column);
+        if !names.contains(&l) {
+            names.push(l);
+        }
+    }
+    Some(names)
+}
+
+/// Build the chart of one plot spec: a categorical x axis (points side by
+/// side, no joining lines) when the x column is not numeric, integer ticks
+/// when every x is an integer, `[0, 1]` for a rate, small multiples beyond
+/// six series (see [`crate::plot`]).
 ///
 /// # Errors
-/// [`Error::InvalidParameter`] when the x axis has non-numeric values.
+/// [`Error::InvalidParameter`] when a numeric x axis has a value that is
+/// not a number.
 pub fn plot_chart(records: &[Record], spec: &PlotSpec) -> Result<LinePlot> {
     let records = &of_part(records, spec.part.as_deref())[..];
     let title = spec
         .title
         .clone()
         .unwrap_or_else(|| format!("{} of {} against {}", spec.aggregate.name(), spec.y, spec.x));
+    let cats = categories(records, &spec.x);
     let mut chart = LinePlot::new(
         title,
-        spec.x.clone(),
-        format!("{} {}", spec.aggregate.name(), spec.y),
+        with_unit(spec.x.clone(), &spec.x),
+        with_unit(format!("{} {}", spec.aggregate.name(), spec.y), &spec.y),
     )
-    .log_x(spec.logx)
+    .log_x(spec.logx && cats.is_none())
     .log_y(spec.logy);
+    if spec.aggregate == Aggregate::Rate {
+        chart = chart.rate();
+    }
+    let mut all_integer = true;
     let series: Vec<String> = spec.series.iter().cloned().collect();
     for (key, recs) in group(records, &series) {
         let mut xs: Vec<(f64, Vec<f64>)> = Vec::new();
         for r in recs.iter().filter(|r| r.ok()) {
-            let x = axis_number(r, &spec.x).ok_or_else(|| {
+            let number = match &cats {
+                Some(names) => {
+                    let l = axis_label(r, &spec.x);
+                    names.iter().position(|n| *n == l).map(|i| i as f64)
+                }
+                None => axis_number(r, &spec.x),
+            };
+            let x = number.ok_or_else(|| {
                 Error::invalid(
                     format!("report.plot x = {:?}", spec.x),
                     axis_label(r, &spec.x),
@@ -341,6 +404,7 @@ pub fn plot_chart(records: &[Record], spec: &PlotSpec) -> Result<LinePlot> {
             .filter_map(|(x, v)| aggregate(spec.aggregate, &v).map(|y| (x, y)))
             .collect();
         pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        all_integer &= pts.iter().all(|p| p.0.fract() == 0.0);
         let label = match &spec.series {
             Some(s) => format!("{s} = {}", key.join(", ")),
             None => String::new(),
@@ -348,7 +412,10 @@ pub fn plot_chart(records: &[Record], spec: &PlotSpec) -> Result<LinePlot> {
         let line = Line::new(label, pts.clone());
         chart = chart.line(if pts.len() == 1 { line.markers() } else { line });
     }
-    Ok(chart)
+    Ok(match cats {
+        Some(names) => chart.categories(names),
+        None => chart.integer_x(all_integer && !spec.logx),
+    })
 }
 
 /// File name of a heatmap (sanitised).
@@ -410,8 +477,8 @@ pub fn heatmap_chart(records: &[Record], spec: &HeatmapSpec) -> Result<Heatmap> 
             .title
             .clone()
             .unwrap_or_else(|| format!("{} of {}", spec.aggregate.name(), spec.z)),
-        x_label: spec.x.clone(),
-        y_label: spec.y.clone(),
+        x_label: with_unit(spec.x.clone(), &spec.x),
+        y_label: with_unit(spec.y.clone(), &spec.y),
         x: xs,
         y: ys,
         z,
@@ -459,7 +526,8 @@ pub fn trace_chart(records: &[Record], spec: &TraceSpec) -> Result<LinePlot> {
         format!("{} best residual so far", spec.aggregate.name()),
     )
     .log_x(spec.logx)
-    .log_y(spec.logy);
+    .log_y(spec.logy)
+    .integer_x(!spec.logx);
     let selected: Vec<Record> = records
         .iter()
         .filter(|r| r.ok() && !r.trace.is_empty() && passes(r, &spec.filter))

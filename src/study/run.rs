@@ -26,6 +26,8 @@
 //! identical for any `--threads` (timings apart, see `study.timings`).
 
 use super::kinds::CaseOutput;
+#[cfg(not(feature = "cli"))]
+use super::progress::progress_bar;
 pub use super::records::{
     check_out_folder, load_records, write_records, Counts, Manifest, Record, CASES, MANIFEST,
     RESULTS, STUDY_COPY,
@@ -35,10 +37,12 @@ use super::sweep::Case;
 use super::Study;
 use crate::error::{Error, Result};
 use crate::series::write_atomic;
+#[cfg(feature = "cli")]
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::fs::{File, OpenOptions};
+#[cfg_attr(not(feature = "cli"), allow(unused_imports))]
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -192,7 +196,7 @@ pub fn execute_case(study: &Study, case: &Case) -> (Record, Vec<super::kinds::Ca
 ///
 /// ```no_run
 /// use springmass::study::{Study, run::{run, RunOptions}};
-/// let study = Study::from_file("configs/scaling.toml")?;
+/// let study = Study::from_file("configs/studies/scaling.toml")?;
 /// let summary = run(&study, &RunOptions::new("out/scaling"))?;
 /// println!("report: {:?}", summary.report);
 /// # Ok::<(), springmass::Error>(())
@@ -442,6 +446,7 @@ impl Appender {
     }
 }
 
+#[cfg(feature = "cli")]
 fn progress_bar(show: bool, len: u64, resumed: usize) -> ProgressBar {
     if !show || !std::io::stderr().is_terminal() {
         return ProgressBar::hidden();

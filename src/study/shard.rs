@@ -356,12 +356,16 @@ mod tests {
 
     #[test]
     fn slurm_variables_give_the_shard() {
-        let vars = |pairs: &'static [(&'static str, &'static str)]| {
+        let vars = |pairs: &[(&str, &str)]| {
+            let owned: Vec<(String, String)> = pairs
+                .iter()
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .collect();
             move |name: &str| {
-                pairs
+                owned
                     .iter()
-                    .find(|(k, _)| *k == name)
-                    .map(|(_, v)| v.to_string())
+                    .find(|(k, _)| k == name)
+                    .map(|(_, v)| v.clone())
             }
         };
         let id = "SLURM_ARRAY_TASK_ID";

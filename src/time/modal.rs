@@ -33,6 +33,19 @@
 //!   [`ModalResponse::error_bound`] estimates the remaining error (rounding
 //!   and pole conditioning).
 //!
+//! **Boundaries.** A free end is a wall spring of 0; the uniform chain keeps
+//! closed-form modes for every pair of ends, `omega_j = 2 sqrt(k/m) sin(theta_j/2)`
+//! with `theta_j = j pi/(n+1)` and shapes `sin(i theta)` (fixed-fixed),
+//! `theta_j = (2j-1) pi/(2n+1)` with `cos((i-1/2) theta)` (left free) or
+//! `sin(i theta)` (right free), `theta_j = (j-1) pi/n` with `cos((i-1/2) theta)`
+//! (free-free; `j = 1` is the rigid-body mode, `omega = 0`, whose term
+//! `c (1 - e^{-alpha t})/alpha` tends to the drift `c/alpha`, or grows like `c t`
+//! without damping). See [`crate::green`] for the derivation.
+//!
+//! **Observables.** [`ModalResponse::derivative`] differentiates every term
+//! (velocity, then acceleration for `t > 0`, the impulse's delta excluded).
+//! [`natural_modes`] reports natural frequencies and damping ratios.
+//!
 //! ```
 //! use springmass::{Chain, Defect, forward::response, Complex64};
 //! use springmass::time::modal::ModalResponse;
@@ -44,8 +57,9 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::chain::Chain;
+use crate::chain::{Boundary, Chain};
 use crate::error::{Error, Result};
+use crate::forward::Observable;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 
@@ -182,6 +196,29 @@ impl Term {
             Term::Real { p, r } => r / (s - p),
         }
     }
+    /// The time derivative for `t > 0` (the jump `term(0+)` at `t = 0` dropped):
+    /// `Osc {c, e}` becomes `Osc {c: -(a c + e w2), e: c - a e}`, a pole term
+    /// `r e^{p t}` becomes `r p e^{p t}`.
+    pub fn derivative(&self) -> Term {
+        match *self {
+            Term::Osc { c, e, a, w2 } => Term::Osc {
+                c: -(a * c + e * w2),
+                e: c - a * e,
+                a,
+                w2,
+            },
+            Term::Pair { p, r } => Term::Pair { p, r: r * p },
+            Term::Real { p, r } => Term::Real { p, r: r * p },
+        }
+    }
+    /// The largest pole modulus of the term.
+    fn pole_norm(&self) -> f64 {
+        match *self {
+            Term::Osc { a, w2, .. } => a.abs() + w2.abs().sqrt(),
+            Term::Pair { p, .. } => p.norm(),
+            Term::Real { p, .. } => p.abs(),
+        }
+    }
     /// A bound on `|term(t)|` over `t >= 0` (for rounding estimates).
     fn amplitude(&self) -> f64 {
         match *self {
@@ -191,7 +228,8 @@ impl Term {
                 let b = w2.abs().sqrt();
                 let env = if w2 >= 0.0 {
                     (1.0 / b).min(crit)
-                } else if b < a {
+                } else if b <= a {
+                    // b = a: a rigid-body mode, (1 - e^{-2at})/(2a) <= 1/(2a)
                     (0.5 / b).min(1.0 / ((a - b) * std::f64::consts::E))
                 } else {
                     f64::INFINITY
@@ -222,6 +260,46 @@ impl ModalResponse {
     pub fn impulse(chain: &Chain, observe: usize) -> Result<ModalResponse> {
         Modes::new(chain)?.response(observe, 1, chain.gamma())
     }
+    /// The observable `obs` of mass `observe` after the impulse on mass 1:
+    /// the displacement's modal sum differentiated `obs.power()` times
+    /// ([`ModalResponse::derivative`]; the acceleration excludes the delta).
+    ///
+    /// # Errors
+    /// As [`ModalResponse::impulse`].
+    ///
+    /// ```
+    /// use springmass::{Chain, forward::{observe, Observable}, Complex64};
+    /// use springmass::time::modal::ModalResponse;
+    /// let c = Chain::paper(6)?;
+    /// let a = ModalResponse::impulse_observable(&c, 1, Observable::Acceleration)?;
+    /// let s = Complex64::new(0.3, 1.0);
+    /// let want = observe(&c, s, 1, Observable::Acceleration)?;
+    /// assert!((a.laplace(s) - want).norm() < 1e-12);
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    pub fn impulse_observable(
+        chain: &Chain,
+        observe: usize,
+        obs: Observable,
+    ) -> Result<ModalResponse> {
+        let mut r = ModalResponse::impulse(chain, observe)?;
+        for _ in 0..obs.power() {
+            r = r.derivative();
+        }
+        Ok(r)
+    }
+
+    /// The time derivative for `t > 0` (term by term, see
+    /// [`Term::derivative`]); its transform is `s X(s) - x(0+)`.
+    pub fn derivative(&self) -> ModalResponse {
+        let pmax = self.terms.iter().map(Term::pole_norm).fold(0.0, f64::max);
+        ModalResponse {
+            terms: self.terms.iter().map(Term::derivative).collect(),
+            path: self.path,
+            pole_err: self.pole_err * pmax,
+        }
+    }
+
     /// Build from terms (for example to combine responses).
     pub fn from_terms(terms: Vec<Term>, path: ModalPath) -> ModalResponse {
         ModalResponse {
@@ -327,6 +405,7 @@ enum Inner {
 #[derive(Clone, Debug)]
 pub struct Modes {
     n: usize,
+    ends: (Boundary, Boundary),
     masses: Vec<f64>,
     path: ModalPath,
     inner: Inner,
@@ -363,18 +442,21 @@ impl Modes {
         })?;
         let masses = chain.masses();
         let springs = chain.springs();
+        let ends = (chain.left(), chain.right());
         let uniform_m = masses.iter().all(|&m| m == masses[0]);
-        let uniform_k = springs.iter().all(|&k| k == springs[0]);
+        let (lo, hi) = chain.spring_range();
+        let uniform_k = (lo..=hi).all(|j| springs[j] == chain.k());
         if uniform_m && uniform_k {
-            let (k, m) = (springs[0], masses[0]);
+            let (k, m) = (chain.k(), masses[0]);
             let omega2 = (1..=n)
                 .map(|j| {
-                    let s = (j as f64 * std::f64::consts::PI / (2 * (n + 1)) as f64).sin();
+                    let s = (0.5 * closed_theta(ends, n, j)).sin();
                     4.0 * k / m * s * s
                 })
                 .collect();
             return Ok(Modes {
                 n,
+                ends,
                 masses,
                 path: ModalPath::ClosedForm,
                 inner: Inner::Prop {
@@ -411,6 +493,7 @@ impl Modes {
             })?;
         Ok(Modes {
             n,
+            ends,
             masses,
             path: ModalPath::Proportional,
             inner: Inner::Prop {
@@ -458,7 +541,13 @@ impl Modes {
         };
         let schur = nalgebra::Schur::try_new(l, f64::EPSILON, 1000 * n2)
             .ok_or_else(|| fail("the Schur iteration did not converge".into()))?;
-        let ev: Vec<Complex64> = schur.complex_eigenvalues().iter().copied().collect();
+        let mut ev: Vec<Complex64> = schur.complex_eigenvalues().iter().copied().collect();
+        if chain.is_free_free() {
+            // the rigid-body pole is exactly 0 (K 1 = 0): snap the Schur value
+            if let Some(i0) = (0..ev.len()).min_by(|&a, &b| ev[a].norm().total_cmp(&ev[b].norm())) {
+                ev[i0] = Complex64::new(0.0, 0.0);
+            }
+        }
         let npos = ev.iter().filter(|z| z.im > 0.0).count();
         let nneg = ev.iter().filter(|z| z.im < 0.0).count();
         if npos != nneg || ev.len() != n2 {
@@ -516,6 +605,16 @@ impl Modes {
                 .map(|(_, z)| (z - p0).norm())
                 .fold(f64::INFINITY, f64::min);
             let real = p0.im == 0.0;
+            if p0 == Complex64::new(0.0, 0.0) && chain.is_free_free() {
+                // rigid-body mode: v = 1, residue amp / sum d
+                let v = vec![Complex64::new(1.0, 0.0); n];
+                let nu: Complex64 = d.iter().sum::<f64>().into();
+                poles.push(p0);
+                vecs.push(v);
+                norms.push(nu);
+                conds.push(0.0);
+                continue;
+            }
             let (mut p, mut v) = qep.refine(p0, real);
             if (p - p0).norm() > 0.5 * sep {
                 // converged to a neighbour: keep the Schur value
@@ -546,6 +645,7 @@ impl Modes {
         }
         Ok(Modes {
             n,
+            ends: (chain.left(), chain.right()),
             masses: m,
             path: ModalPath::Quadratic,
             inner: Inner::Quad {
@@ -590,11 +690,10 @@ impl Modes {
                 for (kk, &w) in omega2.iter().enumerate() {
                     let (qi, qj) = match q {
                         Some(q) => (q[(i0, kk)], q[(j0, kk)]),
-                        None => {
-                            let th = (kk + 1) as f64 * std::f64::consts::PI / (n + 1) as f64;
-                            let c = (2.0 / (n + 1) as f64).sqrt();
-                            (c * (i as f64 * th).sin(), c * (j as f64 * th).sin())
-                        }
+                        None => (
+                            closed_shape(self.ends, n, kk + 1, i),
+                            closed_shape(self.ends, n, kk + 1, j),
+                        ),
                     };
                     let c = scale * qi * qj;
                     if c != 0.0 {
@@ -738,6 +837,136 @@ fn fit_clusters(
             e: sol[2 * c],
             a,
             w2,
+        })
+        .collect())
+}
+
+/// `theta_j` of the uniform chain's mode `j` (1-based) for the given ends
+/// (module docs).
+fn closed_theta(ends: (Boundary, Boundary), n: usize, j: usize) -> f64 {
+    use std::f64::consts::PI;
+    let (n, j) = (n as f64, j as f64);
+    match ends {
+        (Boundary::Fixed, Boundary::Fixed) => j * PI / (n + 1.0),
+        (Boundary::Free, Boundary::Free) => (j - 1.0) * PI / n,
+        _ => (2.0 * j - 1.0) * PI / (2.0 * n + 1.0),
+    }
+}
+
+/// Normalised shape of mode `j` at mass `i` (both 1-based) of the uniform
+/// chain with the given ends.
+fn closed_shape(ends: (Boundary, Boundary), n: usize, j: usize, i: usize) -> f64 {
+    let th = closed_theta(ends, n, j);
+    let (nf, x) = (n as f64, i as f64);
+    match ends {
+        (Boundary::Fixed, Boundary::Fixed) => (2.0 / (nf + 1.0)).sqrt() * (x * th).sin(),
+        (Boundary::Free, Boundary::Fixed) => 2.0 / (2.0 * nf + 1.0).sqrt() * ((x - 0.5) * th).cos(),
+        (Boundary::Fixed, Boundary::Free) => 2.0 / (2.0 * nf + 1.0).sqrt() * (x * th).sin(),
+        (Boundary::Free, Boundary::Free) => {
+            if j == 1 {
+                1.0 / nf.sqrt()
+            } else {
+                (2.0 / nf).sqrt() * ((x - 0.5) * th).cos()
+            }
+        }
+    }
+}
+
+/// One natural mode of a chain: undamped natural frequency and damping ratio.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NaturalMode {
+    /// Undamped natural frequency `omega_j` (rad per unit of time; rad/s for a
+    /// chain in SI units, see [`crate::chain::Units`]). 0 for a rigid-body mode.
+    pub omega: f64,
+    /// `omega_j / (2 pi)` (Hz for a chain in SI units).
+    pub frequency: f64,
+    /// Modal damping ratio `zeta_j = phi_j^T D phi_j / (2 omega_j phi_j^T M phi_j)`;
+    /// exact for proportional damping (`d_i/m_i = alpha`: `zeta_j = alpha/(2 omega_j)`),
+    /// the classical diagonal approximation otherwise (the exact damped poles
+    /// are those of [`ModalResponse::poles`]). `None` for a rigid-body mode.
+    pub zeta: Option<f64>,
+}
+
+/// Natural frequencies and damping ratios of `chain`, in increasing
+/// frequency: the undamped eigenproblem `K phi = omega^2 M phi` (closed form
+/// for a uniform chain with any ends, [`MAX_N_SYMMETRIC`] masses otherwise).
+///
+/// # Errors
+/// A non-uniform chain with `n >` [`MAX_N_SYMMETRIC`]; a failed eigen solver.
+///
+/// ```
+/// use springmass::{Chain, chain::Boundary, time::modal::natural_modes};
+/// // cantilever-like chain, mass 1 at the free end: omega_1 = 2 sin(pi / (2 (2n+1)))
+/// let c = Chain::new(5)?.with_boundaries(Boundary::Free, Boundary::Fixed)?;
+/// let m = natural_modes(&c)?;
+/// let w1 = 2.0 * (std::f64::consts::PI / 22.0).sin();
+/// assert!((m[0].omega - w1).abs() < 1e-15 && m[0].zeta == Some(0.0));
+/// # Ok::<(), springmass::Error>(())
+/// ```
+pub fn natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
+    let n = chain.n();
+    let masses = chain.masses();
+    let dampers = chain.dampers();
+    let springs = chain.springs();
+    let ends = (chain.left(), chain.right());
+    let (lo, hi) = chain.spring_range();
+    let uniform = masses.iter().all(|&m| m == chain.mass())
+        && (lo..=hi).all(|j| springs[j] == chain.k())
+        && dampers.iter().all(|&d| d == chain.d());
+    // (omega^2, sum_i (d_i/m_i) q_i^2)
+    let mut raw: Vec<(f64, f64)> = if uniform {
+        let (k, m, alpha) = (chain.k(), chain.mass(), chain.d() / chain.mass());
+        (1..=n)
+            .map(|j| {
+                let s = (0.5 * closed_theta(ends, n, j)).sin();
+                (4.0 * k / m * s * s, alpha)
+            })
+            .collect()
+    } else {
+        if n > MAX_N_SYMMETRIC {
+            return Err(Error::invalid(
+                "n",
+                n,
+                format!("n <= {MAX_N_SYMMETRIC} for the natural modes of a non-uniform chain"),
+            ));
+        }
+        let kt = DMatrix::from_fn(n, n, |i, j| {
+            if i == j {
+                (springs[i] + springs[i + 1]) / masses[i]
+            } else if j == i + 1 || i == j + 1 {
+                let s = springs[i.max(j)];
+                -s / (masses[i] * masses[j]).sqrt()
+            } else {
+                0.0
+            }
+        });
+        let eig =
+            nalgebra::SymmetricEigen::try_new(kt, f64::EPSILON, 100 * n).ok_or_else(|| {
+                Error::Numerical {
+                    method: "symmetric eigen".into(),
+                    reason: "did not converge".into(),
+                }
+            })?;
+        (0..n)
+            .map(|c| {
+                let q = eig.eigenvectors.column(c);
+                let damp: f64 = (0..n).map(|i| dampers[i] / masses[i] * q[i] * q[i]).sum();
+                (eig.eigenvalues[c], damp)
+            })
+            .collect()
+    };
+    raw.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let top = raw.last().map_or(0.0, |r| r.0.abs());
+    Ok(raw
+        .into_iter()
+        .map(|(w2, damp)| {
+            let rigid = w2 <= 64.0 * f64::EPSILON * top;
+            let omega = if rigid { 0.0 } else { w2.sqrt() };
+            NaturalMode {
+                omega,
+                frequency: omega / (2.0 * std::f64::consts::PI),
+                zeta: (!rigid).then(|| damp / (2.0 * omega)),
+            }
         })
         .collect())
 }

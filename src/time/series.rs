@@ -47,6 +47,20 @@
 //!   ([`stack_re_im`]) and [`SeriesTransform::data_covariance`] adds the error
 //!   estimate as model-error variance (whitened in [`crate::detect::data::whiten`]).
 //!
+//! # Velocity and acceleration records
+//!
+//! The transform of a sampled velocity or acceleration series is the
+//! transform of that series, compared with the model's
+//! [`crate::forward::observe`]: `s X(s)` for a velocity, and for an
+//! acceleration `s^2 X(s) - x'(0+)`. The impulse `gamma delta(t)` on mass 1
+//! puts a delta into the true acceleration of mass 1 that no sample
+//! carries (and a jump `0 -> gamma/m_1` into its velocity at `t = 0`, which the
+//! quadrature over `[t_0, t_N]` with `t_0 = 0` integrates correctly as long as
+//! the first sample is the `0+` value, as [`crate::time::simulate`] writes it).
+//! The model's `s^2 X_1 - gamma/m_1` is the transform of the acceleration for
+//! `t > 0`, so the two compare directly. A measured force has no delta: the
+//! acceleration's transform is `s^2 H(s) F(s)` ([`crate::forward::transfer_function`]).
+//!
 //! ```
 //! use springmass::time::series::{SeriesTransform, TransformOptions};
 //! use springmass::Complex64;
@@ -171,6 +185,11 @@ pub struct SeriesTransform {
 }
 
 impl SeriesTransform {
+    /// The samples the transform was built from: times and values.
+    pub fn samples(&self) -> (&[f64], &[f64]) {
+        (&self.t, &self.x)
+    }
+
     /// Prepare the transform of samples `x[i] = x(t[i])`.
     ///
     /// # Errors

@@ -9,6 +9,16 @@
 //!
 //! The impulse is the initial velocity `x_1'(0+) = gamma / m_1`. In state form
 //! `y = (x, x')`, `y' = A y + B f(t)` with `A = [[0, I], [-M^-1 K, -M^-1 D]]`.
+//! Either end may be free ([`crate::chain::Boundary`]: no wall spring).
+//!
+//! **Observables** ([`SimOptions::observe_kind`]): the displacement `x`, the
+//! velocity `x'` (the second half of the state) or the acceleration
+//! `x'' = M^-1 (f(t) - D x' - K x)` from the state and the force at the
+//! sample time. The acceleration series is that of `t > 0`: the impulse's
+//! delta is not a sample, and the value at `t = 0` is the limit `t -> 0+`
+//! (`-d_1 gamma / m_1^2 + f_1(0)/m_1` on mass 1). A hammer test is the
+//! impulse replaced by a measured force: `gamma = 0` and a sampled force on
+//! mass 1 ([`Force::sampled`]).
 //!
 //! # Methods ([`Method`])
 //!
@@ -58,6 +68,7 @@
 
 use crate::chain::Chain;
 use crate::error::{Error, Result};
+use crate::forward::Observable;
 use crate::series::TimeSeries;
 use nalgebra::{DMatrix, DVector};
 use std::fmt;
@@ -336,6 +347,8 @@ pub struct SimOptions {
     pub force_nodes: usize,
     /// Internal steps per output step (at least; `Rk` may use more) [default 1].
     pub substeps: usize,
+    /// What is recorded: displacement, velocity or acceleration [default displacement].
+    pub observe_kind: Observable,
 }
 
 impl SimOptions {
@@ -348,7 +361,13 @@ impl SimOptions {
             method: Method::Auto,
             force_nodes: 8,
             substeps: 1,
+            observe_kind: Observable::Displacement,
         }
+    }
+    /// What is recorded (see the module docs).
+    pub fn with_observe_kind(mut self, kind: Observable) -> SimOptions {
+        self.observe_kind = kind;
+        self
     }
     /// Observed masses.
     pub fn with_observe(mut self, observe: Vec<usize>) -> SimOptions {
@@ -421,15 +440,19 @@ impl SimOptions {
     }
 }
 
-/// A simulated trajectory: `x[c][k]` is `x_{observe[c]}(t[k])`.
+/// A simulated trajectory: `x[c][k]` is the observed quantity (see `kind`)
+/// of mass `observe[c]` at `t[k]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Trajectory {
     /// Output times `k dt`.
     pub t: Vec<f64>,
     /// Observed masses (1-based).
     pub observe: Vec<usize>,
-    /// Displacements, one vector per observed mass.
+    /// The observed quantity (displacement, velocity or acceleration), one
+    /// vector per observed mass.
     pub x: Vec<Vec<f64>>,
+    /// What `x` holds.
+    pub kind: Observable,
     /// The method used (never `Auto`).
     pub method: Method,
     /// Internal steps per output step.
@@ -444,7 +467,8 @@ impl Trajectory {
             .position(|&j| j == i)
             .map(|c| self.x[c].as_slice())
     }
-    /// As a [`TimeSeries`] with columns `x<i>`.
+    /// As a [`TimeSeries`] with columns `x<i>` (displacement), `v<i>`
+    /// (velocity) or `a<i>` (acceleration).
     ///
     /// # Errors
     /// Non-finite values (an unstable or overflowing run).
@@ -454,7 +478,7 @@ impl Trajectory {
             self.observe
                 .iter()
                 .zip(&self.x)
-                .map(|(i, x)| (format!("x{i}"), x.clone()))
+                .map(|(i, x)| (format!("{}{i}", self.kind.prefix()), x.clone()))
                 .collect(),
         )
     }
@@ -496,7 +520,13 @@ pub fn simulate_forced(chain: &Chain, opts: &SimOptions, forcing: &Forcing) -> R
             let x = opts
                 .observe
                 .iter()
-                .map(|&i| Ok(modes.response(i, 1, chain.gamma())?.eval_many(&t)))
+                .map(|&i| {
+                    let mut r = modes.response(i, 1, chain.gamma())?;
+                    for _ in 0..opts.observe_kind.power() {
+                        r = r.derivative();
+                    }
+                    Ok(r.eval_many(&t))
+                })
                 .collect::<Result<Vec<_>>>()?;
             (x, 1)
         }
@@ -517,6 +547,7 @@ pub fn simulate_forced(chain: &Chain, opts: &SimOptions, forcing: &Forcing) -> R
         t,
         observe: opts.observe.clone(),
         x,
+        kind: opts.observe_kind,
         method,
         substeps,
     })
@@ -558,6 +589,8 @@ struct System<'a> {
     v0: f64,
     forcing: &'a Forcing,
     observe: Vec<usize>,
+    kind: Observable,
+    dt: f64,
     /// forced masses (1-based)
     fm: Vec<usize>,
     /// Chebyshev nodes on [0, 1]
@@ -602,6 +635,8 @@ impl<'a> System<'a> {
             d: dampers.clone(),
             forcing,
             observe: opts.observe.clone(),
+            kind: opts.observe_kind,
+            dt: opts.dt,
             fm,
             nodes,
             vinv,
@@ -862,8 +897,25 @@ impl<'a> System<'a> {
         vec![vec![0.0; samples]; self.observe.len()]
     }
     fn record(&self, y: &[f64], k: usize, out: &mut [Vec<f64>]) {
+        let n = self.n;
         for (c, &i) in self.observe.iter().enumerate() {
-            out[c][k] = y[i - 1];
+            out[c][k] = match self.kind {
+                Observable::Displacement => y[i - 1],
+                Observable::Velocity => y[n + i - 1],
+                Observable::Acceleration => {
+                    // M^-1 (f - D v - K x) at t = k dt
+                    let r = i - 1;
+                    let [lo, dg, up, dd] = self.rows[r];
+                    let xl = if r > 0 { y[r - 1] } else { 0.0 };
+                    let xr = if r + 1 < n { y[r + 1] } else { 0.0 };
+                    let f = if self.fm.contains(&i) {
+                        self.forcing.value(i, k as f64 * self.dt)
+                    } else {
+                        0.0
+                    };
+                    lo * xl + dg * y[r] + up * xr + dd * y[n + r] + f * self.inv_m[r]
+                }
+            };
         }
     }
 }

@@ -242,6 +242,15 @@ impl Data {
         }
     }
 
+    /// The sampled record behind series data (times, values as sampled,
+    /// noise included), `None` for exact-model data.
+    pub fn samples(&self) -> Option<(&[f64], &[f64])> {
+        match &self.source {
+            Source::Series { transform, .. } => Some(transform.samples()),
+            Source::Exact { .. } => None,
+        }
+    }
+
     /// The noiseless value at one `s` (for the adaptive reference).
     ///
     /// # Errors

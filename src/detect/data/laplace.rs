@@ -63,7 +63,7 @@ impl LaplaceObs {
 
     /// Nodes, data and a whitening matrix `W` (`K` rows, one column per row of
     /// the stacked real residual vector: `Q` plus the number of complex
-    /// nodes), typically [`crate::detect::whiten::Whitening::matrix`] of the
+    /// nodes), typically [`crate::detect::data::whiten::Whitening::matrix`] of the
     /// data covariance; `chi^2 = ||W r||^2` has `K` degrees of freedom at the
     /// true chain.
     ///

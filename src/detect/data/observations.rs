@@ -1,1 +1,313 @@
-//! placeholder
+//! The data-first entry of the inverse side: what a user measured, with no
+//! truth attached.
+//!
+//! * [`Series`]: a sampled record `x(t_i)` of the observed mass (times `t`,
+//!   values `x`, and the white-noise standard deviation `sigma` when known;
+//!   `None` asks the fit to estimate it);
+//! * [`LaplaceValues`]: values `X(s_q)` at real or complex nodes with their
+//!   standard errors when known.
+//!
+//! ```
+//! use springmass::detect::data::observations::{Observations, Series};
+//! let t: Vec<f64> = (0..200).map(|i| 0.1 * i as f64).collect();
+//! let x: Vec<f64> = t.iter().map(|t| (-0.05 * t).exp() * t.sin()).collect();
+//! let obs = Observations::Series(Series::new(t, x, None)?);
+//! assert_eq!(obs.len(), 200);
+//! assert!(Series::new(vec![0.0, 1.0], vec![0.0, 1.0], None).is_err()); // too short
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+use crate::detect::data::series::TimeData;
+use crate::error::{check_f64, Error, Result};
+use crate::series::TimeSeries;
+use num_complex::Complex64;
+use std::path::Path;
+
+/// Fewest samples of a series the fit accepts.
+pub const MIN_SAMPLES: usize = 16;
+
+/// A sampled record of the observed mass.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Series {
+    t: Vec<f64>,
+    x: Vec<f64>,
+    sigma: Option<f64>,
+}
+
+impl Series {
+    /// Times `t` (finite, `>= 0`, strictly increasing), values `x` (finite),
+    /// and the noise standard deviation of the samples if known (`> 0`).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the field: `x` (length differs from
+    /// `t`, or fewer than [`MIN_SAMPLES`] samples), `t[i]`, `x[i]` (NaN or
+    /// infinite), `noise` (`sigma <= 0` or not finite).
+    pub fn new(t: Vec<f64>, x: Vec<f64>, sigma: Option<f64>) -> Result<Series> {
+        if t.len() != x.len() {
+            return Err(Error::invalid(
+                "x",
+                format!("{} values for {} times", x.len(), t.len()),
+                "one value per time",
+            ));
+        }
+        if t.len() < MIN_SAMPLES {
+            return Err(Error::invalid(
+                "x",
+                format!("{} samples", t.len()),
+                format!("at least {MIN_SAMPLES} samples"),
+            ));
+        }
+        crate::series::check_times(&t)?;
+        if t[0] < 0.0 {
+            return Err(Error::invalid(
+                "t[0]",
+                t[0],
+                ">= 0 (time since the impulse)",
+            ));
+        }
+        for (i, v) in x.iter().enumerate() {
+            check_f64(&format!("x[{i}]"), *v, true, "finite (no NaN or inf)")?;
+        }
+        if let Some(s) = sigma {
+            check_f64("noise", s, s > 0.0, "> 0 and finite (or auto)")?;
+        }
+        Ok(Series { t, x, sigma })
+    }
+
+    /// Column `column` of a CSV file (time column `t`); `column = None` takes
+    /// the first column after the time.
+    ///
+    /// # Errors
+    /// I/O and parse errors of [`TimeSeries::read_csv`]; a column that does
+    /// not exist (field `column`, naming the columns there are); as
+    /// [`Series::new`].
+    pub fn from_csv(
+        path: impl AsRef<Path>,
+        column: Option<&str>,
+        sigma: Option<f64>,
+    ) -> Result<Series> {
+        let ts = TimeSeries::read_csv(path.as_ref())?;
+        Series::from_table(&ts, column, sigma)
+    }
+
+    /// Column `column` of a table (`None`: the first column).
+    ///
+    /// # Errors
+    /// As [`Series::from_csv`].
+    pub fn from_table(ts: &TimeSeries, column: Option<&str>, sigma: Option<f64>) -> Result<Series> {
+        let x = match column {
+            Some(c) => ts.column(c).ok_or_else(|| {
+                Error::invalid(
+                    "column",
+                    c,
+                    format!("one of the file's columns: {}", ts.names().join(", ")),
+                )
+            })?,
+            None => ts.column_at(0).ok_or_else(|| {
+                Error::invalid("column", "(none)", "a file with at least one value column")
+            })?,
+        };
+        Series::new(ts.t().to_vec(), x.to_vec(), sigma)
+    }
+
+    /// The times.
+    pub fn t(&self) -> &[f64] {
+        &self.t
+    }
+
+    /// The values.
+    pub fn x(&self) -> &[f64] {
+        &self.x
+    }
+
+    /// The stated noise standard deviation, if any.
+    pub fn sigma(&self) -> Option<f64> {
+        self.sigma
+    }
+
+    /// The same record with noise level `sigma` as [`TimeData`] (the form
+    /// the misfits use).
+    ///
+    /// # Errors
+    /// `sigma` negative or not finite.
+    pub fn time_data(&self, sigma: f64) -> Result<TimeData> {
+        TimeData::new(self.t.clone(), self.x.clone(), sigma)
+    }
+
+    /// Largest `|x|`.
+    pub fn max_abs(&self) -> f64 {
+        self.x.iter().fold(0.0f64, |a, v| a.max(v.abs()))
+    }
+}
+
+/// Values of the transfer function at Laplace nodes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LaplaceValues {
+    s: Vec<Complex64>,
+    values: Vec<Complex64>,
+    sigma: Option<Vec<f64>>,
+}
+
+impl LaplaceValues {
+    /// Nodes `s` (finite, `Re s >= 0`), values, and the standard error of each
+    /// value if known (`> 0`).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `values` (length), `s[i]`,
+    /// `values[i]`, `sigma[i]`.
+    pub fn new(
+        s: Vec<Complex64>,
+        values: Vec<Complex64>,
+        sigma: Option<Vec<f64>>,
+    ) -> Result<LaplaceValues> {
+        if s.is_empty() || s.len() != values.len() {
+            return Err(Error::invalid(
+                "values",
+                format!("{} values at {} nodes", values.len(), s.len()),
+                "one value per node, at least one node",
+            ));
+        }
+        for (i, z) in s.iter().enumerate() {
+            crate::forward::check_s(z)
+                .map_err(|_| Error::invalid(format!("s[{i}]"), z, "finite, Re s >= 0"))?;
+        }
+        for (i, v) in values.iter().enumerate() {
+            if !(v.re.is_finite() && v.im.is_finite()) {
+                return Err(Error::invalid(format!("values[{i}]"), v, "finite"));
+            }
+        }
+        if let Some(sg) = &sigma {
+            if sg.len() != s.len() {
+                return Err(Error::invalid(
+                    "sigma",
+                    format!("{} errors for {} nodes", sg.len(), s.len()),
+                    "one error per node",
+                ));
+            }
+            for (i, v) in sg.iter().enumerate() {
+                check_f64(&format!("sigma[{i}]"), *v, *v > 0.0, "> 0 and finite")?;
+            }
+        }
+        Ok(LaplaceValues { s, values, sigma })
+    }
+
+    /// The nodes.
+    pub fn s(&self) -> &[Complex64] {
+        &self.s
+    }
+
+    /// The values.
+    pub fn values(&self) -> &[Complex64] {
+        &self.values
+    }
+
+    /// The standard errors, if known.
+    pub fn sigma(&self) -> Option<&[f64]> {
+        self.sigma.as_deref()
+    }
+}
+
+/// What a fit starts from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Observations {
+    /// A sampled record of the observed mass.
+    Series(Series),
+    /// Laplace-domain values.
+    Laplace(LaplaceValues),
+}
+
+impl Observations {
+    /// Number of samples or nodes.
+    pub fn len(&self) -> usize {
+        match self {
+            Observations::Series(s) => s.t.len(),
+            Observations::Laplace(l) => l.s.len(),
+        }
+    }
+
+    /// Never true for validated observations.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid(n: usize) -> Vec<f64> {
+        (0..n).map(|i| 0.1 * i as f64).collect()
+    }
+
+    #[test]
+    fn series_refuses_bad_input_naming_the_field() {
+        let field = |e: Error| match e {
+            Error::InvalidParameter { field, .. } => field,
+            e => panic!("unexpected {e}"),
+        };
+        assert_eq!(
+            field(Series::new(grid(10), vec![0.0; 10], None).unwrap_err()),
+            "x"
+        );
+        assert_eq!(
+            field(Series::new(grid(20), vec![0.0; 19], None).unwrap_err()),
+            "x"
+        );
+        let mut x = vec![0.0; 20];
+        x[3] = f64::NAN;
+        assert_eq!(
+            field(Series::new(grid(20), x.clone(), None).unwrap_err()),
+            "x[3]"
+        );
+        x[3] = f64::INFINITY;
+        assert_eq!(field(Series::new(grid(20), x, None).unwrap_err()), "x[3]");
+        let mut t = grid(20);
+        t[5] = t[4];
+        assert_eq!(
+            field(Series::new(t, vec![0.0; 20], None).unwrap_err()),
+            "t[5]"
+        );
+        assert_eq!(
+            field(Series::new(grid(20), vec![0.0; 20], Some(0.0)).unwrap_err()),
+            "noise"
+        );
+        assert_eq!(
+            field(Series::new(grid(20), vec![0.0; 20], Some(-1.0)).unwrap_err()),
+            "noise"
+        );
+        let t: Vec<f64> = grid(20).iter().map(|v| v - 1.0).collect();
+        assert_eq!(
+            field(Series::new(t, vec![0.0; 20], None).unwrap_err()),
+            "t[0]"
+        );
+        assert!(Series::new(grid(16), vec![0.0; 16], Some(1e-3)).is_ok());
+    }
+
+    #[test]
+    fn missing_column_is_named() {
+        let ts = TimeSeries::new(grid(20), vec![("x1".into(), vec![0.0; 20])]).unwrap();
+        let e = Series::from_table(&ts, Some("x7"), None).unwrap_err();
+        assert!(
+            e.to_string().contains("column") && e.to_string().contains("x1"),
+            "{e}"
+        );
+        assert_eq!(Series::from_table(&ts, None, None).unwrap().x().len(), 20);
+    }
+
+    #[test]
+    fn laplace_values_checked() {
+        let s = vec![Complex64::new(1.0, 0.0)];
+        assert!(LaplaceValues::new(s.clone(), vec![], None).is_err());
+        assert!(LaplaceValues::new(s.clone(), vec![Complex64::new(f64::NAN, 0.0)], None).is_err());
+        assert!(
+            LaplaceValues::new(s.clone(), vec![Complex64::new(1.0, 0.0)], Some(vec![0.0])).is_err()
+        );
+        assert!(LaplaceValues::new(
+            vec![Complex64::new(-1.0, 0.0)],
+            vec![Complex64::new(1.0, 0.0)],
+            None
+        )
+        .is_err());
+        assert!(LaplaceValues::new(s, vec![Complex64::new(1.0, 0.0)], Some(vec![0.1])).is_ok());
+    }
+}

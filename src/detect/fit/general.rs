@@ -77,7 +77,6 @@ use crate::detect::unknowns::{
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use crate::time::series::{SeriesTransform, TransformOptions};
-use num_complex::Complex64;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -138,33 +137,15 @@ impl Setup {
 /// # Errors
 /// [`Error::InvalidParameter`] for [`MisfitKind::Time`]; as [`SeriesTransform`].
 pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result<LaplaceObs> {
-    let (s, w): (Vec<Complex64>, Vec<f64>) = match choice {
-        MisfitKind::RealAxis => (
-            setup
-                .real_rule
-                .nodes
-                .iter()
-                .map(|&x| Complex64::new(x, 0.0))
-                .collect(),
-            setup.real_rule.weights.clone(),
-        ),
-        MisfitKind::Bromwich => (
-            setup
-                .bromwich_rule
-                .nodes
-                .iter()
-                .map(|&w| Complex64::new(setup.bromwich_sigma, w))
-                .collect(),
-            setup.bromwich_rule.weights.clone(),
-        ),
-        MisfitKind::Time => {
-            return Err(Error::invalid(
+    let (s, w) = choice
+        .laplace_nodes(&setup.real_rule, setup.bromwich_sigma, &setup.bromwich_rule)
+        .ok_or_else(|| {
+            Error::invalid(
                 "misfit",
-                "time",
-                "a Laplace misfit (real or bromwich)",
-            ))
-        }
-    };
+                choice.name(),
+                "a Laplace misfit (real-axis or bromwich)",
+            )
+        })?;
     let opts = TransformOptions {
         noise_sigma: Some(data.sigma()),
         ..TransformOptions::default()
@@ -226,6 +207,22 @@ pub struct Hypothesis {
 }
 
 impl Hypothesis {
+    /// A hypothesis from its parts (defects, their standard errors, fitted
+    /// chain parameters, misfit value).
+    pub fn from_parts(
+        defects: Vec<Defect>,
+        std_errors: Vec<f64>,
+        chain: Vec<FittedParam>,
+        chi2: f64,
+    ) -> Hypothesis {
+        Hypothesis {
+            defects,
+            std_errors,
+            chain,
+            chi2,
+        }
+    }
+
     fn masses_only(positions: &[usize], masses: &[f64], chi2: f64, se: Vec<f64>) -> Hypothesis {
         Hypothesis {
             defects: positions
@@ -307,6 +304,18 @@ impl Hypothesis {
         t.sort_unstable();
         h.sort_unstable();
         t == h
+    }
+}
+
+/// The name of a uniform chain parameter (`d`, `gamma`, `k`, `mass`) as the
+/// fitted parameters carry it.
+pub fn param_name(p: &Param) -> &'static str {
+    match p {
+        Param::D => "d",
+        Param::Gamma => "gamma",
+        Param::K => "k",
+        Param::Mass => "mass",
+        Param::Defect(_) => "defect",
     }
 }
 
@@ -734,14 +743,14 @@ pub fn fit_noisy_general(
     opts: &GeneralOptions,
 ) -> Result<GeneralFit> {
     match choice {
-        MisfitKind::RealAxis | MisfitKind::Bromwich => {
-            let obs = laplace_obs(data, choice, setup)?;
-            fit_general(base, unknowns, &obs, None, setup, opts)
-        }
         MisfitKind::Time => {
             let obs = laplace_obs(data, MisfitKind::Bromwich, setup)?;
             let t = TimeMisfit::new(data.clone());
             fit_general(base, unknowns, &obs, Some(&t), setup, opts)
+        }
+        laplace => {
+            let obs = laplace_obs(data, laplace, setup)?;
+            fit_general(base, unknowns, &obs, None, setup, opts)
         }
     }
 }
@@ -859,14 +868,14 @@ pub fn fit_noisy(
     setup: &Setup,
 ) -> Result<Vec<Hypothesis>> {
     match choice {
-        MisfitKind::RealAxis | MisfitKind::Bromwich => {
-            let obs = laplace_obs(data, choice, setup)?;
-            enumerate_laplace(base, &obs, k, setup)
-        }
         MisfitKind::Time => {
             let obs = laplace_obs(data, MisfitKind::Bromwich, setup)?;
             let ranked = enumerate_laplace(base, &obs, k, setup)?;
             time_from_bromwich(base, data, &ranked, setup)
+        }
+        laplace => {
+            let obs = laplace_obs(data, laplace, setup)?;
+            enumerate_laplace(base, &obs, k, setup)
         }
     }
 }
@@ -974,9 +983,7 @@ mod tests {
 
     #[test]
     fn shared_subsets_count_and_order() {
-        let c = |n: usize, k| {
-            crate::detect::search::enumerate::subsets(&(1..=n).collect::<Vec<_>>(), k)
-        };
+        let c = |n: usize, k| crate::detect::unknowns::subsets(&(1..=n).collect::<Vec<_>>(), k);
         assert_eq!(c(5, 2).len(), 10);
         assert_eq!(c(20, 3).len(), 1140);
         assert_eq!(c(3, 3), vec![vec![1, 2, 3]]);

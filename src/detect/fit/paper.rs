@@ -51,89 +51,17 @@
 
 use crate::chain::Defect;
 use crate::detect::data::exact::Data;
-use crate::detect::data::laplace::LaplaceObs;
-use crate::detect::fit::general::{
-    fit_general, identify_general, laplace_obs, FittedParam, GeneralOptions, Setup,
-};
-use crate::detect::misfit::time::TimeMisfit;
+use crate::detect::fit::general::FittedParam;
 use crate::detect::misfit::{Misfit, MisfitKind};
-use crate::detect::scene::{DataSourceKind, FitScene};
+use crate::detect::scene::{FitScene, SceneOptions};
 use crate::detect::search::enumerate::{enumerate, fit_slots, Defects, EnumerateOptions};
+use crate::detect::search::FitMethod;
 use crate::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
 use crate::detect::unknowns::{MassUnknown, Unknowns};
 use crate::error::{Error, Result};
 use num_complex::Complex64;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use std::time::Instant;
-
-/// Fitting methods.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum FitMethod {
-    /// Exhaustive enumeration of position sets with a mass fit per set.
-    #[default]
-    Enumerate,
-    /// Genetic algorithm.
-    #[serde(alias = "genetic")]
-    Ga,
-    /// Nelder-Mead.
-    NelderMead,
-    /// Particle swarm.
-    #[serde(alias = "particle-swarm")]
-    Pso,
-}
-
-impl FitMethod {
-    /// Parse `enumerate`, `ga`, `nelder-mead`, `pso` (aliases `genetic`,
-    /// `particle-swarm`, `nm`).
-    ///
-    /// # Errors
-    /// [`Error::Parse`] naming the allowed names.
-    pub fn parse(text: &str) -> Result<FitMethod> {
-        match text.trim().to_ascii_lowercase().as_str() {
-            "enumerate" | "enum" => Ok(FitMethod::Enumerate),
-            "ga" | "genetic" => Ok(FitMethod::Ga),
-            "nelder-mead" | "nm" => Ok(FitMethod::NelderMead),
-            "pso" | "particle-swarm" => Ok(FitMethod::Pso),
-            _ => Err(Error::parse(
-                "method",
-                text,
-                "expected enumerate, ga, nelder-mead or pso",
-            )),
-        }
-    }
-
-    /// The canonical name.
-    pub fn name(self) -> &'static str {
-        match self {
-            FitMethod::Enumerate => "enumerate",
-            FitMethod::Ga => "ga",
-            FitMethod::NelderMead => "nelder-mead",
-            FitMethod::Pso => "pso",
-        }
-    }
-}
-
-/// Options of [`fit`] (from a scene's `[search]` with [`FitScene::options`]).
-#[derive(Clone, Debug, PartialEq)]
-pub struct FitOptions {
-    /// The method.
-    pub method: FitMethod,
-    /// Seed of stochastic methods.
-    pub seed: u64,
-    /// Evaluation budget of stochastic methods.
-    pub max_evals: usize,
-    /// Record the optimizer's trace.
-    pub trace: bool,
-    /// Enumeration options (`keep` also sets the number of hypotheses reported).
-    pub enumerate: EnumerateOptions,
-}
-
-impl Default for FitOptions {
-    fn default() -> Self {
-        FitScene::synthetic(&crate::Chain::new(1).expect("n = 1 is valid")).options()
-    }
-}
 
 /// An alternative hypothesis.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -201,7 +129,7 @@ pub struct FitReport {
 /// # Errors
 /// Invalid chain, unknowns or misfit in the scene (typed, naming the field);
 /// a method this build does not provide (`search.method`).
-pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitReport> {
+pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<FitReport> {
     if scene.is_general() {
         return fit_general_scene(scene, data, options);
     }
@@ -300,7 +228,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitRep
             "bromwich sigma={} omega in [0, {}]",
             scene.misfit.sigma, scene.misfit.omega_max
         ),
-        MisfitKind::Time => "time".into(),
+        other => other.name().into(),
     };
     Ok(FitReport {
         method: options.method.name().into(),
@@ -325,10 +253,16 @@ pub fn fit(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitRep
     })
 }
 
-/// The general path of [`fit`]: defects of any kind and chain parameters
-/// ([`crate::detect::fit::general::fit_general`]); the residual is a chi-square,
-/// `floor` the gap threshold [`crate::detect::fit::identify::DEFAULT_THRESHOLD`].
-fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Result<FitReport> {
+/// The general path of [`fit`]: defects of any kind and chain parameters,
+/// fitted by the data-first pipeline ([`crate::detect::fit::fit`]) on the
+/// data it is given: the sampled record behind `data` (simulated or read
+/// from a file), or `data`'s values at the nodes of the scene's rule
+/// (exact-model data, weighted by their errors). The residual is then a
+/// chi-square and `floor` the gap threshold
+/// [`crate::detect::fit::identify::DEFAULT_THRESHOLD`].
+fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<FitReport> {
+    use crate::detect::data::observations::{LaplaceValues, Observations, Series};
+    use crate::detect::fit::{DefectCount, FitOptions, Model, NoiseSpec};
     let t0 = Instant::now();
     if options.method != FitMethod::Enumerate {
         return Err(Error::invalid(
@@ -338,129 +272,119 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &FitOptions) -> Res
         ));
     }
     let unknowns = scene.general_unknowns()?;
-    let base = scene.unknowns.start_chain(&scene.truth()?)?;
-    let mut setup = Setup::new()?;
-    let (coarse, fine, misfit_name, nodes) = match scene.misfit.kind {
-        MisfitKind::Time => {
-            let td = scene.time_data()?;
-            let coarse = laplace_obs(&td, MisfitKind::Bromwich, &setup)?;
-            let name = format!(
-                "time-domain chi-square ({} samples, sigma = {:.3e}; shortlist from the Bromwich line sigma = {})",
-                td.len(),
-                td.sigma(),
-                setup.bromwich_sigma
-            );
-            let n = td.len();
-            (coarse, Some(TimeMisfit::new(td)), name, n)
+    let start = scene.unknowns.start_chain(&scene.truth()?)?;
+    let mut model = Model::from_chain(&start.uniform());
+    let mut free = 0;
+    let mut kinds = None;
+    for slot in unknowns.slots() {
+        match (slot.at, slot.known) {
+            (Some(at), Some(v)) => {
+                let kind = slot.kind.kinds()[0];
+                model = model.with_known(kind.defect(at, v))?;
+            }
+            (None, None) => {
+                free += 1;
+                kinds.get_or_insert(slot.kind);
+            }
+            _ => {
+                return Err(Error::invalid(
+                    "unknowns.defects",
+                    "a known position with a free value, or a known value at a free position",
+                    "the general fit takes defects that are either wholly known or wholly free",
+                ))
+            }
         }
-        kind if scene.data.source != DataSourceKind::Exact => {
-            // a sampled series: its transform at the scene's nodes, whitened by
-            // the transform's noise covariance (a true chi-square)
-            let rule = scene.misfit.rule()?;
-            let choice = if kind == MisfitKind::RealAxis {
-                setup.real_rule = rule.clone();
-                MisfitKind::RealAxis
+    }
+    model = model.fitting(unknowns.chain())?;
+    let (obs, noise) = match data.samples() {
+        Some((t, x)) => {
+            let sigma = scene.noise_sigma()?;
+            let noise = if sigma > 0.0 {
+                NoiseSpec::Sigma(sigma)
             } else {
-                setup.bromwich_rule = rule.clone();
-                setup.bromwich_sigma = scene.misfit.sigma;
-                MisfitKind::Bromwich
+                NoiseSpec::Auto
             };
-            let td = scene.time_data()?;
-            let obs = laplace_obs(&td, choice, &setup)?;
-            let name = format!(
-                "{} chi-square of the transformed series, {:?} ({} dof of {} nodes), {}",
-                choice.name(),
-                setup.weighting,
-                obs.dof(),
-                rule.nodes.len(),
-                rule.name
-            );
-            let n = obs.dof();
-            (obs, None, name, n)
+            let sg = (sigma > 0.0).then_some(sigma);
+            (
+                Observations::Series(Series::new(t.to_vec(), x.to_vec(), sg)?),
+                noise,
+            )
         }
-        kind => {
-            // exact-model data with independent per-node noise: weights 1/sigma_q^2
+        None => {
+            if scene.misfit.kind == MisfitKind::Time {
+                return Err(Error::invalid(
+                    "data.source",
+                    "exact",
+                    "\"simulated\" or \"series\" (the time misfit needs a sampled series)",
+                ));
+            }
             let rule = scene.misfit.rule()?;
-            let (s, values, sigma): (Vec<Complex64>, Vec<Complex64>, Vec<f64>) =
-                if kind == MisfitKind::RealAxis {
-                    let sm = data.sample(&rule.nodes)?;
-                    (
-                        rule.nodes.iter().map(|&x| Complex64::new(x, 0.0)).collect(),
-                        sm.values.iter().map(|&x| Complex64::new(x, 0.0)).collect(),
-                        sm.sigma,
-                    )
-                } else {
-                    let s: Vec<Complex64> = rule
-                        .nodes
-                        .iter()
-                        .map(|&w| Complex64::new(scene.misfit.sigma, w))
-                        .collect();
-                    let sm = data.sample(&s)?;
-                    (s, sm.values, sm.sigma)
-                };
-            let weights = sigma.iter().map(|sg| 1.0 / (sg * sg).max(1e-300)).collect();
-            let n = s.len();
-            let name = format!(
-                "{} chi-square on the rule's nodes (independent node noise, weights 1 / sigma_q^2), {}",
-                if kind == MisfitKind::RealAxis {
-                    "real-axis"
-                } else {
-                    "bromwich"
-                },
-                rule.name
-            );
-            (LaplaceObs::new(s, values, weights)?, None, name, n)
+            let s: Vec<Complex64> = match scene.misfit.kind {
+                MisfitKind::Bromwich => rule
+                    .nodes
+                    .iter()
+                    .map(|&w| Complex64::new(scene.misfit.sigma, w))
+                    .collect(),
+                _ => rule.nodes.iter().map(|&x| Complex64::new(x, 0.0)).collect(),
+            };
+            let sm = data.sample(&s)?;
+            let sigma = sm.sigma.iter().map(|v| v.max(1e-300)).collect();
+            (
+                Observations::Laplace(LaplaceValues::new(s, sm.values, Some(sigma))?),
+                NoiseSpec::Sigma(1.0),
+            )
         }
     };
-    let noise_level = match scene.data.source {
-        DataSourceKind::Exact => data.noise(),
-        _ => scene.noise_sigma()?,
-    };
-    setup.shortlist = setup.shortlist.max(options.enumerate.keep);
-    let gopts = GeneralOptions {
+    let opts = FitOptions {
+        defects: DefectCount::Exactly(free),
+        kinds: kinds.unwrap_or_default(),
+        noise,
+        misfit: Some(scene.misfit.kind),
+        method: FitMethod::Enumerate,
+        alternatives: options.enumerate.keep.saturating_sub(1).max(1),
         parallel: options.enumerate.parallel,
         max_sets: options.enumerate.max_sets,
-        ..GeneralOptions::default()
+        ..FitOptions::default()
     };
     let setup_time = t0.elapsed().as_secs_f64();
-    let t1 = Instant::now();
-    let g = fit_general(&base, &unknowns, &coarse, fine.as_ref(), &setup, &gopts)?;
-    let best = g.ranked.first().ok_or_else(|| Error::Numerical {
-        method: "fit_general".into(),
-        reason: "no hypothesis".into(),
-    })?;
-    let runners: Vec<Alternative> = g.ranked[1..]
-        .iter()
-        .take(options.enumerate.keep.saturating_sub(1))
-        .map(|h| Alternative {
-            defects: h.defects.clone(),
-            residual: h.chi2,
-            gap: h.chi2 - best.chi2,
-        })
-        .collect();
+    let r = crate::detect::fit::fit(&obs, &model, &opts)?;
     let floor = crate::detect::fit::identify::DEFAULT_THRESHOLD;
-    let m = g.residuals as f64;
-    let identifiability = identify_general(&g.ranked, &base, noise_level, None).ok();
     Ok(FitReport {
         method: "enumerate (general noisy fit)".into(),
-        defects: best.defects.clone(),
-        residual: best.chi2,
-        resolved: runners.first().is_none_or(|r| r.gap > floor),
-        runners_up: runners,
-        evaluations: g.evaluations,
+        defects: r.defects.iter().map(|d| d.defect()).collect(),
+        residual: r.chi2,
+        resolved: r.resolved,
+        runners_up: r
+            .alternatives
+            .iter()
+            .map(|a| Alternative {
+                defects: a.defects.clone(),
+                residual: a.chi2,
+                gap: a.gap,
+            })
+            .collect(),
+        evaluations: r.evaluations,
         probe_evaluations: 0,
-        sets: Some(g.hypotheses),
+        sets: Some(r.hypotheses),
         exhaustive: Some(true),
-        wall_time_s: t1.elapsed().as_secs_f64(),
+        wall_time_s: r.wall_time_s,
         setup_time_s: setup_time,
         trace: Vec::new(),
-        misfit: misfit_name,
-        nodes,
+        misfit: r.misfit.clone(),
+        nodes: r.dof,
         floor,
-        fits_data: best.chi2 <= m + 4.0 * (2.0 * m).sqrt(),
-        std_errors: best.std_errors.clone(),
-        chain_params: best.chain.clone(),
-        identifiability,
+        fits_data: r.fits_data,
+        std_errors: r.defects.iter().map(|d| d.se).collect(),
+        chain_params: r
+            .params
+            .iter()
+            .map(|p| FittedParam {
+                name: p.name.clone(),
+                value: p.value,
+                std_error: p.se,
+            })
+            .collect(),
+        identifiability: r.identifiability,
     })
 }
 

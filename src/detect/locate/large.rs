@@ -104,7 +104,7 @@ pub(crate) fn paper_point<T: RealScalar>(model: &Model<T>, p: &Point<T>) -> Esti
     e
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "bigfloat"))]
 mod tests {
     use super::*;
     use crate::chain::{Chain, Defect};

@@ -151,7 +151,7 @@ pub fn golden(mut f: impl FnMut(f64) -> f64, a: f64, b: f64, iters: usize) -> (f
     }
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "bigfloat"))]
 mod tests {
     use super::*;
     use crate::precision::{with_precision, BigReal};

@@ -75,6 +75,36 @@ impl MisfitKind {
         }
     }
 
+    /// The Laplace nodes and quadrature weights of a Laplace-domain misfit:
+    /// `real_rule`'s nodes on the real axis, or `sigma_b + i omega` at
+    /// `bromwich_rule`'s nodes; `None` for the time misfit.
+    pub fn laplace_nodes(
+        self,
+        real_rule: &Rule,
+        sigma_b: f64,
+        bromwich_rule: &Rule,
+    ) -> Option<(Vec<Complex64>, Vec<f64>)> {
+        match self {
+            MisfitKind::RealAxis => Some((
+                real_rule
+                    .nodes
+                    .iter()
+                    .map(|&x| Complex64::new(x, 0.0))
+                    .collect(),
+                real_rule.weights.clone(),
+            )),
+            MisfitKind::Bromwich => Some((
+                bromwich_rule
+                    .nodes
+                    .iter()
+                    .map(|&w| Complex64::new(sigma_b, w))
+                    .collect(),
+                bromwich_rule.weights.clone(),
+            )),
+            MisfitKind::Time => None,
+        }
+    }
+
     /// Parse `real-axis` (or `real`), `bromwich`, `time`.
     ///
     /// # Errors
@@ -321,6 +351,9 @@ impl Misfit {
     /// # Errors
     /// Bad `spec` (fields `misfit.*`); a chain too long to table.
     pub fn new(model: &Chain, data: &Data, spec: &MisfitSpec) -> Result<Misfit> {
+        model.require_fixed_ends(
+            "the mass-only Woodbury kernel of the paper's residual (the data-first fit handles free ends)",
+        )?;
         let rule = spec.rule()?;
         let chain = model.uniform();
         let (tab, sigma) = match spec.kind {

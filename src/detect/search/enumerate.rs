@@ -47,7 +47,7 @@
 //! ```
 
 use crate::detect::misfit::Misfit;
-use crate::detect::unknowns::{MassUnknown, Unknowns};
+use crate::detect::unknowns::{gen_sets, MassUnknown, Unknowns};
 use crate::error::{Error, Result};
 use crate::linalg::solve_in_place;
 use rayon::prelude::*;
@@ -188,45 +188,6 @@ fn exhaustive(
         opts,
     );
     Ok(finish(unknowns, fitted, sets.len(), true, opts.keep))
-}
-
-/// All `p`-subsets of `allowed`, each in the order of `allowed`, in
-/// lexicographic order of their indices (`p = 0`: one empty set; `p >
-/// allowed.len()`: none). The position-set generator shared by the
-/// enumeration and [`crate::detect::fit::general`].
-///
-/// ```
-/// use springmass::detect::search::enumerate::subsets;
-/// assert_eq!(subsets(&[1, 2, 3], 2), vec![vec![1, 2], vec![1, 3], vec![2, 3]]);
-/// ```
-pub fn subsets(allowed: &[usize], p: usize) -> Vec<Vec<usize>> {
-    let mut out = Vec::new();
-    gen_sets(allowed, p, true, 0, &mut Vec::with_capacity(p), &mut out);
-    out
-}
-
-fn gen_sets(
-    allowed: &[usize],
-    p: usize,
-    comb: bool,
-    from: usize,
-    cur: &mut Vec<usize>,
-    out: &mut Vec<Vec<usize>>,
-) {
-    if cur.len() == p {
-        out.push(cur.clone());
-        return;
-    }
-    let start = if comb { from } else { 0 };
-    for i in start..allowed.len() {
-        let a = allowed[i];
-        if !comb && cur.contains(&a) {
-            continue;
-        }
-        cur.push(a);
-        gen_sets(allowed, p, comb, i + 1, cur, out);
-        cur.pop();
-    }
 }
 
 /// The slots `(position, mass)` of the known-position defects and of the

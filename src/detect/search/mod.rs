@@ -72,6 +72,7 @@ pub mod pso;
 use crate::error::{Error, Result};
 use rand::Rng;
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
@@ -117,6 +118,54 @@ pub trait Objective: Sync {
     fn space(&self) -> &Space;
     /// The cost of one candidate.
     fn cost(&self, c: &Candidate) -> f64;
+}
+
+/// Fitting methods.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FitMethod {
+    /// Exhaustive enumeration of position sets with a mass fit per set.
+    #[default]
+    Enumerate,
+    /// Genetic algorithm.
+    #[serde(alias = "genetic")]
+    Ga,
+    /// Nelder-Mead.
+    NelderMead,
+    /// Particle swarm.
+    #[serde(alias = "particle-swarm")]
+    Pso,
+}
+
+impl FitMethod {
+    /// Parse `enumerate`, `ga`, `nelder-mead`, `pso` (aliases `genetic`,
+    /// `particle-swarm`, `nm`).
+    ///
+    /// # Errors
+    /// [`Error::Parse`] naming the allowed names.
+    pub fn parse(text: &str) -> Result<FitMethod> {
+        match text.trim().to_ascii_lowercase().as_str() {
+            "enumerate" | "enum" => Ok(FitMethod::Enumerate),
+            "ga" | "genetic" => Ok(FitMethod::Ga),
+            "nelder-mead" | "nm" => Ok(FitMethod::NelderMead),
+            "pso" | "particle-swarm" => Ok(FitMethod::Pso),
+            _ => Err(Error::parse(
+                "method",
+                text,
+                "expected enumerate, ga, nelder-mead or pso",
+            )),
+        }
+    }
+
+    /// The canonical name.
+    pub fn name(self) -> &'static str {
+        match self {
+            FitMethod::Enumerate => "enumerate",
+            FitMethod::Ga => "ga",
+            FitMethod::NelderMead => "nelder-mead",
+            FitMethod::Pso => "pso",
+        }
+    }
 }
 
 /// The available optimizers.

@@ -21,7 +21,8 @@
 
 use super::case::{chain_problems, CaseOutput, KindScene};
 use crate::chain::Defect;
-use crate::detect::fit::paper::{fit, FitMethod};
+use crate::detect::fit::paper::fit;
+use crate::detect::fit::FitMethod;
 use crate::detect::scene::{DataSourceKind, FitScene};
 use crate::error::{check_f64, Error, Result};
 use crate::study::paths::set_path;

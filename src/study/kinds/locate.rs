@@ -29,7 +29,9 @@ use crate::chain::{Chain, ChainSpec, Defect};
 use crate::detect::locate::{curve, default_grid, locate, LaplaceData, Method, Model, SChoice};
 use crate::error::{check_f64, Error, Result};
 use crate::plot::{Line, LinePlot};
-use crate::precision::{with_precision, BigReal, RealScalar};
+use crate::precision::RealScalar;
+#[cfg(feature = "bigfloat")]
+use crate::precision::{with_precision, BigReal};
 use crate::study::schema::FieldDoc;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -295,7 +297,10 @@ impl Scene {
 pub fn run(scene: &Scene, seed: u64) -> Result<CaseOutput> {
     match scene.precision.bits()? {
         None => run_in::<f64>(scene, seed, 53),
+        #[cfg(feature = "bigfloat")]
         Some(bits) => with_precision(bits, || run_in::<BigReal>(scene, seed, bits)),
+        #[cfg(not(feature = "bigfloat"))]
+        Some(bits) => Err(crate::precision::unavailable(bits)),
     }
 }
 
@@ -311,6 +316,7 @@ fn run_in<T: RealScalar>(scene: &Scene, _seed: u64, bits: usize) -> Result<CaseO
     // warm the thread's constant cache of the number type (a one-off per
     // worker thread, not a cost of this case)
     let _ = T::from_f64(2.0).ln();
+    chain.require_fixed_ends("the explicit locators of section 4.1")?;
     let start = Instant::now();
     let data: LaplaceData<T> = match scene.data.as_str() {
         "simulated" => LaplaceData::from_simulation(&chain, scene.t_end, scene.dt, &grid)?,
@@ -417,6 +423,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(feature = "bigfloat")]
     fn extended_precision_buys_digits() {
         let base =
             "chain = { n = 20, defects = [ { kind = \"mass\", at = 15, m = 1.01 } ] }\ns = 0.3\n";

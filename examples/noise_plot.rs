@@ -1,0 +1,74 @@
+//! Redraw the README's success-against-noise figure from its table,
+//! `docs/noise-success.csv` (written by `springmass noise-study table`), as
+//! small multiples: one panel per system, one line per misfit, success rate
+//! on [0, 1] against the noise level on a log axis.
+//!
+//! ```sh
+//! cargo run --example noise_plot            # writes out/examples/noise-success.svg
+//! cargo run --example noise_plot -- docs/noise-success.csv docs/img/noise-success.svg
+//! ```
+
+use springmass::plot::{Line, LinePlot};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let input = args
+        .first()
+        .map_or("docs/noise-success.csv", |s| s.as_str());
+    let output = args
+        .get(1)
+        .map_or("out/examples/noise-success.svg", |s| s.as_str());
+    let text = std::fs::read_to_string(input).map_err(|e| format!("{input}: {e}"))?;
+    // system,misfit,level,runs,successes,positions_ok
+    let mut cells: Vec<(String, String, f64, f64)> = Vec::new();
+    for (i, line) in text.lines().enumerate().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 6 {
+            return Err(format!("{input} line {}: expected 6 fields", i + 1).into());
+        }
+        let (runs, ok): (f64, f64) = (f[3].parse()?, f[4].parse()?);
+        cells.push((f[0].into(), f[1].into(), f[2].parse()?, ok / runs));
+    }
+    let order = |pick: fn(&(String, String, f64, f64)) -> &String| {
+        let mut v: Vec<String> = Vec::new();
+        for c in &cells {
+            if !v.contains(pick(c)) {
+                v.push(pick(c).clone());
+            }
+        }
+        v
+    };
+    let (systems, misfits) = (order(|c| &c.0), order(|c| &c.1));
+    let runs = text
+        .lines()
+        .nth(1)
+        .and_then(|l| l.split(',').nth(3))
+        .unwrap_or("?");
+    let mut plot = LinePlot::new(
+        format!("Both positions found ({runs} seeds per point), one panel per system"),
+        "noise level (relative to max |x_1|)",
+        "success rate",
+    )
+    .log_x(true)
+    .rate();
+    for s in &systems {
+        for m in &misfits {
+            let pts: Vec<(f64, f64)> = cells
+                .iter()
+                .filter(|c| &c.0 == s && &c.1 == m)
+                .map(|c| (c.2, c.3))
+                .collect();
+            plot = plot.line(Line::new(m.clone(), pts).panel(s.clone()));
+        }
+    }
+    if let Some(dir) = std::path::Path::new(output).parent() {
+        std::fs::create_dir_all(dir)?;
+    }
+    plot.write_svg(output)?;
+    println!(
+        "wrote {output}: {} systems x {} misfits",
+        systems.len(),
+        misfits.len()
+    );
+    Ok(())
+}

@@ -1,0 +1,285 @@
+//! What a data-first fit ([`crate::detect::fit::fit`]) returns: the answer
+//! with error bars first, then how it was reached and how far to trust it,
+//! in the spirit of scipy's `OptimizeResult` and argmin's termination reason.
+
+use crate::chain::Defect;
+use crate::detect::fit::identify::Identifiability;
+use serde::Serialize;
+
+/// How the fit ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Status {
+    /// Converged, every defect identifiable, the runner-up clearly worse.
+    Converged,
+    /// A stochastic search used its whole evaluation budget.
+    BudgetExhausted,
+    /// The value fit stopped without converging.
+    Stalled,
+    /// A fitted value ended on a bound of its range (a wrong basin, or a
+    /// defect outside the range searched).
+    ValueAtBound,
+    /// The data cannot tell the answer from an alternative, or a defect from
+    /// no defect, at this noise level.
+    NotIdentifiable,
+}
+
+impl Status {
+    /// `converged`, `budget-exhausted`, ...
+    pub fn name(self) -> &'static str {
+        match self {
+            Status::Converged => "converged",
+            Status::BudgetExhausted => "budget-exhausted",
+            Status::Stalled => "stalled",
+            Status::ValueAtBound => "value-at-bound",
+            Status::NotIdentifiable => "not-identifiable",
+        }
+    }
+}
+
+/// One defect found.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DefectEstimate {
+    /// `mass`, `spring` or `damper`.
+    pub kind: &'static str,
+    /// Position (masses and dampers `1..=n`, springs `0..=n`).
+    pub at: usize,
+    /// Fitted value.
+    pub value: f64,
+    /// Its standard error (NaN when the data do not constrain it; 0 for a
+    /// known defect).
+    pub se: f64,
+    /// The value ended on a bound of its range.
+    pub at_bound: bool,
+    /// Given by the model, not fitted.
+    pub known: bool,
+    /// Standard errors from "no defect" (`|value - uniform| / se`).
+    pub significance: f64,
+    /// Whether the data single it out (position and value), see
+    /// [`crate::detect::fit::identify`].
+    pub identifiable: bool,
+}
+
+impl DefectEstimate {
+    /// As a chain defect.
+    pub fn defect(&self) -> Defect {
+        match self.kind {
+            "spring" => Defect::Spring {
+                at: self.at,
+                k: self.value,
+            },
+            "damper" => Defect::Damper {
+                at: self.at,
+                d: self.value,
+            },
+            _ => Defect::Mass {
+                at: self.at,
+                m: self.value,
+            },
+        }
+    }
+}
+
+/// A fitted chain parameter (`d`, `gamma`, `k`, `mass`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ParamEstimate {
+    /// Its name.
+    pub name: String,
+    /// Fitted value.
+    pub value: f64,
+    /// Standard error.
+    pub se: f64,
+    /// The value ended on a bound of its range.
+    pub at_bound: bool,
+}
+
+/// An alternative answer and how much worse it fits.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Alternative {
+    /// Its defects (values fitted).
+    pub defects: Vec<Defect>,
+    /// Its chi-square.
+    pub chi2: f64,
+    /// `chi2 - best chi2` (above 9: three standard deviations worse).
+    pub gap: f64,
+}
+
+/// The evidence for one number of defects.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct KRow {
+    /// Number of defects.
+    pub k: usize,
+    /// Best chi-square with `k` defects (at the final noise level).
+    pub chi2: f64,
+    /// Free parameters.
+    pub params: usize,
+    /// The criterion's value (smaller is better).
+    pub criterion: f64,
+    /// Its positions.
+    pub positions: Vec<usize>,
+}
+
+/// The predicted series next to the observed one.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Predicted {
+    /// Times.
+    pub t: Vec<f64>,
+    /// Observed values.
+    pub observed: Vec<f64>,
+    /// The best fit's model.
+    pub model: Vec<f64>,
+    /// `observed - model`.
+    pub residual: Vec<f64>,
+}
+
+/// The answer of a data-first fit.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FitReport {
+    /// The defects found (known ones included, flagged), with standard errors.
+    pub defects: Vec<DefectEstimate>,
+    /// Number of defects fitted (known ones excluded).
+    pub k: usize,
+    /// The fitted chain parameters.
+    pub params: Vec<ParamEstimate>,
+    /// Noise standard deviation used for the final fit (of the samples, or
+    /// the scale of the Laplace values' errors).
+    pub noise_sigma: f64,
+    /// Whether it was estimated from the data.
+    pub noise_estimated: bool,
+    /// Final chi-square.
+    pub chi2: f64,
+    /// Its degrees of freedom.
+    pub dof: usize,
+    /// How the fit ended.
+    pub status: Status,
+    /// One line on the status.
+    pub message: String,
+    /// The runner-up's chi-square gap is above the threshold and every
+    /// defect is identifiable.
+    pub resolved: bool,
+    /// The residual is consistent with noise (chi-square test with a known
+    /// sigma; Ljung-Box whiteness test of the time residual when sigma was
+    /// estimated).
+    pub fits_data: bool,
+    /// p-value behind `fits_data`.
+    pub fit_p_value: f64,
+    /// The next best answers, best first.
+    pub alternatives: Vec<Alternative>,
+    /// The evidence for each number of defects tried (one row when `k` was given).
+    pub k_selection: Vec<KRow>,
+    /// `bic`, `aic`, `chi2` (with `defects = auto`), or `given`.
+    pub criterion: String,
+    /// The misfit used (`real-axis`, `bromwich`, `time`) with its details.
+    pub misfit: String,
+    /// The search method.
+    pub method: String,
+    /// Misfit evaluations spent.
+    pub evaluations: usize,
+    /// Position (and kind) sets fitted for the chosen number of defects.
+    pub hypotheses: usize,
+    /// Wall time, seconds.
+    pub wall_time_s: f64,
+    /// The predicted series (series data only).
+    pub predicted: Option<Predicted>,
+    /// The identifiability report of the best answer.
+    pub identifiability: Option<Identifiability>,
+}
+
+impl FitReport {
+    /// The defects found, as chain defects.
+    pub fn found(&self) -> Vec<Defect> {
+        self.defects
+            .iter()
+            .filter(|d| !d.known)
+            .map(DefectEstimate::defect)
+            .collect()
+    }
+
+    /// Human summary: the answer and its error bars first.
+    pub fn summary(&self) -> String {
+        let mut out = String::new();
+        if self.k == 0 {
+            out.push_str("no defect found\n");
+        }
+        for d in &self.defects {
+            out.push_str(&format!(
+                "{} at {}: {} +- {}{}{}{}\n",
+                d.kind,
+                d.at,
+                fmt_g(d.value),
+                fmt_g(d.se),
+                if d.known { " (known)" } else { "" },
+                if d.at_bound { " (AT BOUND)" } else { "" },
+                if !d.known && !d.identifiable {
+                    " (not identifiable)"
+                } else {
+                    ""
+                },
+            ));
+        }
+        for p in &self.params {
+            out.push_str(&format!(
+                "{} = {} +- {}\n",
+                p.name,
+                fmt_g(p.value),
+                fmt_g(p.se)
+            ));
+        }
+        out.push_str(&format!(
+            "status: {} - {}\nnoise sigma {} ({}), chi2 {} on {} dof, fits the data: {} (p = {:.3})\n",
+            self.status.name(),
+            self.message,
+            fmt_g(self.noise_sigma),
+            if self.noise_estimated { "estimated" } else { "given" },
+            fmt_g(self.chi2),
+            self.dof,
+            if self.fits_data { "yes" } else { "NO" },
+            self.fit_p_value
+        ));
+        if self.k_selection.len() > 1 {
+            out.push_str(&format!("number of defects by {}:\n", self.criterion));
+            for r in &self.k_selection {
+                out.push_str(&format!(
+                    "  k = {}: chi2 {}, {} {}{}\n",
+                    r.k,
+                    fmt_g(r.chi2),
+                    self.criterion,
+                    fmt_g(r.criterion),
+                    if r.k == self.k { "  <- chosen" } else { "" }
+                ));
+            }
+        }
+        for (i, a) in self.alternatives.iter().take(3).enumerate() {
+            let d: Vec<String> = a
+                .defects
+                .iter()
+                .map(|d| format!("{}@{}", d.kind(), d.at()))
+                .collect();
+            out.push_str(&format!(
+                "alternative {}: {} (chi2 gap {})\n",
+                i + 1,
+                d.join(", "),
+                fmt_g(a.gap)
+            ));
+        }
+        out.push_str(&format!(
+            "misfit {}, method {}, {} evaluations, {:.2} s\n",
+            self.misfit, self.method, self.evaluations, self.wall_time_s
+        ));
+        out
+    }
+}
+
+/// Four significant digits.
+fn fmt_g(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let a = v.abs();
+    if (1e-3..1e5).contains(&a) {
+        let digits = (3 - a.log10().floor() as i32).max(0) as usize;
+        format!("{v:.digits$}")
+    } else {
+        format!("{v:.3e}")
+    }
+}

@@ -1,0 +1,175 @@
+//! `springmass fit --data`: a CSV the test writes (simulated, noisy), fitted
+//! with nothing known but n and d; and every bad input refused with a
+//! one-line message naming the field and exit status 2.
+
+use springmass::detect::data::series::TimeData;
+use springmass::noise::NoiseLevel;
+use springmass::series::TimeSeries;
+use springmass::{Chain, Defect};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_springmass"))
+}
+
+fn temp_dir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("springmass-cli-fit-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn write_record(path: &Path, level: f64) {
+    let truth = Chain::paper(10)
+        .unwrap()
+        .with_defects([
+            Defect::Mass { at: 3, m: 3.0 },
+            Defect::Mass { at: 7, m: 2.0 },
+        ])
+        .unwrap();
+    let d = TimeData::simulate(&truth, 150.0, 0.25, NoiseLevel::RelativeMax(level), 21).unwrap();
+    TimeSeries::new(d.t().to_vec(), vec![("x1".into(), d.y().to_vec())])
+        .unwrap()
+        .write_csv(path)
+        .unwrap();
+}
+
+#[test]
+fn fit_data_recovers_both_defects_from_n_and_d_only() {
+    let dir = temp_dir("ok");
+    let csv = dir.join("x1.csv");
+    write_record(&csv, 1e-3);
+    let out = bin()
+        .args(["fit", "--data"])
+        .arg(&csv)
+        .args(["--n", "10", "--d", "0.1", "--json", "--plot"])
+        .arg(dir.join("fit.svg"))
+        .arg("--out-csv")
+        .arg(dir.join("fit.csv"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["k"], 2, "{v}");
+    let at: Vec<u64> = v["defects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d["at"].as_u64().unwrap())
+        .collect();
+    assert_eq!(at, vec![3, 7]);
+    for (d, truth) in v["defects"].as_array().unwrap().iter().zip([3.0, 2.0]) {
+        let (val, se) = (d["value"].as_f64().unwrap(), d["se"].as_f64().unwrap());
+        assert!((val - truth).abs() < 4.0 * se && se > 0.0, "{d}");
+    }
+    assert_eq!(v["noise_estimated"], true);
+    assert_eq!(v["status"], "converged");
+    assert!(v["k_selection"].as_array().unwrap().len() >= 3);
+    let svg = std::fs::read_to_string(dir.join("fit.svg")).unwrap();
+    assert!(svg.contains("<svg"));
+    let table = TimeSeries::read_csv(dir.join("fit.csv")).unwrap();
+    assert!(table.column("residual").is_some() && table.column("model").is_some());
+    // the library gives the same answer on the same file
+    let obs = springmass::detect::data::observations::Observations::Series(
+        springmass::detect::data::observations::Series::from_csv(&csv, Some("x1"), None).unwrap(),
+    );
+    let r = springmass::detect::fit::fit(
+        &obs,
+        &springmass::detect::fit::Model::new(10).unwrap(),
+        &springmass::detect::fit::FitOptions::default(),
+    )
+    .unwrap();
+    for (d, j) in r.defects.iter().zip(v["defects"].as_array().unwrap()) {
+        assert_eq!(d.value, j["value"].as_f64().unwrap());
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+fn refused(args: &[&str], dir: &Path, field: &str) {
+    let out = bin().args(args).current_dir(dir).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+    assert!(err.contains(field), "{args:?}: expected {field:?} in {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
+}
+
+#[test]
+fn bad_input_exits_2_naming_the_field() {
+    let dir = temp_dir("bad");
+    write_record(&dir.join("ok.csv"), 1e-3);
+    let rows = |f: &dyn Fn(usize) -> String, n: usize| {
+        let mut s = String::from("t,x1\n");
+        for i in 0..n {
+            s.push_str(&f(i));
+            s.push('\n');
+        }
+        s
+    };
+    std::fs::write(
+        dir.join("nan.csv"),
+        rows(
+            &|i| {
+                if i == 5 {
+                    format!("{i},NaN")
+                } else {
+                    format!("{i},0.1")
+                }
+            },
+            40,
+        ),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("inf.csv"),
+        rows(
+            &|i| {
+                if i == 5 {
+                    format!("{i},inf")
+                } else {
+                    format!("{i},0.1")
+                }
+            },
+            40,
+        ),
+    )
+    .unwrap();
+    std::fs::write(dir.join("short.csv"), rows(&|i| format!("{i},0.1"), 10)).unwrap();
+    std::fs::write(
+        dir.join("back.csv"),
+        rows(&|i| format!("{},0.1", if i == 7 { 3 } else { i }), 40),
+    )
+    .unwrap();
+    let fit = |file: &str, extra: &[&str]| {
+        let mut v = vec!["fit", "--data", file, "--n", "10"];
+        v.extend_from_slice(extra);
+        v.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (fit("nan.csv", &[]), "x"),
+        (fit("inf.csv", &[]), "x"),
+        (fit("short.csv", &[]), "samples"),
+        (fit("back.csv", &[]), "time"),
+        (fit("ok.csv", &["--column", "x9"]), "column"),
+        (fit("ok.csv", &["--defects", "11"]), "defects"),
+        (fit("ok.csv", &["--defects", "auto:11"]), "k_max"),
+        (fit("ok.csv", &["--noise", "0"]), "noise"),
+        (fit("ok.csv", &["--noise", "-1e-3"]), "noise"),
+        (
+            fit("ok.csv", &["--kinds", "spring", "--method", "ga"]),
+            "method",
+        ),
+        (fit("ok.csv", &["--method", "simplex"]), "method"),
+        (fit("ok.csv", &["--misfit", "l1"]), "misfit"),
+        (vec!["fit".into(), "--data".into(), "ok.csv".into()], "n"),
+    ];
+    for (args, field) in cases {
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        refused(&a, &dir, field);
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
