@@ -69,6 +69,9 @@ pub fn check(text: &str) -> Vec<Problem> {
     problems
 }
 
+/// `((path, message), (first failing case, failing cases, line at the axis))`.
+type Found = ((String, String), (usize, usize, Option<usize>));
+
 /// Checks that need the whole study: axes, report references, every case.
 fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
     let problems = std::cell::RefCell::new(Vec::new());
@@ -337,7 +340,7 @@ fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
         Ok(cases) => {
             // (path, message) -> (first failing case, number of failing cases),
             // in order of first appearance
-            let mut found: Vec<((String, String), (usize, usize, Option<usize>))> = Vec::new();
+            let mut found: Vec<Found> = Vec::new();
             for (ci, case) in cases.iter().enumerate() {
                 let errs = case.kind.validate_all(&case.scene);
                 // with `skip`, unknown fields and values of the wrong type

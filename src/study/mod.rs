@@ -10,9 +10,12 @@
 //!
 //! | module | what |
 //! |---|---|
-//! | [`config`] | the study file: schema with defaults, `config check` |
+//! | [`schema`], [`paths`], [`seeds`] | the bottom: field docs and problems, field paths, hashes |
+//! | [`config`] | the study file: types and schema with defaults |
+//! | [`check`] | `config check`: every problem in one pass; study file or fit scene |
 //! | [`sweep`] | crossing the axes into cases with stable ids and derived seeds |
 //! | [`kinds`] | what one case does (`forward`, ...) |
+//! | [`records`] | `results.jsonl` records, the manifest, safe output folders |
 //! | [`run`] | the parallel, resumable runner |
 //! | [`report`] | `summary.csv`, `report.md`, SVG plots |
 //! | [`shard`] | `--shard I/N` and `study merge` |
@@ -66,7 +69,7 @@ impl Study {
     ///
     /// # Errors
     /// [`Error::Parse`] with every problem of the file (as
-    /// [`config::check`] lists them), one per line.
+    /// [`check::check`] lists them), one per line.
     pub fn from_text(text: &str, origin: &str) -> Result<Study> {
         let problems = check::check(text);
         if !problems.is_empty() {
