@@ -3,7 +3,7 @@
 //! `config check`, and a property test of the config parser.
 
 use proptest::prelude::*;
-use springmass::study::config::check;
+use springmass::study::check::check;
 use springmass::study::Study;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -581,10 +581,10 @@ dt = "x"
     let paths: Vec<&str> = p.iter().map(|p| p.path.as_str()).collect();
     assert_eq!(
         paths,
-        vec!["scene.dt", "scene.method", "scene.s", "scene.precision"],
+        vec!["scene.method", "scene.precision", "scene.s", "scene.dt"],
         "{p:?}"
     );
-    assert!(p[3].message.contains("64..=4096"), "{p:?}");
+    assert!(p[1].message.contains("64..=4096"), "{p:?}");
     for bad in ["\"f32\"", "5000", "63", "256.0"] {
         let p = check(
             &loc.replace("precision = 12", &format!("precision = {bad}"))
@@ -640,15 +640,15 @@ fn config_check_reports_every_problem_with_path_and_line() {
     assert_eq!(o.status.code(), Some(1));
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(
-        out.contains("line 5: study.sed: unknown field `sed`"),
+        out.contains("line 5: study.sed: unknown field 'sed'"),
         "{out}"
     );
-    assert!(out.contains("did you mean `seed`"), "{out}");
+    assert!(out.contains("did you mean 'seed'"), "{out}");
     assert!(
-        out.contains("line 12: scene.s.cout: unknown field `cout`"),
+        out.contains("line 12: scene.s.cout: unknown field 'cout'"),
         "{out}"
     );
-    assert!(out.contains("did you mean `count`"), "{out}");
+    assert!(out.contains("did you mean 'count'"), "{out}");
     assert!(out.contains("sweep[1].nmae"), "{out}");
     let good = dir.join("good.toml");
     std::fs::write(&good, study_text(0.0)).unwrap();

@@ -1,7 +1,8 @@
 //! `springmass config`: check a study file, print the schema.
 
 use clap::{Args as ClapArgs, Subcommand};
-use springmass::study::config::{check, schema_markdown, schema_text};
+use springmass::study::check::{check_file, FileKind};
+use springmass::study::config::{schema_markdown, schema_text};
 use springmass::study::kinds::ALL;
 use springmass::study::{Study, DEFAULT_STUDY};
 use std::path::PathBuf;
@@ -26,9 +27,10 @@ the same as Markdown tables, and docs/config.md is the reference page.";
 /// The subcommands.
 #[derive(Subcommand, Debug)]
 pub enum ConfigCommand {
-    /// Check a study file: report every problem with its field path and line; exit 1 if any.
+    /// Check a study file or a fit scene (says which): report every problem
+    /// with its field path and line; exit 1 if any.
     Check {
-        /// The study file.
+        /// The study file or fit scene (a TOML with `[chain]` at the top level).
         file: PathBuf,
     },
     /// Print every field of a study file (and of each kind's scene) with its type and default (Markdown).
@@ -42,8 +44,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ConfigCommand::Check { file } => {
             let text = std::fs::read_to_string(&file)
                 .map_err(|e| anyhow::anyhow!("reading {}: {e}", file.display()))?;
-            let problems = check(&text);
-            if problems.is_empty() {
+            let (kind, problems) = check_file(&text);
+            let what = kind.describe().replace("FILE", &file.display().to_string());
+            if problems.is_empty() && kind == FileKind::FitScene {
+                println!("{}: ok ({what})", file.display());
+                Ok(())
+            } else if problems.is_empty() {
                 let s = Study::from_text(&text, &file.display().to_string())?;
                 let count = |k: springmass::study::kinds::Kind| {
                     s.cases.iter().filter(|c| c.kind == k).count()
@@ -78,7 +84,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 for p in &problems {
                     println!("{}: {p}", file.display());
                 }
-                eprintln!("{}: {} problem(s)", file.display(), problems.len());
+                eprintln!("{}: {} problem(s) ({what})", file.display(), problems.len());
                 std::process::exit(1);
             }
         }

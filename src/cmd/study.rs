@@ -3,8 +3,9 @@
 
 use anyhow::Context;
 use clap::{Args as ClapArgs, Subcommand};
+use springmass::study::run::check_threads;
 use springmass::study::run::{run as run_study, RunOptions};
-use springmass::study::shard::{merge, Shard};
+use springmass::study::shard::{merge, ShardSpec};
 use springmass::study::Study;
 use std::path::PathBuf;
 
@@ -24,13 +25,15 @@ pub struct Args {
     /// folder resumes: finished cases are not recomputed.
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Worker threads [default: number of cores]. Results do not depend on it.
+    /// Worker threads, 1 to 1024 [default: number of cores]. Results do not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
     /// Run only shard I of N (1-based): cases whose index is I-1 modulo N.
-    /// Combine the shard folders with `springmass study merge`.
-    #[arg(long, value_name = "I/N")]
-    pub shard: Option<Shard>,
+    /// `auto`: the task of a Slurm job array (SLURM_ARRAY_TASK_ID,
+    /// SLURM_ARRAY_TASK_COUNT). Combine the shard folders with
+    /// `springmass study merge`.
+    #[arg(long, value_name = "I/N|auto")]
+    pub shard: Option<ShardSpec>,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -55,18 +58,21 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(MergeCommand::Merge { dirs, out }) = a.merge {
         let m = merge(&dirs, &out)?;
         println!(
-            "merged {} records from {} folder(s): {} cases, {} failed",
+            "merged {} records from {} folder(s): {} cases, {} failed, {} skipped",
             m.read,
             dirs.len(),
             m.total,
-            m.failed
+            m.failed,
+            m.skipped
         );
         println!("report: {}", m.report.display());
         return Ok(());
     }
-    if a.threads == Some(0) {
-        anyhow::bail!("invalid threads = 0: allowed threads >= 1");
+    // every option before any work
+    if let Some(n) = a.threads {
+        check_threads(n)?;
     }
+    let shard = a.shard.map(|s| s.resolve()).transpose()?;
     let study = match (&a.file, a.default) {
         (Some(f), false) => Study::from_file(f)?,
         _ => Study::default_study()?,
@@ -77,25 +83,26 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .unwrap_or_else(|| PathBuf::from("out").join(&study.file.study.name));
     let mut opts = RunOptions::new(&out);
     opts.threads = a.threads;
-    opts.shard = a.shard;
+    opts.shard = shard;
     opts.progress = !a.quiet;
     eprintln!(
         "study {}: {} cases{}, output in {}",
         study.file.study.name,
         study.cases.len(),
-        a.shard.map(|s| format!(" (shard {s})")).unwrap_or_default(),
+        shard.map(|s| format!(" (shard {s})")).unwrap_or_default(),
         out.display()
     );
     let start = std::time::Instant::now();
     let s = run_study(&study, &opts).with_context(|| format!("running into {}", out.display()))?;
     eprintln!(
-        "{} run now, {} resumed, {} failed, in {:.1} s",
+        "{} run now, {} resumed, {} failed, {} skipped, in {:.1} s",
         s.ran,
         s.resumed,
         s.failed,
+        s.skipped,
         start.elapsed().as_secs_f64()
     );
-    match (&s.report, a.shard) {
+    match (&s.report, shard) {
         (Some(r), _) => println!("report: {}", r.display()),
         (None, Some(sh)) => println!(
             "shard {sh} done: {} cases in {}; combine the shard folders with `springmass study merge DIR... --out DIR`",

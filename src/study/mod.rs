@@ -10,9 +10,12 @@
 //!
 //! | module | what |
 //! |---|---|
-//! | [`config`] | the study file: schema with defaults, `config check` |
+//! | [`schema`], [`paths`], [`seeds`] | the bottom: field docs and problems, field paths, hashes |
+//! | [`config`] | the study file: types and schema with defaults |
+//! | [`check`] | `config check`: every problem in one pass; study file or fit scene |
 //! | [`sweep`] | crossing the axes into cases with stable ids and derived seeds |
 //! | [`kinds`] | what one case does (`forward`, ...) |
+//! | [`records`] | `results.jsonl` records, the manifest, safe output folders |
 //! | [`run`] | the parallel, resumable runner |
 //! | [`report`] | `summary.csv`, `report.md`, SVG plots |
 //! | [`shard`] | `--shard I/N` and `study merge` |
@@ -25,12 +28,17 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+pub mod check;
 pub mod config;
 pub mod kinds;
+pub mod paths;
 #[cfg(not(feature = "cli"))]
 mod progress;
+pub mod records;
 pub mod report;
 pub mod run;
+pub mod schema;
+pub mod seeds;
 pub mod shard;
 pub mod sweep;
 
@@ -61,9 +69,9 @@ impl Study {
     ///
     /// # Errors
     /// [`Error::Parse`] with every problem of the file (as
-    /// [`config::check`] lists them), one per line.
+    /// [`check::check`] lists them), one per line.
     pub fn from_text(text: &str, origin: &str) -> Result<Study> {
-        let problems = config::check(text);
+        let problems = check::check(text);
         if !problems.is_empty() {
             let all: Vec<String> = problems.iter().map(|p| p.to_string()).collect();
             return Err(Error::parse(
@@ -135,7 +143,7 @@ mod tests {
                 if !text.lines().any(|l| l.trim() == "[study]") {
                     continue;
                 }
-                assert_eq!(config::check(&text), vec![], "{}", p.display());
+                assert_eq!(check::check(&text), vec![], "{}", p.display());
                 n += 1;
             }
         }

@@ -8,7 +8,7 @@
 //! durations) is written.
 
 use super::config::{Aggregate, HeatmapSpec, PlotSpec, TableSpec, TraceSpec};
-use super::run::Record;
+use super::records::{Counts, Record};
 use super::sweep::{format_float, MAIN_PART, PART_COLUMN};
 use super::Study;
 use crate::error::{Error, Result};
@@ -25,6 +25,22 @@ pub const SUMMARY: &str = "summary.csv";
 struct Columns {
     axes: Vec<String>,
     metrics: Vec<String>,
+}
+
+/// Columns of `summary.csv` before the axes and between axes and metrics.
+const FIXED_COLUMNS: &[&str] = &["id", "repeat", "seed", "status", "error"];
+
+impl Columns {
+    /// The header of metric `m`: its name, or `metric_<name>` when an axis
+    /// (or a fixed column) has that name already (the forward kind's metric
+    /// `n` beside an axis named `n`), so that no column appears twice.
+    fn metric_header(&self, m: &str) -> String {
+        if self.axes.iter().any(|a| a == m) || FIXED_COLUMNS.contains(&m) {
+            format!("metric_{m}")
+        } else {
+            m.to_string()
+        }
+    }
 }
 
 fn columns(study: &Study) -> Columns {
@@ -179,7 +195,7 @@ pub fn summary_csv(study: &Study, records: &[Record]) -> Result<String> {
     let mut header: Vec<String> = vec!["id".into(), "repeat".into(), "seed".into()];
     header.extend(cols.axes.iter().cloned());
     header.extend(["status".to_string(), "error".to_string()]);
-    header.extend(cols.metrics.iter().cloned());
+    header.extend(cols.metrics.iter().map(|m| cols.metric_header(m)));
     let csv_err = |e: csv::Error| Error::invalid("summary.csv", "?", e.to_string());
     w.write_record(&header).map_err(csv_err)?;
     for r in records {
@@ -582,7 +598,7 @@ pub fn trace_chart(records: &[Record], spec: &TraceSpec) -> Result<LinePlot> {
 fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)>) {
     let f = &study.file;
     let cols = columns(study);
-    let ok = records.iter().filter(|r| r.ok()).count();
+    let counts = Counts::of(records);
     let mut s = format!("# Study `{}`\n\n", f.study.name);
     if !f.study.description.trim().is_empty() {
         s.push_str(f.study.description.trim());
@@ -591,13 +607,12 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
     s.push_str("| | |\n|---|---|\n");
     s.push_str(&format!("| kind | `{}` |\n", f.study.kind.name()));
     // (the kinds of the parts are listed with their axes below)
-    let skipped = records.iter().filter(|r| r.status == "skipped").count();
     s.push_str(&format!(
         "| cases | {} ({} ok, {} failed, {} skipped) |\n",
         records.len(),
-        ok,
-        records.len() - ok - skipped,
-        skipped
+        counts.ok,
+        counts.failed,
+        counts.skipped
     ));
     s.push_str(&format!(
         "| seed | {} |\n| repeats | {} |\n",
@@ -779,7 +794,11 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
         }
         header.extend(cols.axes.iter().map(|a| format!("`{a}`")));
         header.push("status".into());
-        header.extend(cols.metrics.iter().map(|m| format!("`{m}`")));
+        header.extend(
+            cols.metrics
+                .iter()
+                .map(|m| format!("`{}`", cols.metric_header(m))),
+        );
         s.push_str(&format!(
             "| {} |\n|{}\n",
             header.join(" | "),

@@ -28,15 +28,18 @@
 use super::kinds::CaseOutput;
 #[cfg(not(feature = "cli"))]
 use super::progress::progress_bar;
+pub use super::records::{
+    check_out_folder, load_records, write_records, Counts, Manifest, Record, CASES, MANIFEST,
+    RESULTS, STUDY_COPY,
+};
 use super::shard::Shard;
-use super::sweep::{Case, Param};
+use super::sweep::Case;
 use super::Study;
 use crate::error::{Error, Result};
 use crate::series::write_atomic;
 #[cfg(feature = "cli")]
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fs::{File, OpenOptions};
 #[cfg_attr(not(feature = "cli"), allow(unused_imports))]
@@ -45,68 +48,22 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-/// File names inside an output folder.
-pub const RESULTS: &str = "results.jsonl";
-/// The copy of the study file.
-pub const STUDY_COPY: &str = "study.toml";
-/// The manifest.
-pub const MANIFEST: &str = "manifest.json";
+/// Most worker threads of a run (`--threads`).
+pub const MAX_THREADS: usize = 1024;
 
-/// The record of one finished case: one line of `results.jsonl`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Record {
-    /// Case id (`c0042`).
-    pub id: String,
-    /// Case content key (see [`Case::key`]).
-    pub key: String,
-    /// The case's seed.
-    pub seed: u64,
-    /// Replicate number.
-    pub repeat: usize,
-    /// Axis values.
-    pub params: Vec<Param>,
-    /// `ok`, `error` or `skipped` (an invalid scene with `study.invalid_cases = "skip"`).
-    pub status: String,
-    /// The error message of a failed case.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub error: Option<String>,
-    /// Reproducible results.
-    pub metrics: serde_json::Map<String, serde_json::Value>,
-    /// Measured timings (empty when `study.timings = false`).
-    #[serde(default, skip_serializing_if = "serde_json::Map::is_empty")]
-    pub timings: serde_json::Map<String, serde_json::Value>,
-    /// Pictures of this case, relative to the output folder
-    /// (`cases/<id>-<name>.svg`), written before the record.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub files: Vec<String>,
-    /// The optimizer's trace, `[evaluations, best residual so far]` at each
-    /// improvement (kind `fit` with `search.trace = true`; empty otherwise).
-    /// Kept in the record so that a resumed or merged run draws the same
-    /// `[[report.trace]]` plots.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub trace: Vec<[f64; 2]>,
-}
-
-impl Record {
-    /// Did the case succeed?
-    pub fn ok(&self) -> bool {
-        self.status == "ok"
+/// Check a thread count: `1 <= n <=` [`MAX_THREADS`].
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming `threads` and the allowed range.
+pub fn check_threads(n: usize) -> Result<()> {
+    if n == 0 || n > MAX_THREADS {
+        return Err(Error::invalid(
+            "threads",
+            n,
+            format!("1 <= threads <= {MAX_THREADS}"),
+        ));
     }
-}
-
-/// What identifies the study an output folder belongs to.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Manifest {
-    /// Study name.
-    pub study: String,
-    /// Content hash of the study file text (16 hex digits).
-    pub hash: String,
-    /// Number of cases of the whole study.
-    pub cases: usize,
-    /// The shard (`I/N`), if this folder holds one.
-    pub shard: Option<String>,
+    Ok(())
 }
 
 /// Options of a run.
@@ -149,16 +106,17 @@ pub struct RunSummary {
     pub resumed: usize,
     /// Cases run now.
     pub ran: usize,
-    /// Failed cases among all finished ones of the slice.
+    /// Failed cases (status `error`) among all finished ones of the slice.
     pub failed: usize,
+    /// Skipped cases (status `skipped`: invalid scenes with
+    /// `study.invalid_cases = "skip"`) among all finished ones of the slice;
+    /// not counted in `failed`.
+    pub skipped: usize,
     /// Every case of the slice is finished.
     pub complete: bool,
     /// The report, when written (complete, unsharded runs).
     pub report: Option<PathBuf>,
 }
-
-/// Folder of the per-case pictures inside an output folder.
-pub const CASES: &str = "cases";
 
 /// Run one case and write its pictures into `out/cases/` (atomically, before
 /// the record that lists them is appended). Never panics: a panic in a kind,
@@ -230,9 +188,11 @@ pub fn execute_case(study: &Study, case: &Case) -> (Record, Vec<super::kinds::Ca
 /// Run a study (or one shard of it) into `opts.out`, resuming what is there.
 ///
 /// # Errors
-/// [`Error::Io`] on the output folder; [`Error::InvalidParameter`] when the
-/// folder belongs to another study or shard, or when a record in it does not
-/// match this study's cases.
+/// [`Error::InvalidParameter`] for a thread count outside `1..=`
+/// [`MAX_THREADS`], an output path that is not a folder or a non-empty
+/// folder without a manifest (results this tool did not write: refused, never
+/// overwritten), a folder of another study or shard, or a record in it that
+/// does not match this study's cases; [`Error::Io`] on the output folder.
 ///
 /// ```no_run
 /// use springmass::study::{Study, run::{run, RunOptions}};
@@ -243,6 +203,10 @@ pub fn execute_case(study: &Study, case: &Case) -> (Record, Vec<super::kinds::Ca
 /// ```
 pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
     let out = &opts.out;
+    if let Some(n) = opts.threads {
+        check_threads(n)?;
+    }
+    check_out_folder(out)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let manifest = Manifest {
         study: study.file.study.name.clone(),
@@ -320,7 +284,7 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
     }
     let records = read_records(out, study)?;
     let complete = selected.iter().all(|c| records.contains_key(&c.id));
-    let failed = records.values().filter(|r| !r.ok()).count();
+    let counts = Counts::of(records.values());
     let mut report = None;
     if complete {
         let sorted: Vec<Record> = records.into_values().collect();
@@ -335,7 +299,8 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
         selected: selected.len(),
         resumed,
         ran: todo.len(),
-        failed,
+        failed: counts.failed,
+        skipped: counts.skipped,
         complete,
         report,
     })
@@ -389,10 +354,16 @@ fn prepare_folder(out: &Path, study: &Study, manifest: &Manifest) -> Result<()> 
                 ),
             ));
         }
+        if !out.join(STUDY_COPY).is_file() {
+            // a run killed between the manifest and the copy of the study
+            write_atomic(&out.join(STUDY_COPY), study.text.as_bytes())?;
+        }
     } else {
-        write_atomic(&out.join(STUDY_COPY), study.text.as_bytes())?;
+        // the manifest first: from then on the folder is ours (a run killed
+        // before the copy of the study resumes and writes it)
         let text = serde_json::to_string_pretty(manifest).unwrap_or_default() + "\n";
         write_atomic(&mpath, text.as_bytes())?;
+        write_atomic(&out.join(STUDY_COPY), study.text.as_bytes())?;
     }
     Ok(())
 }
@@ -433,51 +404,6 @@ pub fn read_records(out: &Path, study: &Study) -> Result<BTreeMap<String, Record
         write_records(out, &v)?;
     }
     Ok(by_id)
-}
-
-/// Parse a `results.jsonl`: the records of its complete, valid lines, and
-/// whether anything (a partial last line, a damaged line) was dropped.
-///
-/// # Errors
-/// [`Error::Io`] other than a missing file.
-pub fn load_records(path: &Path) -> Result<(Vec<Record>, bool)> {
-    let bytes = match std::fs::read(path) {
-        Ok(b) => b,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok((vec![], false)),
-        Err(e) => return Err(Error::io(path, e)),
-    };
-    let mut dirty = false;
-    let mut out = Vec::new();
-    let complete_len = bytes.iter().rposition(|&b| b == b'\n').map_or(0, |p| p + 1);
-    if complete_len < bytes.len() {
-        dirty = true; // a partial last line: the case is run again
-    }
-    for line in bytes[..complete_len].split(|&b| b == b'\n') {
-        if line.is_empty() {
-            continue;
-        }
-        match std::str::from_utf8(line)
-            .ok()
-            .and_then(|l| serde_json::from_str::<Record>(l).ok())
-        {
-            Some(r) => out.push(r),
-            None => dirty = true,
-        }
-    }
-    Ok((out, dirty))
-}
-
-/// Write `records` as `results.jsonl` atomically, in the order given.
-pub fn write_records(out: &Path, records: &[Record]) -> Result<()> {
-    let mut text = String::new();
-    for r in records {
-        text.push_str(
-            &serde_json::to_string(r)
-                .map_err(|e| Error::invalid("record", &r.id, e.to_string()))?,
-        );
-        text.push('\n');
-    }
-    write_atomic(&out.join(RESULTS), text.as_bytes())
 }
 
 /// Appends one line per `write` call, `fsync`ing at most once a second.

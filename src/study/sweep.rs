@@ -34,7 +34,10 @@
 //! ```
 
 use super::config::{Axis, Spacing, StudyFile};
+pub use super::config::{MAIN_PART, PART_COLUMN};
 use super::kinds::Kind;
+pub use super::paths::{parse_path, set_path, Segment};
+pub use super::seeds::{fnv1a, splitmix64};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
@@ -79,108 +82,6 @@ impl Case {
             .collect::<Vec<_>>()
             .join(", ")
     }
-}
-
-/// One segment of a field path.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum Segment {
-    /// A table key.
-    Key(String),
-    /// An array index.
-    Index(usize),
-}
-
-/// Parse `a.b[2].c` into segments.
-///
-/// # Errors
-/// A message naming the bad part (empty key, bad index, characters outside
-/// `A-Za-z0-9_-`).
-pub fn parse_path(path: &str) -> std::result::Result<Vec<Segment>, String> {
-    let mut out = Vec::new();
-    if path.is_empty() {
-        return Err("empty field path".into());
-    }
-    for part in path.split('.') {
-        let (key, mut rest) = match part.find('[') {
-            Some(i) => (&part[..i], &part[i..]),
-            None => (part, ""),
-        };
-        if key.is_empty()
-            || !key
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
-        {
-            return Err(format!(
-                "bad key {key:?} in field path {path:?}: keys are letters, digits, '_', '-'"
-            ));
-        }
-        out.push(Segment::Key(key.to_string()));
-        while !rest.is_empty() {
-            let close = rest
-                .find(']')
-                .ok_or_else(|| format!("unclosed '[' in field path {path:?}"))?;
-            let idx: usize = rest[1..close]
-                .parse()
-                .map_err(|_| format!("bad index {:?} in field path {path:?}", &rest[1..close]))?;
-            out.push(Segment::Index(idx));
-            rest = &rest[close + 1..];
-            if !rest.is_empty() && !rest.starts_with('[') {
-                return Err(format!("unexpected {rest:?} in field path {path:?}"));
-            }
-        }
-    }
-    Ok(out)
-}
-
-/// Set the field at `path` of `root` to `value`, creating missing tables.
-///
-/// # Errors
-/// A message naming the path: an index past the end of an array, or a
-/// non-table on the way.
-pub fn set_path(
-    root: &mut toml::Value,
-    path: &str,
-    value: toml::Value,
-) -> std::result::Result<(), String> {
-    let segs = parse_path(path)?;
-    let mut cur = root;
-    let last = segs.len() - 1;
-    for (i, seg) in segs.iter().enumerate() {
-        match seg {
-            Segment::Key(k) => {
-                let t = cur.as_table_mut().ok_or_else(|| {
-                    format!("cannot set {path:?}: the part before {k:?} is not a table")
-                })?;
-                if i == last {
-                    t.insert(k.clone(), value);
-                    return Ok(());
-                }
-                let next_is_index = matches!(segs[i + 1], Segment::Index(_));
-                cur = t.entry(k.clone()).or_insert_with(|| {
-                    if next_is_index {
-                        toml::Value::Array(vec![])
-                    } else {
-                        toml::Value::Table(toml::Table::new())
-                    }
-                });
-            }
-            Segment::Index(idx) => {
-                let a = cur.as_array_mut().ok_or_else(|| {
-                    format!("cannot set {path:?}: [{idx}] applied to a non-array")
-                })?;
-                let len = a.len();
-                let slot = a.get_mut(*idx).ok_or_else(|| {
-                    format!("cannot set {path:?}: index {idx} past the end (the array has {len} elements)")
-                })?;
-                if i == last {
-                    *slot = value;
-                    return Ok(());
-                }
-                cur = slot;
-            }
-        }
-    }
-    Ok(())
 }
 
 /// The values of one axis, with their labels.
@@ -340,24 +241,6 @@ pub fn to_json(v: &toml::Value) -> serde_json::Value {
     }
 }
 
-/// 64-bit FNV-1a: a hash that is the same on every platform and Rust version.
-pub fn fnv1a(bytes: &[u8]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for &b in bytes {
-        h ^= u64::from(b);
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    h
-}
-
-/// SplitMix64 finaliser: spreads a 64-bit value over all bits.
-pub fn splitmix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
-}
-
 /// Expand a study into its cases (axes crossed, first slowest; repeats innermost).
 ///
 /// # Errors
@@ -432,11 +315,6 @@ pub fn expand(file: &StudyFile) -> Result<Vec<Case>> {
 
 /// (kind, part label, base scene, axes, field prefix of the axes) of one part.
 type PartRef<'a> = (Kind, Option<&'a str>, &'a toml::Table, &'a [Axis], String);
-
-/// Column of the part of a case (studies with `[[part]]` only).
-pub const PART_COLUMN: &str = "part";
-/// The `part` label of the cases of the main `[scene]` / `[[sweep]]`.
-pub const MAIN_PART: &str = "main";
 
 /// The `(params, repeat, scene)` of one part: its axes crossed, the first
 /// slowest, repeats innermost; `head` (the part column) first in `params`.

@@ -19,14 +19,15 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::{chain_problems, CaseOutput, KindScene};
+use super::case::{chain_problems, CaseOutput, KindScene};
 use crate::chain::Defect;
 use crate::detect::fit::paper::fit;
 use crate::detect::fit::FitMethod;
 use crate::detect::scene::{DataSourceKind, FitScene};
 use crate::error::{check_f64, Error, Result};
-use crate::study::config::FieldDoc;
-use crate::study::sweep::{set_path, splitmix64};
+use crate::study::paths::set_path;
+use crate::study::schema::FieldDoc;
+use crate::study::seeds::splitmix64;
 
 /// One paragraph for the schema page.
 pub const SUMMARY: &str = "Fits the unknown defects of a chain to synthetic data of its true defects (detect::fit with a FitScene) and records whether the positions were recovered, the errors, the residual gap against the data's floor, and the cost.";

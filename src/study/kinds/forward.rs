@@ -29,13 +29,13 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::{prefix_chain, CaseOutput, KindScene};
+use super::case::{prefix_chain, CaseOutput, KindScene};
 use crate::chain::{ChainSpec, Defect};
 use crate::error::{check_f64, Error, Result};
 use crate::forward::transfer::Transfer;
 use crate::forward::{tridiag, Forward};
 use crate::scalar::Scalar;
-use crate::study::config::FieldDoc;
+use crate::study::schema::FieldDoc;
 use num_complex::Complex64;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -24,7 +24,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::{chain_problems, CaseOutput, CasePlot, KindScene};
+use super::case::{chain_problems, CaseOutput, CasePlot, KindScene};
 use crate::chain::{Chain, ChainSpec, Defect};
 use crate::detect::locate::{curve, default_grid, locate, LaplaceData, Method, Model, SChoice};
 use crate::error::{check_f64, Error, Result};
@@ -32,7 +32,7 @@ use crate::plot::{Line, LinePlot};
 use crate::precision::RealScalar;
 #[cfg(feature = "bigfloat")]
 use crate::precision::{with_precision, BigReal};
-use crate::study::config::FieldDoc;
+use crate::study::schema::FieldDoc;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 

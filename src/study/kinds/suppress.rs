@@ -20,12 +20,12 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::{CaseOutput, CasePlot, KindScene};
+use super::case::{CaseOutput, CasePlot, KindScene};
 use crate::control::verify::{verify, Input, Perturbation, Run, Target, VerifyOptions};
 use crate::control::{Scheme, Suppression};
 use crate::error::{check_f64, Error, Result};
 use crate::plot::{Line, LinePlot};
-use crate::study::config::FieldDoc;
+use crate::study::schema::FieldDoc;
 use crate::time::simulate::Method;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
