@@ -561,7 +561,7 @@ search = { method = "ga", max_evals = "many" }
         .args(["config", "check", file.to_str().unwrap()])
         .output()
         .unwrap();
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(2));
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(out.contains("line 6: scene.data.noise"), "{out}");
     assert!(out.contains("line 9: scene.search.max_evals"), "{out}");
@@ -637,7 +637,7 @@ fn config_check_reports_every_problem_with_path_and_line() {
         .args(["config", "check", bad.to_str().unwrap()])
         .output()
         .unwrap();
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(2));
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(
         out.contains("line 5: study.sed: unknown field 'sed'"),

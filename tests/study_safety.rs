@@ -166,7 +166,7 @@ fn config_check_says_which_kind_of_file_and_checks_fit_scenes() {
     let file = dir.join("scene.toml");
     std::fs::write(&file, bad).unwrap();
     let o = run(&["config", "check", file.to_str().unwrap()], &[]);
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).contains("line 3: chain.nn"), "{}", text(&o));
     assert!(text(&o).contains("this is a fit scene"), "{}", text(&o));
     // a study file says so

@@ -42,8 +42,7 @@ pub enum ConfigCommand {
 pub fn run(a: Args) -> anyhow::Result<()> {
     match a.command {
         ConfigCommand::Check { file } => {
-            let text = std::fs::read_to_string(&file)
-                .map_err(|e| anyhow::anyhow!("reading {}: {e}", file.display()))?;
+            let text = springmass::io::read_to_string_capped(&file)?;
             let (kind, problems) = check_file(&text);
             let what = kind.describe().replace("FILE", &file.display().to_string());
             if problems.is_empty() && kind == FileKind::FitScene {
@@ -85,7 +84,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     println!("{}: {p}", file.display());
                 }
                 eprintln!("{}: {} problem(s) ({what})", file.display(), problems.len());
-                std::process::exit(1);
+                // invalid input: the documented exit status 2
+                std::process::exit(2);
             }
         }
         ConfigCommand::Schema => {
