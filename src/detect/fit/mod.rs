@@ -618,10 +618,10 @@ impl Engine<'_> {
             Observations::Series(s) => {
                 let setup = setup_for(Some(s), self.model)?;
                 let td = s.time_data(sigma)?;
-                let coarse_kind = if self.misfit == MisfitKind::RealAxis {
-                    MisfitKind::RealAxis
-                } else {
-                    MisfitKind::Bromwich
+                // the time misfit refines a shortlist of the Bromwich line's
+                let coarse_kind = match self.misfit {
+                    MisfitKind::Time => MisfitKind::Bromwich,
+                    laplace => laplace,
                 };
                 let coarse = laplace_obs(&td, coarse_kind, &setup)?;
                 let name = match self.misfit {
@@ -635,9 +635,11 @@ impl Engine<'_> {
                         setup.bromwich_sigma,
                         coarse.dof()
                     ),
-                    MisfitKind::RealAxis => {
-                        format!("real-axis (whitened chi-square on [0, 300], {} dof)", coarse.dof())
-                    }
+                    laplace => format!(
+                        "{} (whitened chi-square, {} dof)",
+                        laplace.name(),
+                        coarse.dof()
+                    ),
                 };
                 let fine = (self.misfit == MisfitKind::Time).then(|| TimeMisfit::new(td));
                 Ok((coarse, fine, name, setup))

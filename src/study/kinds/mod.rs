@@ -10,6 +10,7 @@ pub mod case;
 pub mod fit;
 pub mod forward;
 pub mod locate;
+pub mod noise;
 pub mod suppress;
 
 use crate::error::{Error, Result};
@@ -33,10 +34,19 @@ pub enum Kind {
     Fit,
     /// Explicit single-defect locators (section 4.1).
     Locate,
+    /// The data-first fit of a noisy record of a reference system, scored
+    /// against its truth (the noise study).
+    Noise,
 }
 
 /// Every kind, in documentation order.
-pub const ALL: &[Kind] = &[Kind::Forward, Kind::Suppress, Kind::Fit, Kind::Locate];
+pub const ALL: &[Kind] = &[
+    Kind::Forward,
+    Kind::Suppress,
+    Kind::Fit,
+    Kind::Locate,
+    Kind::Noise,
+];
 
 impl Kind {
     /// The name used in `study.kind`.
@@ -45,6 +55,7 @@ impl Kind {
             Kind::Forward => "forward",
             Kind::Suppress => "suppress",
             Kind::Fit => "fit",
+            Kind::Noise => "noise",
             Kind::Locate => "locate",
         }
     }
@@ -71,6 +82,7 @@ impl Kind {
             Kind::Forward => forward::SUMMARY,
             Kind::Suppress => suppress::SUMMARY,
             Kind::Fit => fit::SUMMARY,
+            Kind::Noise => noise::SUMMARY,
             Kind::Locate => locate::SUMMARY,
         }
     }
@@ -81,6 +93,7 @@ impl Kind {
             Kind::Forward => forward::FIELDS,
             Kind::Suppress => suppress::FIELDS,
             Kind::Fit => fit::FIELDS,
+            Kind::Noise => noise::FIELDS,
             Kind::Locate => locate::FIELDS,
         }
     }
@@ -91,6 +104,7 @@ impl Kind {
             Kind::Forward => forward::METRICS,
             Kind::Suppress => suppress::METRICS,
             Kind::Fit => fit::METRICS,
+            Kind::Noise => noise::METRICS,
             Kind::Locate => locate::METRICS,
         }
     }
@@ -105,6 +119,7 @@ impl Kind {
             Kind::Forward => forward::Scene::from_value(scene).map(|_| ()),
             Kind::Suppress => suppress::Scene::from_value(scene).map(|_| ()),
             Kind::Fit => fit::scene(scene).map(|_| ()),
+            Kind::Noise => noise::Scene::from_value(scene).map(|_| ()),
             Kind::Locate => locate::Scene::from_value(scene).map(|_| ()),
         }
     }
@@ -117,6 +132,7 @@ impl Kind {
             Kind::Forward => forward::Scene::all_problems(scene),
             Kind::Suppress => suppress::Scene::all_problems(scene),
             Kind::Fit => crate::detect::scene::FitScene::all_problems(scene),
+            Kind::Noise => noise::Scene::all_problems(scene),
             Kind::Locate => locate::Scene::all_problems(scene),
         }
     }
@@ -131,6 +147,7 @@ impl Kind {
             Kind::Forward => forward::run(&forward::Scene::from_value(scene)?, seed),
             Kind::Suppress => suppress::run(&suppress::Scene::from_value(scene)?, seed),
             Kind::Fit => fit::run(scene, seed),
+            Kind::Noise => noise::run(&noise::Scene::from_value(scene)?, seed),
             Kind::Locate => locate::run(&locate::Scene::from_value(scene)?, seed),
         }
     }
