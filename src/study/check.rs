@@ -656,8 +656,10 @@ values = [5, 10]
         assert_eq!(r.message, "repeats must be an integer >= 1, got \"two\"");
         assert_eq!(r.line, Some(4));
         // the [scene] problem is found although [study] has one
-        let m = find("scene.chain.defects[0].m").unwrap_or_else(|| panic!("{p:?}"));
-        assert_eq!(m.message, "m must be a float > 0, got \"heavy\"");
+        // a defect is one value to serde: its type error names the defect,
+        // the line and the offending value
+        let m = find("scene.chain.defects[0]").unwrap_or_else(|| panic!("{p:?}"));
+        assert!(m.message.contains("\"heavy\""), "{m:?}");
         assert_eq!(m.line, Some(8));
     }
 

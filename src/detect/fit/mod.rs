@@ -66,7 +66,7 @@ use crate::detect::fit::general::{
 use crate::detect::misfit::quadrature::Rule;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::MisfitKind;
-use crate::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
+use crate::detect::search::{minimize, Candidate, Objective, SearchOptions, Space};
 use crate::detect::unknowns::{DefectKind, GeneralUnknowns, KindBounds, KindChoice, Slot};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
@@ -847,12 +847,14 @@ impl Engine<'_> {
     /// chi-square: the best position set, the evaluations, and whether the
     /// budget ran out.
     fn stochastic(&self, k: usize, coarse: &LaplaceObs) -> Result<(Vec<usize>, usize, bool)> {
-        let method = match self.opts.method {
-            FitMethod::Ga => Method::Genetic,
-            FitMethod::NelderMead => Method::NelderMead,
-            FitMethod::Pso => Method::ParticleSwarm,
-            FitMethod::Enumerate => unreachable!("enumeration is not stochastic"),
-        };
+        let method = self
+            .opts
+            .method
+            .stochastic()
+            .ok_or_else(|| Error::Numerical {
+                method: self.opts.method.name().into(),
+                reason: "enumeration is not a stochastic search".into(),
+            })?;
         let mut space = Space::masses(self.model.n(), k, KindBounds::default().mass);
         space.excluded = self
             .model

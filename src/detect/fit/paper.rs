@@ -56,7 +56,7 @@ use crate::detect::misfit::{Misfit, MisfitKind};
 use crate::detect::scene::{FitScene, SceneOptions};
 use crate::detect::search::enumerate::{enumerate, fit_slots, Defects, EnumerateOptions};
 use crate::detect::search::FitMethod;
-use crate::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
+use crate::detect::search::{minimize, Candidate, Objective, SearchOptions, Space};
 use crate::detect::unknowns::{MassUnknown, Unknowns};
 use crate::error::{Error, Result};
 use num_complex::Complex64;
@@ -169,11 +169,10 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<FitR
             )
         }
         m => {
-            let method = match m {
-                FitMethod::Ga => Method::Genetic,
-                FitMethod::NelderMead => Method::NelderMead,
-                _ => Method::ParticleSwarm,
-            };
+            let method = m.stochastic().ok_or_else(|| Error::Numerical {
+                method: m.name().into(),
+                reason: "enumeration is handled above".into(),
+            })?;
             if !unknowns.interchangeable() {
                 return Err(Error::invalid(
                     "search.method",

@@ -166,6 +166,16 @@ impl FitMethod {
             FitMethod::Pso => "pso",
         }
     }
+
+    /// The optimizer behind a stochastic method; `None` for enumeration.
+    pub fn stochastic(self) -> Option<Method> {
+        match self {
+            FitMethod::Enumerate => None,
+            FitMethod::Ga => Some(Method::Genetic),
+            FitMethod::NelderMead => Some(Method::NelderMead),
+            FitMethod::Pso => Some(Method::ParticleSwarm),
+        }
+    }
 }
 
 /// The available optimizers.
