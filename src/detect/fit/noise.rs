@@ -23,7 +23,7 @@
 //! use rand::SeedableRng;
 //! use rand_distr::{Distribution, StandardNormal};
 //! let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-//! let noise: Vec<f64> = (0..4000).map(|_| 1e-3 * StandardNormal.sample::<f64>(&mut rng)).collect();
+//! let noise: Vec<f64> = (0..4000).map(|_| { let z: f64 = StandardNormal.sample(&mut rng); 1e-3 * z }).collect();
 //! let x: Vec<f64> = (0..4000).map(|i| (0.05 * i as f64).sin()).zip(&noise).map(|(a, b)| a + b).collect();
 //! let s = high_frequency_sigma(&x);
 //! assert!((s / 1e-3 - 1.0).abs() < 0.1, "{s}");
