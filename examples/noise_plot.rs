@@ -45,7 +45,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .and_then(|l| l.split(',').nth(3))
         .unwrap_or("?");
     let mut plot = LinePlot::new(
-        format!("Both positions found ({runs} seeds per point), one panel per system"),
+        format!(
+            "Positions exact and masses within 5% ({runs} seeds per point), one panel per system"
+        ),
         "noise level (relative to max |x_1|)",
         "success rate",
     )
