@@ -28,7 +28,7 @@
 //!
 //! Every table refuses unknown fields (`deny_unknown_fields`); the defaults
 //! are in [`STUDY_FIELDS`] and, per kind, in the kind's own schema
-//! ([`crate::study::kinds::Kind::schema`]). [`check`] reports every problem
+//! ([`crate::study::kinds::Kind::schema`]). [`check`](crate::study::check::check) reports every problem
 //! of a file with its field path and line.
 
 use super::kinds::Kind;
@@ -504,7 +504,7 @@ pub const STUDY_FIELDS: &[FieldDoc] = &[
     FieldDoc::new("report.trace[].logy", "bool", "true", "Logarithmic residual axis (non-positive values are dropped)."),
 ];
 
-/// Parse a study file, failing on the first problem (see [`check`] for all
+/// Parse a study file, failing on the first problem (see [`check`](crate::study::check::check) for all
 /// of them). The semantic checks of every case are done by
 /// [`crate::study::Study::from_text`].
 ///
