@@ -1,6 +1,6 @@
 //! Forward model against independent references: dense LU (nalgebra), the O(n)
 //! pivoted tridiagonal solver, and the 60-digit reference values in
-//! `../shared/reference/laplace_*.json`.
+//! `tests/data/laplace_*.json` (see tests/data/README.md).
 
 mod common;
 
