@@ -749,6 +749,41 @@ pub fn score(rep: &crate::detect::fit::FitReport, truth: &Chain) -> Score {
     }
 }
 
+/// The data-first fit of a noisy record of `truth`, told only its uniform
+/// part (n, d, ...), the number of defects when `k_given` (otherwise chosen
+/// by BIC among `0..=min(4, n)`), the misfit (`None`: the fit's default)
+/// and the true noise level when `noise_given` (otherwise estimated).
+/// Sequential (the studies run cases in parallel).
+///
+/// # Errors
+/// As [`crate::detect::fit::fit`].
+pub fn fit_record(
+    truth: &Chain,
+    data: &TimeData,
+    k_given: bool,
+    misfit: Option<MisfitKind>,
+    noise_given: bool,
+) -> Result<crate::detect::fit::FitReport> {
+    use crate::detect::data::observations::{Observations, Series};
+    use crate::detect::fit::{fit, DefectCount, FitOptions, Model, NoiseSpec, DEFAULT_K_MAX};
+    let sigma = (noise_given && data.sigma() > 0.0).then_some(data.sigma());
+    let obs = Observations::Series(Series::new(data.t().to_vec(), data.y().to_vec(), sigma)?);
+    let opts = FitOptions {
+        defects: if k_given {
+            DefectCount::Exactly(truth.defects().len())
+        } else {
+            DefectCount::Auto {
+                k_max: DEFAULT_K_MAX.min(truth.n()),
+            }
+        },
+        noise: sigma.map_or(NoiseSpec::Auto, NoiseSpec::Sigma),
+        misfit,
+        parallel: false,
+        ..FitOptions::default()
+    };
+    fit(&obs, &Model::from_chain(&truth.uniform()), &opts)
+}
+
 /// A seed from values (not list positions): a subset of systems, levels or
 /// repeats reproduces the full table's cells.
 pub fn value_seed(system: &str, level: f64, repeat: usize, study_seed: u64) -> u64 {
@@ -771,8 +806,6 @@ pub fn data_first(
     cfg: &StudyConfig,
     k_given: bool,
 ) -> Result<Vec<DataFirstRow>> {
-    use crate::detect::data::observations::{Observations, Series};
-    use crate::detect::fit::{fit, DefectCount, FitOptions, Model};
     let mut tasks = Vec::new();
     for s in systems {
         for &level in &cfg.levels {
@@ -790,22 +823,9 @@ pub fn data_first(
                 level,
                 value_seed(&s.name, level, r, cfg.seed),
             )?;
-            let obs =
-                Observations::Series(Series::new(data.t().to_vec(), data.y().to_vec(), None)?);
             let k_true = s.truth.defects().len();
-            let opts = FitOptions {
-                defects: if k_given {
-                    DefectCount::Exactly(k_true)
-                } else {
-                    DefectCount::Auto {
-                        k_max: crate::detect::fit::DEFAULT_K_MAX.min(s.truth.n()),
-                    }
-                },
-                parallel: false,
-                ..FitOptions::default()
-            };
             let t0 = std::time::Instant::now();
-            let rep = fit(&obs, &Model::from_chain(&s.truth.uniform()), &opts)?;
+            let rep = fit_record(&s.truth, &data, k_given, None, false)?;
             let sc = score(&rep, &s.truth);
             Ok(DataFirstRow {
                 system: s.name.clone(),

@@ -328,12 +328,11 @@ impl FitOptions {
     /// `max_evals` (0), `max_sets` (0).
     pub fn validate(&self, obs: &Observations, model: &Model) -> Result<()> {
         let n = model.n();
-        let free_places = n;
         match self.defects {
-            DefectCount::Exactly(k) if k > free_places => {
+            DefectCount::Exactly(k) if k > n => {
                 return Err(Error::invalid("defects", k, format!("<= n = {n}")))
             }
-            DefectCount::Auto { k_max } if k_max > free_places => {
+            DefectCount::Auto { k_max } if k_max > n => {
                 return Err(Error::invalid("k_max", k_max, format!("<= n = {n}")))
             }
             _ => {}

@@ -23,10 +23,8 @@
 
 use super::case::{CaseOutput, KindScene};
 use crate::chain::Chain;
-use crate::detect::data::observations::{Observations, Series};
-use crate::detect::fit::{fit, DefectCount, FitOptions, Model, DEFAULT_K_MAX};
 use crate::detect::misfit::MisfitKind;
-use crate::detect::noise_study::{noisy_data, selection_truths, systems, StudyConfig};
+use crate::detect::noise_study::{fit_record, noisy_data, selection_truths, systems, StudyConfig};
 use crate::error::{check_f64, Error, Result};
 use crate::study::schema::FieldDoc;
 use serde::{Deserialize, Serialize};
@@ -200,31 +198,20 @@ pub fn run(s: &Scene, seed: u64) -> Result<CaseOutput> {
         ..StudyConfig::default()
     };
     let data = noisy_data(&truth, &cfg, s.level, seed)?;
-    let sigma = (s.noise == "given" && data.sigma() > 0.0).then_some(data.sigma());
-    let obs = Observations::Series(Series::new(data.t().to_vec(), data.y().to_vec(), sigma)?);
     let k_true = truth.defects().len();
-    let opts = FitOptions {
-        defects: if s.defects == "given" {
-            DefectCount::Exactly(k_true)
-        } else {
-            DefectCount::Auto {
-                k_max: DEFAULT_K_MAX.min(truth.n()),
-            }
-        },
-        noise: match sigma {
-            Some(v) => crate::detect::fit::NoiseSpec::Sigma(v),
-            None => crate::detect::fit::NoiseSpec::Auto,
-        },
-        misfit: if s.misfit == "default" {
-            None
-        } else {
-            Some(MisfitKind::parse(&s.misfit)?)
-        },
-        parallel: false,
-        ..FitOptions::default()
+    let misfit = if s.misfit == "default" {
+        None
+    } else {
+        Some(MisfitKind::parse(&s.misfit)?)
     };
     let t0 = Instant::now();
-    let rep = fit(&obs, &Model::from_chain(&truth.uniform()), &opts)?;
+    let rep = fit_record(
+        &truth,
+        &data,
+        s.defects == "given",
+        misfit,
+        s.noise == "given",
+    )?;
     let t_fit = t0.elapsed().as_secs_f64();
     let score = crate::detect::noise_study::score(&rep, &truth);
     let mut out = CaseOutput::default();
