@@ -16,7 +16,9 @@ use std::path::PathBuf;
 #[command(
     after_help = "Data-first: springmass fit --data x1.csv --n 37 [--d 0.05 | --fit d,gamma] \
 [--defects auto|K] [--kinds mass|spring|damper|any] [--noise auto|SIGMA] [--misfit time|bromwich|real-axis] \
-[--method enumerate|ga|nelder-mead|pso] [--plot fit.svg] [--out-csv fit.csv] [--json]\n\
+[--method enumerate|ga|nelder-mead|pso] [--left fixed|free] [--right fixed|free] \
+[--observe-kind displacement|velocity|acceleration] [--force-column f | --force force.csv] \
+[--plot fit.svg] [--out-csv fit.csv] [--json]\n\
 Scene file: springmass fit --scene configs/scenes/table1-system3.toml (its [chain] defects are the truth that synthesises the data)."
 )]
 pub struct Args {
@@ -60,6 +62,26 @@ pub struct Args {
     /// Evaluation budget of ga, nelder-mead and pso [default: 20000].
     #[arg(long)]
     pub max_evals: Option<usize>,
+    /// Left end (mass 1's side): fixed (a wall spring) or free [default: fixed].
+    #[arg(long, requires = "data")]
+    pub left: Option<String>,
+    /// Right end (mass n's side): fixed or free [default: fixed].
+    #[arg(long, requires = "data")]
+    pub right: Option<String>,
+    /// The observed mass (1-based) [default: 1].
+    #[arg(long, requires = "data")]
+    pub observe: Option<usize>,
+    /// What the column measured: displacement, velocity or acceleration [default: displacement].
+    #[arg(long, requires = "data")]
+    pub observe_kind: Option<String>,
+    /// A measured force on mass 1 instead of the impulse: this column of --data
+    /// (with --force FILE: of that file) [hammer test].
+    #[arg(long, requires = "data")]
+    pub force_column: Option<String>,
+    /// A measured force on mass 1 instead of the impulse: a CSV with the same
+    /// times as --data (its first value column, or --force-column).
+    #[arg(long, requires = "data")]
+    pub force: Option<PathBuf>,
     /// Draw data, model and residual to this SVG (--data).
     #[arg(long, requires = "data")]
     pub plot: Option<PathBuf>,
@@ -128,10 +150,34 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The force column `name` of `table` (`None`: its first value column).
+fn force_column(
+    table: &springmass::series::TimeSeries,
+    name: Option<&str>,
+) -> springmass::Result<Vec<f64>> {
+    let col = match name {
+        Some(c) => table.column(c).ok_or_else(|| {
+            springmass::Error::invalid(
+                "force_column",
+                c,
+                format!("one of the file's columns: {}", table.names().join(", ")),
+            )
+        })?,
+        None => table.column_at(0).ok_or_else(|| {
+            springmass::Error::invalid("force", "(no value column)", "a force column")
+        })?,
+    };
+    Ok(col.to_vec())
+}
+
 /// `springmass fit --data`: the data-first pipeline.
 fn run_data(a: Args) -> anyhow::Result<()> {
+    use springmass::chain::Boundary;
+    use springmass::detect::data::measurement::Measurement;
     use springmass::detect::data::observations::{Observations, Series};
     use springmass::detect::fit::{self as dfit, DefectCount, FitOptions, Model, NoiseSpec};
+    use springmass::forward::Observable;
+    use springmass::series::TimeSeries;
     use springmass::Error;
     let path = a.data.clone().expect("checked by the caller");
     let n = a
@@ -186,7 +232,53 @@ fn run_data(a: Args) -> anyhow::Result<()> {
         NoiseSpec::Sigma(s) => Some(s),
         NoiseSpec::Auto => None,
     };
-    let obs = Observations::Series(Series::from_csv(&path, a.column.as_deref(), sigma)?);
+    if a.left.is_some() || a.right.is_some() {
+        let end = |v: &Option<String>| -> springmass::Result<Boundary> {
+            v.as_deref().map_or(Ok(Boundary::Fixed), str::parse)
+        };
+        model = model.with_ends(end(&a.left)?, end(&a.right)?)?;
+    }
+    let kind: Observable = a
+        .observe_kind
+        .as_deref()
+        .unwrap_or("displacement")
+        .parse()?;
+    let mut measurement = Measurement::new(a.observe.unwrap_or(1), kind);
+    let table = TimeSeries::read_csv(&path)?;
+    // the fitted column: --column, or the first one that is not the force
+    let column = match (&a.column, &a.force_column, &a.force) {
+        (Some(c), _, _) => Some(c.clone()),
+        (None, Some(fc), None) => table.names().iter().find(|c| *c != fc).cloned(),
+        _ => None,
+    };
+    let mut series = Series::from_table(&table, column.as_deref(), sigma)?;
+    if a.force.is_some() || a.force_column.is_some() {
+        let f = match &a.force {
+            Some(fpath) => {
+                let ft = TimeSeries::read_csv(fpath)
+                    .with_context(|| format!("force from {}", fpath.display()))?;
+                let same = ft.t().len() == table.t().len()
+                    && ft
+                        .t()
+                        .iter()
+                        .zip(table.t())
+                        .all(|(a, b)| (a - b).abs() <= 1e-9 * b.abs().max(1e-9));
+                if !same {
+                    return Err(Error::invalid(
+                        "force",
+                        fpath.display(),
+                        "a CSV with the same times as --data",
+                    )
+                    .into());
+                }
+                force_column(&ft, a.force_column.as_deref())?
+            }
+            None => force_column(&table, a.force_column.as_deref())?,
+        };
+        measurement = measurement.with_force(f)?;
+    }
+    series = series.with_measurement(measurement)?;
+    let obs = Observations::Series(series);
     opts.validate(&obs, &model)?;
     let report = dfit::fit(&obs, &model, &opts)?;
     if let Some(p) = &report.predicted {

@@ -1,11 +1,15 @@
 //! Laplace-domain observations `d_q ~ X_1(s_q)` at real or complex nodes,
 //! weighted per node or whitened by their covariance, with the residuals and
-//! Jacobian a least-squares fit needs.
+//! Jacobian a least-squares fit needs. The model at each node is the
+//! observable of the data's [`Sensor`] (default: `X_1`), times the transform
+//! of the measured force when there is one
+//! ([`crate::detect::data::measurement`]).
 
 use crate::chain::Chain;
+use crate::detect::data::measurement::{laplace_gradient, laplace_model, scale_gradient, Sensor};
 use crate::error::{check_f64, Error, Result};
 use crate::forward::Forward;
-use crate::sensitivity::{defect_gradient_with, gradient, Param};
+use crate::sensitivity::{defect_gradient_with, gradient, observe_defect_gradient_with, Param};
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 
@@ -20,6 +24,9 @@ pub struct LaplaceObs {
     values: Vec<Complex64>,
     weights: Vec<f64>,
     whitening: Option<DMatrix<f64>>,
+    sensor: Sensor,
+    /// Transform of the measured force at the nodes (`None`: the impulse).
+    force_hat: Option<Vec<Complex64>>,
 }
 
 impl LaplaceObs {
@@ -58,7 +65,53 @@ impl LaplaceObs {
             values,
             weights,
             whitening: None,
+            sensor: Sensor::PAPER,
+            force_hat: None,
         })
+    }
+
+    /// The same data as another sensor's, driven by a measured force whose
+    /// transform at the nodes is `force_hat` (`None`: the impulse).
+    ///
+    /// # Errors
+    /// `force_hat` of another length than the nodes or non-finite (field
+    /// `force`).
+    pub fn with_measurement(
+        mut self,
+        sensor: Sensor,
+        force_hat: Option<Vec<Complex64>>,
+    ) -> Result<LaplaceObs> {
+        if let Some(f) = &force_hat {
+            if f.len() != self.s.len() || f.iter().any(|v| !(v.re.is_finite() && v.im.is_finite()))
+            {
+                return Err(Error::invalid(
+                    "force",
+                    format!("{} transform values for {} nodes", f.len(), self.s.len()),
+                    "one finite value per node",
+                ));
+            }
+        }
+        self.sensor = sensor;
+        self.force_hat = force_hat;
+        Ok(self)
+    }
+
+    /// The sensor whose observable the data are.
+    pub fn sensor(&self) -> Sensor {
+        self.sensor
+    }
+
+    /// The model of the data at node `q` for `fwd`'s chain.
+    fn model_at(&self, fwd: &Forward, q: usize) -> Result<Complex64> {
+        if self.force_hat.is_none() && self.sensor == Sensor::PAPER {
+            return fwd.eval(self.s[q], 1);
+        }
+        laplace_model(
+            self.sensor,
+            fwd,
+            self.s[q],
+            self.force_hat.as_ref().map(|f| f[q]),
+        )
     }
 
     /// Nodes, data and a whitening matrix `W` (`K` rows, one column per row of
@@ -151,14 +204,15 @@ impl LaplaceObs {
                 .s
                 .iter()
                 .zip(&self.values)
-                .map(|(z, d)| Ok(fwd.eval(*z, 1)? - d))
+                .enumerate()
+                .map(|(q, (_, d))| Ok(self.model_at(&fwd, q)? - d))
                 .collect::<Result<Vec<Complex64>>>()?;
             let r = nalgebra::DVector::from_vec(crate::time::series::stack_re_im(&self.s, &diff));
             return Ok((w * r).iter().copied().collect());
         }
         let mut r = Vec::with_capacity(2 * self.s.len());
         for q in 0..self.s.len() {
-            let x = fwd.eval(self.s[q], 1)?;
+            let x = self.model_at(&fwd, q)?;
             let sw = self.weights[q].sqrt();
             let e = (x - self.values[q]) * sw;
             r.push(e.re);
@@ -181,16 +235,28 @@ impl LaplaceObs {
             .collect();
         let fwd = Forward::new(chain);
         let mut grads: Vec<Vec<Complex64>> = Vec::with_capacity(self.s.len());
+        let paper = self.force_hat.is_none() && self.sensor == Sensor::PAPER;
         for q in 0..self.s.len() {
+            let s = self.s[q];
+            let force = self.force_hat.as_ref().map(|f| f[q]);
             let g = match &defect_idx {
-                Some(idx) => {
-                    let all = defect_gradient_with(&fwd, self.s[q])?;
+                // defect values of an observable of mass 1: O(k) per site
+                Some(idx) if self.sensor.at == 1 => {
+                    let all = match (paper, force) {
+                        (true, _) => defect_gradient_with(&fwd, s)?,
+                        (false, None) => observe_defect_gradient_with(&fwd, s, self.sensor.kind)?,
+                        (false, Some(f)) => scale_gradient(
+                            defect_gradient_with(&fwd, s)?,
+                            s.powu(self.sensor.kind.power()) * f,
+                        ),
+                    };
                     crate::sensitivity::Gradient {
                         value: all.value,
                         grad: idx.iter().map(|&i| all.grad[i]).collect(),
                     }
                 }
-                None => gradient(chain, self.s[q], 1, params)?,
+                _ if paper => gradient(chain, s, 1, params)?,
+                _ => laplace_gradient(self.sensor, chain, s, force, params)?,
             };
             if self.whitening.is_some() {
                 grads.push(g.grad);

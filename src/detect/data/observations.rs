@@ -17,6 +17,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+use crate::detect::data::measurement::{Measurement, Sensor};
 use crate::detect::data::series::TimeData;
 use crate::error::{check_f64, Error, Result};
 use crate::series::TimeSeries;
@@ -32,6 +33,7 @@ pub struct Series {
     t: Vec<f64>,
     x: Vec<f64>,
     sigma: Option<f64>,
+    measurement: Measurement,
 }
 
 impl Series {
@@ -71,7 +73,12 @@ impl Series {
         if let Some(s) = sigma {
             check_f64("noise", s, s > 0.0, "> 0 and finite (or auto)")?;
         }
-        Ok(Series { t, x, sigma })
+        Ok(Series {
+            t,
+            x,
+            sigma,
+            measurement: Measurement::paper(),
+        })
     }
 
     /// Column `column` of a CSV file (time column `t`); `column = None` takes
@@ -125,13 +132,32 @@ impl Series {
         self.sigma
     }
 
+    /// The same record as another measurement: the velocity or acceleration
+    /// of a mass, or driven by a measured force on mass 1 (see
+    /// [`Measurement`]; default: the displacement of mass 1 after the
+    /// impulse).
+    ///
+    /// # Errors
+    /// As [`Measurement::check_times`].
+    pub fn with_measurement(mut self, measurement: Measurement) -> Result<Series> {
+        measurement.check_times(&self.t)?;
+        self.measurement = measurement;
+        Ok(self)
+    }
+
+    /// What the record measured.
+    pub fn measurement(&self) -> &Measurement {
+        &self.measurement
+    }
+
     /// The same record with noise level `sigma` as [`TimeData`] (the form
     /// the misfits use).
     ///
     /// # Errors
     /// `sigma` negative or not finite.
     pub fn time_data(&self, sigma: f64) -> Result<TimeData> {
-        TimeData::new(self.t.clone(), self.x.clone(), sigma)
+        TimeData::new(self.t.clone(), self.x.clone(), sigma)?
+            .with_measurement(self.measurement.clone())
     }
 
     /// Largest `|x|`.
@@ -146,6 +172,7 @@ pub struct LaplaceValues {
     s: Vec<Complex64>,
     values: Vec<Complex64>,
     sigma: Option<Vec<f64>>,
+    sensor: Sensor,
 }
 
 impl LaplaceValues {
@@ -188,7 +215,24 @@ impl LaplaceValues {
                 check_f64(&format!("sigma[{i}]"), *v, *v > 0.0, "> 0 and finite")?;
             }
         }
-        Ok(LaplaceValues { s, values, sigma })
+        Ok(LaplaceValues {
+            s,
+            values,
+            sigma,
+            sensor: Sensor::PAPER,
+        })
+    }
+
+    /// The same values as the transform of another observable (velocity
+    /// `s X`, acceleration `s^2 X - x'(0+)`) or of another mass (default: `X_1`).
+    pub fn with_sensor(mut self, sensor: Sensor) -> LaplaceValues {
+        self.sensor = sensor;
+        self
+    }
+
+    /// The sensor.
+    pub fn sensor(&self) -> Sensor {
+        self.sensor
     }
 
     /// The nodes.

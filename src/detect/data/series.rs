@@ -1,12 +1,13 @@
-//! A sampled series `y_i ~ x_1(t_i)` with its white-noise level: the
+//! A sampled series `y_i ~ x_1(t_i)` (or another [`Measurement`]) with its white-noise level: the
 //! observation the time-domain misfit ([`crate::detect::misfit::time`]) and
 //! the series transform work on.
 
 use crate::chain::Chain;
+use crate::detect::data::measurement::{Measurement, Sensor};
 use crate::error::{check_f64, Error, Result};
 use crate::noise::{add_noise, NoiseLevel};
 use crate::series::TimeSeries;
-use crate::time::simulate::{simulate, SimOptions};
+use crate::time::simulate::{simulate, simulate_forced, Force, Forcing, SimOptions};
 
 /// A sampled, noisy observation of `x_1(t)` with its white-noise level.
 #[derive(Clone, Debug, PartialEq)]
@@ -14,6 +15,7 @@ pub struct TimeData {
     t: Vec<f64>,
     y: Vec<f64>,
     sigma: f64,
+    measurement: Measurement,
 }
 
 impl TimeData {
@@ -34,7 +36,12 @@ impl TimeData {
             check_f64(&format!("y[{i}]"), *b, true, "finite")?;
         }
         check_f64("sigma", sigma, sigma >= 0.0, ">= 0 and finite")?;
-        Ok(TimeData { t, y, sigma })
+        Ok(TimeData {
+            t,
+            y,
+            sigma,
+            measurement: Measurement::paper(),
+        })
     }
 
     /// Column `column` of a series (time column `t`), noise level `sigma`.
@@ -66,6 +73,62 @@ impl TimeData {
         TimeData::new(traj.t.clone(), y, sigma)
     }
 
+    /// Simulate the record `sensor` takes of `truth` on `0, dt, ..., t_end`,
+    /// driven by the impulse `gamma delta` (`force = None`) or by `force` on
+    /// mass 1 (then `gamma` is not applied and the record keeps the force's
+    /// samples, as a data logger does: [`Measurement::with_force`]), with
+    /// seeded white noise on the response (`NoiseLevel::RelativeMax(r)`:
+    /// `sigma = r max|y|`).
+    ///
+    /// ```
+    /// use springmass::{Chain, forward::Observable, noise::NoiseLevel};
+    /// use springmass::detect::data::{measurement::Sensor, series::TimeData};
+    /// use springmass::time::simulate::Force;
+    /// let c = Chain::paper(5)?;
+    /// let hammer = Force::func(|t| if t < 0.05 { (std::f64::consts::PI * t / 0.05).sin() } else { 0.0 });
+    /// let sensor = Sensor { at: 1, kind: Observable::Acceleration };
+    /// let rec = TimeData::simulate_measured(&c, 20.0, 0.01, sensor, Some(hammer), NoiseLevel::Absolute(0.0), 0)?;
+    /// assert!(rec.measurement().force().is_some());
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    ///
+    /// # Errors
+    /// As [`simulate_forced`], [`add_noise`] and [`Measurement::with_force`].
+    pub fn simulate_measured(
+        truth: &Chain,
+        t_end: f64,
+        dt: f64,
+        sensor: Sensor,
+        force: Option<Force>,
+        level: NoiseLevel,
+        seed: u64,
+    ) -> Result<TimeData> {
+        sensor.check(truth.n())?;
+        let opts = SimOptions::new(t_end, dt)
+            .with_observe(vec![sensor.at])
+            .with_observe_kind(sensor.kind);
+        let (traj, measurement) = match force {
+            None => (
+                simulate(truth, &opts)?,
+                Measurement::paper().with_sensor(sensor),
+            ),
+            Some(f) => {
+                let quiet = truth.clone().with_gamma(0.0)?;
+                let traj = simulate_forced(&quiet, &opts, &Forcing::new().with(1, f.clone()))?;
+                let samples: Vec<f64> = traj.t.iter().map(|&t| f.eval(t)).collect();
+                let m = Measurement::paper()
+                    .with_sensor(sensor)
+                    .with_force(samples)?;
+                (traj, m)
+            }
+        };
+        let y = traj
+            .x(sensor.at)
+            .ok_or_else(|| Error::invalid("observe", sensor.at, "the simulated mass"))?;
+        let (y, sigma) = add_noise(y, level, seed)?;
+        TimeData::new(traj.t.clone(), y, sigma)?.with_measurement(measurement)
+    }
+
     /// The sample times.
     pub fn t(&self) -> &[f64] {
         &self.t
@@ -90,6 +153,20 @@ impl TimeData {
     pub fn sigma_eff(&self) -> f64 {
         let ymax = self.y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
         self.sigma.max(8.0 * f64::EPSILON * ymax).max(1e-300)
+    }
+    /// What the samples measured and what drove the chain (default: the
+    /// displacement of mass 1 after the impulse).
+    pub fn measurement(&self) -> &Measurement {
+        &self.measurement
+    }
+    /// The same samples as another measurement (sensor, measured force).
+    ///
+    /// # Errors
+    /// As [`Measurement::check_times`].
+    pub fn with_measurement(mut self, measurement: Measurement) -> Result<TimeData> {
+        measurement.check_times(&self.t)?;
+        self.measurement = measurement;
+        Ok(self)
     }
     /// The same samples with another stated noise level.
     pub fn with_sigma(mut self, sigma: f64) -> Result<TimeData> {

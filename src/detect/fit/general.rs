@@ -152,6 +152,18 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result
     };
     let tr = SeriesTransform::new(data.t(), data.y(), &opts)?;
     let vals = tr.eval_many(&s)?;
+    // a measured force: its transform by the same rule (noise-free input)
+    let m = data.measurement();
+    let force_hat = match m.force() {
+        Some(f) => Some(
+            SeriesTransform::new(data.t(), f, &TransformOptions::default())?
+                .eval_many(&s)?
+                .iter()
+                .map(|v| v.value)
+                .collect::<Vec<_>>(),
+        ),
+        None => None,
+    };
     if setup.weighting == crate::detect::data::whiten::Weighting::Whitened {
         let mut cov = tr.data_covariance(&vals)?;
         for (r, (q, _)) in crate::time::series::stacked_rows(&s)
@@ -165,7 +177,8 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result
             crate::detect::data::whiten::DEFAULT_CUTOFF,
         )?;
         let values = vals.iter().map(|v| v.value).collect();
-        return LaplaceObs::whitened(s, values, wh.matrix().clone());
+        return LaplaceObs::whitened(s, values, wh.matrix().clone())?
+            .with_measurement(m.sensor(), force_hat);
     }
     let mut values = Vec::with_capacity(s.len());
     let mut weights = Vec::with_capacity(s.len());
@@ -175,7 +188,7 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result
         values.push(v.value);
         weights.push(wq / var);
     }
-    LaplaceObs::new(s, values, weights)
+    LaplaceObs::new(s, values, weights)?.with_measurement(m.sensor(), force_hat)
 }
 
 /// A fitted uniform chain parameter.
@@ -616,17 +629,34 @@ pub fn fit_general(
     for _ in 0..rounds {
         // coarse pass: defect values only
         let coarse_fits: Vec<Option<Fitted>> = map_maybe_par(&hyps, opts.parallel, |h| {
-            let v: Vec<f64> = h.iter().map(|&(k, _)| starts(k, &current)[0]).collect();
-            fit_pairs_coarse(
-                &current,
-                unknowns,
-                h,
-                &v,
-                &chain_bounds,
-                Obs::Laplace(coarse),
-                setup.coarse_iter,
-            )
-            .ok()
+            let from = |which: usize| {
+                let v: Vec<f64> = h.iter().map(|&(k, _)| starts(k, &current)[which]).collect();
+                fit_pairs_coarse(
+                    &current,
+                    unknowns,
+                    h,
+                    &v,
+                    &chain_bounds,
+                    Obs::Laplace(coarse),
+                    setup.coarse_iter,
+                )
+                .ok()
+            };
+            let first = from(0);
+            // springs and dampers: a weakening is as likely as a stiffening,
+            // so the coarse pass starts from both sides of the uniform value
+            if h.iter().all(|&(k, _)| k == DefectKind::Mass) {
+                return first;
+            }
+            match (first, from(1)) {
+                (Some(a), Some(b)) => {
+                    let evaluations = a.evaluations + b.evaluations;
+                    let mut best = if b.hyp.chi2 < a.hyp.chi2 { b } else { a };
+                    best.evaluations = evaluations;
+                    Some(best)
+                }
+                (a, b) => a.or(b),
+            }
         });
         let mut ranked = Vec::with_capacity(hyps.len());
         for (f, h) in coarse_fits.into_iter().zip(&hyps) {

@@ -56,7 +56,7 @@ pub use crate::detect::search::FitMethod;
 pub use report::{Alternative, DefectEstimate, FitReport, KRow, ParamEstimate, Predicted, Status};
 pub use select::Criterion;
 
-use crate::chain::{Chain, Defect};
+use crate::chain::{Boundary, Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::observations::{Observations, Series};
 use crate::detect::fit::chainfit::{default_bounds, fit_chain, Obs};
@@ -116,6 +116,16 @@ impl Model {
     /// As [`Chain::with_gamma`].
     pub fn with_gamma(mut self, gamma: f64) -> Result<Model> {
         self.chain = self.chain.with_gamma(gamma)?;
+        Ok(self)
+    }
+
+    /// The ends of the chain: each fixed to a wall or free (a shear frame
+    /// seen from its roof is `Free, Fixed`).
+    ///
+    /// # Errors
+    /// As [`Chain::with_boundaries`].
+    pub fn with_ends(mut self, left: Boundary, right: Boundary) -> Result<Model> {
+        self.chain = self.chain.with_boundaries(left, right)?;
         Ok(self)
     }
 
@@ -354,6 +364,10 @@ impl FitOptions {
                 self.method.name(),
                 "enumerate for spring, damper or any-kind defects and for fitted chain parameters (ga, nelder-mead and pso search mass defects only)",
             ));
+        }
+        match obs {
+            Observations::Series(s) => s.measurement().sensor().check(n)?,
+            Observations::Laplace(l) => l.sensor().check(n)?,
         }
         if matches!(obs, Observations::Laplace(_)) && self.misfit == Some(MisfitKind::Time) {
             return Err(Error::invalid(
@@ -648,7 +662,8 @@ impl Engine<'_> {
                     Some(sg) => sg.iter().map(|v| 1.0 / (v * v)).collect(),
                     None => vec![1.0 / (sigma * sigma); l.s().len()],
                 };
-                let obs = LaplaceObs::new(l.s().to_vec(), l.values().to_vec(), w)?;
+                let obs = LaplaceObs::new(l.s().to_vec(), l.values().to_vec(), w)?
+                    .with_measurement(l.sensor(), None)?;
                 let name = format!(
                     "{} (chi-square at {} given nodes)",
                     self.misfit.name(),
@@ -1055,6 +1070,19 @@ impl Engine<'_> {
             k_selection: rows,
             criterion,
             misfit: f.misfit_name.clone(),
+            setup: format!(
+                "{}; ends {}-{}",
+                match self.obs {
+                    Observations::Series(s) => s.measurement().describe(),
+                    Observations::Laplace(l) => format!(
+                        "{} of mass {} (Laplace values)",
+                        l.sensor().kind.name(),
+                        l.sensor().at
+                    ),
+                },
+                base.left(),
+                base.right()
+            ),
             method: f.method_name.clone(),
             evaluations,
             hypotheses: f.hypotheses,

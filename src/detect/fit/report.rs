@@ -171,6 +171,9 @@ pub struct FitReport {
     pub criterion: String,
     /// The misfit used (`real-axis`, `bromwich`, `time`) with its details.
     pub misfit: String,
+    /// What the data measured and the chain's ends, for example
+    /// `acceleration of mass 1, measured force on mass 1; ends free-fixed`.
+    pub setup: String,
     /// The search method.
     pub method: String,
     /// Misfit evaluations spent.
@@ -263,8 +266,8 @@ impl FitReport {
             ));
         }
         out.push_str(&format!(
-            "misfit {}, method {}, {} evaluations, {:.2} s\n",
-            self.misfit, self.method, self.evaluations, self.wall_time_s
+            "{}\nmisfit {}, method {}, {} evaluations, {:.2} s\n",
+            self.setup, self.misfit, self.method, self.evaluations, self.wall_time_s
         ));
         out
     }

@@ -50,12 +50,20 @@ impl TimeMisfit {
         &self.data
     }
 
-    /// Model `x_1(t_i)` of `chain` (exact modal sum).
+    /// Model of the record for `chain`: `x_1(t_i)` by the exact modal sum
+    /// for the paper's measurement, otherwise as the data's
+    /// [`Measurement`](crate::detect::data::measurement::Measurement) says
+    /// (another observable or mass, a measured force).
     ///
     /// # Errors
-    /// As [`ModalResponse::impulse`].
+    /// As [`ModalResponse::impulse`] and
+    /// [`Measurement::time_model`](crate::detect::data::measurement::Measurement::time_model).
     pub fn model(&self, chain: &Chain) -> Result<Vec<f64>> {
-        Ok(ModalResponse::impulse(chain, 1)?.eval_many(self.data.t()))
+        let m = self.data.measurement();
+        if m.is_paper() {
+            return Ok(ModalResponse::impulse(chain, 1)?.eval_many(self.data.t()));
+        }
+        m.time_model(chain, self.data.t())
     }
 
     /// Whitened residuals `(x_1(t_i) - y_i) / sigma`.
