@@ -173,3 +173,89 @@ fn bad_input_exits_2_naming_the_field() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A hammer test from a logger's file: columns `t`, the force `f` and the
+/// acceleration `a1` of a chain with a free left end; the CLI takes the
+/// force column, the observable and the ends.
+#[test]
+fn fit_data_hammer_test_with_force_column_acceleration_and_free_end() {
+    use springmass::chain::Boundary;
+    use springmass::detect::data::measurement::{hammer, Sensor};
+    use springmass::forward::Observable;
+    let truth = Chain::paper(6)
+        .unwrap()
+        .with_boundaries(Boundary::Free, Boundary::Fixed)
+        .unwrap()
+        .with_defect(Defect::Mass { at: 4, m: 2.0 })
+        .unwrap();
+    let sensor = Sensor {
+        at: 1,
+        kind: Observable::Acceleration,
+    };
+    let rec = TimeData::simulate_measured(
+        &truth,
+        40.0,
+        0.005,
+        sensor,
+        Some(hammer(0.05, 1.0).unwrap()),
+        NoiseLevel::Absolute(5e-3),
+        3,
+    )
+    .unwrap();
+    let dir = temp_dir("hammer");
+    let csv = dir.join("hammer.csv");
+    let f = rec.measurement().force().unwrap().to_vec();
+    TimeSeries::new(
+        rec.t().to_vec(),
+        vec![("f".into(), f), ("a1".into(), rec.y().to_vec())],
+    )
+    .unwrap()
+    .write_csv(&csv)
+    .unwrap();
+    let run = |extra: &[&str]| {
+        bin()
+            .args(["fit", "--data"])
+            .arg(&csv)
+            .args(["--n", "6", "--defects", "1", "--json"])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let out = run(&[
+        "--left",
+        "free",
+        "--observe-kind",
+        "acceleration",
+        "--force-column",
+        "f",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let d = &v["defects"][0];
+    assert_eq!(d["at"], 4, "{v}");
+    let (m, se) = (d["value"].as_f64().unwrap(), d["se"].as_f64().unwrap());
+    assert!((m - 2.0).abs() < 3.0 * se, "{m} +- {se}");
+    let setup = v["setup"].as_str().unwrap();
+    assert!(
+        setup.contains("acceleration")
+            && setup.contains("measured force")
+            && setup.contains("free-fixed"),
+        "{setup}"
+    );
+    // bad setups: a named error and exit status 2
+    for (args, field) in [
+        (vec!["--left", "loose"], "left"),
+        (vec!["--observe-kind", "jerk"], "observe_kind"),
+        (vec!["--force-column", "g"], "force_column"),
+        (vec!["--observe", "9"], "observe"),
+    ] {
+        let out = run(&args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(field), "{args:?}: {err}");
+    }
+}

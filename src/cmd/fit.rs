@@ -233,10 +233,13 @@ fn run_data(a: Args) -> anyhow::Result<()> {
         NoiseSpec::Auto => None,
     };
     if a.left.is_some() || a.right.is_some() {
-        let end = |v: &Option<String>| -> springmass::Result<Boundary> {
-            v.as_deref().map_or(Ok(Boundary::Fixed), str::parse)
+        let end = |field: &str, v: &Option<String>| -> springmass::Result<Boundary> {
+            v.as_deref().map_or(Ok(Boundary::Fixed), |x| {
+                x.parse()
+                    .map_err(|_| Error::invalid(field, x, "fixed or free"))
+            })
         };
-        model = model.with_ends(end(&a.left)?, end(&a.right)?)?;
+        model = model.with_ends(end("left", &a.left)?, end("right", &a.right)?)?;
     }
     let kind: Observable = a
         .observe_kind

@@ -18,6 +18,10 @@
 //! # dt = 0.05        # simulated
 //!
 //! # relative = false # simulated/series: noise relative to max |x_1|
+//! # observe = 1                   # simulated/series: the observed mass
+//! # observe_kind = "acceleration" # displacement (default) | velocity | acceleration
+//! # hammer_width = 0.05           # simulated: a half-sine blow instead of the delta
+//! # force_column = "f"            # series: the measured force on mass 1
 //!
 //! [unknowns]         # optional; see crate::detect::unknowns::UnknownsSpec
 //! k = 2              # default: number of defects in [chain]
@@ -57,12 +61,14 @@
 
 use crate::chain::{Chain, ChainSpec, Defect};
 use crate::detect::data::exact::Data;
+use crate::detect::data::measurement::{hammer, Measurement, Sensor};
 use crate::detect::data::series::TimeData;
 use crate::detect::misfit::MisfitSpec;
 use crate::detect::search::enumerate::EnumerateOptions;
 use crate::detect::search::FitMethod;
 use crate::detect::unknowns::{DefectKind, GeneralUnknowns, Unknowns, UnknownsSpec};
 use crate::error::{Error, Result};
+use crate::forward::Observable;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -112,6 +118,38 @@ pub struct DataSpec {
     /// the record (default false: absolute).
     #[serde(default)]
     pub relative: bool,
+    /// `simulated` and `series`: the observed mass (default 1).
+    #[serde(default)]
+    pub observe: Option<usize>,
+    /// `simulated` and `series`: `displacement` (default), `velocity` or
+    /// `acceleration`.
+    #[serde(default)]
+    pub observe_kind: Option<Observable>,
+    /// `simulated`: a hammer's half-sine blow of this width (unit impulse,
+    /// times `gamma`) on mass 1 instead of the ideal impulse; the record
+    /// keeps the force's samples and the fit uses them.
+    #[serde(default)]
+    pub hammer_width: Option<f64>,
+    /// `series`: the CSV column of the measured force on mass 1 (a hammer
+    /// test); the fit uses it instead of the ideal impulse.
+    #[serde(default)]
+    pub force_column: Option<String>,
+}
+
+impl DataSpec {
+    /// The sensor of `[data]` (default: the displacement of mass 1).
+    pub fn sensor(&self) -> Sensor {
+        Sensor {
+            at: self.observe.unwrap_or(1),
+            kind: self.observe_kind.unwrap_or_default(),
+        }
+    }
+
+    /// Whether `[data]` is the paper's measurement: the displacement of
+    /// mass 1 after the ideal impulse.
+    pub fn is_paper(&self) -> bool {
+        self.sensor() == Sensor::PAPER && self.hammer_width.is_none() && self.force_column.is_none()
+    }
 }
 
 /// The `[search]` table.
@@ -288,6 +326,17 @@ impl FitScene {
     /// # Errors
     /// Invalid chain or noise; `series` (not available yet).
     pub fn data(&self) -> Result<Data> {
+        if !self.data.is_paper() {
+            // another observable or a force: the general path fits the record
+            let rec = self.measured_record()?;
+            let sigma = rec.sigma();
+            return Data::from_samples(
+                rec.t(),
+                rec.y(),
+                (sigma > 0.0).then_some(sigma),
+                rec.measurement().describe(),
+            );
+        }
         match self.data.source {
             DataSourceKind::Exact => {
                 Data::exact(&self.truth()?).with_noise(self.data.noise, self.data.seed)
@@ -335,6 +384,7 @@ impl FitScene {
         let level = crate::noise::NoiseLevel::RelativeMax(d.noise);
         match d.source {
             DataSourceKind::Exact => Ok(d.noise),
+            DataSourceKind::Simulated if !d.is_paper() => Ok(self.measured_record()?.sigma()),
             DataSourceKind::Simulated => Ok(TimeData::simulate(
                 &self.truth()?,
                 d.t_end.unwrap_or(300.0),
@@ -346,6 +396,60 @@ impl FitScene {
             DataSourceKind::Series => {
                 let ts = self.series()?;
                 level.sigma(ts.require(self.data.column.as_deref().unwrap_or("x1"))?)
+            }
+        }
+    }
+
+    /// The record of a non-paper `[data]`: simulated as its sensor sees the
+    /// truth (hammer or impulse), or read from the CSV, with its measurement.
+    fn measured_record(&self) -> Result<TimeData> {
+        let d = &self.data;
+        crate::error::check_f64("data.noise", d.noise, d.noise >= 0.0, ">= 0 and finite")?;
+        match d.source {
+            DataSourceKind::Exact => Err(Error::invalid(
+                "data.source",
+                "exact",
+                "\"simulated\" or \"series\" for another observable or a force",
+            )),
+            DataSourceKind::Simulated => {
+                let truth = self.truth()?;
+                let sensor = d.sensor();
+                sensor.check(truth.n()).map_err(|_| {
+                    Error::invalid(
+                        "data.observe",
+                        sensor.at,
+                        format!("a mass of the chain, 1..={}", truth.n()),
+                    )
+                })?;
+                let force = match d.hammer_width {
+                    Some(w) => Some(hammer(w, 1.0)?),
+                    None => None,
+                };
+                let level = if d.relative {
+                    crate::noise::NoiseLevel::RelativeMax(d.noise)
+                } else {
+                    crate::noise::NoiseLevel::Absolute(d.noise)
+                };
+                let rec = TimeData::simulate_measured(
+                    &truth,
+                    d.t_end.unwrap_or(300.0),
+                    d.dt.unwrap_or(0.05),
+                    sensor,
+                    force,
+                    level,
+                    d.seed,
+                )?;
+                let m = self.measurement(rec.t())?;
+                rec.with_measurement(m)
+            }
+            DataSourceKind::Series => {
+                let rec = TimeData::from_series(
+                    &self.series()?,
+                    self.data.column.as_deref().unwrap_or("x1"),
+                    self.noise_sigma()?,
+                )?;
+                let m = self.measurement(rec.t())?;
+                rec.with_measurement(m)
             }
         }
     }
@@ -364,6 +468,9 @@ impl FitScene {
     /// # Errors
     /// `data.source` is `exact` (no series); as [`FitScene::noise_sigma`].
     pub fn time_data(&self) -> Result<TimeData> {
+        if !self.data.is_paper() {
+            return self.measured_record();
+        }
         let sigma = self.noise_sigma()?;
         match self.data.source {
             DataSourceKind::Exact => Err(Error::invalid(
@@ -390,7 +497,76 @@ impl FitScene {
     /// ([`crate::detect::fit::general::fit_general`]): non-mass defects, chain
     /// parameters or the time misfit.
     pub fn is_general(&self) -> bool {
-        self.unknowns.is_general() || self.misfit.kind == crate::detect::misfit::MisfitKind::Time
+        self.unknowns.is_general()
+            || self.misfit.kind == crate::detect::misfit::MisfitKind::Time
+            || !self.data.is_paper()
+            || self.chain.left.is_free()
+            || self.chain.right.is_free()
+    }
+
+    /// What the record of `[data]` at times `t` measured: its sensor, and
+    /// the hammer's force samples (`hammer_width`) or the CSV's force column
+    /// (`force_column`).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `data.hammer_width` (not
+    /// `simulated`, or not a width > 0), `data.force_column` (not `series`,
+    /// a missing column, other times than the record's), `data.observe`
+    /// (not a mass of the chain).
+    pub fn measurement(&self, t: &[f64]) -> Result<Measurement> {
+        let d = &self.data;
+        d.sensor().check(self.chain.n).map_err(|_| {
+            Error::invalid(
+                "data.observe",
+                d.sensor().at,
+                format!("a mass of the chain, 1..={}", self.chain.n),
+            )
+        })?;
+        let m = Measurement::paper().with_sensor(d.sensor());
+        match (&d.hammer_width, &d.force_column) {
+            (Some(_), Some(_)) => Err(Error::invalid(
+                "data.force_column",
+                "with hammer_width",
+                "one force: hammer_width (simulated) or force_column (series)",
+            )),
+            (Some(w), None) => {
+                if d.source != DataSourceKind::Simulated {
+                    return Err(Error::invalid(
+                        "data.hammer_width",
+                        w,
+                        "source = \"simulated\" only (a measured force is a force_column)",
+                    ));
+                }
+                let f = hammer(*w, 1.0)?;
+                m.with_force(t.iter().map(|&x| f.eval(x)).collect())
+            }
+            (None, Some(c)) => {
+                if d.source != DataSourceKind::Series {
+                    return Err(Error::invalid(
+                        "data.force_column",
+                        c,
+                        "source = \"series\" only (a simulated blow is hammer_width)",
+                    ));
+                }
+                let ts = self.series()?;
+                let f = ts.column(c).ok_or_else(|| {
+                    Error::invalid(
+                        "data.force_column",
+                        c,
+                        format!("one of the file's columns: {}", ts.names().join(", ")),
+                    )
+                })?;
+                if ts.t() != t {
+                    return Err(Error::invalid(
+                        "data.force_column",
+                        c,
+                        "a column of the record's own file and times",
+                    ));
+                }
+                m.with_force(f.to_vec())
+            }
+            (None, None) => Ok(m),
+        }
     }
 
     /// The general unknowns (validated against `chain.n`; `k` defaults to the

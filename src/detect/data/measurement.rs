@@ -253,6 +253,31 @@ impl Measurement {
     }
 }
 
+/// A hammer's blow on mass 1: the half-sine `f(t) = A sin(pi t / w)` on
+/// `[0, w]`, zero after, with `A = pi J / (2 w)` so that its impulse is `J`.
+///
+/// # Errors
+/// `width` or `impulse` not finite and `> 0` (fields `hammer_width`, `impulse`).
+///
+/// ```
+/// let f = springmass::detect::data::measurement::hammer(0.05, 1.0)?;
+/// assert!((f.eval(0.025) - std::f64::consts::PI / 0.1).abs() < 1e-12);
+/// assert_eq!(f.eval(0.06), 0.0);
+/// # Ok::<(), springmass::Error>(())
+/// ```
+pub fn hammer(width: f64, impulse: f64) -> Result<Force> {
+    check_f64("hammer_width", width, width > 0.0, "> 0 and finite")?;
+    check_f64("impulse", impulse, impulse > 0.0, "> 0 and finite")?;
+    let peak = std::f64::consts::PI * impulse / (2.0 * width);
+    Ok(Force::func(move |t| {
+        if (0.0..=width).contains(&t) {
+            peak * (std::f64::consts::PI * t / width).sin()
+        } else {
+            0.0
+        }
+    }))
+}
+
 /// The observable's Laplace model at `s` and, for a force, the force's
 /// transform `F(s)` there (see the module docs).
 ///

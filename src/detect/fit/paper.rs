@@ -300,10 +300,9 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
                 NoiseSpec::Auto
             };
             let sg = (sigma > 0.0).then_some(sigma);
-            (
-                Observations::Series(Series::new(t.to_vec(), x.to_vec(), sg)?),
-                noise,
-            )
+            let series =
+                Series::new(t.to_vec(), x.to_vec(), sg)?.with_measurement(scene.measurement(t)?)?;
+            (Observations::Series(series), noise)
         }
         None => {
             if scene.misfit.kind == MisfitKind::Time {
