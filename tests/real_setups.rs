@@ -297,3 +297,60 @@ fn bad_setups_are_typed_errors() {
         .to_string();
     assert!(e.contains("spring") || e.contains("at"), "{e}");
 }
+
+/// A chain in SI units (a 4-storey frame: 1000 kg floors, 2e6 N/m storeys,
+/// 500 N s/m dampers), one floor 1.5 t heavier, its roof displacement
+/// sampled at 200 Hz for 10 s: the fit in the data's units, with the
+/// natural frequencies of the fitted chain in rad/s.
+#[test]
+fn fit_in_physical_units() {
+    let si = |c: Chain| {
+        c.with_mass(1000.0)
+            .unwrap()
+            .with_k(2e6)
+            .unwrap()
+            .with_d(500.0)
+            .unwrap()
+            .with_gamma(100.0)
+            .unwrap()
+    };
+    let truth = si(Chain::paper(4).unwrap())
+        .with_defect(Defect::Mass { at: 3, m: 2500.0 })
+        .unwrap();
+    let rec = TimeData::simulate_measured(
+        &truth,
+        10.0,
+        0.005,
+        Sensor::PAPER,
+        None,
+        NoiseLevel::RelativeMax(1e-2),
+        5,
+    )
+    .unwrap();
+    let model = Model::from_chain(&si(Chain::paper(4).unwrap()));
+    let opts = FitOptions {
+        defects: DefectCount::Exactly(1),
+        ..FitOptions::default()
+    };
+    let r = fit(&Observations::Series(series_of(&rec)), &model, &opts).unwrap();
+    let d = &r.defects[0];
+    assert_eq!(d.at, 3, "{}", r.message);
+    assert!(
+        (d.value - 2500.0).abs() < 3.0 * d.se,
+        "{} +- {}",
+        d.value,
+        d.se
+    );
+    // the fitted chain's modes against the truth's (rad/s)
+    let want = springmass::time::modal::natural_modes(&truth).unwrap();
+    assert_eq!(r.modes.len(), 4);
+    for (m, w) in r.modes.iter().zip(&want) {
+        assert!(
+            (m.omega - w.omega).abs() < 1e-2 * w.omega,
+            "{} vs {}",
+            m.omega,
+            w.omega
+        );
+    }
+    assert!(r.modes[0].omega > 10.0 && r.modes[0].omega < 50.0);
+}

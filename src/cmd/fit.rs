@@ -34,6 +34,12 @@ pub struct Args {
     /// Uniform damping (known, or the starting value with --fit d) [default: 0.1].
     #[arg(long, requires = "data", allow_negative_numbers = true)]
     pub d: Option<f64>,
+    /// Uniform stiffness, in the data's units (N/m for SI data) [default: 1].
+    #[arg(long, requires = "data", allow_negative_numbers = true)]
+    pub k: Option<f64>,
+    /// Uniform mass, in the data's units (kg for SI data) [default: 1].
+    #[arg(long, requires = "data", allow_negative_numbers = true)]
+    pub mass: Option<f64>,
     /// Impulse on mass 1 [default: 1].
     #[arg(long, requires = "data", allow_negative_numbers = true)]
     pub gamma: Option<f64>,
@@ -218,6 +224,12 @@ fn run_data(a: Args) -> anyhow::Result<()> {
     let mut model = Model::new(n)?;
     if let Some(d) = a.d {
         model = model.with_d(d)?;
+    }
+    if let Some(k) = a.k {
+        model = model.with_k(k)?;
+    }
+    if let Some(m) = a.mass {
+        model = model.with_mass(m)?;
     }
     if let Some(g) = a.gamma {
         model = model.with_gamma(g)?;

@@ -699,6 +699,27 @@ impl Default for KindBounds {
 }
 
 impl KindBounds {
+    /// The default ranges scaled to `chain`'s uniform values, so that a
+    /// chain in physical units (mass 1000 kg, stiffness 2e6 N/m) is searched
+    /// as the paper's: mass `[0.1, 100] m`, spring `[0.01, 100] k`, damper
+    /// `[0, 100 sqrt(k m)]`; the paper's chain gets [`KindBounds::default`].
+    ///
+    /// ```
+    /// use springmass::{Chain, detect::unknowns::KindBounds};
+    /// assert_eq!(KindBounds::for_chain(&Chain::paper(3)?), KindBounds::default());
+    /// let si = Chain::paper(3)?.with_mass(1000.0)?.with_k(4e6)?;
+    /// assert_eq!(KindBounds::for_chain(&si).mass, (100.0, 1e5));
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    pub fn for_chain(chain: &Chain) -> KindBounds {
+        let (m, k) = (chain.mass(), chain.k());
+        KindBounds {
+            mass: (0.1 * m, 100.0 * m),
+            spring: (0.01 * k, 100.0 * k),
+            damper: (0.0, 100.0 * (k * m).sqrt()),
+        }
+    }
+
     /// The bounds of `kind`.
     pub fn of(&self, kind: DefectKind) -> (f64, f64) {
         match kind {

@@ -53,7 +53,9 @@ pub mod report;
 pub mod select;
 
 pub use crate::detect::search::FitMethod;
-pub use report::{Alternative, DefectEstimate, FitReport, KRow, ParamEstimate, Predicted, Status};
+pub use report::{
+    Alternative, DefectEstimate, FitReport, KRow, ModeEstimate, ParamEstimate, Predicted, Status,
+};
 pub use select::Criterion;
 
 use crate::chain::{Boundary, Chain, Defect};
@@ -107,6 +109,24 @@ impl Model {
     /// As [`Chain::with_d`].
     pub fn with_d(mut self, d: f64) -> Result<Model> {
         self.chain = self.chain.with_d(d)?;
+        Ok(self)
+    }
+
+    /// Uniform stiffness `k` (the data's units: N/m for SI data).
+    ///
+    /// # Errors
+    /// As [`Chain::with_k`].
+    pub fn with_k(mut self, k: f64) -> Result<Model> {
+        self.chain = self.chain.with_k(k)?;
+        Ok(self)
+    }
+
+    /// Uniform mass (the data's units: kg for SI data).
+    ///
+    /// # Errors
+    /// As [`Chain::with_mass`].
+    pub fn with_mass(mut self, mass: f64) -> Result<Model> {
+        self.chain = self.chain.with_mass(mass)?;
         Ok(self)
     }
 
@@ -621,7 +641,7 @@ impl Engine<'_> {
             self.model.n(),
             slots,
             self.model.fit.clone(),
-            KindBounds::default(),
+            KindBounds::for_chain(&self.model.chain),
         )?))
     }
 
@@ -784,7 +804,7 @@ impl Engine<'_> {
                             self.model.n(),
                             slots,
                             self.model.fit.clone(),
-                            KindBounds::default(),
+                            KindBounds::for_chain(&self.model.chain),
                         )?;
                         if let Ok(g) = fit_general(
                             &self.model.chain,
@@ -869,7 +889,11 @@ impl Engine<'_> {
                 method: self.opts.method.name().into(),
                 reason: "enumeration is not a stochastic search".into(),
             })?;
-        let mut space = Space::masses(self.model.n(), k, KindBounds::default().mass);
+        let mut space = Space::masses(
+            self.model.n(),
+            k,
+            KindBounds::for_chain(&self.model.chain).mass,
+        );
         space.excluded = self
             .model
             .chain
@@ -926,7 +950,7 @@ impl Engine<'_> {
         let best = &ranked[0];
         let base = &self.model.chain;
         let ident = identify_general(&ranked, base, sigma, None).ok();
-        let bounds = KindBounds::default();
+        let bounds = KindBounds::for_chain(base);
         let known: Vec<(usize, DefectKind)> = base
             .defects()
             .iter()
@@ -1044,6 +1068,21 @@ impl Engine<'_> {
                 ),
             )
         };
+        // the fitted chain's modes (none when the eigen solver refuses: a
+        // non-uniform chain above its size limit)
+        let modes = best
+            .to_chain(base)
+            .and_then(|c| crate::time::modal::natural_modes(&c))
+            .map(|v| {
+                v.iter()
+                    .map(|m| ModeEstimate {
+                        omega: m.omega,
+                        frequency: m.frequency,
+                        zeta: m.zeta.unwrap_or(f64::NAN),
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
         let predicted = match (self.obs, &f.predicted) {
             (Observations::Series(s), Some((model, r))) => Some(Predicted {
                 t: s.t().to_vec(),
@@ -1089,6 +1128,7 @@ impl Engine<'_> {
             wall_time_s: t0.elapsed().as_secs_f64(),
             predicted,
             identifiability: ident,
+            modes,
         })
     }
 }

@@ -186,6 +186,21 @@ pub struct FitReport {
     pub predicted: Option<Predicted>,
     /// The identifiability report of the best answer.
     pub identifiability: Option<Identifiability>,
+    /// Natural frequencies and damping ratios of the fitted chain (its
+    /// units: rad/s and Hz when the data and the chain are in SI units).
+    pub modes: Vec<ModeEstimate>,
+}
+
+/// One natural mode of the fitted chain
+/// ([`crate::time::modal::natural_modes`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ModeEstimate {
+    /// Undamped natural frequency, rad per unit of time (0: rigid-body mode).
+    pub omega: f64,
+    /// `omega / (2 pi)`.
+    pub frequency: f64,
+    /// Damping ratio (NaN for a rigid-body mode).
+    pub zeta: f64,
 }
 
 impl FitReport {
@@ -263,6 +278,19 @@ impl FitReport {
                 i + 1,
                 d.join(", "),
                 fmt_g(a.gap)
+            ));
+        }
+        if !self.modes.is_empty() {
+            let shown: Vec<String> = self
+                .modes
+                .iter()
+                .take(6)
+                .map(|m| format!("{} (zeta {})", fmt_g(m.omega), fmt_g(m.zeta)))
+                .collect();
+            out.push_str(&format!(
+                "natural frequencies of the fitted chain (rad per unit time): {}{}\n",
+                shown.join(", "),
+                if self.modes.len() > 6 { ", ..." } else { "" }
             ));
         }
         out.push_str(&format!(
