@@ -104,10 +104,11 @@ fn shear_frame_storey_weakening_found_from_the_roof_accelerometer() {
 /// the accelerometer, which sees `f(t)/m_1` directly, the fit that ignores
 /// the measured force (the impulse model) does much worse.
 ///
-/// The fit's force is the cubic through the samples (20 per pulse here): its
-/// error at the pulse's kinks biases a mass by about 6e-4 relative (measured
-/// at 1e-3 noise, where that is 12 standard errors; it scales as dt^2), far
-/// below the standard error at 1% noise.
+/// The fit's force is the cubic through the samples (10 per pulse here): its
+/// error at the pulse's kinks biases the mass at 3 by about 6e-4 relative
+/// (measured at 1e-3 noise, where that is 12 standard errors; 4 times more at
+/// 5 samples per pulse: it scales as dt^2), below the standard error at 1%
+/// noise.
 #[test]
 fn hammer_test_recovers_the_defects_like_an_ideal_impulse() {
     let truth = Chain::paper(8)
