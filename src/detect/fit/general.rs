@@ -217,6 +217,9 @@ pub struct Hypothesis {
     pub chain: Vec<FittedParam>,
     /// Misfit value.
     pub chi2: f64,
+    /// Whether the value fit met its tolerance (`false`: it stopped at its
+    /// iteration limit, and the values may not be at the minimum).
+    pub converged: bool,
 }
 
 impl Hypothesis {
@@ -233,6 +236,7 @@ impl Hypothesis {
             std_errors,
             chain,
             chi2,
+            converged: true,
         }
     }
 
@@ -246,6 +250,7 @@ impl Hypothesis {
             std_errors: se,
             chain: Vec::new(),
             chi2,
+            converged: true,
         }
     }
 
@@ -487,6 +492,7 @@ fn fit_pairs(
                 std_errors: vec![0.0; pairs.len()],
                 chain: Vec::new(),
                 chi2: r.iter().map(|v| v * v).sum(),
+                converged: true,
             },
             evaluations: 1,
             m: r.len(),
@@ -520,6 +526,7 @@ fn fit_pairs(
             std_errors,
             chain: fitted_chain,
             chi2: lm.chi2,
+            converged: lm.converged,
         },
         evaluations: lm.evaluations,
         m: lm.m,

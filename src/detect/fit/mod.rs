@@ -1031,6 +1031,11 @@ impl Engine<'_> {
                 Status::BudgetExhausted,
                 format!("the search used its whole budget of {} evaluations; raise max_evals or use enumerate", self.opts.max_evals),
             )
+        } else if !best.converged {
+            (
+                Status::Stalled,
+                "the value fit of the best hypothesis stopped at its iteration limit without meeting its tolerance: the values may not be at the minimum".to_string(),
+            )
         } else if any_bound {
             (
                 Status::ValueAtBound,
