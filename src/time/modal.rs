@@ -243,6 +243,30 @@ impl Term {
     }
 }
 
+/// Samples between exact re-anchorings of the recurrence in
+/// [`ModalResponse::eval_many`].
+pub const ANCHOR: usize = 64;
+
+/// The step `dt` when `ts` is uniform to rounding: every
+/// `|t_i - (t_0 + i dt)| <= 8 eps max(|t_i|, dt)` with
+/// `dt = (t_last - t_0) / (N - 1) > 0`; `None` otherwise or for fewer than
+/// 3 times.
+fn uniform_step(ts: &[f64]) -> Option<f64> {
+    let n = ts.len();
+    if n < 3 {
+        return None;
+    }
+    let (t0, t1) = (ts[0], ts[n - 1]);
+    let dt = (t1 - t0) / (n - 1) as f64;
+    if !(dt > 0.0 && dt.is_finite()) {
+        return None;
+    }
+    ts.iter()
+        .enumerate()
+        .all(|(i, &t)| (t - (t0 + i as f64 * dt)).abs() <= 8.0 * f64::EPSILON * t.abs().max(dt))
+        .then_some(dt)
+}
+
 /// `x(t)` as an exact finite sum of damped modes (see the module docs).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ModalResponse {
@@ -360,9 +384,57 @@ impl ModalResponse {
         }
         self.terms.iter().map(|m| m.eval(t)).sum()
     }
-    /// `x(t)` at many times.
+    /// `x(t)` at many times. On a uniform grid `t_i = t_0 + i dt` (to
+    /// rounding, as a sampled record's times are) each oscillating or
+    /// decaying term is stepped by one complex multiplication per sample,
+    /// `w_{i+1} = w_i e^{p dt}`, re-anchored at the exact `r e^{p t_i}`
+    /// every [`ANCHOR`] samples so that the recurrence's rounding stays
+    /// below `ANCHOR` ulps: about 10 times faster than a sine, cosine and
+    /// exponential per sample and term. Other grids, and overdamped or
+    /// critically damped `Osc` terms, are evaluated term by term.
     pub fn eval_many(&self, ts: &[f64]) -> Vec<f64> {
-        ts.iter().map(|&t| self.eval(t)).collect()
+        let Some(dt) = uniform_step(ts) else {
+            return ts.iter().map(|&t| self.eval(t)).collect();
+        };
+        let mut out = vec![0.0; ts.len()];
+        for term in &self.terms {
+            // the term as 2 Re(r e^{p t}) (pair) or r e^{p t} (real)
+            let (p, r, twice) = match *term {
+                Term::Pair { p, r } => (p, r, true),
+                Term::Osc { c, e, a, w2 } if w2 > 0.0 => {
+                    let b = w2.sqrt();
+                    (
+                        Complex64::new(-a, b),
+                        Complex64::new(0.5 * e, -0.5 * c / b),
+                        true,
+                    )
+                }
+                Term::Real { p, r } => (Complex64::new(p, 0.0), Complex64::new(r, 0.0), false),
+                Term::Osc { .. } => {
+                    for (o, &t) in out.iter_mut().zip(ts) {
+                        if t >= 0.0 {
+                            *o += term.eval(t);
+                        }
+                    }
+                    continue;
+                }
+            };
+            let z = (p * dt).exp();
+            let scale = if twice { 2.0 } else { 1.0 };
+            let mut w = Complex64::new(0.0, 0.0);
+            for (i, (o, &t)) in out.iter_mut().zip(ts).enumerate() {
+                if t < 0.0 {
+                    continue;
+                }
+                if i % ANCHOR == 0 || t - dt < 0.0 {
+                    w = r * (p * t).exp();
+                } else {
+                    w *= z;
+                }
+                *o += scale * w.re;
+            }
+        }
+        out
     }
     /// The Laplace transform `X(s) = sum_k term_k(s)` (for checks against
     /// [`crate::forward::response`]).
@@ -1177,6 +1249,64 @@ impl Qep<'_> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn uniform_grid_recurrence_matches_term_by_term_evaluation() {
+        use crate::chain::Boundary;
+        use crate::Defect;
+        let chains = [
+            Chain::paper(20).unwrap(),
+            Chain::paper(8)
+                .unwrap()
+                .with_defects([
+                    Defect::Mass { at: 3, m: 5.0 },
+                    Defect::Damper { at: 6, d: 3.0 },
+                ])
+                .unwrap(),
+            Chain::paper(6)
+                .unwrap()
+                .with_d(0.0)
+                .unwrap()
+                .with_boundaries(Boundary::Free, Boundary::Free)
+                .unwrap(),
+            Chain::paper(5).unwrap().with_d(4.0).unwrap(), // overdamped modes
+        ];
+        for c in &chains {
+            for dt in [0.05, 0.2] {
+                let ts: Vec<f64> = (0..6001).map(|i| i as f64 * dt).collect();
+                for r in [
+                    ModalResponse::impulse(c, 1).unwrap(),
+                    ModalResponse::impulse(c, c.n()).unwrap().derivative(),
+                ] {
+                    let fast = r.eval_many(&ts);
+                    for (i, &t) in ts.iter().enumerate() {
+                        let slow = r.eval(t);
+                        // relative to the terms' own sizes at t (they may cancel)
+                        let envelope = |m: &Term| match *m {
+                            Term::Pair { p, r } => 2.0 * r.norm() * (p.re * t).exp(),
+                            Term::Real { p, r } => (r * (p * t).exp()).abs(),
+                            Term::Osc { c, e, a, w2 } if w2 > 0.0 => {
+                                (-a * t).exp() * (e.abs() + c.abs() / w2.sqrt())
+                            }
+                            Term::Osc { .. } => m.eval(t).abs(),
+                        };
+                        let amp: f64 = r.terms().iter().map(envelope).sum();
+                        // both round the argument p t: error ~ eps (|p| t + ANCHOR)
+                        let pmax = r.terms().iter().map(Term::pole_norm).fold(0.0, f64::max);
+                        let tol = 4.0 * f64::EPSILON * (ANCHOR as f64 + pmax * t) * amp + 1e-300;
+                        assert!(
+                            (fast[i] - slow).abs() <= tol,
+                            "t = {t}: {} vs {slow} (tol {tol})",
+                            fast[i]
+                        );
+                    }
+                }
+            }
+        }
+        // a non-uniform grid takes the term-by-term path
+        assert!(uniform_step(&[0.0, 0.1, 0.3]).is_none());
+        assert_eq!(uniform_step(&[0.0, 0.5, 1.0]), Some(0.5));
+    }
+
     use super::*;
     use crate::chain::Defect;
     use crate::forward::response;
