@@ -397,25 +397,22 @@ impl SeriesTransform {
         let rows = stacked_rows(s);
         let n = self.t.len();
         let mut b = DMatrix::<f64>::zeros(rows.len(), n);
-        let mut row = 0;
-        // Re rows first (every node), then Im rows (complex nodes), as stack_re_im
+        // Re rows first (every node), then Im rows (complex nodes), as
+        // stack_re_im; the weights of each node computed once
+        let mut im_row = s.len();
         for (q, z) in s.iter().enumerate() {
             let a = self.weights(*z);
             for (i, w) in a.iter().enumerate() {
                 b[(q, i)] = w.re;
             }
-            row += 1;
-        }
-        for z in s.iter() {
             if z.im != 0.0 {
-                let a = self.weights(*z);
                 for (i, w) in a.iter().enumerate() {
-                    b[(row, i)] = w.im;
+                    b[(im_row, i)] = w.im;
                 }
-                row += 1;
+                im_row += 1;
             }
         }
-        debug_assert_eq!(row, rows.len());
+        debug_assert_eq!(im_row, rows.len());
         let mut c = &b * b.transpose();
         c *= sigma * sigma;
         Ok(c)

@@ -433,6 +433,7 @@ pub fn fit(obs: &Observations, model: &Model, opts: &FitOptions) -> Result<FitRe
         model,
         opts,
         misfit,
+        prepared: std::sync::Mutex::new(None),
     };
     // the noise level: given, or a first guess then the residual estimate
     let (mut sigma, estimated) = match (obs, opts.noise) {
@@ -593,7 +594,14 @@ struct Engine<'a> {
     model: &'a Model,
     opts: &'a FitOptions,
     misfit: MisfitKind,
+    /// The observations prepared at the last noise level (the transform,
+    /// its covariance and whitening do not depend on k).
+    prepared: std::sync::Mutex<Option<(u64, Prepared)>>,
 }
+
+/// The coarse (Laplace) and fine (time) observations, the misfit's name and
+/// the Laplace setup.
+type Prepared = (LaplaceObs, Option<TimeMisfit>, String, Setup);
 
 /// The Laplace setup for a record: the Bromwich line's abscissa a few over
 /// the record length (the unrecorded tail weighs `e^{-10}`), its range above
@@ -646,7 +654,23 @@ impl Engine<'_> {
     }
 
     /// Observations in the forms the misfits use, at noise level `sigma`.
-    fn prepared(&self, sigma: f64) -> Result<(LaplaceObs, Option<TimeMisfit>, String, Setup)> {
+    fn prepared(&self, sigma: f64) -> Result<Prepared> {
+        let key = sigma.to_bits();
+        if let Ok(guard) = self.prepared.lock() {
+            if let Some((k, p)) = guard.as_ref() {
+                if *k == key {
+                    return Ok(p.clone());
+                }
+            }
+        }
+        let p = self.prepare(sigma)?;
+        if let Ok(mut guard) = self.prepared.lock() {
+            *guard = Some((key, p.clone()));
+        }
+        Ok(p)
+    }
+
+    fn prepare(&self, sigma: f64) -> Result<Prepared> {
         match self.obs {
             Observations::Series(s) => {
                 let setup = setup_for(Some(s), self.model)?;
