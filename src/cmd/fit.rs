@@ -6,9 +6,7 @@ use anyhow::Context;
 use clap::Args as ClapArgs;
 use springmass::detect::fit::paper::{fit, FitReport};
 use springmass::detect::fit::FitMethod;
-use springmass::detect::misfit::MisfitKind;
 use springmass::detect::scene::FitScene;
-use springmass::detect::unknowns::KindChoice;
 use std::path::PathBuf;
 
 /// Arguments of `springmass fit`.
@@ -131,62 +129,34 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 /// `springmass fit --data`: the data-first pipeline.
 fn run_data(a: Args) -> anyhow::Result<()> {
     use springmass::detect::data::observations::{Observations, Series};
-    use springmass::detect::fit::{self as dfit, DefectCount, FitOptions, Model, NoiseSpec};
+    use springmass::detect::fit::{self as dfit, options::FitSpec};
     use springmass::Error;
     let path = a.data.clone().expect("checked by the caller");
     let n = a
         .n
         .ok_or_else(|| Error::invalid("n", "(none)", "--n N, the number of masses of the chain"))?;
     // every option is parsed before the data are read or any work starts
-    let mut opts = FitOptions::default();
-    if let Some(d) = &a.defects {
-        opts.defects = DefectCount::parse(d)?;
-    }
-    if let Some(k) = &a.kinds {
-        opts.kinds = match k.trim() {
-            "mass" => KindChoice::Mass,
-            "spring" => KindChoice::Spring,
-            "damper" => KindChoice::Damper,
-            "any" => KindChoice::Any,
-            _ => return Err(Error::invalid("kinds", k, "mass, spring, damper or any").into()),
-        };
-    }
-    if let Some(x) = &a.noise {
-        opts.noise = NoiseSpec::parse(x)?;
-    }
-    if let Some(m) = &a.misfit {
-        opts.misfit = Some(MisfitKind::parse(m)?);
-    }
-    if let Some(m) = &a.method {
-        opts.method = FitMethod::parse(m)?;
-    }
-    if let Some(c) = &a.criterion {
-        opts.criterion = dfit::Criterion::parse(c)?;
-    }
-    if let Some(s) = a.seed {
-        opts.seed = s;
-    }
-    if let Some(m) = a.max_evals {
-        opts.max_evals = m;
-    }
-    let mut model = Model::new(n)?;
-    if let Some(d) = a.d {
-        model = model.with_d(d)?;
-    }
-    if let Some(g) = a.gamma {
-        model = model.with_gamma(g)?;
-    }
-    for k in &a.known {
-        model = model.with_known(springmass::Defect::parse(k)?)?;
-    }
-    if let Some(f) = &a.fit {
-        model = model.fitting(&dfit::parse_params(f)?)?;
-    }
-    let sigma = match opts.noise {
-        NoiseSpec::Sigma(s) => Some(s),
-        NoiseSpec::Auto => None,
+    let spec = FitSpec {
+        d: a.d,
+        gamma: a.gamma,
+        fit: a.fit.clone(),
+        known: a.known.clone(),
+        defects: a.defects.clone(),
+        kinds: a.kinds.clone(),
+        noise: a.noise.clone(),
+        misfit: a.misfit.clone(),
+        method: a.method.clone(),
+        criterion: a.criterion.clone(),
+        seed: a.seed,
+        max_evals: a.max_evals,
+        ..FitSpec::new(n)
     };
-    let obs = Observations::Series(Series::from_csv(&path, a.column.as_deref(), sigma)?);
+    let (model, opts) = spec.build()?;
+    let obs = Observations::Series(Series::from_csv(
+        &path,
+        a.column.as_deref(),
+        opts.noise.known(),
+    )?);
     opts.validate(&obs, &model)?;
     let report = dfit::fit(&obs, &model, &opts)?;
     if let Some(p) = &report.predicted {
