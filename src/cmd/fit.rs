@@ -6,9 +6,7 @@ use anyhow::Context;
 use clap::Args as ClapArgs;
 use springmass::detect::fit::paper::{fit, FitReport};
 use springmass::detect::fit::FitMethod;
-use springmass::detect::misfit::MisfitKind;
 use springmass::detect::scene::FitScene;
-use springmass::detect::unknowns::KindChoice;
 use std::path::PathBuf;
 
 /// Arguments of `springmass fit`.
@@ -178,11 +176,8 @@ fn force_column(
 
 /// `springmass fit --data`: the data-first pipeline.
 fn run_data(a: Args) -> anyhow::Result<()> {
-    use springmass::chain::Boundary;
-    use springmass::detect::data::measurement::Measurement;
     use springmass::detect::data::observations::{Observations, Series};
-    use springmass::detect::fit::{self as dfit, DefectCount, FitOptions, Model, NoiseSpec};
-    use springmass::forward::Observable;
+    use springmass::detect::fit::{self as dfit, options::FitSpec};
     use springmass::series::TimeSeries;
     use springmass::Error;
     let path = a.data.clone().expect("checked by the caller");
@@ -190,75 +185,30 @@ fn run_data(a: Args) -> anyhow::Result<()> {
         .n
         .ok_or_else(|| Error::invalid("n", "(none)", "--n N, the number of masses of the chain"))?;
     // every option is parsed before the data are read or any work starts
-    let mut opts = FitOptions::default();
-    if let Some(d) = &a.defects {
-        opts.defects = DefectCount::parse(d)?;
-    }
-    if let Some(k) = &a.kinds {
-        opts.kinds = match k.trim() {
-            "mass" => KindChoice::Mass,
-            "spring" => KindChoice::Spring,
-            "damper" => KindChoice::Damper,
-            "any" => KindChoice::Any,
-            _ => return Err(Error::invalid("kinds", k, "mass, spring, damper or any").into()),
-        };
-    }
-    if let Some(x) = &a.noise {
-        opts.noise = NoiseSpec::parse(x)?;
-    }
-    if let Some(m) = &a.misfit {
-        opts.misfit = Some(MisfitKind::parse(m)?);
-    }
-    if let Some(m) = &a.method {
-        opts.method = FitMethod::parse(m)?;
-    }
-    if let Some(c) = &a.criterion {
-        opts.criterion = dfit::Criterion::parse(c)?;
-    }
-    if let Some(s) = a.seed {
-        opts.seed = s;
-    }
-    if let Some(m) = a.max_evals {
-        opts.max_evals = m;
-    }
-    let mut model = Model::new(n)?;
-    if let Some(d) = a.d {
-        model = model.with_d(d)?;
-    }
-    if let Some(k) = a.k {
-        model = model.with_k(k)?;
-    }
-    if let Some(m) = a.mass {
-        model = model.with_mass(m)?;
-    }
-    if let Some(g) = a.gamma {
-        model = model.with_gamma(g)?;
-    }
-    for k in &a.known {
-        model = model.with_known(springmass::Defect::parse(k)?)?;
-    }
-    if let Some(f) = &a.fit {
-        model = model.fitting(&dfit::parse_params(f)?)?;
-    }
-    let sigma = match opts.noise {
-        NoiseSpec::Sigma(s) => Some(s),
-        NoiseSpec::Auto => None,
+    let spec = FitSpec {
+        d: a.d,
+        k: a.k,
+        mass: a.mass,
+        gamma: a.gamma,
+        left: a.left.clone(),
+        right: a.right.clone(),
+        observe: a.observe,
+        observe_kind: a.observe_kind.clone(),
+        fit: a.fit.clone(),
+        known: a.known.clone(),
+        defects: a.defects.clone(),
+        kinds: a.kinds.clone(),
+        noise: a.noise.clone(),
+        misfit: a.misfit.clone(),
+        method: a.method.clone(),
+        criterion: a.criterion.clone(),
+        seed: a.seed,
+        max_evals: a.max_evals,
+        ..FitSpec::new(n)
     };
-    if a.left.is_some() || a.right.is_some() {
-        let end = |field: &str, v: &Option<String>| -> springmass::Result<Boundary> {
-            v.as_deref().map_or(Ok(Boundary::Fixed), |x| {
-                x.parse()
-                    .map_err(|_| Error::invalid(field, x, "fixed or free"))
-            })
-        };
-        model = model.with_ends(end("left", &a.left)?, end("right", &a.right)?)?;
-    }
-    let kind: Observable = a
-        .observe_kind
-        .as_deref()
-        .unwrap_or("displacement")
-        .parse()?;
-    let mut measurement = Measurement::new(a.observe.unwrap_or(1), kind);
+    let (model, opts) = spec.build()?;
+    // the sensor is checked before the data are read; the force is data
+    let sensor_only = spec.measurement(None)?;
     let table = TimeSeries::read_csv(&path)?;
     // the fitted column: --column, or the first one that is not the force
     let column = match (&a.column, &a.force_column, &a.force) {
@@ -266,8 +216,8 @@ fn run_data(a: Args) -> anyhow::Result<()> {
         (None, Some(fc), None) => table.names().iter().find(|c| *c != fc).cloned(),
         _ => None,
     };
-    let mut series = Series::from_table(&table, column.as_deref(), sigma)?;
-    if a.force.is_some() || a.force_column.is_some() {
+    let series = Series::from_table(&table, column.as_deref(), opts.noise.known())?;
+    let measurement = if a.force.is_some() || a.force_column.is_some() {
         let f = match &a.force {
             Some(fpath) => {
                 let ft = TimeSeries::read_csv(fpath)
@@ -290,10 +240,11 @@ fn run_data(a: Args) -> anyhow::Result<()> {
             }
             None => force_column(&table, a.force_column.as_deref())?,
         };
-        measurement = measurement.with_force(f)?;
-    }
-    series = series.with_measurement(measurement)?;
-    let obs = Observations::Series(series);
+        spec.measurement(Some(f))?
+    } else {
+        sensor_only
+    };
+    let obs = Observations::Series(series.with_measurement(measurement)?);
     opts.validate(&obs, &model)?;
     let report = dfit::fit(&obs, &model, &opts)?;
     if let Some(p) = &report.predicted {

@@ -48,6 +48,7 @@ pub mod chainfit;
 pub mod general;
 pub mod identify;
 pub mod noise;
+pub mod options;
 pub mod paper;
 pub mod report;
 pub mod select;

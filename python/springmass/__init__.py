@@ -1,0 +1,1122 @@
+"""Vibration suppression and defect detection in spring-mass chains.
+
+The Python face of the Rust crate ``springmass``: numpy arrays in and out,
+the numbers computed by the same Rust core as the ``springmass`` command.
+
+Functions
+---------
+fit
+    Fit defects (positions, kinds, values with standard errors) to a measured
+    series ``x(t)`` of mass 1; the number of defects and the noise level can
+    be estimated from the data.
+simulate
+    Time series of a chain hit by an impulse on mass 1, optionally noisy.
+response
+    Laplace-domain response ``X(s)`` of a chain at real or complex ``s``.
+controls
+    The vibration-suppression forces of Theorem 3.1 and Corollary 3.2.
+laplace
+    Laplace transform of a sampled series with an error estimate per ``s``.
+locate
+    One mass defect located by the explicit relations of section 4.1.
+scene
+    A reference chain of the paper (``"S3"`` is Table 1's System 3).
+read_csv
+    A measured series from a CSV file (the command line's reader).
+
+Errors
+------
+Invalid input raises ``ValueError`` whose message names the field and the
+allowed range (the Rust library's message); its attributes ``field``,
+``value`` and ``allowed`` repeat them. File errors raise ``OSError``; data
+that cannot resolve the answer raise :class:`UnresolvableError` (a
+``ValueError``), a failed numerical method :class:`NumericalError` (a
+``RuntimeError``).
+
+Examples
+--------
+>>> import numpy as np, springmass
+>>> t = np.arange(0, 150, 0.25)
+>>> x = springmass.simulate(5, defects=[("mass", 2, 3.0)], t=t, noise="rel:1e-3", seed=1)
+>>> r = springmass.fit(t, x, n=5)
+>>> (r.k, r.defects[0].at)
+(1, 2)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import numbers
+import operator
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _core
+from ._core import NumericalError, UnresolvableError, __version__
+
+__all__ = [
+    "__version__",
+    "Defect",
+    "DefectEstimate",
+    "ParamEstimate",
+    "Alternative",
+    "KRow",
+    "FitResult",
+    "LaplaceTransform",
+    "Location",
+    "Scene",
+    "UnresolvableError",
+    "NumericalError",
+    "fit",
+    "simulate",
+    "response",
+    "controls",
+    "laplace",
+    "locate",
+    "scene",
+    "read_csv",
+]
+
+
+# ---------------------------------------------------------------- input checks
+
+
+def _invalid(field_name: str, value: Any, allowed: str) -> ValueError:
+    """A ValueError in the library's form: ``invalid FIELD = VALUE: allowed ALLOWED``."""
+    err = ValueError(f"invalid {field_name} = {value}: allowed {allowed}")
+    err.kind = "InvalidParameter"  # type: ignore[attr-defined]
+    err.field = field_name  # type: ignore[attr-defined]
+    err.value = str(value)  # type: ignore[attr-defined]
+    err.allowed = allowed  # type: ignore[attr-defined]
+    return err
+
+
+def _short(v: Any) -> str:
+    text = repr(v)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _vector(name: str, v: Any) -> np.ndarray:
+    """A one-dimensional float64 array (lists, any real dtype, any strides)."""
+    try:
+        a = np.asarray(v)
+    except Exception as e:  # ragged lists and the like
+        raise _invalid(name, _short(v), f"a one-dimensional array of real numbers ({e})") from None
+    if a.dtype.kind == "c":
+        raise _invalid(name, f"an array of dtype {a.dtype}", "real numbers (no complex values)")
+    if a.dtype.kind not in "biuf":
+        try:
+            a = a.astype(np.float64)
+        except (TypeError, ValueError):
+            raise _invalid(name, _short(v), "a one-dimensional array of real numbers") from None
+    if a.ndim != 1:
+        raise _invalid(name, f"an array of shape {a.shape}", "a one-dimensional array")
+    return np.asarray(a, dtype=np.float64)
+
+
+def _real(name: str, v: Any) -> float:
+    """A real number (NaN and infinities pass: the library names them)."""
+    if isinstance(v, bool) or not isinstance(v, numbers.Real):
+        raise _invalid(name, _short(v), "a real number")
+    return float(v)
+
+
+def _count(name: str, v: Any) -> int:
+    """A non-negative integer (the library checks its range)."""
+    if isinstance(v, bool):
+        raise _invalid(name, _short(v), "a non-negative integer")
+    try:
+        i = operator.index(v)
+    except TypeError:
+        raise _invalid(name, _short(v), "a non-negative integer") from None
+    if not 0 <= i < 2**64:
+        raise _invalid(name, i, "a non-negative integer below 2**64")
+    return i
+
+
+def _text(name: str, v: Any) -> str:
+    if not isinstance(v, str):
+        raise _invalid(name, _short(v), "a string")
+    return v
+
+
+# ---------------------------------------------------------------- defects
+
+
+@dataclass(frozen=True)
+class Defect:
+    """One place where the chain differs from the uniform chain.
+
+    Parameters
+    ----------
+    kind : {"mass", "spring", "damper"}
+        What differs.
+    at : int
+        Position: masses and dampers ``1..=n``, springs ``0..=n`` (spring
+        ``i`` joins masses ``i`` and ``i + 1``; ``0`` and ``n`` are the wall
+        springs).
+    value : float
+        The defect's mass, stiffness or damping.
+
+    Examples
+    --------
+    >>> Defect("mass", 8, 5.0)
+    Defect(kind='mass', at=8, value=5.0)
+    >>> str(Defect("spring", 3, 0.5))
+    'spring:3:0.5'
+    """
+
+    kind: str
+    at: int
+    value: float
+
+    def __str__(self) -> str:
+        return f"{self.kind}:{self.at}:{self.value!r}"
+
+
+DefectLike = Union[Defect, Tuple[str, int, float], str]
+
+
+def _defect_text(name: str, d: Any) -> str:
+    """``kind:at:value`` for the library's parser (which names what is wrong)."""
+    if isinstance(d, Defect):
+        return str(d)
+    if isinstance(d, str):
+        return d
+    if isinstance(d, (tuple, list)) and len(d) == 3:
+        kind, at, value = d
+        if isinstance(value, numbers.Real) and not isinstance(value, bool):
+            value = repr(float(value))
+        return f"{kind}:{at}:{value}"
+    raise _invalid(
+        name, _short(d), 'a Defect, a tuple (kind, at, value) such as ("mass", 8, 5.0), or "mass:8:5"'
+    )
+
+
+def _defects(name: str, ds: Any) -> List[str]:
+    if isinstance(ds, (Defect, str)) or (isinstance(ds, tuple) and len(ds) == 3 and isinstance(ds[0], str)):
+        ds = [ds]
+    try:
+        items = list(ds)
+    except TypeError:
+        raise _invalid(name, _short(ds), "a sequence of defects") from None
+    return [_defect_text(f"{name}[{i}]", d) for i, d in enumerate(items)]
+
+
+def _defect_from_json(d: Dict[str, Any]) -> Defect:
+    value = d.get("m", d.get("k", d.get("d")))
+    return Defect(d["kind"], int(d["at"]), float(value))
+
+
+def _chain(n: Any, k: Any, d: Any, gamma: Any, mass: Any, defects: Any, left: Any, right: Any) -> Dict[str, Any]:
+    return {
+        "n": _count("n", n),
+        "k": _real("k", k),
+        "d": _real("d", d),
+        "gamma": _real("gamma", gamma),
+        "mass": _real("mass", mass),
+        "defects": _defects("defects", defects),
+        "left": _text("left", left),
+        "right": _text("right", right),
+    }
+
+
+def _nan(v: Optional[float]) -> float:
+    """JSON null (the library's NaN) back to NaN."""
+    return math.nan if v is None else float(v)
+
+
+# ---------------------------------------------------------------- fit
+
+
+@dataclass(frozen=True)
+class DefectEstimate:
+    """One defect found by :func:`fit`.
+
+    Attributes
+    ----------
+    kind : str
+        ``"mass"``, ``"spring"`` or ``"damper"``.
+    at : int
+        Position.
+    value : float
+        Fitted value.
+    se : float
+        Its standard error (NaN when the data do not constrain it, 0 for a
+        known defect).
+    at_bound : bool
+        The value ended on a bound of its range.
+    known : bool
+        Given by ``known=``, not fitted.
+    significance : float
+        Standard errors from "no defect", ``|value - uniform| / se``.
+    identifiable : bool
+        Whether the data single out its position and value.
+    """
+
+    kind: str
+    at: int
+    value: float
+    se: float
+    at_bound: bool
+    known: bool
+    significance: float
+    identifiable: bool
+
+    @property
+    def defect(self) -> Defect:
+        """As a :class:`Defect`."""
+        return Defect(self.kind, self.at, self.value)
+
+
+@dataclass(frozen=True)
+class ParamEstimate:
+    """A fitted chain parameter (``d``, ``gamma``, ``k`` or ``mass``) with its standard error."""
+
+    name: str
+    value: float
+    se: float
+    at_bound: bool
+
+
+@dataclass(frozen=True)
+class Alternative:
+    """A runner-up answer: its defects, chi-square and gap to the best (above 9: 3 sigma worse)."""
+
+    defects: Tuple[Defect, ...]
+    chi2: float
+    gap: float
+
+
+@dataclass(frozen=True)
+class KRow:
+    """The evidence for one number of defects ``k`` (``criterion``: smaller is better)."""
+
+    k: int
+    chi2: float
+    params: int
+    criterion: float
+    positions: Tuple[int, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class FitResult:
+    """The answer of :func:`fit`, with error bars first.
+
+    Attributes
+    ----------
+    defects : list of DefectEstimate
+        The defects found (known ones included and flagged).
+    k : int
+        Number of defects fitted (known ones excluded).
+    params : list of ParamEstimate
+        Chain parameters fitted (``fit=``).
+    sigma : float
+        Noise standard deviation of the samples used for the final fit.
+    sigma_estimated : bool
+        Whether ``sigma`` was estimated from the data (``noise="auto"``).
+    chi2, dof : float, int
+        Final chi-square and its degrees of freedom.
+    status : str
+        ``"converged"``, ``"budget-exhausted"``, ``"stalled"``,
+        ``"value-at-bound"`` or ``"not-identifiable"``.
+    message : str
+        One line on the status.
+    resolved : bool
+        The runner-up is clearly worse and every defect is identifiable.
+    fits_data : bool
+        The residual is consistent with noise (``fit_p_value >= 0.001``).
+    fit_p_value : float
+        p-value behind ``fits_data``.
+    alternatives : list of Alternative
+        The next best answers, best first.
+    k_selection : list of KRow
+        The evidence for each number of defects tried.
+    criterion, misfit, method : str
+        How ``k`` was chosen, the misfit and the search used.
+    evaluations, hypotheses : int
+        Misfit evaluations spent; position sets fitted for the chosen ``k``.
+    wall_time_s : float
+        Wall time of the fit in seconds.
+    identifiability : dict or None
+        The library's identifiability report of the best answer.
+    t, observed, predicted, residual : ndarray
+        The data and the best fit's model on the same times.
+    summary : str
+        The library's human summary (also ``str(result)``).
+    """
+
+    defects: List[DefectEstimate]
+    k: int
+    params: List[ParamEstimate]
+    sigma: float
+    sigma_estimated: bool
+    chi2: float
+    dof: int
+    status: str
+    message: str
+    resolved: bool
+    fits_data: bool
+    fit_p_value: float
+    alternatives: List[Alternative]
+    k_selection: List[KRow]
+    criterion: str
+    misfit: str
+    method: str
+    evaluations: int
+    hypotheses: int
+    wall_time_s: float
+    identifiability: Optional[Dict[str, Any]]
+    t: np.ndarray
+    observed: np.ndarray
+    predicted: np.ndarray
+    residual: np.ndarray
+    summary: str
+    _report: Dict[str, Any] = field(repr=False)
+
+    def __str__(self) -> str:
+        return self.summary
+
+    def to_dict(self) -> Dict[str, Any]:
+        """The report as plain Python objects, keyed as ``springmass fit --json``.
+
+        Every key and value of the command line's JSON (NaN written as
+        ``None``, as JSON has no NaN), plus ``"predicted"``: a dict of the
+        lists ``t``, ``observed``, ``model`` and ``residual``.
+
+        Returns
+        -------
+        dict
+            Ready for :func:`json.dumps`.
+        """
+        out = json.loads(json.dumps(self._report))
+        out["predicted"] = {
+            "t": self.t.tolist(),
+            "observed": self.observed.tolist(),
+            "model": self.predicted.tolist(),
+            "residual": self.residual.tolist(),
+        }
+        return out
+
+    @classmethod
+    def _from_core(cls, raw: Dict[str, Any]) -> "FitResult":
+        r = json.loads(raw["report"])
+        empty = np.zeros(0)
+        return cls(
+            defects=[
+                DefectEstimate(
+                    kind=d["kind"],
+                    at=int(d["at"]),
+                    value=_nan(d["value"]),
+                    se=_nan(d["se"]),
+                    at_bound=bool(d["at_bound"]),
+                    known=bool(d["known"]),
+                    significance=_nan(d["significance"]),
+                    identifiable=bool(d["identifiable"]),
+                )
+                for d in r["defects"]
+            ],
+            k=int(r["k"]),
+            params=[
+                ParamEstimate(p["name"], _nan(p["value"]), _nan(p["se"]), bool(p["at_bound"])) for p in r["params"]
+            ],
+            sigma=_nan(r["noise_sigma"]),
+            sigma_estimated=bool(r["noise_estimated"]),
+            chi2=_nan(r["chi2"]),
+            dof=int(r["dof"]),
+            status=r["status"],
+            message=r["message"],
+            resolved=bool(r["resolved"]),
+            fits_data=bool(r["fits_data"]),
+            fit_p_value=_nan(r["fit_p_value"]),
+            alternatives=[
+                Alternative(tuple(_defect_from_json(d) for d in a["defects"]), _nan(a["chi2"]), _nan(a["gap"]))
+                for a in r["alternatives"]
+            ],
+            k_selection=[
+                KRow(int(row["k"]), _nan(row["chi2"]), int(row["params"]), _nan(row["criterion"]), tuple(row["positions"]))
+                for row in r["k_selection"]
+            ],
+            criterion=r["criterion"],
+            misfit=r["misfit"],
+            method=r["method"],
+            evaluations=int(r["evaluations"]),
+            hypotheses=int(r["hypotheses"]),
+            wall_time_s=float(r["wall_time_s"]),
+            identifiability=r.get("identifiability"),
+            t=raw.get("t", empty),
+            observed=raw.get("observed", empty),
+            predicted=raw.get("model", empty),
+            residual=raw.get("residual", empty),
+            summary=raw["summary"],
+            _report=r,
+        )
+
+
+def fit(
+    t: Any,
+    x: Any,
+    *,
+    n: int,
+    d: float = 0.1,
+    fit: Union[str, Sequence[str]] = (),
+    defects: Union[str, int] = "auto",
+    kinds: Union[str, Sequence[str]] = "mass",
+    noise: Union[str, float] = "auto",
+    misfit: Optional[str] = None,
+    method: str = "enumerate",
+    seed: int = 0,
+    gamma: float = 1.0,
+    known: Sequence[DefectLike] = (),
+    criterion: str = "bic",
+    max_evals: int = 20000,
+) -> FitResult:
+    """Fit defects to a measured series of mass 1's displacement.
+
+    The chain is the paper's: ``n`` masses between two walls, uniform
+    springs ``k = 1`` and masses 1 (scale your data to these units), damping
+    ``d`` on every mass, an impulse ``gamma`` on mass 1 at ``t = 0``. The
+    fit finds the defects' positions, kinds and values with standard errors;
+    the number of defects and the noise level come from the data unless
+    given. The same options give the same numbers as
+    ``springmass fit --data FILE.csv --n N ... --json``. The GIL is
+    released while the fit runs.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Sample times, ``>= 0``, strictly increasing (at least 16 samples).
+    x : array_like, shape (N,)
+        Displacement of mass 1 at ``t`` (finite).
+    n : int
+        Number of masses.
+    d : float, default 0.1
+        Damping per mass (known, or the starting value with ``fit=("d",)``).
+    fit : str or sequence of str, default ()
+        Chain parameters fitted too: any of ``"d"``, ``"gamma"``, ``"k"``,
+        ``"mass"`` (at most three), or a comma-separated string.
+    defects : "auto", "auto:KMAX" or int, default "auto"
+        Number of defects; ``"auto"`` tries 0 to 4 (or ``n``) and chooses by
+        ``criterion``.
+    kinds : str or sequence of str, default "mass"
+        ``"mass"``, ``"spring"``, ``"damper"`` or ``"any"``; a sequence gives
+        one kind per defect (with ``defects`` the same number).
+    noise : "auto" or float, default "auto"
+        Standard deviation of the samples' noise, or ``"auto"`` to estimate it.
+    misfit : {"time", "bromwich", "real-axis"}, optional
+        The data misfit (default ``"time"``, the time-domain chi-square).
+    method : {"enumerate", "ga", "nelder-mead", "pso"}, default "enumerate"
+        The search over positions.
+    seed : int, default 0
+        Seed of the stochastic searches (same seed, same answer).
+    gamma : float, default 1.0
+        Impulse on mass 1.
+    known : sequence of Defect, (kind, at, value) or "kind:at:value", default ()
+        Defects known beforehand (not fitted).
+    criterion : {"bic", "aic", "chi2", "chi2:ALPHA"}, default "bic"
+        How ``defects="auto"`` chooses the number.
+    max_evals : int, default 20000
+        Evaluation budget of ``ga``, ``nelder-mead`` and ``pso``.
+
+    Returns
+    -------
+    FitResult
+        Defects with standard errors, ``k``, ``sigma``, ``chi2``, ``status``,
+        alternatives, the k-selection table and the predicted series.
+
+    Raises
+    ------
+    ValueError
+        Invalid input (NaN in ``x``, ``t`` not increasing, ``n = 0``, an
+        unknown kind, ...); the message names the field and its allowed range.
+    NumericalError
+        Every hypothesis failed numerically.
+
+    Examples
+    --------
+    >>> import numpy as np, springmass
+    >>> t = np.arange(0, 150, 0.25)
+    >>> x = springmass.simulate(5, defects=[("mass", 2, 3.0), ("mass", 4, 0.5)], t=t, noise="rel:1e-3", seed=3)
+    >>> r = springmass.fit(t, x, n=5, defects="auto:3")
+    >>> [(e.at, round(e.value, 1)) for e in r.defects]
+    [(2, 3.0), (4, 0.5)]
+    """
+    tv, xv = _vector("t", t), _vector("x", x)
+    if isinstance(fit, str):
+        fit_text = fit
+    else:
+        fit_text = ",".join(_text(f"fit[{i}]", p) for i, p in enumerate(fit))
+    if isinstance(defects, str):
+        defects_text = defects
+    else:
+        defects_text = str(_count("defects", defects))
+    if isinstance(kinds, str):
+        kinds_text, slot_kinds = kinds, []
+    else:
+        kinds_text, slot_kinds = None, [_text(f"kinds[{i}]", k) for i, k in enumerate(kinds)]
+    if isinstance(noise, str):
+        noise_text = noise
+    else:
+        noise_text = repr(_real("noise", noise))
+    raw = _core.fit(
+        tv,
+        xv,
+        n=_count("n", n),
+        d=_real("d", d),
+        gamma=_real("gamma", gamma),
+        fit=fit_text or None,
+        known=_defects("known", known),
+        defects=defects_text,
+        kinds=kinds_text,
+        slot_kinds=slot_kinds,
+        noise=noise_text,
+        misfit=None if misfit is None else _text("misfit", misfit),
+        method=_text("method", method),
+        criterion=_text("criterion", criterion),
+        seed=_count("seed", seed),
+        max_evals=_count("max_evals", max_evals),
+    )
+    return FitResult._from_core(raw)
+
+
+# ---------------------------------------------------------------- forward side
+
+
+def simulate(
+    n: int,
+    *,
+    t: Any,
+    defects: Sequence[DefectLike] = (),
+    d: float = 0.1,
+    k: float = 1.0,
+    gamma: float = 1.0,
+    mass: float = 1.0,
+    observe: Union[int, Sequence[int]] = 1,
+    observe_kind: str = "displacement",
+    noise: Union[None, str, float] = None,
+    seed: int = 0,
+    method: str = "auto",
+    left: str = "fixed",
+    right: str = "fixed",
+) -> np.ndarray:
+    """Simulate a chain hit by the impulse ``gamma delta(t)`` on mass 1.
+
+    Same numbers as ``springmass simulate`` (also the noise, for the same
+    seed). The GIL is released while it runs.
+
+    Parameters
+    ----------
+    n : int
+        Number of masses.
+    t : array_like, shape (N,)
+        Output times ``0, dt, 2 dt, ...`` (uniform, from 0; for example
+        ``np.arange(0, 200, 0.2)``).
+    defects : sequence of Defect, (kind, at, value) or "kind:at:value", default ()
+        The chain's defects, e.g. ``[("mass", 8, 5.0), ("spring", 3, 0.5)]``.
+    d, k, gamma, mass : float
+        Uniform damping (0.1), stiffness (1), impulse (1) and mass (1).
+    observe : int or sequence of int, default 1
+        Observed mass(es), 1-based.
+    observe_kind : {"displacement", "velocity", "acceleration"}
+        What is recorded.
+    noise : None, float or str, default None
+        Additive white Gaussian noise: a float is its standard deviation;
+        ``"abs:SIGMA"``, ``"snr:DB"`` or ``"rel:R"`` (``R`` times the largest
+        ``|x|``, e.g. ``"rel:0.01"`` for 1%).
+    seed : int, default 0
+        Seed of the noise; row ``c`` uses ``seed + c``.
+    method : {"auto", "expm", "modal", "rk"}, default "auto"
+        Integration method.
+    left, right : {"fixed", "free"}, default "fixed"
+        How each end of the chain is held.
+
+    Returns
+    -------
+    ndarray
+        Shape ``(N,)`` for an int ``observe``, ``(len(observe), N)`` for a
+        sequence.
+
+    Raises
+    ------
+    ValueError
+        Invalid input, naming the field.
+
+    Examples
+    --------
+    >>> import numpy as np, springmass
+    >>> x = springmass.simulate(20, defects=[("mass", 8, 5.0)], t=np.arange(0, 10, 0.5))
+    >>> x.shape
+    (20,)
+    """
+    single = not isinstance(observe, (list, tuple, np.ndarray))
+    obs = [_count("observe", observe)] if single else [_count(f"observe[{i}]", o) for i, o in enumerate(observe)]
+    if noise is None or isinstance(noise, str):
+        noise_text = noise
+    else:
+        noise_text = "abs:" + repr(_real("noise", noise))
+    out = _core.simulate(
+        _chain(n, k, d, gamma, mass, defects, left, right),
+        _vector("t", t),
+        observe=obs,
+        observe_kind=_text("observe_kind", observe_kind),
+        noise=noise_text,
+        seed=_count("seed", seed),
+        method=_text("method", method),
+    )
+    return out[0] if single else out
+
+
+def response(
+    s: Any,
+    *,
+    n: int,
+    defects: Sequence[DefectLike] = (),
+    d: float = 0.1,
+    k: float = 1.0,
+    gamma: float = 1.0,
+    mass: float = 1.0,
+    observe: int = 1,
+    observe_kind: str = "displacement",
+    left: str = "fixed",
+    right: str = "fixed",
+) -> Any:
+    """The Laplace-domain response ``X_observe(s)`` of a chain.
+
+    Closed form (Woodbury update of the uniform chain's Green's function),
+    for the impulse ``gamma`` on mass 1.
+
+    Parameters
+    ----------
+    s : complex or array_like
+        Laplace variable(s), real or complex, any shape (``Re s >= 0``).
+    n : int
+        Number of masses.
+    defects : sequence of Defect, (kind, at, value) or "kind:at:value", default ()
+        The chain's defects.
+    d, k, gamma, mass : float
+        Uniform damping (0.1), stiffness (1), impulse (1) and mass (1).
+    observe : int, default 1
+        Observed mass (1-based).
+    observe_kind : {"displacement", "velocity", "acceleration"}
+        ``X(s)``, ``s X(s)`` or the acceleration's transform.
+    left, right : {"fixed", "free"}, default "fixed"
+        How each end of the chain is held.
+
+    Returns
+    -------
+    ndarray or scalar
+        Same shape as ``s``; float64 for real ``s``, complex128 for complex.
+
+    Examples
+    --------
+    >>> import springmass
+    >>> x = springmass.response([0.5, 1 + 2j], n=20, defects=[("mass", 8, 5.0), ("mass", 15, 2.0)])
+    >>> x.dtype
+    dtype('complex128')
+    """
+    a = np.asarray(s)
+    if a.dtype.kind == "c":
+        fn, a = _core.response_complex, a.astype(np.complex128)
+    elif a.dtype.kind in "biuf":
+        fn, a = _core.response_real, a.astype(np.float64)
+    else:
+        raise _invalid("s", _short(s), "real or complex numbers")
+    out = fn(
+        a,
+        _chain(n, k, d, gamma, mass, defects, left, right),
+        observe=_count("observe", observe),
+        observe_kind=_text("observe_kind", observe_kind),
+    )
+    return out[()] if a.ndim == 0 else out
+
+
+def controls(
+    n: int,
+    *,
+    t: Any,
+    d: float = 0.1,
+    k: float = 1.0,
+    mass: float = 1.0,
+    gamma: float = 1.0,
+) -> Dict[str, np.ndarray]:
+    """The suppression forces of section 3 at the times ``t``, exact.
+
+    A uniform chain of ``n + 1`` masses is hit by ``gamma delta(t)`` on mass
+    1. Theorem 3.1: the forces ``f`` on mass ``n`` and ``g`` on mass
+    ``n - 1`` keep mass ``n + 1`` still and leave ``x_1`` unchanged.
+    Corollary 3.2: ``f1`` on mass ``n`` alone keeps masses ``n`` and
+    ``n + 1`` still.
+
+    Parameters
+    ----------
+    n : int
+        ``n >= 2``; the chain has ``n + 1`` masses.
+    t : array_like, shape (N,)
+        Times (finite); the forces are 0 for ``t <= 0``.
+    d, k, mass, gamma : float
+        Damping (0.1), stiffness (1), mass (1) and impulse (1).
+
+    Returns
+    -------
+    dict of str to ndarray
+        ``"f"``, ``"g"`` and ``"f1"``, each of shape ``(N,)``.
+
+    Examples
+    --------
+    >>> import numpy as np, springmass
+    >>> c = springmass.controls(4, t=np.linspace(0, 50, 11))
+    >>> sorted(c)
+    ['f', 'f1', 'g']
+    """
+    return dict(
+        _core.controls(
+            _count("n", n),
+            _vector("t", t),
+            k=_real("k", k),
+            d=_real("d", d),
+            mass=_real("mass", mass),
+            gamma=_real("gamma", gamma),
+        )
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class LaplaceTransform:
+    """The transform of a sampled series (arrays in the shape of ``s``).
+
+    Attributes
+    ----------
+    s : ndarray of complex
+        The Laplace variables.
+    value : ndarray of complex
+        ``X(s)``.
+    err : ndarray
+        Total error estimate: ``err_disc + err_trunc + err_round``.
+    err_disc, err_trunc, err_round : ndarray
+        Discretisation, truncation (tail) and rounding parts.
+    noise_std : ndarray or None
+        Standard deviation of the transformed noise (with ``noise_sigma``).
+    """
+
+    s: np.ndarray
+    value: np.ndarray
+    err: np.ndarray
+    err_disc: np.ndarray
+    err_trunc: np.ndarray
+    err_round: np.ndarray
+    noise_std: Optional[np.ndarray]
+
+
+def laplace(
+    t: Any,
+    x: Any,
+    s: Any,
+    *,
+    degree: int = 7,
+    noise_sigma: Optional[float] = None,
+    tail: str = "envelope",
+) -> LaplaceTransform:
+    """Laplace transform ``X(s) = int x(t) exp(-s t) dt`` of a sampled series.
+
+    Filon-type quadrature (exact for piecewise polynomials of ``degree``,
+    whatever ``s``), with a per-``s`` error estimate. The GIL is released
+    while it runs.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Sample times, strictly increasing (uniform or not; at least 4).
+    x : array_like, shape (N,)
+        Samples (finite).
+    s : complex or array_like
+        Where to evaluate (real or complex, any shape).
+    degree : int, default 7
+        Degree of the local interpolant, 3 to 9; the error estimate compares
+        with ``degree - 2``.
+    noise_sigma : float, optional
+        White-noise standard deviation of the samples: adds ``noise_std``.
+    tail : {"envelope", "modes", "zero"}, default "envelope"
+        After the last sample: bound the tail by a fitted envelope, fit
+        decaying modes and add their transform, or assume zero.
+
+    Returns
+    -------
+    LaplaceTransform
+
+    Examples
+    --------
+    >>> import numpy as np, springmass
+    >>> t = np.linspace(0, 60, 601)
+    >>> tr = springmass.laplace(t, np.exp(-t), [1.0, 2 + 1j])
+    >>> bool(abs(tr.value[0] - 0.5) < 1e-8)
+    True
+    """
+    sa = np.asarray(s)
+    if sa.dtype.kind not in "biufc":
+        raise _invalid("s", _short(s), "real or complex numbers")
+    sc = np.ascontiguousarray(sa, dtype=np.complex128)
+    raw = _core.laplace(
+        _vector("t", t),
+        _vector("x", x),
+        sc.reshape(-1),
+        degree=_count("degree", degree),
+        noise_sigma=None if noise_sigma is None else _real("noise_sigma", noise_sigma),
+        tail=_text("tail", tail),
+    )
+
+    def shaped(a: np.ndarray) -> np.ndarray:
+        return a.reshape(sa.shape)
+
+    return LaplaceTransform(
+        s=sc,
+        value=shaped(raw["value"]),
+        err=shaped(raw["err"]),
+        err_disc=shaped(raw["err_disc"]),
+        err_trunc=shaped(raw["err_trunc"]),
+        err_round=shaped(raw["err_round"]),
+        noise_std=shaped(raw["noise_std"]) if "noise_std" in raw else None,
+    )
+
+
+# ---------------------------------------------------------------- locators
+
+
+@dataclass(frozen=True, eq=False)
+class Location:
+    """One mass defect located by :func:`locate`.
+
+    Attributes
+    ----------
+    position : int
+        ``round(j)``, certain: ``|j - position| + 3 sigma + model_error < 1/2``.
+    j : float
+        The real position the relation gives.
+    sigma : float
+        Standard uncertainty of ``j`` from the data's error and rounding.
+    model_error : float
+        Bound on the relation's model error.
+    s : float
+        The ``s`` of the estimate (the largest one used).
+    used_s : ndarray
+        Every ``s`` the answer depends on.
+    mass : float or None
+        Estimated defect mass (unknown-mass and large-defect methods).
+    raw_j : float or None
+        ``j(s)`` before extrapolation (large-defect methods).
+    method : str
+        The locator used.
+    """
+
+    position: int
+    j: float
+    sigma: float
+    model_error: float
+    s: float
+    used_s: np.ndarray
+    mass: Optional[float]
+    raw_j: Optional[float]
+    method: str
+
+
+def locate(
+    t: Any = None,
+    x: Any = None,
+    *,
+    n: int,
+    s: Any = None,
+    values: Any = None,
+    err: Any = None,
+    m: Optional[float] = None,
+    method: Optional[str] = None,
+    at: Optional[float] = None,
+    noise_sigma: Optional[float] = None,
+    d: float = 0.1,
+    k: float = 1.0,
+    mass: float = 1.0,
+    gamma: float = 1.0,
+) -> Location:
+    """Locate one mass defect with the explicit relations of section 4.1.
+
+    The data are a series ``x_1(t)`` (Laplace-transformed at ``s`` with its
+    error estimate) or Laplace values ``X_1(s)`` with absolute errors. The
+    locator solves its relation for a real position ``j`` at each ``s`` and
+    accepts the answer only if the nearest integer is certain.
+
+    Parameters
+    ----------
+    t, x : array_like, optional
+        A measured series of mass 1 (give both, or ``values``).
+    n : int
+        Number of masses of the chain (fixed ends).
+    s : array_like, optional
+        Real ``s > 0``: where the series is transformed (default: 61 values
+        from 1e-3 to 100), or the nodes of ``values``.
+    values : array_like, optional
+        ``X_1(s)`` at ``s`` (real).
+    err : array_like, optional
+        Absolute errors of ``values`` (default 0: exact up to rounding).
+    m : float, optional
+        The defect's mass if known (selects ``method="exact"``).
+    method : {"exact", "asymptotic", "large", "large-paper", "unknown-mass"}, optional
+        Default: ``"exact"`` with ``m``, else ``"unknown-mass"``.
+    at : float, optional
+        Use the datum at this ``s`` (default: the most certain one).
+    noise_sigma : float, optional
+        White-noise standard deviation of ``x`` (adds to each value's error).
+    d, k, mass, gamma : float
+        The chain's damping (0.1), stiffness (1), mass (1) and impulse (1).
+
+    Returns
+    -------
+    Location
+
+    Raises
+    ------
+    UnresolvableError
+        No ``s`` resolves the defect at this error level, or the estimates
+        disagree.
+    ValueError
+        Invalid input, naming the field.
+
+    Examples
+    --------
+    >>> import springmass
+    >>> s = [0.05, 0.1, 0.2, 0.4]
+    >>> X = springmass.response(s, n=20, defects=[("mass", 3, 5.0)])
+    >>> springmass.locate(n=20, s=s, values=X, m=5.0).position
+    3
+    """
+    chain = _chain(n, k, d, gamma, mass, (), "fixed", "fixed")
+    series = t is not None or x is not None
+    if series and (t is None or x is None):
+        raise _invalid("t" if t is None else "x", "None", "both t and x for a series")
+    raw = _core.locate(
+        chain,
+        grid=None if s is None else _vector("s", s),
+        t=_vector("t", t) if series else None,
+        x=_vector("x", x) if series else None,
+        values=None if values is None else _vector("values", values),
+        err=None if err is None else _vector("err", err),
+        method=None if method is None else _text("method", method),
+        m=None if m is None else _real("m", m),
+        at=None if at is None else _real("at", at),
+        noise_sigma=None if noise_sigma is None else _real("noise_sigma", noise_sigma),
+    )
+    return Location(
+        position=int(raw["position"]),
+        j=float(raw["j"]),
+        sigma=float(raw["sigma"]),
+        model_error=float(raw["model_error"]),
+        s=float(raw["s"]),
+        used_s=raw["used_s"],
+        mass=raw["mass"],
+        raw_j=raw["raw_j"],
+        method=raw["method"],
+    )
+
+
+# ---------------------------------------------------------------- scenes
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A reference chain of the paper: uniform parameters and defects.
+
+    ``simulate(**scene.chain())`` and ``response(s, **scene.chain())``
+    evaluate it.
+    """
+
+    name: str
+    n: int
+    k: float
+    d: float
+    gamma: float
+    mass: float
+    defects: Tuple[Defect, ...]
+
+    def chain(self) -> Dict[str, Any]:
+        """The keyword arguments of :func:`simulate` and :func:`response` for this chain."""
+        return {
+            "n": self.n,
+            "k": self.k,
+            "d": self.d,
+            "gamma": self.gamma,
+            "mass": self.mass,
+            "defects": list(self.defects),
+        }
+
+
+def scene(name: str) -> Scene:
+    """A reference scene of the paper by name.
+
+    Parameters
+    ----------
+    name : str
+        ``"P1"`` to ``"P4"`` (section 4.1-4.2) or ``"S1"`` to ``"S4"``
+        (Table 1; ``"S3"`` is System 3: n = 20, masses 5 at 8 and 2 at 15).
+
+    Returns
+    -------
+    Scene
+
+    Examples
+    --------
+    >>> import springmass
+    >>> springmass.scene("S3").defects
+    (Defect(kind='mass', at=8, value=5.0), Defect(kind='mass', at=15, value=2.0))
+    """
+    raw = _core.scene(_text("name", name))
+    return Scene(
+        name=name.strip().upper(),
+        n=int(raw["n"]),
+        k=float(raw["k"]),
+        d=float(raw["d"]),
+        gamma=float(raw["gamma"]),
+        mass=float(raw["mass"]),
+        defects=tuple(Defect(kind, int(at), float(v)) for kind, at, v in raw["defects"]),
+    )
+
+
+# ---------------------------------------------------------------- files
+
+
+def read_csv(path: Any) -> Tuple[np.ndarray, Dict[str, np.ndarray]]:
+    """Read a time series from a CSV file, as ``springmass fit --data`` does.
+
+    A header ``t,<name>,...`` (units in brackets, a pandas index column and
+    ``#`` comments accepted; ``,`` ``;`` or tab separated), strictly
+    increasing finite times, finite values.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+
+    Returns
+    -------
+    t : ndarray
+        The times.
+    columns : dict of str to ndarray
+        The value columns by name, in file order.
+
+    Raises
+    ------
+    OSError
+        The file cannot be read.
+    ValueError
+        The file is not a valid time series (the message names the line or
+        the column).
+
+    Examples
+    --------
+    >>> import springmass
+    >>> t, cols = springmass.read_csv("x1.csv")  # doctest: +SKIP
+    >>> r = springmass.fit(t, cols["x1"], n=20)  # doctest: +SKIP
+    """
+    if not isinstance(path, (str, bytes)) and not hasattr(path, "__fspath__"):
+        raise _invalid("path", _short(path), "a file path (str or os.PathLike)")
+    raw = _core.read_csv(path)
+    return raw["t"], dict(raw["columns"])

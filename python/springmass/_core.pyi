@@ -1,0 +1,105 @@
+"""Type stubs of the native module ``springmass._core`` (pyo3 + rust-numpy).
+
+Private: use the functions of the ``springmass`` package, which check and
+convert their arguments and wrap the results. Arrays arrive as float64
+(complex128 for Laplace variables) numpy arrays of one dimension unless
+stated; options arrive in the text forms of the command line.
+"""
+
+from os import PathLike
+from typing import Any, Dict, List, Optional, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+class UnresolvableError(ValueError):
+    """The data cannot resolve the requested result (a signal below the rounding or noise floor)."""
+
+class NumericalError(RuntimeError):
+    """A numerical method could not reach the requested accuracy."""
+
+# {"n": int, "k": float, "d": float, "gamma": float, "mass": float,
+#  "defects": list of "kind:at:value", "left": str, "right": str}
+ChainDict = Dict[str, Any]
+
+def fit(
+    t: npt.NDArray[np.float64],
+    x: npt.NDArray[np.float64],
+    *,
+    n: int,
+    d: Optional[float] = None,
+    gamma: Optional[float] = None,
+    fit: Optional[str] = None,
+    known: List[str] = ...,
+    defects: Optional[str] = None,
+    kinds: Optional[str] = None,
+    slot_kinds: List[str] = ...,
+    noise: Optional[str] = None,
+    misfit: Optional[str] = None,
+    method: Optional[str] = None,
+    criterion: Optional[str] = None,
+    seed: Optional[int] = None,
+    max_evals: Optional[int] = None,
+) -> Dict[str, Any]:
+    """The data-first fit: {"report": JSON text, "summary": str, "t", "observed", "model", "residual": ndarray}."""
+
+def simulate(
+    chain: ChainDict,
+    t: npt.NDArray[np.float64],
+    *,
+    observe: List[int],
+    observe_kind: str,
+    noise: Optional[str],
+    seed: int,
+    method: str,
+) -> npt.NDArray[np.float64]:
+    """Rows of the observed masses at the uniform times t, shape (len(observe), len(t))."""
+
+def response_real(
+    s: npt.NDArray[np.float64], chain: ChainDict, *, observe: int, observe_kind: str
+) -> npt.NDArray[np.float64]:
+    """X(s) at real s (any shape)."""
+
+def response_complex(
+    s: npt.NDArray[np.complex128], chain: ChainDict, *, observe: int, observe_kind: str
+) -> npt.NDArray[np.complex128]:
+    """X(s) at complex s (any shape)."""
+
+def controls(
+    n: int, t: npt.NDArray[np.float64], *, k: float, d: float, mass: float, gamma: float
+) -> Dict[str, npt.NDArray[np.float64]]:
+    """{"f", "g", "f1"} at the times t."""
+
+def laplace(
+    t: npt.NDArray[np.float64],
+    x: npt.NDArray[np.float64],
+    s: npt.NDArray[np.complex128],
+    *,
+    degree: int,
+    noise_sigma: Optional[float],
+    tail: str,
+) -> Dict[str, npt.NDArray[Any]]:
+    """{"value", "err", "err_disc", "err_trunc", "err_round"[, "noise_std"]}."""
+
+def locate(
+    chain: ChainDict,
+    *,
+    grid: Optional[npt.NDArray[np.float64]],
+    t: Optional[npt.NDArray[np.float64]] = None,
+    x: Optional[npt.NDArray[np.float64]] = None,
+    values: Optional[npt.NDArray[np.float64]] = None,
+    err: Optional[npt.NDArray[np.float64]] = None,
+    method: Optional[str] = None,
+    m: Optional[float] = None,
+    at: Optional[float] = None,
+    noise_sigma: Optional[float] = None,
+) -> Dict[str, Any]:
+    """{"position", "j", "sigma", "model_error", "s", "used_s", "mass", "raw_j", "method"}."""
+
+def scene(name: str) -> Dict[str, Any]:
+    """{"n", "k", "d", "gamma", "mass", "defects": [(kind, at, value), ...]}."""
+
+def read_csv(path: Union[str, "PathLike[str]"]) -> Dict[str, Any]:
+    """{"t": ndarray, "columns": {name: ndarray}}."""

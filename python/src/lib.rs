@@ -1,0 +1,528 @@
+//! `springmass._core`: the native part of the Python package `springmass`.
+//!
+//! Thin bindings of the Rust library: arrays arrive as `float64` (or
+//! `complex128`) numpy arrays already checked for shape by the Python layer
+//! (`springmass/__init__.py`), options arrive in the text forms of the
+//! command line, every check and every number comes from the library, and
+//! every library error becomes a Python exception with the same message
+//! ([`errors`]). Long computations (fits, simulations, transforms, locators)
+//! run with the GIL released.
+
+mod errors;
+
+use errors::{IntoPy, NumericalError, UnresolvableError};
+use num_complex::Complex64;
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArrayDyn};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use springmass::chain::{Boundary, ChainSpec};
+use springmass::control::exact::Modes;
+use springmass::control::{Signal, Suppression};
+use springmass::detect::data::observations::{Observations, Series};
+use springmass::detect::fit::options::FitSpec;
+use springmass::detect::locate::{self as locator, default_grid, LaplaceData, SChoice};
+use springmass::forward::{Forward, Observable};
+use springmass::noise::{add_noise, NoiseLevel};
+use springmass::time::series::{SeriesTransform, Tail, TransformOptions};
+use springmass::time::simulate::{simulate_forced, Forcing, Method, SimOptions};
+use springmass::{Chain, Defect, Error, Result};
+
+/// A chain as the Python layer describes it (a dict with these keys).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct ChainArgs {
+    n: usize,
+    k: f64,
+    d: f64,
+    gamma: f64,
+    mass: f64,
+    defects: Vec<String>,
+    left: String,
+    right: String,
+}
+
+impl ChainArgs {
+    /// Validate and build (defects in the form `kind:at:value`).
+    fn build(&self) -> Result<Chain> {
+        let end = |field: &str, text: &str| {
+            text.parse::<Boundary>()
+                .map_err(|_| Error::invalid(field, text, "fixed or free"))
+        };
+        ChainSpec {
+            n: self.n,
+            k: self.k,
+            d: self.d,
+            gamma: self.gamma,
+            mass: self.mass,
+            defects: self
+                .defects
+                .iter()
+                .map(|t| Defect::parse(t))
+                .collect::<Result<_>>()?,
+            left: end("left", &self.left)?,
+            right: end("right", &self.right)?,
+        }
+        .build()
+    }
+}
+
+/// The values of a read-only 1-D array (any strides).
+fn values(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
+    a.as_array().iter().copied().collect()
+}
+
+/// The data-first fit (`springmass::detect::fit::fit`) of a series; the
+/// options are those of `springmass fit --data` ([`FitSpec`]). Returns the
+/// report as the CLI's JSON (without the predicted series) and the predicted
+/// series as arrays.
+#[pyfunction]
+#[pyo3(signature = (t, x, *, n, d=None, gamma=None, fit=None, known=Vec::new(), defects=None,
+    kinds=None, slot_kinds=Vec::new(), noise=None, misfit=None, method=None, criterion=None,
+    seed=None, max_evals=None))]
+#[allow(clippy::too_many_arguments)]
+fn fit<'py>(
+    py: Python<'py>,
+    t: PyReadonlyArray1<'py, f64>,
+    x: PyReadonlyArray1<'py, f64>,
+    n: usize,
+    d: Option<f64>,
+    gamma: Option<f64>,
+    fit: Option<String>,
+    known: Vec<String>,
+    defects: Option<String>,
+    kinds: Option<String>,
+    slot_kinds: Vec<String>,
+    noise: Option<String>,
+    misfit: Option<String>,
+    method: Option<String>,
+    criterion: Option<String>,
+    seed: Option<u64>,
+    max_evals: Option<usize>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let spec = FitSpec {
+        d,
+        gamma,
+        fit,
+        known,
+        defects,
+        kinds,
+        slot_kinds,
+        noise,
+        misfit,
+        method,
+        criterion,
+        seed,
+        max_evals,
+        ..FitSpec::new(n)
+    };
+    let (t, x) = (values(&t), values(&x));
+    let report = py
+        .detach(move || -> Result<_> {
+            let (model, opts) = spec.build()?;
+            let obs = Observations::Series(Series::new(t, x, opts.noise.known())?);
+            opts.validate(&obs, &model)?;
+            springmass::detect::fit::fit(&obs, &model, &opts)
+        })
+        .py_err()?;
+    let mut json = serde_json::to_value(&report)
+        .map_err(|e| NumericalError::new_err(format!("the fit report cannot be written: {e}")))?;
+    if let Some(o) = json.as_object_mut() {
+        o.remove("predicted");
+    }
+    let out = PyDict::new(py);
+    out.set_item("report", json.to_string())?;
+    out.set_item("summary", report.summary())?;
+    if let Some(p) = report.predicted {
+        out.set_item("t", p.t.into_pyarray(py))?;
+        out.set_item("observed", p.observed.into_pyarray(py))?;
+        out.set_item("model", p.model.into_pyarray(py))?;
+        out.set_item("residual", p.residual.into_pyarray(py))?;
+    }
+    Ok(out)
+}
+
+/// `(t_end, dt)` of a uniform grid `0, dt, 2 dt, ...` given as its times.
+fn grid(t: &[f64]) -> Result<(f64, f64)> {
+    let allowed =
+        "uniformly spaced times 0, dt, 2 dt, ... (at least 2; the simulator's output grid)";
+    if t.len() < 2 {
+        return Err(Error::invalid("t", format!("{} times", t.len()), allowed));
+    }
+    springmass::series::check_times(t)?;
+    if t[0] != 0.0 {
+        return Err(Error::invalid("t[0]", t[0], allowed));
+    }
+    let dt = t[1];
+    for (i, &ti) in t.iter().enumerate() {
+        let expect = i as f64 * dt;
+        if (ti - expect).abs() > 1e-9 * expect.max(dt) {
+            return Err(Error::invalid(format!("t[{i}]"), ti, allowed));
+        }
+    }
+    Ok((t[t.len() - 1], dt))
+}
+
+/// A noise level: a bare number is an absolute standard deviation, else
+/// `abs:SIGMA`, `snr:DB` or `rel:R` (as `springmass simulate --noise`).
+fn noise_level(text: &str) -> Result<NoiseLevel> {
+    let level = match text.trim().parse::<f64>() {
+        Ok(v) => NoiseLevel::Absolute(v),
+        Err(_) => NoiseLevel::parse(text)?,
+    };
+    level.sigma(&[])?; // validates the level (sign, finiteness)
+    Ok(level)
+}
+
+/// Simulate the observed masses of a chain on a uniform grid; row `c` is
+/// mass `observe[c]`, its noise drawn with seed `seed + c` (as the CLI).
+#[pyfunction]
+#[pyo3(signature = (chain, t, *, observe, observe_kind, noise, seed, method))]
+#[allow(clippy::too_many_arguments)]
+fn simulate<'py>(
+    py: Python<'py>,
+    chain: ChainArgs,
+    t: PyReadonlyArray1<'py, f64>,
+    observe: Vec<usize>,
+    observe_kind: String,
+    noise: Option<String>,
+    seed: u64,
+    method: String,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let t = values(&t);
+    let rows = py
+        .detach(move || -> Result<Vec<Vec<f64>>> {
+            let chain = chain.build()?;
+            let kind: Observable = observe_kind.parse()?;
+            let method: Method = method.parse()?;
+            let level = noise.as_deref().map(noise_level).transpose()?;
+            let (t_end, dt) = grid(&t)?;
+            let opts = SimOptions::new(t_end, dt)
+                .with_observe(observe)
+                .with_method(method)
+                .with_observe_kind(kind);
+            let samples = opts.samples(&chain)?;
+            if samples != t.len() {
+                return Err(Error::invalid(
+                    "t",
+                    format!("{} times", t.len()),
+                    format!("the {samples} times 0, dt, ..., t_end of the grid"),
+                ));
+            }
+            let traj = simulate_forced(&chain, &opts, &Forcing::new())?;
+            match level {
+                None => Ok(traj.x),
+                Some(l) => traj
+                    .x
+                    .iter()
+                    .enumerate()
+                    .map(|(c, x)| add_noise(x, l, seed.wrapping_add(c as u64)).map(|r| r.0))
+                    .collect(),
+            }
+        })
+        .py_err()?;
+    PyArray2::from_vec2(py, &rows)
+        .map_err(|e| NumericalError::new_err(format!("simulated rows of unequal length: {e}")))
+}
+
+/// The transform of the observed quantity at real `s` (any shape).
+#[pyfunction]
+#[pyo3(signature = (s, chain, *, observe, observe_kind))]
+fn response_real<'py>(
+    py: Python<'py>,
+    s: PyReadonlyArrayDyn<'py, f64>,
+    chain: ChainArgs,
+    observe: usize,
+    observe_kind: String,
+) -> PyResult<Bound<'py, PyAny>> {
+    let arr = s.as_array().to_owned();
+    let out = py
+        .detach(move || -> Result<_> {
+            let fwd = Forward::new(&chain.build()?);
+            let kind: Observable = observe_kind.parse()?;
+            let mut out = arr.clone();
+            for (o, &z) in out.iter_mut().zip(arr.iter()) {
+                *o = fwd.observe(z, observe, kind)?;
+            }
+            Ok(out)
+        })
+        .py_err()?;
+    Ok(out.into_pyarray(py).into_any())
+}
+
+/// The transform of the observed quantity at complex `s` (any shape).
+#[pyfunction]
+#[pyo3(signature = (s, chain, *, observe, observe_kind))]
+fn response_complex<'py>(
+    py: Python<'py>,
+    s: PyReadonlyArrayDyn<'py, Complex64>,
+    chain: ChainArgs,
+    observe: usize,
+    observe_kind: String,
+) -> PyResult<Bound<'py, PyAny>> {
+    let arr = s.as_array().to_owned();
+    let out = py
+        .detach(move || -> Result<_> {
+            let fwd = Forward::new(&chain.build()?);
+            let kind: Observable = observe_kind.parse()?;
+            let mut out = arr.clone();
+            for (o, &z) in out.iter_mut().zip(arr.iter()) {
+                *o = fwd.observe(z, observe, kind)?;
+            }
+            Ok(out)
+        })
+        .py_err()?;
+    Ok(out.into_pyarray(py).into_any())
+}
+
+/// The suppression controls `f`, `g` (Theorem 3.1) and `f1` (Corollary 3.2)
+/// at the times `t`, exact (sums of damped modes).
+#[pyfunction]
+#[pyo3(signature = (n, t, *, k, d, mass, gamma))]
+fn controls<'py>(
+    py: Python<'py>,
+    n: usize,
+    t: PyReadonlyArray1<'py, f64>,
+    k: f64,
+    d: f64,
+    mass: f64,
+    gamma: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let t = values(&t);
+    let cols = py
+        .detach(move || -> Result<Vec<(&'static str, Vec<f64>)>> {
+            for (i, &ti) in t.iter().enumerate() {
+                springmass::error::check_f64(&format!("t[{i}]"), ti, true, "finite")?;
+            }
+            let sup = Suppression::new(n, k, d, mass, gamma)?;
+            Ok([Signal::F, Signal::G, Signal::F1]
+                .iter()
+                .map(|&sig| (sig.name(), Modes::new(&sup, sig).eval_many(&t)))
+                .collect())
+        })
+        .py_err()?;
+    let out = PyDict::new(py);
+    for (name, v) in cols {
+        out.set_item(name, v.into_pyarray(py))?;
+    }
+    Ok(out)
+}
+
+/// The transform options from their Python form.
+fn transform_options(
+    degree: usize,
+    noise_sigma: Option<f64>,
+    tail: &str,
+) -> Result<TransformOptions> {
+    let tail = match tail.trim() {
+        "envelope" => Tail::Envelope,
+        "modes" => Tail::Modes,
+        "zero" => Tail::Zero,
+        _ => return Err(Error::invalid("tail", tail, "envelope, modes or zero")),
+    };
+    Ok(TransformOptions {
+        degree,
+        noise_sigma,
+        tail,
+    })
+}
+
+/// The Laplace transform of a sampled series at complex `s` with its error
+/// budget: `(value, err, err_disc, err_trunc, err_round, noise_std)`.
+#[pyfunction]
+#[pyo3(signature = (t, x, s, *, degree, noise_sigma, tail))]
+#[allow(clippy::type_complexity)]
+fn laplace<'py>(
+    py: Python<'py>,
+    t: PyReadonlyArray1<'py, f64>,
+    x: PyReadonlyArray1<'py, f64>,
+    s: PyReadonlyArray1<'py, Complex64>,
+    degree: usize,
+    noise_sigma: Option<f64>,
+    tail: String,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (t, x) = (values(&t), values(&x));
+    let s: Vec<Complex64> = s.as_array().iter().copied().collect();
+    let rows = py
+        .detach(move || -> Result<_> {
+            let opts = transform_options(degree, noise_sigma, &tail)?;
+            let tr = SeriesTransform::new(&t, &x, &opts)?;
+            tr.eval_many(&s)
+        })
+        .py_err()?;
+    let out = PyDict::new(py);
+    let col = |f: &dyn Fn(&springmass::time::series::LaplaceValue) -> f64| {
+        rows.iter().map(f).collect::<Vec<f64>>()
+    };
+    out.set_item(
+        "value",
+        rows.iter()
+            .map(|v| v.value)
+            .collect::<Vec<Complex64>>()
+            .into_pyarray(py),
+    )?;
+    out.set_item("err", col(&|v| v.err).into_pyarray(py))?;
+    out.set_item("err_disc", col(&|v| v.err_disc).into_pyarray(py))?;
+    out.set_item("err_trunc", col(&|v| v.err_trunc).into_pyarray(py))?;
+    out.set_item("err_round", col(&|v| v.err_round).into_pyarray(py))?;
+    if noise_sigma.is_some() {
+        out.set_item(
+            "noise_std",
+            col(&|v| v.noise_var.map_or(f64::NAN, f64::sqrt)).into_pyarray(py),
+        )?;
+    }
+    Ok(out)
+}
+
+/// Where the locator's data come from.
+enum LocateData {
+    /// A sampled series, transformed at the grid.
+    Series { t: Vec<f64>, x: Vec<f64> },
+    /// `X_1(s)` at the grid with absolute errors.
+    Laplace { values: Vec<f64>, err: Vec<f64> },
+}
+
+/// One mass defect located by the explicit relations of section 4.1 (f64).
+#[pyfunction]
+#[pyo3(signature = (chain, *, grid, t=None, x=None, values=None, err=None, method=None, m=None,
+    at=None, noise_sigma=None))]
+#[allow(clippy::too_many_arguments)]
+fn locate<'py>(
+    py: Python<'py>,
+    chain: ChainArgs,
+    grid: Option<PyReadonlyArray1<'py, f64>>,
+    t: Option<PyReadonlyArray1<'py, f64>>,
+    x: Option<PyReadonlyArray1<'py, f64>>,
+    values: Option<PyReadonlyArray1<'py, f64>>,
+    err: Option<PyReadonlyArray1<'py, f64>>,
+    method: Option<String>,
+    m: Option<f64>,
+    at: Option<f64>,
+    noise_sigma: Option<f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let s_grid = grid.as_ref().map(self::values);
+    let data = match (t, x, values) {
+        (Some(t), Some(x), None) => LocateData::Series {
+            t: self::values(&t),
+            x: self::values(&x),
+        },
+        (None, None, Some(v)) => {
+            let v = self::values(&v);
+            let e = match &err {
+                Some(e) => self::values(e),
+                None => vec![0.0; v.len()],
+            };
+            LocateData::Laplace { values: v, err: e }
+        }
+        _ => {
+            return Err(errors::to_py(Error::invalid(
+                "data",
+                "(t, x) and values both or neither given",
+                "a series (t and x) or Laplace values (s and values), not both",
+            )))
+        }
+    };
+    let loc = py
+        .detach(move || -> Result<_> {
+            let chain = chain.build()?;
+            chain.require_fixed_ends("the explicit locators of section 4.1")?;
+            let name =
+                method
+                    .as_deref()
+                    .unwrap_or(if m.is_some() { "exact" } else { "unknown-mass" });
+            let method = locator::Method::from_name(name, || {
+                m.ok_or_else(|| {
+                    Error::invalid("m", "None", format!("the defect mass for method {name}"))
+                })
+            })?;
+            let data: LaplaceData<f64> = match data {
+                LocateData::Series { t, x } => {
+                    let tr = SeriesTransform::new(
+                        &t,
+                        &x,
+                        &TransformOptions {
+                            noise_sigma,
+                            ..TransformOptions::default()
+                        },
+                    )?;
+                    let s = s_grid.unwrap_or_else(default_grid);
+                    LaplaceData::from_transform("series (Laplace-transformed)", &tr, &s)?
+                }
+                LocateData::Laplace { values, err } => {
+                    let s = s_grid.ok_or_else(|| {
+                        Error::invalid("s", "None", "the nodes of the Laplace values")
+                    })?;
+                    LaplaceData::from_f64("Laplace values", &s, &values, &err)?
+                }
+            };
+            let choice = at.map_or(SChoice::Auto, SChoice::At);
+            locator::locate(&locator::Model::from_chain(&chain), &data, method, choice)
+        })
+        .py_err()?;
+    let out = PyDict::new(py);
+    out.set_item("position", loc.position)?;
+    out.set_item("j", loc.j)?;
+    out.set_item("sigma", loc.sigma)?;
+    out.set_item("model_error", loc.bias)?;
+    out.set_item("s", loc.s)?;
+    out.set_item("used_s", PyArray1::from_vec(py, loc.used))?;
+    out.set_item("mass", loc.mass)?;
+    out.set_item("raw_j", loc.raw_j)?;
+    out.set_item("method", loc.method.name())?;
+    Ok(out)
+}
+
+/// A CSV time series (`t` and value columns; units, a pandas index and `#`
+/// comments accepted): `{"t": ndarray, "columns": {name: ndarray}}`.
+#[pyfunction]
+fn read_csv<'py>(py: Python<'py>, path: std::path::PathBuf) -> PyResult<Bound<'py, PyDict>> {
+    let ts = py
+        .detach(move || springmass::series::TimeSeries::read_csv(&path))
+        .py_err()?;
+    let columns = PyDict::new(py);
+    for (i, name) in ts.names().iter().enumerate() {
+        let col = ts.column_at(i).unwrap_or_default();
+        columns.set_item(name, PyArray1::from_slice(py, col))?;
+    }
+    let out = PyDict::new(py);
+    out.set_item("t", PyArray1::from_slice(py, ts.t()))?;
+    out.set_item("columns", columns)?;
+    Ok(out)
+}
+
+/// A reference scene of the paper (`P1`..`P4`, `S1`..`S4`) as the chain's
+/// parameters and defects (`kind:at:value`).
+#[pyfunction]
+fn scene<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
+    let c = springmass::scenes::by_name(name).py_err()?;
+    let out = PyDict::new(py);
+    out.set_item("n", c.n())?;
+    out.set_item("k", c.k())?;
+    out.set_item("d", c.d())?;
+    out.set_item("gamma", c.gamma())?;
+    out.set_item("mass", c.mass())?;
+    let defects: Vec<(&str, usize, f64)> = c
+        .defects()
+        .iter()
+        .map(|d| (d.kind(), d.at(), d.value()))
+        .collect();
+    out.set_item("defects", defects)?;
+    Ok(out)
+}
+
+/// The native module.
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("UnresolvableError", m.py().get_type::<UnresolvableError>())?;
+    m.add("NumericalError", m.py().get_type::<NumericalError>())?;
+    m.add_function(wrap_pyfunction!(fit, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(response_real, m)?)?;
+    m.add_function(wrap_pyfunction!(response_complex, m)?)?;
+    m.add_function(wrap_pyfunction!(controls, m)?)?;
+    m.add_function(wrap_pyfunction!(laplace, m)?)?;
+    m.add_function(wrap_pyfunction!(locate, m)?)?;
+    m.add_function(wrap_pyfunction!(scene, m)?)?;
+    m.add_function(wrap_pyfunction!(read_csv, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,154 @@
+"""springmass.fit: round trips, agreement with the command line, determinism, the GIL."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import threading
+
+import numpy as np
+import pytest
+
+import springmass
+from conftest import run_cli, write_csv
+
+
+def test_round_trip_recovers_system3_at_one_percent_noise():
+    # the paper's System 3 (n = 20, masses 5 at 8 and 2 at 15), simulated,
+    # 1% white noise; the fit is told n only: sigma unknown, k chosen by BIC
+    # (k_max = 3 keeps the test at seconds: k = 4 alone enumerates 4845 sets)
+    s3 = springmass.scene("S3")
+    t = np.linspace(0.0, 200.0, 1001)
+    clean = springmass.simulate(t=t, **s3.chain())
+    x = springmass.simulate(t=t, noise="rel:0.01", seed=1, **s3.chain())
+    r = springmass.fit(t, x, n=s3.n, defects="auto:3")
+    assert r.k == 2, r.summary
+    assert [(e.kind, e.at) for e in r.defects] == [(d.kind, d.at) for d in s3.defects]
+    for e, truth in zip(r.defects, s3.defects):
+        assert abs(e.value - truth.value) < 4 * e.se, e
+        assert 0 < e.se < 0.2 * truth.value
+    assert r.sigma_estimated
+    sigma_true = 0.01 * np.max(np.abs(clean))
+    assert abs(r.sigma / sigma_true - 1) < 0.2, (r.sigma, sigma_true)
+    assert r.status == "converged" and r.fits_data, r.summary
+    assert [row.k for row in r.k_selection] == [0, 1, 2, 3]
+    assert min(r.k_selection, key=lambda row: row.criterion).k == 2
+    assert r.predicted.shape == t.shape
+    np.testing.assert_allclose(r.residual, x - r.predicted, rtol=0, atol=1e-15)
+    # the residual is noise-sized: the model is close to the clean record
+    assert np.std(r.predicted - clean) < 0.5 * sigma_true
+
+
+def close(a, b, path="report"):
+    """Equal structure, equal strings/ints/bools, floats within 1e-12."""
+    if isinstance(a, dict):
+        assert set(a) == set(b), f"{path}: keys {sorted(a)} != {sorted(b)}"
+        for k in a:
+            close(a[k], b[k], f"{path}.{k}")
+    elif isinstance(a, list):
+        assert len(a) == len(b), f"{path}: length {len(a)} != {len(b)}"
+        for i, (u, v) in enumerate(zip(a, b)):
+            close(u, v, f"{path}[{i}]")
+    elif isinstance(a, float) or isinstance(b, float):
+        assert isinstance(a, (int, float)) and isinstance(b, (int, float)), f"{path}: {a!r} vs {b!r}"
+        assert math.isclose(a, b, rel_tol=1e-12, abs_tol=1e-300), f"{path}: {a!r} vs {b!r}"
+    else:
+        assert a == b, f"{path}: {a!r} != {b!r}"
+
+
+CLI_CASES = {
+    "defaults": (["--defects", "auto:2"], {"defects": "auto:2"}),
+    "known-noise-any-kind-fitted-d": (
+        ["--noise", "5e-4", "--kinds", "any", "--defects", "1", "--fit", "d", "--d", "0.12"],
+        {"noise": 5e-4, "kinds": "any", "defects": 1, "fit": ("d",), "d": 0.12},
+    ),
+    "ga-bromwich-aic": (
+        ["--defects", "auto:2", "--method", "ga", "--seed", "3", "--max-evals", "1500", "--misfit", "bromwich",
+         "--criterion", "aic"],
+        {"defects": "auto:2", "method": "ga", "seed": 3, "max_evals": 1500, "misfit": "bromwich", "criterion": "aic"},
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CLI_CASES))
+def test_python_fit_equals_the_cli_json_of_the_same_csv(case, cli, s1_record, tmp_path):
+    t, x = s1_record
+    csv = tmp_path / "x1.csv"
+    write_csv(csv, t, x)
+    args, kwargs = CLI_CASES[case]
+    want = json.loads(run_cli(cli, "fit", "--data", csv, "--n", "5", *args, "--json"))
+    tr, cols = springmass.read_csv(csv)
+    assert np.array_equal(tr, t) and np.array_equal(cols["x1"], x)  # the CSV is exact
+    got = springmass.fit(tr, cols["x1"], n=5, **kwargs).to_dict()
+    predicted = got.pop("predicted")
+    assert np.array_equal(predicted["observed"], x)
+    for d in (got, want):
+        d.pop("wall_time_s")
+    close(got, want)
+    assert want["defects"], "the case should find defects"
+
+
+def test_known_noise_is_used_not_estimated(s1_record):
+    t, x = s1_record
+    r = springmass.fit(t, x, n=5, defects=2, noise=2e-3)
+    assert not r.sigma_estimated and r.sigma == 2e-3
+    assert [e.at for e in r.defects] == [2, 4]
+    assert r.criterion == "given" and len(r.k_selection) == 1
+
+
+def test_result_fields_and_to_dict(s1_record):
+    t, x = s1_record
+    r = springmass.fit(t, x, n=5, defects="auto:2")
+    assert r.k == 2 and [e.at for e in r.defects] == [2, 4]
+    assert str(r) == r.summary and "mass at 2" in r.summary
+    d = r.to_dict()
+    assert d["k"] == 2 and d["noise_sigma"] == r.sigma and d["status"] == r.status
+    assert [row["k"] for row in d["k_selection"]] == [0, 1, 2]
+    json.dumps(d)  # plain Python objects
+    alt = r.alternatives[0]
+    assert alt.gap > 0 and all(isinstance(a, springmass.Defect) for a in alt.defects)
+    assert r.defects[0].defect == springmass.Defect("mass", 2, r.defects[0].value)
+
+
+def test_slot_kinds_and_known_defects(s1_record):
+    t, x = s1_record
+    r = springmass.fit(t, x, n=5, defects=1, known=[("mass", 2, 3.0)], kinds=["mass"])
+    known = [e for e in r.defects if e.known]
+    assert [(e.at, e.value, e.se) for e in known] == [(2, 3.0, 0.0)]
+    assert [e.at for e in r.defects if not e.known] == [4]
+
+
+def test_seeded_stochastic_fit_is_reproducible(s1_record):
+    t, x = s1_record
+    kw = dict(n=5, defects=2, method="pso", max_evals=1500)
+    a = springmass.fit(t, x, seed=7, **kw)
+    b = springmass.fit(t, x, seed=7, **kw)
+    da, db = a.to_dict(), b.to_dict()
+    for d in (da, db):
+        d.pop("wall_time_s")
+    assert da == db
+
+
+def test_fit_releases_the_gil(s1_record):
+    # With a long switch interval a thread keeps the GIL until it blocks or
+    # releases it: the main thread can run while the fit runs only if the fit
+    # released it (float64 inputs: numpy makes no copy that could release it)
+    t, x = s1_record
+    done = threading.Event()
+
+    def work():
+        springmass.fit(t, x, n=5, defects=2)
+        done.set()
+
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(100.0)
+    try:
+        th = threading.Thread(target=work)
+        th.start()
+        ran_during_fit = not done.is_set()
+        th.join()
+    finally:
+        sys.setswitchinterval(old)
+    assert done.is_set()
+    assert ran_during_fit

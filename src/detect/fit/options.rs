@@ -1,0 +1,365 @@
+//! A data-first fit's [`Model`] and [`FitOptions`] from the options a front
+//! end receives as text (`springmass fit --data ...`, the Python package's
+//! `springmass.fit(...)`), built in one place so that every front end fits
+//! the same data alike.
+//!
+//! Each field is `None` (or empty) for "the default": [`Model::new`] for the
+//! chain (k = 1, d = 0.1, gamma = 1, unit masses), [`FitOptions::default`]
+//! for the search. The text forms are those of the command line:
+//!
+//! | field | form | parsed by |
+//! |---|---|---|
+//! | `defects` | `auto`, `auto:KMAX`, `K` | [`DefectCount::parse`] |
+//! | `kinds` | `mass`, `spring`, `damper`, `any` | [`parse_kinds`] |
+//! | `slot_kinds` | one kind per defect | [`parse_kinds`] each |
+//! | `noise` | `auto` or a standard deviation | [`NoiseSpec::parse`] |
+//! | `misfit` | `time`, `bromwich`, `real-axis` | [`MisfitKind::parse`] |
+//! | `method` | `enumerate`, `ga`, `nelder-mead`, `pso` | [`FitMethod::parse`] |
+//! | `criterion` | `bic`, `aic`, `chi2`, `chi2:ALPHA` | [`Criterion::parse`] |
+//! | `fit` | comma-separated subset of `d,gamma,k,mass` | [`parse_params`] |
+//! | `known` | `kind:at:value` each | [`Defect::parse`] |
+//!
+//! ```
+//! use springmass::detect::fit::options::FitSpec;
+//! use springmass::detect::fit::{DefectCount, NoiseSpec};
+//! let spec = FitSpec {
+//!     defects: Some("auto:3".into()),
+//!     noise: Some("2e-3".into()),
+//!     ..FitSpec::new(10)
+//! };
+//! let (model, opts) = spec.build()?;
+//! assert_eq!(model.n(), 10);
+//! assert_eq!(opts.defects, DefectCount::Auto { k_max: 3 });
+//! assert_eq!(opts.noise.known(), Some(2e-3));
+//! assert!(FitSpec { kinds: Some("atom".into()), ..FitSpec::new(10) }.build().is_err());
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+use super::{parse_params, Criterion, DefectCount, FitMethod, FitOptions, Model, NoiseSpec};
+use crate::chain::{Boundary, Defect};
+use crate::detect::data::measurement::{Measurement, Sensor};
+use crate::forward::Observable;
+use crate::detect::misfit::MisfitKind;
+use crate::detect::unknowns::KindChoice;
+use crate::error::{Error, Result};
+
+/// The options of a data-first fit as a front end receives them (see the
+/// module docs); `None` or empty means the default.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FitSpec {
+    /// Number of masses.
+    pub n: usize,
+    /// Uniform damping (known, or the starting value when fitted) [default 0.1].
+    pub d: Option<f64>,
+    /// Uniform stiffness [default 1].
+    pub k: Option<f64>,
+    /// Uniform mass [default 1].
+    pub mass: Option<f64>,
+    /// Impulse on mass 1 (with a measured force: the force's scale) [default 1].
+    pub gamma: Option<f64>,
+    /// Left end: `fixed` or `free` [default fixed].
+    pub left: Option<String>,
+    /// Right end: `fixed` or `free` [default fixed].
+    pub right: Option<String>,
+    /// The observed mass [default 1].
+    pub observe: Option<usize>,
+    /// `displacement`, `velocity` or `acceleration` [default displacement].
+    pub observe_kind: Option<String>,
+    /// Chain parameters fitted too: `d,gamma,k,mass` (any subset) [default none].
+    pub fit: Option<String>,
+    /// Known defects, `kind:at:value` each.
+    pub known: Vec<String>,
+    /// Number of defects: `auto`, `auto:KMAX` or `K` [default auto].
+    pub defects: Option<String>,
+    /// Kind of every defect sought [default mass].
+    pub kinds: Option<String>,
+    /// One kind per defect (overrides `kinds`; needs `defects = K` with as many).
+    pub slot_kinds: Vec<String>,
+    /// `auto` or the samples' noise standard deviation [default auto].
+    pub noise: Option<String>,
+    /// `time`, `bromwich` or `real-axis` [default time for a series].
+    pub misfit: Option<String>,
+    /// `enumerate`, `ga`, `nelder-mead` or `pso` [default enumerate].
+    pub method: Option<String>,
+    /// Criterion of `defects = auto`: `bic`, `aic`, `chi2`, `chi2:ALPHA` [default bic].
+    pub criterion: Option<String>,
+    /// Seed of the stochastic searches [default 0].
+    pub seed: Option<u64>,
+    /// Evaluation budget of the stochastic searches [default 20 000].
+    pub max_evals: Option<usize>,
+}
+
+impl FitSpec {
+    /// Every option at its default for a chain of `n` masses.
+    pub fn new(n: usize) -> FitSpec {
+        FitSpec {
+            n,
+            ..FitSpec::default()
+        }
+    }
+
+    /// The search options, parsed before anything else.
+    ///
+    /// # Errors
+    /// The parse errors of the fields (see the module docs), each naming its
+    /// field.
+    pub fn options(&self) -> Result<FitOptions> {
+        let mut opts = FitOptions::default();
+        if let Some(d) = &self.defects {
+            opts.defects = DefectCount::parse(d)?;
+        }
+        if let Some(k) = &self.kinds {
+            opts.kinds = parse_kinds(k)?;
+        }
+        opts.slot_kinds = self
+            .slot_kinds
+            .iter()
+            .map(|k| parse_kinds(k))
+            .collect::<Result<_>>()?;
+        if let Some(x) = &self.noise {
+            opts.noise = NoiseSpec::parse(x)?;
+        }
+        if let Some(m) = &self.misfit {
+            opts.misfit = Some(MisfitKind::parse(m)?);
+        }
+        if let Some(m) = &self.method {
+            opts.method = FitMethod::parse(m)?;
+        }
+        if let Some(c) = &self.criterion {
+            opts.criterion = Criterion::parse(c)?;
+        }
+        if let Some(s) = self.seed {
+            opts.seed = s;
+        }
+        if let Some(m) = self.max_evals {
+            opts.max_evals = m;
+        }
+        Ok(opts)
+    }
+
+    /// What is known of the chain.
+    ///
+    /// # Errors
+    /// As [`Model::new`], [`Model::with_d`], [`Model::with_gamma`],
+    /// [`Defect::parse`], [`Model::with_known`], [`parse_params`] and
+    /// [`Model::fitting`].
+    pub fn model(&self) -> Result<Model> {
+        let mut model = Model::new(self.n)?;
+        if let Some(d) = self.d {
+            model = model.with_d(d)?;
+        }
+        if let Some(k) = self.k {
+            model = model.with_k(k)?;
+        }
+        if let Some(m) = self.mass {
+            model = model.with_mass(m)?;
+        }
+        if let Some(g) = self.gamma {
+            model = model.with_gamma(g)?;
+        }
+        if self.left.is_some() || self.right.is_some() {
+            let end = |field: &str, v: &Option<String>| -> Result<Boundary> {
+                v.as_deref().map_or(Ok(Boundary::Fixed), |x| {
+                    x.parse()
+                        .map_err(|_| Error::invalid(field, x, "fixed or free"))
+                })
+            };
+            model = model.with_ends(end("left", &self.left)?, end("right", &self.right)?)?;
+        }
+        for k in &self.known {
+            model = model.with_known(Defect::parse(k)?)?;
+        }
+        if let Some(f) = &self.fit {
+            model = model.fitting(&parse_params(f)?)?;
+        }
+        Ok(model)
+    }
+
+    /// What the record measured: the sensor (`observe`, `observe_kind`),
+    /// driven by the measured `force` on mass 1 (samples at the record's
+    /// times) or by the impulse (`None`).
+    ///
+    /// # Errors
+    /// `observe_kind` not a known observable, `observe` not a mass of the
+    /// chain (field `observe`), a bad force ([`Measurement::with_force`]).
+    pub fn measurement(&self, force: Option<Vec<f64>>) -> Result<Measurement> {
+        let kind: Observable = self
+            .observe_kind
+            .as_deref()
+            .unwrap_or("displacement")
+            .parse()?;
+        let sensor = Sensor {
+            at: self.observe.unwrap_or(1),
+            kind,
+        };
+        sensor.check(self.n)?;
+        let m = Measurement::paper().with_sensor(sensor);
+        match force {
+            Some(f) => m.with_force(f),
+            None => Ok(m),
+        }
+    }
+
+    /// The model and the options: the options are parsed first, then the
+    /// model, all before any data are read. Check them against the data with
+    /// [`FitOptions::validate`].
+    ///
+    /// # Errors
+    /// As [`FitSpec::options`] and [`FitSpec::model`].
+    pub fn build(&self) -> Result<(Model, FitOptions)> {
+        let opts = self.options()?;
+        Ok((self.model()?, opts))
+    }
+}
+
+/// `mass`, `spring`, `damper` or `any` (surrounding blanks ignored).
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming `kinds`.
+///
+/// ```
+/// use springmass::detect::fit::options::parse_kinds;
+/// use springmass::detect::unknowns::KindChoice;
+/// assert_eq!(parse_kinds(" spring ")?, KindChoice::Spring);
+/// assert!(parse_kinds("atom").is_err());
+/// # Ok::<(), springmass::Error>(())
+/// ```
+pub fn parse_kinds(text: &str) -> Result<KindChoice> {
+    match text.trim() {
+        "mass" => Ok(KindChoice::Mass),
+        "spring" => Ok(KindChoice::Spring),
+        "damper" => Ok(KindChoice::Damper),
+        "any" => Ok(KindChoice::Any),
+        _ => Err(Error::invalid("kinds", text, "mass, spring, damper or any")),
+    }
+}
+
+impl NoiseSpec {
+    /// The known standard deviation (`None` when it is to be estimated): what
+    /// the data's [`crate::detect::data::observations::Series`] is told.
+    pub fn known(self) -> Option<f64> {
+        match self {
+            NoiseSpec::Sigma(s) => Some(s),
+            NoiseSpec::Auto => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sensitivity::Param;
+
+    fn field(e: Error) -> String {
+        match e {
+            Error::InvalidParameter { field, .. } => field,
+            Error::Parse { what, .. } => what,
+            e => panic!("unexpected {e}"),
+        }
+    }
+
+    #[test]
+    fn defaults_are_the_library_defaults() {
+        let (model, opts) = FitSpec::new(7).build().unwrap();
+        assert_eq!(model, Model::new(7).unwrap());
+        assert_eq!(opts, FitOptions::default());
+    }
+
+    #[test]
+    fn every_field_reaches_the_model_or_the_options() {
+        let spec = FitSpec {
+            d: Some(0.2),
+            gamma: Some(2.0),
+            fit: Some("d, k".into()),
+            known: vec!["spring:0:3".into()],
+            defects: Some("2".into()),
+            kinds: Some("any".into()),
+            slot_kinds: vec!["mass".into(), "damper".into()],
+            noise: Some("0.5".into()),
+            misfit: Some("bromwich".into()),
+            method: Some("enumerate".into()),
+            criterion: Some("chi2:0.05".into()),
+            seed: Some(9),
+            max_evals: Some(77),
+            ..FitSpec::new(6)
+        };
+        let (model, opts) = spec.build().unwrap();
+        assert_eq!(model.chain().d(), 0.2);
+        assert_eq!(model.chain().gamma(), 2.0);
+        assert_eq!(model.fitted(), &[Param::D, Param::K]);
+        assert_eq!(model.chain().defects(), &[Defect::Spring { at: 0, k: 3.0 }]);
+        assert_eq!(opts.defects, DefectCount::Exactly(2));
+        assert_eq!(opts.kinds, KindChoice::Any);
+        assert_eq!(opts.slot_kinds, vec![KindChoice::Mass, KindChoice::Damper]);
+        assert_eq!(opts.noise, NoiseSpec::Sigma(0.5));
+        assert_eq!(opts.noise.known(), Some(0.5));
+        assert_eq!(opts.misfit, Some(MisfitKind::Bromwich));
+        assert_eq!(opts.criterion, Criterion::ChiSquare { alpha: 0.05 });
+        assert_eq!((opts.seed, opts.max_evals), (9, 77));
+    }
+
+    #[test]
+    fn bad_fields_are_named() {
+        let bad = |spec: FitSpec| field(spec.build().unwrap_err());
+        let base = || FitSpec::new(5);
+        assert_eq!(bad(FitSpec { n: 0, ..base() }), "n");
+        assert_eq!(
+            bad(FitSpec {
+                kinds: Some("atom".into()),
+                ..base()
+            }),
+            "kinds"
+        );
+        assert_eq!(
+            bad(FitSpec {
+                slot_kinds: vec!["mass".into(), "x".into()],
+                ..base()
+            }),
+            "kinds"
+        );
+        assert_eq!(
+            bad(FitSpec {
+                defects: Some("many".into()),
+                ..base()
+            }),
+            "defects"
+        );
+        assert_eq!(
+            bad(FitSpec {
+                noise: Some("-1".into()),
+                ..base()
+            }),
+            "noise"
+        );
+        assert_eq!(
+            bad(FitSpec {
+                d: Some(f64::NAN),
+                ..base()
+            }),
+            "d"
+        );
+        assert_eq!(
+            bad(FitSpec {
+                fit: Some("d,q".into()),
+                ..base()
+            }),
+            "fit"
+        );
+        assert_eq!(
+            bad(FitSpec {
+                known: vec!["mass:9".into()],
+                ..base()
+            }),
+            "defect"
+        );
+        // the options are checked before the model
+        assert_eq!(
+            bad(FitSpec {
+                n: 0,
+                misfit: Some("l2".into()),
+                ..base()
+            }),
+            "misfit"
+        );
+    }
+}
