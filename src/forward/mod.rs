@@ -343,6 +343,26 @@ impl Forward {
         self.finish(x, s, observe)
     }
 
+    /// `X` at the increasing `sites` in one transfer sweep with the powers
+    /// of [`transfer::SweepTable`] `table` (built for this chain's uniform
+    /// part at `s`); `None` when the table is for another uniform part or a
+    /// value is not finite (a pole, or a removable singularity the direct
+    /// evaluation resolves). Unchecked `s` and sites: the caller validated them.
+    pub fn sites_with<T: Scalar>(
+        &self,
+        s: &T,
+        table: &transfer::SweepTable<T>,
+        sites: &[usize],
+    ) -> Option<Vec<T>> {
+        if !self.transfer.fits(table) {
+            return None;
+        }
+        let (x, _) = self
+            .transfer
+            .eval_sites(s, table, sites, self.chain.gamma());
+        x.iter().all(|v| v.is_finite()).then_some(x)
+    }
+
     /// `X_observe(s)` by Woodbury on the closed-form Green's function (checked).
     /// Accurate to rounding for `observe = 1` and at defect sites; see the
     /// module docs for masses behind heavy defects.

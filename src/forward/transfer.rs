@@ -164,31 +164,57 @@ impl Transfer {
     /// the acceleration of mass 1 after the impulse is
     /// `s^2 X_1 - gamma/m_1 = -Z_1 X_1 / m_1`. Unchecked, as [`Transfer::eval`].
     pub fn eval_parts<T: Scalar>(&self, s: &T, o: usize, gamma: f64) -> (T, T) {
+        let pw = Direct::new(s, self.k, self.mass, self.d);
+        let (x, z1) = self.sweep(s, &pw, &[o], gamma);
+        (x[0].clone(), z1)
+    }
+
+    /// `X` at every index of `sites` (increasing, each in `1..=n`) and `Z_1`,
+    /// in one sweep, with the powers of `q = e^{-lambda}` from `table` (built
+    /// once per `s` for this chain's uniform `k`, `mass`, `d`: [`SweepTable`]).
+    /// Unchecked, as [`Transfer::eval`]; a site out of order or range gives NaN.
+    pub fn eval_sites<T: Scalar>(
+        &self,
+        s: &T,
+        table: &SweepTable<T>,
+        sites: &[usize],
+        gamma: f64,
+    ) -> (Vec<T>, T) {
+        self.sweep(s, table, sites, gamma)
+    }
+
+    /// Whether `table` was built for this chain's uniform part.
+    pub fn fits<T: Scalar>(&self, table: &SweepTable<T>) -> bool {
+        table.key == (self.k.to_bits(), self.mass.to_bits(), self.d.to_bits())
+            && table.q.len() > 2 * self.n + 1
+    }
+
+    fn sweep<T: Scalar, P: Powers<T>>(
+        &self,
+        s: &T,
+        pw: &P,
+        sites: &[usize],
+        gamma: f64,
+    ) -> (Vec<T>, T) {
         let k = self.k;
         let mut z1 = T::zero();
-        // lambda as in green.rs
-        let inner = (s.scale(self.mass) + T::from_f64(self.d)).scale(1.0 / k);
-        let lam = (s.sqrt() * inner.sqrt()).scale(0.5).asinh().scale(2.0);
+        let lam = pw.lam();
         let stat = lam.is_zero();
-        let qpow = |p: f64| -> T { lam.scale(-p).exp() };
-        let one_m_q = -(-lam.clone()).expm1();
-        let one_m_q2 = -(lam.scale(-2.0)).expm1();
-        let em1 = lam.expm1();
-        let e_lam = lam.exp();
-        let q = qpow(1.0);
+        let qpow = |p: usize| -> T { pw.q(p) };
+        let one_m_q = pw.one_m_q(1);
+        let one_m_q2 = pw.one_m_q(2);
+        let em1 = pw.em1();
+        let e_lam = pw.e_lam();
+        let q = qpow(1);
         let s2 = s.clone() * s.clone();
         let local = |m: f64, d: f64| -> T { s2.scale(m) + s.scale(d) };
         // B(p) = (1 - q^{2p}) + (1 - psi) q^{2p}
-        let big_b = |p: usize, omp: &T| -> T {
-            let q2p = qpow(2.0 * p as f64);
-            -(lam.scale(-2.0 * p as f64)).expm1() + omp.clone() * q2p
-        };
+        let big_b = |p: usize, omp: &T| -> T { pw.one_m_q(2 * p) + omp.clone() * qpow(2 * p) };
 
         // ---- backward sweep: E at each segment's left index ----
         let nseg = self.segs.len();
         let mut swept: Vec<Swept<T>> = Vec::with_capacity(nseg);
-        // `ratio` = E_{i+1} / D_{i+1} of the index right of the current segment,
-        // `e_right` = E_{i+1}; None at the wall.
+        // `e_right` = E_{i+1} of the index right of the current segment; None at the wall.
         let mut right: Option<T> = None;
         for seg in self.segs.iter().rev() {
             match *seg {
@@ -228,7 +254,7 @@ impl Transfer {
                             }
                         };
                         let psi = T::one() - omp.clone();
-                        let num = T::one() + psi * qpow(2.0 * p as f64 + 1.0);
+                        let num = T::one() + psi * qpow(2 * p + 1);
                         let e = em1.scale(k) * num / big_b(p, &omp);
                         (e, omp)
                     };
@@ -242,10 +268,15 @@ impl Transfer {
         }
         swept.reverse();
 
-        // ---- forward substitution up to o ----
+        // ---- forward substitution through the sites ----
+        let mut out: Vec<T> = Vec::with_capacity(sites.len());
+        let mut next = 0;
         let mut x = T::zero();
         let mut kappa_left = 0.0; // spring joining the previous index to this segment
         for (idx, seg) in self.segs.iter().enumerate() {
+            if next == sites.len() {
+                break;
+            }
             let sw = &swept[idx];
             match *seg {
                 Seg::Special { i, kl, kr, .. } => {
@@ -255,8 +286,9 @@ impl Transfer {
                     } else {
                         x.scale(kappa_left) / dd
                     };
-                    if i == o {
-                        return (x, z1);
+                    while next < sites.len() && sites[next] == i {
+                        out.push(x.clone());
+                        next += 1;
                     }
                     kappa_left = kr;
                 }
@@ -267,28 +299,172 @@ impl Transfer {
                     } else {
                         x.scale(kappa_left) / dd
                     };
-                    let target = o.min(r);
-                    let (pl, pt) = (r + 1 - l, r + 1 - target);
-                    let ratio = if stat {
-                        // static displacement is linear: Y ~ p + k / E_{r+1}
-                        let c0 = sw.one_m_psi.clone();
-                        (T::from_f64(pt as f64) + c0.clone()) / (T::from_f64(pl as f64) + c0)
-                    } else if target == l {
-                        T::one()
-                    } else {
-                        qpow((target - l) as f64) * big_b(pt, &sw.one_m_psi)
-                            / big_b(pl, &sw.one_m_psi)
+                    let pl = r + 1 - l;
+                    let ratio = |target: usize| -> T {
+                        let pt = r + 1 - target;
+                        if stat {
+                            // static displacement is linear: Y ~ p + k / E_{r+1}
+                            let c0 = sw.one_m_psi.clone();
+                            (T::from_f64(pt as f64) + c0.clone()) / (T::from_f64(pl as f64) + c0)
+                        } else if target == l {
+                            T::one()
+                        } else {
+                            qpow(target - l) * big_b(pt, &sw.one_m_psi) / big_b(pl, &sw.one_m_psi)
+                        }
                     };
-                    x = xl * ratio;
-                    if o <= r {
-                        return (x, z1);
+                    while next < sites.len() && sites[next] >= l && sites[next] <= r {
+                        out.push(xl.clone() * ratio(sites[next]));
+                        next += 1;
+                    }
+                    if next < sites.len() {
+                        x = xl * ratio(r);
                     }
                     kappa_left = k;
                 }
             }
         }
-        debug_assert!(o > self.n, "observe out of range");
-        (T::from_f64(f64::NAN), z1)
+        // sites out of order or beyond n
+        out.resize(sites.len(), T::from_f64(f64::NAN));
+        (out, z1)
+    }
+}
+
+/// The powers of `q = e^{-lambda}` a sweep needs at one `s`.
+trait Powers<T> {
+    /// `lambda` (0 in the static limit).
+    fn lam(&self) -> T;
+    /// `q^j`.
+    fn q(&self, j: usize) -> T;
+    /// `1 - q^j`, without cancellation.
+    fn one_m_q(&self, j: usize) -> T;
+    /// `e^lambda - 1`.
+    fn em1(&self) -> T;
+    /// `e^lambda`.
+    fn e_lam(&self) -> T;
+}
+
+/// `lambda(s)` of the uniform chain, as in `green.rs`.
+fn lambda_of<T: Scalar>(s: &T, k: f64, mass: f64, d: f64) -> T {
+    let inner = (s.scale(mass) + T::from_f64(d)).scale(1.0 / k);
+    (s.sqrt() * inner.sqrt()).scale(0.5).asinh().scale(2.0)
+}
+
+/// Powers computed when asked (one exponential each).
+struct Direct<T> {
+    lam: T,
+}
+
+impl<T: Scalar> Direct<T> {
+    fn new(s: &T, k: f64, mass: f64, d: f64) -> Direct<T> {
+        Direct {
+            lam: lambda_of(s, k, mass, d),
+        }
+    }
+}
+
+impl<T: Scalar> Powers<T> for Direct<T> {
+    fn lam(&self) -> T {
+        self.lam.clone()
+    }
+    fn q(&self, j: usize) -> T {
+        self.lam.scale(-(j as f64)).exp()
+    }
+    fn one_m_q(&self, j: usize) -> T {
+        -(self.lam.scale(-(j as f64))).expm1()
+    }
+    fn em1(&self) -> T {
+        self.lam.expm1()
+    }
+    fn e_lam(&self) -> T {
+        self.lam.exp()
+    }
+}
+
+/// The powers `q^j` and `1 - q^j`, `j = 0..=2n+1`, of one `s` for a chain's
+/// uniform `k`, `mass`, `d`, tabulated once so that every sweep at that `s`
+/// (every candidate chain of a fit) is free of transcendental functions.
+/// `q^j` by repeated multiplication (relative error about `j eps`), `1 - q^j`
+/// by `(1 - q^j) + q^j (1 - q)`, a sum without cancellation for real `s`.
+/// Memory: `2 (2n + 2)` values per `s`.
+#[derive(Clone, Debug)]
+pub struct SweepTable<T> {
+    key: (u64, u64, u64),
+    lam: T,
+    em1: T,
+    e_lam: T,
+    q: Vec<T>,
+    omq: Vec<T>,
+}
+
+impl<T: Scalar> SweepTable<T> {
+    /// The table of `chain`'s uniform part at `s`.
+    ///
+    /// ```
+    /// use springmass::{Chain, Defect, Complex64};
+    /// use springmass::forward::transfer::{SweepTable, Transfer};
+    /// let c = Chain::paper(30)?.with_defects([Defect::Mass { at: 4, m: 3.0 }, Defect::Spring { at: 20, k: 0.5 }])?;
+    /// let s = Complex64::new(0.05, 0.8);
+    /// let t = Transfer::new(&c);
+    /// let table = SweepTable::new(&c, s);
+    /// let (x, _) = t.eval_sites(&s, &table, &[1, 4, 21], 1.0);
+    /// for (xi, o) in x.iter().zip([1, 4, 21]) {
+    ///     assert!((xi - t.eval(&s, o)).norm() < 1e-12 * xi.norm());
+    /// }
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    pub fn new(chain: &Chain, s: T) -> SweepTable<T> {
+        let (k, mass, d) = (chain.k(), chain.mass(), chain.d());
+        let lam = lambda_of(&s, k, mass, d);
+        let jmax = 2 * chain.n() + 1;
+        let q1 = lam.scale(-1.0).exp();
+        let omq1 = -(lam.scale(-1.0)).expm1();
+        let mut q = Vec::with_capacity(jmax + 1);
+        let mut omq = Vec::with_capacity(jmax + 1);
+        q.push(T::one());
+        omq.push(T::zero());
+        for j in 1..=jmax {
+            // re-anchor every 64 powers with the exact exponential
+            if j % 64 == 0 {
+                q.push(lam.scale(-(j as f64)).exp());
+                omq.push(-(lam.scale(-(j as f64))).expm1());
+            } else {
+                let (qp, op) = (q[j - 1].clone(), omq[j - 1].clone());
+                omq.push(op + qp.clone() * omq1.clone());
+                q.push(qp * q1.clone());
+            }
+        }
+        SweepTable {
+            key: (k.to_bits(), mass.to_bits(), d.to_bits()),
+            em1: lam.expm1(),
+            e_lam: lam.exp(),
+            lam,
+            q,
+            omq,
+        }
+    }
+}
+
+impl<T: Scalar> Powers<T> for SweepTable<T> {
+    fn lam(&self) -> T {
+        self.lam.clone()
+    }
+    fn q(&self, j: usize) -> T {
+        match self.q.get(j) {
+            Some(v) => v.clone(),
+            None => self.lam.scale(-(j as f64)).exp(),
+        }
+    }
+    fn one_m_q(&self, j: usize) -> T {
+        match self.omq.get(j) {
+            Some(v) => v.clone(),
+            None => -(self.lam.scale(-(j as f64))).expm1(),
+        }
+    }
+    fn em1(&self) -> T {
+        self.em1.clone()
+    }
+    fn e_lam(&self) -> T {
+        self.e_lam.clone()
     }
 }
 
@@ -298,6 +474,64 @@ mod tests {
     use crate::forward::tridiag;
     use crate::Defect;
     use num_complex::Complex64;
+
+    #[test]
+    fn tabulated_sweep_matches_the_direct_one_at_every_site() {
+        use crate::chain::Boundary;
+        let mut chains = vec![
+            Chain::paper(1).unwrap(),
+            Chain::paper(300)
+                .unwrap()
+                .with_defects([
+                    Defect::Mass { at: 1, m: 1e3 },
+                    Defect::Mass { at: 150, m: 1e-3 },
+                    Defect::Spring { at: 299, k: 3.0 },
+                    Defect::Damper { at: 77, d: 2.0 },
+                ])
+                .unwrap(),
+            Chain::paper(20)
+                .unwrap()
+                .with_d(0.0)
+                .unwrap()
+                .with_defect(Defect::Mass { at: 8, m: 5.0 })
+                .unwrap(),
+        ];
+        chains.push(
+            chains[1]
+                .clone()
+                .with_boundaries(Boundary::Free, Boundary::Free)
+                .unwrap(),
+        );
+        let nodes = [
+            Complex64::new(1e-6, 0.0),
+            Complex64::new(0.3, 0.0),
+            Complex64::new(0.05, 1.7),
+            Complex64::new(2.0, -40.0),
+            Complex64::new(1e4, 3.0),
+        ];
+        for c in &chains {
+            let t = Transfer::new(c);
+            let sites: Vec<usize> = (1..=c.n()).collect();
+            for &s in &nodes {
+                let table = SweepTable::new(c, s);
+                assert!(t.fits(&table));
+                let (x, z1) = t.eval_sites(&s, &table, &sites, c.gamma());
+                let (_, z1d) = t.eval_parts(&s, 1, c.gamma());
+                assert!((z1 - z1d).norm() <= 1e-12 * z1d.norm() + 1e-300);
+                for (o, xo) in sites.iter().zip(&x) {
+                    let d = t.eval(&s, *o);
+                    if !d.is_finite() || d.norm() < 1e-280 {
+                        continue;
+                    }
+                    assert!(
+                        (xo - d).norm() <= 1e-11 * d.norm(),
+                        "n = {}, s = {s}, o = {o}: {xo} vs {d}",
+                        c.n()
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn matches_tridiagonal_everywhere_small() {

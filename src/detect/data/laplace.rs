@@ -5,13 +5,17 @@
 //! of the measured force when there is one
 //! ([`crate::detect::data::measurement`]).
 
-use crate::chain::Chain;
+use crate::chain::{Chain, Defect};
 use crate::detect::data::measurement::{laplace_gradient, laplace_model, scale_gradient, Sensor};
 use crate::error::{check_f64, Error, Result};
+use crate::forward::transfer::SweepTable;
 use crate::forward::Forward;
-use crate::sensitivity::{defect_gradient_with, gradient, observe_defect_gradient_with, Param};
+use crate::sensitivity::{
+    defect_gradient_with, gradient, observe_defect_gradient_with, Gradient, Param,
+};
 use nalgebra::DMatrix;
 use num_complex::Complex64;
+use std::sync::OnceLock;
 
 /// Laplace-domain observations: `chi^2 = sum_q w_q |X_1(s_q) - d_q|^2`
 /// (diagonal weights, [`LaplaceObs::new`]) or `chi^2 = ||W r||^2` with `r`
@@ -27,6 +31,24 @@ pub struct LaplaceObs {
     sensor: Sensor,
     /// Transform of the measured force at the nodes (`None`: the impulse).
     force_hat: Option<Vec<Complex64>>,
+    /// Per-node powers of the uniform chain of the first chain evaluated
+    /// (every candidate of a fit shares it).
+    tables: TableCache,
+}
+
+/// Largest chain whose per-node sweep tables are kept (`2 (2n + 2)` complex
+/// values per node: 640 KB per node at this size).
+pub const MAX_TABLE_N: usize = 10_000;
+
+/// [`SweepTable`]s at the nodes, built once for one uniform chain; compares
+/// equal to every other cache (it is derived data).
+#[derive(Clone, Debug, Default)]
+struct TableCache(OnceLock<Option<Vec<SweepTable<Complex64>>>>);
+
+impl PartialEq for TableCache {
+    fn eq(&self, _: &TableCache) -> bool {
+        true
+    }
 }
 
 impl LaplaceObs {
@@ -67,6 +89,7 @@ impl LaplaceObs {
             whitening: None,
             sensor: Sensor::PAPER,
             force_hat: None,
+            tables: TableCache::default(),
         })
     }
 
@@ -101,8 +124,48 @@ impl LaplaceObs {
         self.sensor
     }
 
+    /// The sweep tables of the nodes for `chain`'s uniform part (built on
+    /// first use; `None` above [`MAX_TABLE_N`] masses).
+    fn tables(&self, chain: &Chain) -> Option<&[SweepTable<Complex64>]> {
+        self.tables
+            .0
+            .get_or_init(|| {
+                (chain.n() <= MAX_TABLE_N)
+                    .then(|| self.s.iter().map(|&z| SweepTable::new(chain, z)).collect())
+            })
+            .as_deref()
+    }
+
+    /// Whether the model is `s^p F(s) X_at(s)` (or `X_at`), which the
+    /// tabulated sweep gives; the acceleration after the impulse needs the
+    /// direct evaluation (its jump).
+    fn tabulable(&self) -> bool {
+        self.force_hat.is_some() || self.sensor.kind != crate::forward::Observable::Acceleration
+    }
+
+    /// The factor turning `X_at` into the model at node `q`: `s^p F(s)`, or
+    /// `s^p` for the impulse (velocity: `x(0) = 0`, no jump).
+    fn factor(&self, q: usize) -> Complex64 {
+        let sp = self.s[q].powu(self.sensor.kind.power());
+        match &self.force_hat {
+            Some(f) => sp * f[q],
+            None => sp,
+        }
+    }
+
+    /// `X` at `sites` by the tabulated sweep, if it applies.
+    fn x_sites(&self, fwd: &Forward, q: usize, sites: &[usize]) -> Option<Vec<Complex64>> {
+        let tables = self.tables(fwd.chain())?;
+        fwd.sites_with(&self.s[q], &tables[q], sites)
+    }
+
     /// The model of the data at node `q` for `fwd`'s chain.
     fn model_at(&self, fwd: &Forward, q: usize) -> Result<Complex64> {
+        if self.tabulable() {
+            if let Some(x) = self.x_sites(fwd, q, &[self.sensor.at]) {
+                return Ok(self.factor(q) * x[0]);
+            }
+        }
         if self.force_hat.is_none() && self.sensor == Sensor::PAPER {
             return fwd.eval(self.s[q], 1);
         }
@@ -223,6 +286,52 @@ impl LaplaceObs {
         Ok(r)
     }
 
+    /// `X_1` and its derivatives with respect to every defect value of
+    /// `fwd`'s chain at node `q`, from `X` at mass 1 and the defect sites in
+    /// one tabulated sweep (as [`defect_gradient_with`]); `None` when the
+    /// table does not apply.
+    fn tabulated_gradient(&self, fwd: &Forward, q: usize) -> Option<Gradient<Complex64>> {
+        let chain = fwd.chain();
+        let n = chain.n();
+        let mut sites = vec![1];
+        for d in chain.defects() {
+            match *d {
+                Defect::Mass { at, .. } | Defect::Damper { at, .. } => sites.push(at),
+                Defect::Spring { at, .. } => {
+                    sites.extend([at, at + 1].into_iter().filter(|&i| i >= 1 && i <= n))
+                }
+            }
+        }
+        sites.sort_unstable();
+        sites.dedup();
+        let x = self.x_sites(fwd, q, &sites)?;
+        let at = |i: usize| -> Complex64 {
+            match sites.binary_search(&i) {
+                Ok(j) => x[j],
+                Err(_) => Complex64::new(0.0, 0.0), // x_0 = x_{n+1} = 0
+            }
+        };
+        let s = self.s[q];
+        let gamma = chain.gamma();
+        let inv = if gamma == 0.0 { 0.0 } else { 1.0 / gamma };
+        let grad = chain
+            .defects()
+            .iter()
+            .map(|d| {
+                let b = match *d {
+                    Defect::Mass { at: a, .. } => s * s * at(a) * at(a),
+                    Defect::Damper { at: a, .. } => s * at(a) * at(a),
+                    Defect::Spring { at: a, .. } => {
+                        let dx = at(a) - at(a + 1);
+                        dx * dx
+                    }
+                };
+                -b * inv
+            })
+            .collect();
+        Some(Gradient { value: at(1), grad })
+    }
+
     pub(crate) fn jacobian(&self, chain: &Chain, params: &[Param]) -> Result<DMatrix<f64>> {
         let mut rows: Vec<Vec<f64>> = Vec::with_capacity(2 * self.s.len());
         // defect parameters only: O(k) per site by the transfer sweep
@@ -239,7 +348,20 @@ impl LaplaceObs {
         for q in 0..self.s.len() {
             let s = self.s[q];
             let force = self.force_hat.as_ref().map(|f| f[q]);
+            let tab = match &defect_idx {
+                Some(idx) if self.sensor.at == 1 && self.tabulable() => {
+                    self.tabulated_gradient(&fwd, q).map(|all| {
+                        let c = self.factor(q);
+                        crate::sensitivity::Gradient {
+                            value: all.value * c,
+                            grad: idx.iter().map(|&i| all.grad[i] * c).collect(),
+                        }
+                    })
+                }
+                _ => None,
+            };
             let g = match &defect_idx {
+                _ if tab.is_some() => tab.expect("checked"),
                 // defect values of an observable of mass 1: O(k) per site
                 Some(idx) if self.sensor.at == 1 => {
                     let all = match (paper, force) {

@@ -38,10 +38,10 @@
 use super::{parse_params, Criterion, DefectCount, FitMethod, FitOptions, Model, NoiseSpec};
 use crate::chain::{Boundary, Defect};
 use crate::detect::data::measurement::{Measurement, Sensor};
-use crate::forward::Observable;
 use crate::detect::misfit::MisfitKind;
 use crate::detect::unknowns::KindChoice;
 use crate::error::{Error, Result};
+use crate::forward::Observable;
 
 /// The options of a data-first fit as a front end receives them (see the
 /// module docs); `None` or empty means the default.
