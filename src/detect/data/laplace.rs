@@ -229,6 +229,11 @@ impl LaplaceObs {
         &self.values
     }
 
+    /// The per-node weights (all 1 when whitened).
+    pub fn weights(&self) -> &[f64] {
+        &self.weights
+    }
+
     /// `chi^2` of `chain` (the sum of squared [`LaplaceObs::residuals`]).
     ///
     /// # Errors

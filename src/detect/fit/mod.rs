@@ -25,9 +25,12 @@
 //!   chooses; the table is in the report.
 //! * **kinds** ([`KindChoice`]): mass, spring, damper or any.
 //! * **method** ([`FitMethod`]): `enumerate` (every position set, values by
-//!   bounded Levenberg-Marquardt) works for every kind; `ga`, `nelder-mead`
-//!   and `pso` search mass defects (and refuse other kinds with a typed
-//!   error); their best position set is then refitted like enumeration's.
+//!   bounded Levenberg-Marquardt) works for every kind; `greedy`
+//!   ([`crate::detect::search::greedy`]: one defect at a time, candidates
+//!   scored by rank-one updates, then moves, restarts) too, for long chains
+//!   and many defects; `ga`, `nelder-mead` and `pso` search mass defects
+//!   (and refuse other kinds with a typed error); their best position set is
+//!   then refitted like enumeration's.
 //!
 //! ```
 //! use springmass::{Chain, Defect, noise::NoiseLevel};
@@ -379,11 +382,20 @@ impl FitOptions {
         }
         let all_mass = self.kinds == KindChoice::Mass
             && self.slot_kinds.iter().all(|k| *k == KindChoice::Mass);
-        if self.method != FitMethod::Enumerate && (!all_mass || !model.fit.is_empty()) {
+        if !matches!(self.method, FitMethod::Enumerate | FitMethod::Greedy)
+            && (!all_mass || !model.fit.is_empty())
+        {
             return Err(Error::invalid(
                 "method",
                 self.method.name(),
-                "enumerate for spring, damper or any-kind defects and for fitted chain parameters (ga, nelder-mead and pso search mass defects only)",
+                "enumerate or greedy for spring, damper or any-kind defects and for fitted chain parameters (ga, nelder-mead and pso search mass defects only)",
+            ));
+        }
+        if self.method == FitMethod::Greedy && self.slot_kinds.windows(2).any(|w| w[0] != w[1]) {
+            return Err(Error::invalid(
+                "kinds",
+                "a different kind per defect",
+                "one kind for every defect with the greedy search (or the enumeration)",
             ));
         }
         match obs {
@@ -792,6 +804,21 @@ impl Engine<'_> {
                     )?;
                     hypotheses = g.hypotheses;
                     (g.ranked, g.evaluations)
+                } else if self.opts.method == FitMethod::Greedy {
+                    // greedy search with moves (search::greedy)
+                    let g = crate::detect::search::greedy::fit_greedy(
+                        &self.model.chain,
+                        &unknowns,
+                        &coarse,
+                        fine.as_ref(),
+                        &setup,
+                        &crate::detect::search::greedy::GreedyOptions {
+                            parallel: self.opts.parallel,
+                            ..Default::default()
+                        },
+                    )?;
+                    hypotheses = g.hypotheses;
+                    (g.ranked, g.evaluations + g.scored)
                 } else {
                     let (positions, evals, exhausted) = self.stochastic(k, &coarse)?;
                     budget_exhausted = exhausted;

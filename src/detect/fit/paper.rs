@@ -130,7 +130,8 @@ pub struct FitReport {
 /// Invalid chain, unknowns or misfit in the scene (typed, naming the field);
 /// a method this build does not provide (`search.method`).
 pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<FitReport> {
-    if scene.is_general() {
+    if scene.is_general() || options.method == FitMethod::Greedy {
+        // the greedy search runs in the data-first pipeline
         return fit_general_scene(scene, data, options);
     }
     let t0 = Instant::now();
@@ -263,11 +264,11 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
     use crate::detect::data::observations::{LaplaceValues, Observations, Series};
     use crate::detect::fit::{DefectCount, FitOptions, Model, NoiseSpec};
     let t0 = Instant::now();
-    if options.method != FitMethod::Enumerate {
+    if !matches!(options.method, FitMethod::Enumerate | FitMethod::Greedy) {
         return Err(Error::invalid(
             "search.method",
             options.method.name(),
-            "enumerate for defects of other kinds, chain parameters or the time misfit",
+            "enumerate or greedy for defects of other kinds, chain parameters or the time misfit",
         ));
     }
     let unknowns = scene.general_unknowns()?;
@@ -334,7 +335,7 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
         slot_kinds: kinds,
         noise,
         misfit: Some(scene.misfit.kind),
-        method: FitMethod::Enumerate,
+        method: options.method,
         alternatives: options.enumerate.keep.saturating_sub(1).max(1),
         parallel: options.enumerate.parallel,
         max_sets: options.enumerate.max_sets,
@@ -344,7 +345,7 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
     let r = crate::detect::fit::fit(&obs, &model, &opts)?;
     let floor = crate::detect::fit::identify::DEFAULT_THRESHOLD;
     Ok(FitReport {
-        method: "enumerate (general noisy fit)".into(),
+        method: format!("{} (general noisy fit)", options.method.name()),
         defects: r.defects.iter().map(|d| d.defect()).collect(),
         residual: r.chi2,
         resolved: r.resolved,

@@ -12,7 +12,9 @@
 //! | [`Method::ParticleSwarm`] | [`pso`] | relax-and-round (with collision repair), argmin particle swarm, then the Nelder-Mead local search; episodes |
 //!
 //! Exhaustive enumeration of position sets lives with the fitting code (it is
-//! not a black-box optimizer: it needs the residual's structure).
+//! not a black-box optimizer: it needs the residual's structure), and so does
+//! the greedy search with moves ([`greedy`], candidates scored by the
+//! rank-one kernel of [`rankone`]): both are [`FitMethod`]s, not [`Method`]s.
 //!
 //! ## What to expect (Table 1 of the paper, `cargo bench --bench table1`)
 //!
@@ -65,9 +67,11 @@
 
 pub mod enumerate;
 pub mod genetic;
+pub mod greedy;
 pub mod lsq;
 pub mod nelder_mead;
 pub mod pso;
+pub mod rankone;
 
 use crate::error::{Error, Result};
 use rand::Rng;
@@ -135,11 +139,14 @@ pub enum FitMethod {
     /// Particle swarm.
     #[serde(alias = "particle-swarm")]
     Pso,
+    /// Greedy placement with moves and restarts, candidates scored by
+    /// rank-one updates ([`greedy`]; the data-first fit only).
+    Greedy,
 }
 
 impl FitMethod {
-    /// Parse `enumerate`, `ga`, `nelder-mead`, `pso` (aliases `genetic`,
-    /// `particle-swarm`, `nm`).
+    /// Parse `enumerate`, `ga`, `nelder-mead`, `pso`, `greedy` (aliases
+    /// `genetic`, `particle-swarm`, `nm`).
     ///
     /// # Errors
     /// [`Error::Parse`] naming the allowed names.
@@ -149,10 +156,11 @@ impl FitMethod {
             "ga" | "genetic" => Ok(FitMethod::Ga),
             "nelder-mead" | "nm" => Ok(FitMethod::NelderMead),
             "pso" | "particle-swarm" => Ok(FitMethod::Pso),
+            "greedy" => Ok(FitMethod::Greedy),
             _ => Err(Error::parse(
                 "method",
                 text,
-                "expected enumerate, ga, nelder-mead or pso",
+                "expected enumerate, ga, nelder-mead, pso or greedy",
             )),
         }
     }
@@ -164,13 +172,15 @@ impl FitMethod {
             FitMethod::Ga => "ga",
             FitMethod::NelderMead => "nelder-mead",
             FitMethod::Pso => "pso",
+            FitMethod::Greedy => "greedy",
         }
     }
 
-    /// The optimizer behind a stochastic method; `None` for enumeration.
+    /// The optimizer behind a stochastic method; `None` for enumeration
+    /// and the greedy search.
     pub fn stochastic(self) -> Option<Method> {
         match self {
-            FitMethod::Enumerate => None,
+            FitMethod::Enumerate | FitMethod::Greedy => None,
             FitMethod::Ga => Some(Method::Genetic),
             FitMethod::NelderMead => Some(Method::NelderMead),
             FitMethod::Pso => Some(Method::ParticleSwarm),

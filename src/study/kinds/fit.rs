@@ -258,11 +258,11 @@ impl KindScene for FitScene {
             if let Err(e) = self.general_unknowns() {
                 out.push(e);
             }
-            if self.search.method != FitMethod::Enumerate {
+            if !matches!(self.search.method, FitMethod::Enumerate | FitMethod::Greedy) {
                 out.push(Error::invalid(
                     "search.method",
                     self.search.method.name(),
-                    "enumerate for the general fit (non-mass kinds, chain parameters or the time misfit)",
+                    "enumerate or greedy for the general fit (non-mass kinds, chain parameters or the time misfit)",
                 ));
             }
             if self.misfit.kind == crate::detect::misfit::MisfitKind::Time
@@ -278,7 +278,9 @@ impl KindScene for FitScene {
             match self.unknowns() {
                 Err(e) => out.push(e),
                 Ok(u) => {
-                    if self.search.method != FitMethod::Enumerate && !u.interchangeable() {
+                    if !matches!(self.search.method, FitMethod::Enumerate | FitMethod::Greedy)
+                        && !u.interchangeable()
+                    {
                         out.push(Error::invalid(
                             "search.method",
                             self.search.method.name(),
@@ -295,7 +297,7 @@ impl KindScene for FitScene {
             }
         }
         // [search]
-        if self.search.method != FitMethod::Enumerate && self.search.max_evals == 0 {
+        if self.search.method.stochastic().is_some() && self.search.max_evals == 0 {
             out.push(Error::invalid(
                 "search.max_evals",
                 0,

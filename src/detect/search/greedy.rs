@@ -1,0 +1,784 @@
+//! Greedy search with moves: many defects in long chains without
+//! enumerating position sets.
+//!
+//! Enumeration fits `C(n, k)` position sets (34 220 for `n = 60`, `k = 3`);
+//! this search fits `O(k (k + passes) refit)` of them and scores the rest by
+//! a rank-one formula, so that `n = 10^4` is a matter of seconds.
+//!
+//! # Algorithm
+//!
+//! 1. **Add.** From the current fit (at first the chain with its known
+//!    defects and any defect of known position), every candidate `(kind,
+//!    position)` is scored by the exact rank-one update of `X_1`
+//!    ([`crate::detect::search::rankone`]): its own value fitted (grid, then
+//!    Gauss-Newton), the other values held. The `refit` best candidates are
+//!    added in turn and *all* values (and the fitted chain parameters) refitted
+//!    by the bounded Levenberg-Marquardt ([`crate::detect::search::lsq`],
+//!    analytic Jacobian by reciprocity); the best refit is kept. Repeat until
+//!    `k` defects are placed.
+//! 2. **Move.** For each placed defect in turn, take it out (the others keep
+//!    their values), score every candidate against the rest, and refit the
+//!    `refit` best (other than where it was); accept the best refit if it
+//!    lowers the chi-square. A move can change the kind as well as the
+//!    position (so it covers swaps of kind). Passes repeat until none helps
+//!    (at most `max_passes`).
+//! 3. **Restart.** The same from each of the `restarts` runners-up of the
+//!    first step (candidates at least two positions from the earlier starts);
+//!    the best result wins.
+//!
+//! Every fit on the way is kept: the ranked list holds the answer and its
+//! one-move neighbours (the sets a final pass tried), which is what the
+//! report's runner-up gap and identifiability need. With a time-domain
+//! misfit the `setup.shortlist` best are refitted in the time domain and
+//! re-ranked, as [`fit_general`](crate::detect::fit::general::fit_general) does.
+//!
+//! # Cost and determinism
+//!
+//! Scoring is `O(n Q)` (the sweep) plus `O(n_candidates Q (grid + iterations))`,
+//! `Q` the Laplace nodes; memory `O(n Q)`, never an `n x n` matrix. Scoring
+//! and refits run in parallel (rayon); candidates are ranked by
+//! `(chi2, position, kind)` and refits by `(chi2, hypothesis)`, so the result
+//! does not depend on the thread count.
+//!
+//! ```
+//! use springmass::{Chain, Complex64, Defect};
+//! use springmass::detect::data::laplace::LaplaceObs;
+//! use springmass::detect::fit::general::Setup;
+//! use springmass::detect::search::greedy::{fit_greedy, GreedyOptions};
+//! use springmass::detect::unknowns::{GeneralUnknowns, KindChoice};
+//! let truth = Chain::paper(40)?.with_defects([
+//!     Defect::Mass { at: 6, m: 3.0 }, Defect::Mass { at: 19, m: 0.5 }, Defect::Mass { at: 31, m: 2.0 }])?;
+//! let s: Vec<Complex64> = (0..80).map(|q| Complex64::new(0.05, 0.05 * q as f64)).collect();
+//! let obs = LaplaceObs::exact(&truth, s, vec![1.0; 80])?;
+//! let unknowns = GeneralUnknowns::free(40, &[KindChoice::Mass; 3], &[])?;
+//! let fit = fit_greedy(&truth.uniform(), &unknowns, &obs, None, &Setup::new()?, &GreedyOptions::default())?;
+//! assert_eq!(fit.ranked[0].positions(), vec![6, 19, 31]);
+//! assert!(fit.ranked[0].matches(&truth, 1e-6));
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+use crate::chain::Chain;
+use crate::detect::data::laplace::LaplaceObs;
+use crate::detect::fit::chainfit::{default_bounds, ChainProblem, Obs};
+use crate::detect::fit::general::{param_name, FittedParam, Hypothesis, Setup};
+use crate::detect::misfit::time::TimeMisfit;
+use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
+use crate::detect::search::rankone::{
+    score, ScoreOptions, Scored, SetDefect, SetProblem, Sweep, Target,
+};
+use crate::detect::unknowns::{DefectKind, GeneralUnknowns, KindBounds, KindChoice, KindPositions};
+use crate::error::{Error, Result};
+use crate::sensitivity::Param;
+use rayon::prelude::*;
+
+/// Options of [`fit_greedy`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct GreedyOptions {
+    /// Best-scored candidates refitted (all values) at each step and move (default 3).
+    pub refit: usize,
+    /// Restarts from the first step's runners-up (default 2).
+    pub restarts: usize,
+    /// Most passes of moves per path (default 20).
+    pub max_passes: usize,
+    /// Levenberg-Marquardt iterations per refit (default 100).
+    pub max_iter: usize,
+    /// Candidate scoring: value grid and Gauss-Newton polish (bounds are the slots').
+    pub score: ScoreOptions,
+    /// Score and refit in parallel (rayon); the result does not depend on it (default true).
+    pub parallel: bool,
+}
+
+impl Default for GreedyOptions {
+    fn default() -> Self {
+        GreedyOptions {
+            refit: 3,
+            restarts: 2,
+            max_passes: 20,
+            max_iter: 100,
+            score: ScoreOptions::default(),
+            parallel: true,
+        }
+    }
+}
+
+impl GreedyOptions {
+    /// Check the options.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `greedy.refit` (0), `greedy.max_iter`
+    /// (0), `greedy.grid` (below 2).
+    pub fn validate(&self) -> Result<()> {
+        if self.refit == 0 {
+            return Err(Error::invalid("greedy.refit", 0, ">= 1"));
+        }
+        if self.max_iter == 0 {
+            return Err(Error::invalid("greedy.max_iter", 0, ">= 1"));
+        }
+        if self.score.grid < 2 {
+            return Err(Error::invalid("greedy.grid", self.score.grid, ">= 2"));
+        }
+        Ok(())
+    }
+}
+
+/// The result of [`fit_greedy`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct GreedyFit {
+    /// Every hypothesis refitted on the way (distinct), best first: the answer
+    /// and its one-move neighbours.
+    pub ranked: Vec<Hypothesis>,
+    /// Position sets refitted by Levenberg-Marquardt.
+    pub hypotheses: usize,
+    /// Residual evaluations of the full model (Levenberg-Marquardt).
+    pub evaluations: usize,
+    /// Rank-one candidate evaluations (each O(Q)).
+    pub scored: usize,
+    /// Candidate sweeps (each O(n Q)).
+    pub sweeps: usize,
+    /// Number of residuals of the final misfit.
+    pub residuals: usize,
+    /// Chi-square at the end of each path (the first from the best first
+    /// candidate, then the restarts).
+    pub paths: Vec<f64>,
+}
+
+/// One refitted hypothesis.
+#[derive(Clone, Debug)]
+struct Fit {
+    /// `(kind, position)` of every slot, in slot order.
+    pairs: KindPositions,
+    /// The fitted chain (defects in slot order).
+    chain: Chain,
+    hyp: Hypothesis,
+    m: usize,
+}
+
+impl Fit {
+    fn key(&self) -> KindPositions {
+        let mut k = self.pairs.clone();
+        k.sort_unstable_by_key(|&(kind, at)| (at, kind));
+        k
+    }
+}
+
+struct Greedy<'a> {
+    base: Chain,
+    unknowns: &'a GeneralUnknowns,
+    obs: &'a LaplaceObs,
+    target: Target,
+    opts: &'a GreedyOptions,
+    /// Indices of the slots placed by the search.
+    free: Vec<usize>,
+    kinds: Vec<DefectKind>,
+    score_opts: ScoreOptions,
+    chain_bounds: Vec<(f64, f64)>,
+    counters: std::sync::Mutex<(usize, usize, usize, usize)>,
+}
+
+/// Greedy search with moves and restarts (module docs) for the defects of
+/// `unknowns` on `base` (its uniform part; the slots' known defects are
+/// added), fitted to `coarse`; with `fine`, the `setup.shortlist` best are
+/// refitted in the time domain and re-ranked.
+///
+/// Slots with a known position are always present (their values fitted);
+/// the slots of unknown position must share one kind choice (they are
+/// placed one at a time, interchangeably).
+///
+/// # Errors
+/// `unknowns.n` differing from the chain's; slots of unknown position with
+/// different kinds or bounds (field `kinds`); bad options
+/// ([`GreedyOptions::validate`]); fewer candidate positions than defects
+/// (field `defects`); no hypothesis could be fitted.
+pub fn fit_greedy(
+    base: &Chain,
+    unknowns: &GeneralUnknowns,
+    coarse: &LaplaceObs,
+    fine: Option<&TimeMisfit>,
+    setup: &Setup,
+    opts: &GreedyOptions,
+) -> Result<GreedyFit> {
+    opts.validate()?;
+    if unknowns.n() != base.n() {
+        return Err(Error::invalid(
+            "unknowns.n",
+            unknowns.n(),
+            format!("the chain's n = {}", base.n()),
+        ));
+    }
+    let slots = unknowns.slots();
+    let free: Vec<usize> = (0..slots.len())
+        .filter(|&i| slots[i].at.is_none())
+        .collect();
+    let choice = free.first().map(|&i| slots[i].kind);
+    if free
+        .iter()
+        .any(|&i| Some(slots[i].kind) != choice || slots[i].bounds != slots[free[0]].bounds)
+    {
+        return Err(Error::invalid(
+            "kinds",
+            "different kinds or bounds per defect",
+            "one kind choice and one range for every defect of unknown position (greedy places them interchangeably)",
+        ));
+    }
+    let kinds: Vec<DefectKind> = choice.unwrap_or(KindChoice::Mass).kinds().to_vec();
+    let mut kb = *unknowns.kind_bounds();
+    if let Some(&i) = free.first() {
+        kb = KindBounds {
+            mass: unknowns.bounds(i, DefectKind::Mass),
+            spring: unknowns.bounds(i, DefectKind::Spring),
+            damper: unknowns.bounds(i, DefectKind::Damper),
+        };
+    }
+    let g = Greedy {
+        base: base.uniform(),
+        unknowns,
+        obs: coarse,
+        target: Target::new(coarse),
+        opts,
+        free,
+        kinds,
+        score_opts: ScoreOptions {
+            bounds: kb,
+            ..opts.score.clone()
+        },
+        chain_bounds: default_bounds(base, unknowns.chain()),
+        counters: std::sync::Mutex::new((0, 0, 0, 0)),
+    };
+    g.run(fine, setup)
+}
+
+impl Greedy<'_> {
+    fn count(&self, hyps: usize, evals: usize, scored: usize, sweeps: usize) {
+        let mut c = self.counters.lock().unwrap_or_else(|e| e.into_inner());
+        c.0 += hyps;
+        c.1 += evals;
+        c.2 += scored;
+        c.3 += sweeps;
+    }
+
+    fn map<T: Sync, U: Send>(&self, items: &[T], f: impl Fn(&T) -> U + Sync + Send) -> Vec<U> {
+        if self.opts.parallel {
+            items.par_iter().map(f).collect()
+        } else {
+            items.iter().map(f).collect()
+        }
+    }
+
+    /// The starting value of a defect of `kind` (the coarse start of the
+    /// enumeration: twice the uniform mass or spring, a heavier damper).
+    fn start_value(&self, kind: DefectKind, chain: &Chain) -> f64 {
+        match kind {
+            DefectKind::Mass => 2.0 * chain.mass(),
+            DefectKind::Spring => 2.0 * chain.k(),
+            DefectKind::Damper => (5.0 * chain.d()).max(0.5),
+        }
+    }
+
+    /// Refit the values of the hypothesis `pairs` (slot order: the known and
+    /// fixed-position slots, then as many free slots as placed, `slot_of`
+    /// their slot indices) from `values`, chain parameters from `start`, on
+    /// `obs`. The placed defects are put in canonical order (position, kind).
+    /// Without chain parameters on Laplace data the values are fitted on the
+    /// gathered Woodbury kernel ([`SetProblem`], O(Q) per evaluation whatever
+    /// `n`), otherwise on the chain's own residuals ([`ChainProblem`]).
+    fn refit(
+        &self,
+        pairs: &KindPositions,
+        slot_of: &[usize],
+        values: &[f64],
+        start: &Chain,
+        obs: Obs<'_>,
+    ) -> Result<Fit> {
+        let slots = self.unknowns.slots();
+        let n_fixed = slot_of.iter().filter(|&&i| slots[i].at.is_some()).count();
+        let mut order: Vec<(DefectKind, usize, f64)> = pairs[n_fixed..]
+            .iter()
+            .zip(&values[n_fixed..])
+            .map(|(&(k, a), &v)| (k, a, v))
+            .collect();
+        order.sort_by_key(|&(k, a, _)| (a, k));
+        let pairs: KindPositions = pairs[..n_fixed]
+            .iter()
+            .copied()
+            .chain(order.iter().map(|&(k, a, _)| (k, a)))
+            .collect();
+        let values: Vec<f64> = values[..n_fixed]
+            .iter()
+            .copied()
+            .chain(order.iter().map(|o| o.2))
+            .collect();
+        let mut defects = Vec::with_capacity(pairs.len());
+        let mut set = Vec::with_capacity(pairs.len());
+        let mut params = Vec::new();
+        let mut theta0 = Vec::new();
+        let mut bounds = Vec::new();
+        for (j, (&(kind, at), &v)) in pairs.iter().zip(&values).enumerate() {
+            let slot = &slots[slot_of[j]];
+            match slot.known {
+                Some(known) => {
+                    defects.push(kind.defect(at, known));
+                    set.push(SetDefect::Fixed(kind, at, known));
+                }
+                None => {
+                    let b = self.unknowns.bounds(slot_of[j], kind);
+                    let v = v.clamp(b.0, b.1);
+                    defects.push(kind.defect(at, v));
+                    set.push(SetDefect::Free(kind, at, theta0.len()));
+                    params.push(Param::Defect(j));
+                    theta0.push(v);
+                    bounds.push(b);
+                }
+            }
+        }
+        let n_values = theta0.len();
+        for (p, b) in self.unknowns.chain().iter().zip(&self.chain_bounds) {
+            params.push(*p);
+            theta0.push(p.get(start)?.clamp(b.0, b.1));
+            bounds.push(*b);
+        }
+        let chain = start.uniform().with_defects(defects)?;
+        if params.is_empty() {
+            let r = match obs {
+                Obs::Laplace(l) => l.residuals(&chain)?,
+                Obs::Time(t) => t.residuals(&chain)?,
+            };
+            self.count(1, 1, 0, 0);
+            let m = r.len();
+            return Ok(Fit {
+                pairs,
+                hyp: Hypothesis::from_parts(
+                    chain.defects().to_vec(),
+                    vec![0.0; values.len()],
+                    Vec::new(),
+                    r.iter().map(|v| v * v).sum(),
+                ),
+                chain,
+                m,
+            });
+        }
+        let lm_opts = LmOptions {
+            max_iter: self.opts.max_iter,
+            ..LmOptions::default()
+        };
+        let fast = self.unknowns.chain().is_empty() && matches!(obs, Obs::Laplace(_));
+        let (lm, fitted) = if fast {
+            let problem = SetProblem::new(&chain, &set, &self.target)?;
+            let lm = levenberg_marquardt(&problem, &theta0, &bounds, &lm_opts)?;
+            let mut d = chain.defects().to_vec();
+            for (p, &v) in params.iter().zip(&lm.theta) {
+                if let Param::Defect(i) = p {
+                    d[*i] = pairs[*i].0.defect(pairs[*i].1, v);
+                }
+            }
+            let fitted = chain.uniform().with_defects(d)?;
+            (lm, fitted)
+        } else {
+            let problem = ChainProblem::new(&chain, &params, obs)?;
+            let lm = levenberg_marquardt(&problem, &theta0, &bounds, &lm_opts)?;
+            let fitted = problem.chain(&lm.theta)?;
+            (lm, fitted)
+        };
+        debug_assert_eq!(n_values + self.unknowns.chain().len(), params.len());
+        self.count(1, lm.evaluations, 0, 0);
+        let se = lm
+            .std_errors()
+            .unwrap_or_else(|_| vec![f64::NAN; params.len()]);
+        let mut std_errors = vec![0.0; pairs.len()];
+        let mut chain_params = Vec::new();
+        for (j, p) in params.iter().enumerate() {
+            match p {
+                Param::Defect(i) => std_errors[*i] = se[j],
+                _ => chain_params.push(FittedParam {
+                    name: param_name(p).to_string(),
+                    value: lm.theta[j],
+                    std_error: se[j],
+                }),
+            }
+        }
+        Ok(Fit {
+            pairs,
+            hyp: Hypothesis::from_parts(
+                fitted.defects().to_vec(),
+                std_errors,
+                chain_params,
+                lm.chi2,
+            ),
+            chain: fitted,
+            m: lm.m,
+        })
+    }
+
+    /// Slot indices of a hypothesis with the fixed slots and `placed` free ones.
+    fn slot_of(&self, placed: usize) -> Vec<usize> {
+        let slots = self.unknowns.slots();
+        let mut v: Vec<usize> = (0..slots.len())
+            .filter(|&i| slots[i].at.is_some())
+            .collect();
+        v.extend(self.free.iter().take(placed));
+        v
+    }
+
+    /// The start: known and fixed-position slots, fitted (with the chain parameters).
+    fn start(&self) -> Result<Fit> {
+        let slots = self.unknowns.slots();
+        let slot_of = self.slot_of(0);
+        let mut pairs = Vec::new();
+        let mut values = Vec::new();
+        for &i in &slot_of {
+            let at = slots[i].at.expect("fixed slots have a position");
+            let kind = *slots[i]
+                .kind
+                .kinds()
+                .iter()
+                .find(|k| k.positions(self.base.n()).contains(&at))
+                .unwrap_or(&slots[i].kind.kinds()[0]);
+            pairs.push((kind, at));
+            values.push(slots[i].known.unwrap_or(self.start_value(kind, &self.base)));
+        }
+        self.refit(
+            &pairs,
+            &slot_of,
+            &values,
+            &self.base,
+            Obs::Laplace(self.obs),
+        )
+    }
+
+    /// Score every candidate against `chain`, excluding the pairs present.
+    fn scored(&self, chain: &Chain, present: &KindPositions) -> Result<Vec<Scored>> {
+        let sweep = Sweep::new(chain, self.target.nodes(), &self.kinds)?;
+        let s = score(
+            &sweep,
+            &self.target,
+            present,
+            &self.score_opts,
+            self.opts.parallel,
+        );
+        self.count(0, 0, s.iter().map(|c| c.evaluations).sum(), 1);
+        Ok(s)
+    }
+
+    /// Refit `cur` plus each candidate (values: `cur`'s, then the candidate's).
+    fn extend(&self, cur: &Fit, cands: &[Scored]) -> Vec<Fit> {
+        let placed = cur.pairs.len() - self.slot_of(0).len() + 1;
+        let slot_of = self.slot_of(placed);
+        let fits = self.map(cands, |c| {
+            let mut pairs = cur.pairs.clone();
+            pairs.push((c.kind, c.at));
+            let mut values: Vec<f64> = cur.chain.defects().iter().map(|d| d.value()).collect();
+            values.push(c.value);
+            self.refit(
+                &pairs,
+                &slot_of,
+                &values,
+                &cur.chain,
+                Obs::Laplace(self.obs),
+            )
+            .ok()
+        });
+        fits.into_iter().flatten().collect()
+    }
+
+    fn best_of(fits: Vec<Fit>) -> Option<Fit> {
+        fits.into_iter().min_by(|a, b| {
+            a.hyp
+                .chi2
+                .total_cmp(&b.hyp.chi2)
+                .then_with(|| a.key().cmp(&b.key()))
+        })
+    }
+
+    /// One path: add to `k` defects (the first forced to `first` if given),
+    /// then moves. Every refit is pushed to `seen`.
+    fn path(
+        &self,
+        start: &Fit,
+        first: Option<&Scored>,
+        step0: &[Scored],
+        seen: &mut Vec<Fit>,
+    ) -> Result<Fit> {
+        let n_fixed = start.pairs.len();
+        let mut cur = start.clone();
+        for step in 0..self.free.len() {
+            let cands: Vec<Scored> = match (step, first) {
+                (0, Some(f)) => vec![*f],
+                (0, None) => step0.iter().take(self.opts.refit).copied().collect(),
+                _ => {
+                    let s = self.scored(&cur.chain, &cur.pairs)?;
+                    s.into_iter().take(self.opts.refit).collect()
+                }
+            };
+            if cands.is_empty() {
+                return Err(Error::invalid(
+                    "defects",
+                    self.free.len(),
+                    "at most the number of candidate positions",
+                ));
+            }
+            let fits = self.extend(&cur, &cands);
+            seen.extend(fits.iter().cloned());
+            cur = Self::best_of(fits).ok_or_else(|| Error::Numerical {
+                method: "greedy".into(),
+                reason: format!("no candidate for defect {} could be fitted", step + 1),
+            })?;
+        }
+        // moves
+        for _ in 0..self.opts.max_passes {
+            let mut improved = false;
+            for p in n_fixed..cur.pairs.len() {
+                let (kind, at) = cur.pairs[p];
+                // the rest, at their fitted values
+                let mut rest = cur.clone();
+                rest.pairs.remove(p);
+                let defects: Vec<_> = cur
+                    .chain
+                    .defects()
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| *i != p)
+                    .map(|(_, d)| *d)
+                    .collect();
+                rest.chain = cur.chain.uniform().with_defects(defects)?;
+                let s = self.scored(&rest.chain, &rest.pairs)?;
+                let cands: Vec<Scored> = s
+                    .into_iter()
+                    .filter(|c| (c.kind, c.at) != (kind, at))
+                    .take(self.opts.refit)
+                    .collect();
+                let fits = self.extend(&rest, &cands);
+                seen.extend(fits.iter().cloned());
+                if let Some(b) = Self::best_of(fits) {
+                    if b.hyp.chi2 < cur.hyp.chi2 * (1.0 - 1e-9) {
+                        cur = b;
+                        improved = true;
+                    }
+                }
+            }
+            if !improved {
+                break;
+            }
+        }
+        Ok(cur)
+    }
+
+    fn run(&self, fine: Option<&TimeMisfit>, setup: &Setup) -> Result<GreedyFit> {
+        let start = self.start()?;
+        let mut seen: Vec<Fit> = vec![start.clone()];
+        let mut paths = Vec::new();
+        if !self.free.is_empty() {
+            let step0 = self.scored(&start.chain, &start.pairs)?;
+            let best = self.path(&start, None, &step0, &mut seen)?;
+            paths.push(best.hyp.chi2);
+            // restarts from the runners-up, away from earlier starts
+            let mut starts: Vec<(DefectKind, usize)> = vec![best.pairs[start.pairs.len()]];
+            for c in &step0 {
+                if starts.len() > self.opts.restarts {
+                    break;
+                }
+                if starts
+                    .iter()
+                    .any(|&(k, a)| k == c.kind && a.abs_diff(c.at) < 2)
+                {
+                    continue;
+                }
+                starts.push((c.kind, c.at));
+                let f = self.path(&start, Some(c), &step0, &mut seen)?;
+                paths.push(f.hyp.chi2);
+            }
+        }
+        // distinct hypotheses, best first, the full set only
+        let k_total = start.pairs.len() + self.free.len();
+        seen.retain(|f| f.pairs.len() == k_total);
+        seen.sort_by(|a, b| {
+            a.key()
+                .cmp(&b.key())
+                .then_with(|| a.hyp.chi2.total_cmp(&b.hyp.chi2))
+        });
+        seen.dedup_by(|a, b| a.key() == b.key());
+        seen.sort_by(|a, b| {
+            a.hyp
+                .chi2
+                .total_cmp(&b.hyp.chi2)
+                .then_with(|| a.key().cmp(&b.key()))
+        });
+        if seen.is_empty() {
+            return Err(Error::Numerical {
+                method: "greedy".into(),
+                reason: "no hypothesis could be fitted".into(),
+            });
+        }
+        let mut residuals = seen[0].m;
+        if let Some(t) = fine {
+            let short: Vec<Fit> = seen.iter().take(setup.shortlist.max(1)).cloned().collect();
+            let slot_of = self.slot_of(self.free.len());
+            let refits: Vec<Option<Fit>> = self.map(&short, |f| {
+                let values: Vec<f64> = f.chain.defects().iter().map(|d| d.value()).collect();
+                self.refit(&f.pairs, &slot_of, &values, &f.chain, Obs::Time(t))
+                    .ok()
+            });
+            let mut timed: Vec<Fit> = refits.into_iter().flatten().collect();
+            if timed.is_empty() {
+                return Err(Error::Numerical {
+                    method: "greedy".into(),
+                    reason: "no hypothesis could be refitted in the time domain".into(),
+                });
+            }
+            timed.sort_by(|a, b| {
+                a.hyp
+                    .chi2
+                    .total_cmp(&b.hyp.chi2)
+                    .then_with(|| a.key().cmp(&b.key()))
+            });
+            residuals = timed[0].m;
+            seen = timed;
+        }
+        let (hypotheses, evaluations, scored, sweeps) =
+            *self.counters.lock().unwrap_or_else(|e| e.into_inner());
+        Ok(GreedyFit {
+            ranked: seen.into_iter().map(|f| f.hyp).collect(),
+            hypotheses,
+            evaluations,
+            scored,
+            sweeps,
+            residuals,
+            paths,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::chain::Defect;
+    use crate::detect::unknowns::Slot;
+    use num_complex::Complex64;
+
+    fn nodes(q: usize, sigma: f64, w: f64) -> Vec<Complex64> {
+        (0..q)
+            .map(|i| Complex64::new(sigma, w * (i as f64 + 0.5) / q as f64))
+            .collect()
+    }
+
+    #[test]
+    fn recovers_three_masses_thread_independent() {
+        let truth = Chain::paper(30)
+            .unwrap()
+            .with_defects([
+                Defect::Mass { at: 4, m: 0.4 },
+                Defect::Mass { at: 13, m: 3.0 },
+                Defect::Mass { at: 25, m: 1.8 },
+            ])
+            .unwrap();
+        let s = nodes(60, 0.05, 4.0);
+        let obs = LaplaceObs::exact(&truth, s, vec![1.0; 60]).unwrap();
+        let u = GeneralUnknowns::free(30, &[KindChoice::Mass; 3], &[]).unwrap();
+        let setup = Setup::new().unwrap();
+        let a = fit_greedy(
+            &truth.uniform(),
+            &u,
+            &obs,
+            None,
+            &setup,
+            &GreedyOptions::default(),
+        )
+        .unwrap();
+        let b = fit_greedy(
+            &truth.uniform(),
+            &u,
+            &obs,
+            None,
+            &setup,
+            &GreedyOptions {
+                parallel: false,
+                ..GreedyOptions::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(a, b);
+        assert!(a.ranked[0].matches(&truth, 1e-6), "{:?}", a.ranked[0]);
+        assert!(a.ranked.len() > 3 && a.ranked[1].chi2 > 1e6 * a.ranked[0].chi2.max(1e-30));
+        assert!(a.hypotheses < 200, "{}", a.hypotheses);
+    }
+
+    #[test]
+    fn any_kind_with_a_known_defect_and_fitted_damping() {
+        let truth = Chain::paper(15)
+            .unwrap()
+            .with_d(0.12)
+            .unwrap()
+            .with_defects([
+                Defect::Mass { at: 2, m: 2.0 },
+                Defect::Spring { at: 6, k: 0.5 },
+                Defect::Damper { at: 11, d: 0.8 },
+            ])
+            .unwrap();
+        let s = nodes(60, 0.05, 4.0);
+        let obs = LaplaceObs::exact(&truth, s, vec![1.0; 60]).unwrap();
+        let u = GeneralUnknowns::new(
+            15,
+            vec![
+                Slot {
+                    kind: KindChoice::Mass,
+                    at: Some(2),
+                    known: Some(2.0),
+                    bounds: None,
+                },
+                Slot::free(KindChoice::Any),
+                Slot::free(KindChoice::Any),
+            ],
+            vec![Param::D],
+            KindBounds::default(),
+        )
+        .unwrap();
+        let start = Chain::paper(15).unwrap().with_d(0.1).unwrap();
+        let f = fit_greedy(
+            &start,
+            &u,
+            &obs,
+            None,
+            &Setup::new().unwrap(),
+            &GreedyOptions::default(),
+        )
+        .unwrap();
+        let best = &f.ranked[0];
+        assert!(best.positions_match(&truth), "{best:?}");
+        assert!(best.matches(&truth, 1e-5), "{best:?}");
+        assert!((best.param("d").unwrap().value - 0.12).abs() < 1e-6);
+        assert_eq!(best.std_errors[0], 0.0);
+    }
+
+    #[test]
+    fn typed_errors() {
+        let c = Chain::paper(6).unwrap();
+        let s = nodes(10, 0.1, 2.0);
+        let obs = LaplaceObs::exact(&c, s, vec![1.0; 10]).unwrap();
+        let setup = Setup::new().unwrap();
+        let mixed = GeneralUnknowns::free(6, &[KindChoice::Mass, KindChoice::Spring], &[]).unwrap();
+        let e = fit_greedy(&c, &mixed, &obs, None, &setup, &GreedyOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("kinds"), "{e}");
+        let u = GeneralUnknowns::free(6, &[KindChoice::Mass], &[]).unwrap();
+        let e = fit_greedy(
+            &c,
+            &u,
+            &obs,
+            None,
+            &setup,
+            &GreedyOptions {
+                refit: 0,
+                ..GreedyOptions::default()
+            },
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("greedy.refit"), "{e}");
+        let e = fit_greedy(
+            &Chain::paper(7).unwrap(),
+            &u,
+            &obs,
+            None,
+            &setup,
+            &GreedyOptions::default(),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("unknowns.n"), "{e}");
+    }
+}
