@@ -162,6 +162,30 @@ fn grid(t: &[f64]) -> Result<(f64, f64)> {
     Ok((t[t.len() - 1], dt))
 }
 
+/// Refuse a simulation whose working memory would exceed the library's
+/// budget ([`springmass::io::check_alloc`], `SPRINGMASS_MEMORY_BUDGET`):
+/// about 16 state vectors of `2n` values, the dense `(2n)^2` matrices
+/// (about 8) when the method may be `expm`, and three copies of the
+/// output (trajectory, noisy copy, numpy array).
+fn check_simulation_memory(
+    n: usize,
+    samples: usize,
+    observed: usize,
+    method: Method,
+) -> Result<()> {
+    let two_n = 2.0 * n as f64;
+    let dense = match method {
+        Method::Rk => 0.0,
+        Method::Auto if n > springmass::time::simulate::MAX_N_EXPM => 0.0,
+        _ => 8.0 * 8.0 * two_n * two_n,
+    };
+    let bytes = 8.0 * 16.0 * two_n + dense + 3.0 * 8.0 * samples as f64 * observed as f64;
+    springmass::io::check_alloc(
+        &format!("simulate (n = {n}, {samples} samples of {observed} masses)"),
+        bytes,
+    )
+}
+
 /// A noise level: a bare number is an absolute standard deviation, else
 /// `abs:SIGMA`, `snr:DB` or `rel:R` (as `springmass simulate --noise`).
 fn noise_level(text: &str) -> Result<NoiseLevel> {
@@ -208,6 +232,7 @@ fn simulate<'py>(
                     format!("the {samples} times 0, dt, ..., t_end of the grid"),
                 ));
             }
+            check_simulation_memory(chain.n(), samples, opts.observe.len(), method)?;
             let traj = simulate_forced(&chain, &opts, &Forcing::new())?;
             match level {
                 None => Ok(traj.x),
@@ -294,6 +319,11 @@ fn controls<'py>(
                 springmass::error::check_f64(&format!("t[{i}]"), ti, true, "finite")?;
             }
             let sup = Suppression::new(n, k, d, mass, gamma)?;
+            // three signals of about n modes (24 bytes each) and their values
+            springmass::io::check_alloc(
+                &format!("controls (n = {n}, {} times)", t.len()),
+                3.0 * (24.0 * (n as f64 + 2.0) + 8.0 * t.len() as f64),
+            )?;
             Ok([Signal::F, Signal::G, Signal::F1]
                 .iter()
                 .map(|&sig| (sig.name(), Modes::new(&sup, sig).eval_many(&t)))

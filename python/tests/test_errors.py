@@ -92,3 +92,17 @@ def test_unresolvable_and_os_errors():
     with pytest.raises(OSError) as info:
         springmass.read_csv("no-such-dir/no-such-file.csv")
     assert info.value.kind == "Io" and "no-such-file.csv" in str(info.value)
+
+
+def test_jobs_above_the_memory_budget_are_refused_not_attempted():
+    t = np.arange(0, 10, 0.5)
+    e = raises_kind("ResourceLimit", springmass.simulate, 10**9, t=t)
+    assert "SPRINGMASS_MEMORY_BUDGET" in str(e)
+    raises_kind("ResourceLimit", springmass.controls, 10**9 - 1, t=t)
+
+
+def raises_kind(kind, fn, *args, **kwargs):
+    with pytest.raises(ValueError) as info:
+        fn(*args, **kwargs)
+    assert info.value.kind == kind, repr(info.value)
+    return info.value
