@@ -473,6 +473,13 @@ def fit(
     known: Sequence[DefectLike] = (),
     criterion: str = "bic",
     max_evals: int = 20000,
+    k: float = 1.0,
+    mass: float = 1.0,
+    left: str = "fixed",
+    right: str = "fixed",
+    observe: int = 1,
+    observe_kind: str = "displacement",
+    force: Any = None,
 ) -> FitResult:
     """Fit defects to a measured series of mass 1's displacement.
 
@@ -520,6 +527,18 @@ def fit(
         How ``defects="auto"`` chooses the number.
     max_evals : int, default 20000
         Evaluation budget of ``ga``, ``nelder-mead`` and ``pso``.
+    k, mass : float, default 1.0
+        Uniform stiffness and mass, in the data's units (N/m and kg for SI
+        data; the report's natural frequencies are then in rad/s).
+    left, right : {"fixed", "free"}, default "fixed"
+        The chain's ends (a shear frame seen from its roof: ``left="free"``).
+    observe : int, default 1
+        The observed mass.
+    observe_kind : {"displacement", "velocity", "acceleration"}
+        What ``x`` measured.
+    force : array_like, shape (N,), optional
+        A measured force on mass 1 at the times ``t`` (a hammer test; ``t``
+        then uniform from 0), used instead of the ideal impulse.
 
     Returns
     -------
@@ -578,6 +597,13 @@ def fit(
         criterion=_text("criterion", criterion),
         seed=_count("seed", seed),
         max_evals=_count("max_evals", max_evals),
+        k=_real("k", k),
+        mass=_real("mass", mass),
+        left=_text("left", left),
+        right=_text("right", right),
+        observe=_count("observe", observe),
+        observe_kind=_text("observe_kind", observe_kind),
+        force=None if force is None else _vector("force", force),
     )
     return FitResult._from_core(raw)
 

@@ -42,6 +42,13 @@ def fit(
     criterion: Optional[str] = None,
     seed: Optional[int] = None,
     max_evals: Optional[int] = None,
+    k: Optional[float] = None,
+    mass: Optional[float] = None,
+    left: Optional[str] = None,
+    right: Optional[str] = None,
+    observe: Optional[int] = None,
+    observe_kind: Optional[str] = None,
+    force: Optional[npt.NDArray[np.float64]] = None,
 ) -> Dict[str, Any]:
     """The data-first fit: {"report": JSON text, "summary": str, "t", "observed", "model", "residual": ndarray}."""
 

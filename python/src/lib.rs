@@ -78,7 +78,8 @@ fn values(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
 #[pyfunction]
 #[pyo3(signature = (t, x, *, n, d=None, gamma=None, fit=None, known=Vec::new(), defects=None,
     kinds=None, slot_kinds=Vec::new(), noise=None, misfit=None, method=None, criterion=None,
-    seed=None, max_evals=None))]
+    seed=None, max_evals=None, k=None, mass=None, left=None, right=None, observe=None,
+    observe_kind=None, force=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit<'py>(
     py: Python<'py>,
@@ -98,10 +99,23 @@ fn fit<'py>(
     criterion: Option<String>,
     seed: Option<u64>,
     max_evals: Option<usize>,
+    k: Option<f64>,
+    mass: Option<f64>,
+    left: Option<String>,
+    right: Option<String>,
+    observe: Option<usize>,
+    observe_kind: Option<String>,
+    force: Option<PyReadonlyArray1<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let spec = FitSpec {
         d,
+        k,
+        mass,
         gamma,
+        left,
+        right,
+        observe,
+        observe_kind,
         fit,
         known,
         defects,
@@ -116,10 +130,14 @@ fn fit<'py>(
         ..FitSpec::new(n)
     };
     let (t, x) = (values(&t), values(&x));
+    let force = force.as_ref().map(values);
     let report = py
         .detach(move || -> Result<_> {
             let (model, opts) = spec.build()?;
-            let obs = Observations::Series(Series::new(t, x, opts.noise.known())?);
+            let measurement = spec.measurement(force)?;
+            let obs = Observations::Series(
+                Series::new(t, x, opts.noise.known())?.with_measurement(measurement)?,
+            );
             opts.validate(&obs, &model)?;
             springmass::detect::fit::fit(&obs, &model, &opts)
         })

@@ -152,3 +152,21 @@ def test_fit_releases_the_gil(s1_record):
         sys.setswitchinterval(old)
     assert done.is_set()
     assert ran_during_fit
+
+
+def test_real_setup_shear_frame_from_the_roof_accelerometer():
+    # a 5-storey frame struck at its free roof, storey 2 weakened by 30%,
+    # the roof's acceleration at 1% noise; kind and noise unknown
+    t = np.arange(0, 120.0 + 1e-9, 0.1)
+    a = springmass.simulate(5, defects=[("spring", 2, 0.7)], t=t, d=0.02, left="free",
+                            observe_kind="acceleration", noise="rel:1e-2", seed=1)
+    r = springmass.fit(t, a, n=5, d=0.02, left="free", observe_kind="acceleration",
+                       kinds="any", defects=1)
+    (e,) = r.defects
+    assert (e.kind, e.at) == ("spring", 2)
+    assert abs(e.value - 0.7) < 3 * e.se
+    assert "acceleration" in r.to_dict()["setup"] and "free-fixed" in r.to_dict()["setup"]
+    with pytest.raises(ValueError, match="left"):
+        springmass.fit(t, a, n=5, left="loose")
+    with pytest.raises(ValueError, match="observe"):
+        springmass.fit(t, a, n=5, observe=9)
