@@ -1,6 +1,6 @@
 //! Rank-one scoring of candidate defects and O(n) reciprocity columns: the
 //! kernel behind the greedy search ([`crate::detect::search::greedy`]) and
-//! the whole-profile inversion ([`crate::detect::fit::profile`]).
+//! of the whole-profile inversion to come (issue 14).
 //!
 //! # Columns by excess stiffness (O(n) per node, any profile)
 //!
