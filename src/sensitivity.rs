@@ -442,9 +442,8 @@ pub fn defect_gradient<T: Scalar>(chain: &Chain, s: T) -> Result<Gradient<T>> {
 pub fn defect_gradient_with<T: Scalar>(fwd: &Forward, s: T) -> Result<Gradient<T>> {
     let chain = fwd.chain();
     let n = chain.n();
-    let gamma = chain.gamma();
     let value = fwd.eval(s.clone(), 1)?;
-    let x = |i: usize| -> Result<T> {
+    defect_gradient_from(chain, &s, |i: usize| -> Result<T> {
         if i == 0 || i > n {
             Ok(T::zero())
         } else if i == 1 {
@@ -452,7 +451,25 @@ pub fn defect_gradient_with<T: Scalar>(fwd: &Forward, s: T) -> Result<Gradient<T
         } else {
             fwd.eval(s.clone(), i)
         }
-    };
+    })
+}
+
+/// `X_1(s)` and its derivatives with respect to every defect value of
+/// `chain` from `x(i) = X_i(s)` at mass 1 and the defect sites (`x(0)` and
+/// `x(n + 1)` must be 0): `dX_1/dv = -B / gamma` with `B = s^2 X_a^2` for a
+/// mass, `s X_a^2` for a damper, `(X_a - X_{a+1})^2` for a spring
+/// (reciprocity). Shared by [`defect_gradient_with`] and the tabulated sweep
+/// of the Laplace misfits.
+///
+/// # Errors
+/// As `x`.
+pub fn defect_gradient_from<T: Scalar>(
+    chain: &Chain,
+    s: &T,
+    x: impl Fn(usize) -> Result<T>,
+) -> Result<Gradient<T>> {
+    let gamma = chain.gamma();
+    let value = x(1)?;
     let inv = if gamma == 0.0 { 0.0 } else { 1.0 / gamma };
     let mut grad = Vec::with_capacity(chain.defects().len());
     for d in chain.defects() {

@@ -11,7 +11,8 @@ use crate::error::{check_f64, Error, Result};
 use crate::forward::transfer::SweepTable;
 use crate::forward::Forward;
 use crate::sensitivity::{
-    defect_gradient_with, gradient, observe_defect_gradient_with, Gradient, Param,
+    defect_gradient_from, defect_gradient_with, gradient, observe_defect_gradient_with, Gradient,
+    Param,
 };
 use nalgebra::DMatrix;
 use num_complex::Complex64;
@@ -310,31 +311,13 @@ impl LaplaceObs {
         sites.sort_unstable();
         sites.dedup();
         let x = self.x_sites(fwd, q, &sites)?;
-        let at = |i: usize| -> Complex64 {
-            match sites.binary_search(&i) {
-                Ok(j) => x[j],
-                Err(_) => Complex64::new(0.0, 0.0), // x_0 = x_{n+1} = 0
-            }
+        // x_0 = x_{n+1} = 0
+        let at = |i: usize| -> Result<Complex64> {
+            Ok(sites
+                .binary_search(&i)
+                .map_or(Complex64::new(0.0, 0.0), |j| x[j]))
         };
-        let s = self.s[q];
-        let gamma = chain.gamma();
-        let inv = if gamma == 0.0 { 0.0 } else { 1.0 / gamma };
-        let grad = chain
-            .defects()
-            .iter()
-            .map(|d| {
-                let b = match *d {
-                    Defect::Mass { at: a, .. } => s * s * at(a) * at(a),
-                    Defect::Damper { at: a, .. } => s * at(a) * at(a),
-                    Defect::Spring { at: a, .. } => {
-                        let dx = at(a) - at(a + 1);
-                        dx * dx
-                    }
-                };
-                -b * inv
-            })
-            .collect();
-        Some(Gradient { value: at(1), grad })
+        defect_gradient_from(chain, &self.s[q], at).ok()
     }
 
     pub(crate) fn jacobian(&self, chain: &Chain, params: &[Param]) -> Result<DMatrix<f64>> {
