@@ -241,7 +241,7 @@ fn cli_rejects_bad_input_and_runs_a_tiny_table() {
 // positions, chain parameters fitted alongside
 
 use springmass::detect::fit::general::{fit_noisy_general, GeneralOptions};
-use springmass::detect::unknowns::{GeneralUnknowns, KindChoice};
+use springmass::detect::unknowns::{KindChoice, Unknowns};
 
 fn general(
     truth: &Chain,
@@ -263,7 +263,7 @@ fn general_with_sigma(
     seed: u64,
 ) -> (springmass::detect::fit::general::GeneralFit, f64) {
     let data = TimeData::simulate(truth, 200.0, 0.2, NoiseLevel::RelativeMax(level), seed).unwrap();
-    let u = GeneralUnknowns::free(truth.n(), kinds, chain).unwrap();
+    let u = Unknowns::free(truth.n(), kinds, chain).unwrap();
     fit_noisy_general(
         start,
         &data,
@@ -392,7 +392,7 @@ fn general_fit_does_not_depend_on_threads() {
         ])
         .unwrap();
     let data = TimeData::simulate(&truth, 100.0, 0.5, NoiseLevel::RelativeMax(1e-2), 11).unwrap();
-    let u = GeneralUnknowns::free(5, &[KindChoice::Any, KindChoice::Any], &[Param::D]).unwrap();
+    let u = Unknowns::free(5, &[KindChoice::Any, KindChoice::Any], &[Param::D]).unwrap();
     let setup = Setup::new().unwrap();
     let run = |parallel| {
         fit_noisy_general(

@@ -28,7 +28,7 @@ use crate::detect::fit::general::{
 };
 use crate::detect::fit::select::{select, Criterion, ModelFit, Selection};
 use crate::detect::misfit::MisfitKind;
-use crate::detect::unknowns::{GeneralUnknowns, KindChoice};
+use crate::detect::unknowns::{KindChoice, Unknowns};
 use crate::error::Result;
 use crate::noise::NoiseLevel;
 use crate::sensitivity::Param;
@@ -597,7 +597,7 @@ pub fn kinds_study(
                 level,
                 task_seed(&[cfg.seed, 33, c as u64, r as u64]),
             )?;
-            let unknowns = GeneralUnknowns::free(truth.n(), &case.kinds, &case.params)?;
+            let unknowns = Unknowns::free(truth.n(), &case.kinds, &case.params)?;
             let start = truth.uniform().with_d(case.d_start)?;
             let fit = fit_noisy_general(&start, &data, &unknowns, MisfitKind::Time, setup, &opts)?;
             let best = &fit.ranked[0];
