@@ -55,6 +55,7 @@ pub mod options;
 pub mod paper;
 pub mod report;
 pub mod select;
+pub mod spectral;
 
 pub use crate::detect::search::FitMethod;
 pub use report::{
