@@ -30,7 +30,12 @@
 //!   scored by rank-one updates, then moves, restarts) too, for long chains
 //!   and many defects; `ga`, `nelder-mead` and `pso` search mass defects
 //!   (and refuse other kinds with a typed error); their best position set is
-//!   then refitted like enumeration's.
+//!   then refitted like enumeration's. For mass defects on Laplace values
+//!   of the paper's setup (fixed ends, displacement of mass 1, impulse, no
+//!   known defect or chain parameter) the enumeration ranks the position
+//!   sets with the paper's Woodbury kernel
+//!   ([`crate::detect::misfit::Misfit::at_nodes`], the same chi-square) and
+//!   refits the best: chosen by the unknowns, not asked for.
 //!
 //! ```
 //! use springmass::{Chain, Defect, noise::NoiseLevel};
@@ -735,7 +740,6 @@ impl Engine<'_> {
     fn fit_k(&self, k: usize, sigma: f64) -> Result<KFit> {
         let (coarse, fine, misfit_name, setup) = self.prepared(sigma)?;
         let chain_bounds = default_bounds(&self.model.chain, &self.model.fit);
-        let known_positions = self.model.chain.defects().len();
         let mut budget_exhausted = false;
         let mut method_name = self.opts.method.name().to_string();
         let mut hypotheses = 1;
@@ -793,7 +797,15 @@ impl Engine<'_> {
                 };
                 let mut setup = setup;
                 setup.shortlist = setup.shortlist.max(self.opts.alternatives + 1);
-                if self.opts.method == FitMethod::Enumerate || k == 0 {
+                if let Some((sets, screened)) = self.woodbury_sets(k, &unknowns)? {
+                    // mass defects on Laplace values: the paper's Woodbury
+                    // kernel ranks every position set; the best are refitted
+                    method_name = "enumerate (Woodbury kernel)".into();
+                    hypotheses = screened;
+                    let (r, e) =
+                        self.refit_sets(&unknowns, &sets, &coarse, fine.as_ref(), &setup, &gopts)?;
+                    (r, e + screened)
+                } else if self.opts.method == FitMethod::Enumerate || k == 0 {
                     method_name = "enumerate".into();
                     let g = fit_general(
                         &self.model.chain,
@@ -845,44 +857,10 @@ impl Engine<'_> {
                             }
                         }
                     }
-                    let mut all = Vec::new();
-                    let mut spent = evals;
                     hypotheses = sets.len();
-                    for q in sets {
-                        let mut slots = unknowns.slots().to_vec();
-                        for (slot, &at) in slots[known_positions..].iter_mut().zip(&q) {
-                            slot.at = Some(at);
-                        }
-                        let u = Unknowns::new(
-                            self.model.n(),
-                            slots,
-                            self.model.fit.clone(),
-                            KindBounds::for_chain(&self.model.chain),
-                        )?;
-                        if let Ok(g) = fit_general(
-                            &self.model.chain,
-                            &u,
-                            &coarse,
-                            fine.as_ref(),
-                            &setup,
-                            &gopts,
-                        ) {
-                            spent += g.evaluations;
-                            all.extend(g.ranked);
-                        }
-                    }
-                    if all.is_empty() {
-                        return Err(Error::Numerical {
-                            method: method_name,
-                            reason: "no position set could be fitted".into(),
-                        });
-                    }
-                    all.sort_by(|a, b| {
-                        a.chi2
-                            .total_cmp(&b.chi2)
-                            .then_with(|| a.key().cmp(&b.key()))
-                    });
-                    (all, spent)
+                    let (r, e) =
+                        self.refit_sets(&unknowns, &sets, &coarse, fine.as_ref(), &setup, &gopts)?;
+                    (r, e + evals)
                 }
             }
         };
@@ -928,6 +906,109 @@ impl Engine<'_> {
             budget_exhausted,
             predicted,
         })
+    }
+
+    /// Mass defects at unknown positions on Laplace values of the paper's
+    /// setup (fixed ends, displacement of mass 1 after the impulse, no known
+    /// defect, no chain parameter, enumeration): the Woodbury kernel
+    /// ([`crate::detect::misfit::Misfit::at_nodes`]) ranks every position
+    /// set by the chi-square; returns the `alternatives + 1` best sets and
+    /// the number ranked. `None` when the unknowns or data do not allow it.
+    fn woodbury_sets(
+        &self,
+        k: usize,
+        unknowns: &Unknowns,
+    ) -> Result<Option<(Vec<Vec<usize>>, usize)>> {
+        use crate::detect::misfit::Misfit;
+        use crate::detect::search::enumerate::{enumerate, EnumerateOptions};
+        let Observations::Laplace(l) = self.obs else {
+            return Ok(None);
+        };
+        let chain = &self.model.chain;
+        let paper_sensor = l.sensor() == crate::detect::data::measurement::Sensor::PAPER;
+        if k == 0
+            || self.opts.method != FitMethod::Enumerate
+            || !chain.defects().is_empty()
+            || chain.left().is_free()
+            || chain.right().is_free()
+            || !paper_sensor
+        {
+            return Ok(None);
+        }
+        let Ok(mass) = unknowns.to_mass() else {
+            return Ok(None);
+        };
+        let sigma: Vec<f64> = match l.sigma() {
+            Some(sg) => sg.to_vec(),
+            None => vec![1.0; l.s().len()],
+        };
+        let data =
+            crate::detect::data::exact::Data::at_nodes(l.s().to_vec(), l.values().to_vec(), sigma)?;
+        let misfit = Misfit::at_nodes(chain, &data)?;
+        let e = enumerate(
+            &misfit,
+            &mass,
+            &EnumerateOptions {
+                parallel: self.opts.parallel,
+                max_sets: self.opts.max_sets,
+                keep: self.opts.alternatives + 1,
+                ..EnumerateOptions::default()
+            },
+        )?;
+        let sets = e
+            .ranked
+            .iter()
+            .map(|h| {
+                let mut p: Vec<usize> = h.defects.iter().map(|d| d.0).collect();
+                p.sort_unstable();
+                p
+            })
+            .collect();
+        Ok(Some((sets, e.sets)))
+    }
+
+    /// Fit every position set of `sets` (values, chain parameters, standard
+    /// errors) as the enumeration does; ranked by chi-square.
+    fn refit_sets(
+        &self,
+        unknowns: &Unknowns,
+        sets: &[Vec<usize>],
+        coarse: &LaplaceObs,
+        fine: Option<&TimeMisfit>,
+        setup: &Setup,
+        gopts: &GeneralOptions,
+    ) -> Result<(Vec<Hypothesis>, usize)> {
+        let known = self.model.chain.defects().len();
+        let mut all = Vec::new();
+        let mut spent = 0;
+        for q in sets {
+            let mut slots = unknowns.slots().to_vec();
+            for (slot, &at) in slots[known..].iter_mut().zip(q) {
+                slot.at = Some(at);
+            }
+            let u = Unknowns::new(
+                self.model.n(),
+                slots,
+                self.model.fit.clone(),
+                KindBounds::for_chain(&self.model.chain),
+            )?;
+            if let Ok(g) = fit_general(&self.model.chain, &u, coarse, fine, setup, gopts) {
+                spent += g.evaluations;
+                all.extend(g.ranked);
+            }
+        }
+        if all.is_empty() {
+            return Err(Error::Numerical {
+                method: self.opts.method.name().into(),
+                reason: "no position set could be fitted".into(),
+            });
+        }
+        all.sort_by(|a, b| {
+            a.chi2
+                .total_cmp(&b.chi2)
+                .then_with(|| a.key().cmp(&b.key()))
+        });
+        Ok((all, spent))
     }
 
     /// A stochastic search over mass positions and values on the Laplace
