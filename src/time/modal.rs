@@ -986,19 +986,25 @@ impl DoublePoleSum {
         };
         let mut out = vec![0.0; ts.len()];
         for d in &self.terms {
+            // (a t + b) e^{p t} = t u + v with u = a e^{p t}, v = b e^{p t},
+            // both stepped by z = e^{p dt}
             let z = (d.p * dt).exp();
             let scale = if d.twice { 2.0 } else { 1.0 };
-            let mut w = Complex64::new(0.0, 0.0);
+            let (a, b) = (d.a * scale, d.b * scale);
+            let (mut u, mut v) = (Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0));
             for (i, (o, &t)) in out.iter_mut().zip(ts).enumerate() {
                 if t < 0.0 {
                     continue;
                 }
                 if i % ANCHOR == 0 || t - dt < 0.0 {
-                    w = (d.p * t).exp();
+                    let w = (d.p * t).exp();
+                    u = a * w;
+                    v = b * w;
                 } else {
-                    w *= z;
+                    u *= z;
+                    v *= z;
                 }
-                *o += scale * ((d.a * t + d.b) * w).re;
+                *o += t * u.re + v.re;
             }
         }
         out

@@ -30,8 +30,34 @@ use crate::chain::{Chain, Defect};
 use crate::detect::data::series::TimeData;
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
-use crate::time::modal::{ModalResponse, Modes};
+use crate::time::modal::Modes;
 use nalgebra::DMatrix;
+
+thread_local! {
+    /// The last modal decomposition made on this thread and its chain: a
+    /// fit asks for the residuals and then the Jacobian at the same point.
+    static LAST_MODES: std::cell::RefCell<Option<(Chain, std::rc::Rc<Modes>)>> =
+        const { std::cell::RefCell::new(None) };
+}
+
+/// `f` of `chain`'s modal decomposition, made once per chain and thread.
+fn with_modes<T>(chain: &Chain, f: impl FnOnce(&Modes) -> Result<T>) -> Result<T> {
+    let cached = LAST_MODES.with(|c| {
+        c.borrow()
+            .as_ref()
+            .filter(|(k, _)| k == chain)
+            .map(|(_, m)| m.clone())
+    });
+    let modes = match cached {
+        Some(m) => m,
+        None => {
+            let m = std::rc::Rc::new(Modes::new(chain)?);
+            LAST_MODES.with(|c| *c.borrow_mut() = Some((chain.clone(), m.clone())));
+            m
+        }
+    };
+    f(&modes)
+}
 
 /// The time-domain chi-square of a candidate chain against [`TimeData`].
 #[derive(Clone, Debug)]
@@ -80,7 +106,15 @@ impl TimeMisfit {
         {
             return Ok(None);
         }
-        let modes = Modes::new(chain)?;
+        with_modes(chain, |modes| self.jacobian_with(modes, chain, params))
+    }
+
+    fn jacobian_with(
+        &self,
+        modes: &Modes,
+        chain: &Chain,
+        params: &[Param],
+    ) -> Result<Option<DMatrix<f64>>> {
         let t = self.data.t();
         let n = chain.n();
         let gamma = chain.gamma();
@@ -132,12 +166,16 @@ impl TimeMisfit {
     /// (another observable or mass, a measured force).
     ///
     /// # Errors
-    /// As [`ModalResponse::impulse`] and
+    /// As [`ModalResponse::impulse`](crate::time::modal::ModalResponse::impulse) and
     /// [`Measurement::time_model`](crate::detect::data::measurement::Measurement::time_model).
     pub fn model(&self, chain: &Chain) -> Result<Vec<f64>> {
         let m = self.data.measurement();
         if m.is_paper() {
-            return Ok(ModalResponse::impulse(chain, 1)?.eval_many(self.data.t()));
+            return Ok(with_modes(chain, |modes| {
+                Ok(modes
+                    .response(1, 1, chain.gamma())?
+                    .eval_many(self.data.t()))
+            })?);
         }
         m.time_model(chain, self.data.t())
     }
