@@ -21,7 +21,7 @@ use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use springmass::detect::data::exact::Data;
 use springmass::detect::misfit::{Misfit, MisfitSpec};
 use springmass::detect::search::enumerate::{enumerate, EnumerateOptions};
-use springmass::detect::unknowns::{DefectUnknown, Unknowns};
+use springmass::detect::unknowns::{DefectUnknown, MassUnknowns};
 use springmass::scenes;
 
 #[path = "common/cputime.rs"]
@@ -69,7 +69,7 @@ fn bench_generic<M: Measurement + 'static>(c: &mut Criterion<M>, prefix: &str) {
         let n = chain.n();
         let defs = scenes::truth(&format!("S{sys}")).unwrap();
         let mis = Misfit::new(&chain.uniform(), &Data::exact(&chain), &spec).unwrap();
-        let u = Unknowns::new(n, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
+        let u = MassUnknowns::new(n, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
         let e = enumerate(&mis, &u, &opts).unwrap();
         assert_eq!(e.ranked[0].defects[0].0, defs[0].0);
         assert_eq!(e.ranked[0].defects[1].0, defs[1].0);

@@ -23,7 +23,7 @@ use springmass::detect::misfit::{Misfit, MisfitSpec};
 use springmass::detect::search::nelder_mead::{polish, Positions};
 use springmass::detect::search::pso::Finish;
 use springmass::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Tracked};
-use springmass::detect::unknowns::{DefectUnknown, Unknowns};
+use springmass::detect::unknowns::{DefectUnknown, MassUnknowns};
 use springmass::scenes;
 use std::time::Instant;
 
@@ -173,7 +173,8 @@ fn main() {
                  largest relative error vs exact model {max_dev:.1e} (transform's own estimate {rel:.1e})"
             );
         }
-        let unknowns = Unknowns::new(n, vec![DefectUnknown::free(0.1, 20.0); 2]).expect("unknowns");
+        let unknowns =
+            MassUnknowns::new(n, vec![DefectUnknown::free(0.1, 20.0); 2]).expect("unknowns");
         let obj = MisfitObjective::new(&misfit, &unknowns);
         let truth = Candidate {
             positions: vec![d[0].0, d[1].0],

@@ -1,5 +1,6 @@
 //! Redraw the README's success-against-noise figure from its table,
-//! `docs/noise-success.csv` (written by `springmass noise-study table`), as
+//! `docs/noise-success.csv` (written by the command-line study that
+//! `springmass noise-study misfits` replaces), as
 //! small multiples: one panel per system, one line per misfit, success rate
 //! on [0, 1] against the noise level on a log axis.
 //!

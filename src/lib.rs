@@ -62,7 +62,7 @@
 //! | module | what |
 //! |---|---|
 //! | [`chain`] | the model: a chain and its defects, validated |
-//! | [`scenes`] | the paper's reference scenes (P1-P4, Table 1's S1-S4), shared by tests, benches and configs |
+//! | [`scenes`] | the reference scenes (the paper's P1-P4 and Table 1's S1-S4, the noise study's C3a, C3b, k0-k3), shared by tests, benches and configs |
 //! | [`scalar`], [`precision`], [`linalg`] | number types (`f64`, `Complex64`, extended precision) and the small pivoted solve |
 //! | [`green`] | closed-form Green's function, overflow-free for every `n` and `s` |
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
@@ -79,8 +79,7 @@
 //! | [`detect::fit`] | `fit(observations, model, options) -> FitReport`: noise and number of defects estimated, standard errors, status |
 //! | [`detect::scene`] | TOML fit scenes (truth for synthetic data + unknowns + misfit + search) |
 //! | [`detect::locate`] | explicit single-defect locators (section 4.1), error floors, any precision |
-//! | [`detect::noise_study`] | success against noise, calibration, number of defects |
-//! | [`study`] | config-driven studies: sweeps, parallel resumable runs, reports |
+//! | [`study`] | config-driven studies: sweeps, parallel resumable runs, reports; the noise studies are its kind [`study::kinds::noise`] |
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
 //! | [`error`] | one error type; every variant names the field and its range |
 

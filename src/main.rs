@@ -56,7 +56,7 @@ enum Command {
     Fit(cmd::fit::Args),
     /// Residual surfaces r(j, m) and r(j1, j2) (the paper's Figures 16 and 17), CSV + SVG.
     Surface(cmd::surface::Args),
-    /// Noise study: success vs noise per misfit, calibration, damping, number of defects.
+    /// The shipped noise studies (data-first defaults, per misfit, defect kinds) on the study engine.
     NoiseStudy(cmd::noise::Args),
     /// Print a shell completion script: `springmass completions bash > ~/.local/share/bash-completion/completions/springmass`.
     Completions {

@@ -8,6 +8,9 @@
 //! | `P3` | 20 | (3, 5) | section 4.1.3, Figures 14-15 |
 //! | `P4` | 20 | (10, 3), (15, 7) | section 4.2.2, Figure 17 |
 //! | `S1`..`S4` | 5, 10, 20, 20 | Table 1 | section 4.2.3 |
+//! | `C3a` | 10 | (2, 2), (5, 4), (8, 0.5) | three defects (noise study) |
+//! | `C3b` | 20 | (4, 3), (10, 0.5), (16, 2) | three defects, one deep and light (noise study) |
+//! | `k0`..`k3` | 10 | none; (4, 2); as `S2`; as `C3a` | 0 to 3 defects (choice of k) |
 //!
 //! All with `k = 1`, `d = 0.1`, `gamma = 1`, unit masses elsewhere (the
 //! conventions of `shared/reference/`).
@@ -23,8 +26,15 @@
 use crate::chain::{Chain, Defect};
 use crate::error::{Error, Result};
 
-/// Names of all reference scenes.
+/// Names of the paper's reference scenes.
 pub const NAMES: [&str; 8] = ["P1", "P2", "P3", "P4", "S1", "S2", "S3", "S4"];
+
+/// The noise study's systems: Table 1 and two chains with three defects.
+pub const NOISE_SYSTEMS: [&str; 6] = ["S1", "S2", "S3", "S4", "C3a", "C3b"];
+
+/// Chains with 0 to 3 defects on `n = 10`, for the choice of the number of
+/// defects (`k0` has none).
+pub const SELECTION: [&str; 4] = ["k0", "k1", "k2", "k3"];
 
 /// `(n, [(j, m), ...])` of a scene.
 fn spec(name: &str) -> Option<(usize, &'static [(usize, f64)])> {
@@ -37,17 +47,23 @@ fn spec(name: &str) -> Option<(usize, &'static [(usize, f64)])> {
         "S2" => (10, &[(3, 3.0), (7, 2.0)]),
         "S3" => (20, &[(8, 5.0), (15, 2.0)]),
         "S4" => (20, &[(8, 5.0), (15, 15.0)]),
+        "C3A" | "K3" => (10, &[(2, 2.0), (5, 4.0), (8, 0.5)]),
+        "C3B" => (20, &[(4, 3.0), (10, 0.5), (16, 2.0)]),
+        "K0" => (10, &[]),
+        "K1" => (10, &[(4, 2.0)]),
+        "K2" => (10, &[(3, 3.0), (7, 2.0)]),
         _ => return None,
     })
 }
 
-/// A reference scene by name (`P1`..`P4`, `S1`..`S4`, case-insensitive).
+/// A reference scene by name (`P1`..`P4`, `S1`..`S4`, `C3a`, `C3b`,
+/// `k0`..`k3`; case-insensitive).
 ///
 /// # Errors
 /// [`Error::InvalidParameter`] for an unknown name, listing the known ones.
 pub fn by_name(name: &str) -> Result<Chain> {
     let up = name.trim().to_ascii_uppercase();
-    let (n, defects) = spec(&up).ok_or_else(|| Error::invalid("scene", name, NAMES.join(", ")))?;
+    let (n, defects) = spec(&up).ok_or_else(|| Error::invalid("scene", name, all_names()))?;
     Chain::paper(n)?.with_defects(defects.iter().map(|&(at, m)| Defect::Mass { at, m }))
 }
 
@@ -66,7 +82,7 @@ pub fn truth(name: &str) -> Result<Vec<(usize, f64)>> {
     let up = name.trim().to_ascii_uppercase();
     spec(&up)
         .map(|(_, d)| d.to_vec())
-        .ok_or_else(|| Error::invalid("scene", name, NAMES.join(", ")))
+        .ok_or_else(|| Error::invalid("scene", name, all_names()))
 }
 
 /// A shear frame of `storeys` floors seen from its roof: mass 1 is the roof
@@ -96,6 +112,16 @@ pub fn shear_frame(storeys: usize, d: f64, weakened: Option<(usize, f64)>) -> Re
         None => Ok(c),
         Some((at, factor)) => c.with_defect(Defect::Spring { at, k: factor }),
     }
+}
+
+fn all_names() -> String {
+    NAMES
+        .iter()
+        .chain(&NOISE_SYSTEMS[4..])
+        .chain(&SELECTION)
+        .copied()
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// System `i` (1..=4) of the paper's Table 1.
@@ -141,6 +167,12 @@ mod tests {
             assert_eq!(truth(name).unwrap(), want, "{name}");
         }
         assert!(table1(0).is_err() && table1(5).is_err());
+        for name in NOISE_SYSTEMS.iter().chain(&SELECTION) {
+            by_name(name).unwrap();
+        }
+        assert_eq!(by_name("C3b").unwrap().n(), 20);
+        assert!(by_name("k0").unwrap().defects().is_empty());
+        assert_eq!(by_name("k3").unwrap(), by_name("C3a").unwrap());
         assert_eq!(
             table1(4).unwrap().defects()[1],
             Defect::Mass { at: 15, m: 15.0 }

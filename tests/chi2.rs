@@ -10,14 +10,14 @@ use springmass::detect::data::series::TimeData;
 use springmass::detect::data::whiten::{chi2_quantile, Weighting};
 use springmass::detect::fit::general::{laplace_obs, Setup};
 use springmass::detect::misfit::MisfitKind;
-use springmass::detect::noise_study::{noisy_data, systems, task_seed, StudyConfig};
 use springmass::noise::{add_noise, NoiseLevel};
+use springmass::study::kinds::noise::noisy_record;
 use springmass::time::simulate::{simulate, SimOptions};
 use springmass::Chain;
 
 /// `chi^2 / dof` at the truth and `chi^2 <= chi2_95(dof)` over `seeds` noisy
 /// series of `truth` (simulated once, noise added per seed exactly as
-/// [`noisy_data`] does).
+/// [`noisy_record`] does).
 fn calibrate(
     truth: &Chain,
     level: f64,
@@ -25,8 +25,7 @@ fn calibrate(
     choice: MisfitKind,
     weighting: Weighting,
 ) -> (usize, Vec<f64>, f64) {
-    let cfg = StudyConfig::default();
-    let traj = simulate(truth, &SimOptions::new(cfg.t_end, cfg.dt)).unwrap();
+    let traj = simulate(truth, &SimOptions::new(T_END, DT)).unwrap();
     let x = traj.x(1).unwrap();
     let setup = Setup {
         weighting,
@@ -36,7 +35,7 @@ fn calibrate(
     let mut below = 0usize;
     let mut dof = 0;
     for r in 0..seeds {
-        let (y, sigma) = add_noise(x, NoiseLevel::RelativeMax(level), task_seed(&[7, r])).unwrap();
+        let (y, sigma) = add_noise(x, NoiseLevel::RelativeMax(level), 7_000 + r).unwrap();
         let data = TimeData::new(traj.t.clone(), y, sigma).unwrap();
         let obs: LaplaceObs = laplace_obs(&data, choice, &setup).unwrap();
         let chi2 = obs.chi2(truth).unwrap();
@@ -49,6 +48,14 @@ fn calibrate(
     (dof, red, below as f64 / seeds as f64)
 }
 
+/// The noise study's record: `[0, 200]` every `0.2`.
+const T_END: f64 = 200.0;
+const DT: f64 = 0.2;
+
+fn s3() -> Chain {
+    springmass::scenes::table1(3).unwrap()
+}
+
 fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
 }
@@ -56,10 +63,9 @@ fn mean(v: &[f64]) -> f64 {
 #[test]
 fn noisy_data_is_what_calibrate_draws() {
     // the shortcut above (simulate once, add noise per seed) equals noisy_data
-    let s3 = &systems()[2].truth;
-    let cfg = StudyConfig::default();
-    let a = noisy_data(s3, &cfg, 1e-3, 11).unwrap();
-    let traj = simulate(s3, &SimOptions::new(cfg.t_end, cfg.dt)).unwrap();
+    let s3 = &s3();
+    let a = noisy_record(s3, T_END, DT, 1e-3, 11).unwrap();
+    let traj = simulate(s3, &SimOptions::new(T_END, DT)).unwrap();
     let (y, sigma) = add_noise(traj.x(1).unwrap(), NoiseLevel::RelativeMax(1e-3), 11).unwrap();
     assert_eq!(a.y(), &y[..]);
     assert_eq!(a.sigma(), sigma);
@@ -69,7 +75,7 @@ fn noisy_data_is_what_calibrate_draws() {
 fn bromwich_whitened_is_a_calibrated_chi_square() {
     // S3 at the true chain, 50 seeds, 1e-3 noise: chi2/dof ~ 1 (sd sqrt(2/160)
     // per seed), while the diagonal weighting is off by a factor of ~60
-    let s3 = &systems()[2].truth;
+    let s3 = &s3();
     let (dof, red, frac) = calibrate(s3, 1e-3, 50, MisfitKind::Bromwich, Weighting::Whitened);
     let m = mean(&red);
     eprintln!("bromwich whitened: dof {dof}, mean chi2/dof {m:.4}, below chi2_95 {frac:.3}");
@@ -91,8 +97,7 @@ fn real_axis_noise_whitening_is_calibrated_and_has_few_dof() {
     use springmass::forward::Forward;
     use springmass::time::series::{stack_re_im, SeriesTransform, TransformOptions};
     use springmass::Complex64;
-    let s3 = &systems()[2].truth;
-    let cfg = StudyConfig::default();
+    let s3 = &s3();
     let setup = Setup::new().unwrap();
     let s: Vec<Complex64> = setup
         .real_rule
@@ -100,14 +105,14 @@ fn real_axis_noise_whitening_is_calibrated_and_has_few_dof() {
         .iter()
         .map(|&x| Complex64::new(x, 0.0))
         .collect();
-    let traj = simulate(s3, &SimOptions::new(cfg.t_end, cfg.dt)).unwrap();
+    let traj = simulate(s3, &SimOptions::new(T_END, DT)).unwrap();
     let x = traj.x(1).unwrap();
     let fwd = Forward::new(s3);
     let model: Vec<Complex64> = s.iter().map(|z| fwd.eval(*z, 1).unwrap()).collect();
     let mut red = Vec::new();
     let mut dof = 0;
     for r in 0..40 {
-        let (y, sigma) = add_noise(x, NoiseLevel::RelativeMax(1e-3), task_seed(&[7, r])).unwrap();
+        let (y, sigma) = add_noise(x, NoiseLevel::RelativeMax(1e-3), 7_000 + r).unwrap();
         let tr = SeriesTransform::new(&traj.t, &y, &TransformOptions::default()).unwrap();
         let res: Vec<Complex64> = s
             .iter()
@@ -127,7 +132,7 @@ fn real_axis_noise_whitening_is_calibrated_and_has_few_dof() {
 #[test]
 #[ignore = "report: 200 seeds, run with --release --ignored --nocapture"]
 fn calibration_report() {
-    let s3 = &systems()[2].truth;
+    let s3 = &s3();
     for level in [1e-3, 1e-2] {
         for choice in [MisfitKind::RealAxis, MisfitKind::Bromwich] {
             for w in [Weighting::Diagonal, Weighting::Whitened] {

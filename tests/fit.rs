@@ -8,7 +8,7 @@ use springmass::detect::misfit::quadrature::Adaptive;
 use springmass::detect::misfit::{Misfit, MisfitKind, MisfitSpec};
 use springmass::detect::scene::FitScene;
 use springmass::detect::search::enumerate::{enumerate, EnumerateOptions};
-use springmass::detect::unknowns::{DefectUnknown, Unknowns};
+use springmass::detect::unknowns::{DefectUnknown, MassUnknowns};
 use springmass::{scenes, Chain, Error};
 
 /// System `sys` (1..=4) of the paper's Table 1 (docs/paper-notes.md): n, the chain and
@@ -138,7 +138,7 @@ fn enumeration_is_deterministic_across_threads() {
         &MisfitSpec::default(),
     )
     .unwrap();
-    let u = Unknowns::new(10, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
+    let u = MassUnknowns::new(10, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
     let ser = enumerate(
         &mis,
         &u,
@@ -232,7 +232,7 @@ fn fixed_rules_against_the_adaptive_reference() {
         for &(panels, per) in &rules {
             let spec = MisfitSpec::real_axis(panels, per);
             let mis = Misfit::new(&chain.uniform(), &data, &spec).unwrap();
-            let u = Unknowns::new(n, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
+            let u = MassUnknowns::new(n, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
             let e = enumerate(&mis, &u, &EnumerateOptions::default()).unwrap();
             let best = &e.ranked[0];
             let ok = best.defects.iter().zip(&defs).all(|(g, t)| g.0 == t.0);
@@ -259,7 +259,7 @@ fn fixed_rules_against_the_adaptive_reference() {
             ..MisfitSpec::default()
         };
         let mis = Misfit::new(&chain.uniform(), &data, &spec).unwrap();
-        let u = Unknowns::new(n, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
+        let u = MassUnknowns::new(n, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
         let e = enumerate(&mis, &u, &EnumerateOptions::default()).unwrap();
         let runner = &e.ranked[1];
         let reference = mis.reference(&runner.defects, &adaptive).unwrap();
@@ -393,7 +393,7 @@ fn objective_penalises_invalid_candidates_finitely() {
         &MisfitSpec::default(),
     )
     .unwrap();
-    let u = Unknowns::new(n, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
+    let u = MassUnknowns::new(n, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
     let obj = MisfitObjective::new(&mis, &u);
     let ok = obj.cost(&Candidate {
         positions: vec![4, 2],

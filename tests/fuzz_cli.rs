@@ -361,14 +361,14 @@ fn templates(fl: &Files) -> Vec<Template> {
             heavy: true,
             toks: vec![
                 w("noise-study"),
-                w("table"),
+                w("misfits"),
                 t("--seeds", "1", Kind::Num),
                 t("--levels", "0.01", Kind::Text),
                 t("--systems", "S1", Kind::Text),
-                t("--misfits", "real", Kind::Text),
-                t("--t-end", "10", Kind::Num),
-                t("--dt", "0.5", Kind::Num),
+                t("--misfits", "real-axis", Kind::Text),
+                t("--threads", "1", Kind::Num),
                 t("--out", &out("noise"), Kind::OutDir),
+                f("--quiet"),
             ],
         },
     ]

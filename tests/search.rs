@@ -8,7 +8,7 @@ use springmass::detect::data::exact::Data;
 use springmass::detect::fit::paper::MisfitObjective;
 use springmass::detect::misfit::{Misfit, MisfitSpec};
 use springmass::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
-use springmass::detect::unknowns::{DefectUnknown, Unknowns};
+use springmass::detect::unknowns::{DefectUnknown, MassUnknowns};
 use springmass::forward::response;
 use springmass::{scenes, Chain, Defect, Error};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -18,13 +18,14 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 /// [`MisfitObjective`] borrows).
 struct Exact {
     misfit: Misfit,
-    unknowns: Unknowns,
+    unknowns: MassUnknowns,
 }
 
 impl Exact {
     fn new(truth: &Chain, k: usize) -> Exact {
         let misfit = Misfit::new(truth, &Data::exact(truth), &MisfitSpec::default()).unwrap();
-        let unknowns = Unknowns::new(truth.n(), vec![DefectUnknown::free(0.1, 20.0); k]).unwrap();
+        let unknowns =
+            MassUnknowns::new(truth.n(), vec![DefectUnknown::free(0.1, 20.0); k]).unwrap();
         Exact { misfit, unknowns }
     }
 }

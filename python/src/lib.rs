@@ -277,19 +277,7 @@ fn response_real<'py>(
     observe: usize,
     observe_kind: String,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let arr = s.as_array().to_owned();
-    let out = py
-        .detach(move || -> Result<_> {
-            let fwd = Forward::new(&chain.build()?);
-            let kind: Observable = observe_kind.parse()?;
-            let mut out = arr.clone();
-            for (o, &z) in out.iter_mut().zip(arr.iter()) {
-                *o = fwd.observe(z, observe, kind)?;
-            }
-            Ok(out)
-        })
-        .py_err()?;
-    Ok(out.into_pyarray(py).into_any())
+    observe_at(py, s, chain, observe, observe_kind)
 }
 
 /// The transform of the observed quantity at complex `s` (any shape).
@@ -302,6 +290,21 @@ fn response_complex<'py>(
     observe: usize,
     observe_kind: String,
 ) -> PyResult<Bound<'py, PyAny>> {
+    observe_at(py, s, chain, observe, observe_kind)
+}
+
+/// The observed quantity's transform at every `s` of an array (real or
+/// complex), with the GIL released.
+fn observe_at<'py, T>(
+    py: Python<'py>,
+    s: PyReadonlyArrayDyn<'py, T>,
+    chain: ChainArgs,
+    observe: usize,
+    observe_kind: String,
+) -> PyResult<Bound<'py, PyAny>>
+where
+    T: springmass::scalar::Scalar + numpy::Element + Copy + Send + Sync,
+{
     let arr = s.as_array().to_owned();
     let out = py
         .detach(move || -> Result<_> {

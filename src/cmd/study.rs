@@ -77,14 +77,23 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         (Some(f), false) => Study::from_file(f)?,
         _ => Study::default_study()?,
     };
-    let out = a
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("out").join(&study.file.study.name));
+    run_into(&study, a.out.clone(), a.threads, shard, a.quiet)
+}
+
+/// Run `study` into `out` (default `out/<study name>`), resuming what is
+/// there; shared with `springmass noise-study`. The options are checked.
+pub fn run_into(
+    study: &Study,
+    out: Option<PathBuf>,
+    threads: Option<usize>,
+    shard: Option<springmass::study::shard::Shard>,
+    quiet: bool,
+) -> anyhow::Result<()> {
+    let out = out.unwrap_or_else(|| PathBuf::from("out").join(&study.file.study.name));
     let mut opts = RunOptions::new(&out);
-    opts.threads = a.threads;
+    opts.threads = threads;
     opts.shard = shard;
-    opts.progress = !a.quiet;
+    opts.progress = !quiet;
     eprintln!(
         "study {}: {} cases{}, output in {}",
         study.file.study.name,
@@ -93,7 +102,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         out.display()
     );
     let start = std::time::Instant::now();
-    let s = run_study(&study, &opts).with_context(|| format!("running into {}", out.display()))?;
+    let s = run_study(study, &opts).with_context(|| format!("running into {}", out.display()))?;
     eprintln!(
         "{} run now, {} resumed, {} failed, {} skipped, in {:.1} s",
         s.ran,

@@ -35,14 +35,12 @@
 //! | [`search`] | optimizers and [`search::enumerate`], [`search::lsq`] (bounded Levenberg-Marquardt) |
 //! | [`fit`] | [`fit::fit`] from data; [`fit::paper::fit`] the scene's fit (the paper's Table 1 path); [`fit::general`], [`fit::chainfit`], [`fit::identify`], [`fit::select`], [`fit::noise`] |
 //! | [`scene`] | the TOML fit scene |
-//! | [`noise_study`] | success vs noise, calibration, unknown damping, number of defects, the data-first study |
 //! | [`locate`] | explicit single-defect locators (section 4.1), corrected, any precision |
 
 pub mod data;
 pub mod fit;
 pub mod locate;
 pub mod misfit;
-pub mod noise_study;
 pub mod scene;
 pub mod search;
 pub mod unknowns;

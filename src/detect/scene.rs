@@ -48,7 +48,7 @@
 //! A scene with another defect kind, chain parameters or the time misfit
 //! ([`FitScene::is_general`]) is fitted by the general noisy fit
 //! ([`crate::detect::fit::general::fit_general`], unknowns from
-//! [`FitScene::general_unknowns`], series from [`FitScene::time_data`]); see
+//! [`FitScene::unknowns`], series from [`FitScene::time_data`]); see
 //! `configs/scenes/fit-spring.toml` and `configs/scenes/fit-any.toml`.
 //!
 //! ```
@@ -59,14 +59,14 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::chain::{Chain, ChainSpec, Defect};
+use crate::chain::{Chain, ChainSpec};
 use crate::detect::data::exact::Data;
 use crate::detect::data::measurement::{hammer, Measurement, Sensor};
 use crate::detect::data::series::TimeData;
 use crate::detect::misfit::MisfitSpec;
 use crate::detect::search::enumerate::EnumerateOptions;
 use crate::detect::search::FitMethod;
-use crate::detect::unknowns::{DefectKind, GeneralUnknowns, Unknowns, UnknownsSpec};
+use crate::detect::unknowns::{DefectKind, Unknowns, UnknownsSpec};
 use crate::error::{Error, Result};
 use crate::forward::Observable;
 use serde::{Deserialize, Serialize};
@@ -304,21 +304,6 @@ impl FitScene {
     /// As [`ChainSpec::build`].
     pub fn truth(&self) -> Result<Chain> {
         self.chain.build()
-    }
-
-    /// The unknowns (validated against `chain.n`; `k` defaults to the number
-    /// of mass defects in `[chain]`).
-    ///
-    /// # Errors
-    /// As [`UnknownsSpec::build`].
-    pub fn unknowns(&self) -> Result<Unknowns> {
-        let k = self
-            .chain
-            .defects
-            .iter()
-            .filter(|d| matches!(d, Defect::Mass { .. }))
-            .count();
-        self.unknowns.build(self.chain.n, k)
     }
 
     /// The data described by `[data]`.
@@ -569,12 +554,12 @@ impl FitScene {
         }
     }
 
-    /// The general unknowns (validated against `chain.n`; `k` defaults to the
+    /// The unknowns (validated against `chain.n`; `k` defaults to the
     /// number of `[chain]` defects of the table's kind, all of them for `any`).
     ///
     /// # Errors
-    /// As [`UnknownsSpec::build_general`].
-    pub fn general_unknowns(&self) -> Result<GeneralUnknowns> {
+    /// As [`UnknownsSpec::build`].
+    pub fn unknowns(&self) -> Result<Unknowns> {
         let kinds = self.unknowns.kind.kinds();
         let k = self
             .chain
@@ -582,7 +567,7 @@ impl FitScene {
             .iter()
             .filter(|d| kinds.contains(&DefectKind::of(d)))
             .count();
-        self.unknowns.build_general(self.chain.n, k)
+        self.unknowns.build(self.chain.n, k)
     }
 
     /// The fit options described by `[search]`.
@@ -674,19 +659,12 @@ mod tests {
         ] {
             let s = FitScene::from_toml(text).unwrap();
             assert!(s.is_general());
-            let u = s.general_unknowns().unwrap();
+            let u = s.unknowns().unwrap();
             assert_eq!(u.slots().len(), 2);
-            assert!(s.unknowns().is_err(), "the mass-only path refuses");
+            assert!(u.to_mass().is_err(), "the mass-only kernel refuses");
         }
         let s = FitScene::from_toml(include_str!("../../configs/scenes/fit-spring.toml")).unwrap();
-        assert_eq!(
-            s.general_unknowns()
-                .unwrap()
-                .hypotheses(1000)
-                .unwrap()
-                .len(),
-            110
-        );
+        assert_eq!(s.unknowns().unwrap().hypotheses(1000).unwrap().len(), 110);
         assert_eq!(
             s.unknowns.start_chain(&s.truth().unwrap()).unwrap().d(),
             0.15
@@ -698,7 +676,7 @@ mod tests {
         let field = |text: &str| -> String {
             let s = FitScene::from_toml(text).unwrap();
             match s
-                .general_unknowns()
+                .unknowns()
                 .and_then(|_| s.unknowns.start_chain(&s.truth()?))
                 .and_then(|_| s.time_data())
             {

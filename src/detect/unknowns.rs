@@ -1,33 +1,37 @@
-//! The unknowns of a fit: `k` mass defects, each with its position known or
-//! unknown and its mass known or unknown within bounds.
+//! The unknowns of a fit: one type, [`Unknowns`], for every kind of
+//! unknown.
 //!
-//! Positions are distinct integers in `1..=n`. Unknown positions never take a
-//! known defect's position. When every defect with an unknown position also
-//! has an unknown mass with the same bounds, the defects are interchangeable
-//! and a hypothesis is a *set* of positions (order does not matter);
-//! otherwise it is an ordered assignment.
+//! A fit looks for `k` defects ([`Slot`]s), each of kind mass, spring or
+//! damper (or `any` of the three), at an unknown or known position, with an
+//! unknown value within per-kind bounds ([`KindBounds`]) or a known value,
+//! and optionally the uniform chain parameters (`d`, `gamma`, `k`, `mass`)
+//! fitted alongside. Mass and damper positions are `1..=n`, spring positions
+//! `0..=n` (spring `i` joins masses `i` and `i + 1`; `0` and `n` are the wall
+//! springs). A hypothesis is a set of `(kind, position)` pairs
+//! ([`Unknowns::hypotheses`]), fitted by
+//! [`crate::detect::fit::general::fit_general`] or searched by
+//! [`crate::detect::search::greedy`]. The scene's `[unknowns]` table
+//! ([`UnknownsSpec`]) and the data-first fit's options build it.
 //!
-//! [`Unknowns::space`] is the search [`Space`] for the optimizers: one integer
-//! per unknown position, one log-scaled real per unknown mass,
-//! `pairing[v] = Some(p)` when mass `v` belongs to the defect of unknown
-//! position `p`; known positions are `excluded`.
-//!
-//! **General unknowns** ([`GeneralUnknowns`], from the same `[unknowns]` table
-//! with `kind` and `chain`): defects of kind mass, spring or damper (or `any`
-//! of the three) at unknown or known positions, values within per-kind bounds
-//! (mass in `(0, ..]`, spring `k > 0`, damper `d >= 0`), and uniform chain
-//! parameters (`d`, `gamma`, `k`, `mass`) fitted alongside. Mass and damper
-//! positions are `1..=n`, spring positions `0..=n` (spring `i` joins masses `i`
-//! and `i + 1`; `0` and `n` are the wall springs). A hypothesis is a set of
-//! `(kind, position)` pairs ([`GeneralUnknowns::hypotheses`]); it is fitted by
-//! [`crate::detect::fit::general::fit_general`].
+//! **Mass defects only** are a special case, not a second set of unknowns:
+//! [`Unknowns::to_mass`] gives them in the form the paper's Woodbury kernel
+//! and the stochastic searches take ([`MassUnknowns`]): its
+//! [`MassUnknowns::space`] is the search [`Space`] (one integer per unknown
+//! position, one log-scaled real per unknown mass, `pairing[v] = Some(p)`
+//! when mass `v` belongs to the defect of unknown position `p`; known
+//! positions are `excluded`). When every defect with an unknown position
+//! also has an unknown mass with the same bounds, the defects are
+//! interchangeable and a hypothesis is a *set* of positions.
 //!
 //! ```
-//! use springmass::detect::unknowns::{DefectUnknown, MassUnknown, Unknowns};
-//! let u = Unknowns::new(20, vec![DefectUnknown::free(0.1, 100.0); 2])?;
-//! assert_eq!(u.space().n_positions, 2);
-//! assert!(u.interchangeable());
-//! assert!(Unknowns::new(20, vec![DefectUnknown::free(5.0, 1.0)]).is_err());
+//! use springmass::detect::unknowns::{KindChoice, Unknowns};
+//! let u = Unknowns::free(20, &[KindChoice::Mass; 2], &[])?;
+//! let mass = u.to_mass()?;                 // the Woodbury kernel's view
+//! assert_eq!(mass.space().n_positions, 2);
+//! assert!(mass.interchangeable());
+//! let springs = Unknowns::free(20, &[KindChoice::Spring; 2], &[])?;
+//! assert!(springs.to_mass().is_err());     // typed error naming unknowns.kind
+//! assert!(Unknowns::free(3, &[KindChoice::Mass; 4], &[]).is_err()); // k > n
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
@@ -73,9 +77,10 @@ impl DefectUnknown {
 /// Penalty floor for invalid candidates (any valid residual is far below).
 pub const PENALTY: f64 = 1e6;
 
-/// Validated unknowns of a fit.
+/// Mass-only unknowns in the form of the Woodbury kernel and the
+/// stochastic searches (from [`Unknowns::to_mass`]; see the module docs).
 #[derive(Clone, Debug, PartialEq)]
-pub struct Unknowns {
+pub struct MassUnknowns {
     n: usize,
     defects: Vec<DefectUnknown>,
     /// Indices of defects with an unknown position.
@@ -85,7 +90,7 @@ pub struct Unknowns {
     space: Space,
 }
 
-impl Unknowns {
+impl MassUnknowns {
     /// Validate the unknowns of a chain of `n` masses.
     ///
     /// # Errors
@@ -94,7 +99,7 @@ impl Unknowns {
     /// position outside `1..=n` or equal to another known position;
     /// `unknowns.defects[i].m` for a known mass that is not positive and finite;
     /// `unknowns.defects[i].bounds` for bounds that are not `0 < lo < hi`, finite.
-    pub fn new(n: usize, defects: Vec<DefectUnknown>) -> Result<Unknowns> {
+    pub fn new(n: usize, defects: Vec<DefectUnknown>) -> Result<MassUnknowns> {
         let k = defects.len();
         if k == 0 || k > n {
             return Err(Error::invalid(
@@ -164,7 +169,7 @@ impl Unknowns {
                 .map(|&i| free_pos.iter().position(|&p| p == i))
                 .collect(),
         };
-        Ok(Unknowns {
+        Ok(MassUnknowns {
             n,
             defects,
             free_pos,
@@ -221,8 +226,8 @@ impl Unknowns {
     }
 
     /// The full defect list `(position, mass)` in defect order from the
-    /// unknown positions (in [`Unknowns::free_positions`] order) and the
-    /// unknown masses (in [`Unknowns::free_masses`] order). Unchecked.
+    /// unknown positions (in [`MassUnknowns::free_positions`] order) and the
+    /// unknown masses (in [`MassUnknowns::free_masses`] order). Unchecked.
     pub fn assemble(&self, positions: &[usize], masses: &[f64]) -> Vec<(usize, f64)> {
         let mut pi = positions.iter();
         let mut mi = masses.iter();
@@ -240,7 +245,7 @@ impl Unknowns {
             .collect()
     }
 
-    /// Map a candidate of [`Unknowns::space`] to defects, or return a finite
+    /// Map a candidate of [`MassUnknowns::space`] to defects, or return a finite
     /// penalty `>= PENALTY` growing with the size of the violation (wrong
     /// lengths, positions out of range, repeated or excluded, masses outside
     /// their bounds or not finite).
@@ -380,66 +385,6 @@ impl Default for UnknownsSpec {
 }
 
 impl UnknownsSpec {
-    /// Validate against a chain of `n` masses; `default_k` is used when `k`
-    /// is not given.
-    ///
-    /// # Errors
-    /// As [`Unknowns::new`]; also `unknowns.defects` when more entries than
-    /// `k`, `unknowns.mass_bounds` for bad default bounds, and
-    /// `unknowns.defects[i].bounds` when bounds are given with a known mass.
-    pub fn build(&self, n: usize, default_k: usize) -> Result<Unknowns> {
-        if self.is_general() {
-            return Err(Error::invalid(
-                "unknowns.kind",
-                self.kind.name(),
-                "mass defects and no chain parameters on this path (the general noisy fit takes the others)",
-            ));
-        }
-        let k = self.k.unwrap_or(default_k.max(self.defects.len()));
-        if k == 0 || k > n {
-            return Err(Error::invalid(
-                "unknowns.k",
-                k,
-                format!("1 <= k <= n = {n}"),
-            ));
-        }
-        if self.defects.len() > k {
-            return Err(Error::invalid(
-                "unknowns.defects",
-                format!("{} entries", self.defects.len()),
-                format!("at most k = {k} entries"),
-            ));
-        }
-        let [lo, hi] = self.mass_bounds;
-        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo < hi) {
-            return Err(Error::invalid(
-                "unknowns.mass_bounds",
-                format!("[{lo}, {hi}]"),
-                "0 < lo < hi, finite",
-            ));
-        }
-        let mut out = Vec::with_capacity(k);
-        for (i, d) in self.defects.iter().enumerate() {
-            let mass = match (d.m, d.bounds) {
-                (Some(_), Some(b)) => {
-                    return Err(Error::invalid(
-                        format!("unknowns.defects[{i}].bounds"),
-                        format!("{b:?}"),
-                        "only with an unknown mass (omit m)",
-                    ))
-                }
-                (Some(m), None) => MassUnknown::Known(m),
-                (None, Some([lo, hi])) => MassUnknown::Free { lo, hi },
-                (None, None) => MassUnknown::Free { lo, hi },
-            };
-            out.push(DefectUnknown { at: d.at, mass });
-        }
-        out.resize(k, DefectUnknown::free(lo, hi));
-        Unknowns::new(n, out)
-    }
-}
-
-impl UnknownsSpec {
     /// Whether the table asks for more than the mass-only fit can do: a
     /// defect kind other than `mass`, or chain parameters.
     pub fn is_general(&self) -> bool {
@@ -451,23 +396,20 @@ impl UnknownsSpec {
                 .any(|d| d.kind.is_some_and(|k| k != KindChoice::Mass))
     }
 
-    /// Validate as [`GeneralUnknowns`] for a chain of `n` masses; `default_k`
-    /// is used when `k` is not given.
+    /// Validate against a chain of `n` masses; `default_k` is used when
+    /// `k` is not given. The mass-only kernel takes
+    /// [`Unknowns::to_mass`] of the result.
     ///
     /// # Errors
-    /// As [`GeneralUnknowns::new`]; `unknowns.k`, `unknowns.defects`,
+    /// As [`Unknowns::new`]; `unknowns.k`, `unknowns.defects`,
     /// `unknowns.mass_bounds`, `unknowns.spring_bounds`,
     /// `unknowns.damper_bounds`, `unknowns.chain` (an unknown name, a repeat,
     /// or all four), `unknowns.defects[i].m` (a known value of a non-mass
     /// defect).
-    pub fn build_general(&self, n: usize, default_k: usize) -> Result<GeneralUnknowns> {
+    pub fn build(&self, n: usize, default_k: usize) -> Result<Unknowns> {
         let k = self.k.unwrap_or(default_k.max(self.defects.len()));
-        if k == 0 || k > 2 * n + 1 {
-            return Err(Error::invalid(
-                "unknowns.k",
-                k,
-                format!("1 <= k <= 2n + 1 = {}", 2 * n + 1),
-            ));
+        if k == 0 {
+            return Err(Error::invalid("unknowns.k", k, ">= 1"));
         }
         if self.defects.len() > k {
             return Err(Error::invalid(
@@ -531,7 +473,7 @@ impl UnknownsSpec {
                 bounds: None,
             },
         );
-        GeneralUnknowns::new(n, slots, chain, bounds)
+        Unknowns::new(n, slots, chain, bounds)
     }
 }
 
@@ -758,16 +700,16 @@ impl Slot {
 /// A hypothesis of a general fit: `(kind, position)` per slot.
 pub type KindPositions = Vec<(DefectKind, usize)>;
 
-/// Validated unknowns of the general fit (see the module docs).
+/// Validated unknowns of a fit (see the module docs).
 #[derive(Clone, Debug, PartialEq)]
-pub struct GeneralUnknowns {
+pub struct Unknowns {
     n: usize,
     slots: Vec<Slot>,
     chain: Vec<Param>,
     bounds: KindBounds,
 }
 
-impl GeneralUnknowns {
+impl Unknowns {
     /// Validate.
     ///
     /// # Errors
@@ -782,12 +724,37 @@ impl GeneralUnknowns {
         slots: Vec<Slot>,
         chain: Vec<Param>,
         bounds: KindBounds,
-    ) -> Result<GeneralUnknowns> {
+    ) -> Result<Unknowns> {
         if slots.is_empty() {
             return Err(Error::invalid("unknowns.k", 0, ">= 1"));
         }
+        // as many defects as there are (kind, position) pairs for them
+        let mut kinds: Vec<DefectKind> =
+            slots.iter().flat_map(|s| s.kind.kinds()).copied().collect();
+        kinds.sort_unstable();
+        kinds.dedup();
+        let pairs: usize = kinds.iter().map(|k| k.positions(n).count()).sum();
+        if slots.len() > pairs {
+            return Err(Error::invalid(
+                "unknowns.k",
+                slots.len(),
+                format!(
+                    "1 <= k <= {pairs}, the (kind, position) pairs of n = {n} (masses and dampers 1..=n, springs 0..=n)"
+                ),
+            ));
+        }
         for (i, s) in slots.iter().enumerate() {
             if let Some(at) = s.at {
+                if let Some(j) = slots[..i]
+                    .iter()
+                    .position(|o| o.at == Some(at) && o.kind == s.kind)
+                {
+                    return Err(Error::invalid(
+                        format!("unknowns.defects[{i}].at"),
+                        at,
+                        format!("distinct from unknowns.defects[{j}].at"),
+                    ));
+                }
                 if !s.kind.kinds().iter().any(|k| k.positions(n).contains(&at)) {
                     return Err(Error::invalid(
                         format!("unknowns.defects[{i}].at"),
@@ -834,7 +801,7 @@ impl GeneralUnknowns {
                 "at most three: x_1(t) is unchanged when every mass, damper, spring and gamma are scaled together",
             ));
         }
-        Ok(GeneralUnknowns {
+        Ok(Unknowns {
             n,
             slots,
             chain,
@@ -842,12 +809,50 @@ impl GeneralUnknowns {
         })
     }
 
+    /// The mass-only special case in the form the Woodbury kernel's
+    /// enumeration and the stochastic searches take ([`MassUnknowns`]):
+    /// every defect a mass (known or bounded), no chain parameter fitted.
+    ///
+    /// # Errors
+    /// A defect of another kind (field `unknowns.kind`) or fitted chain
+    /// parameters (field `unknowns.chain`); as [`MassUnknowns::new`].
+    pub fn to_mass(&self) -> Result<MassUnknowns> {
+        if let Some(s) = self.slots.iter().find(|s| s.kind != KindChoice::Mass) {
+            return Err(Error::invalid(
+                "unknowns.kind",
+                s.kind.name(),
+                "mass for the mass-only kernel (the data-first fit takes every kind)",
+            ));
+        }
+        if !self.chain.is_empty() {
+            return Err(Error::invalid(
+                "unknowns.chain",
+                format!("{} parameters", self.chain.len()),
+                "none for the mass-only kernel (the data-first fit fits chain parameters)",
+            ));
+        }
+        let defects = (0..self.slots.len())
+            .map(|i| {
+                let s = &self.slots[i];
+                let mass = match s.known {
+                    Some(m) => MassUnknown::Known(m),
+                    None => {
+                        let (lo, hi) = self.bounds(i, DefectKind::Mass);
+                        MassUnknown::Free { lo, hi }
+                    }
+                };
+                DefectUnknown { at: s.at, mass }
+            })
+            .collect();
+        MassUnknowns::new(self.n, defects)
+    }
+
     /// `k` free defects of one kind, chain parameters `chain`, default bounds.
     ///
     /// # Errors
-    /// As [`GeneralUnknowns::new`].
-    pub fn free(n: usize, kinds: &[KindChoice], chain: &[Param]) -> Result<GeneralUnknowns> {
-        GeneralUnknowns::new(
+    /// As [`Unknowns::new`].
+    pub fn free(n: usize, kinds: &[KindChoice], chain: &[Param]) -> Result<Unknowns> {
+        Unknowns::new(
             n,
             kinds.iter().map(|&k| Slot::free(k)).collect(),
             chain.to_vec(),
@@ -858,6 +863,10 @@ impl GeneralUnknowns {
     /// Number of masses.
     pub fn n(&self) -> usize {
         self.n
+    }
+    /// Number of defects sought (known ones included).
+    pub fn k(&self) -> usize {
+        self.slots.len()
     }
     /// The defects.
     pub fn slots(&self) -> &[Slot] {
@@ -994,7 +1003,7 @@ pub(crate) fn gen_sets(
 mod tests {
     use super::*;
 
-    fn field(r: Result<Unknowns>) -> String {
+    fn field<T: std::fmt::Debug>(r: Result<T>) -> String {
         match r {
             Err(Error::InvalidParameter { field, .. }) => field,
             other => panic!("expected an invalid-parameter error, got {other:?}"),
@@ -1004,34 +1013,34 @@ mod tests {
     #[test]
     fn bad_unknowns_name_the_field() {
         let f = DefectUnknown::free(0.1, 10.0);
-        assert_eq!(field(Unknowns::new(3, vec![f; 4])), "unknowns.k");
-        assert_eq!(field(Unknowns::new(3, vec![])), "unknowns.k");
+        assert_eq!(field(MassUnknowns::new(3, vec![f; 4])), "unknowns.k");
+        assert_eq!(field(MassUnknowns::new(3, vec![])), "unknowns.k");
         let known = |at| DefectUnknown {
             at: Some(at),
             mass: MassUnknown::Known(2.0),
         };
         assert_eq!(
-            field(Unknowns::new(5, vec![f, known(6)])),
+            field(MassUnknowns::new(5, vec![f, known(6)])),
             "unknowns.defects[1].at"
         );
         assert_eq!(
-            field(Unknowns::new(5, vec![known(0)])),
+            field(MassUnknowns::new(5, vec![known(0)])),
             "unknowns.defects[0].at"
         );
         assert_eq!(
-            field(Unknowns::new(5, vec![known(2), f, known(2)])),
+            field(MassUnknowns::new(5, vec![known(2), f, known(2)])),
             "unknowns.defects[2].at"
         );
         assert_eq!(
-            field(Unknowns::new(5, vec![DefectUnknown::free(3.0, 3.0)])),
+            field(MassUnknowns::new(5, vec![DefectUnknown::free(3.0, 3.0)])),
             "unknowns.defects[0].bounds"
         );
         assert_eq!(
-            field(Unknowns::new(5, vec![DefectUnknown::free(-1.0, 3.0)])),
+            field(MassUnknowns::new(5, vec![DefectUnknown::free(-1.0, 3.0)])),
             "unknowns.defects[0].bounds"
         );
         assert_eq!(
-            field(Unknowns::new(
+            field(MassUnknowns::new(
                 5,
                 vec![DefectUnknown {
                     at: None,
@@ -1054,7 +1063,7 @@ mod tests {
 
     #[test]
     fn space_and_decode() {
-        let u = Unknowns::new(
+        let u = MassUnknowns::new(
             10,
             vec![
                 DefectUnknown {
@@ -1116,7 +1125,7 @@ mod tests {
         let s: UnknownsSpec =
             toml::from_str("k = 3\nmass_bounds = [0.5, 20]\n[[defects]]\nat = 4\nm = 2.0\n")
                 .unwrap();
-        let u = s.build(10, 2).unwrap();
+        let u = s.build(10, 2).unwrap().to_mass().unwrap();
         assert_eq!(u.k(), 3);
         assert_eq!(u.free_positions(), &[1, 2]);
         assert_eq!(u.space().bounds, vec![(0.5, 20.0); 2]);

@@ -50,6 +50,17 @@ use sweep::Case;
 /// The embedded default study (`springmass study` with no file).
 pub const DEFAULT_STUDY: &str = include_str!("../../configs/studies/default.toml");
 
+/// The shipped noise study: the data-first fit with its defaults on noisy
+/// records (`springmass noise-study data-first`).
+pub const NOISE_STUDY: &str = include_str!("../../configs/studies/noise-study.toml");
+
+/// The shipped success-against-noise table per misfit
+/// (`springmass noise-study misfits`).
+pub const NOISE_MISFITS: &str = include_str!("../../configs/studies/noise-misfits.toml");
+
+/// The shipped defect-kind study (`springmass noise-study kinds`).
+pub const DEFECT_KINDS: &str = include_str!("../../configs/studies/defect-kinds.toml");
+
 /// A parsed, expanded and checked study.
 #[derive(Clone, Debug)]
 pub struct Study {

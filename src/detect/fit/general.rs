@@ -34,7 +34,7 @@
 //! chi-square. Cost: `C(n, k)` short fits plus `shortlist` full fits.
 //!
 //! **General fit** ([`fit_general`], [`fit_noisy_general`]): defects of kind
-//! mass, spring, damper or any of them ([`GeneralUnknowns`]) at unknown (or
+//! mass, spring, damper or any of them ([`Unknowns`]) at unknown (or
 //! known) positions, and uniform chain parameters (`d`, `gamma`, `k`, `mass`)
 //! fitted alongside. Coarse pass over every `(kind, position)` hypothesis on
 //! Laplace data (defect values only, chain parameters at their starting
@@ -48,10 +48,10 @@
 //! use springmass::detect::data::series::TimeData;
 //! use springmass::detect::fit::general::{fit_noisy_general, GeneralOptions, Setup};
 //! use springmass::detect::misfit::MisfitKind;
-//! use springmass::detect::unknowns::{GeneralUnknowns, KindChoice};
+//! use springmass::detect::unknowns::{Unknowns, KindChoice};
 //! let truth = Chain::paper(5)?.with_defect(Defect::Spring { at: 2, k: 0.5 })?;
 //! let data = TimeData::simulate(&truth, 100.0, 0.5, NoiseLevel::RelativeMax(1e-3), 1)?;
-//! let unknowns = GeneralUnknowns::free(5, &[KindChoice::Any], &[Param::D])?;
+//! let unknowns = Unknowns::free(5, &[KindChoice::Any], &[Param::D])?;
 //! let fit = fit_noisy_general(&truth.uniform().with_d(0.12)?, &data, &unknowns,
 //!     MisfitKind::Time, &Setup::new()?, &GeneralOptions::default())?;
 //! let best = &fit.ranked[0];
@@ -71,9 +71,7 @@ use crate::detect::misfit::quadrature::Rule;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::MisfitKind;
 use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
-use crate::detect::unknowns::{
-    DefectKind, GeneralUnknowns, KindBounds, KindChoice, KindPositions, Slot,
-};
+use crate::detect::unknowns::{DefectKind, KindBounds, KindChoice, KindPositions, Slot, Unknowns};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use crate::time::series::{SeriesTransform, TransformOptions};
@@ -463,7 +461,7 @@ fn starts(kind: DefectKind, base: &Chain) -> [f64; 2] {
 #[allow(clippy::too_many_arguments)]
 fn fit_pairs_coarse(
     base: &Chain,
-    unknowns: &GeneralUnknowns,
+    unknowns: &Unknowns,
     pairs: &[(DefectKind, usize)],
     values: &[f64],
     chain_bounds: &[(f64, f64)],
@@ -532,7 +530,7 @@ struct Fitted {
 #[allow(clippy::too_many_arguments)]
 fn fit_pairs(
     base: &Chain,
-    unknowns: &GeneralUnknowns,
+    unknowns: &Unknowns,
     pairs: &[(DefectKind, usize)],
     values: &[f64],
     chain_bounds: &[(f64, f64)],
@@ -675,7 +673,7 @@ pub struct GeneralFit {
 /// uniform part and chain-parameter starting values).
 ///
 /// * **coarse pass** (parallel, deterministic): every hypothesis
-///   ([`GeneralUnknowns::hypotheses`]) fitted on `coarse` by
+///   ([`Unknowns::hypotheses`]) fitted on `coarse` by
 ///   `setup.coarse_iter` Levenberg-Marquardt iterations over its defect values
 ///   only (chain parameters at their current values), ranked by
 ///   `(chi2, hypothesis)`;
@@ -692,7 +690,7 @@ pub struct GeneralFit {
 /// hypothesis could be fitted.
 pub fn fit_general(
     base: &Chain,
-    unknowns: &GeneralUnknowns,
+    unknowns: &Unknowns,
     coarse: &LaplaceObs,
     fine: Option<&TimeMisfit>,
     setup: &Setup,
@@ -917,7 +915,7 @@ fn coarse_pass<'h>(
 pub fn fit_noisy_general(
     base: &Chain,
     data: &TimeData,
-    unknowns: &GeneralUnknowns,
+    unknowns: &Unknowns,
     choice: MisfitKind,
     setup: &Setup,
     opts: &GeneralOptions,
@@ -943,7 +941,7 @@ fn fit_set(
     setup: &Setup,
     max_iter: usize,
 ) -> Result<Hypothesis> {
-    let unknowns = GeneralUnknowns::new(
+    let unknowns = Unknowns::new(
         base.n(),
         positions
             .iter()
@@ -993,7 +991,7 @@ pub fn enumerate_laplace(
         known: None,
         bounds: Some(setup.mass_bounds),
     };
-    let unknowns = GeneralUnknowns::new(n, vec![slot; k], Vec::new(), KindBounds::default())?;
+    let unknowns = Unknowns::new(n, vec![slot; k], Vec::new(), KindBounds::default())?;
     let g = fit_general(
         base,
         &unknowns,

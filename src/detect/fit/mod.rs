@@ -73,7 +73,7 @@ use crate::detect::misfit::quadrature::Rule;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::MisfitKind;
 use crate::detect::search::{minimize, Candidate, Objective, SearchOptions, Space};
-use crate::detect::unknowns::{DefectKind, GeneralUnknowns, KindBounds, KindChoice, Slot};
+use crate::detect::unknowns::{DefectKind, KindBounds, KindChoice, Slot, Unknowns};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use serde::Serialize;
@@ -635,7 +635,7 @@ fn setup_for(series: Option<&Series>, model: &Model) -> Result<Setup> {
 }
 
 impl Engine<'_> {
-    fn unknowns(&self, k: usize) -> Result<Option<GeneralUnknowns>> {
+    fn unknowns(&self, k: usize) -> Result<Option<Unknowns>> {
         let known = self.model.chain.defects();
         if k == 0 && known.is_empty() {
             return Ok(None);
@@ -658,7 +658,7 @@ impl Engine<'_> {
         } else {
             slots.extend((0..k).map(|_| Slot::free(self.opts.kinds)));
         }
-        Ok(Some(GeneralUnknowns::new(
+        Ok(Some(Unknowns::new(
             self.model.n(),
             slots,
             self.model.fit.clone(),
@@ -852,7 +852,7 @@ impl Engine<'_> {
                         for (slot, &at) in slots[known_positions..].iter_mut().zip(&q) {
                             slot.at = Some(at);
                         }
-                        let u = GeneralUnknowns::new(
+                        let u = Unknowns::new(
                             self.model.n(),
                             slots,
                             self.model.fit.clone(),

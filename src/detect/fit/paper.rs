@@ -57,7 +57,7 @@ use crate::detect::scene::{FitScene, SceneOptions};
 use crate::detect::search::enumerate::{enumerate, fit_slots, Defects, EnumerateOptions};
 use crate::detect::search::FitMethod;
 use crate::detect::search::{minimize, Candidate, Objective, SearchOptions, Space};
-use crate::detect::unknowns::{MassUnknown, Unknowns};
+use crate::detect::unknowns::{MassUnknown, MassUnknowns};
 use crate::error::{Error, Result};
 use num_complex::Complex64;
 use serde::Serialize;
@@ -136,7 +136,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<FitR
     }
     let t0 = Instant::now();
     let model = scene.truth()?.uniform();
-    let unknowns = scene.unknowns()?;
+    let unknowns = scene.unknowns()?.to_mass()?;
     let misfit = Misfit::new(&model, data, &scene.misfit)?;
     let setup = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
@@ -271,7 +271,7 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
             "enumerate or greedy for defects of other kinds, chain parameters or the time misfit",
         ));
     }
-    let unknowns = scene.general_unknowns()?;
+    let unknowns = scene.unknowns()?;
     let start = scene.unknowns.start_chain(&scene.truth()?)?;
     let mut model = Model::from_chain(&start.uniform());
     let mut kinds = Vec::new();
@@ -384,16 +384,16 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
 }
 
 /// The residual as an optimizer [`Objective`]: the candidate is decoded by
-/// [`Unknowns::decode`] (invalid candidates get its finite penalty, at least
+/// [`MassUnknowns::decode`] (invalid candidates get its finite penalty, at least
 /// [`crate::detect::unknowns::PENALTY`]) and costed by [`Misfit::residual`].
 pub struct MisfitObjective<'a> {
     misfit: &'a Misfit,
-    unknowns: &'a Unknowns,
+    unknowns: &'a MassUnknowns,
 }
 
 impl<'a> MisfitObjective<'a> {
     /// Wrap a residual and its unknowns (same `n`).
-    pub fn new(misfit: &'a Misfit, unknowns: &'a Unknowns) -> MisfitObjective<'a> {
+    pub fn new(misfit: &'a Misfit, unknowns: &'a MassUnknowns) -> MisfitObjective<'a> {
         MisfitObjective { misfit, unknowns }
     }
 }
@@ -422,7 +422,7 @@ impl Objective for MisfitObjective<'_> {
 /// and the evaluations spent.
 fn probe_neighbours(
     misfit: &Misfit,
-    unknowns: &Unknowns,
+    unknowns: &MassUnknowns,
     positions: &[usize],
     opts: &EnumerateOptions,
 ) -> (Vec<(Defects, f64)>, usize) {

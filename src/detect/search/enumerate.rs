@@ -32,12 +32,12 @@
 //! ```
 //! use springmass::{Chain, Defect};
 //! use springmass::detect::{data::exact::Data, misfit::{Misfit, MisfitSpec}};
-//! use springmass::detect::unknowns::{DefectUnknown, Unknowns};
+//! use springmass::detect::unknowns::{DefectUnknown, MassUnknowns};
 //! use springmass::detect::search::enumerate::{enumerate, EnumerateOptions};
 //! let truth = Chain::paper(5)?.with_defects([
 //!     Defect::Mass { at: 2, m: 3.0 }, Defect::Mass { at: 4, m: 0.5 }])?;
 //! let misfit = Misfit::new(&truth.uniform(), &Data::exact(&truth), &MisfitSpec::default())?;
-//! let unknowns = Unknowns::new(5, vec![DefectUnknown::free(0.1, 100.0); 2])?;
+//! let unknowns = MassUnknowns::new(5, vec![DefectUnknown::free(0.1, 100.0); 2])?;
 //! let e = enumerate(&misfit, &unknowns, &EnumerateOptions::default())?;
 //! let best = &e.ranked[0];
 //! assert_eq!((best.defects[0].0, best.defects[1].0), (2, 4));
@@ -47,7 +47,7 @@
 //! ```
 
 use crate::detect::misfit::Misfit;
-use crate::detect::unknowns::{gen_sets, MassUnknown, Unknowns};
+use crate::detect::unknowns::{gen_sets, MassUnknown, MassUnknowns};
 use crate::error::{Error, Result};
 use crate::linalg::solve_in_place;
 use rayon::prelude::*;
@@ -118,7 +118,7 @@ pub struct Enumeration {
 }
 
 /// Number of position sets of the exhaustive enumeration, `None` on overflow.
-pub fn count_sets(unknowns: &Unknowns) -> Option<usize> {
+pub fn count_sets(unknowns: &MassUnknowns) -> Option<usize> {
     let a = unknowns.allowed_positions().len();
     let p = unknowns.free_positions().len();
     let mut c: u128 = 1;
@@ -137,7 +137,7 @@ pub fn count_sets(unknowns: &Unknowns) -> Option<usize> {
 /// `keep`, `starts`, `beam` or `max_iter` zero (fields `search.*`).
 pub fn enumerate(
     misfit: &Misfit,
-    unknowns: &Unknowns,
+    unknowns: &MassUnknowns,
     opts: &EnumerateOptions,
 ) -> Result<Enumeration> {
     for (name, v) in [
@@ -165,7 +165,7 @@ pub fn enumerate(
 
 fn exhaustive(
     misfit: &Misfit,
-    unknowns: &Unknowns,
+    unknowns: &MassUnknowns,
     opts: &EnumerateOptions,
 ) -> Result<Enumeration> {
     let allowed = unknowns.allowed_positions();
@@ -192,7 +192,11 @@ fn exhaustive(
 
 /// The slots `(position, mass)` of the known-position defects and of the
 /// first `placed` unknown-position defects, in defect order.
-fn slots_for(unknowns: &Unknowns, positions: &[usize], placed: usize) -> Vec<(usize, MassUnknown)> {
+fn slots_for(
+    unknowns: &MassUnknowns,
+    positions: &[usize],
+    placed: usize,
+) -> Vec<(usize, MassUnknown)> {
     let free = unknowns.free_positions();
     unknowns
         .defects()
@@ -209,7 +213,7 @@ fn slots_for(unknowns: &Unknowns, positions: &[usize], placed: usize) -> Vec<(us
 }
 
 fn finish(
-    unknowns: &Unknowns,
+    unknowns: &MassUnknowns,
     fitted: Vec<Fitted>,
     sets: usize,
     exhaustive: bool,
@@ -245,7 +249,7 @@ fn sort_hyps(h: &mut [Hypothesis]) {
     });
 }
 
-fn beam(misfit: &Misfit, unknowns: &Unknowns, opts: &EnumerateOptions) -> Result<Enumeration> {
+fn beam(misfit: &Misfit, unknowns: &MassUnknowns, opts: &EnumerateOptions) -> Result<Enumeration> {
     let allowed = unknowns.allowed_positions();
     let p = unknowns.free_positions().len();
     let comb = unknowns.interchangeable();
@@ -358,7 +362,7 @@ fn canon(c: &[usize], comb: bool) -> Vec<usize> {
 /// `opts.parallel` (same results either way, in the order of `sets`).
 fn fit_sets(
     misfit: &Misfit,
-    unknowns: &Unknowns,
+    unknowns: &MassUnknowns,
     sets: &[Vec<usize>],
     placed: usize,
     opts: &EnumerateOptions,
@@ -536,9 +540,9 @@ mod tests {
 
     #[test]
     fn counts() {
-        let u = Unknowns::new(20, vec![DefectUnknown::free(0.1, 10.0); 2]).unwrap();
+        let u = MassUnknowns::new(20, vec![DefectUnknown::free(0.1, 10.0); 2]).unwrap();
         assert_eq!(count_sets(&u), Some(190));
-        let u = Unknowns::new(
+        let u = MassUnknowns::new(
             20,
             vec![
                 DefectUnknown {
@@ -553,14 +557,14 @@ mod tests {
         )
         .unwrap();
         assert_eq!(count_sets(&u), Some(380));
-        let u = Unknowns::new(1000, vec![DefectUnknown::free(0.1, 10.0); 5]).unwrap();
+        let u = MassUnknowns::new(1000, vec![DefectUnknown::free(0.1, 10.0); 5]).unwrap();
         assert!(count_sets(&u).unwrap() > 1_000_000_000_000);
     }
 
     #[test]
     fn serial_equals_parallel_and_known_masses_are_ordered() {
         let mis = setup(12, &[(3, 3.0), (9, 7.0)]);
-        let u = Unknowns::new(
+        let u = MassUnknowns::new(
             12,
             vec![
                 DefectUnknown {
@@ -594,7 +598,7 @@ mod tests {
     #[test]
     fn beam_search_finds_a_shallow_pair() {
         let mis = setup(20, &[(4, 5.0), (11, 2.0)]);
-        let u = Unknowns::new(20, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
+        let u = MassUnknowns::new(20, vec![DefectUnknown::free(0.1, 100.0); 2]).unwrap();
         let opts = EnumerateOptions {
             max_sets: 10,
             beam: 4,
@@ -616,7 +620,7 @@ mod tests {
     #[test]
     fn known_position_with_free_mass() {
         let mis = setup(10, &[(2, 4.0), (6, 0.3)]);
-        let u = Unknowns::new(
+        let u = MassUnknowns::new(
             10,
             vec![
                 DefectUnknown {

@@ -45,12 +45,12 @@
 //! use springmass::detect::data::laplace::LaplaceObs;
 //! use springmass::detect::fit::general::Setup;
 //! use springmass::detect::search::greedy::{fit_greedy, GreedyOptions};
-//! use springmass::detect::unknowns::{GeneralUnknowns, KindChoice};
+//! use springmass::detect::unknowns::{Unknowns, KindChoice};
 //! let truth = Chain::paper(40)?.with_defects([
 //!     Defect::Mass { at: 6, m: 3.0 }, Defect::Mass { at: 19, m: 0.5 }, Defect::Mass { at: 31, m: 2.0 }])?;
 //! let s: Vec<Complex64> = (0..80).map(|q| Complex64::new(0.05, 0.05 * q as f64)).collect();
 //! let obs = LaplaceObs::exact(&truth, s, vec![1.0; 80])?;
-//! let unknowns = GeneralUnknowns::free(40, &[KindChoice::Mass; 3], &[])?;
+//! let unknowns = Unknowns::free(40, &[KindChoice::Mass; 3], &[])?;
 //! let fit = fit_greedy(&truth.uniform(), &unknowns, &obs, None, &Setup::new()?, &GreedyOptions::default())?;
 //! assert_eq!(fit.ranked[0].positions(), vec![6, 19, 31]);
 //! assert!(fit.ranked[0].matches(&truth, 1e-6));
@@ -66,7 +66,7 @@ use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
 use crate::detect::search::rankone::{
     score, ScoreOptions, Scored, SetDefect, SetProblem, Sweep, Target,
 };
-use crate::detect::unknowns::{DefectKind, GeneralUnknowns, KindBounds, KindChoice, KindPositions};
+use crate::detect::unknowns::{DefectKind, KindBounds, KindChoice, KindPositions, Unknowns};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use rayon::prelude::*;
@@ -163,7 +163,7 @@ impl Fit {
 
 struct Greedy<'a> {
     base: Chain,
-    unknowns: &'a GeneralUnknowns,
+    unknowns: &'a Unknowns,
     obs: &'a LaplaceObs,
     target: Target,
     opts: &'a GreedyOptions,
@@ -191,7 +191,7 @@ struct Greedy<'a> {
 /// (field `defects`); no hypothesis could be fitted.
 pub fn fit_greedy(
     base: &Chain,
-    unknowns: &GeneralUnknowns,
+    unknowns: &Unknowns,
     coarse: &LaplaceObs,
     fine: Option<&TimeMisfit>,
     setup: &Setup,
@@ -671,7 +671,7 @@ mod tests {
             .unwrap();
         let s = nodes(60, 0.05, 4.0);
         let obs = LaplaceObs::exact(&truth, s, vec![1.0; 60]).unwrap();
-        let u = GeneralUnknowns::free(30, &[KindChoice::Mass; 3], &[]).unwrap();
+        let u = Unknowns::free(30, &[KindChoice::Mass; 3], &[]).unwrap();
         let setup = Setup::new().unwrap();
         let a = fit_greedy(
             &truth.uniform(),
@@ -714,7 +714,7 @@ mod tests {
             .unwrap();
         let s = nodes(60, 0.05, 4.0);
         let obs = LaplaceObs::exact(&truth, s, vec![1.0; 60]).unwrap();
-        let u = GeneralUnknowns::new(
+        let u = Unknowns::new(
             15,
             vec![
                 Slot {
@@ -753,10 +753,10 @@ mod tests {
         let s = nodes(10, 0.1, 2.0);
         let obs = LaplaceObs::exact(&c, s, vec![1.0; 10]).unwrap();
         let setup = Setup::new().unwrap();
-        let mixed = GeneralUnknowns::free(6, &[KindChoice::Mass, KindChoice::Spring], &[]).unwrap();
+        let mixed = Unknowns::free(6, &[KindChoice::Mass, KindChoice::Spring], &[]).unwrap();
         let e = fit_greedy(&c, &mixed, &obs, None, &setup, &GreedyOptions::default()).unwrap_err();
         assert!(e.to_string().contains("kinds"), "{e}");
-        let u = GeneralUnknowns::free(6, &[KindChoice::Mass], &[]).unwrap();
+        let u = Unknowns::free(6, &[KindChoice::Mass], &[]).unwrap();
         let e = fit_greedy(
             &c,
             &u,

@@ -255,7 +255,7 @@ impl KindScene for FitScene {
         }
         // [unknowns] (against the chain's n and defects)
         if chain_ok && self.is_general() {
-            if let Err(e) = self.general_unknowns() {
+            if let Err(e) = self.unknowns() {
                 out.push(e);
             }
             if !matches!(self.search.method, FitMethod::Enumerate | FitMethod::Greedy) {
@@ -275,7 +275,7 @@ impl KindScene for FitScene {
                 ));
             }
         } else if chain_ok {
-            match self.unknowns() {
+            match self.unknowns().and_then(|u| u.to_mass()) {
                 Err(e) => out.push(e),
                 Ok(u) => {
                     if !matches!(self.search.method, FitMethod::Enumerate | FitMethod::Greedy)

@@ -10,8 +10,11 @@
 //! every position is right, the number of defects found, how many fitted
 //! values lie within 3 reported standard errors of the truth, whether a
 //! wrong answer was flagged resolved or a wrong position identifiable, and
-//! the estimated over the true noise level. The noise study
-//! (`configs/studies/noise-study.toml`) is a sweep of this kind.
+//! the estimated over the true noise level; with `fit = ["d"]` the fitted
+//! damping and its standard error. The noise study
+//! (`configs/studies/noise-study.toml`, the data-first defaults, and
+//! `configs/studies/noise-misfits.toml`, every misfit over eight noise
+//! levels) is a sweep of this kind; `springmass noise-study` runs them.
 //!
 //! ```
 //! use springmass::study::kinds::Kind;
@@ -23,15 +26,17 @@
 
 use super::case::{CaseOutput, KindScene};
 use crate::chain::Chain;
+use crate::detect::data::series::TimeData;
+use crate::detect::fit::{parse_params, FitReport};
 use crate::detect::misfit::MisfitKind;
-use crate::detect::noise_study::{fit_record, noisy_data, selection_truths, systems, StudyConfig};
 use crate::error::{check_f64, Error, Result};
+use crate::noise::NoiseLevel;
 use crate::study::schema::FieldDoc;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
 /// One paragraph for the schema page.
-pub const SUMMARY: &str = "Simulates a noisy record of a reference system (S1-S4, C3a, C3b, or k0-k3 with 0 to 3 defects), fits it with the data-first fit told only n and d (and k when defects = \"given\"), noise level estimated, and scores the answer against the truth.";
+pub const SUMMARY: &str = "Simulates a noisy record of a reference system (S1-S4, C3a, C3b, or k0-k3 with 0 to 3 defects), fits it with the data-first fit told only n and d (and k when defects = \"given\"; d fitted too with fit = [\"d\"]), noise level estimated or given, and scores the answer against the truth.";
 
 /// The scene fields.
 pub const FIELDS: &[FieldDoc] = &[
@@ -42,6 +47,8 @@ pub const FIELDS: &[FieldDoc] = &[
     FieldDoc::new("defects", "\"given\" | \"auto\"", "\"given\"", "Tell the fit the true number of defects, or let it choose among 0..=4 by BIC."),
     FieldDoc::new("misfit", "\"time\" | \"bromwich\" | \"real-axis\" | \"default\"", "\"default\"", "The fit's misfit (default: the fit's default for a series, time)."),
     FieldDoc::new("noise", "\"auto\" | \"given\"", "\"auto\"", "Estimate the noise level (auto) or tell the fit the true one."),
+    FieldDoc::new("fit", "array of \"d\", \"gamma\", \"k\", \"mass\"", "[]", "Uniform chain parameters fitted with the defects (at most three)."),
+    FieldDoc::new("d_start", "float >= 0", "the truth's d", "The damping the fit is told, or starts from when d is fitted."),
 ];
 
 /// `(column, meaning)` of the metrics.
@@ -65,6 +72,16 @@ pub const METRICS: &[(&str, &str)] = &[
     ("resolved", "1 when the fit says resolved"),
     ("fits_data", "1 when the fit says the residual is noise"),
     ("sigma_ratio", "estimated over true noise level"),
+    (
+        "within_2se",
+        "fitted values at true positions with the truth within 2 reported standard errors",
+    ),
+    ("d_fit", "fitted damping (NaN when d is not fitted)"),
+    ("d_se", "its standard error"),
+    (
+        "d_within_3se",
+        "1 when the true d is within 3 standard errors of d_fit",
+    ),
     ("t_fit", "wall time of the fit, seconds"),
 ];
 
@@ -91,6 +108,12 @@ pub struct Scene {
     /// `auto` (default) or `given`.
     #[serde(default = "default_auto")]
     pub noise: String,
+    /// Chain parameters fitted with the defects (default none).
+    #[serde(default)]
+    pub fit: Vec<String>,
+    /// The damping the fit is told or starts from (default the truth's).
+    #[serde(default)]
+    pub d_start: Option<f64>,
 }
 
 fn default_t_end() -> f64 {
@@ -109,23 +132,121 @@ fn default_auto() -> String {
     "auto".into()
 }
 
-/// The truth of a reference system by name.
+/// The truth of a reference system by name ([`crate::scenes::NOISE_SYSTEMS`]
+/// and [`crate::scenes::SELECTION`]).
 ///
 /// # Errors
 /// An unknown name (field `system`).
 pub fn truth(name: &str) -> Result<Chain> {
-    if let Some(s) = systems().into_iter().find(|s| s.name == name) {
-        return Ok(s.truth);
-    }
-    let k: Option<usize> = name.strip_prefix('k').and_then(|k| k.parse().ok());
-    match k {
-        Some(k) if k <= 3 => Ok(selection_truths()[k].clone()),
-        _ => Err(Error::invalid(
+    let known = crate::scenes::NOISE_SYSTEMS
+        .iter()
+        .chain(&crate::scenes::SELECTION);
+    match known.clone().find(|s| **s == name) {
+        Some(s) => crate::scenes::by_name(s),
+        None => Err(Error::invalid(
             "system",
             name,
-            "S1, S2, S3, S4, C3a, C3b, k0, k1, k2 or k3",
+            known.copied().collect::<Vec<_>>().join(", "),
         )),
     }
+}
+
+/// A noisy record of `truth`: `x_1(t)` on `0, dt, ..., t_end` from the
+/// simulation, plus white noise of standard deviation `level max|x_1|`
+/// drawn with `seed`.
+///
+/// # Errors
+/// As [`TimeData::simulate`].
+pub fn noisy_record(truth: &Chain, t_end: f64, dt: f64, level: f64, seed: u64) -> Result<TimeData> {
+    TimeData::simulate(truth, t_end, dt, NoiseLevel::RelativeMax(level), seed)
+}
+
+/// How a data-first answer compares with the truth.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Score {
+    /// Every true position found, none extra.
+    pub positions_ok: bool,
+    /// Fitted values at true positions.
+    pub values: usize,
+    /// Of which the truth lies within 2 reported standard errors.
+    pub within_2se: usize,
+    /// Of which the truth lies within 3 reported standard errors.
+    pub within_3se: usize,
+    /// A wrong answer flagged resolved, or a wrong position flagged identifiable.
+    pub wrong_flagged: bool,
+}
+
+/// Score `rep` against `truth` (positions of every kind, values within 2
+/// and 3 SE).
+pub fn score(rep: &FitReport, truth: &Chain) -> Score {
+    let t: Vec<(usize, f64)> = truth
+        .defects()
+        .iter()
+        .map(|d| (d.at(), d.value()))
+        .collect();
+    let mut tp: Vec<usize> = t.iter().map(|x| x.0).collect();
+    tp.sort_unstable();
+    let mut fp: Vec<usize> = rep.found().iter().map(|d| d.at()).collect();
+    fp.sort_unstable();
+    let positions_ok = tp == fp;
+    let (mut values, mut within_2se, mut within_3se) = (0, 0, 0);
+    let mut wrong_flagged = !positions_ok && rep.resolved;
+    for d in rep.defects.iter().filter(|d| !d.known) {
+        match t.iter().find(|x| x.0 == d.at) {
+            Some(&(_, v)) => {
+                values += 1;
+                within_2se += usize::from((d.value - v).abs() <= 2.0 * d.se);
+                within_3se += usize::from((d.value - v).abs() <= 3.0 * d.se);
+            }
+            None => wrong_flagged |= d.identifiable,
+        }
+    }
+    Score {
+        positions_ok,
+        values,
+        within_2se,
+        within_3se,
+        wrong_flagged,
+    }
+}
+
+/// The data-first fit of a noisy record of `truth` as a case of this kind
+/// runs it: told only the truth's uniform part (n, and d = `s.d_start` or
+/// the truth's), the number of defects when `s.defects = "given"`
+/// (otherwise chosen by BIC among `0..=min(4, n)`), the misfit, the true
+/// noise level when `s.noise = "given"`, and the chain parameters `s.fit`
+/// to fit. Sequential (studies run cases in parallel).
+///
+/// # Errors
+/// As [`crate::detect::fit::fit`]; a bad `fit` or `d_start`.
+pub fn fit_record(s: &Scene, truth: &Chain, data: &TimeData) -> Result<FitReport> {
+    use crate::detect::data::observations::{Observations, Series};
+    use crate::detect::fit::{fit, DefectCount, FitOptions, Model, NoiseSpec, DEFAULT_K_MAX};
+    let sigma = (s.noise == "given" && data.sigma() > 0.0).then_some(data.sigma());
+    let obs = Observations::Series(Series::new(data.t().to_vec(), data.y().to_vec(), sigma)?);
+    let misfit = match s.misfit.as_str() {
+        "default" => None,
+        m => Some(MisfitKind::parse(m)?),
+    };
+    let opts = FitOptions {
+        defects: if s.defects == "given" {
+            DefectCount::Exactly(truth.defects().len())
+        } else {
+            DefectCount::Auto {
+                k_max: DEFAULT_K_MAX.min(truth.n()),
+            }
+        },
+        noise: sigma.map_or(NoiseSpec::Auto, NoiseSpec::Sigma),
+        misfit,
+        parallel: false,
+        ..FitOptions::default()
+    };
+    let mut model = Model::from_chain(&truth.uniform());
+    if let Some(d) = s.d_start {
+        model = model.with_d(d)?;
+    }
+    let model = model.fitting(&parse_params(&s.fit.join(","))?)?;
+    fit(&obs, &model, &opts)
 }
 
 impl KindScene for Scene {
@@ -182,6 +303,16 @@ impl KindScene for Scene {
                 "\"auto\" or \"given\"",
             ));
         }
+        if let Err(e) = parse_params(&self.fit.join(","))
+            .and_then(|p| crate::detect::fit::Model::new(1)?.fitting(&p))
+        {
+            out.push(e);
+        }
+        if let Some(d) = self.d_start {
+            if let Err(e) = check_f64("d_start", d, d >= 0.0, ">= 0") {
+                out.push(e);
+            }
+        }
         out
     }
 }
@@ -192,28 +323,12 @@ impl KindScene for Scene {
 /// As the simulation and the fit.
 pub fn run(s: &Scene, seed: u64) -> Result<CaseOutput> {
     let truth = truth(&s.system)?;
-    let cfg = StudyConfig {
-        t_end: s.t_end,
-        dt: s.dt,
-        ..StudyConfig::default()
-    };
-    let data = noisy_data(&truth, &cfg, s.level, seed)?;
+    let data = noisy_record(&truth, s.t_end, s.dt, s.level, seed)?;
     let k_true = truth.defects().len();
-    let misfit = if s.misfit == "default" {
-        None
-    } else {
-        Some(MisfitKind::parse(&s.misfit)?)
-    };
     let t0 = Instant::now();
-    let rep = fit_record(
-        &truth,
-        &data,
-        s.defects == "given",
-        misfit,
-        s.noise == "given",
-    )?;
+    let rep = fit_record(s, &truth, &data)?;
     let t_fit = t0.elapsed().as_secs_f64();
-    let score = crate::detect::noise_study::score(&rep, &truth);
+    let score = score(&rep, &truth);
     let mut out = CaseOutput::default();
     let mut put = |k: &str, v: f64| {
         out.metrics.insert(k.into(), serde_json::json!(v));
@@ -223,6 +338,7 @@ pub fn run(s: &Scene, seed: u64) -> Result<CaseOutput> {
     put("k_ok", (rep.k == k_true) as u8 as f64);
     put("positions_ok", score.positions_ok as u8 as f64);
     put("values", score.values as f64);
+    put("within_2se", score.within_2se as f64);
     put("within_3se", score.within_3se as f64);
     put("wrong_flagged", score.wrong_flagged as u8 as f64);
     put("resolved", rep.resolved as u8 as f64);
@@ -234,6 +350,15 @@ pub fn run(s: &Scene, seed: u64) -> Result<CaseOutput> {
         } else {
             f64::NAN
         },
+    );
+    let d = rep.params.iter().find(|p| p.name == "d");
+    put("d_fit", d.map_or(f64::NAN, |p| p.value));
+    put("d_se", d.map_or(f64::NAN, |p| p.se));
+    put(
+        "d_within_3se",
+        d.map_or(f64::NAN, |p| {
+            f64::from(u8::from((p.value - truth.d()).abs() <= 3.0 * p.se))
+        }),
     );
     out.timings.insert("t_fit".into(), serde_json::json!(t_fit));
     Ok(out)
