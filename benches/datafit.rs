@@ -27,7 +27,7 @@ use springmass::detect::data::series::TimeData;
 use springmass::detect::fit::general::{fit_noisy_general, GeneralOptions, Setup};
 use springmass::detect::fit::{fit, DefectCount, FitOptions, Model};
 use springmass::detect::misfit::MisfitKind;
-use springmass::detect::unknowns::{GeneralUnknowns, KindChoice};
+use springmass::detect::unknowns::{KindChoice, Unknowns};
 use springmass::noise::NoiseLevel;
 use springmass::{Chain, Defect};
 use std::time::Duration;
@@ -74,7 +74,7 @@ fn bench_cpu(c: &mut Criterion<CpuTime>) {
             b.iter(|| fit(black_box(&obs), &model, &opts).unwrap())
         });
         g.finish();
-        let unknowns = GeneralUnknowns::free(n, &vec![KindChoice::Mass; k], &[]).unwrap();
+        let unknowns = Unknowns::free(n, &vec![KindChoice::Mass; k], &[]).unwrap();
         let base = truth.uniform();
         let mut g = c.benchmark_group(format!("cpu/pipeline/{name}"));
         g.sample_size(10).measurement_time(Duration::from_secs(5));
