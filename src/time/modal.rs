@@ -1567,7 +1567,8 @@ mod tests {
         let modes = Modes::new(&base(m, d, k)).unwrap();
         assert_eq!(modes.path(), ModalPath::Quadratic);
         let h = 1e-6;
-        let cases: [(Vec<(usize, f64)>, u32, Chain, Chain); 3] = [
+        type Case = (Vec<(usize, f64)>, u32, Chain, Chain);
+        let cases: [Case; 3] = [
             (vec![(3, 1.0)], 2, base(m + h, d, k), base(m - h, d, k)),
             (vec![(5, 1.0)], 1, base(m, d + h, k), base(m, d - h, k)),
             (

@@ -171,11 +171,11 @@ impl TimeMisfit {
     pub fn model(&self, chain: &Chain) -> Result<Vec<f64>> {
         let m = self.data.measurement();
         if m.is_paper() {
-            return Ok(with_modes(chain, |modes| {
+            return with_modes(chain, |modes| {
                 Ok(modes
                     .response(1, 1, chain.gamma())?
                     .eval_many(self.data.t()))
-            })?);
+            });
         }
         m.time_model(chain, self.data.t())
     }
@@ -262,10 +262,10 @@ mod tests {
         let theta: Vec<f64> = params.iter().map(|p| p.get(&truth).unwrap()).collect();
         let fd = central_jacobian(&P(&misfit, &truth, &params), &theta, 1e-5).unwrap();
         let exact = misfit.jacobian(&truth, &params).unwrap().unwrap();
-        for c in 0..params.len() {
+        for (c, p) in params.iter().enumerate() {
             let (a, b) = (exact.column(c), fd.column(c));
             let err = (a - b).norm() / b.norm();
-            assert!(err < 1e-8, "{:?}: relative error {err:.2e}", params[c]);
+            assert!(err < 1e-8, "{p:?}: relative error {err:.2e}");
         }
         // switched off, or a parameter it does not cover: None
         let off = misfit.clone().with_analytic_jacobian(false);
