@@ -12,8 +12,7 @@ use super::{
 };
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
-use crate::detect::data::observations::{Observations, Series};
-use crate::detect::misfit::quadrature::Rule;
+use crate::detect::data::observations::Observations;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::MisfitKind;
 use crate::detect::search::{minimize, Candidate, Objective, SearchOptions, Space};
@@ -100,24 +99,6 @@ pub(super) struct Engine<'a> {
 /// the Laplace setup.
 type Prepared = (LaplaceObs, Option<TimeMisfit>, String, Setup);
 
-/// The Laplace setup for a record: the Bromwich line's abscissa a few over
-/// the record length (the unrecorded tail weighs `e^{-10}`), its range above
-/// the chain's band.
-fn setup_for(series: Option<&Series>, model: &Model) -> Result<Setup> {
-    let mut setup = Setup::new()?;
-    if let Some(s) = series {
-        let t_end = *s.t().last().expect("validated, non-empty");
-        setup.bromwich_sigma = (10.0 / t_end).max(0.05);
-    }
-    let c = model.chain();
-    let band = 2.0 * (c.k() / c.mass()).sqrt();
-    let w = (2.0 * band).max(4.0);
-    if (w - 4.0).abs() > 1e-12 {
-        setup.bromwich_rule = Rule::gauss_legendre_uniform(0.0, w, 10, 8)?;
-    }
-    Ok(setup)
-}
-
 impl Engine<'_> {
     fn unknowns(&self, k: usize) -> Result<Option<Unknowns>> {
         let known = self.model.chain().defects();
@@ -170,7 +151,7 @@ impl Engine<'_> {
     fn prepare(&self, sigma: f64) -> Result<Prepared> {
         match self.obs {
             Observations::Series(s) => {
-                let setup = setup_for(Some(s), self.model)?;
+                let setup = Setup::for_record(s.t().last().copied(), self.model.chain())?;
                 let td = s.time_data(sigma)?;
                 // the time misfit refines a shortlist of the Bromwich line's
                 let coarse_kind = match self.misfit {
@@ -210,7 +191,12 @@ impl Engine<'_> {
                     self.misfit.name(),
                     l.s().len()
                 );
-                Ok((obs, None, name, setup_for(None, self.model)?))
+                Ok((
+                    obs,
+                    None,
+                    name,
+                    Setup::for_record(None, self.model.chain())?,
+                ))
             }
         }
     }

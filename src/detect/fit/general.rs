@@ -74,13 +74,13 @@
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::series::TimeData;
-use crate::detect::fit::chainfit::{fit_chain, ChainProblem, Obs};
+use crate::detect::fit::chainfit::{ChainProblem, Obs};
 use crate::detect::fit::identify::{identify, Alternative, FittedDefect, Identifiability};
 use crate::detect::misfit::quadrature::Rule;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::MisfitKind;
 use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
-use crate::detect::unknowns::{DefectKind, KindBounds, KindChoice, KindPositions, Slot, Unknowns};
+use crate::detect::unknowns::{DefectKind, KindPositions, Unknowns};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use crate::time::series::{SeriesTransform, TransformOptions};
@@ -96,8 +96,6 @@ pub struct Setup {
     pub bromwich_sigma: f64,
     /// Bromwich rule in `omega`.
     pub bromwich_rule: Rule,
-    /// Mass bounds of the search.
-    pub mass_bounds: (f64, f64),
     /// Sets kept after the coarse pass.
     pub shortlist: usize,
     /// Bromwich sets refitted in the time domain.
@@ -122,17 +120,21 @@ pub struct Setup {
 }
 
 impl Setup {
-    /// Defaults (see the module docs): mass bounds `[0.1, 50]`, shortlist 8,
-    /// time shortlist 5, 12 coarse iterations.
+    /// Defaults (see the module docs): the real axis of the paper's
+    /// residual (`MisfitSpec::default()`'s rule: 10 log-graded panels of 8
+    /// points on [0, 300]); the Bromwich line of a record of the paper's
+    /// chain ([`Setup::for_record`] without a record: `sigma_B = 0.05`,
+    /// 10 x 8 points on `omega in [0, 4]`); shortlist 8, time shortlist 5,
+    /// 12 coarse iterations. The value bounds are the unknowns' own
+    /// ([`crate::detect::unknowns::KindBounds`]).
     ///
     /// # Errors
     /// Never in practice (fixed valid rules).
     pub fn new() -> Result<Setup> {
         Ok(Setup {
-            real_rule: Rule::gauss_legendre_log(0.0, 300.0, 10, 8, 0.05)?,
+            real_rule: crate::detect::misfit::MisfitSpec::default().rule()?,
             bromwich_sigma: 0.05,
             bromwich_rule: Rule::gauss_legendre_uniform(0.0, 4.0, 10, 8)?,
-            mass_bounds: (0.1, 50.0),
             shortlist: 8,
             time_shortlist: 5,
             coarse_iter: 12,
@@ -142,6 +144,30 @@ impl Setup {
             screen_iter: 4,
             exact_time_jacobian: true,
         })
+    }
+
+    /// The setup of a record of length `t_end` (`None`: no record) of a
+    /// chain like `chain`. The Bromwich line of sampled data is chosen from
+    /// the record, not fixed as a scene's (`MisfitSpec`: `sigma = 0.1`, 40 x 8
+    /// points, for exact-model values): its abscissa `sigma_B = max(10 /
+    /// t_end, 0.05)` weighs the unrecorded tail by `e^{-10}` (a smaller one
+    /// would see the truncation, a larger one less of the late echoes of
+    /// deep defects), and its 80 nodes cover `omega` up to twice the chain's
+    /// band `2 sqrt(k / mass)` (at least 4).
+    ///
+    /// # Errors
+    /// Never in practice (valid rules).
+    pub fn for_record(t_end: Option<f64>, chain: &Chain) -> Result<Setup> {
+        let mut setup = Setup::new()?;
+        if let Some(t) = t_end {
+            setup.bromwich_sigma = (10.0 / t).max(0.05);
+        }
+        let band = 2.0 * (chain.k() / chain.mass()).sqrt();
+        let w = (2.0 * band).max(4.0);
+        if (w - 4.0).abs() > 1e-12 {
+            setup.bromwich_rule = Rule::gauss_legendre_uniform(0.0, w, 10, 8)?;
+        }
+        Ok(setup)
     }
 
     /// The earlier path, kept as a baseline for benchmarks and tests: no
@@ -327,20 +353,6 @@ impl Hypothesis {
             defects,
             std_errors,
             chain,
-            chi2,
-            converged: true,
-        }
-    }
-
-    fn masses_only(positions: &[usize], masses: &[f64], chi2: f64, se: Vec<f64>) -> Hypothesis {
-        Hypothesis {
-            defects: positions
-                .iter()
-                .zip(masses)
-                .map(|(&at, &m)| Defect::Mass { at, m })
-                .collect(),
-            std_errors: se,
-            chain: Vec::new(),
             chi2,
             converged: true,
         }
@@ -942,161 +954,6 @@ pub fn fit_noisy_general(
     }
 }
 
-fn fit_set(
-    base: &Chain,
-    positions: &[usize],
-    start: &[f64],
-    obs: Obs<'_>,
-    setup: &Setup,
-    max_iter: usize,
-) -> Result<Hypothesis> {
-    let unknowns = Unknowns::new(
-        base.n(),
-        positions
-            .iter()
-            .map(|&at| Slot {
-                kind: KindChoice::Mass,
-                at: Some(at),
-                known: None,
-                bounds: Some(setup.mass_bounds),
-            })
-            .collect(),
-        Vec::new(),
-        KindBounds::default(),
-    )?;
-    let pairs: KindPositions = positions.iter().map(|&at| (DefectKind::Mass, at)).collect();
-    Ok(fit_pairs(base, &unknowns, &pairs, start, &[], false, obs, max_iter)?.hyp)
-}
-
-/// Ranked hypotheses for `k` free mass defects of `base` (its uniform part)
-/// against Laplace observations: [`fit_general`] with `k` mass slots in
-/// `setup.mass_bounds` (coarse pass over all position sets, in parallel,
-/// then the shortlist to convergence). `k = 0` gives the uniform chain.
-///
-/// # Errors
-/// `k > n` (field `k`); as [`fit_general`].
-pub fn enumerate_laplace(
-    base: &Chain,
-    obs: &LaplaceObs,
-    k: usize,
-    setup: &Setup,
-) -> Result<Vec<Hypothesis>> {
-    let n = base.n();
-    if k > n {
-        return Err(Error::invalid("k", k, format!("<= n = {n}")));
-    }
-    if k == 0 {
-        let r = obs.residuals(&base.uniform())?;
-        return Ok(vec![Hypothesis::masses_only(
-            &[],
-            &[],
-            r.iter().map(|v| v * v).sum(),
-            vec![],
-        )]);
-    }
-    let slot = Slot {
-        kind: KindChoice::Mass,
-        at: None,
-        known: None,
-        bounds: Some(setup.mass_bounds),
-    };
-    let unknowns = Unknowns::new(n, vec![slot; k], Vec::new(), KindBounds::default())?;
-    let g = fit_general(
-        base,
-        &unknowns,
-        obs,
-        None,
-        setup,
-        &GeneralOptions::default(),
-    )?;
-    Ok(g.ranked)
-}
-
-/// Refit each hypothesis of `shortlist` in the time domain (masses from its
-/// values) and rank by the time-domain chi-square.
-///
-/// # Errors
-/// As [`TimeMisfit`].
-pub fn refine_time(
-    base: &Chain,
-    misfit: &TimeMisfit,
-    shortlist: &[Hypothesis],
-    setup: &Setup,
-) -> Result<Vec<Hypothesis>> {
-    let mut out = Vec::with_capacity(shortlist.len());
-    for h in shortlist {
-        if h.defects.is_empty() {
-            let chi2 = misfit.chi2(&base.uniform())?;
-            out.push(Hypothesis { chi2, ..h.clone() });
-            continue;
-        }
-        out.push(fit_set(
-            base,
-            &h.positions(),
-            &h.masses(),
-            Obs::Time(misfit),
-            setup,
-            100,
-        )?);
-    }
-    Ok(rank(out))
-}
-
-/// Fit `k` mass defects to the noisy series `data` with the chosen misfit;
-/// returns the ranked hypotheses (best first).
-///
-/// # Errors
-/// As [`laplace_obs`], [`enumerate_laplace`], [`refine_time`].
-pub fn fit_noisy(
-    base: &Chain,
-    data: &TimeData,
-    k: usize,
-    choice: MisfitKind,
-    setup: &Setup,
-) -> Result<Vec<Hypothesis>> {
-    match choice {
-        MisfitKind::Time => {
-            let obs = laplace_obs(data, MisfitKind::Bromwich, setup)?;
-            let ranked = enumerate_laplace(base, &obs, k, setup)?;
-            time_from_bromwich(base, data, &ranked, setup)
-        }
-        laplace => {
-            let obs = laplace_obs(data, laplace, setup)?;
-            enumerate_laplace(base, &obs, k, setup)
-        }
-    }
-}
-
-/// The time-domain ranking from a Bromwich ranking (its first
-/// `setup.time_shortlist` sets refitted by [`refine_time`]).
-///
-/// # Errors
-/// As [`refine_time`].
-pub fn time_from_bromwich(
-    base: &Chain,
-    data: &TimeData,
-    bromwich: &[Hypothesis],
-    setup: &Setup,
-) -> Result<Vec<Hypothesis>> {
-    let n = setup.time_shortlist.min(bromwich.len());
-    refine_time(base, &TimeMisfit::new(data.clone()), &bromwich[..n], setup)
-}
-
-/// The identifiability report of a ranked list (best first), for the data's
-/// noise level `sigma` (see [`crate::detect::fit::identify`]). `uniform` is the
-/// uniform value of every defect (see [`identify_general`] for mixed kinds).
-///
-/// # Errors
-/// An empty list; as [`identify`].
-pub fn identify_ranked(
-    ranked: &[Hypothesis],
-    uniform: f64,
-    sigma: f64,
-    threshold: Option<f64>,
-) -> Result<Identifiability> {
-    identify_with(ranked, |_| uniform, sigma, threshold)
-}
-
 /// As [`identify_ranked`], each defect compared with the uniform value of
 /// its kind in `base` (`mass`, `k` or `d`).
 ///
@@ -1146,26 +1003,10 @@ fn identify_with(
     identify(&defects, best.chi2, &alts, sigma, threshold)
 }
 
-/// Fit the chain's damping `d` (and the masses) at the positions of `hyp` in
-/// the time domain; returns the report (values: masses then `d`).
-///
-/// # Errors
-/// As [`fit_chain`].
-pub fn fit_damping(
-    base: &Chain,
-    data: &TimeData,
-    hyp: &Hypothesis,
-) -> Result<crate::detect::fit::chainfit::ChainFitReport> {
-    let chain = base.uniform().with_defects(hyp.defects.iter().copied())?;
-    let mut params = Param::defects(&chain);
-    params.push(Param::D);
-    let misfit = TimeMisfit::new(data.clone());
-    fit_chain(&chain, &params, &Obs::Time(&misfit), None)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::detect::unknowns::KindChoice;
     use crate::noise::NoiseLevel;
 
     #[test]
@@ -1191,14 +1032,19 @@ mod tests {
         let data =
             TimeData::simulate(&truth, 200.0, 0.2, NoiseLevel::RelativeMax(1e-3), 3).unwrap();
         let setup = Setup::new().unwrap();
+        let u = Unknowns::free(5, &[KindChoice::Mass; 2], &[]).unwrap();
+        let opts = GeneralOptions::default();
         for choice in [MisfitKind::Bromwich, MisfitKind::Time] {
-            let r = fit_noisy(&truth.uniform(), &data, 2, choice, &setup).unwrap();
+            let g = fit_noisy_general(&truth.uniform(), &data, &u, choice, &setup, &opts).unwrap();
+            let r = &g.ranked;
             assert!(r[0].matches(&truth, 0.05), "{choice:?}: {:?}", r[0]);
         }
         // the real axis cannot see the light mass at 4 through 1e-3 noise
         // (docs/paper-notes.md): its best set has a chi-square no worse than the truth's
         let obs = laplace_obs(&data, MisfitKind::RealAxis, &setup).unwrap();
-        let r = enumerate_laplace(&truth.uniform(), &obs, 2, &setup).unwrap();
+        let r = fit_general(&truth.uniform(), &u, &obs, None, &setup, &opts)
+            .unwrap()
+            .ranked;
         let t: f64 = obs.residuals(&truth).unwrap().iter().map(|v| v * v).sum();
         eprintln!("real axis: best {:?}, truth chi2 {t}", r[0]);
         assert!(r[0].chi2 <= t * (1.0 + 1e-9));
@@ -1208,6 +1054,7 @@ mod tests {
 #[cfg(test)]
 mod screen_tests {
     use super::*;
+    use crate::detect::unknowns::KindChoice;
     use crate::noise::NoiseLevel;
 
     /// Screen then refine against the earlier path on the noise study's

@@ -144,7 +144,10 @@ pub enum RuleKind {
 /// The `[misfit]` table of a fit scene. Defaults: real axis, `gl-log`, 10
 /// panels of 8 points, `first = 0.05`, `s_max = 300`; for the Bromwich line
 /// `gl-uniform`, 40 panels of 8 points on `omega in [0, omega_max = 4]`,
-/// `sigma = 0.1`.
+/// `sigma = 0.1`. These are the scenes' rules (exact-model values, the
+/// paper's pipeline); the data-first fit of a sampled record chooses its
+/// Bromwich line from the record
+/// ([`crate::detect::fit::general::Setup::for_record`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MisfitSpec {
