@@ -954,11 +954,13 @@ pub fn fit_noisy_general(
     }
 }
 
-/// As [`identify_ranked`], each defect compared with the uniform value of
-/// its kind in `base` (`mass`, `k` or `d`).
+/// The identifiability report ([`crate::detect::fit::identify`]) of the
+/// best of `ranked` against its alternatives at noise level `sigma`, each
+/// defect compared with the uniform value of its kind in `base` (`mass`,
+/// `k` or `d`).
 ///
 /// # Errors
-/// As [`identify_ranked`].
+/// No hypothesis (field `ranked`); as [`identify`].
 pub fn identify_general(
     ranked: &[Hypothesis],
     base: &Chain,

@@ -23,7 +23,7 @@
 //! * **number of defects** ([`DefectCount`]): given, or `auto`: every `k` in
 //!   `0..=k_max` is fitted and the criterion ([`Criterion`], BIC by default)
 //!   chooses; the table is in the report.
-//! * **kinds** ([`KindChoice`]): mass, spring, damper or any.
+//! * **kinds** ([`KindChoice`](crate::detect::unknowns::KindChoice)): mass, spring, damper or any.
 //! * **method** ([`FitMethod`]): `enumerate` (every position set, values by
 //!   bounded Levenberg-Marquardt) works for every kind; `greedy`
 //!   ([`crate::detect::search::greedy`]: one defect at a time, candidates
