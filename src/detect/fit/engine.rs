@@ -713,7 +713,7 @@ impl Engine<'_> {
             dof: f.dof,
             status,
             message,
-            resolved: status == Status::Converged && gap_ok && all_ident,
+            resolved: status == Status::Converged && gap_ok && all_ident && fits_data,
             fits_data,
             fit_p_value: p,
             alternatives,

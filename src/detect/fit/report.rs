@@ -154,8 +154,10 @@ pub struct FitReport {
     pub status: Status,
     /// One line on the status.
     pub message: String,
-    /// The runner-up's chi-square gap is above the threshold and every
-    /// defect is identifiable.
+    /// The fit converged, the runner-up's chi-square gap is above the
+    /// threshold, every defect is identifiable, and the residual is
+    /// consistent with noise (`fits_data`): an answer whose residual is not
+    /// noise (a missing defect, a wrong basin) is never called resolved.
     pub resolved: bool,
     /// The residual is consistent with noise (chi-square test with a known
     /// sigma; Ljung-Box whiteness test of the time residual when sigma was
