@@ -33,7 +33,7 @@
 //! | [`misfit`] | [`misfit::MisfitKind`], the quadrature rules ([`misfit::quadrature`]), the mass-only Woodbury kernel, the time-domain chi-square ([`misfit::time`]) |
 //! | [`unknowns`] | the unknowns of a fit |
 //! | [`search`] | optimizers and [`search::enumerate`], [`search::lsq`] (bounded Levenberg-Marquardt) |
-//! | [`fit`] | [`fit::fit`] from data; [`fit::paper::fit`] the scene's fit (the paper's Table 1 path); [`fit::general`], [`fit::chainfit`], [`fit::identify`], [`fit::select`], [`fit::noise`] |
+//! | [`fit`] | [`fit::fit`] from data ([`fit::model`] what is known, [`fit::options`] what to look for, `fit/engine.rs` the machinery); [`fit::paper::fit`] the scene's fit (the paper's Table 1 path); [`fit::general`] the hypothesis fits, [`fit::chainfit`], [`fit::identify`], [`fit::select`] (k), [`fit::noise`] (sigma), [`fit::spectral`] (masses from modes) |
 //! | [`scene`] | the TOML fit scene |
 //! | [`locate`] | explicit single-defect locators (section 4.1), corrected, any precision |
 
