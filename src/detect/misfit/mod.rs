@@ -355,6 +355,9 @@ enum Tab {
     Real {
         g: GreenTable<f64>,
         d: Vec<f64>,
+        /// `G_1j` and `G_jj` at every node for the folded sets (when small
+        /// enough, [`MAX_ROWS`]).
+        rows: Option<Rows>,
     },
     Complex {
         g: GreenTable<Complex64>,
@@ -391,7 +394,15 @@ impl Misfit {
             MisfitKind::RealAxis => {
                 let g = GreenTable::new(&chain, &rule.nodes)?;
                 let sm = data.sample(&rule.nodes)?;
-                (Tab::Real { g, d: sm.values }, sm.sigma)
+                let rows = Rows::new(&g, &rule.weights);
+                (
+                    Tab::Real {
+                        g,
+                        d: sm.values,
+                        rows,
+                    },
+                    sm.sigma,
+                )
             }
             MisfitKind::Bromwich => {
                 let s: Vec<Complex64> = rule
@@ -455,8 +466,15 @@ impl Misfit {
     /// for the per-node `k x k` solves.
     pub fn set(&self, positions: &[usize]) -> SetTable {
         match &self.tab {
-            Tab::Real { g, d } if matches!(positions.len(), 1 | 2) => SetTable {
-                body: Body::Folded(Folded::new(g, d, &self.w, positions, self.chain.gamma())),
+            Tab::Real { g, d, rows } if matches!(positions.len(), 1 | 2) => SetTable {
+                body: Body::Folded(Folded::new(
+                    g,
+                    rows.as_ref(),
+                    d,
+                    &self.w,
+                    positions,
+                    self.chain.gamma(),
+                )),
                 obs: positions.iter().position(|&p| p == 1),
                 gamma: self.chain.gamma(),
             },
@@ -471,7 +489,7 @@ impl Misfit {
         let obs = positions.iter().position(|&p| p == 1);
         let gamma = self.chain.gamma();
         match &self.tab {
-            Tab::Real { g, d } => {
+            Tab::Real { g, d, .. } => {
                 let s2: Vec<f64> = g.s().iter().map(|s| s * s).collect();
                 SetTable {
                     body: Body::Real(Gathered::new(g, &s2, d, &self.w, positions)),
@@ -708,7 +726,7 @@ const LANES: usize = 8;
 
 /// Coefficient rows of [`Folded`]: numerator `N0 N1 N2 N12`, denominator
 /// `D1 D2 D12`, the Jacobian factors `A0 A2` (of `z_1`) and `B0 B1` (of
-/// `z_2`), the weight and the datum.
+/// `z_2`), and the datum.
 const N0: usize = 0;
 const N1: usize = 1;
 const N2: usize = 2;
@@ -720,9 +738,40 @@ const A0: usize = 7;
 const A2: usize = 8;
 const B0: usize = 9;
 const B1: usize = 10;
-const W: usize = 11;
-const DATA: usize = 12;
-const ROWS: usize = 13;
+const DATA: usize = 11;
+const ROWS: usize = 12;
+
+/// Largest `n * nodes` for which [`Misfit::new`] tables `G_1j` and `G_jj`
+/// at every node (two arrays of that many values, 16 MB at the limit):
+/// gathering a folded set then reads them instead of forming them from the
+/// Green's table.
+const MAX_ROWS: usize = 1 << 20;
+
+/// `G_1j(s_q)` and `G_jj(s_q)`, `[(j - 1) * nodes + q]`, and the roots
+/// `(sqrt(w_q), w_q^(1/4))` of the weights.
+#[derive(Clone, Debug)]
+struct Rows {
+    g1: Vec<f64>,
+    gd: Vec<f64>,
+    roots: Vec<(f64, f64)>,
+}
+
+impl Rows {
+    fn new(g: &GreenTable<f64>, w: &[f64]) -> Option<Rows> {
+        let (n, nq) = (g.n(), g.len());
+        if n.saturating_mul(nq) > MAX_ROWS {
+            return None;
+        }
+        let roots = w.iter().map(|w| (w.sqrt(), w.sqrt().sqrt())).collect();
+        let mut g1 = Vec::with_capacity(n * nq);
+        let mut gd = Vec::with_capacity(n * nq);
+        for j in 1..=n {
+            g1.extend((0..nq).map(|q| g.entry(q, 1, j)));
+            gd.extend((0..nq).map(|q| g.entry(q, j, j)));
+        }
+        Some(Rows { g1, gd, roots })
+    }
+}
 
 /// One or two mass defects on the real axis, folded: per node the Cramer
 /// solution of the `2 x 2` capacitance system written as a ratio of bilinear
@@ -741,7 +790,10 @@ const ROWS: usize = 13;
 /// `A2 = s^3 (G_1a G_bb - G_ab G_1b)`, `B0, B1` alike. When a position is
 /// the observed mass 1 the terms that vanish identically (`N1, N12` for
 /// `a = 1`) are set to zero rather than left to rounding. `k = 1` is the
-/// same form with the `b` rows zero.
+/// same form with the `b` rows zero. The weights are folded in too: the
+/// numerator and the datum carry `sqrt(w_q)`, `A` and `B` carry `w_q^(1/4)`,
+/// so that `r = sum_q (X~_q - d~_q)^2` and the Gauss-Newton sums need no
+/// weight.
 #[derive(Clone, Debug)]
 struct Folded {
     k: usize,
@@ -752,7 +804,14 @@ struct Folded {
 }
 
 impl Folded {
-    fn new(g: &GreenTable<f64>, d: &[f64], w: &[f64], pos: &[usize], gamma: f64) -> Folded {
+    fn new(
+        g: &GreenTable<f64>,
+        rows: Option<&Rows>,
+        d: &[f64],
+        w: &[f64],
+        pos: &[usize],
+        gamma: f64,
+    ) -> Folded {
         debug_assert!(pos.len() == 1 || pos.len() == 2);
         let nq = g.len();
         let np = nq.div_ceil(LANES) * LANES;
@@ -762,20 +821,33 @@ impl Folded {
         let b = pos.get(1).copied();
         let obs_a = a == 1;
         let obs_b = b == Some(1);
+        // G_1j and G_jj: from the rows when tabled, else from the table
+        let one = |q: usize, j: usize| match rows {
+            Some(r) => (r.g1[(j - 1) * nq + q], r.gd[(j - 1) * nq + q]),
+            None => (g.entry(q, 1, j), g.entry(q, j, j)),
+        };
         for (q, &s) in g.s().iter().enumerate() {
             let s2 = s * s;
-            let g11 = g.entry(q, 1, 1);
-            let g1a = g.entry(q, 1, a);
-            let gaa = g.entry(q, a, a);
+            let (g11, _) = one(q, 1);
+            let (g1a, gaa) = one(q, a);
             let (g1b, gab, gbb) = match b {
-                Some(b) => (g.entry(q, 1, b), g.entry(q, a, b), g.entry(q, b, b)),
+                Some(b) => {
+                    let (g1b, gbb) = one(q, b);
+                    (g1b, g.entry(q, a, b), gbb)
+                }
                 None => (0.0, 0.0, 0.0),
             };
             let delta = gaa * gbb - gab * gab;
             let minor3 = g11 * delta - g1a * g1a * gbb - g1b * g1b * gaa + 2.0 * g1a * g1b * gab;
-            let gs2 = gamma * s2;
+            // sqrt(w) on X and the datum, w^(1/4) on s z_l
+            let (sw, qw) = match rows {
+                Some(r) => r.roots[q],
+                None => (w[q].sqrt(), w[q].sqrt().sqrt()),
+            };
+            let gs2 = sw * gamma * s2;
+            let qs = qw * s;
             let mut row = |r: usize, v: f64| c[r * np + q] = v;
-            row(N0, gamma * g11);
+            row(N0, sw * gamma * g11);
             row(
                 N1,
                 if obs_a {
@@ -803,12 +875,11 @@ impl Folded {
             row(D1, s2 * gaa);
             row(D2, s2 * gbb);
             row(D12, s2 * s2 * delta);
-            row(A0, s * g1a);
-            row(A2, s * s2 * (g1a * gbb - gab * g1b));
-            row(B0, s * g1b);
-            row(B1, s * s2 * (g1b * gaa - gab * g1a));
-            row(W, w[q]);
-            row(DATA, d[q]);
+            row(A0, qs * g1a);
+            row(A2, qs * s2 * (g1a * gbb - gab * g1b));
+            row(B0, qs * g1b);
+            row(B1, qs * s2 * (g1b * gaa - gab * g1a));
+            row(DATA, sw * d[q]);
         }
         Folded { k, np, gamma, c }
     }
@@ -825,7 +896,7 @@ impl Folded {
         let dm12 = dm1 * dm2;
         let (n0, n1, n2, n12) = (self.row(N0), self.row(N1), self.row(N2), self.row(N12));
         let (d1, d2, d12) = (self.row(D1), self.row(D2), self.row(D12));
-        let (w, d) = (self.row(W), self.row(DATA));
+        let d = self.row(DATA);
         let mut acc = [0.0f64; LANES];
         for q0 in (0..self.np).step_by(LANES) {
             // fixed-size views: one bounds check per chunk, none in the lanes
@@ -833,12 +904,12 @@ impl Folded {
                 a[q0..q0 + LANES].try_into().expect("padded to LANES")
             };
             let (n0, n1, n2, n12) = (v(n0), v(n1), v(n2), v(n12));
-            let (d1, d2, d12, w, d) = (v(d1), v(d2), v(d12), v(w), v(d));
+            let (d1, d2, d12, d) = (v(d1), v(d2), v(d12), v(d));
             for l in 0..LANES {
                 let num = n0[l] + n1[l] * dm1 + n2[l] * dm2 + n12[l] * dm12;
                 let den = 1.0 + d1[l] * dm1 + d2[l] * dm2 + d12[l] * dm12;
                 let e = num / den - d[l];
-                acc[l] += w[l] * e * e;
+                acc[l] += e * e;
             }
         }
         ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]))
@@ -853,14 +924,14 @@ impl Folded {
         let (n0, n1, n2, n12) = (self.row(N0), self.row(N1), self.row(N2), self.row(N12));
         let (d1, d2, d12) = (self.row(D1), self.row(D2), self.row(D12));
         let (a0, a2, b0, b1) = (self.row(A0), self.row(A2), self.row(B0), self.row(B1));
-        let (w, d) = (self.row(W), self.row(DATA));
-        // per lane: r, sum w u1 e, sum w u2 e, sum w u1^2, sum w u1 u2, sum w u2^2
-        // with u_l = (s z_l)^2 = -J_l / gamma
+        let d = self.row(DATA);
+        // per lane: r, sum u1 e, sum u2 e, sum u1^2, sum u1 u2, sum u2^2 with
+        // the weighted e = sqrt(w) (X - d) and u_l = sqrt(w) (s z_l)^2 = -sqrt(w) J_l / gamma
         let mut acc = [[0.0f64; L]; 6];
         for q0 in (0..self.np).step_by(L) {
             let v = |a: &[f64]| -> [f64; L] { a[q0..q0 + L].try_into().expect("padded") };
             let (n0, n1, n2, n12) = (v(n0), v(n1), v(n2), v(n12));
-            let (d1, d2, d12, w, d) = (v(d1), v(d2), v(d12), v(w), v(d));
+            let (d1, d2, d12, d) = (v(d1), v(d2), v(d12), v(d));
             let (a0, a2, b0, b1) = (v(a0), v(a2), v(b0), v(b1));
             for l in 0..L {
                 let num = n0[l] + n1[l] * dm1 + n2[l] * dm2 + n12[l] * dm12;
@@ -870,13 +941,12 @@ impl Folded {
                 let t1 = (a0[l] + a2[l] * dm2) * inv;
                 let t2 = (b0[l] + b1[l] * dm1) * inv;
                 let (u1, u2) = (t1 * t1, t2 * t2);
-                let we = w[l] * e;
-                acc[0][l] += we * e;
-                acc[1][l] += we * u1;
-                acc[2][l] += we * u2;
-                acc[3][l] += w[l] * u1 * u1;
-                acc[4][l] += w[l] * u1 * u2;
-                acc[5][l] += w[l] * u2 * u2;
+                acc[0][l] += e * e;
+                acc[1][l] += u1 * e;
+                acc[2][l] += u2 * e;
+                acc[3][l] += u1 * u1;
+                acc[4][l] += u1 * u2;
+                acc[5][l] += u2 * u2;
             }
         }
         let sum = |a: [f64; L]| (a[0] + a[1]) + (a[2] + a[3]);
