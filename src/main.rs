@@ -58,6 +58,8 @@ enum Command {
     Surface(cmd::surface::Args),
     /// The shipped noise studies (data-first defaults, per misfit, defect kinds) on the study engine.
     NoiseStudy(cmd::noise::Args),
+    /// Every mass of a chain from the modes of mass 1 (frequencies and residues; inverse eigenvalue problem).
+    Spectral(cmd::spectral::Args),
     /// Print a shell completion script: `springmass completions bash > ~/.local/share/bash-completion/completions/springmass`.
     Completions {
         /// The shell.
@@ -81,6 +83,7 @@ fn run() -> anyhow::Result<()> {
         Command::Fit(a) => cmd::fit::run(a),
         Command::Surface(a) => cmd::surface::run(a),
         Command::NoiseStudy(a) => cmd::noise::run(a),
+        Command::Spectral(a) => cmd::spectral::run(a),
         Command::Completions { shell } => {
             let mut buf = Vec::new();
             clap_complete::generate(shell, &mut Cli::command(), "springmass", &mut buf);

@@ -78,6 +78,8 @@ __all__ = [
     "locate",
     "scene",
     "read_csv",
+    "spectral",
+    "SpectralResult",
 ]
 
 
@@ -1104,6 +1106,65 @@ def scene(name: str) -> Scene:
         mass=float(raw["mass"]),
         defects=tuple(Defect(kind, int(at), float(v)) for kind, at, v in raw["defects"]),
     )
+
+
+@dataclass(frozen=True)
+class SpectralResult:
+    """Masses rebuilt from the modes of mass 1 (see :func:`spectral`)."""
+
+    masses: np.ndarray
+    consistency: float
+
+    @property
+    def resolved(self) -> bool:
+        """``consistency < 1e-6``: the masses kept at least six digits."""
+        return self.consistency < 1e-6
+
+
+def spectral(
+    omega: Any,
+    residue: Any,
+    *,
+    k: float = 1.0,
+    left: str = "fixed",
+    right: str = "fixed",
+) -> SpectralResult:
+    """Every mass of a chain from the modes of mass 1 (inverse eigenvalue problem).
+
+    Parameters
+    ----------
+    omega : array_like
+        The natural frequencies (rad/s), every mode of the chain: as many
+        as masses.
+    residue : array_like
+        The driving-point modal constants of mass 1 per unit impulse:
+        ``X_1(s) / gamma = sum_j residue[j] / (s**2 + omega[j]**2)``.
+    k : float
+        The uniform spring constant.
+    left, right : str
+        ``"fixed"`` or ``"free"`` ends.
+
+    Returns
+    -------
+    SpectralResult
+        ``masses`` (m_1 first) and ``consistency``, about their relative
+        error; above 1e-6 (``resolved`` false) part of the chain is beyond
+        what the modes resolve in f64 (a light mass deep in the chain, a
+        random profile).
+
+    Examples
+    --------
+    >>> import springmass
+    >>> r = springmass.spectral([1.0], [0.5])     # one mass on a wall spring
+    >>> round(float(r.masses[0]), 12), r.resolved
+    (2.0, True)
+    """
+    om = _vector("omega", omega)
+    re = _vector("residue", residue)
+    if om.shape != re.shape:
+        raise _invalid("residue", f"{re.size} values", f"one per omega ({om.size})")
+    raw = _core.spectral(om, re, k=_real("k", k), left=_text("left", left), right=_text("right", right))
+    return SpectralResult(masses=np.asarray(raw["masses"]), consistency=float(raw["consistency"]))
 
 
 # ---------------------------------------------------------------- files

@@ -110,3 +110,13 @@ def scene(name: str) -> Dict[str, Any]:
 
 def read_csv(path: Union[str, "PathLike[str]"]) -> Dict[str, Any]:
     """{"t": ndarray, "columns": {name: ndarray}}."""
+
+def spectral(
+    omega: npt.NDArray[np.float64],
+    residue: npt.NDArray[np.float64],
+    *,
+    k: float,
+    left: str,
+    right: str,
+) -> Dict[str, Any]:
+    """{"masses": ndarray, "consistency": float}."""

@@ -277,19 +277,7 @@ fn response_real<'py>(
     observe: usize,
     observe_kind: String,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let arr = s.as_array().to_owned();
-    let out = py
-        .detach(move || -> Result<_> {
-            let fwd = Forward::new(&chain.build()?);
-            let kind: Observable = observe_kind.parse()?;
-            let mut out = arr.clone();
-            for (o, &z) in out.iter_mut().zip(arr.iter()) {
-                *o = fwd.observe(z, observe, kind)?;
-            }
-            Ok(out)
-        })
-        .py_err()?;
-    Ok(out.into_pyarray(py).into_any())
+    observe_at(py, s, chain, observe, observe_kind)
 }
 
 /// The transform of the observed quantity at complex `s` (any shape).
@@ -302,6 +290,21 @@ fn response_complex<'py>(
     observe: usize,
     observe_kind: String,
 ) -> PyResult<Bound<'py, PyAny>> {
+    observe_at(py, s, chain, observe, observe_kind)
+}
+
+/// The observed quantity's transform at every `s` of an array (real or
+/// complex), with the GIL released.
+fn observe_at<'py, T>(
+    py: Python<'py>,
+    s: PyReadonlyArrayDyn<'py, T>,
+    chain: ChainArgs,
+    observe: usize,
+    observe_kind: String,
+) -> PyResult<Bound<'py, PyAny>>
+where
+    T: springmass::scalar::Scalar + numpy::Element + Copy + Send + Sync,
+{
     let arr = s.as_array().to_owned();
     let out = py
         .detach(move || -> Result<_> {
@@ -557,6 +560,39 @@ fn scene<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
     Ok(out)
 }
 
+/// Every mass of a chain from the modes of mass 1: natural frequencies
+/// `omega` (rad/s) and residues `r_j` of `X_1(s) / gamma = sum_j r_j /
+/// (s^2 + omega_j^2)`, uniform springs `k`; see
+/// `springmass::detect::fit::spectral`.
+#[pyfunction]
+#[pyo3(signature = (omega, residue, *, k, left, right))]
+fn spectral<'py>(
+    py: Python<'py>,
+    omega: PyReadonlyArray1<'py, f64>,
+    residue: PyReadonlyArray1<'py, f64>,
+    k: f64,
+    left: String,
+    right: String,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (om, re) = (omega.as_array().to_vec(), residue.as_array().to_vec());
+    let s = py
+        .detach(move || -> Result<_> {
+            let chain = Chain::paper(om.len())?
+                .with_k(k)?
+                .with_boundaries(left.parse()?, right.parse()?)?;
+            let spec = springmass::detect::fit::spectral::Spectrum {
+                lambda: om.iter().map(|w| w * w).collect(),
+                residue: re,
+            };
+            springmass::detect::fit::spectral::masses_from_spectrum(&chain.springs(), &spec)
+        })
+        .py_err()?;
+    let out = PyDict::new(py);
+    out.set_item("consistency", s.consistency)?;
+    out.set_item("masses", s.masses.into_pyarray(py))?;
+    Ok(out)
+}
+
 /// The native module.
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -572,5 +608,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(locate, m)?)?;
     m.add_function(wrap_pyfunction!(scene, m)?)?;
     m.add_function(wrap_pyfunction!(read_csv, m)?)?;
+    m.add_function(wrap_pyfunction!(spectral, m)?)?;
     Ok(())
 }

@@ -107,3 +107,27 @@ def test_example_fits_a_csv(s1_record, tmp_path):
     lines = [line.split() for line in out.stdout.splitlines() if line.startswith("  mass at")]
     assert [line[2] for line in lines] == ["2:", "4:"], out.stdout
     assert png.is_file() == (importlib.util.find_spec("matplotlib") is not None)
+
+
+def test_spectral_rebuilds_every_mass_from_the_modes():
+    import numpy as np
+
+    # an undamped chain n = 6, k = 2, masses m; its Jacobi matrix's spectrum
+    m = np.array([1.0, 2.5, 1.0, 1.0, 0.7, 1.0])
+    k = 2.0
+    n = m.size
+    j = np.zeros((n, n))
+    for i in range(n):
+        j[i, i] = 2 * k / m[i]
+        if i + 1 < n:
+            j[i, i + 1] = j[i + 1, i] = -k / np.sqrt(m[i] * m[i + 1])
+    lam, v = np.linalg.eigh(j)
+    r = springmass.spectral(np.sqrt(lam), v[0, :] ** 2 / m[0], k=k)
+    assert r.resolved
+    np.testing.assert_allclose(r.masses, m, rtol=1e-10)
+    try:
+        springmass.spectral([1.0, 2.0], [0.5], k=k)
+    except ValueError as e:
+        assert "residue" in str(e)
+    else:
+        raise AssertionError("unequal lengths accepted")

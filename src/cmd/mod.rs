@@ -7,6 +7,7 @@ pub mod locate;
 pub mod noise;
 pub mod response;
 pub mod simulate;
+pub mod spectral;
 pub mod study;
 pub mod suppress;
 pub mod surface;

@@ -49,6 +49,16 @@ pub enum Source {
         /// The true chain.
         chain: Chain,
     },
+    /// Values given at fixed nodes (a user's Laplace data with their
+    /// errors); they can be sampled at those nodes only.
+    Values {
+        /// The nodes.
+        s: Vec<Complex64>,
+        /// `X_1(s_q)`.
+        values: Vec<Complex64>,
+        /// Standard error per node (absolute).
+        sigma: Vec<f64>,
+    },
     /// The Laplace transform of a sampled series.
     Series {
         /// The prepared transform.
@@ -92,6 +102,43 @@ impl Data {
             noise: 0.0,
             seed: 0,
         }
+    }
+
+    /// Laplace values `X_1(s_q)` at fixed nodes with their standard errors.
+    ///
+    /// # Errors
+    /// Lengths that differ or are zero, a value or node that is not finite,
+    /// an error that is not positive (field `values`).
+    pub fn at_nodes(s: Vec<Complex64>, values: Vec<Complex64>, sigma: Vec<f64>) -> Result<Data> {
+        if s.is_empty() || values.len() != s.len() || sigma.len() != s.len() {
+            return Err(Error::invalid(
+                "values",
+                format!(
+                    "{} nodes, {} values, {} errors",
+                    s.len(),
+                    values.len(),
+                    sigma.len()
+                ),
+                "as many values and errors as nodes, at least one",
+            ));
+        }
+        let finite = |z: &Complex64| z.re.is_finite() && z.im.is_finite();
+        if !(s.iter().all(finite)
+            && values.iter().all(finite)
+            && sigma.iter().all(|e| e.is_finite() && *e > 0.0))
+        {
+            return Err(Error::invalid(
+                "values",
+                "a node, value or error out of range",
+                "finite nodes and values, errors > 0",
+            ));
+        }
+        Ok(Data {
+            source: Source::Values { s, values, sigma },
+            forward: Forward::new(&Chain::paper(1)?),
+            noise: 0.0,
+            seed: 0,
+        })
     }
 
     /// Data from samples `x_1(t_i)` (uniform or not), with the white-noise
@@ -215,6 +262,7 @@ impl Data {
         match &self.source {
             Source::Exact { chain } => Some(chain),
             Source::Series { truth, .. } => truth.as_ref(),
+            Source::Values { .. } => None,
         }
     }
 
@@ -239,6 +287,19 @@ impl Data {
                 let x = x.ok_or_else(|| Error::invalid("s", z, "a value of the node type"))?;
                 Ok((x, err))
             }
+            Source::Values {
+                s: nodes,
+                values,
+                sigma,
+            } => {
+                let z = s.to_c64();
+                let q = nodes.iter().position(|n| *n == z).ok_or_else(|| {
+                    Error::invalid("s", z, "one of the nodes the values are given at")
+                })?;
+                let x = T::from_c64(values[q])
+                    .ok_or_else(|| Error::invalid("s", z, "a value of the node type"))?;
+                Ok((x, sigma[q]))
+            }
         }
     }
 
@@ -247,7 +308,7 @@ impl Data {
     pub fn samples(&self) -> Option<(&[f64], &[f64])> {
         match &self.source {
             Source::Series { transform, .. } => Some(transform.samples()),
-            Source::Exact { .. } => None,
+            Source::Exact { .. } | Source::Values { .. } => None,
         }
     }
 

@@ -35,6 +35,9 @@ pub struct LaplaceObs {
     /// Per-node powers of the uniform chain of the first chain evaluated
     /// (every candidate of a fit shares it).
     tables: TableCache,
+    /// The same data at a subset of the nodes, whitened by their own
+    /// (marginal) covariance: a cheaper true chi-square for screening.
+    screen: Option<Box<LaplaceObs>>,
 }
 
 /// Largest chain whose per-node sweep tables are kept (`2 (2n + 2)` complex
@@ -91,6 +94,7 @@ impl LaplaceObs {
             sensor: Sensor::PAPER,
             force_hat: None,
             tables: TableCache::default(),
+            screen: None,
         })
     }
 
@@ -118,6 +122,20 @@ impl LaplaceObs {
         self.sensor = sensor;
         self.force_hat = force_hat;
         Ok(self)
+    }
+
+    /// Attach a screening observation: the same data at a subset of the
+    /// nodes, whitened by their marginal covariance (built by
+    /// [`crate::detect::fit::general::laplace_obs`]); a search ranks every
+    /// candidate on it and fits only the best on `self`.
+    pub fn with_screen(mut self, screen: LaplaceObs) -> LaplaceObs {
+        self.screen = Some(Box::new(screen));
+        self
+    }
+
+    /// The screening observation, if any (see [`LaplaceObs::with_screen`]).
+    pub fn screen(&self) -> Option<&LaplaceObs> {
+        self.screen.as_deref()
     }
 
     /// The sensor whose observable the data are.

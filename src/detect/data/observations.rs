@@ -177,7 +177,8 @@ pub struct LaplaceValues {
 
 impl LaplaceValues {
     /// Nodes `s` (finite, `Re s >= 0`), values, and the standard error of each
-    /// value if known (`> 0`).
+    /// value if known (`> 0`; of the real and of the imaginary part each, so
+    /// that a complex node adds two terms to the chi-square).
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] naming `values` (length), `s[i]`,

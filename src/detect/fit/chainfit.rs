@@ -4,8 +4,10 @@
 //!
 //! Two kinds of observation:
 //!
-//! * [`Obs::Time`]: the time-domain chi-square ([`TimeMisfit`]); Jacobian by
-//!   central differences of the exact modal sum;
+//! * [`Obs::Time`]: the time-domain chi-square ([`TimeMisfit`]); Jacobian
+//!   exact for defect values and `gamma` ([`TimeMisfit::jacobian`]: the modal
+//!   sum's derivative), by central differences of the exact modal sum
+//!   otherwise;
 //! * [`Obs::Laplace`]: values `d_q` at Laplace nodes `s_q` (real or complex)
 //!   with weights `w_q` (`chi^2 = sum_q w_q |X_1(s_q) - d_q|^2`, for example
 //!   quadrature weights over `sigma^2`), or with a whitening matrix `W`
@@ -112,7 +114,10 @@ impl LeastSquares for ChainProblem<'_> {
     }
     fn jacobian(&self, theta: &[f64]) -> Result<DMatrix<f64>> {
         match self.obs {
-            Obs::Time(_) => crate::detect::search::lsq::central_jacobian(self, theta, 1e-6),
+            Obs::Time(m) => match m.jacobian(&self.chain(theta)?, &self.params)? {
+                Some(j) => Ok(j),
+                None => crate::detect::search::lsq::central_jacobian(self, theta, 1e-6),
+            },
             Obs::Laplace(l) => l.jacobian(&self.chain(theta)?, &self.params),
         }
     }

@@ -1,5 +1,7 @@
-//! A data-first fit's [`Model`] and [`FitOptions`] from the options a front
-//! end receives as text (`springmass fit --data ...`, the Python package's
+//! What a data-first fit looks for and how ([`FitOptions`]: the number of
+//! defects, their kinds, the noise level, the misfit, the search), and the
+//! [`Model`] and [`FitOptions`] built from the options a front end receives
+//! as text (`springmass fit --data ...`, the Python package's
 //! `springmass.fit(...)`), built in one place so that every front end fits
 //! the same data alike.
 //!
@@ -35,13 +37,209 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::{parse_params, Criterion, DefectCount, FitMethod, FitOptions, Model, NoiseSpec};
+use super::{parse_params, Criterion, FitMethod, Model};
 use crate::chain::{Boundary, Defect};
 use crate::detect::data::measurement::{Measurement, Sensor};
+use crate::detect::data::observations::Observations;
 use crate::detect::misfit::MisfitKind;
 use crate::detect::unknowns::KindChoice;
 use crate::error::{Error, Result};
 use crate::forward::Observable;
+use serde::Serialize;
+
+/// How many defects to look for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum DefectCount {
+    /// Exactly this many.
+    Exactly(usize),
+    /// Choose among `0..=k_max` by the criterion.
+    Auto {
+        /// Largest number tried.
+        k_max: usize,
+    },
+}
+
+impl DefectCount {
+    /// `auto` (k_max 4, or n when smaller), `auto:K`, or a number.
+    ///
+    /// # Errors
+    /// [`Error::Parse`] naming the forms.
+    pub fn parse(text: &str) -> Result<DefectCount> {
+        let t = text.trim();
+        let bad = || {
+            Error::parse(
+                "defects",
+                text,
+                "expected auto, auto:K_MAX or a number of defects",
+            )
+        };
+        if t == "auto" {
+            return Ok(DefectCount::Auto {
+                k_max: DEFAULT_K_MAX,
+            });
+        }
+        if let Some(k) = t.strip_prefix("auto:") {
+            return Ok(DefectCount::Auto {
+                k_max: k.parse().map_err(|_| bad())?,
+            });
+        }
+        t.parse().map(DefectCount::Exactly).map_err(|_| bad())
+    }
+}
+
+/// Default largest number of defects tried by `defects = auto`.
+pub const DEFAULT_K_MAX: usize = 4;
+
+/// The noise level of the data.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub enum NoiseSpec {
+    /// Estimate it (see the module docs).
+    Auto,
+    /// Known standard deviation of the samples (absolute).
+    Sigma(f64),
+}
+
+impl NoiseSpec {
+    /// `auto` or a positive number.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `noise`.
+    pub fn parse(text: &str) -> Result<NoiseSpec> {
+        let t = text.trim();
+        if t == "auto" {
+            return Ok(NoiseSpec::Auto);
+        }
+        let v: f64 = t
+            .parse()
+            .map_err(|_| Error::invalid("noise", t, "auto or a standard deviation > 0"))?;
+        if !(v.is_finite() && v > 0.0) {
+            return Err(Error::invalid(
+                "noise",
+                t,
+                "auto or a finite standard deviation > 0",
+            ));
+        }
+        Ok(NoiseSpec::Sigma(v))
+    }
+}
+
+/// What to look for and how (see the module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitOptions {
+    /// Number of defects (default `auto`, `k_max = 4`).
+    pub defects: DefectCount,
+    /// Their kinds (default mass).
+    pub kinds: KindChoice,
+    /// One kind per free defect, overriding `kinds` (empty: every defect of
+    /// kind `kinds`); needs `defects` = exactly that many.
+    pub slot_kinds: Vec<KindChoice>,
+    /// Noise level (default estimated).
+    pub noise: NoiseSpec,
+    /// Misfit (default: `time` for a series, the nodes' chi-square for Laplace values).
+    pub misfit: Option<MisfitKind>,
+    /// Search (default enumeration).
+    pub method: FitMethod,
+    /// Criterion of `defects = auto` (default BIC).
+    pub criterion: Criterion,
+    /// Seed of the stochastic searches.
+    pub seed: u64,
+    /// Evaluation budget of the stochastic searches (default 20 000).
+    pub max_evals: usize,
+    /// Alternatives reported (default 5).
+    pub alternatives: usize,
+    /// Fit hypotheses in parallel; the result does not depend on it.
+    pub parallel: bool,
+    /// Largest number of hypotheses enumerated (default 200 000).
+    pub max_sets: usize,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            defects: DefectCount::Auto {
+                k_max: DEFAULT_K_MAX,
+            },
+            kinds: KindChoice::Mass,
+            slot_kinds: Vec::new(),
+            noise: NoiseSpec::Auto,
+            misfit: None,
+            method: FitMethod::Enumerate,
+            criterion: Criterion::Bic,
+            seed: 0,
+            max_evals: 20_000,
+            alternatives: 5,
+            parallel: true,
+            max_sets: 200_000,
+        }
+    }
+}
+
+impl FitOptions {
+    /// Check the options against the model and the data, before any work.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `defects` (k > n), `k_max`
+    /// (k_max > n), `method` (a stochastic search for other kinds than mass
+    /// or with chain parameters fitted), `misfit` (`time` with Laplace values),
+    /// `max_evals` (0), `max_sets` (0).
+    pub fn validate(&self, obs: &Observations, model: &Model) -> Result<()> {
+        let n = model.n();
+        match self.defects {
+            DefectCount::Exactly(k) if k > n => {
+                return Err(Error::invalid("defects", k, format!("<= n = {n}")))
+            }
+            DefectCount::Auto { k_max } if k_max > n => {
+                return Err(Error::invalid("k_max", k_max, format!("<= n = {n}")))
+            }
+            _ => {}
+        }
+        if !self.slot_kinds.is_empty()
+            && self.defects != DefectCount::Exactly(self.slot_kinds.len())
+        {
+            return Err(Error::invalid(
+                "kinds",
+                format!("{} kinds", self.slot_kinds.len()),
+                "one kind per defect: as many kinds as defects, with a given number of defects",
+            ));
+        }
+        let all_mass = self.kinds == KindChoice::Mass
+            && self.slot_kinds.iter().all(|k| *k == KindChoice::Mass);
+        if !matches!(self.method, FitMethod::Enumerate | FitMethod::Greedy)
+            && (!all_mass || !model.fitted().is_empty())
+        {
+            return Err(Error::invalid(
+                "method",
+                self.method.name(),
+                "enumerate or greedy for spring, damper or any-kind defects and for fitted chain parameters (ga, nelder-mead and pso search mass defects only)",
+            ));
+        }
+        if self.method == FitMethod::Greedy && self.slot_kinds.windows(2).any(|w| w[0] != w[1]) {
+            return Err(Error::invalid(
+                "kinds",
+                "a different kind per defect",
+                "one kind for every defect with the greedy search (or the enumeration)",
+            ));
+        }
+        match obs {
+            Observations::Series(s) => s.measurement().sensor().check(n)?,
+            Observations::Laplace(l) => l.sensor().check(n)?,
+        }
+        if matches!(obs, Observations::Laplace(_)) && self.misfit == Some(MisfitKind::Time) {
+            return Err(Error::invalid(
+                "misfit",
+                "time",
+                "real-axis or bromwich for Laplace values (the time misfit needs a sampled series)",
+            ));
+        }
+        if self.max_evals == 0 {
+            return Err(Error::invalid("max_evals", 0, ">= 1"));
+        }
+        if self.max_sets == 0 {
+            return Err(Error::invalid("max_sets", 0, ">= 1"));
+        }
+        Ok(())
+    }
+}
 
 /// The options of a data-first fit as a front end receives them (see the
 /// module docs); `None` or empty means the default.

@@ -26,23 +26,133 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::chain::Chain;
+use crate::chain::{Chain, Defect};
 use crate::detect::data::series::TimeData;
-use crate::error::Result;
-use crate::time::modal::ModalResponse;
+use crate::error::{Error, Result};
+use crate::sensitivity::Param;
+use crate::time::modal::Modes;
+use nalgebra::DMatrix;
+
+thread_local! {
+    /// The last modal decomposition made on this thread and its chain: a
+    /// fit asks for the residuals and then the Jacobian at the same point.
+    static LAST_MODES: std::cell::RefCell<Option<(Chain, std::rc::Rc<Modes>)>> =
+        const { std::cell::RefCell::new(None) };
+}
+
+/// `f` of `chain`'s modal decomposition, made once per chain and thread.
+fn with_modes<T>(chain: &Chain, f: impl FnOnce(&Modes) -> Result<T>) -> Result<T> {
+    let cached = LAST_MODES.with(|c| {
+        c.borrow()
+            .as_ref()
+            .filter(|(k, _)| k == chain)
+            .map(|(_, m)| m.clone())
+    });
+    let modes = match cached {
+        Some(m) => m,
+        None => {
+            let m = std::rc::Rc::new(Modes::new(chain)?);
+            LAST_MODES.with(|c| *c.borrow_mut() = Some((chain.clone(), m.clone())));
+            m
+        }
+    };
+    f(&modes)
+}
 
 /// The time-domain chi-square of a candidate chain against [`TimeData`].
 #[derive(Clone, Debug)]
 pub struct TimeMisfit {
     data: TimeData,
     inv_sigma: f64,
+    analytic: bool,
 }
 
 impl TimeMisfit {
     /// Misfit against `data`.
     pub fn new(data: TimeData) -> TimeMisfit {
         let inv_sigma = 1.0 / data.sigma_eff();
-        TimeMisfit { data, inv_sigma }
+        TimeMisfit {
+            data,
+            inv_sigma,
+            analytic: true,
+        }
+    }
+
+    /// With `false`, [`TimeMisfit::jacobian`] always answers `None` (the
+    /// caller then differences the residuals: the earlier path, kept as a
+    /// baseline for benchmarks and tests).
+    pub fn with_analytic_jacobian(mut self, analytic: bool) -> TimeMisfit {
+        self.analytic = analytic;
+        self
+    }
+
+    /// The Jacobian of [`TimeMisfit::residuals`] with respect to `params` of
+    /// `chain` (rows = samples), exact: defect values by
+    /// [`Modes::value_derivative`] (the modal sum's derivative, double poles
+    /// included), `gamma` as `x_1 / gamma`; one modal decomposition for all
+    /// columns. `Ok(None)` where that does not apply (another measurement
+    /// than the paper's, a uniform chain parameter other than `gamma`, a
+    /// decomposition without simple poles, the analytic Jacobian switched
+    /// off): difference the residuals then.
+    ///
+    /// # Errors
+    /// A defect index out of range (field `params`); as [`Modes::new`].
+    pub fn jacobian(&self, chain: &Chain, params: &[Param]) -> Result<Option<DMatrix<f64>>> {
+        if !self.analytic
+            || !self.data.measurement().is_paper()
+            || params
+                .iter()
+                .any(|p| !matches!(p, Param::Defect(_) | Param::Gamma))
+        {
+            return Ok(None);
+        }
+        with_modes(chain, |modes| self.jacobian_with(modes, chain, params))
+    }
+
+    fn jacobian_with(
+        &self,
+        modes: &Modes,
+        chain: &Chain,
+        params: &[Param],
+    ) -> Result<Option<DMatrix<f64>>> {
+        let t = self.data.t();
+        let n = chain.n();
+        let gamma = chain.gamma();
+        let mut out = DMatrix::zeros(t.len(), params.len());
+        for (c, p) in params.iter().enumerate() {
+            let col = match *p {
+                Param::Defect(i) => {
+                    let d = chain.defects().get(i).ok_or_else(|| {
+                        Error::invalid(
+                            "params",
+                            format!("defect {i}"),
+                            format!("an index below {}", chain.defects().len()),
+                        )
+                    })?;
+                    let (u, power) = match *d {
+                        Defect::Mass { at, .. } => (vec![(at, 1.0)], 2),
+                        Defect::Damper { at, .. } => (vec![(at, 1.0)], 1),
+                        Defect::Spring { at, .. } => (
+                            [(at, 1.0), (at + 1, -1.0)]
+                                .into_iter()
+                                .filter(|&(i, _)| i >= 1 && i <= n)
+                                .collect(),
+                            0,
+                        ),
+                    };
+                    match modes.value_derivative(1, 1, gamma, &u, power)? {
+                        Some(d) => d.eval_many(t),
+                        None => return Ok(None),
+                    }
+                }
+                _ if gamma != 0.0 => modes.response(1, 1, 1.0)?.eval_many(t),
+                _ => return Ok(None),
+            };
+            for (o, v) in out.column_mut(c).iter_mut().zip(&col) {
+                *o = v * self.inv_sigma;
+            }
+        }
+        Ok(Some(out))
     }
 
     /// The data.
@@ -56,12 +166,16 @@ impl TimeMisfit {
     /// (another observable or mass, a measured force).
     ///
     /// # Errors
-    /// As [`ModalResponse::impulse`] and
+    /// As [`ModalResponse::impulse`](crate::time::modal::ModalResponse::impulse) and
     /// [`Measurement::time_model`](crate::detect::data::measurement::Measurement::time_model).
     pub fn model(&self, chain: &Chain) -> Result<Vec<f64>> {
         let m = self.data.measurement();
         if m.is_paper() {
-            return Ok(ModalResponse::impulse(chain, 1)?.eval_many(self.data.t()));
+            return with_modes(chain, |modes| {
+                Ok(modes
+                    .response(1, 1, chain.gamma())?
+                    .eval_many(self.data.t()))
+            });
         }
         m.time_model(chain, self.data.t())
     }
@@ -112,6 +226,52 @@ mod tests {
         let mean = sum / reps as f64;
         // 201 degrees of freedom, sd of the mean sqrt(2*201/20) = 4.5
         assert!((mean - 201.0).abs() < 20.0, "mean chi2 {mean}");
+    }
+
+    #[test]
+    fn analytic_jacobian_matches_central_differences() {
+        use crate::detect::search::lsq::{central_jacobian, LeastSquares};
+        // defects of every kind, a wall spring among them, and gamma
+        let truth = Chain::paper(7)
+            .unwrap()
+            .with_gamma(1.3)
+            .unwrap()
+            .with_defects([
+                Defect::Mass { at: 2, m: 3.0 },
+                Defect::Spring { at: 4, k: 0.6 },
+                Defect::Damper { at: 5, d: 0.3 },
+                Defect::Spring { at: 7, k: 1.4 },
+                Defect::Mass { at: 6, m: 0.5 },
+            ])
+            .unwrap();
+        let data =
+            TimeData::simulate(&truth, 120.0, 0.1, NoiseLevel::RelativeMax(1e-3), 4).unwrap();
+        let misfit = TimeMisfit::new(data);
+        let mut params = Param::defects(&truth);
+        params.push(Param::Gamma);
+        struct P<'a>(&'a TimeMisfit, &'a Chain, &'a [Param]);
+        impl LeastSquares for P<'_> {
+            fn residuals(&self, theta: &[f64]) -> Result<Vec<f64>> {
+                let mut c = self.1.clone();
+                for (p, v) in self.2.iter().zip(theta) {
+                    c = p.set(&c, *v)?;
+                }
+                self.0.residuals(&c)
+            }
+        }
+        let theta: Vec<f64> = params.iter().map(|p| p.get(&truth).unwrap()).collect();
+        let fd = central_jacobian(&P(&misfit, &truth, &params), &theta, 1e-5).unwrap();
+        let exact = misfit.jacobian(&truth, &params).unwrap().unwrap();
+        for (c, p) in params.iter().enumerate() {
+            let (a, b) = (exact.column(c), fd.column(c));
+            let err = (a - b).norm() / b.norm();
+            assert!(err < 1e-8, "{p:?}: relative error {err:.2e}");
+        }
+        // switched off, or a parameter it does not cover: None
+        let off = misfit.clone().with_analytic_jacobian(false);
+        assert!(off.jacobian(&truth, &params).unwrap().is_none());
+        assert!(misfit.jacobian(&truth, &[Param::D]).unwrap().is_none());
+        assert!(misfit.jacobian(&truth, &[Param::Defect(9)]).is_err());
     }
 
     #[test]

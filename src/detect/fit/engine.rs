@@ -1,0 +1,785 @@
+//! The data-first fit's machinery behind [`super::fit`]: the observations
+//! prepared once per noise level, the fits for one number of defects
+//! ([`KFit`]), and the report built from the chosen one.
+
+use super::{
+    chainfit::{default_bounds, fit_chain, Obs},
+    general::{
+        self, fit_general, identify_general, laplace_obs, GeneralOptions, Hypothesis, Setup,
+    },
+    identify, noise, select, Alternative, DefectEstimate, FitMethod, FitOptions, FitReport, KRow,
+    ModeEstimate, Model, ParamEstimate, Predicted, Status,
+};
+use crate::chain::{Chain, Defect};
+use crate::detect::data::laplace::LaplaceObs;
+use crate::detect::data::observations::{Observations, Series};
+use crate::detect::misfit::quadrature::Rule;
+use crate::detect::misfit::time::TimeMisfit;
+use crate::detect::misfit::MisfitKind;
+use crate::detect::search::{minimize, Candidate, Objective, SearchOptions, Space};
+use crate::detect::unknowns::{DefectKind, KindBounds, KindChoice, Slot, Unknowns};
+use crate::error::{Error, Result};
+use std::time::Instant;
+
+/// Stop the `auto` loop when two more defects in a row have not lowered the
+/// time-domain residual by more than noise would (a BIC step of `2 ln N`
+/// per defect at the current noise estimate).
+pub(super) fn stop_early(fits: &[KFit], n: usize) -> bool {
+    if fits.len() < 3 {
+        return false;
+    }
+    let s = fits[fits.len() - 1].sigma_hat.max(f64::MIN_POSITIVE);
+    let pen = 2.0 * (n as f64).ln();
+    let c = |f: &KFit| f.rss / (s * s);
+    let a = &fits[fits.len() - 3];
+    let b = &fits[fits.len() - 2];
+    let l = &fits[fits.len() - 1];
+    c(a) - c(b) < pen && c(b) - c(l) < pen
+}
+
+pub(super) fn krow(f: &KFit, sigma: f64, estimated: bool, criterion: f64) -> KRow {
+    KRow {
+        k: f.k,
+        chi2: f.chi2_at(sigma, estimated),
+        params: f.params,
+        criterion,
+        positions: f.ranked.first().map(|h| h.positions()).unwrap_or_default(),
+    }
+}
+
+/// The best fits with `k` defects at one noise level.
+pub(super) struct KFit {
+    pub(super) k: usize,
+    /// Position (and kind) sets fitted.
+    pub(super) hypotheses: usize,
+    pub(super) ranked: Vec<Hypothesis>,
+    pub(super) evaluations: usize,
+    /// Residual sum of squares of the best fit in the time domain (series),
+    /// or its unweighted Laplace chi-square (Laplace values without errors).
+    pub(super) rss: f64,
+    /// Data points behind `rss`.
+    pub(super) n_data: usize,
+    /// Free parameters (2 per defect of unknown position, 1 per known position, chain parameters).
+    pub(super) params: usize,
+    /// `sqrt(rss / (n_data - params))`.
+    pub(super) sigma_hat: f64,
+    /// The misfit's own chi-square and dof at the sigma of the fit.
+    chi2: f64,
+    /// The noise level the fit was made at.
+    pub(super) sigma_fit: f64,
+    pub(super) dof: usize,
+    pub(super) misfit_name: String,
+    pub(super) method_name: String,
+    pub(super) budget_exhausted: bool,
+    pub(super) predicted: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+impl KFit {
+    /// The chi-square used to compare numbers of defects: the time-domain
+    /// `RSS / sigma^2` for series data, the misfit's own otherwise.
+    pub(super) fn chi2_at(&self, sigma: f64, estimated: bool) -> f64 {
+        if estimated || self.predicted.is_some() {
+            self.rss / (sigma * sigma)
+        } else {
+            self.chi2
+        }
+    }
+}
+
+pub(super) struct Engine<'a> {
+    pub(super) obs: &'a Observations,
+    pub(super) model: &'a Model,
+    pub(super) opts: &'a FitOptions,
+    pub(super) misfit: MisfitKind,
+    /// The observations prepared at the last noise level (the transform,
+    /// its covariance and whitening do not depend on k).
+    pub(super) prepared: std::sync::Mutex<Option<(u64, Prepared)>>,
+}
+
+/// The coarse (Laplace) and fine (time) observations, the misfit's name and
+/// the Laplace setup.
+type Prepared = (LaplaceObs, Option<TimeMisfit>, String, Setup);
+
+/// The Laplace setup for a record: the Bromwich line's abscissa a few over
+/// the record length (the unrecorded tail weighs `e^{-10}`), its range above
+/// the chain's band.
+fn setup_for(series: Option<&Series>, model: &Model) -> Result<Setup> {
+    let mut setup = Setup::new()?;
+    if let Some(s) = series {
+        let t_end = *s.t().last().expect("validated, non-empty");
+        setup.bromwich_sigma = (10.0 / t_end).max(0.05);
+    }
+    let c = model.chain();
+    let band = 2.0 * (c.k() / c.mass()).sqrt();
+    let w = (2.0 * band).max(4.0);
+    if (w - 4.0).abs() > 1e-12 {
+        setup.bromwich_rule = Rule::gauss_legendre_uniform(0.0, w, 10, 8)?;
+    }
+    Ok(setup)
+}
+
+impl Engine<'_> {
+    fn unknowns(&self, k: usize) -> Result<Option<Unknowns>> {
+        let known = self.model.chain().defects();
+        if k == 0 && known.is_empty() {
+            return Ok(None);
+        }
+        let mut slots: Vec<Slot> = known
+            .iter()
+            .map(|d| Slot {
+                kind: match DefectKind::of(d) {
+                    DefectKind::Mass => KindChoice::Mass,
+                    DefectKind::Spring => KindChoice::Spring,
+                    DefectKind::Damper => KindChoice::Damper,
+                },
+                at: Some(d.at()),
+                known: Some(d.value()),
+                bounds: None,
+            })
+            .collect();
+        if self.opts.slot_kinds.len() == k && k > 0 {
+            slots.extend(self.opts.slot_kinds.iter().map(|&kind| Slot::free(kind)));
+        } else {
+            slots.extend((0..k).map(|_| Slot::free(self.opts.kinds)));
+        }
+        Ok(Some(Unknowns::new(
+            self.model.n(),
+            slots,
+            self.model.fitted().to_vec(),
+            KindBounds::for_chain(self.model.chain()),
+        )?))
+    }
+
+    /// Observations in the forms the misfits use, at noise level `sigma`.
+    fn prepared(&self, sigma: f64) -> Result<Prepared> {
+        let key = sigma.to_bits();
+        if let Ok(guard) = self.prepared.lock() {
+            if let Some((k, p)) = guard.as_ref() {
+                if *k == key {
+                    return Ok(p.clone());
+                }
+            }
+        }
+        let p = self.prepare(sigma)?;
+        if let Ok(mut guard) = self.prepared.lock() {
+            *guard = Some((key, p.clone()));
+        }
+        Ok(p)
+    }
+
+    fn prepare(&self, sigma: f64) -> Result<Prepared> {
+        match self.obs {
+            Observations::Series(s) => {
+                let setup = setup_for(Some(s), self.model)?;
+                let td = s.time_data(sigma)?;
+                // the time misfit refines a shortlist of the Bromwich line's
+                let coarse_kind = match self.misfit {
+                    MisfitKind::Time => MisfitKind::Bromwich,
+                    laplace => laplace,
+                };
+                let coarse = laplace_obs(&td, coarse_kind, &setup)?;
+                let name = match self.misfit {
+                    MisfitKind::Time => format!(
+                        "time (chi-square of {} samples; shortlist from the whitened Bromwich line, sigma_B = {})",
+                        td.len(),
+                        setup.bromwich_sigma
+                    ),
+                    MisfitKind::Bromwich => format!(
+                        "bromwich (whitened chi-square, sigma_B = {}, {} dof)",
+                        setup.bromwich_sigma,
+                        coarse.dof()
+                    ),
+                    laplace => format!(
+                        "{} (whitened chi-square, {} dof)",
+                        laplace.name(),
+                        coarse.dof()
+                    ),
+                };
+                let fine = (self.misfit == MisfitKind::Time).then(|| TimeMisfit::new(td));
+                Ok((coarse, fine, name, setup))
+            }
+            Observations::Laplace(l) => {
+                let w: Vec<f64> = match l.sigma() {
+                    Some(sg) => sg.iter().map(|v| 1.0 / (v * v)).collect(),
+                    None => vec![1.0 / (sigma * sigma); l.s().len()],
+                };
+                let obs = LaplaceObs::new(l.s().to_vec(), l.values().to_vec(), w)?
+                    .with_measurement(l.sensor(), None)?;
+                let name = format!(
+                    "{} (chi-square at {} given nodes)",
+                    self.misfit.name(),
+                    l.s().len()
+                );
+                Ok((obs, None, name, setup_for(None, self.model)?))
+            }
+        }
+    }
+
+    pub(super) fn fit_k(&self, k: usize, sigma: f64) -> Result<KFit> {
+        let (coarse, fine, misfit_name, setup) = self.prepared(sigma)?;
+        let mut budget_exhausted = false;
+        let mut method_name = self.opts.method.name().to_string();
+        let mut hypotheses = 1;
+        let (ranked, evaluations) = match self.unknowns(k)? {
+            None => self.fit_uniform(&coarse, fine.as_ref())?,
+            Some(unknowns) => {
+                let gopts = GeneralOptions {
+                    parallel: self.opts.parallel,
+                    max_sets: self.opts.max_sets,
+                    ..GeneralOptions::default()
+                };
+                let mut setup = setup;
+                setup.shortlist = setup.shortlist.max(self.opts.alternatives + 1);
+                if let Some((sets, screened)) = self.woodbury_sets(k, &unknowns)? {
+                    // mass defects on Laplace values: the paper's Woodbury
+                    // kernel ranks every position set; the best are refitted
+                    method_name = "enumerate (Woodbury kernel)".into();
+                    hypotheses = screened;
+                    let (r, e) =
+                        self.refit_sets(&unknowns, &sets, &coarse, fine.as_ref(), &setup, &gopts)?;
+                    (r, e + screened)
+                } else if self.opts.method == FitMethod::Enumerate || k == 0 {
+                    method_name = "enumerate".into();
+                    let g = fit_general(
+                        self.model.chain(),
+                        &unknowns,
+                        &coarse,
+                        fine.as_ref(),
+                        &setup,
+                        &gopts,
+                    )?;
+                    hypotheses = g.hypotheses;
+                    (g.ranked, g.evaluations)
+                } else if self.opts.method == FitMethod::Greedy {
+                    // greedy search with moves (search::greedy)
+                    let g = crate::detect::search::greedy::fit_greedy(
+                        self.model.chain(),
+                        &unknowns,
+                        &coarse,
+                        fine.as_ref(),
+                        &setup,
+                        &crate::detect::search::greedy::GreedyOptions {
+                            parallel: self.opts.parallel,
+                            ..Default::default()
+                        },
+                    )?;
+                    hypotheses = g.hypotheses;
+                    (g.ranked, g.evaluations + g.scored)
+                } else {
+                    let (positions, evals, exhausted) = self.stochastic(k, &coarse)?;
+                    budget_exhausted = exhausted;
+                    // refit the best set and its neighbours like enumeration
+                    let mut sets = vec![positions.clone()];
+                    for i in 0..positions.len() {
+                        for delta in [-1i64, 1] {
+                            let p = positions[i] as i64 + delta;
+                            if p >= 1
+                                && p as usize <= self.model.n()
+                                && !positions.contains(&(p as usize))
+                            {
+                                let mut q = positions.clone();
+                                q[i] = p as usize;
+                                q.sort_unstable();
+                                if !sets.contains(&q)
+                                    && !q.iter().any(|x| {
+                                        self.model.chain().defects().iter().any(|d| d.at() == *x)
+                                    })
+                                {
+                                    sets.push(q);
+                                }
+                            }
+                        }
+                    }
+                    hypotheses = sets.len();
+                    let (r, e) =
+                        self.refit_sets(&unknowns, &sets, &coarse, fine.as_ref(), &setup, &gopts)?;
+                    (r, e + evals)
+                }
+            }
+        };
+        let best = ranked.first().ok_or_else(|| Error::Numerical {
+            method: "fit".into(),
+            reason: "no hypothesis".into(),
+        })?;
+        let params = 2 * k + self.model.fitted().len();
+        let (rss, n_data, predicted, chi2, dof) = match self.obs {
+            Observations::Series(s) => {
+                let chain = best.to_chain(self.model.chain())?;
+                let td = s.time_data(sigma)?;
+                let model = TimeMisfit::new(td).model(&chain)?;
+                let r: Vec<f64> = s.x().iter().zip(&model).map(|(a, b)| a - b).collect();
+                let rss = r.iter().map(|v| v * v).sum();
+                let dof = match &fine {
+                    Some(_) => s.x().len().saturating_sub(params),
+                    None => coarse.dof().saturating_sub(params),
+                };
+                (rss, s.x().len(), Some((model, r)), best.chi2, dof)
+            }
+            Observations::Laplace(l) => {
+                let rss = best.chi2 * sigma * sigma;
+                let m = crate::time::series::stacked_rows(l.s()).len();
+                (rss, m, None, best.chi2, m.saturating_sub(params))
+            }
+        };
+        let sigma_hat = (rss / (n_data.saturating_sub(params).max(1)) as f64).sqrt();
+        Ok(KFit {
+            k,
+            hypotheses,
+            ranked,
+            evaluations,
+            rss,
+            n_data,
+            params,
+            sigma_hat,
+            chi2,
+            sigma_fit: sigma,
+            dof,
+            misfit_name,
+            method_name,
+            budget_exhausted,
+            predicted,
+        })
+    }
+
+    /// No defect of unknown position: the chain (with its known defects) as
+    /// it is, its fitted uniform parameters by LM if any.
+    fn fit_uniform(
+        &self,
+        coarse: &LaplaceObs,
+        fine: Option<&TimeMisfit>,
+    ) -> Result<(Vec<Hypothesis>, usize)> {
+        let chain_bounds = default_bounds(self.model.chain(), self.model.fitted());
+        // the uniform chain, chain parameters fitted if any
+        let obs = match fine {
+            Some(t) => Obs::Time(t),
+            None => Obs::Laplace(coarse),
+        };
+        let base = self.model.chain().uniform();
+        if self.model.fitted().is_empty() {
+            let r = match obs {
+                Obs::Time(t) => t.residuals(&base)?,
+                Obs::Laplace(l) => l.residuals(&base)?,
+            };
+            Ok((
+                vec![Hypothesis::from_parts(
+                    Vec::new(),
+                    Vec::new(),
+                    Vec::new(),
+                    r.iter().map(|v| v * v).sum(),
+                )],
+                1,
+            ))
+        } else {
+            let f = fit_chain(&base, self.model.fitted(), &obs, Some(&chain_bounds))?;
+            let params = f
+                .names
+                .iter()
+                .zip(&f.values)
+                .zip(&f.std_errors)
+                .map(|((name, &value), &std_error)| general::FittedParam {
+                    name: name.clone(),
+                    value,
+                    std_error,
+                })
+                .collect();
+            Ok((
+                vec![Hypothesis::from_parts(
+                    Vec::new(),
+                    Vec::new(),
+                    params,
+                    f.lm.chi2,
+                )],
+                f.lm.evaluations,
+            ))
+        }
+    }
+
+    /// Mass defects at unknown positions on Laplace values of the paper's
+    /// setup (fixed ends, displacement of mass 1 after the impulse, no known
+    /// defect, no chain parameter, enumeration): the Woodbury kernel
+    /// ([`crate::detect::misfit::Misfit::at_nodes`]) ranks every position
+    /// set by the chi-square; returns the `alternatives + 1` best sets and
+    /// the number ranked. `None` when the unknowns or data do not allow it.
+    fn woodbury_sets(
+        &self,
+        k: usize,
+        unknowns: &Unknowns,
+    ) -> Result<Option<(Vec<Vec<usize>>, usize)>> {
+        use crate::detect::misfit::Misfit;
+        use crate::detect::search::enumerate::{enumerate, EnumerateOptions};
+        let Observations::Laplace(l) = self.obs else {
+            return Ok(None);
+        };
+        let chain = self.model.chain();
+        let paper_sensor = l.sensor() == crate::detect::data::measurement::Sensor::PAPER;
+        if k == 0
+            || self.opts.method != FitMethod::Enumerate
+            || !chain.defects().is_empty()
+            || chain.left().is_free()
+            || chain.right().is_free()
+            || !paper_sensor
+        {
+            return Ok(None);
+        }
+        let Ok(mass) = unknowns.to_mass() else {
+            return Ok(None);
+        };
+        let sigma: Vec<f64> = match l.sigma() {
+            Some(sg) => sg.to_vec(),
+            None => vec![1.0; l.s().len()],
+        };
+        let data =
+            crate::detect::data::exact::Data::at_nodes(l.s().to_vec(), l.values().to_vec(), sigma)?;
+        let misfit = Misfit::at_nodes(chain, &data)?;
+        let e = enumerate(
+            &misfit,
+            &mass,
+            &EnumerateOptions {
+                parallel: self.opts.parallel,
+                max_sets: self.opts.max_sets,
+                keep: self.opts.alternatives + 1,
+                ..EnumerateOptions::default()
+            },
+        )?;
+        let sets = e
+            .ranked
+            .iter()
+            .map(|h| {
+                let mut p: Vec<usize> = h.defects.iter().map(|d| d.0).collect();
+                p.sort_unstable();
+                p
+            })
+            .collect();
+        Ok(Some((sets, e.sets)))
+    }
+
+    /// Fit every position set of `sets` (values, chain parameters, standard
+    /// errors) as the enumeration does; ranked by chi-square.
+    fn refit_sets(
+        &self,
+        unknowns: &Unknowns,
+        sets: &[Vec<usize>],
+        coarse: &LaplaceObs,
+        fine: Option<&TimeMisfit>,
+        setup: &Setup,
+        gopts: &GeneralOptions,
+    ) -> Result<(Vec<Hypothesis>, usize)> {
+        let known = self.model.chain().defects().len();
+        let mut all = Vec::new();
+        let mut spent = 0;
+        for q in sets {
+            let mut slots = unknowns.slots().to_vec();
+            for (slot, &at) in slots[known..].iter_mut().zip(q) {
+                slot.at = Some(at);
+            }
+            let u = Unknowns::new(
+                self.model.n(),
+                slots,
+                self.model.fitted().to_vec(),
+                KindBounds::for_chain(self.model.chain()),
+            )?;
+            if let Ok(g) = fit_general(self.model.chain(), &u, coarse, fine, setup, gopts) {
+                spent += g.evaluations;
+                all.extend(g.ranked);
+            }
+        }
+        if all.is_empty() {
+            return Err(Error::Numerical {
+                method: self.opts.method.name().into(),
+                reason: "no position set could be fitted".into(),
+            });
+        }
+        all.sort_by(|a, b| {
+            a.chi2
+                .total_cmp(&b.chi2)
+                .then_with(|| a.key().cmp(&b.key()))
+        });
+        Ok((all, spent))
+    }
+
+    /// A stochastic search over mass positions and values on the Laplace
+    /// chi-square: the best position set, the evaluations, and whether the
+    /// budget ran out.
+    fn stochastic(&self, k: usize, coarse: &LaplaceObs) -> Result<(Vec<usize>, usize, bool)> {
+        let method = self
+            .opts
+            .method
+            .stochastic()
+            .ok_or_else(|| Error::Numerical {
+                method: self.opts.method.name().into(),
+                reason: "enumeration is not a stochastic search".into(),
+            })?;
+        let mut space = Space::masses(
+            self.model.n(),
+            k,
+            KindBounds::for_chain(self.model.chain()).mass,
+        );
+        space.excluded = self
+            .model
+            .chain()
+            .defects()
+            .iter()
+            .map(Defect::at)
+            .filter(|&a| a >= 1)
+            .collect();
+        let obj = LaplaceObjective {
+            space,
+            base: self.model.chain(),
+            obs: coarse,
+        };
+        let sopts = SearchOptions {
+            max_evals: self.opts.max_evals,
+            seed: self.opts.seed,
+            ..SearchOptions::default()
+        };
+        let res = minimize(method, &obj, &sopts)?;
+        let mut p = res.best.positions.clone();
+        p.sort_unstable();
+        Ok((p, res.evaluations, res.evaluations >= self.opts.max_evals))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn report(
+        &self,
+        f: &KFit,
+        sigma: f64,
+        estimated: bool,
+        rows: Vec<KRow>,
+        criterion: String,
+        evaluations: usize,
+        t0: Instant,
+    ) -> Result<FitReport> {
+        // the fit was made at f.sigma_fit: chi-squares and standard errors at the final sigma
+        let scale = sigma / f.sigma_fit;
+        let chi2_final = f.chi2 / (scale * scale);
+        let ranked: Vec<Hypothesis> = f
+            .ranked
+            .iter()
+            .map(|h| {
+                let mut h = h.clone();
+                h.chi2 /= scale * scale;
+                for se in &mut h.std_errors {
+                    *se *= scale;
+                }
+                for p in &mut h.chain {
+                    p.std_error *= scale;
+                }
+                h
+            })
+            .collect();
+        let best = &ranked[0];
+        let base = self.model.chain();
+        let ident = identify_general(&ranked, base, sigma, None).ok();
+        let bounds = KindBounds::for_chain(base);
+        let known: Vec<(usize, DefectKind)> = base
+            .defects()
+            .iter()
+            .map(|d| (d.at(), DefectKind::of(d)))
+            .collect();
+        let mut defects = Vec::with_capacity(best.defects.len());
+        for (i, d) in best.defects.iter().enumerate() {
+            let kind = DefectKind::of(d);
+            let is_known = known.contains(&(d.at(), kind));
+            let (lo, hi) = bounds.of(kind);
+            let v = d.value();
+            let tol = 1e-6 * hi.abs().max(1.0);
+            let rep = ident
+                .as_ref()
+                .and_then(|r| r.defects.iter().find(|x| x.at == d.at()));
+            defects.push(DefectEstimate {
+                kind: kind.name(),
+                at: d.at(),
+                value: v,
+                se: if is_known {
+                    0.0
+                } else {
+                    best.std_errors.get(i).copied().unwrap_or(f64::NAN)
+                },
+                at_bound: !is_known && (v <= lo + tol || v >= hi - tol),
+                known: is_known,
+                significance: rep.map_or(f64::NAN, |r| r.significance),
+                identifiable: is_known || rep.is_some_and(|r| r.identifiable),
+            });
+        }
+        let cb = default_bounds(base, self.model.fitted());
+        let params: Vec<ParamEstimate> = best
+            .chain
+            .iter()
+            .map(|p| {
+                let b = self
+                    .model
+                    .fitted()
+                    .iter()
+                    .position(|q| general::param_name(q) == p.name)
+                    .map(|i| cb[i])
+                    .unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
+                let tol = 1e-6 * b.1.abs().max(1.0);
+                ParamEstimate {
+                    name: p.name.clone(),
+                    value: p.value,
+                    se: p.std_error,
+                    at_bound: p.value <= b.0 + tol || p.value >= b.1 - tol,
+                }
+            })
+            .collect();
+        let alternatives: Vec<Alternative> = ranked[1..]
+            .iter()
+            .take(self.opts.alternatives)
+            .map(|h| Alternative {
+                defects: h.defects.clone(),
+                chi2: h.chi2,
+                gap: h.chi2 - best.chi2,
+            })
+            .collect();
+        // goodness of fit
+        let (fits_data, p) = match (&f.predicted, estimated) {
+            (Some((_, r)), true) => {
+                let (_, p) = noise::ljung_box(r, 20);
+                (p >= 0.001, p)
+            }
+            _ => {
+                let p = select::chi2_sf(chi2_final, f.dof.max(1) as f64);
+                (p >= 0.001, p)
+            }
+        };
+        let threshold = identify::DEFAULT_THRESHOLD;
+        let gap_ok = alternatives.first().is_none_or(|a| a.gap > threshold);
+        let all_ident = defects.iter().all(|d| d.identifiable);
+        let any_bound = defects.iter().any(|d| d.at_bound) || params.iter().any(|p| p.at_bound);
+        let (status, message) = if f.budget_exhausted {
+            (
+                Status::BudgetExhausted,
+                format!("the search used its whole budget of {} evaluations; raise max_evals or use enumerate", self.opts.max_evals),
+            )
+        } else if !best.converged {
+            (
+                Status::Stalled,
+                "the value fit of the best hypothesis stopped at its iteration limit without meeting its tolerance: the values may not be at the minimum".to_string(),
+            )
+        } else if any_bound {
+            (
+                Status::ValueAtBound,
+                "a fitted value ended on a bound of its range: a wrong basin, or a defect outside the range searched".to_string(),
+            )
+        } else if !all_ident || !gap_ok {
+            let why = ident
+                .as_ref()
+                .and_then(|r| {
+                    r.defects
+                        .iter()
+                        .find(|d| !d.identifiable)
+                        .map(|d| d.reason.clone())
+                })
+                .unwrap_or_else(|| {
+                    format!(
+                        "the runner-up fits within a chi-square gap of {:.3} < {threshold}",
+                        alternatives.first().map_or(0.0, |a| a.gap)
+                    )
+                });
+            (Status::NotIdentifiable, why)
+        } else if f.k == 0 {
+            (
+                Status::Converged,
+                "no defect: the uniform chain explains the data".to_string(),
+            )
+        } else {
+            (
+                Status::Converged,
+                format!(
+                    "every defect identifiable; the runner-up is worse by chi-square {}",
+                    alternatives
+                        .first()
+                        .map_or("(none)".into(), |a| format!("{:.3e}", a.gap))
+                ),
+            )
+        };
+        // the fitted chain's modes (none when the eigen solver refuses: a
+        // non-uniform chain above its size limit)
+        let modes = best
+            .to_chain(base)
+            .and_then(|c| crate::time::modal::natural_modes(&c))
+            .map(|v| {
+                v.iter()
+                    .map(|m| ModeEstimate {
+                        omega: m.omega,
+                        frequency: m.frequency,
+                        zeta: m.zeta.unwrap_or(f64::NAN),
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        let predicted = match (self.obs, &f.predicted) {
+            (Observations::Series(s), Some((model, r))) => Some(Predicted {
+                t: s.t().to_vec(),
+                observed: s.x().to_vec(),
+                model: model.clone(),
+                residual: r.clone(),
+            }),
+            _ => None,
+        };
+        Ok(FitReport {
+            defects,
+            k: f.k,
+            params,
+            noise_sigma: sigma,
+            noise_estimated: estimated,
+            chi2: chi2_final,
+            dof: f.dof,
+            status,
+            message,
+            resolved: status == Status::Converged && gap_ok && all_ident,
+            fits_data,
+            fit_p_value: p,
+            alternatives,
+            k_selection: rows,
+            criterion,
+            misfit: f.misfit_name.clone(),
+            setup: format!(
+                "{}; ends {}-{}",
+                match self.obs {
+                    Observations::Series(s) => s.measurement().describe(),
+                    Observations::Laplace(l) => format!(
+                        "{} of mass {} (Laplace values)",
+                        l.sensor().kind.name(),
+                        l.sensor().at
+                    ),
+                },
+                base.left(),
+                base.right()
+            ),
+            method: f.method_name.clone(),
+            evaluations,
+            hypotheses: f.hypotheses,
+            wall_time_s: t0.elapsed().as_secs_f64(),
+            predicted,
+            identifiability: ident,
+            modes,
+        })
+    }
+}
+
+/// The Laplace chi-square of mass defects as a search objective (invalid
+/// candidates cost a large finite penalty).
+struct LaplaceObjective<'a> {
+    space: Space,
+    base: &'a Chain,
+    obs: &'a LaplaceObs,
+}
+
+impl Objective for LaplaceObjective<'_> {
+    fn space(&self) -> &Space {
+        &self.space
+    }
+    fn cost(&self, c: &Candidate) -> f64 {
+        let chain = self.base.clone().with_defects(
+            c.positions
+                .iter()
+                .zip(&c.values)
+                .map(|(&at, &m)| Defect::Mass { at, m }),
+        );
+        match chain.and_then(|ch| self.obs.chi2(&ch)) {
+            Ok(v) if v.is_finite() => v,
+            _ => 1e300,
+        }
+    }
+}
