@@ -466,9 +466,12 @@ impl Misfit {
         };
         let tab = if real {
             let nodes: Vec<f64> = s.iter().map(|z| z.re).collect();
+            let g = GreenTable::new(&chain, &nodes)?;
+            let rows = Rows::new(&g, &w);
             Tab::Real {
-                g: GreenTable::new(&chain, &nodes)?,
+                g,
                 d: values.iter().map(|z| z.re).collect(),
+                rows,
             }
         } else {
             Tab::Complex {
