@@ -19,8 +19,15 @@
 //! `X_1 = gamma (G_11 - sum_l G_1 j_l c_l z_l)` (Woodbury), and
 //! `dX_1/dm_l = -gamma s^2 z_l^2`. A [`SetTable`] gathers the Green's entries a
 //! position set needs from the [`GreenTable`] once, so that a residual
-//! evaluation is only the `k x k` solves and a weighted sum; `k = 1` and `k = 2`
-//! on the real axis have straight-line kernels with independent accumulators.
+//! evaluation is only the `k x k` solves and a weighted sum. One or two
+//! defects on the real axis are *folded*: by Cramer's rule `X_1` at a node is
+//! a ratio of bilinear forms in the mass changes,
+//! `(N0 + N1 dm1 + N2 dm2 + N12 dm1 dm2) / (1 + D1 dm1 + D2 dm2 + D12 dm1 dm2)`,
+//! whose seven coefficients (with `s^2` and `gamma` folded in) are computed
+//! once per set, so that a residual is one division and a few multiply-adds
+//! per node, over independent accumulators. Other sets (three or more
+//! defects, the Bromwich line) take the general path
+//! ([`Misfit::set_general`] forces it, the reference in tests).
 //!
 //! ```
 //! use springmass::{Chain, Defect};
@@ -351,6 +358,9 @@ enum Tab {
     Real {
         g: GreenTable<f64>,
         d: Vec<f64>,
+        /// `G_1j` and `G_jj` at every node for the folded sets (when small
+        /// enough, [`MAX_ROWS`]).
+        rows: Option<Rows>,
     },
     Complex {
         g: GreenTable<Complex64>,
@@ -387,7 +397,15 @@ impl Misfit {
             MisfitKind::RealAxis => {
                 let g = GreenTable::new(&chain, &rule.nodes)?;
                 let sm = data.sample(&rule.nodes)?;
-                (Tab::Real { g, d: sm.values }, sm.sigma)
+                let rows = Rows::new(&g, &rule.weights);
+                (
+                    Tab::Real {
+                        g,
+                        d: sm.values,
+                        rows,
+                    },
+                    sm.sigma,
+                )
             }
             MisfitKind::Bromwich => {
                 let s: Vec<Complex64> = rule
@@ -451,9 +469,12 @@ impl Misfit {
         };
         let tab = if real {
             let nodes: Vec<f64> = s.iter().map(|z| z.re).collect();
+            let g = GreenTable::new(&chain, &nodes)?;
+            let rows = Rows::new(&g, &w);
             Tab::Real {
-                g: GreenTable::new(&chain, &nodes)?,
+                g,
                 d: values.iter().map(|z| z.re).collect(),
+                rows,
             }
         } else {
             Tab::Complex {
@@ -512,12 +533,36 @@ impl Misfit {
     }
 
     /// Gather the Green's entries of the position set `positions` (1-based,
-    /// distinct, in `1..=n`; checked by debug asserts only).
+    /// distinct, in `1..=n`; checked by debug asserts only). One or two
+    /// defects on the real axis are folded (per node a ratio of bilinear forms
+    /// in the mass changes, precomputed here); other sets keep the entries
+    /// for the per-node `k x k` solves.
     pub fn set(&self, positions: &[usize]) -> SetTable {
+        match &self.tab {
+            Tab::Real { g, d, rows } if matches!(positions.len(), 1 | 2) => SetTable {
+                body: Body::Folded(Folded::new(
+                    g,
+                    rows.as_ref(),
+                    d,
+                    &self.w,
+                    positions,
+                    self.chain.gamma(),
+                )),
+                obs: positions.iter().position(|&p| p == 1),
+                gamma: self.chain.gamma(),
+            },
+            _ => self.set_general(positions),
+        }
+    }
+
+    /// [`Misfit::set`] without the folded form: the general path (per node a
+    /// pivoted `k x k` solve) for every set, the reference of the folded
+    /// kernels in tests and benches.
+    pub fn set_general(&self, positions: &[usize]) -> SetTable {
         let obs = positions.iter().position(|&p| p == 1);
         let gamma = self.chain.gamma();
         match &self.tab {
-            Tab::Real { g, d } => {
+            Tab::Real { g, d, .. } => {
                 let s2: Vec<f64> = g.s().iter().map(|s| s * s).collect();
                 SetTable {
                     body: Body::Real(Gathered::new(g, &s2, d, &self.w, positions)),
@@ -748,129 +793,250 @@ impl<T: Num> Gathered<T> {
     }
 }
 
-impl Gathered<f64> {
-    /// `k = 2`, real axis: straight-line kernel, four independent accumulators.
-    #[inline]
-    #[allow(clippy::needless_range_loop)] // lane loops: indexed form vectorises
-    fn residual_k2<const OBS: u8>(&self, dm1: f64, dm2: f64, gamma: f64) -> f64 {
-        let np = self.np;
-        let (g1a, g1b) = self.g1.split_at(np);
-        let (gaa, rest) = self.gjj.split_at(np);
-        let (gab, rest) = rest.split_at(np);
-        let gbb = &rest[np..2 * np];
-        let mut acc = [0.0f64; 4];
-        for q0 in (0..np).step_by(4) {
-            // fixed-size views: one bounds check per chunk, none in the lanes
-            let v = |a: &[f64]| -> [f64; 4] { a[q0..q0 + 4].try_into().expect("padded to 4") };
-            let (s2, w, d, g11) = (v(&self.s2), v(&self.w), v(&self.d), v(&self.g11));
-            let (g1a, g1b, gaa, gab, gbb) = (v(g1a), v(g1b), v(gaa), v(gab), v(gbb));
-            for l in 0..4 {
-                let c1 = dm1 * s2[l];
-                let c2 = dm2 * s2[l];
-                let a11 = 1.0 + gaa[l] * c1;
-                let a22 = 1.0 + gbb[l] * c2;
-                let a12 = gab[l] * c2;
-                let a21 = gab[l] * c1;
-                let inv = 1.0 / (a11 * a22 - a12 * a21);
-                let z1 = (g1a[l] * a22 - a12 * g1b[l]) * inv;
-                let z2 = (a11 * g1b[l] - a21 * g1a[l]) * inv;
-                let x = match OBS {
-                    1 => z1,
-                    2 => z2,
-                    _ => g11[l] - g1a[l] * c1 * z1 - g1b[l] * c2 * z2,
-                } * gamma;
-                let e = x - d[l];
-                acc[l] += w[l] * e * e;
-            }
-        }
-        (acc[0] + acc[1]) + (acc[2] + acc[3])
-    }
+/// Lanes of the folded kernels (independent accumulators); [`Folded`] pads
+/// its nodes to a multiple of it with weight 0.
+const LANES: usize = 8;
 
-    /// `k = 2`, real axis: residual and Gauss-Newton pieces, straight-line.
-    #[inline]
-    #[allow(clippy::needless_range_loop)] // lane loops: indexed form vectorises
-    fn gauss_newton_k2<const OBS: u8>(
-        &self,
-        dm1: f64,
-        dm2: f64,
+/// Coefficient rows of [`Folded`]: numerator `N0 N1 N2 N12`, denominator
+/// `D1 D2 D12`, the Jacobian factors `A0 A2` (of `z_1`) and `B0 B1` (of
+/// `z_2`), and the datum.
+const N0: usize = 0;
+const N1: usize = 1;
+const N2: usize = 2;
+const N12: usize = 3;
+const D1: usize = 4;
+const D2: usize = 5;
+const D12: usize = 6;
+const A0: usize = 7;
+const A2: usize = 8;
+const B0: usize = 9;
+const B1: usize = 10;
+const DATA: usize = 11;
+const ROWS: usize = 12;
+
+/// Largest `n * nodes` for which [`Misfit::new`] tables `G_1j` and `G_jj`
+/// at every node (two arrays of that many values, 16 MB at the limit):
+/// gathering a folded set then reads them instead of forming them from the
+/// Green's table.
+const MAX_ROWS: usize = 1 << 20;
+
+/// `G_1j(s_q)` and `G_jj(s_q)`, `[(j - 1) * nodes + q]`, and the roots
+/// `(sqrt(w_q), w_q^(1/4))` of the weights.
+#[derive(Clone, Debug)]
+struct Rows {
+    g1: Vec<f64>,
+    gd: Vec<f64>,
+    roots: Vec<(f64, f64)>,
+}
+
+impl Rows {
+    fn new(g: &GreenTable<f64>, w: &[f64]) -> Option<Rows> {
+        let (n, nq) = (g.n(), g.len());
+        if n.saturating_mul(nq) > MAX_ROWS {
+            return None;
+        }
+        let roots = w.iter().map(|w| (w.sqrt(), w.sqrt().sqrt())).collect();
+        let mut g1 = Vec::with_capacity(n * nq);
+        let mut gd = Vec::with_capacity(n * nq);
+        for j in 1..=n {
+            g1.extend((0..nq).map(|q| g.entry(q, 1, j)));
+            gd.extend((0..nq).map(|q| g.entry(q, j, j)));
+        }
+        Some(Rows { g1, gd, roots })
+    }
+}
+
+/// One or two mass defects on the real axis, folded: per node the Cramer
+/// solution of the `2 x 2` capacitance system written as a ratio of bilinear
+/// forms in the mass changes,
+///
+/// `X_1 = (N0 + N1 dm1 + N2 dm2 + N12 dm1 dm2) / (1 + D1 dm1 + D2 dm2 + D12 dm1 dm2)`,
+///
+/// with `s^2` and `gamma` folded into the coefficients, and
+/// `s z_1 = (A0 + A2 dm2) / den`, `s z_2 = (B0 + B1 dm1) / den` for the
+/// Jacobian `dX_1/dm_l = -gamma (s z_l)^2`. With `G` the Green's entries at
+/// the node (`1` the observed mass, `a, b` the positions) and
+/// `Delta = G_aa G_bb - G_ab^2`: `N0 = gamma G_11`,
+/// `N1 = gamma s^2 (G_11 G_aa - G_1a^2)`, `N2` alike in `b`,
+/// `N12 = gamma s^4 det G_{1ab}` (the `3 x 3` minor), `D1 = s^2 G_aa`,
+/// `D2 = s^2 G_bb`, `D12 = s^4 Delta`, `A0 = s G_1a`,
+/// `A2 = s^3 (G_1a G_bb - G_ab G_1b)`, `B0, B1` alike. When a position is
+/// the observed mass 1 the terms that vanish identically (`N1, N12` for
+/// `a = 1`) are set to zero rather than left to rounding. `k = 1` is the
+/// same form with the `b` rows zero. The weights are folded in too: the
+/// numerator and the datum carry `sqrt(w_q)`, `A` and `B` carry `w_q^(1/4)`,
+/// so that `r = sum_q (X~_q - d~_q)^2` and the Gauss-Newton sums need no
+/// weight.
+#[derive(Clone, Debug)]
+struct Folded {
+    k: usize,
+    np: usize,
+    gamma: f64,
+    /// `c[row * np + q]`, rows as the constants above.
+    c: Vec<f64>,
+}
+
+impl Folded {
+    fn new(
+        g: &GreenTable<f64>,
+        rows: Option<&Rows>,
+        d: &[f64],
+        w: &[f64],
+        pos: &[usize],
         gamma: f64,
-        grad: &mut [f64],
-        hess: &mut [f64],
-    ) -> f64 {
-        let np = self.np;
-        let (g1a, g1b) = self.g1.split_at(np);
-        let (gaa, rest) = self.gjj.split_at(np);
-        let (gab, rest) = rest.split_at(np);
-        let gbb = &rest[np..2 * np];
-        let mut r = [0.0f64; 4];
-        let mut ga = [0.0f64; 4];
-        let mut gb = [0.0f64; 4];
-        let mut haa = [0.0f64; 4];
-        let mut hab = [0.0f64; 4];
-        let mut hbb = [0.0f64; 4];
-        for q0 in (0..np).step_by(4) {
-            let v = |a: &[f64]| -> [f64; 4] { a[q0..q0 + 4].try_into().expect("padded to 4") };
-            let (s2v, wv, d, g11) = (v(&self.s2), v(&self.w), v(&self.d), v(&self.g11));
-            let (g1a, g1b, gaa, gab, gbb) = (v(g1a), v(g1b), v(gaa), v(gab), v(gbb));
-            for l in 0..4 {
-                let s2 = s2v[l];
-                let c1 = dm1 * s2;
-                let c2 = dm2 * s2;
-                let a11 = 1.0 + gaa[l] * c1;
-                let a22 = 1.0 + gbb[l] * c2;
-                let a12 = gab[l] * c2;
-                let a21 = gab[l] * c1;
-                let inv = 1.0 / (a11 * a22 - a12 * a21);
-                let z1 = (g1a[l] * a22 - a12 * g1b[l]) * inv;
-                let z2 = (a11 * g1b[l] - a21 * g1a[l]) * inv;
-                let x = match OBS {
-                    1 => z1,
-                    2 => z2,
-                    _ => g11[l] - g1a[l] * c1 * z1 - g1b[l] * c2 * z2,
-                } * gamma;
-                let e = x - d[l];
-                let w = wv[l];
-                let j1 = -gamma * s2 * z1 * z1;
-                let j2 = -gamma * s2 * z2 * z2;
-                r[l] += w * e * e;
-                ga[l] += w * j1 * e;
-                gb[l] += w * j2 * e;
-                haa[l] += w * j1 * j1;
-                hab[l] += w * j1 * j2;
-                hbb[l] += w * j2 * j2;
-            }
+    ) -> Folded {
+        debug_assert!(pos.len() == 1 || pos.len() == 2);
+        let nq = g.len();
+        let np = nq.div_ceil(LANES) * LANES;
+        let k = pos.len();
+        let mut c = vec![0.0; ROWS * np];
+        let a = pos[0];
+        let b = pos.get(1).copied();
+        let obs_a = a == 1;
+        let obs_b = b == Some(1);
+        // G_1j and G_jj: from the rows when tabled, else from the table
+        let one = |q: usize, j: usize| match rows {
+            Some(r) => (r.g1[(j - 1) * nq + q], r.gd[(j - 1) * nq + q]),
+            None => (g.entry(q, 1, j), g.entry(q, j, j)),
+        };
+        for (q, &s) in g.s().iter().enumerate() {
+            let s2 = s * s;
+            let (g11, _) = one(q, 1);
+            let (g1a, gaa) = one(q, a);
+            let (g1b, gab, gbb) = match b {
+                Some(b) => {
+                    let (g1b, gbb) = one(q, b);
+                    (g1b, g.entry(q, a, b), gbb)
+                }
+                None => (0.0, 0.0, 0.0),
+            };
+            let delta = gaa * gbb - gab * gab;
+            let minor3 = g11 * delta - g1a * g1a * gbb - g1b * g1b * gaa + 2.0 * g1a * g1b * gab;
+            // sqrt(w) on X and the datum, w^(1/4) on s z_l
+            let (sw, qw) = match rows {
+                Some(r) => r.roots[q],
+                None => (w[q].sqrt(), w[q].sqrt().sqrt()),
+            };
+            let gs2 = sw * gamma * s2;
+            let qs = qw * s;
+            let mut row = |r: usize, v: f64| c[r * np + q] = v;
+            row(N0, sw * gamma * g11);
+            row(
+                N1,
+                if obs_a {
+                    0.0
+                } else {
+                    gs2 * (g11 * gaa - g1a * g1a)
+                },
+            );
+            row(
+                N2,
+                if obs_b {
+                    0.0
+                } else {
+                    gs2 * (g11 * gbb - g1b * g1b)
+                },
+            );
+            row(
+                N12,
+                if obs_a || obs_b {
+                    0.0
+                } else {
+                    gs2 * s2 * minor3
+                },
+            );
+            row(D1, s2 * gaa);
+            row(D2, s2 * gbb);
+            row(D12, s2 * s2 * delta);
+            row(A0, qs * g1a);
+            row(A2, qs * s2 * (g1a * gbb - gab * g1b));
+            row(B0, qs * g1b);
+            row(B1, qs * s2 * (g1b * gaa - gab * g1a));
+            row(DATA, sw * d[q]);
         }
-        let sum = |a: [f64; 4]| (a[0] + a[1]) + (a[2] + a[3]);
-        grad[0] = sum(ga);
-        grad[1] = sum(gb);
-        hess[0] = sum(haa);
-        hess[1] = sum(hab);
-        hess[2] = hess[1];
-        hess[3] = sum(hbb);
-        sum(r)
+        Folded { k, np, gamma, c }
     }
 
-    /// `k = 1`, real axis.
+    #[inline(always)]
+    fn row(&self, r: usize) -> &[f64] {
+        &self.c[r * self.np..(r + 1) * self.np]
+    }
+
+    /// `r`, eight independent accumulators (`dm2 = 0` for `k = 1`).
     #[inline]
     #[allow(clippy::needless_range_loop)] // lane loops: indexed form vectorises
-    fn residual_k1<const OBS: bool>(&self, dm1: f64, gamma: f64) -> f64 {
-        let np = self.np;
-        let mut acc = [0.0f64; 4];
-        for q0 in (0..np).step_by(4) {
-            for l in 0..4 {
-                let q = q0 + l;
-                let c1 = dm1 * self.s2[q];
-                let z1 = self.g1[q] / (1.0 + self.gjj[q] * c1);
-                let x = if OBS {
-                    z1
-                } else {
-                    self.g11[q] - self.g1[q] * c1 * z1
-                } * gamma;
-                let e = x - self.d[q];
-                acc[l] += self.w[q] * e * e;
+    fn residual(&self, dm1: f64, dm2: f64) -> f64 {
+        let dm12 = dm1 * dm2;
+        let (n0, n1, n2, n12) = (self.row(N0), self.row(N1), self.row(N2), self.row(N12));
+        let (d1, d2, d12) = (self.row(D1), self.row(D2), self.row(D12));
+        let d = self.row(DATA);
+        let mut acc = [0.0f64; LANES];
+        for q0 in (0..self.np).step_by(LANES) {
+            // fixed-size views: one bounds check per chunk, none in the lanes
+            let v = |a: &[f64]| -> [f64; LANES] {
+                a[q0..q0 + LANES].try_into().expect("padded to LANES")
+            };
+            let (n0, n1, n2, n12) = (v(n0), v(n1), v(n2), v(n12));
+            let (d1, d2, d12, d) = (v(d1), v(d2), v(d12), v(d));
+            for l in 0..LANES {
+                let num = n0[l] + n1[l] * dm1 + n2[l] * dm2 + n12[l] * dm12;
+                let den = 1.0 + d1[l] * dm1 + d2[l] * dm2 + d12[l] * dm12;
+                let e = num / den - d[l];
+                acc[l] += e * e;
             }
         }
-        (acc[0] + acc[1]) + (acc[2] + acc[3])
+        ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]))
+    }
+
+    /// `r` and the Gauss-Newton pieces (as [`SetTable::gauss_newton`]).
+    #[inline]
+    #[allow(clippy::needless_range_loop)] // lane loops: indexed form vectorises
+    fn gauss_newton(&self, dm1: f64, dm2: f64, grad: &mut [f64], hess: &mut [f64]) -> f64 {
+        const L: usize = 4;
+        let dm12 = dm1 * dm2;
+        let (n0, n1, n2, n12) = (self.row(N0), self.row(N1), self.row(N2), self.row(N12));
+        let (d1, d2, d12) = (self.row(D1), self.row(D2), self.row(D12));
+        let (a0, a2, b0, b1) = (self.row(A0), self.row(A2), self.row(B0), self.row(B1));
+        let d = self.row(DATA);
+        // per lane: r, sum u1 e, sum u2 e, sum u1^2, sum u1 u2, sum u2^2 with
+        // the weighted e = sqrt(w) (X - d) and u_l = sqrt(w) (s z_l)^2 = -sqrt(w) J_l / gamma
+        let mut acc = [[0.0f64; L]; 6];
+        for q0 in (0..self.np).step_by(L) {
+            let v = |a: &[f64]| -> [f64; L] { a[q0..q0 + L].try_into().expect("padded") };
+            let (n0, n1, n2, n12) = (v(n0), v(n1), v(n2), v(n12));
+            let (d1, d2, d12, d) = (v(d1), v(d2), v(d12), v(d));
+            let (a0, a2, b0, b1) = (v(a0), v(a2), v(b0), v(b1));
+            for l in 0..L {
+                let num = n0[l] + n1[l] * dm1 + n2[l] * dm2 + n12[l] * dm12;
+                let den = 1.0 + d1[l] * dm1 + d2[l] * dm2 + d12[l] * dm12;
+                let inv = 1.0 / den;
+                let e = num * inv - d[l];
+                let t1 = (a0[l] + a2[l] * dm2) * inv;
+                let t2 = (b0[l] + b1[l] * dm1) * inv;
+                let (u1, u2) = (t1 * t1, t2 * t2);
+                acc[0][l] += e * e;
+                acc[1][l] += u1 * e;
+                acc[2][l] += u2 * e;
+                acc[3][l] += u1 * u1;
+                acc[4][l] += u1 * u2;
+                acc[5][l] += u2 * u2;
+            }
+        }
+        let sum = |a: [f64; L]| (a[0] + a[1]) + (a[2] + a[3]);
+        let g = -self.gamma;
+        let g2 = self.gamma * self.gamma;
+        if self.k == 1 {
+            grad[0] = g * sum(acc[1]);
+            hess[0] = g2 * sum(acc[3]);
+        } else {
+            grad[0] = g * sum(acc[1]);
+            grad[1] = g * sum(acc[2]);
+            hess[0] = g2 * sum(acc[3]);
+            hess[1] = g2 * sum(acc[4]);
+            hess[2] = hess[1];
+            hess[3] = g2 * sum(acc[5]);
+        }
+        sum(acc[0])
     }
 }
 
@@ -926,12 +1092,14 @@ fn small_solve<T: Num>(a: &mut [T], b: &mut [T], k: usize) -> bool {
 
 #[derive(Clone, Debug)]
 enum Body {
+    Folded(Folded),
     Real(Gathered<f64>),
     Complex(Gathered<Complex64>),
 }
 
 /// The Green's entries of one position set at every node of a [`Misfit`]:
-/// evaluating the residual for given masses costs only the `k x k` solves.
+/// evaluating the residual for given masses costs only the `k x k` solves
+/// (one or two defects on the real axis: one ratio of bilinear forms per node).
 #[derive(Clone, Debug)]
 pub struct SetTable {
     body: Body,
@@ -944,9 +1112,16 @@ impl SetTable {
     /// Number of defects in the set.
     pub fn k(&self) -> usize {
         match &self.body {
+            Body::Folded(f) => f.k,
             Body::Real(g) => g.k,
             Body::Complex(g) => g.k,
         }
+    }
+
+    /// Whether the set is folded (one or two defects on the real axis, from
+    /// [`Misfit::set`]) rather than on the general path.
+    pub fn is_folded(&self) -> bool {
+        matches!(self.body, Body::Folded(_))
     }
 
     /// `r` for mass changes `dm_l = m_l - mass`, one per position of the set.
@@ -956,14 +1131,8 @@ impl SetTable {
     pub fn residual(&self, dm: &[f64]) -> f64 {
         debug_assert_eq!(dm.len(), self.k());
         let r = match &self.body {
-            Body::Real(g) => match (g.k, self.obs) {
-                (1, None) => g.residual_k1::<false>(dm[0], self.gamma),
-                (1, Some(_)) => g.residual_k1::<true>(dm[0], self.gamma),
-                (2, None) => g.residual_k2::<0>(dm[0], dm[1], self.gamma),
-                (2, Some(0)) => g.residual_k2::<1>(dm[0], dm[1], self.gamma),
-                (2, Some(_)) => g.residual_k2::<2>(dm[0], dm[1], self.gamma),
-                _ => g.eval_general(dm, self.gamma, self.obs, None),
-            },
+            Body::Folded(f) => f.residual(dm[0], if f.k == 2 { dm[1] } else { 0.0 }),
+            Body::Real(g) => g.eval_general(dm, self.gamma, self.obs, None),
             Body::Complex(g) => g.eval_general(dm, self.gamma, self.obs, None),
         };
         if r.is_finite() {
@@ -976,13 +1145,15 @@ impl SetTable {
     /// `r` and the Gauss-Newton pieces in `dm`: `grad[l] = sum_q w_q Re(conj(J_ql) e_q)`
     /// (half the gradient of `r`) and `hess[l k + m] = sum_q w_q Re(conj(J_ql) J_qm)`,
     /// with `e_q = X_1(s_q) - d_q` and `J_ql = dX_1/dm_l = -gamma s_q^2 z_l^2`.
+    /// `r = f64::MAX` as for [`SetTable::residual`] (the pieces are then
+    /// meaningless).
     pub fn gauss_newton(&self, dm: &[f64], grad: &mut [f64], hess: &mut [f64]) -> f64 {
+        debug_assert_eq!(dm.len(), self.k());
         let r = match &self.body {
-            Body::Real(g) if g.k == 2 => match self.obs {
-                None => g.gauss_newton_k2::<0>(dm[0], dm[1], self.gamma, grad, hess),
-                Some(0) => g.gauss_newton_k2::<1>(dm[0], dm[1], self.gamma, grad, hess),
-                Some(_) => g.gauss_newton_k2::<2>(dm[0], dm[1], self.gamma, grad, hess),
-            },
+            Body::Folded(f) => {
+                let dm2 = if f.k == 2 { dm[1] } else { 0.0 };
+                f.gauss_newton(dm[0], dm2, grad, hess)
+            }
             Body::Real(g) => g.eval_general(dm, self.gamma, self.obs, Some((grad, hess))),
             Body::Complex(g) => g.eval_general(dm, self.gamma, self.obs, Some((grad, hess))),
         };
@@ -990,14 +1161,6 @@ impl SetTable {
             r
         } else {
             f64::MAX
-        }
-    }
-
-    /// The general-`k` path (no specialised kernel), for tests and benches.
-    pub fn residual_general(&self, dm: &[f64]) -> f64 {
-        match &self.body {
-            Body::Real(g) => g.eval_general(dm, self.gamma, self.obs, None),
-            Body::Complex(g) => g.eval_general(dm, self.gamma, self.obs, None),
         }
     }
 }
@@ -1043,32 +1206,170 @@ mod tests {
             let pos: Vec<usize> = defs.iter().map(|d| d.0).collect();
             let dm: Vec<f64> = defs.iter().map(|d| d.1 - 1.0).collect();
             let set = mis.set(&pos);
+            assert_eq!(set.is_folded(), pos.len() <= 2);
             let fast = set.residual(&dm);
-            let gen = set.residual_general(&dm);
-            let (mut g, mut h) = (vec![0.0; pos.len()], vec![0.0; pos.len() * pos.len()]);
-            let gn = set.gauss_newton(&dm, &mut g, &mut h);
-            if pos.len() == 2 {
-                // the k = 2 kernel against the general path
-                let (mut g2, mut h2) = (vec![0.0; 2], vec![0.0; 4]);
-                let gen_set = match &set.body {
-                    Body::Real(gg) => {
-                        gg.eval_general(&dm, set.gamma, set.obs, Some((&mut g2, &mut h2)))
-                    }
-                    Body::Complex(_) => unreachable!(),
-                };
-                assert!((gen_set - gn).abs() <= 1e-12 * gn);
-                for i in 0..2 {
-                    assert!((g2[i] - g[i]).abs() <= 1e-10 * g[i].abs());
-                }
-                for i in 0..4 {
-                    assert!((h2[i] - h[i]).abs() <= 1e-10 * h[i].abs());
-                }
-            }
+            let gen = mis.set_general(&pos).residual(&dm);
+            let (gn, _, _) = pieces(&set, &dm);
             for v in [fast, gen, gn, mis.residual(&defs)] {
                 assert!(
                     (v - direct).abs() <= 1e-12 * direct,
                     "{defs:?}: {v} vs {direct}"
                 );
+            }
+        }
+    }
+
+    /// `(r, grad, hess)` of a set at `dm` by [`SetTable::gauss_newton`].
+    fn pieces(set: &SetTable, dm: &[f64]) -> (f64, Vec<f64>, Vec<f64>) {
+        let k = dm.len();
+        let (mut g, mut h) = (vec![0.0; k], vec![0.0; k * k]);
+        let r = set.gauss_newton(dm, &mut g, &mut h);
+        (r, g, h)
+    }
+
+    #[test]
+    fn folded_equals_general_path() {
+        use rand::{Rng, SeedableRng};
+        use rand_chacha::ChaCha8Rng;
+        let mut rng = ChaCha8Rng::seed_from_u64(13);
+        // the paper's System 3 on the default rule, and a chain with another
+        // gamma, damping and spring constant on a coarser rule
+        let s3 = chain_with(20, &[(8, 5.0), (15, 2.0)]);
+        let other = Chain::new(9)
+            .and_then(|c| c.with_k(2.5))
+            .and_then(|c| c.with_d(0.7))
+            .and_then(|c| c.with_gamma(-1.7))
+            .unwrap()
+            .with_defects([
+                Defect::Mass { at: 1, m: 3.0 },
+                Defect::Mass { at: 6, m: 0.4 },
+            ])
+            .unwrap();
+        let mut compared = 0;
+        for (truth, spec) in [
+            (s3, MisfitSpec::default()),
+            (other, MisfitSpec::real_axis(6, 6)),
+        ] {
+            let n = truth.n();
+            let mis = Misfit::new(&truth.uniform(), &Data::exact(&truth), &spec).unwrap();
+            for trial in 0..400 {
+                let k = 1 + trial % 2;
+                let a = rng.random_range(1..=n);
+                let pos = if k == 1 {
+                    vec![a]
+                } else {
+                    let mut b = rng.random_range(1..=n);
+                    while b == a {
+                        b = rng.random_range(1..=n);
+                    }
+                    vec![a, b]
+                };
+                // masses log-uniform in [1e-2, 1e3] (below, the conditioning
+                // ~ 1 / m of both paths takes more digits than 1e-12 leaves)
+                let dm: Vec<f64> = (0..k)
+                    .map(|_| 10f64.powf(rng.random_range(-2.0..3.0)) - 1.0)
+                    .collect();
+                let set = mis.set(&pos);
+                let gen = mis.set_general(&pos);
+                assert!(set.is_folded() && !gen.is_folded());
+                let (rf, gf, hf) = pieces(&set, &dm);
+                let (rg, gg, hg) = pieces(&gen, &dm);
+                let tag = format!("{pos:?} {dm:?}");
+                assert!((rf - rg).abs() <= 1e-12 * rg, "{tag}: r {rf} vs {rg}");
+                // the same sum over other accumulators (and X by a reciprocal)
+                assert!(
+                    (set.residual(&dm) - rf).abs() <= 1e-12 * rf,
+                    "{tag}: {} vs {rf} vs {rg}",
+                    set.residual(&dm)
+                );
+                for l in 0..k {
+                    // |grad_l| <= sqrt(r hess_ll) (Cauchy-Schwarz) bounds the
+                    // cancellation of the gradient's sum
+                    let scale = (rg * hg[l * k + l]).sqrt();
+                    assert!(
+                        (gf[l] - gg[l]).abs() <= 1e-12 * scale,
+                        "{tag}: grad {l} {} {} {scale}",
+                        gf[l],
+                        gg[l]
+                    );
+                    for m in 0..k {
+                        let scale = (hg[l * k + l] * hg[m * k + m]).sqrt();
+                        let (x, y) = (hf[l * k + m], hg[l * k + m]);
+                        assert!((x - y).abs() <= 1e-12 * scale, "{tag}: hess {l}{m}");
+                    }
+                }
+                compared += 1;
+            }
+            // near and at the truth (the observed mass 1 among the positions
+            // of the second chain)
+            let defs: Vec<(usize, f64)> = truth
+                .defects()
+                .iter()
+                .map(|d| match d {
+                    Defect::Mass { at, m } => (*at, *m),
+                    _ => unreachable!(),
+                })
+                .collect();
+            let pos = [defs[0].0, defs[1].0];
+            // there `r` is known only to about `eps sqrt(r x2)` (each `X` to a
+            // few ulps, as the data): both paths within that of each other
+            let x2: f64 = match &mis.tab {
+                Tab::Real { d, .. } => d.iter().zip(&mis.w).map(|(d, w)| w * d * d).sum(),
+                Tab::Complex { .. } => unreachable!(),
+            };
+            let ulps = 16.0 * f64::EPSILON;
+            for rel in [0.0, 1e-9, 1e-6, 1e-3] {
+                let dm = [defs[0].1 * (1.0 + rel) - 1.0, defs[1].1 * (1.0 - rel) - 1.0];
+                let (rf, gf, hf) = pieces(&mis.set(&pos), &dm);
+                let (rg, gg, hg) = pieces(&mis.set_general(&pos), &dm);
+                let tol = 1e-12 * rg + ulps * (rg * x2).sqrt();
+                assert!((rf - rg).abs() <= tol, "{rel}: {rf} vs {rg}");
+                if rel == 0.0 {
+                    assert!(rf <= 1e-28 && rg <= 1e-28, "{rf} {rg}");
+                }
+                for l in 0..2 {
+                    let h = hg[3 * l];
+                    let tol = 1e-12 * (rg * h).sqrt() + ulps * (h * x2).sqrt();
+                    assert!((gf[l] - gg[l]).abs() <= tol, "{rel}: grad {l}");
+                }
+                for i in 0..4 {
+                    assert!((hf[i] - hg[i]).abs() <= 1e-12 * (hg[0] * hg[3]).sqrt());
+                }
+            }
+        }
+        assert_eq!(compared, 800);
+    }
+
+    #[test]
+    fn folded_never_nan_near_singular_capacitance() {
+        let truth = chain_with(10, &[(3, 3.0), (7, 2.0)]);
+        let mis = Misfit::new(
+            &truth.uniform(),
+            &Data::exact(&truth),
+            &MisfitSpec::default(),
+        )
+        .unwrap();
+        for pos in [vec![3], vec![1], vec![3, 7], vec![1, 7], vec![7, 1]] {
+            let set = mis.set(&pos);
+            let Body::Folded(f) = &set.body else {
+                panic!("not folded")
+            };
+            // each node's denominator vanishes at dm = -1 / D1 (the other mass
+            // unchanged): an infinite residual, reported as f64::MAX
+            let mut singular = vec![-1.0, -1.0 - 1e-12, -2.0, -1e300, f64::INFINITY, f64::NAN];
+            singular.extend((0..f.np).map(|q| -1.0 / f.c[D1 * f.np + q]));
+            for dm1 in singular {
+                let mut dm = vec![dm1; pos.len()];
+                if pos.len() == 2 {
+                    dm[1] = 0.0;
+                }
+                let r = set.residual(&dm);
+                let (rg, _, _) = pieces(&set, &dm);
+                assert!(!r.is_nan() && r >= 0.0, "{pos:?} {dm1}: {r}");
+                assert!(!rg.is_nan() && rg >= 0.0, "{pos:?} {dm1}: {rg}");
+                if dm1.is_nan() || dm1.is_infinite() {
+                    assert_eq!(r, f64::MAX);
+                }
             }
         }
     }

@@ -4,9 +4,11 @@
 //! For every admissible assignment of the unknown positions (a set of
 //! distinct positions when the defects are interchangeable, an ordered
 //! assignment otherwise; known positions excluded), the unknown masses are
-//! fitted by projected Levenberg-Marquardt in `u = ln m` inside their bounds,
-//! from the best point of a small grid of starts (`starts` per unknown mass,
-//! log-spaced, default 2). The Jacobian is analytic: `dX_1/dm_l = -gamma s^2 z_l^2` with
+//! fitted in `u = ln m` inside their bounds by the bounded Levenberg-Marquardt
+//! driver on the normal equations ([`crate::detect::search::lsq::lm_normal`],
+//! with its active set), from the best point of a small grid of starts
+//! (`starts` per unknown mass, log-spaced, default 2). The Jacobian is
+//! analytic: `dX_1/dm_l = -gamma s^2 z_l^2` with
 //! `z = (I + G_JJ C)^{-1} G_J1` (see [`crate::detect::misfit`]), so one
 //! Gauss-Newton step costs one residual evaluation. Sets are fitted in
 //! parallel with rayon; the result is sorted by `(residual, positions)` and
@@ -46,10 +48,10 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::detect::misfit::Misfit;
+use crate::detect::misfit::{Misfit, SetTable};
+use crate::detect::search::lsq::{lm_normal, LmOptions, NormalEquations};
 use crate::detect::unknowns::{gen_sets, MassUnknown, MassUnknowns};
 use crate::error::{Error, Result};
-use crate::linalg::solve_in_place;
 use rayon::prelude::*;
 
 /// Defects `(position, mass)`.
@@ -375,146 +377,218 @@ fn fit_sets(
     }
 }
 
+/// Slots up to which [`fit_slots`] works in stack buffers.
+const STACK_K: usize = 8;
+
+/// The normal equations of one set's mass fit in `u = ln m` of the free
+/// masses (known masses fixed): `J_u = m J_m`, so `g_u = m g_m` and
+/// `(J^T J)_u = m_i m_j (J^T J)_m` (Gauss-Newton, as the driver wants).
+struct SlotFit<'a> {
+    table: &'a SetTable,
+    base: f64,
+    /// Slot of each variable.
+    free: &'a [usize],
+    /// Masses of all slots (the free ones set from `u` at every evaluation).
+    m: &'a mut [f64],
+    /// Buffers: mass changes, gradient and Gauss-Newton matrix of all slots.
+    dm: &'a mut [f64],
+    gk: &'a mut [f64],
+    hk: &'a mut [f64],
+}
+
+impl SlotFit<'_> {
+    fn set(&mut self, u: &[f64]) {
+        for (&s, &v) in self.free.iter().zip(u) {
+            self.m[s] = v.exp();
+        }
+        for (d, &m) in self.dm.iter_mut().zip(self.m.iter()) {
+            *d = m - self.base;
+        }
+    }
+}
+
+impl NormalEquations for SlotFit<'_> {
+    fn chi2(&mut self, u: &[f64]) -> Result<f64> {
+        self.set(u);
+        Ok(self.table.residual(self.dm))
+    }
+
+    fn normal(&mut self, u: &[f64], g: &mut [f64], h: &mut [f64]) -> Result<f64> {
+        self.set(u);
+        let r = self.table.gauss_newton(self.dm, self.gk, self.hk);
+        let (k, f) = (self.m.len(), self.free.len());
+        for (i, &si) in self.free.iter().enumerate() {
+            g[i] = self.m[si] * self.gk[si];
+            for (j, &sj) in self.free.iter().enumerate() {
+                h[i * f + j] = self.m[si] * self.m[sj] * self.hk[si * k + sj];
+            }
+        }
+        Ok(r)
+    }
+
+    fn pieces_are_cheap(&self) -> bool {
+        true
+    }
+}
+
+/// The driver's settings of the mass fits: `rtol = 1e-9`, steps below
+/// `1e-13` in `ln m` stop, `mu` from `1e-3`, times 0.2 or 5, in
+/// `[1e-15, 1e12]`.
+fn slot_lm_options(max_iter: usize) -> LmOptions {
+    LmOptions {
+        max_iter,
+        rtol: 1e-9,
+        xtol: 0.0,
+        xtol_abs: 1e-13,
+        mu0: 1e-3,
+        mu_down: 0.2,
+        mu_up: 5.0,
+        mu_min: 1e-15,
+        mu_max: 1e12,
+    }
+}
+
 /// Fit the unknown masses of the slots (positions fixed). Returns the
 /// defects `(position, mass)`, the residual and the evaluations used.
+///
+/// The best point of a log-spaced grid of starts (`opts.starts` per free
+/// mass, at most 729 points) starts the bounded Levenberg-Marquardt driver
+/// ([`lm_normal`]) in `u = ln m`, on the normal equations of the tabled
+/// kernel ([`SetTable::gauss_newton`]: one evaluation per iteration).
 pub fn fit_slots(
     misfit: &Misfit,
     slots: &[(usize, MassUnknown)],
     opts: &EnumerateOptions,
 ) -> Fitted {
-    let base = misfit.chain().mass();
-    let pos: Vec<usize> = slots.iter().map(|s| s.0).collect();
-    let table = misfit.set(&pos);
     let k = slots.len();
-    let mut m: Vec<f64> = slots
-        .iter()
-        .map(|s| match s.1 {
+    let mut pos_stack = [0usize; STACK_K];
+    let pos_heap: Vec<usize>;
+    let pos: &[usize] = if k <= STACK_K {
+        for (p, s) in pos_stack.iter_mut().zip(slots) {
+            *p = s.0;
+        }
+        &pos_stack[..k]
+    } else {
+        pos_heap = slots.iter().map(|s| s.0).collect();
+        &pos_heap
+    };
+    let table = misfit.set(pos);
+    // f64 buffers: m, dm, gk, hk, u, and the bounds
+    let need = 5 * k + k * k;
+    let mut stack = [0.0f64; 5 * STACK_K + STACK_K * STACK_K];
+    let mut heap = Vec::new();
+    let buf: &mut [f64] = if k <= STACK_K {
+        &mut stack[..need]
+    } else {
+        heap.resize(need, 0.0);
+        &mut heap
+    };
+    let (m, buf) = buf.split_at_mut(k);
+    let (dm, buf) = buf.split_at_mut(k);
+    let (gk, buf) = buf.split_at_mut(k);
+    let (hk, u) = buf.split_at_mut(k * k);
+    let mut free_stack = [(0usize, 0.0f64, 0.0f64); STACK_K];
+    let mut free_heap = Vec::new();
+    let free: &mut [(usize, f64, f64)] = if k <= STACK_K {
+        &mut free_stack[..k]
+    } else {
+        free_heap.resize(k, (0, 0.0, 0.0));
+        &mut free_heap
+    };
+    let mut f = 0;
+    for (i, s) in slots.iter().enumerate() {
+        m[i] = match s.1 {
             MassUnknown::Known(m) => m,
-            MassUnknown::Free { lo, hi } => (lo * hi).sqrt(),
-        })
-        .collect();
-    let free: Vec<(usize, f64, f64)> = slots
-        .iter()
-        .enumerate()
-        .filter_map(|(i, s)| match s.1 {
-            MassUnknown::Free { lo, hi } => Some((i, lo.ln(), hi.ln())),
-            MassUnknown::Known(_) => None,
-        })
-        .collect();
-    let dm_of = |m: &[f64]| -> Vec<f64> { m.iter().map(|x| x - base).collect() };
-    let mut evals = 0;
-    let done = |m: Vec<f64>, r: f64, e: usize| (pos.iter().copied().zip(m).collect(), r, e);
-    if free.is_empty() {
-        let r = table.residual(&dm_of(&m));
+            MassUnknown::Free { lo, hi } => {
+                free[f] = (i, lo.ln(), hi.ln());
+                f += 1;
+                (lo * hi).sqrt()
+            }
+        };
+    }
+    let free = &free[..f];
+    let base = misfit.chain().mass();
+    let done =
+        |m: &[f64], r: f64, e: usize| (pos.iter().copied().zip(m.iter().copied()).collect(), r, e);
+    let set_dm = |dm: &mut [f64], m: &[f64]| {
+        for (d, &m) in dm.iter_mut().zip(m) {
+            *d = m - base;
+        }
+    };
+    if f == 0 {
+        set_dm(dm, m);
+        let r = table.residual(dm);
         return done(m, r, 1);
     }
-    let f = free.len();
-    // grid of starts (at most 729 points)
+    // grid of starts (at most 729 points): the best becomes u
     let mut g = opts.starts;
     while g > 1 && g.checked_pow(f as u32).is_none_or(|t| t > 729) {
         g -= 1;
     }
     let total = g.pow(f as u32);
-    let mut best = (f64::INFINITY, m.clone());
-    let mut trial = m.clone();
+    let mut best = f64::INFINITY;
+    let mut evals = 0;
     for idx in 0..total {
         let mut rem = idx;
-        for &(slot, lo, hi) in &free {
+        for &(slot, lo, hi) in free {
             let i = rem % g;
             rem /= g;
-            trial[slot] = (lo + (hi - lo) * (i as f64 + 0.5) / g as f64).exp();
+            m[slot] = (lo + (hi - lo) * (i as f64 + 0.5) / g as f64).exp();
         }
-        let r = table.residual(&dm_of(&trial));
+        set_dm(dm, m);
+        let r = table.residual(dm);
         evals += 1;
-        if r < best.0 {
-            best = (r, trial.clone());
-        }
-    }
-    m = best.1;
-    let mut u: Vec<f64> = free.iter().map(|&(s, _, _)| m[s].ln()).collect();
-    let mut grad = vec![0.0; k];
-    let mut hess = vec![0.0; k * k];
-    let mut r = table.gauss_newton(&dm_of(&m), &mut grad, &mut hess);
-    evals += 1;
-    let mut grad_t = grad.clone();
-    let mut hess_t = hess.clone();
-    let mut mu = 1e-3;
-    let mut a = vec![0.0; f * f];
-    let mut b = vec![0.0; f];
-    for _ in 0..opts.max_iter {
-        if r == 0.0 {
-            break;
-        }
-        // active set: a variable at a bound whose descent direction leaves
-        // the box is frozen for this step (plain clamping of the full step
-        // would stall the others)
-        let act: Vec<usize> = (0..f)
-            .filter(|&i| {
-                let (si, lo, hi) = free[i];
-                let gu = m[si] * grad[si];
-                !((u[i] <= lo && gu > 0.0) || (u[i] >= hi && gu < 0.0))
-            })
-            .collect();
-        let fa = act.len();
-        if fa == 0 {
-            break;
-        }
-        a.clear();
-        a.resize(fa * fa, 0.0);
-        b.clear();
-        b.resize(fa, 0.0);
-        for (i, &ii) in act.iter().enumerate() {
-            let si = free[ii].0;
-            b[i] = -m[si] * grad[si];
-            for (j, &jj) in act.iter().enumerate() {
-                let sj = free[jj].0;
-                a[i * fa + j] = m[si] * m[sj] * hess[si * k + sj];
-            }
-            a[i * fa + i] *= 1.0 + mu;
-            a[i * fa + i] += 1e-300;
-        }
-        if !solve_in_place(&mut a, &mut b, fa) || b.iter().any(|x| !x.is_finite()) {
-            mu *= 10.0;
-            if mu > 1e12 {
-                break;
-            }
-            continue;
-        }
-        let mut step = 0.0f64;
-        let mut trial = m.clone();
-        let mut u_new = u.clone();
-        for (i, &ii) in act.iter().enumerate() {
-            let (s, lo, hi) = free[ii];
-            u_new[ii] = (u[ii] + b[i]).clamp(lo, hi);
-            step = step.max((u_new[ii] - u[ii]).abs());
-            trial[s] = u_new[ii].exp();
-        }
-        if step < 1e-13 {
-            break;
-        }
-        // the trial point is evaluated with its Gauss-Newton pieces (one
-        // evaluation per iteration; the pieces are kept when it is accepted)
-        let r_new = table.gauss_newton(&dm_of(&trial), &mut grad_t, &mut hess_t);
-        evals += 1;
-        if r_new < r {
-            let small = r - r_new <= 1e-9 * r;
-            u = u_new;
-            m = trial;
-            r = r_new;
-            std::mem::swap(&mut grad, &mut grad_t);
-            std::mem::swap(&mut hess, &mut hess_t);
-            mu = (mu * 0.2).max(1e-15);
-            if small {
-                break;
-            }
-        } else {
-            mu *= 5.0;
-            if mu > 1e12 {
-                break;
+        if r < best {
+            best = r;
+            for (v, &(slot, _, _)) in u.iter_mut().zip(free) {
+                *v = m[slot].ln();
             }
         }
     }
-    done(m, r, evals)
+    let u = &mut u[..f];
+    let mut bounds_stack = [(0.0f64, 0.0f64); STACK_K];
+    let bounds_heap: Vec<(f64, f64)>;
+    let bounds: &[(f64, f64)] = if f <= STACK_K {
+        for (b, &(_, lo, hi)) in bounds_stack.iter_mut().zip(free) {
+            *b = (lo, hi);
+        }
+        &bounds_stack[..f]
+    } else {
+        bounds_heap = free.iter().map(|&(_, lo, hi)| (lo, hi)).collect();
+        &bounds_heap
+    };
+    let free_slots_stack: [usize; STACK_K] =
+        std::array::from_fn(|i| free.get(i).map_or(0, |x| x.0));
+    let free_slots_heap: Vec<usize>;
+    let free_slots: &[usize] = if f <= STACK_K {
+        &free_slots_stack[..f]
+    } else {
+        free_slots_heap = free.iter().map(|x| x.0).collect();
+        &free_slots_heap
+    };
+    let mut problem = SlotFit {
+        table: &table,
+        base,
+        free: free_slots,
+        m,
+        dm,
+        gk,
+        hk,
+    };
+    // the grid's best is inside the bounds and gives a finite chi^2, so the
+    // driver cannot fail; a failure keeps the grid's best
+    let r = match lm_normal(&mut problem, u, bounds, &slot_lm_options(opts.max_iter)) {
+        Ok(rep) => {
+            evals += rep.evaluations;
+            problem.set(u);
+            rep.chi2
+        }
+        Err(_) => {
+            problem.set(u);
+            best
+        }
+    };
+    done(problem.m, r, evals)
 }
 
 #[cfg(test)]

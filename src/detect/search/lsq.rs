@@ -1,15 +1,30 @@
-//! Weighted nonlinear least squares: a bounded Levenberg-Marquardt solver and
-//! the Gauss-Newton (Fisher) covariance at its solution.
+//! Weighted nonlinear least squares: one bounded Levenberg-Marquardt driver
+//! and the Gauss-Newton (Fisher) covariance at its solution.
 //!
-//! A problem gives *whitened* residuals `r_i(theta) = (model_i - data_i) / sigma_i`
-//! so that `chi^2 = sum r_i^2` is a chi-square at the truth, and optionally
-//! their Jacobian (default: central differences). The solver minimises
-//! `chi^2` on the box `lo <= theta <= hi` by damped Gauss-Newton steps
-//! `(J^T J + mu diag(J^T J)) delta = -J^T r` (Marquardt's scaling), projected on
-//! the box; `mu` shrinks by 3 after an accepted step and grows by 4 after a
-//! rejected one. Stops when the relative decrease of `chi^2` falls below
-//! `rtol` (default 1e-10) or the step below `xtol` relative (default 1e-10),
-//! or after `max_iter` (default 100) Jacobians.
+//! The driver, [`lm_normal`], works on a problem given by its **normal
+//! equations** ([`NormalEquations`]): `chi^2`, `g = J^T r` and `J^T J` at a
+//! point, for whitened residuals `r_i(theta) = (model_i - data_i) / sigma_i`
+//! (so that `chi^2 = sum r_i^2` is a chi-square at the truth). A problem that
+//! gives the residual vector and its Jacobian ([`LeastSquares`], default
+//! Jacobian by central differences) is solved by [`levenberg_marquardt`],
+//! which adapts it to the normal equations and adds the Jacobian and the
+//! covariance of the solution; the mass fits of the enumeration
+//! ([`crate::detect::search::enumerate::fit_slots`]) give the normal
+//! equations directly (the tabled Woodbury kernel accumulates them without
+//! forming `J`, in log masses).
+//!
+//! The driver minimises `chi^2` on the box `lo <= theta <= hi` by damped
+//! Gauss-Newton steps `(J^T J + mu diag(J^T J)) delta = -J^T r` (Marquardt's
+//! scaling) on the **active set**: a variable at a bound whose descent
+//! direction leaves the box is frozen for the step (plain clamping of the
+//! full step would stall the others), the rest of the step is clamped into
+//! the box. `mu` shrinks by `mu_down` (default 1/3) after an accepted step and
+//! grows by `mu_up` (default 4) after a rejected one or a failed solve. Stops
+//! when `chi^2` is zero, the relative decrease of `chi^2` falls below `rtol`
+//! (default 1e-10), the step below `xtol` relative (default 1e-10) or below
+//! `xtol_abs` absolute (default 0: off), `mu` passes `mu_max`, or after
+//! `max_iter` (default 100) normal-equation evaluations. It allocates no
+//! memory per iteration (none at all for up to 8 parameters).
 //!
 //! ```
 //! use springmass::detect::search::lsq::{levenberg_marquardt, LeastSquares, LmOptions};
@@ -76,17 +91,28 @@ pub fn central_jacobian<P: LeastSquares + ?Sized>(
     Ok(DMatrix::from_fn(m, theta.len(), |i, j| cols[j][i]))
 }
 
-/// Options of [`levenberg_marquardt`].
+/// Options of [`lm_normal`] and [`levenberg_marquardt`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct LmOptions {
-    /// Most Jacobian evaluations [default 100].
+    /// Most normal-equation (Jacobian) evaluations [default 100].
     pub max_iter: usize,
     /// Relative decrease of `chi^2` that counts as converged [default 1e-10].
     pub rtol: f64,
     /// Relative step that counts as converged [default 1e-10].
     pub xtol: f64,
+    /// Absolute step (largest component) that counts as converged, tested
+    /// before the trial point is evaluated [default 0: off].
+    pub xtol_abs: f64,
     /// Initial damping `mu` [default 1e-3].
     pub mu0: f64,
+    /// Factor of `mu` after an accepted step [default 1/3].
+    pub mu_down: f64,
+    /// Factor of `mu` after a rejected step or a failed solve [default 4].
+    pub mu_up: f64,
+    /// Smallest `mu` [default 1e-12].
+    pub mu_min: f64,
+    /// Largest `mu`: beyond it the fit stops (converged) [default 1e20].
+    pub mu_max: f64,
 }
 
 impl Default for LmOptions {
@@ -95,8 +121,308 @@ impl Default for LmOptions {
             max_iter: 100,
             rtol: 1e-10,
             xtol: 1e-10,
+            xtol_abs: 0.0,
             mu0: 1e-3,
+            mu_down: 1.0 / 3.0,
+            mu_up: 4.0,
+            mu_min: 1e-12,
+            mu_max: 1e20,
         }
+    }
+}
+
+/// A least-squares problem given by its normal equations (see the module
+/// docs): the interface of [`lm_normal`].
+pub trait NormalEquations {
+    /// `chi^2` at `theta`.
+    ///
+    /// # Errors
+    /// A `theta` the model rejects (the driver treats it as an infinite
+    /// `chi^2` at a trial point).
+    fn chi2(&mut self, theta: &[f64]) -> Result<f64>;
+
+    /// `chi^2` at `theta`, and the normal equations there: `g = J^T r`
+    /// (half the gradient of `chi^2`) and `h = J^T J` (row-major `p x p`).
+    /// The driver calls it at its starting point and at accepted points
+    /// (after [`NormalEquations::chi2`] at the same point, unless
+    /// [`NormalEquations::pieces_are_cheap`]).
+    ///
+    /// # Errors
+    /// As [`NormalEquations::chi2`].
+    fn normal(&mut self, theta: &[f64], g: &mut [f64], h: &mut [f64]) -> Result<f64>;
+
+    /// Whether [`NormalEquations::normal`] costs about as little as
+    /// [`NormalEquations::chi2`]: the driver then evaluates every trial point
+    /// with its normal equations (one evaluation per iteration) instead of
+    /// `chi^2` first and the normal equations after acceptance. Default false.
+    fn pieces_are_cheap(&self) -> bool {
+        false
+    }
+}
+
+/// What [`lm_normal`] reports (the minimiser is left in its `theta`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LmReport {
+    /// `chi^2` at the minimiser.
+    pub chi2: f64,
+    /// Normal-equation evaluations.
+    pub iterations: usize,
+    /// Points evaluated: the start and every trial point.
+    pub evaluations: usize,
+    /// Whether a tolerance was met (rather than `max_iter`).
+    pub converged: bool,
+}
+
+/// Parameters up to which [`lm_normal`] works in stack buffers.
+const STACK_P: usize = 8;
+
+/// Bounded Levenberg-Marquardt on the normal equations from `theta`
+/// (clamped into the bounds), which holds the minimiser on return.
+///
+/// # Errors
+/// `bounds` of the wrong length or with `lo >= hi` (field `bounds`); the
+/// first evaluation failing or its `chi^2` not finite; a failing
+/// [`NormalEquations::normal`] at an accepted point.
+pub fn lm_normal<P: NormalEquations + ?Sized>(
+    problem: &mut P,
+    theta: &mut [f64],
+    bounds: &[(f64, f64)],
+    opts: &LmOptions,
+) -> Result<LmReport> {
+    let p = theta.len();
+    check_bounds(bounds, p)?;
+    for (v, &(lo, hi)) in theta.iter_mut().zip(bounds) {
+        *v = v.clamp(lo, hi);
+    }
+    // workspace: g, h, trial g, trial h, the reduced system a, b, the trial
+    // point, and the active indices
+    let need = 3 * p * p + 4 * p;
+    let mut stack = [0.0f64; 3 * STACK_P * STACK_P + 4 * STACK_P];
+    let mut heap = Vec::new();
+    let ws: &mut [f64] = if p <= STACK_P {
+        &mut stack[..need]
+    } else {
+        heap.resize(need, 0.0);
+        &mut heap
+    };
+    let (g, ws) = ws.split_at_mut(p);
+    let (h, ws) = ws.split_at_mut(p * p);
+    let (g_t, ws) = ws.split_at_mut(p);
+    let (h_t, ws) = ws.split_at_mut(p * p);
+    let (a, ws) = ws.split_at_mut(p * p);
+    let (b, trial) = ws.split_at_mut(p);
+    let mut act_stack = [0usize; STACK_P];
+    let mut act_heap = Vec::new();
+    let act: &mut [usize] = if p <= STACK_P {
+        &mut act_stack[..p]
+    } else {
+        act_heap.resize(p, 0);
+        &mut act_heap
+    };
+
+    let cheap = problem.pieces_are_cheap();
+    let mut chi2 = problem.normal(theta, g, h)?;
+    let mut iterations = 1;
+    let mut evaluations = 1;
+    if !chi2.is_finite() {
+        return Err(Error::Numerical {
+            method: "levenberg-marquardt".into(),
+            reason: "chi-square not finite at the starting point".into(),
+        });
+    }
+    let mut mu = opts.mu0;
+    let mut converged = false;
+    while iterations <= opts.max_iter {
+        if chi2 == 0.0 {
+            converged = true;
+            break;
+        }
+        // active set: free variables, and those at a bound whose descent
+        // direction (-g) points into the box
+        let mut fa = 0;
+        for (i, (&v, &(lo, hi))) in theta.iter().zip(bounds).enumerate() {
+            if !((v <= lo && g[i] > 0.0) || (v >= hi && g[i] < 0.0)) {
+                act[fa] = i;
+                fa += 1;
+            }
+        }
+        if fa == 0 {
+            converged = true;
+            break;
+        }
+        let act = &act[..fa];
+        let (a, b) = (&mut a[..fa * fa], &mut b[..fa]);
+        for (r, &i) in act.iter().enumerate() {
+            b[r] = -g[i];
+            for (c, &j) in act.iter().enumerate() {
+                a[r * fa + c] = h[i * p + j];
+            }
+            a[r * fa + r] += mu * h[i * p + i].max(1e-300);
+        }
+        if !cholesky_solve(a, b, fa) {
+            mu *= opts.mu_up;
+            if mu > opts.mu_max {
+                converged = true;
+                break;
+            }
+            continue;
+        }
+        trial.copy_from_slice(theta);
+        let (mut moved_abs, mut moved) = (0.0f64, 0.0f64);
+        for (r, &i) in act.iter().enumerate() {
+            let (lo, hi) = bounds[i];
+            trial[i] = (theta[i] + b[r]).clamp(lo, hi);
+            let d = (trial[i] - theta[i]).abs();
+            moved_abs = moved_abs.max(d);
+            moved = moved.max(d / theta[i].abs().max(1e-12));
+        }
+        if moved_abs < opts.xtol_abs {
+            converged = true;
+            break;
+        }
+        let c2 = if cheap {
+            iterations += 1;
+            problem.normal(trial, g_t, h_t)
+        } else {
+            problem.chi2(trial)
+        };
+        evaluations += 1;
+        let c2 = c2.unwrap_or(f64::INFINITY);
+        if c2.is_finite() && c2 <= chi2 {
+            let dec = (chi2 - c2) / chi2.max(1e-300);
+            theta.copy_from_slice(trial);
+            chi2 = c2;
+            mu = (mu * opts.mu_down).max(opts.mu_min);
+            if dec < opts.rtol || moved < opts.xtol {
+                converged = true;
+                break;
+            }
+            if cheap {
+                g.copy_from_slice(g_t);
+                h.copy_from_slice(h_t);
+            } else {
+                chi2 = problem.normal(theta, g, h)?;
+                iterations += 1;
+            }
+        } else {
+            mu *= opts.mu_up;
+            if mu > opts.mu_max || moved < opts.xtol {
+                converged = true;
+                break;
+            }
+        }
+    }
+    Ok(LmReport {
+        chi2,
+        iterations,
+        evaluations,
+        converged,
+    })
+}
+
+fn check_bounds(bounds: &[(f64, f64)], p: usize) -> Result<()> {
+    if bounds.len() != p {
+        return Err(Error::invalid(
+            "bounds",
+            bounds.len(),
+            format!("one (lo, hi) per parameter ({p})"),
+        ));
+    }
+    for (i, &(lo, hi)) in bounds.iter().enumerate() {
+        if lo.is_nan() || hi.is_nan() || lo >= hi {
+            return Err(Error::invalid(
+                format!("bounds[{i}]"),
+                format!("({lo}, {hi})"),
+                "lo < hi",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Solve the symmetric positive definite `n x n` system `a x = b` in place
+/// (Cholesky; `x` in `b`, `a` overwritten). False when a pivot is not
+/// positive or a value not finite.
+fn cholesky_solve(a: &mut [f64], b: &mut [f64], n: usize) -> bool {
+    for j in 0..n {
+        let mut d = a[j * n + j];
+        for k in 0..j {
+            d -= a[j * n + k] * a[j * n + k];
+        }
+        if !(d > 0.0 && d.is_finite()) {
+            return false;
+        }
+        let d = d.sqrt();
+        a[j * n + j] = d;
+        for i in j + 1..n {
+            let mut v = a[i * n + j];
+            for k in 0..j {
+                v -= a[i * n + k] * a[j * n + k];
+            }
+            a[i * n + j] = v / d;
+        }
+    }
+    for i in 0..n {
+        let mut v = b[i];
+        for k in 0..i {
+            v -= a[i * n + k] * b[k];
+        }
+        b[i] = v / a[i * n + i];
+    }
+    for i in (0..n).rev() {
+        let mut v = b[i];
+        for k in i + 1..n {
+            v -= a[k * n + i] * b[k];
+        }
+        b[i] = v / a[i * n + i];
+    }
+    b.iter().all(|x| x.is_finite())
+}
+
+/// A [`LeastSquares`] problem as normal equations: keeps the residuals of the
+/// last evaluated point, so that the normal equations at an accepted point
+/// cost only the Jacobian.
+struct Adapter<'a, P: ?Sized> {
+    problem: &'a P,
+    /// The last point evaluated and its residuals.
+    last: Vec<f64>,
+    r: Vec<f64>,
+}
+
+impl<P: LeastSquares + ?Sized> Adapter<'_, P> {
+    fn residuals_at(&mut self, theta: &[f64]) -> Result<&[f64]> {
+        if self.last != theta || self.r.is_empty() {
+            self.r = self.problem.residuals(theta)?;
+            self.last.clear();
+            self.last.extend_from_slice(theta);
+        }
+        Ok(&self.r)
+    }
+}
+
+impl<P: LeastSquares + ?Sized> NormalEquations for Adapter<'_, P> {
+    fn chi2(&mut self, theta: &[f64]) -> Result<f64> {
+        Ok(chi2_of(self.residuals_at(theta)?))
+    }
+
+    fn normal(&mut self, theta: &[f64], g: &mut [f64], h: &mut [f64]) -> Result<f64> {
+        let chi2 = chi2_of(self.residuals_at(theta)?);
+        if !chi2.is_finite() {
+            // the driver stops on it; no Jacobian of a point it rejects
+            return Ok(chi2);
+        }
+        let j = self.problem.jacobian(theta)?;
+        let p = theta.len();
+        let rv = DVector::from_column_slice(&self.r);
+        let jtr = j.transpose() * rv;
+        let jtj = j.transpose() * &j;
+        for a in 0..p {
+            g[a] = jtr[a];
+            for b in 0..p {
+                h[a * p + b] = jtj[(a, b)];
+            }
+        }
+        Ok(chi2)
     }
 }
 
@@ -202,7 +528,9 @@ fn chi2_of(r: &[f64]) -> f64 {
     r.iter().map(|v| v * v).sum()
 }
 
-/// Bounded Levenberg-Marquardt from `theta0` (clamped into the bounds).
+/// Bounded Levenberg-Marquardt from `theta0` (clamped into the bounds):
+/// [`lm_normal`] on the normal equations of `problem`, with the Jacobian at
+/// the minimiser for its covariance.
 ///
 /// # Errors
 /// `bounds` of the wrong length or with `lo >= hi` (field `bounds`); the first
@@ -213,103 +541,17 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
     bounds: &[(f64, f64)],
     opts: &LmOptions,
 ) -> Result<LmFit> {
-    let p = theta0.len();
-    if bounds.len() != p {
-        return Err(Error::invalid(
-            "bounds",
-            bounds.len(),
-            format!("one (lo, hi) per parameter ({p})"),
-        ));
-    }
-    for (i, &(lo, hi)) in bounds.iter().enumerate() {
-        if lo.is_nan() || hi.is_nan() || lo >= hi {
-            return Err(Error::invalid(
-                format!("bounds[{i}]"),
-                format!("({lo}, {hi})"),
-                "lo < hi",
-            ));
-        }
-    }
-    let clamp = |th: &mut [f64]| {
-        for (v, &(lo, hi)) in th.iter_mut().zip(bounds) {
-            *v = v.clamp(lo, hi);
-        }
+    check_bounds(bounds, theta0.len())?;
+    let mut adapter = Adapter {
+        problem,
+        last: Vec::new(),
+        r: Vec::new(),
     };
     let mut theta = theta0.to_vec();
-    clamp(&mut theta);
-    let mut r = problem.residuals(&theta)?;
-    let mut chi2 = chi2_of(&r);
-    let mut evaluations = 1;
-    if !chi2.is_finite() {
-        return Err(Error::Numerical {
-            method: "levenberg-marquardt".into(),
-            reason: "chi-square not finite at the starting point".into(),
-        });
-    }
-    let mut mu = opts.mu0;
-    let mut iterations = 0;
-    let mut converged = false;
-    let mut jac = problem.jacobian(&theta)?;
-    iterations += 1;
-    'outer: while iterations <= opts.max_iter {
-        let rv = DVector::from_column_slice(&r);
-        let jtj = jac.transpose() * &jac;
-        let g = jac.transpose() * rv;
-        loop {
-            let mut a = jtj.clone();
-            for i in 0..p {
-                a[(i, i)] += mu * jtj[(i, i)].max(1e-300);
-            }
-            let step = match a.cholesky() {
-                Some(ch) => ch.solve(&(-&g)),
-                None => {
-                    mu *= 4.0;
-                    if mu > 1e20 {
-                        converged = true;
-                        break 'outer;
-                    }
-                    continue;
-                }
-            };
-            let mut trial: Vec<f64> = theta.iter().zip(step.iter()).map(|(t, s)| t + s).collect();
-            clamp(&mut trial);
-            let moved: f64 = trial
-                .iter()
-                .zip(&theta)
-                .map(|(a, b)| ((a - b) / b.abs().max(1e-12)).abs())
-                .fold(0.0, f64::max);
-            let rt = problem.residuals(&trial);
-            evaluations += 1;
-            let (rt, c2) = match rt {
-                Ok(v) => {
-                    let c = chi2_of(&v);
-                    (v, c)
-                }
-                Err(_) => (Vec::new(), f64::INFINITY),
-            };
-            if c2.is_finite() && c2 <= chi2 {
-                let dec = (chi2 - c2) / chi2.max(1e-300);
-                theta = trial;
-                r = rt;
-                chi2 = c2;
-                mu = (mu / 3.0).max(1e-12);
-                if dec < opts.rtol || moved < opts.xtol {
-                    converged = true;
-                    break 'outer;
-                }
-                jac = problem.jacobian(&theta)?;
-                iterations += 1;
-                break;
-            }
-            mu *= 4.0;
-            if mu > 1e20 || moved < opts.xtol {
-                converged = true;
-                break 'outer;
-            }
-        }
-    }
-    // Jacobian at the final point (it may be the last accepted one already)
+    let report = lm_normal(&mut adapter, &mut theta, bounds, opts)?;
+    // Jacobian at the final point
     let jacobian = problem.jacobian(&theta)?;
+    let m = adapter.residuals_at(&theta)?.len();
     let at_bound = theta
         .iter()
         .zip(bounds)
@@ -319,12 +561,12 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
         .collect();
     Ok(LmFit {
         theta,
-        chi2,
-        m: r.len(),
+        chi2: report.chi2,
+        m,
         jacobian,
-        iterations,
-        evaluations,
-        converged,
+        iterations: report.iterations,
+        evaluations: report.evaluations,
+        converged: report.converged,
         at_bound,
     })
 }
@@ -389,6 +631,122 @@ mod tests {
             &LmOptions::default()
         )
         .is_err());
+    }
+
+    /// Rosenbrock as least squares, `r = (10 (y - x^2), 1 - x)`, given by
+    /// its normal equations; counts the evaluations of each kind.
+    struct Rosen {
+        cheap: bool,
+        chi2_calls: usize,
+        normal_calls: usize,
+    }
+    impl Rosen {
+        fn new(cheap: bool) -> Rosen {
+            Rosen {
+                cheap,
+                chi2_calls: 0,
+                normal_calls: 0,
+            }
+        }
+        fn r(t: &[f64]) -> [f64; 2] {
+            [10.0 * (t[1] - t[0] * t[0]), 1.0 - t[0]]
+        }
+    }
+    impl NormalEquations for Rosen {
+        fn chi2(&mut self, t: &[f64]) -> Result<f64> {
+            self.chi2_calls += 1;
+            Ok(chi2_of(&Rosen::r(t)))
+        }
+        fn normal(&mut self, t: &[f64], g: &mut [f64], h: &mut [f64]) -> Result<f64> {
+            self.normal_calls += 1;
+            let r = Rosen::r(t);
+            let j = [[-20.0 * t[0], 10.0], [-1.0, 0.0]];
+            for a in 0..2 {
+                g[a] = j[0][a] * r[0] + j[1][a] * r[1];
+                for b in 0..2 {
+                    h[a * 2 + b] = j[0][a] * j[0][b] + j[1][a] * j[1][b];
+                }
+            }
+            Ok(chi2_of(&r))
+        }
+        fn pieces_are_cheap(&self) -> bool {
+            self.cheap
+        }
+    }
+    impl LeastSquares for Rosen {
+        fn residuals(&self, t: &[f64]) -> Result<Vec<f64>> {
+            Ok(Rosen::r(t).to_vec())
+        }
+    }
+
+    #[test]
+    fn normal_equations_driver_both_modes() {
+        let opts = LmOptions::default();
+        let bounds = [(-5.0, 5.0); 2];
+        for cheap in [false, true] {
+            let mut pr = Rosen::new(cheap);
+            let mut t = [-1.2, 1.0];
+            let rep = lm_normal(&mut pr, &mut t, &bounds, &opts).unwrap();
+            assert!(rep.converged && rep.chi2 < 1e-20, "{cheap}: {rep:?}");
+            assert!((t[0] - 1.0).abs() < 1e-9 && (t[1] - 1.0).abs() < 1e-9);
+            assert_eq!(rep.iterations, pr.normal_calls);
+            // one evaluation per trial, of chi^2 or of the normal equations
+            assert_eq!(
+                rep.evaluations,
+                pr.chi2_calls + pr.normal_calls - {
+                    if cheap {
+                        0
+                    } else {
+                        pr.normal_calls - 1
+                    }
+                }
+            );
+            if cheap {
+                assert_eq!(pr.chi2_calls, 0);
+            }
+        }
+        // the residual form reaches the same point through the adapter
+        let fit = levenberg_marquardt(&Rosen::new(false), &[-1.2, 1.0], &bounds, &opts).unwrap();
+        assert!((fit.theta[0] - 1.0).abs() < 1e-9 && fit.chi2 < 1e-20);
+        assert_eq!(fit.m, 2);
+    }
+
+    #[test]
+    fn active_set_frees_the_other_variable() {
+        // x <= 0.5 cuts off the minimum (1, 1): the constrained minimum is
+        // x = 0.5 on the bound, y = x^2 = 0.25 exactly (the frozen x does not
+        // stall y)
+        for cheap in [false, true] {
+            let mut pr = Rosen::new(cheap);
+            let mut t = [-1.2, 1.0];
+            let bounds = [(-5.0, 0.5), (-5.0, 5.0)];
+            let rep = lm_normal(&mut pr, &mut t, &bounds, &LmOptions::default()).unwrap();
+            assert!(rep.converged);
+            assert_eq!(t[0], 0.5);
+            assert!((t[1] - 0.25).abs() < 1e-9, "{t:?}");
+            assert!((rep.chi2 - 0.25).abs() < 1e-12);
+        }
+        // a start outside the box is clamped; an exact fit stops at once
+        let mut pr = Rosen::new(true);
+        let mut t = [1.0, 1.0];
+        let rep = lm_normal(&mut pr, &mut t, &[(-5.0, 5.0); 2], &LmOptions::default()).unwrap();
+        assert_eq!((rep.chi2, rep.iterations, rep.evaluations), (0.0, 1, 1));
+        let mut t = [9.0, 1.0];
+        lm_normal(&mut pr, &mut t, &[(-5.0, 5.0); 2], &LmOptions::default()).unwrap();
+        assert!((t[0] - 1.0).abs() < 1e-9);
+        assert!(lm_normal(&mut pr, &mut t, &[(-5.0, 5.0)], &LmOptions::default()).is_err());
+    }
+
+    #[test]
+    fn cholesky_solves_and_refuses() {
+        let mut a = [4.0, 2.0, 2.0, 3.0];
+        let mut b = [2.0, 1.0];
+        assert!(cholesky_solve(&mut a, &mut b, 2));
+        assert!((b[0] - 0.5).abs() < 1e-15 && b[1].abs() < 1e-15);
+        let mut a = [1.0, 2.0, 2.0, 1.0];
+        assert!(!cholesky_solve(&mut a, &mut [1.0, 1.0], 2));
+        let mut a = [f64::NAN];
+        assert!(!cholesky_solve(&mut a, &mut [1.0], 1));
     }
 
     #[test]
