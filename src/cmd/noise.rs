@@ -4,14 +4,11 @@
 //! are the study kind `noise` (`springmass::study::kinds::noise`) and the
 //! `fit` kind for the defect-kind study.
 
-use super::study::run_into;
+use super::study::RunArgs;
 use anyhow::Context;
 use clap::{Args as ClapArgs, ValueEnum};
 use springmass::detect::misfit::MisfitKind;
-use springmass::study::run::check_threads;
-use springmass::study::shard::ShardSpec;
 use springmass::study::Study;
-use std::path::PathBuf;
 
 /// Which shipped study.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -71,18 +68,8 @@ pub struct Args {
     /// Print the study file that would run, and stop.
     #[arg(long)]
     pub print: bool,
-    /// Output folder [default: out/<study name>]; running again resumes.
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-    /// Worker threads, 1 to 1024 [default: number of cores]. Results do not depend on it.
-    #[arg(long)]
-    pub threads: Option<usize>,
-    /// Run only shard I of N, or `auto` for a Slurm job array (as `springmass study`).
-    #[arg(long, value_name = "I/N|auto")]
-    pub shard: Option<ShardSpec>,
-    /// No progress bar.
-    #[arg(long)]
-    pub quiet: bool,
+    #[command(flatten)]
+    pub run: RunArgs,
 }
 
 /// The shipped study file of `a.part` with the overrides of `a` applied.
@@ -179,15 +166,12 @@ pub fn study_text(a: &Args) -> anyhow::Result<String> {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    if let Some(n) = a.threads {
-        check_threads(n)?;
-    }
-    let shard = a.shard.map(|s| s.resolve()).transpose()?;
+    a.run.checked_shard()?;
     let text = study_text(&a)?;
     if a.print {
         print!("{text}");
         return Ok(());
     }
     let study = Study::from_text(&text, &format!("<noise-study {}>", a.part.name()))?;
-    run_into(&study, a.out.clone(), a.threads, shard, a.quiet)
+    a.run.run(&study)
 }

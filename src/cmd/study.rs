@@ -21,6 +21,13 @@ pub struct Args {
     /// Run the embedded default study (`springmass config show-default` prints it).
     #[arg(long, conflicts_with = "file")]
     pub default: bool,
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+/// How a study runs: shared by `springmass study` and `springmass noise-study`.
+#[derive(ClapArgs, Debug)]
+pub struct RunArgs {
     /// Output folder [default: out/<study name>]. Running again with the same
     /// folder resumes: finished cases are not recomputed.
     #[arg(long)]
@@ -37,6 +44,22 @@ pub struct Args {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+impl RunArgs {
+    /// Check the options, then run `study` with them.
+    pub fn run(&self, study: &Study) -> anyhow::Result<()> {
+        let shard = self.checked_shard()?;
+        run_into(study, self.out.clone(), self.threads, shard, self.quiet)
+    }
+
+    /// The thread count and shard, checked before any work.
+    pub fn checked_shard(&self) -> anyhow::Result<Option<springmass::study::shard::Shard>> {
+        if let Some(n) = self.threads {
+            check_threads(n)?;
+        }
+        Ok(self.shard.map(|s| s.resolve()).transpose()?)
+    }
 }
 
 /// `springmass study merge DIR... --out DIR`.
@@ -69,20 +92,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     // every option before any work
-    if let Some(n) = a.threads {
-        check_threads(n)?;
-    }
-    let shard = a.shard.map(|s| s.resolve()).transpose()?;
+    a.run.checked_shard()?;
     let study = match (&a.file, a.default) {
         (Some(f), false) => Study::from_file(f)?,
         _ => Study::default_study()?,
     };
-    run_into(&study, a.out.clone(), a.threads, shard, a.quiet)
+    a.run.run(&study)
 }
 
 /// Run `study` into `out` (default `out/<study name>`), resuming what is
 /// there; shared with `springmass noise-study`. The options are checked.
-pub fn run_into(
+fn run_into(
     study: &Study,
     out: Option<PathBuf>,
     threads: Option<usize>,
