@@ -92,6 +92,19 @@ pub struct Args {
     /// Write t, observed, model, residual to this CSV (--data).
     #[arg(long, requires = "data")]
     pub out_csv: Option<PathBuf>,
+    /// Whole-profile inversion instead of a defect search: every mass,
+    /// every spring, or both free (masses|springs|both), with standard
+    /// errors and the depth the data can see (--data).
+    #[arg(long, requires = "data", conflicts_with_all = ["defects", "kinds", "method", "criterion", "known"])]
+    pub profile: Option<String>,
+    /// The relative change the profile's visibility is stated for: a value
+    /// is visible when the data show such a change at 2 standard errors [default: 0.1].
+    #[arg(long, requires = "profile")]
+    pub profile_change: Option<f64>,
+    /// A fixed penalty weight for --profile instead of the continuation to
+    /// the noise level (> 0).
+    #[arg(long, requires = "profile")]
+    pub penalty: Option<f64>,
     /// The fit scene (TOML with [chain], [data], [unknowns], [misfit], [search]).
     #[arg(long)]
     pub scene: Option<PathBuf>,
@@ -207,6 +220,17 @@ fn run_data(a: Args) -> anyhow::Result<()> {
         ..FitSpec::new(n)
     };
     let (model, opts) = spec.build()?;
+    let profile = a
+        .profile
+        .as_deref()
+        .map(springmass::detect::fit::profile::ProfileMode::parse)
+        .transpose()?;
+    if let Some(c) = a.profile_change {
+        springmass::error::check_f64("profile_change", c, c > 0.0, "> 0 and finite")?;
+    }
+    if let Some(w) = a.penalty {
+        springmass::error::check_f64("penalty", w, w > 0.0, "> 0 and finite")?;
+    }
     // the sensor is checked before the data are read; the force is data
     let sensor_only = spec.measurement(None)?;
     let table = TimeSeries::read_csv(&path)?;
@@ -245,6 +269,9 @@ fn run_data(a: Args) -> anyhow::Result<()> {
         sensor_only
     };
     let obs = Observations::Series(series.with_measurement(measurement)?);
+    if let Some(mode) = profile {
+        return run_profile(&a, &path, &obs, &model, mode, opts.noise);
+    }
     opts.validate(&obs, &model)?;
     let report = dfit::fit(&obs, &model, &opts)?;
     if let Some(p) = &report.predicted {
@@ -286,6 +313,103 @@ fn run_data(a: Args) -> anyhow::Result<()> {
         println!("{}", json_report(&report)?);
     } else {
         print!("{}", report.summary());
+    }
+    Ok(())
+}
+
+/// `springmass fit --data ... --profile MODE`: the whole-profile inversion.
+fn run_profile(
+    a: &Args,
+    path: &std::path::Path,
+    obs: &springmass::detect::data::observations::Observations,
+    model: &springmass::detect::fit::Model,
+    mode: springmass::detect::fit::profile::ProfileMode,
+    noise: springmass::detect::fit::NoiseSpec,
+) -> anyhow::Result<()> {
+    use springmass::detect::fit::profile::{fit_profile, ProfileOptions};
+    let mut po = ProfileOptions::new(mode);
+    po.noise = noise;
+    if let Some(c) = a.profile_change {
+        po.change = c;
+    }
+    po.lambda = a.penalty;
+    let r = fit_profile(obs, model, &po)?;
+    if let Some(out) = &a.out_csv {
+        let mut w = csv::Writer::from_path(out)
+            .with_context(|| format!("cannot write {}", out.display()))?;
+        w.write_record(["kind", "at", "value", "se", "uniform", "visible", "depth"])?;
+        for e in &r.elements {
+            w.write_record([
+                e.kind.to_string(),
+                e.at.to_string(),
+                format!("{:.10e}", e.value),
+                format!("{:.4e}", e.se),
+                format!("{}", e.uniform),
+                e.visible.to_string(),
+                format!("{}", e.depth),
+            ])?;
+        }
+        w.flush()?;
+    }
+    if let Some(svg) = &a.plot {
+        let mut plot = springmass::plot::LinePlot::new(
+            format!(
+                "profile of {} from {} ({} of {} visible)",
+                mode.name(),
+                path.display(),
+                r.visible_count(),
+                r.elements.len()
+            ),
+            "position",
+            "value",
+        );
+        for kind in ["mass", "spring"] {
+            let of: Vec<_> = r.elements.iter().filter(|e| e.kind == kind).collect();
+            if of.is_empty() {
+                continue;
+            }
+            let pts = |f: &dyn Fn(&&springmass::detect::fit::profile::ElementEstimate) -> f64| {
+                of.iter()
+                    .filter(|e| e.visible)
+                    .map(|e| (e.at as f64, f(e)))
+                    .collect::<Vec<_>>()
+            };
+            plot = plot
+                .line(
+                    springmass::plot::Line::new(format!("{kind} (visible)"), pts(&|e| e.value))
+                        .markers(),
+                )
+                .line(
+                    springmass::plot::Line::new(
+                        format!("{kind} +2 SE"),
+                        pts(&|e| e.value + 2.0 * e.se),
+                    )
+                    .dashed(),
+                )
+                .line(
+                    springmass::plot::Line::new(
+                        format!("{kind} -2 SE"),
+                        pts(&|e| e.value - 2.0 * e.se),
+                    )
+                    .dashed(),
+                );
+            let hidden: Vec<(f64, f64)> = of
+                .iter()
+                .filter(|e| !e.visible)
+                .map(|e| (e.at as f64, e.value))
+                .collect();
+            if !hidden.is_empty() {
+                plot = plot.line(
+                    springmass::plot::Line::new(format!("{kind} (not visible)"), hidden).markers(),
+                );
+            }
+        }
+        plot.write_svg(svg)?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+    } else {
+        print!("{}", r.summary());
     }
     Ok(())
 }

@@ -64,6 +64,7 @@ pub mod model;
 pub mod noise;
 pub mod options;
 pub mod paper;
+pub mod profile;
 pub mod report;
 pub mod select;
 pub mod spectral;

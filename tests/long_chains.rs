@@ -1,0 +1,204 @@
+//! Whole-profile inversion (`detect::fit::profile`): every mass or every
+//! spring of a chain from one end's response, with standard errors and the
+//! visibility report. The data are independent of the fit's model: exact
+//! Laplace values by the tridiagonal solve (`forward::tridiag`), records by
+//! the time stepper (`TimeData::simulate_measured`).
+
+use num_complex::Complex64;
+use springmass::chain::Boundary;
+use springmass::detect::data::measurement::Sensor;
+use springmass::detect::data::observations::{LaplaceValues, Observations, Series};
+use springmass::detect::data::series::TimeData;
+use springmass::detect::fit::profile::{fit_profile, ProfileMode, ProfileOptions};
+use springmass::detect::fit::{Model, NoiseSpec};
+use springmass::forward::Observable;
+use springmass::noise::{add_noise, NoiseLevel};
+use springmass::{Chain, Defect};
+
+/// A deterministic "every mass differs" profile in [0.75, 1.3].
+fn mass_profile(n: usize) -> Vec<f64> {
+    (1..=n)
+        .map(|i| {
+            let x = i as f64;
+            1.0 + 0.2 * (0.7 * x).sin() + 0.1 * (1.9 * x + 0.3).cos()
+        })
+        .collect()
+}
+
+fn chain_with_masses(n: usize, d: f64, m: &[f64]) -> Chain {
+    Chain::paper(n)
+        .unwrap()
+        .with_d(d)
+        .unwrap()
+        .with_defects(
+            m.iter()
+                .enumerate()
+                .map(|(i, &v)| Defect::Mass { at: i + 1, m: v }),
+        )
+        .unwrap()
+}
+
+/// Laplace values of `truth` on the line `sigma_b + i omega`, `q` nodes
+/// over `omega in (0, w)`, by the O(n) tridiagonal solve.
+fn laplace_values(
+    truth: &Chain,
+    q: usize,
+    sigma_b: f64,
+    w: f64,
+) -> (Vec<Complex64>, Vec<Complex64>) {
+    let s: Vec<Complex64> = (0..q)
+        .map(|i| Complex64::new(sigma_b, w * (i as f64 + 0.5) / q as f64))
+        .collect();
+    let x = s
+        .iter()
+        .map(|z| springmass::forward::tridiag::solve(truth, *z, 1).unwrap())
+        .collect();
+    (s, x)
+}
+
+/// n = 100, noise-free: every mass within 1e-6 relative.
+#[test]
+fn profile_of_100_masses_from_exact_values() {
+    let n = 100;
+    let m = mass_profile(n);
+    let truth = chain_with_masses(n, 0.01, &m);
+    let (s, x) = laplace_values(&truth, 300, 0.01, 3.0);
+    let obs = Observations::Laplace(LaplaceValues::new(s, x, None).unwrap());
+    let model = Model::new(n).unwrap().with_d(0.01).unwrap();
+    let opts = ProfileOptions {
+        noise: NoiseSpec::Sigma(1e-13),
+        ..ProfileOptions::new(ProfileMode::Masses)
+    };
+    let p = fit_profile(&obs, &model, &opts).unwrap();
+    let worst = p
+        .elements
+        .iter()
+        .map(|e| ((e.value - m[e.at - 1]) / m[e.at - 1]).abs())
+        .fold(0.0f64, f64::max);
+    assert!(
+        worst < 1e-6,
+        "worst relative error {worst:e}\n{}",
+        p.summary()
+    );
+    assert_eq!(p.visible_count(), n, "{}", p.summary());
+}
+
+/// n = 100 at 1e-3 noise: the standard errors are calibrated (the truth
+/// within 2 SE for at least 90% of the visible masses over ten draws:
+/// neighbouring estimates are strongly correlated, so fewer draws say
+/// little; measured 92.5% of 385 over twelve),
+/// and the deep masses the damping hides are reported as not visible.
+#[test]
+fn profile_of_100_masses_at_1e_3_noise_has_calibrated_errors() {
+    let n = 100;
+    let m = mass_profile(n);
+    let truth = chain_with_masses(n, 0.1, &m);
+    let (s, x) = laplace_values(&truth, 300, 0.02, 3.0);
+    let scale = x.iter().fold(0.0f64, |a, v| a.max(v.norm()));
+    let sigma = 1e-3 * scale;
+    let (mut within, mut visible) = (0usize, 0usize);
+    for seed in 0..10u64 {
+        let flat: Vec<f64> = x.iter().flat_map(|v| [v.re, v.im]).collect();
+        let (y, _) = add_noise(&flat, NoiseLevel::Absolute(sigma), seed).unwrap();
+        let noisy: Vec<Complex64> = y.chunks(2).map(|c| Complex64::new(c[0], c[1])).collect();
+        let obs = Observations::Laplace(
+            LaplaceValues::new(s.clone(), noisy, Some(vec![sigma; s.len()])).unwrap(),
+        );
+        let model = Model::new(n).unwrap();
+        let p = fit_profile(&obs, &model, &ProfileOptions::new(ProfileMode::Masses)).unwrap();
+        for e in p.elements.iter().filter(|e| e.visible) {
+            visible += 1;
+            if (e.value - m[e.at - 1]).abs() <= 2.0 * e.se {
+                within += 1;
+            }
+        }
+        assert!(p.visible_count() >= 5, "{}", p.summary());
+        assert!(
+            p.visible_count() < n,
+            "deep masses cannot be visible at d = 0.1\n{}",
+            p.summary()
+        );
+        // visible values form the prefix nearest the sensor
+        let depth = p.visible_depth.unwrap();
+        assert!(p.elements.iter().all(|e| e.visible == (e.depth <= depth)));
+        assert!(p.message.contains("cannot see"), "{}", p.message);
+    }
+    let frac = within as f64 / visible as f64;
+    assert!(
+        frac >= 0.9,
+        "{within} of {visible} visible masses within 2 SE"
+    );
+}
+
+/// A six-storey shear frame seen from its roof (left end free, roof
+/// accelerometer, ideal hammer impulse), every storey stiffness changed by
+/// -25% to +5%, 1% noise, noise level unknown: all six storey stiffnesses
+/// within 1% in each of six records, with calibrated standard errors.
+#[test]
+fn six_storey_frame_every_storey_stiffness_from_the_roof() {
+    let change = [-0.25, 0.05, -0.1, -0.2, 0.0, -0.15];
+    let truth = Chain::paper(6)
+        .unwrap()
+        .with_d(0.02)
+        .unwrap()
+        .with_boundaries(Boundary::Free, Boundary::Fixed)
+        .unwrap()
+        .with_defects((1..=6).map(|j| Defect::Spring {
+            at: j,
+            k: 1.0 + change[j - 1],
+        }))
+        .unwrap();
+    let sensor = Sensor {
+        at: 1,
+        kind: Observable::Acceleration,
+    };
+    let mut z = Vec::new();
+    for seed in 1..=6u64 {
+        let rec = TimeData::simulate_measured(
+            &truth,
+            200.0,
+            0.1,
+            sensor,
+            None,
+            NoiseLevel::RelativeMax(1e-2),
+            seed,
+        )
+        .unwrap();
+        let series = Series::new(rec.t().to_vec(), rec.y().to_vec(), None)
+            .unwrap()
+            .with_measurement(rec.measurement().clone())
+            .unwrap();
+        let model = Model::new(6)
+            .unwrap()
+            .with_d(0.02)
+            .unwrap()
+            .with_ends(Boundary::Free, Boundary::Fixed)
+            .unwrap();
+        let p = fit_profile(
+            &Observations::Series(series),
+            &model,
+            &ProfileOptions::new(ProfileMode::Springs),
+        )
+        .unwrap();
+        assert_eq!(p.elements.len(), 6, "{}", p.summary());
+        assert!(p.noise_estimated);
+        assert!(p.misfit.starts_with("time"), "{}", p.misfit);
+        for e in &p.elements {
+            let k = 1.0 + change[e.at - 1];
+            assert!(e.visible, "{}", p.summary());
+            assert!(
+                ((e.value - k) / k).abs() < 0.01,
+                "seed {seed}: storey {} k = {} vs {k}\n{}",
+                e.at,
+                e.value,
+                p.summary()
+            );
+            z.push((e.value - k) / e.se);
+        }
+    }
+    // calibrated: the rms of (estimate - truth) / SE near 1 over 36 values
+    // (measured 1.14 over 72 with the noise level given), none far out
+    let rms = (z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt();
+    assert!((0.6..=1.5).contains(&rms), "rms z = {rms}: {z:?}");
+    assert!(z.iter().all(|v| v.abs() < 4.5), "{z:?}");
+}
