@@ -99,11 +99,11 @@ pub struct Args {
     pub profile: Option<String>,
     /// The relative change the profile's visibility is stated for: a value
     /// is visible when the data show such a change at 2 standard errors [default: 0.1].
-    #[arg(long, requires = "profile")]
+    #[arg(long, requires = "profile", allow_negative_numbers = true)]
     pub profile_change: Option<f64>,
     /// A fixed penalty weight for --profile instead of the continuation to
     /// the noise level (> 0).
-    #[arg(long, requires = "profile")]
+    #[arg(long, requires = "profile", allow_negative_numbers = true)]
     pub penalty: Option<f64>,
     /// The fit scene (TOML with [chain], [data], [unknowns], [misfit], [search]).
     #[arg(long)]
