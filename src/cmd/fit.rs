@@ -4,7 +4,7 @@
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
-use springmass::detect::fit::paper::{fit, FitReport};
+use springmass::detect::fit::paper::{fit, SceneReport};
 use springmass::detect::fit::FitMethod;
 use springmass::detect::scene::FitScene;
 use std::path::PathBuf;
@@ -312,7 +312,7 @@ fn fmt_defects(d: &[springmass::Defect], kinds: bool) -> String {
         .join(", ")
 }
 
-fn print_text(scene: &FitScene, r: &FitReport) {
+fn print_text(scene: &FitScene, r: &SceneReport) {
     println!("# method   {}", r.method);
     println!("# misfit   {} ({} nodes)", r.misfit, r.nodes);
     let general = !r.std_errors.is_empty();
@@ -321,16 +321,24 @@ fn print_text(scene: &FitScene, r: &FitReport) {
         println!("truth      {}", fmt_defects(&truth, general));
     }
     println!("found      {}", fmt_defects(&r.defects, general));
-    if !r.std_errors.is_empty() {
-        for (d, se) in r.defects.iter().zip(&r.std_errors) {
-            println!(
-                "  {:<6} at {:>3}  {:.6} +- {:.2e}",
-                d.kind(),
-                d.at(),
-                d.value(),
-                se
-            );
-        }
+    // the answer with its error bars: the general fit's standard errors, or
+    // on the mass path the fit's errors scaled to the data's floor
+    let bars = if general {
+        &r.std_errors
+    } else {
+        &r.error_bars
+    };
+    for (d, se) in r.defects.iter().zip(bars) {
+        println!(
+            "  {:<6} at {:>3}  {:.6} +- {:.2e}",
+            d.kind(),
+            d.at(),
+            d.value(),
+            se
+        );
+    }
+    if !general && !bars.is_empty() {
+        println!("           (error bars from the data's error floor; approximate)");
     }
     for p in &r.chain_params {
         println!(

@@ -88,6 +88,17 @@ use std::time::Instant;
 /// Invalid options ([`FitOptions::validate`]); too many hypotheses
 /// (`max_sets`); a numerical failure of every hypothesis.
 pub fn fit(obs: &Observations, model: &Model, opts: &FitOptions) -> Result<FitReport> {
+    fit_with(obs, model, opts, None)
+}
+
+/// [`fit`] with unknowns and search details given by the caller (the scene
+/// path, [`paper::fit`]); the same pipeline.
+fn fit_with(
+    obs: &Observations,
+    model: &Model,
+    opts: &FitOptions,
+    given: Option<engine::Given>,
+) -> Result<FitReport> {
     opts.validate(obs, model)?;
     let t0 = Instant::now();
     let misfit = match obs {
@@ -110,6 +121,7 @@ pub fn fit(obs: &Observations, model: &Model, opts: &FitOptions) -> Result<FitRe
         opts,
         misfit,
         prepared: std::sync::Mutex::new(None),
+        given,
     };
     // the noise level: given, or a first guess then the residual estimate
     let (mut sigma, estimated) = match (obs, opts.noise) {
