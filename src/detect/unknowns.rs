@@ -10,7 +10,7 @@
 //! springs). A hypothesis is a set of `(kind, position)` pairs
 //! ([`Unknowns::hypotheses`]), fitted by
 //! by the fit (`detect::fit`, one layer up) or searched by the greedy
-//! search (`detect::search::greedy`). The scene's `[unknowns]` table
+//! search (`detect::fit::greedy`). The scene's `[unknowns]` table
 //! ([`UnknownsSpec`]) and the data-first fit's options build it. This module
 //! imports nothing above it: the search builds its space from these
 //! unknowns (`Space::for_masses`), not the other way round.

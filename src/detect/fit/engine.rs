@@ -266,14 +266,14 @@ impl Engine<'_> {
                     hypotheses = g.hypotheses;
                     (g.ranked, g.evaluations)
                 } else if self.opts.method == FitMethod::Greedy {
-                    // greedy search with moves (search::greedy)
-                    let g = crate::detect::search::greedy::fit_greedy(
+                    // greedy search with moves (fit::greedy)
+                    let g = super::greedy::fit_greedy(
                         self.model.chain(),
                         &unknowns,
                         &coarse,
                         fine.as_ref(),
                         &setup,
-                        &crate::detect::search::greedy::GreedyOptions {
+                        &super::greedy::GreedyOptions {
                             parallel: self.opts.parallel,
                             ..Default::default()
                         },
@@ -286,7 +286,8 @@ impl Engine<'_> {
                     if self.given.as_ref().is_some_and(|g| g.trace) {
                         trace = Some(res.trace.clone());
                     }
-                    // refit the best set and its neighbours like enumeration
+                    // refit the best set and its neighbours (each position moved by
+                    // +-1, +-2) like enumeration
                     let sets = neighbour_sets(&unknowns, &res.best.positions);
                     hypotheses = sets.len();
                     let (r, e) =
@@ -483,7 +484,7 @@ impl Engine<'_> {
                 self.model.n(),
                 slots,
                 unknowns.chain().to_vec(),
-                unknowns.kind_bounds().clone(),
+                *unknowns.kind_bounds(),
             )?;
             if let Ok(g) = fit_general(self.model.chain(), &u, coarse, fine, setup, gopts) {
                 spent += g.evaluations;
@@ -777,7 +778,7 @@ impl Engine<'_> {
 
 /// The position set a stochastic search found (`positions` of the unknowns'
 /// unknown-position slots, in slot order) and its neighbours: each position
-/// moved by one to a place that is free (in `1..=n`, not a known position,
+/// moved by one or two to a place that is free (in `1..=n`, not a known position,
 /// not another defect's). Interchangeable sets are sorted, and every set is
 /// listed once.
 fn neighbour_sets(unknowns: &Unknowns, positions: &[usize]) -> Vec<Vec<usize>> {
@@ -791,7 +792,7 @@ fn neighbour_sets(unknowns: &Unknowns, positions: &[usize]) -> Vec<Vec<usize>> {
     };
     let mut sets = vec![norm(positions.to_vec())];
     for i in 0..positions.len() {
-        for delta in [-1i64, 1] {
+        for delta in [-2i64, -1, 1, 2] {
             let p = positions[i] as i64 + delta;
             if p < 1 || p as usize > unknowns.n() {
                 continue;

@@ -30,7 +30,7 @@
 //! * **kinds** ([`KindChoice`](crate::detect::unknowns::KindChoice)): mass, spring, damper or any.
 //! * **method** ([`FitMethod`]): `enumerate` (every position set, values by
 //!   bounded Levenberg-Marquardt) works for every kind; `greedy`
-//!   ([`crate::detect::search::greedy`]: one defect at a time, candidates
+//!   ([`greedy`]: one defect at a time, candidates
 //!   scored by rank-one updates, then moves, restarts) too, for long chains
 //!   and many defects; `ga`, `nelder-mead` and `pso` search mass defects
 //!   (and refuse other kinds with a typed error); their best position set is
@@ -59,6 +59,7 @@
 pub mod chainfit;
 mod engine;
 pub mod general;
+pub mod greedy;
 pub mod identify;
 pub mod model;
 pub mod noise;

@@ -27,7 +27,7 @@
 //! [`crate::detect::search::minimize`] on the same residual
 //! ([`MisfitObjective`]; they need interchangeable unknown-position
 //! defects: the optimizers' spaces are unordered), and the best set and its
-//! neighbours (each position moved by one) are refitted; their per-iteration
+//! neighbours (each position moved by one or two) are refitted; their per-iteration
 //! trace is the report's `trace` when `[search] trace = true`.
 //!
 //! After the fit, the scene layer compares: the data's error floor is

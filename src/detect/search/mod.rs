@@ -11,10 +11,11 @@
 //! | [`Method::NelderMead`] | [`nelder_mead`] | fixed per run: discrete descent over positions (memoised fits), argmin Nelder-Mead on the values, restarts |
 //! | [`Method::ParticleSwarm`] | [`pso`] | relax-and-round (with collision repair), argmin particle swarm, then the Nelder-Mead local search; episodes |
 //!
-//! Exhaustive enumeration of position sets lives with the fitting code (it is
-//! not a black-box optimizer: it needs the residual's structure), and so does
-//! the greedy search with moves ([`greedy`], candidates scored by the
-//! rank-one kernel of [`rankone`]): both are [`FitMethod`]s, not [`Method`]s.
+//! Exhaustive enumeration of position sets ([`enumerate`]) needs the
+//! residual's structure (it is not a black-box optimizer), and the greedy
+//! search with moves (`detect::fit::greedy`, one layer up: it refits the
+//! general hypotheses) scores candidates with the rank-one kernel of
+//! [`rankone`]: both are [`FitMethod`]s, not [`Method`]s.
 //!
 //! ## What to expect (Table 1 of the paper, `cargo bench --bench table1`)
 //!
@@ -67,7 +68,6 @@
 
 pub mod enumerate;
 pub mod genetic;
-pub mod greedy;
 pub mod lsq;
 pub mod nelder_mead;
 pub mod pso;
@@ -142,7 +142,7 @@ pub enum FitMethod {
     #[serde(alias = "particle-swarm")]
     Pso,
     /// Greedy placement with moves and restarts, candidates scored by
-    /// rank-one updates ([`greedy`]; the data-first fit only).
+    /// rank-one updates (`detect::fit::greedy`; the data-first fit only).
     Greedy,
 }
 

@@ -44,7 +44,7 @@
 //! use springmass::{Chain, Complex64, Defect};
 //! use springmass::detect::data::laplace::LaplaceObs;
 //! use springmass::detect::fit::general::Setup;
-//! use springmass::detect::search::greedy::{fit_greedy, GreedyOptions};
+//! use springmass::detect::fit::greedy::{fit_greedy, GreedyOptions};
 //! use springmass::detect::unknowns::{Unknowns, KindChoice};
 //! let truth = Chain::paper(40)?.with_defects([
 //!     Defect::Mass { at: 6, m: 3.0 }, Defect::Mass { at: 19, m: 0.5 }, Defect::Mass { at: 31, m: 2.0 }])?;
