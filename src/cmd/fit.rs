@@ -312,14 +312,10 @@ fn fmt_defects(d: &[springmass::Defect], kinds: bool) -> String {
         .join(", ")
 }
 
+/// The scene's report: the answer and its error bars first, then the
+/// truth it is scored against, how it was found and how far to trust it.
 fn print_text(scene: &FitScene, r: &SceneReport) {
-    println!("# method   {}", r.method);
-    println!("# misfit   {} ({} nodes)", r.misfit, r.nodes);
     let general = !r.std_errors.is_empty();
-    let truth: Vec<springmass::Defect> = scene.chain.defects.clone();
-    if !truth.is_empty() {
-        println!("truth      {}", fmt_defects(&truth, general));
-    }
     println!("found      {}", fmt_defects(&r.defects, general));
     // the answer with its error bars: the general fit's standard errors, or
     // on the mass path the fit's errors scaled to the data's floor
@@ -346,6 +342,12 @@ fn print_text(scene: &FitScene, r: &SceneReport) {
             p.name, p.value, p.std_error
         );
     }
+    let truth: Vec<springmass::Defect> = scene.chain.defects.clone();
+    if !truth.is_empty() {
+        println!("truth      {}", fmt_defects(&truth, general));
+    }
+    println!("# method   {}", r.method);
+    println!("# misfit   {} ({} nodes)", r.misfit, r.nodes);
     println!(
         "{}   {:.6e}",
         if general { "chi2    " } else { "residual" },

@@ -68,6 +68,7 @@ use crate::chain::Defect;
 use crate::detect::data::exact::Data;
 use crate::detect::data::observations::{LaplaceValues, Observations, Series};
 use crate::detect::fit::general::FittedParam;
+use crate::detect::misfit::quadrature::Rule;
 use crate::detect::misfit::MisfitKind;
 use crate::detect::scene::{FitScene, SceneOptions};
 use crate::detect::search::FitMethod;
@@ -173,18 +174,15 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
     // the data at the rule's nodes, with the data's own errors
     let (s, values, errors): (Vec<Complex64>, Vec<Complex64>, Vec<f64>) = match scene.misfit.kind {
         MisfitKind::Bromwich => {
-            let s: Vec<Complex64> = rule
-                .nodes
-                .iter()
-                .map(|&w| Complex64::new(scene.misfit.sigma, w))
-                .collect();
+            let s = laplace_nodes(scene, &rule);
             let sm = data.sample(&s)?;
             (s, sm.values, sm.sigma)
         }
         _ => {
+            // sampled in real arithmetic, as the paper's residual always was
             let sm = data.sample(&rule.nodes)?;
             (
-                rule.nodes.iter().map(|&x| Complex64::new(x, 0.0)).collect(),
+                laplace_nodes(scene, &rule),
                 sm.values.iter().map(|&v| Complex64::new(v, 0.0)).collect(),
                 sm.sigma,
             )
@@ -259,6 +257,19 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
     })
 }
 
+/// The Laplace nodes of the scene's rule: `s = sigma + i omega` on the
+/// Bromwich line, the rule's nodes on the real axis otherwise.
+fn laplace_nodes(scene: &FitScene, rule: &Rule) -> Vec<Complex64> {
+    match scene.misfit.kind {
+        MisfitKind::Bromwich => rule
+            .nodes
+            .iter()
+            .map(|&w| Complex64::new(scene.misfit.sigma, w))
+            .collect(),
+        _ => rule.nodes.iter().map(|&x| Complex64::new(x, 0.0)).collect(),
+    }
+}
+
 /// The alternatives of a shared report in the scene's terms.
 fn alternatives(r: &FitReport) -> Vec<Alternative> {
     r.alternatives
@@ -329,15 +340,7 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
                     "\"simulated\" or \"series\" (the time misfit needs a sampled series)",
                 ));
             }
-            let rule = scene.misfit.rule()?;
-            let s: Vec<Complex64> = match scene.misfit.kind {
-                MisfitKind::Bromwich => rule
-                    .nodes
-                    .iter()
-                    .map(|&w| Complex64::new(scene.misfit.sigma, w))
-                    .collect(),
-                _ => rule.nodes.iter().map(|&x| Complex64::new(x, 0.0)).collect(),
-            };
+            let s = laplace_nodes(scene, &scene.misfit.rule()?);
             let sm = data.sample(&s)?;
             let sigma = sm.sigma.iter().map(|v| v.max(1e-300)).collect();
             (
