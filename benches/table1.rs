@@ -7,7 +7,7 @@
 //! unknowns are 2 positions and 2 masses in [0.1, 20] (log scale). The
 //! library's residual (`detect::misfit::Misfit`, default rule: 80
 //! Gauss-Legendre nodes on log-graded panels of [0, 300]) wrapped as
-//! `detect::fit::paper::MisfitObjective`, against the exact model's data
+//! `detect::search::MisfitObjective`, against the exact model's data
 //! (`Data::exact`, default) or the paper's pipeline (`--data pipeline`,
 //! `Data::simulated`: simulated x_1(t), Laplace-transformed). Systems and the
 //! paper's GA row from `springmass::scenes`. For each system and optimizer, over the seeds:
@@ -18,10 +18,10 @@
 //! quantity that limits every method.
 
 use springmass::detect::data::exact::Data;
-use springmass::detect::fit::paper::MisfitObjective;
 use springmass::detect::misfit::{Misfit, MisfitSpec};
 use springmass::detect::search::nelder_mead::{polish, Positions};
 use springmass::detect::search::pso::Finish;
+use springmass::detect::search::MisfitObjective;
 use springmass::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Tracked};
 use springmass::detect::unknowns::{DefectUnknown, MassUnknowns};
 use springmass::scenes;

@@ -19,6 +19,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 struct Exact {
     misfit: Misfit,
     unknowns: MassUnknowns,
+    space: Space,
 }
 
 impl Exact {
@@ -26,13 +27,18 @@ impl Exact {
         let misfit = Misfit::new(truth, &Data::exact(truth), &MisfitSpec::default()).unwrap();
         let unknowns =
             MassUnknowns::new(truth.n(), vec![DefectUnknown::free(0.1, 20.0); k]).unwrap();
-        Exact { misfit, unknowns }
+        let space = Space::for_masses(&unknowns);
+        Exact {
+            misfit,
+            unknowns,
+            space,
+        }
     }
 }
 
 impl Objective for Exact {
     fn space(&self) -> &Space {
-        self.unknowns.space()
+        &self.space
     }
     fn cost(&self, c: &Candidate) -> f64 {
         MisfitObjective::new(&self.misfit, &self.unknowns).cost(c)

@@ -4,7 +4,7 @@
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
-use springmass::detect::fit::paper::{fit, FitReport};
+use springmass::detect::fit::paper::{fit, SceneReport};
 use springmass::detect::fit::FitMethod;
 use springmass::detect::scene::FitScene;
 use std::path::PathBuf;
@@ -436,25 +436,29 @@ fn fmt_defects(d: &[springmass::Defect], kinds: bool) -> String {
         .join(", ")
 }
 
-fn print_text(scene: &FitScene, r: &FitReport) {
-    println!("# method   {}", r.method);
-    println!("# misfit   {} ({} nodes)", r.misfit, r.nodes);
+/// The scene's report: the answer and its error bars first, then the
+/// truth it is scored against, how it was found and how far to trust it.
+fn print_text(scene: &FitScene, r: &SceneReport) {
     let general = !r.std_errors.is_empty();
-    let truth: Vec<springmass::Defect> = scene.chain.defects.clone();
-    if !truth.is_empty() {
-        println!("truth      {}", fmt_defects(&truth, general));
-    }
     println!("found      {}", fmt_defects(&r.defects, general));
-    if !r.std_errors.is_empty() {
-        for (d, se) in r.defects.iter().zip(&r.std_errors) {
-            println!(
-                "  {:<6} at {:>3}  {:.6} +- {:.2e}",
-                d.kind(),
-                d.at(),
-                d.value(),
-                se
-            );
-        }
+    // the answer with its error bars: the general fit's standard errors, or
+    // on the mass path the fit's errors scaled to the data's floor
+    let bars = if general {
+        &r.std_errors
+    } else {
+        &r.error_bars
+    };
+    for (d, se) in r.defects.iter().zip(bars) {
+        println!(
+            "  {:<6} at {:>3}  {:.6} +- {:.2e}",
+            d.kind(),
+            d.at(),
+            d.value(),
+            se
+        );
+    }
+    if !general && !bars.is_empty() {
+        println!("           (error bars from the data's error floor; approximate)");
     }
     for p in &r.chain_params {
         println!(
@@ -462,6 +466,12 @@ fn print_text(scene: &FitScene, r: &FitReport) {
             p.name, p.value, p.std_error
         );
     }
+    let truth: Vec<springmass::Defect> = scene.chain.defects.clone();
+    if !truth.is_empty() {
+        println!("truth      {}", fmt_defects(&truth, general));
+    }
+    println!("# method   {}", r.method);
+    println!("# misfit   {} ({} nodes)", r.misfit, r.nodes);
     println!(
         "{}   {:.6e}",
         if general { "chi2    " } else { "residual" },

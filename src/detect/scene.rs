@@ -45,9 +45,12 @@
 //!
 //! Every table rejects unknown fields.
 //!
-//! A scene with another defect kind, chain parameters or the time misfit
-//! ([`FitScene::is_general`]) is fitted by the general noisy fit
-//! ([`crate::detect::fit::general::fit_general`], unknowns from
+//! A scene is a description, not a fitter: it imports nothing of the fit.
+//! The scene path of the fit (`detect::fit::paper::fit`, one layer up)
+//! turns it into the data-first fit's observations, model and options, and
+//! compares the answer with the scene's truth. A scene with another defect
+//! kind, chain parameters or the time misfit ([`FitScene::is_general`]) is
+//! fitted on the chi-square of its data (unknowns from
 //! [`FitScene::unknowns`], series from [`FitScene::time_data`]); see
 //! `configs/scenes/fit-spring.toml` and `configs/scenes/fit-any.toml`.
 //!
@@ -220,7 +223,8 @@ impl Default for SearchSpec {
     }
 }
 
-/// Options of the scene's fit [`crate::detect::fit::paper::fit`] (from its `[search]` with [`FitScene::options`]).
+/// Options of the scene's fit (`detect::fit::paper::fit`), from its
+/// `[search]` with [`FitScene::options`]; owned by the scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SceneOptions {
     /// The method.
@@ -478,9 +482,10 @@ impl FitScene {
         }
     }
 
-    /// Whether the scene needs the general noisy fit
-    /// ([`crate::detect::fit::general::fit_general`]): non-mass defects, chain
-    /// parameters or the time misfit.
+    /// Whether the scene needs the general noisy fit (the chi-square of its
+    /// data rather than the paper's residual with the mass-only kernel):
+    /// non-mass defects, chain parameters, the time misfit, another sensor
+    /// than the paper's or a free end.
     pub fn is_general(&self) -> bool {
         self.unknowns.is_general()
             || self.misfit.kind == crate::detect::misfit::MisfitKind::Time

@@ -9,14 +9,16 @@
 //! `0..=n` (spring `i` joins masses `i` and `i + 1`; `0` and `n` are the wall
 //! springs). A hypothesis is a set of `(kind, position)` pairs
 //! ([`Unknowns::hypotheses`]), fitted by
-//! [`crate::detect::fit::general::fit_general`] or searched by
-//! [`crate::detect::search::greedy`]. The scene's `[unknowns]` table
-//! ([`UnknownsSpec`]) and the data-first fit's options build it.
+//! by the fit (`detect::fit`, one layer up) or searched by the greedy
+//! search (`detect::fit::greedy`). The scene's `[unknowns]` table
+//! ([`UnknownsSpec`]) and the data-first fit's options build it. This module
+//! imports nothing above it: the search builds its space from these
+//! unknowns (`Space::for_masses`), not the other way round.
 //!
 //! **Mass defects only** are a special case, not a second set of unknowns:
 //! [`Unknowns::to_mass`] gives them in the form the paper's Woodbury kernel
-//! and the stochastic searches take ([`MassUnknowns`]): its
-//! [`MassUnknowns::space`] is the search [`Space`] (one integer per unknown
+//! and the stochastic searches take ([`MassUnknowns`]); the search's
+//! `Space::for_masses` builds their search space from it (one integer per unknown
 //! position, one log-scaled real per unknown mass, `pairing[v] = Some(p)`
 //! when mass `v` belongs to the defect of unknown position `p`; known
 //! positions are `excluded`). When every defect with an unknown position
@@ -27,7 +29,7 @@
 //! use springmass::detect::unknowns::{KindChoice, Unknowns};
 //! let u = Unknowns::free(20, &[KindChoice::Mass; 2], &[])?;
 //! let mass = u.to_mass()?;                 // the Woodbury kernel's view
-//! assert_eq!(mass.space().n_positions, 2);
+//! assert_eq!(mass.free_positions().len(), 2);
 //! assert!(mass.interchangeable());
 //! let springs = Unknowns::free(20, &[KindChoice::Spring; 2], &[])?;
 //! assert!(springs.to_mass().is_err());     // typed error naming unknowns.kind
@@ -36,7 +38,6 @@
 //! ```
 
 use crate::chain::{Chain, Defect};
-use crate::detect::search::{Candidate, Space};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use serde::{Deserialize, Serialize};
@@ -87,7 +88,8 @@ pub struct MassUnknowns {
     free_pos: Vec<usize>,
     /// Indices of defects with an unknown mass.
     free_mass: Vec<usize>,
-    space: Space,
+    /// The known positions, sorted.
+    excluded: Vec<usize>,
 }
 
 impl MassUnknowns {
@@ -152,29 +154,12 @@ impl MassUnknowns {
             .collect();
         let mut excluded: Vec<usize> = defects.iter().filter_map(|d| d.at).collect();
         excluded.sort_unstable();
-        let space = Space {
-            n,
-            n_positions: free_pos.len(),
-            excluded,
-            bounds: free_mass
-                .iter()
-                .map(|&i| match defects[i].mass {
-                    MassUnknown::Free { lo, hi } => (lo, hi),
-                    MassUnknown::Known(_) => unreachable!(),
-                })
-                .collect(),
-            log_scale: vec![true; free_mass.len()],
-            pairing: free_mass
-                .iter()
-                .map(|&i| free_pos.iter().position(|&p| p == i))
-                .collect(),
-        };
         Ok(MassUnknowns {
             n,
             defects,
             free_pos,
             free_mass,
-            space,
+            excluded,
         })
     }
 
@@ -203,15 +188,10 @@ impl MassUnknowns {
         &self.free_mass
     }
 
-    /// The search space.
-    pub fn space(&self) -> &Space {
-        &self.space
-    }
-
     /// Positions that unknown positions may take (`1..=n` minus known positions).
     pub fn allowed_positions(&self) -> Vec<usize> {
         (1..=self.n)
-            .filter(|p| self.space.excluded.binary_search(p).is_err())
+            .filter(|p| self.excluded.binary_search(p).is_err())
             .collect()
     }
 
@@ -245,24 +225,33 @@ impl MassUnknowns {
             .collect()
     }
 
-    /// Map a candidate of [`MassUnknowns::space`] to defects, or return a finite
-    /// penalty `>= PENALTY` growing with the size of the violation (wrong
-    /// lengths, positions out of range, repeated or excluded, masses outside
-    /// their bounds or not finite).
-    pub fn decode(&self, c: &Candidate) -> std::result::Result<Vec<(usize, f64)>, f64> {
-        if c.positions.len() != self.free_pos.len() || c.values.len() != self.free_mass.len() {
+    /// Map the unknown positions (in [`MassUnknowns::free_positions`]
+    /// order) and unknown masses (in [`MassUnknowns::free_masses`] order) of
+    /// a search candidate to defects, or return a finite penalty `>= PENALTY`
+    /// growing with the size of the violation (wrong lengths, positions out
+    /// of range, repeated or known, masses outside their bounds or not
+    /// finite). The optimizers' space of these unknowns is
+    /// `crate::detect::search::Space::for_masses`.
+    pub fn decode(
+        &self,
+        positions: &[usize],
+        masses: &[f64],
+    ) -> std::result::Result<Vec<(usize, f64)>, f64> {
+        if positions.len() != self.free_pos.len() || masses.len() != self.free_mass.len() {
             return Err(PENALTY * 10.0);
         }
         let mut viol = 0.0;
-        for (i, &p) in c.positions.iter().enumerate() {
+        for (i, &p) in positions.iter().enumerate() {
             if p == 0 || p > self.n {
                 viol += 1.0 + p.abs_diff(self.n.min(p.max(1))) as f64;
-            } else if self.space.excluded.binary_search(&p).is_ok() || c.positions[..i].contains(&p)
-            {
+            } else if self.excluded.binary_search(&p).is_ok() || positions[..i].contains(&p) {
                 viol += 1.0;
             }
         }
-        for (v, &(lo, hi)) in c.values.iter().zip(&self.space.bounds) {
+        for (v, &i) in masses.iter().zip(&self.free_mass) {
+            let MassUnknown::Free { lo, hi } = self.defects[i].mass else {
+                continue;
+            };
             if !v.is_finite() {
                 viol += 10.0;
             } else if *v < lo || *v > hi {
@@ -272,7 +261,7 @@ impl MassUnknowns {
         if viol > 0.0 {
             return Err(PENALTY * (1.0 + viol));
         }
-        Ok(self.assemble(&c.positions, &c.values))
+        Ok(self.assemble(positions, masses))
     }
 }
 
@@ -289,8 +278,7 @@ impl MassUnknowns {
 /// # bounds = [1, 10]         # bounds of this unknown mass
 /// ```
 ///
-/// General unknowns (routed to [`crate::detect::fit::general::fit_general`] by
-/// [`crate::detect::fit::paper::fit`]):
+/// General unknowns (fitted by the general hypothesis fits of `detect::fit`):
 ///
 /// ```toml
 /// [unknowns]
@@ -536,6 +524,14 @@ pub enum DefectKind {
 }
 
 impl DefectKind {
+    /// Every kind, in the order `any` tries them.
+    pub const ALL: [DefectKind; 3] = [DefectKind::Mass, DefectKind::Spring, DefectKind::Damper];
+
+    /// The kind called `name` ([`DefectKind::name`]).
+    pub fn from_name(name: &str) -> Option<DefectKind> {
+        DefectKind::ALL.into_iter().find(|k| k.name() == name)
+    }
+
     /// The kind of a defect.
     pub fn of(d: &Defect) -> DefectKind {
         match d {
@@ -571,6 +567,17 @@ impl DefectKind {
         }
     }
 
+    /// The starting value of an unknown defect of this kind on `chain` (the
+    /// coarse start of the searches: twice the uniform mass or spring, a
+    /// heavier damper).
+    pub fn start(self, chain: &Chain) -> f64 {
+        match self {
+            DefectKind::Mass => 2.0 * chain.mass(),
+            DefectKind::Spring => 2.0 * chain.k(),
+            DefectKind::Damper => (5.0 * chain.d()).max(0.5),
+        }
+    }
+
     /// The uniform chain's value of this kind (`mass`, `k` or `d`).
     pub fn uniform(self, chain: &Chain) -> f64 {
         match self {
@@ -596,6 +603,17 @@ pub enum KindChoice {
     Any,
 }
 
+impl From<DefectKind> for KindChoice {
+    /// The choice of exactly this kind.
+    fn from(kind: DefectKind) -> KindChoice {
+        match kind {
+            DefectKind::Mass => KindChoice::Mass,
+            DefectKind::Spring => KindChoice::Spring,
+            DefectKind::Damper => KindChoice::Damper,
+        }
+    }
+}
+
 impl KindChoice {
     /// The concrete kinds allowed.
     pub fn kinds(self) -> &'static [DefectKind] {
@@ -603,7 +621,7 @@ impl KindChoice {
             KindChoice::Mass => &[DefectKind::Mass],
             KindChoice::Spring => &[DefectKind::Spring],
             KindChoice::Damper => &[DefectKind::Damper],
-            KindChoice::Any => &[DefectKind::Mass, DefectKind::Spring, DefectKind::Damper],
+            KindChoice::Any => &DefectKind::ALL,
         }
     }
 
@@ -668,6 +686,15 @@ impl KindBounds {
             DefectKind::Mass => self.mass,
             DefectKind::Spring => self.spring,
             DefectKind::Damper => self.damper,
+        }
+    }
+
+    /// Set the bounds of `kind`.
+    pub fn set(&mut self, kind: DefectKind, bounds: (f64, f64)) {
+        match kind {
+            DefectKind::Mass => self.mass = bounds,
+            DefectKind::Spring => self.spring = bounds,
+            DefectKind::Damper => self.damper = bounds,
         }
     }
 }
@@ -963,7 +990,7 @@ impl Unknowns {
 /// All `p`-subsets of `allowed`, each in the order of `allowed`, in
 /// lexicographic order of their indices (`p = 0`: one empty set; `p >
 /// allowed.len()`: none). The position-set generator shared by the
-/// enumeration and [`crate::detect::fit::general`].
+/// enumeration and the general hypothesis fits.
 ///
 /// ```
 /// use springmass::detect::unknowns::subsets;
@@ -1062,65 +1089,6 @@ mod tests {
     }
 
     #[test]
-    fn space_and_decode() {
-        let u = MassUnknowns::new(
-            10,
-            vec![
-                DefectUnknown {
-                    at: Some(3),
-                    mass: MassUnknown::Free { lo: 1.0, hi: 9.0 },
-                },
-                DefectUnknown::free(0.1, 10.0),
-                DefectUnknown {
-                    at: None,
-                    mass: MassUnknown::Known(7.0),
-                },
-            ],
-        )
-        .unwrap();
-        let sp = u.space();
-        assert_eq!(sp.n_positions, 2);
-        assert_eq!(sp.excluded, vec![3]);
-        assert_eq!(sp.bounds, vec![(1.0, 9.0), (0.1, 10.0)]);
-        assert_eq!(sp.pairing, vec![None, Some(0)]);
-        assert!(!u.interchangeable());
-        let c = Candidate {
-            positions: vec![5, 9],
-            values: vec![2.0, 0.5],
-        };
-        assert_eq!(u.decode(&c).unwrap(), vec![(3, 2.0), (5, 0.5), (9, 7.0)]);
-        for bad in [
-            Candidate {
-                positions: vec![3, 9],
-                values: vec![2.0, 0.5],
-            },
-            Candidate {
-                positions: vec![9, 9],
-                values: vec![2.0, 0.5],
-            },
-            Candidate {
-                positions: vec![0, 11],
-                values: vec![2.0, 0.5],
-            },
-            Candidate {
-                positions: vec![5, 9],
-                values: vec![f64::NAN, 0.5],
-            },
-            Candidate {
-                positions: vec![5, 9],
-                values: vec![2.0, 50.0],
-            },
-            Candidate {
-                positions: vec![5],
-                values: vec![2.0, 0.5],
-            },
-        ] {
-            let p = u.decode(&bad).unwrap_err();
-            assert!(p.is_finite() && p >= PENALTY, "{bad:?} {p}");
-        }
-    }
-
-    #[test]
     fn spec_from_toml() {
         let s: UnknownsSpec =
             toml::from_str("k = 3\nmass_bounds = [0.5, 20]\n[[defects]]\nat = 4\nm = 2.0\n")
@@ -1128,7 +1096,7 @@ mod tests {
         let u = s.build(10, 2).unwrap().to_mass().unwrap();
         assert_eq!(u.k(), 3);
         assert_eq!(u.free_positions(), &[1, 2]);
-        assert_eq!(u.space().bounds, vec![(0.5, 20.0); 2]);
+        assert_eq!(u.defects()[1].mass, MassUnknown::Free { lo: 0.5, hi: 20.0 });
         assert!(toml::from_str::<UnknownsSpec>("kk = 3").is_err());
     }
 }

@@ -14,9 +14,12 @@ use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::observations::Observations;
 use crate::detect::misfit::time::TimeMisfit;
-use crate::detect::misfit::MisfitKind;
-use crate::detect::search::{minimize, Candidate, Objective, SearchOptions, Space};
-use crate::detect::unknowns::{DefectKind, KindBounds, KindChoice, Slot, Unknowns};
+use crate::detect::misfit::{Misfit, MisfitKind};
+use crate::detect::search::enumerate::{enumerate, EnumerateOptions};
+use crate::detect::search::{
+    minimize, Candidate, MisfitObjective, Objective, SearchOptions, SearchResult, Space,
+};
+use crate::detect::unknowns::{DefectKind, KindBounds, KindChoice, MassUnknowns, Slot, Unknowns};
 use crate::error::{Error, Result};
 use std::time::Instant;
 
@@ -71,6 +74,26 @@ pub(super) struct KFit {
     pub(super) method_name: String,
     pub(super) budget_exhausted: bool,
     pub(super) predicted: Option<(Vec<f64>, Vec<f64>)>,
+    /// Every position set was ranked (false: the Woodbury kernel's beam search).
+    pub(super) exhaustive: bool,
+    /// The stochastic search's trace, when asked for.
+    pub(super) trace: Option<Vec<(usize, f64)>>,
+}
+
+/// What a caller that has already built its unknowns gives the engine
+/// beyond [`FitOptions`]: the scene path ([`super::paper`]) passes its
+/// `[unknowns]` (known positions with free values and per-defect bounds,
+/// which a [`Model`] and [`FitOptions`] do not describe), the enumeration's
+/// tuning of its `[search]` (starts, beam) and whether to trace the search.
+pub(super) struct Given {
+    /// The unknowns, used for every k (the caller fits one k).
+    pub(super) unknowns: Unknowns,
+    /// Options of the Woodbury kernel's enumeration (`keep` is
+    /// `FitOptions::alternatives + 1`, `parallel` and `max_sets` those of
+    /// the options).
+    pub(super) enumerate: EnumerateOptions,
+    /// Record the stochastic search's trace.
+    pub(super) trace: bool,
 }
 
 impl KFit {
@@ -93,6 +116,8 @@ pub(super) struct Engine<'a> {
     /// The observations prepared at the last noise level (the transform,
     /// its covariance and whitening do not depend on k).
     pub(super) prepared: std::sync::Mutex<Option<(u64, Prepared)>>,
+    /// Unknowns and search details given by the caller (the scene path).
+    pub(super) given: Option<Given>,
 }
 
 /// The coarse (Laplace) and fine (time) observations, the misfit's name and
@@ -101,6 +126,9 @@ type Prepared = (LaplaceObs, Option<TimeMisfit>, String, Setup);
 
 impl Engine<'_> {
     fn unknowns(&self, k: usize) -> Result<Option<Unknowns>> {
+        if let Some(g) = &self.given {
+            return Ok(Some(g.unknowns.clone()));
+        }
         let known = self.model.chain().defects();
         if k == 0 && known.is_empty() {
             return Ok(None);
@@ -108,11 +136,7 @@ impl Engine<'_> {
         let mut slots: Vec<Slot> = known
             .iter()
             .map(|d| Slot {
-                kind: match DefectKind::of(d) {
-                    DefectKind::Mass => KindChoice::Mass,
-                    DefectKind::Spring => KindChoice::Spring,
-                    DefectKind::Damper => KindChoice::Damper,
-                },
+                kind: KindChoice::from(DefectKind::of(d)),
                 at: Some(d.at()),
                 known: Some(d.value()),
                 bounds: None,
@@ -206,6 +230,8 @@ impl Engine<'_> {
         let mut budget_exhausted = false;
         let mut method_name = self.opts.method.name().to_string();
         let mut hypotheses = 1;
+        let mut exhaustive = true;
+        let mut trace = None;
         let (ranked, evaluations) = match self.unknowns(k)? {
             None => self.fit_uniform(&coarse, fine.as_ref())?,
             Some(unknowns) => {
@@ -216,14 +242,17 @@ impl Engine<'_> {
                 };
                 let mut setup = setup;
                 setup.shortlist = setup.shortlist.max(self.opts.alternatives + 1);
-                if let Some((sets, screened)) = self.woodbury_sets(k, &unknowns)? {
+                let kernel = self.woodbury(&unknowns)?;
+                if let (Some((misfit, mass)), FitMethod::Enumerate) = (&kernel, self.opts.method) {
                     // mass defects on Laplace values: the paper's Woodbury
                     // kernel ranks every position set; the best are refitted
                     method_name = "enumerate (Woodbury kernel)".into();
+                    let (sets, screened, all, spent) = self.woodbury_sets(misfit, mass)?;
                     hypotheses = screened;
+                    exhaustive = all;
                     let (r, e) =
                         self.refit_sets(&unknowns, &sets, &coarse, fine.as_ref(), &setup, &gopts)?;
-                    (r, e + screened)
+                    (r, e + spent)
                 } else if self.opts.method == FitMethod::Enumerate || k == 0 {
                     method_name = "enumerate".into();
                     let g = fit_general(
@@ -237,14 +266,14 @@ impl Engine<'_> {
                     hypotheses = g.hypotheses;
                     (g.ranked, g.evaluations)
                 } else if self.opts.method == FitMethod::Greedy {
-                    // greedy search with moves (search::greedy)
-                    let g = crate::detect::search::greedy::fit_greedy(
+                    // greedy search with moves (fit::greedy)
+                    let g = super::greedy::fit_greedy(
                         self.model.chain(),
                         &unknowns,
                         &coarse,
                         fine.as_ref(),
                         &setup,
-                        &crate::detect::search::greedy::GreedyOptions {
+                        &super::greedy::GreedyOptions {
                             parallel: self.opts.parallel,
                             ..Default::default()
                         },
@@ -252,34 +281,18 @@ impl Engine<'_> {
                     hypotheses = g.hypotheses;
                     (g.ranked, g.evaluations + g.scored)
                 } else {
-                    let (positions, evals, exhausted) = self.stochastic(k, &coarse)?;
-                    budget_exhausted = exhausted;
-                    // refit the best set and its neighbours like enumeration
-                    let mut sets = vec![positions.clone()];
-                    for i in 0..positions.len() {
-                        for delta in [-1i64, 1] {
-                            let p = positions[i] as i64 + delta;
-                            if p >= 1
-                                && p as usize <= self.model.n()
-                                && !positions.contains(&(p as usize))
-                            {
-                                let mut q = positions.clone();
-                                q[i] = p as usize;
-                                q.sort_unstable();
-                                if !sets.contains(&q)
-                                    && !q.iter().any(|x| {
-                                        self.model.chain().defects().iter().any(|d| d.at() == *x)
-                                    })
-                                {
-                                    sets.push(q);
-                                }
-                            }
-                        }
+                    let res = self.stochastic(&unknowns, kernel.as_ref(), &coarse)?;
+                    budget_exhausted = res.evaluations >= self.opts.max_evals;
+                    if self.given.as_ref().is_some_and(|g| g.trace) {
+                        trace = Some(res.trace.clone());
                     }
+                    // refit the best set and its neighbours (each position moved by
+                    // +-1, +-2) like enumeration
+                    let sets = neighbour_sets(&unknowns, &res.best.positions);
                     hypotheses = sets.len();
                     let (r, e) =
                         self.refit_sets(&unknowns, &sets, &coarse, fine.as_ref(), &setup, &gopts)?;
-                    (r, e + evals)
+                    (r, e + res.evaluations)
                 }
             }
         };
@@ -324,6 +337,8 @@ impl Engine<'_> {
             method_name,
             budget_exhausted,
             predicted,
+            exhaustive,
+            trace,
         })
     }
 
@@ -380,26 +395,19 @@ impl Engine<'_> {
         }
     }
 
-    /// Mass defects at unknown positions on Laplace values of the paper's
-    /// setup (fixed ends, displacement of mass 1 after the impulse, no known
-    /// defect, no chain parameter, enumeration): the Woodbury kernel
-    /// ([`crate::detect::misfit::Misfit::at_nodes`]) ranks every position
-    /// set by the chi-square; returns the `alternatives + 1` best sets and
-    /// the number ranked. `None` when the unknowns or data do not allow it.
-    fn woodbury_sets(
-        &self,
-        k: usize,
-        unknowns: &Unknowns,
-    ) -> Result<Option<(Vec<Vec<usize>>, usize)>> {
-        use crate::detect::misfit::Misfit;
-        use crate::detect::search::enumerate::{enumerate, EnumerateOptions};
+    /// The paper's mass-only Woodbury kernel when the unknowns and data
+    /// allow it: mass defects (free or known values and positions, no chain
+    /// parameter) on Laplace values of the paper's setup (fixed ends,
+    /// displacement of mass 1 after the impulse, no known defect in the
+    /// model's chain): the chi-square of the values at their nodes
+    /// ([`Misfit::at_nodes`]) and the unknowns in the kernel's form.
+    fn woodbury(&self, unknowns: &Unknowns) -> Result<Option<(Misfit, MassUnknowns)>> {
         let Observations::Laplace(l) = self.obs else {
             return Ok(None);
         };
         let chain = self.model.chain();
         let paper_sensor = l.sensor() == crate::detect::data::measurement::Sensor::PAPER;
-        if k == 0
-            || self.opts.method != FitMethod::Enumerate
+        if unknowns.k() == 0
             || !chain.defects().is_empty()
             || chain.left().is_free()
             || chain.right().is_free()
@@ -416,31 +424,45 @@ impl Engine<'_> {
         };
         let data =
             crate::detect::data::exact::Data::at_nodes(l.s().to_vec(), l.values().to_vec(), sigma)?;
-        let misfit = Misfit::at_nodes(chain, &data)?;
+        Ok(Some((Misfit::at_nodes(chain, &data)?, mass)))
+    }
+
+    /// The Woodbury kernel's enumeration ranks every position set (beam
+    /// search beyond `max_sets`) by the chi-square; returns the positions of
+    /// the unknown-position defects (in slot order) of the `alternatives +
+    /// 1` best sets, the number of sets ranked, whether the ranking was
+    /// exhaustive, and the kernel's residual evaluations.
+    fn woodbury_sets(
+        &self,
+        misfit: &Misfit,
+        mass: &MassUnknowns,
+    ) -> Result<(Vec<Vec<usize>>, usize, bool, usize)> {
+        let base = match &self.given {
+            Some(g) => g.enumerate.clone(),
+            None => EnumerateOptions::default(),
+        };
         let e = enumerate(
-            &misfit,
-            &mass,
+            misfit,
+            mass,
             &EnumerateOptions {
                 parallel: self.opts.parallel,
                 max_sets: self.opts.max_sets,
                 keep: self.opts.alternatives + 1,
-                ..EnumerateOptions::default()
+                ..base
             },
         )?;
+        let free = mass.free_positions();
         let sets = e
             .ranked
             .iter()
-            .map(|h| {
-                let mut p: Vec<usize> = h.defects.iter().map(|d| d.0).collect();
-                p.sort_unstable();
-                p
-            })
+            .map(|h| free.iter().map(|&i| h.defects[i].0).collect())
             .collect();
-        Ok(Some((sets, e.sets)))
+        Ok((sets, e.sets, e.exhaustive, e.evaluations))
     }
 
-    /// Fit every position set of `sets` (values, chain parameters, standard
-    /// errors) as the enumeration does; ranked by chi-square.
+    /// Fit every position set of `sets` (the positions of the unknowns'
+    /// unknown-position slots, in slot order: values, chain parameters,
+    /// standard errors) as the enumeration does; ranked by chi-square.
     fn refit_sets(
         &self,
         unknowns: &Unknowns,
@@ -450,19 +472,19 @@ impl Engine<'_> {
         setup: &Setup,
         gopts: &GeneralOptions,
     ) -> Result<(Vec<Hypothesis>, usize)> {
-        let known = self.model.chain().defects().len();
         let mut all = Vec::new();
         let mut spent = 0;
         for q in sets {
             let mut slots = unknowns.slots().to_vec();
-            for (slot, &at) in slots[known..].iter_mut().zip(q) {
-                slot.at = Some(at);
+            let mut at = q.iter();
+            for slot in slots.iter_mut().filter(|s| s.at.is_none()) {
+                slot.at = at.next().copied();
             }
             let u = Unknowns::new(
                 self.model.n(),
                 slots,
-                self.model.fitted().to_vec(),
-                KindBounds::for_chain(self.model.chain()),
+                unknowns.chain().to_vec(),
+                *unknowns.kind_bounds(),
             )?;
             if let Ok(g) = fit_general(self.model.chain(), &u, coarse, fine, setup, gopts) {
                 spent += g.evaluations;
@@ -483,10 +505,17 @@ impl Engine<'_> {
         Ok((all, spent))
     }
 
-    /// A stochastic search over mass positions and values on the Laplace
-    /// chi-square: the best position set, the evaluations, and whether the
-    /// budget ran out.
-    fn stochastic(&self, k: usize, coarse: &LaplaceObs) -> Result<(Vec<usize>, usize, bool)> {
+    /// A stochastic search over the positions and values of mass defects:
+    /// on the Woodbury kernel when it applies ([`MisfitObjective`], the
+    /// unknowns' own space), else on the Laplace chi-square of the coarse
+    /// observations (free masses in the kind's bounds, the model's known
+    /// defects excluded).
+    fn stochastic(
+        &self,
+        unknowns: &Unknowns,
+        kernel: Option<&(Misfit, MassUnknowns)>,
+        coarse: &LaplaceObs,
+    ) -> Result<SearchResult> {
         let method = self
             .opts
             .method
@@ -495,9 +524,18 @@ impl Engine<'_> {
                 method: self.opts.method.name().into(),
                 reason: "enumeration is not a stochastic search".into(),
             })?;
+        let sopts = SearchOptions {
+            max_evals: self.opts.max_evals,
+            seed: self.opts.seed,
+            trace: self.given.as_ref().is_some_and(|g| g.trace),
+            ..SearchOptions::default()
+        };
+        if let Some((misfit, mass)) = kernel {
+            return minimize(method, &MisfitObjective::new(misfit, mass), &sopts);
+        }
         let mut space = Space::masses(
             self.model.n(),
-            k,
+            unknowns.k(),
             KindBounds::for_chain(self.model.chain()).mass,
         );
         space.excluded = self
@@ -513,15 +551,7 @@ impl Engine<'_> {
             base: self.model.chain(),
             obs: coarse,
         };
-        let sopts = SearchOptions {
-            max_evals: self.opts.max_evals,
-            seed: self.opts.seed,
-            ..SearchOptions::default()
-        };
-        let res = minimize(method, &obj, &sopts)?;
-        let mut p = res.best.positions.clone();
-        p.sort_unstable();
-        Ok((p, res.evaluations, res.evaluations >= self.opts.max_evals))
+        minimize(method, &obj, &sopts)
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -736,12 +766,50 @@ impl Engine<'_> {
             method: f.method_name.clone(),
             evaluations,
             hypotheses: f.hypotheses,
+            exhaustive: f.exhaustive,
+            trace: f.trace.clone(),
             wall_time_s: t0.elapsed().as_secs_f64(),
             predicted,
             identifiability: ident,
             modes,
         })
     }
+}
+
+/// The position set a stochastic search found (`positions` of the unknowns'
+/// unknown-position slots, in slot order) and its neighbours: each position
+/// moved by one or two to a place that is free (in `1..=n`, not a known position,
+/// not another defect's). Interchangeable sets are sorted, and every set is
+/// listed once.
+fn neighbour_sets(unknowns: &Unknowns, positions: &[usize]) -> Vec<Vec<usize>> {
+    let taken: Vec<usize> = unknowns.slots().iter().filter_map(|s| s.at).collect();
+    let interchangeable = unknowns.to_mass().is_ok_and(|m| m.interchangeable());
+    let norm = |mut q: Vec<usize>| {
+        if interchangeable {
+            q.sort_unstable();
+        }
+        q
+    };
+    let mut sets = vec![norm(positions.to_vec())];
+    for i in 0..positions.len() {
+        for delta in [-2i64, -1, 1, 2] {
+            let p = positions[i] as i64 + delta;
+            if p < 1 || p as usize > unknowns.n() {
+                continue;
+            }
+            let p = p as usize;
+            if positions.contains(&p) || taken.contains(&p) {
+                continue;
+            }
+            let mut q = positions.to_vec();
+            q[i] = p;
+            let q = norm(q);
+            if !sets.contains(&q) {
+                sets.push(q);
+            }
+        }
+    }
+    sets
 }
 
 /// The Laplace chi-square of mass defects as a search objective (invalid

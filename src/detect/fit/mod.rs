@@ -30,7 +30,7 @@
 //! * **kinds** ([`KindChoice`](crate::detect::unknowns::KindChoice)): mass, spring, damper or any.
 //! * **method** ([`FitMethod`]): `enumerate` (every position set, values by
 //!   bounded Levenberg-Marquardt) works for every kind; `greedy`
-//!   ([`crate::detect::search::greedy`]: one defect at a time, candidates
+//!   ([`greedy`]: one defect at a time, candidates
 //!   scored by rank-one updates, then moves, restarts) too, for long chains
 //!   and many defects; `ga`, `nelder-mead` and `pso` search mass defects
 //!   (and refuse other kinds with a typed error); their best position set is
@@ -59,6 +59,7 @@
 pub mod chainfit;
 mod engine;
 pub mod general;
+pub mod greedy;
 pub mod identify;
 pub mod model;
 pub mod noise;
@@ -89,6 +90,17 @@ use std::time::Instant;
 /// Invalid options ([`FitOptions::validate`]); too many hypotheses
 /// (`max_sets`); a numerical failure of every hypothesis.
 pub fn fit(obs: &Observations, model: &Model, opts: &FitOptions) -> Result<FitReport> {
+    fit_with(obs, model, opts, None)
+}
+
+/// [`fit`] with unknowns and search details given by the caller (the scene
+/// path, [`paper::fit`]); the same pipeline.
+fn fit_with(
+    obs: &Observations,
+    model: &Model,
+    opts: &FitOptions,
+    given: Option<engine::Given>,
+) -> Result<FitReport> {
     opts.validate(obs, model)?;
     let t0 = Instant::now();
     let misfit = match obs {
@@ -111,6 +123,7 @@ pub fn fit(obs: &Observations, model: &Model, opts: &FitOptions) -> Result<FitRe
         opts,
         misfit,
         prepared: std::sync::Mutex::new(None),
+        given,
     };
     // the noise level: given, or a first guess then the residual estimate
     let (mut sigma, estimated) = match (obs, opts.noise) {

@@ -1,39 +1,52 @@
-//! `fit(scene, data, options)`: find the defects that best explain the data.
+//! The scene path: `fit(scene, data, options)` finds the defects that best
+//! explain a [`FitScene`]'s data, through the same pipeline as the
+//! data-first [`crate::detect::fit::fit`], then judges the answer against the
+//! data's error floor and reports it in the scene's terms ([`SceneReport`]).
 //!
-//! Builds the residual of the scene's `[misfit]` (fixed rule, tabled Green's
-//! function, data sampled at the same nodes), the unknowns of `[unknowns]`,
-//! and runs the chosen method:
+//! The scene becomes the data-first fit's three inputs:
 //!
-//! * `enumerate` (default): every position set, masses fitted per set by
-//!   Levenberg-Marquardt ([`crate::detect::search::enumerate`]); the runners-up
-//!   are the next position sets in the ranking.
-//! * `ga`, `nelder-mead`, `pso`: [`crate::detect::search::minimize`] on
-//!   [`MisfitObjective`] (the residual; invalid candidates get a finite
-//!   penalty). The defects and residual reported are the optimizer's own best.
-//!   The runners-up are probes around it: each unknown position moved by
-//!   +-1 and +-2 (to free places), masses refitted by the enumeration's LM;
-//!   a negative gap means the optimizer stopped short of a better neighbour.
-//!   These methods need interchangeable unknown-position defects (the
-//!   optimizers' spaces are unordered).
+//! * **observations**: the scene's data (exact-model, simulated and
+//!   Laplace-transformed, or a measured series) as [`LaplaceValues`] at the
+//!   nodes of the scene's `[misfit]` rule (real axis, or the Bromwich line
+//!   `s = sigma + i omega`), each with the "error" `1 / sqrt(w_q)` of its
+//!   quadrature weight: the fit's chi-square `sum_q w_q |X_1(s_q) - d_q|^2`
+//!   is then the paper's residual (4.18) (its Bromwich-line analogue), and
+//!   the mass-only Woodbury kernel ranks the position sets on it
+//!   ([`crate::detect::misfit::Misfit::at_nodes`]);
+//! * **model**: the uniform part of the scene's chain ([`Model::from_chain`]);
+//! * **options**: its `[search]` ([`FitOptions`]: method, seed, max_evals,
+//!   the number of hypotheses kept, parallelism, max_sets), the known noise
+//!   scale 1 (the weights are the errors), and its `[unknowns]` as they are
+//!   (known positions with free masses, per-defect bounds) with the
+//!   enumeration's starts and beam and the trace flag, which a [`Model`] and
+//!   [`FitOptions`] do not describe.
 //!
-//! **General path.** When the scene asks for what the mass-only Woodbury
-//! path cannot do (spring, damper or `any` defects, chain parameters `d`,
-//! `gamma`, `k`, `mass`, or `[misfit] kind = "time"`,
-//! [`FitScene::is_general`]), `fit` runs the general noisy fit
-//! ([`crate::detect::fit::general::fit_general`]; method `enumerate` only): the
-//! residual is then a chi-square (Laplace data weighted by the rule over the
-//! data's variance at each node, or the time-domain chi-square of the scene's
-//! series), `floor` is the chi-square gap threshold
-//! [`crate::detect::fit::identify::DEFAULT_THRESHOLD`], and the report carries
-//! the standard errors of the defect values and the fitted chain parameters.
+//! The search is the data-first fit's: `enumerate` ranks every position set
+//! with the Woodbury kernel and refits the best `keep` by bounded
+//! Levenberg-Marquardt; `ga`, `nelder-mead` and `pso` run
+//! [`crate::detect::search::minimize`] on the same residual
+//! ([`MisfitObjective`]; they need interchangeable unknown-position
+//! defects: the optimizers' spaces are unordered), and the best set and its
+//! neighbours (each position moved by one or two) are refitted; their per-iteration
+//! trace is the report's `trace` when `[search] trace = true`.
 //!
-//! The report gives the defects found, the residual, the runners-up with
-//! their gaps `r_alt - r_best`, the number of residual evaluations, the wall
-//! time, and whether the gap to the first runner-up is above the data's
-//! error floor ([`crate::detect::misfit::Misfit::floor`]); below it the data
-//! cannot tell the two hypotheses apart. `fits_data` says whether the best
-//! residual itself is within the floor (a residual far above it means the
+//! After the fit, the scene layer compares: the data's error floor is
+//! `sum_q w_q sigma_q^2` with `sigma_q` the data's own error at each node
+//! (rounding for exact data, the noise or the transform's error otherwise);
+//! `resolved` when the gap to the first runner-up is above it; `fits_data`
+//! when the residual is within `4 floor` (a residual far above it means the
 //! model lacks a defect or the search missed the truth).
+//!
+//! **General path.** When the scene asks for what the mass-only kernel does
+//! not cover (spring, damper or `any` defects, chain parameters `d`,
+//! `gamma`, `k`, `mass`, `[misfit] kind = "time"`, another sensor, free
+//! ends: [`FitScene::is_general`]), the observations are the sampled record
+//! behind `data` (simulated or read from a file) or `data`'s values at the
+//! rule's nodes weighted by their own errors, and the residual is the
+//! chi-square of the data-first fit: `floor` is then the chi-square gap
+//! threshold [`crate::detect::fit::identify::DEFAULT_THRESHOLD`], and the
+//! report carries the standard errors of the defect values and the fitted
+//! chain parameters.
 //!
 //! ```
 //! use springmass::{Chain, Defect};
@@ -49,24 +62,30 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+use super::engine::Given;
+use super::{fit_with, DefectCount, FitOptions, FitReport, Model, NoiseSpec};
 use crate::chain::Defect;
 use crate::detect::data::exact::Data;
+use crate::detect::data::observations::{LaplaceValues, Observations, Series};
 use crate::detect::fit::general::FittedParam;
-use crate::detect::misfit::{Misfit, MisfitKind};
+use crate::detect::misfit::quadrature::Rule;
+use crate::detect::misfit::MisfitKind;
 use crate::detect::scene::{FitScene, SceneOptions};
-use crate::detect::search::enumerate::{enumerate, fit_slots, Defects, EnumerateOptions};
 use crate::detect::search::FitMethod;
-use crate::detect::search::{minimize, Candidate, Objective, SearchOptions, Space};
-use crate::detect::unknowns::{MassUnknown, MassUnknowns};
 use crate::error::{Error, Result};
 use num_complex::Complex64;
 use serde::Serialize;
 use std::time::Instant;
 
+/// The paper's residual as an optimizer objective (defined with the
+/// optimizers, [`crate::detect::search::MisfitObjective`]; named here too
+/// for the callers of the scene path).
+pub use crate::detect::search::MisfitObjective;
+
 /// An alternative hypothesis.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Alternative {
-    /// Its defects (masses fitted).
+    /// Its defects (values fitted).
     pub defects: Vec<Defect>,
     /// Its residual.
     pub residual: f64,
@@ -74,34 +93,39 @@ pub struct Alternative {
     pub gap: f64,
 }
 
-/// What [`fit`] found.
+/// What [`fit`] found, in the scene's terms: the shared [`FitReport`]'s
+/// answer, judged against the scene data's error floor.
 #[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct FitReport {
+pub struct SceneReport {
     /// The method used.
     pub method: String,
     /// The defects found (mass defects; any kind on the general path).
     pub defects: Vec<Defect>,
-    /// The residual at the defects found.
+    /// The residual at the defects found (the paper's (4.18) on the mass
+    /// path; the chi-square on the general path).
     pub residual: f64,
+    /// Approximate standard errors of the defects' values (mass path): the
+    /// fit's Gauss-Newton errors scaled by `sqrt(floor / terms)`, the data's
+    /// mean error per residual term (exact when every term's weighted error
+    /// `w_q sigma_q^2` is the same). The general path's are `std_errors`.
+    pub error_bars: Vec<f64>,
     /// The next best hypotheses, best first.
     pub runners_up: Vec<Alternative>,
-    /// Residual evaluations of the method.
+    /// Residual evaluations of the search and the refits.
     pub evaluations: usize,
-    /// Residual evaluations spent probing runners-up (stochastic methods).
-    pub probe_evaluations: usize,
-    /// Position sets fitted (enumeration).
+    /// Position sets ranked (enumeration) or refitted (stochastic methods).
     pub sets: Option<usize>,
     /// Whether the enumeration was exhaustive (false: beam search).
     pub exhaustive: Option<bool>,
-    /// Wall time of the search, seconds (the residual's setup excluded).
+    /// Wall time of the fit, seconds (the Woodbury tables included).
     pub wall_time_s: f64,
-    /// Wall time of the setup (rule, Green's tables, data), seconds.
+    /// Wall time of the setup (the rule, the data at its nodes), seconds.
     pub setup_time_s: f64,
     /// `(evaluations, best residual)` per iteration when traced.
     pub trace: Vec<(usize, f64)>,
     /// The residual: kind and rule.
     pub misfit: String,
-    /// Quadrature nodes.
+    /// Quadrature nodes (general path: the chi-square's degrees of freedom).
     pub nodes: usize,
     /// The data's error floor on `r`.
     pub floor: f64,
@@ -110,10 +134,10 @@ pub struct FitReport {
     /// The residual is within the data's error (`r <= 4 floor`): the
     /// hypothesis explains the data. False means a defect is missing from the
     /// model, or the search (beam search, stochastic methods) missed the truth.
-    /// General path: `chi^2 <= m + 4 sqrt(2 m)` with `m` residuals.
+    /// General path: the data-first fit's goodness of fit.
     pub fits_data: bool,
     /// General path: Gauss-Newton standard errors of the defect values, in the
-    /// order of `defects` (0 for a known value); empty on the mass-only path.
+    /// order of `defects` (0 for a known value); empty on the mass path.
     pub std_errors: Vec<f64>,
     /// General path: the fitted chain parameters with their standard errors.
     pub chain_params: Vec<FittedParam>,
@@ -128,100 +152,80 @@ pub struct FitReport {
 ///
 /// # Errors
 /// Invalid chain, unknowns or misfit in the scene (typed, naming the field);
-/// a method this build does not provide (`search.method`).
-pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<FitReport> {
+/// a stochastic method for unknowns that are not interchangeable, or on the
+/// general path (`search.method`).
+pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<SceneReport> {
     if scene.is_general() || options.method == FitMethod::Greedy {
-        // the greedy search runs in the data-first pipeline
+        // the greedy search runs on the general hypothesis fits
         return fit_general_scene(scene, data, options);
     }
     let t0 = Instant::now();
-    let model = scene.truth()?.uniform();
-    let unknowns = scene.unknowns()?.to_mass()?;
-    let misfit = Misfit::new(&model, data, &scene.misfit)?;
+    let model = Model::from_chain(&scene.truth()?.uniform());
+    let unknowns = scene.unknowns()?;
+    let mass = unknowns.to_mass()?;
+    let rule = scene.misfit.rule()?;
+    if options.method.stochastic().is_some() && !mass.interchangeable() {
+        return Err(Error::invalid(
+            "search.method",
+            options.method.name(),
+            "enumerate when the defects at unknown positions differ (known, unequal masses or unequal bounds)",
+        ));
+    }
+    // the data at the rule's nodes, with the data's own errors
+    let (s, values, errors): (Vec<Complex64>, Vec<Complex64>, Vec<f64>) = match scene.misfit.kind {
+        MisfitKind::Bromwich => {
+            let s = laplace_nodes(scene, &rule);
+            let sm = data.sample(&s)?;
+            (s, sm.values, sm.sigma)
+        }
+        _ => {
+            // sampled in real arithmetic, as the paper's residual always was
+            let sm = data.sample(&rule.nodes)?;
+            (
+                laplace_nodes(scene, &rule),
+                sm.values.iter().map(|&v| Complex64::new(v, 0.0)).collect(),
+                sm.sigma,
+            )
+        }
+    };
+    // the quadrature weights as inverse variances: the chi-square is the residual
+    let pseudo: Vec<f64> = rule.weights.iter().map(|w| 1.0 / w.sqrt()).collect();
+    let floor: f64 = rule
+        .weights
+        .iter()
+        .zip(&errors)
+        .map(|(w, e)| w * e * e)
+        .sum();
+    let obs = Observations::Laplace(LaplaceValues::new(s, values, Some(pseudo))?);
+    let opts = FitOptions {
+        defects: DefectCount::Exactly(unknowns.k()),
+        noise: NoiseSpec::Sigma(1.0),
+        misfit: Some(scene.misfit.kind),
+        method: options.method,
+        seed: options.seed,
+        max_evals: options.max_evals,
+        alternatives: options.enumerate.keep.saturating_sub(1),
+        parallel: options.enumerate.parallel,
+        max_sets: options.enumerate.max_sets,
+        ..FitOptions::default()
+    };
+    let given = Given {
+        unknowns,
+        enumerate: options.enumerate.clone(),
+        trace: options.trace,
+    };
     let setup = t0.elapsed().as_secs_f64();
-    let t1 = Instant::now();
-    let to_defects = |d: &[(usize, f64)]| -> Vec<Defect> {
-        d.iter().map(|&(at, m)| Defect::Mass { at, m }).collect()
+    let r = fit_with(&obs, &model, &opts, Some(given))?;
+    // the scene's judgment: gaps and residual against the data's floor
+    let residual = r.chi2;
+    let runners_up = alternatives(&r);
+    let resolved = runners_up.first().is_none_or(|a| a.gap > floor);
+    let terms = if scene.misfit.kind == MisfitKind::Bromwich {
+        2 * rule.len()
+    } else {
+        rule.len()
     };
-    let mut probe_evals = 0;
-    let (defects, residual, runners, evaluations, sets, exhaustive, trace) = match options.method {
-        FitMethod::Enumerate => {
-            let e = enumerate(&misfit, &unknowns, &options.enumerate)?;
-            let best = e.ranked.first().ok_or_else(|| Error::Numerical {
-                method: "enumerate".into(),
-                reason: "no hypothesis".into(),
-            })?;
-            let runners: Vec<Alternative> = e.ranked[1..]
-                .iter()
-                .map(|h| Alternative {
-                    defects: to_defects(&h.defects),
-                    residual: h.residual,
-                    gap: h.residual - best.residual,
-                })
-                .collect();
-            (
-                to_defects(&best.defects),
-                best.residual,
-                runners,
-                e.evaluations,
-                Some(e.sets),
-                Some(e.exhaustive),
-                Vec::new(),
-            )
-        }
-        m => {
-            let method = m.stochastic().ok_or_else(|| Error::Numerical {
-                method: m.name().into(),
-                reason: "enumeration is handled above".into(),
-            })?;
-            if !unknowns.interchangeable() {
-                return Err(Error::invalid(
-                    "search.method",
-                    m.name(),
-                    "enumerate when the defects at unknown positions differ (known, unequal masses or unequal bounds)",
-                ));
-            }
-            let obj = MisfitObjective::new(&misfit, &unknowns);
-            let opts = SearchOptions {
-                max_evals: options.max_evals,
-                seed: options.seed,
-                trace: options.trace,
-                ..SearchOptions::default()
-            };
-            let res = minimize(method, &obj, &opts)?;
-            let best = unknowns.decode(&res.best).map_err(|_| Error::Numerical {
-                method: m.name().into(),
-                reason: "the best candidate is outside the space".into(),
-            })?;
-            let (runners, probes) =
-                probe_neighbours(&misfit, &unknowns, &res.best.positions, &options.enumerate);
-            probe_evals = probes;
-            let mut best = best;
-            if unknowns.interchangeable() && unknowns.free_positions().len() == unknowns.k() {
-                best.sort_by_key(|d| d.0);
-            }
-            (
-                to_defects(&best),
-                res.cost,
-                runners
-                    .into_iter()
-                    .map(|(d, r)| Alternative {
-                        defects: to_defects(&d),
-                        residual: r,
-                        gap: r - res.cost,
-                    })
-                    .collect(),
-                res.evaluations,
-                None,
-                None,
-                res.trace,
-            )
-        }
-    };
-    let wall = t1.elapsed().as_secs_f64();
-    let floor = misfit.floor();
-    let resolved = runners.first().is_none_or(|r| r.gap > floor);
-    let fits_data = residual <= 4.0 * floor;
+    let scale = (floor / terms.max(1) as f64).sqrt();
     let kind = match scene.misfit.kind {
         MisfitKind::RealAxis => format!("real-axis [0, {}]", scene.misfit.s_max),
         MisfitKind::Bromwich => format!(
@@ -230,27 +234,52 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<FitR
         ),
         other => other.name().into(),
     };
-    Ok(FitReport {
-        method: options.method.name().into(),
-        defects,
+    Ok(SceneReport {
+        method: r.method.clone(),
+        defects: r.defects.iter().map(|d| d.defect()).collect(),
         residual,
-        runners_up: runners,
-        evaluations,
-        probe_evaluations: probe_evals,
-        sets,
-        exhaustive,
-        wall_time_s: wall,
+        error_bars: r.defects.iter().map(|d| d.se * scale).collect(),
+        runners_up,
+        evaluations: r.evaluations,
+        sets: Some(r.hypotheses),
+        exhaustive: Some(r.exhaustive),
+        wall_time_s: r.wall_time_s,
         setup_time_s: setup,
-        trace,
-        misfit: format!("{kind}, {}", misfit.rule().name),
-        nodes: misfit.nodes(),
+        trace: r.trace.clone().unwrap_or_default(),
+        misfit: format!("{kind}, {}", rule.name),
+        nodes: rule.len(),
         floor,
         resolved,
-        fits_data,
+        fits_data: residual <= 4.0 * floor,
         std_errors: Vec::new(),
         chain_params: Vec::new(),
         identifiability: None,
     })
+}
+
+/// The Laplace nodes of the scene's rule: `s = sigma + i omega` on the
+/// Bromwich line, the rule's nodes on the real axis otherwise.
+fn laplace_nodes(scene: &FitScene, rule: &Rule) -> Vec<Complex64> {
+    match scene.misfit.kind {
+        MisfitKind::Bromwich => rule
+            .nodes
+            .iter()
+            .map(|&w| Complex64::new(scene.misfit.sigma, w))
+            .collect(),
+        _ => rule.nodes.iter().map(|&x| Complex64::new(x, 0.0)).collect(),
+    }
+}
+
+/// The alternatives of a shared report in the scene's terms.
+fn alternatives(r: &FitReport) -> Vec<Alternative> {
+    r.alternatives
+        .iter()
+        .map(|a| Alternative {
+            defects: a.defects.clone(),
+            residual: a.chi2,
+            gap: a.gap,
+        })
+        .collect()
 }
 
 /// The general path of [`fit`]: defects of any kind and chain parameters,
@@ -260,9 +289,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<FitR
 /// (exact-model data, weighted by their errors). The residual is then a
 /// chi-square and `floor` the gap threshold
 /// [`crate::detect::fit::identify::DEFAULT_THRESHOLD`].
-fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<FitReport> {
-    use crate::detect::data::observations::{LaplaceValues, Observations, Series};
-    use crate::detect::fit::{DefectCount, FitOptions, Model, NoiseSpec};
+fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<SceneReport> {
     let t0 = Instant::now();
     if !matches!(options.method, FitMethod::Enumerate | FitMethod::Greedy) {
         return Err(Error::invalid(
@@ -313,15 +340,7 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
                     "\"simulated\" or \"series\" (the time misfit needs a sampled series)",
                 ));
             }
-            let rule = scene.misfit.rule()?;
-            let s: Vec<Complex64> = match scene.misfit.kind {
-                MisfitKind::Bromwich => rule
-                    .nodes
-                    .iter()
-                    .map(|&w| Complex64::new(scene.misfit.sigma, w))
-                    .collect(),
-                _ => rule.nodes.iter().map(|&x| Complex64::new(x, 0.0)).collect(),
-            };
+            let s = laplace_nodes(scene, &scene.misfit.rule()?);
             let sm = data.sample(&s)?;
             let sigma = sm.sigma.iter().map(|v| v.max(1e-300)).collect();
             (
@@ -344,24 +363,16 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
     let setup_time = t0.elapsed().as_secs_f64();
     let r = crate::detect::fit::fit(&obs, &model, &opts)?;
     let floor = crate::detect::fit::identify::DEFAULT_THRESHOLD;
-    Ok(FitReport {
+    Ok(SceneReport {
         method: format!("{} (general noisy fit)", options.method.name()),
         defects: r.defects.iter().map(|d| d.defect()).collect(),
         residual: r.chi2,
+        error_bars: r.defects.iter().map(|d| d.se).collect(),
         resolved: r.resolved,
-        runners_up: r
-            .alternatives
-            .iter()
-            .map(|a| Alternative {
-                defects: a.defects.clone(),
-                residual: a.chi2,
-                gap: a.gap,
-            })
-            .collect(),
+        runners_up: alternatives(&r),
         evaluations: r.evaluations,
-        probe_evaluations: 0,
         sets: Some(r.hypotheses),
-        exhaustive: Some(true),
+        exhaustive: Some(r.exhaustive),
         wall_time_s: r.wall_time_s,
         setup_time_s: setup_time,
         trace: Vec::new(),
@@ -381,93 +392,4 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
             .collect(),
         identifiability: r.identifiability,
     })
-}
-
-/// The residual as an optimizer [`Objective`]: the candidate is decoded by
-/// [`MassUnknowns::decode`] (invalid candidates get its finite penalty, at least
-/// [`crate::detect::unknowns::PENALTY`]) and costed by [`Misfit::residual`].
-pub struct MisfitObjective<'a> {
-    misfit: &'a Misfit,
-    unknowns: &'a MassUnknowns,
-}
-
-impl<'a> MisfitObjective<'a> {
-    /// Wrap a residual and its unknowns (same `n`).
-    pub fn new(misfit: &'a Misfit, unknowns: &'a MassUnknowns) -> MisfitObjective<'a> {
-        MisfitObjective { misfit, unknowns }
-    }
-}
-
-impl Objective for MisfitObjective<'_> {
-    fn space(&self) -> &Space {
-        self.unknowns.space()
-    }
-    fn cost(&self, c: &Candidate) -> f64 {
-        match self.unknowns.decode(c) {
-            Ok(d) => {
-                let r = self.misfit.residual(&d);
-                if r.is_nan() {
-                    f64::MAX
-                } else {
-                    r
-                }
-            }
-            Err(p) => p,
-        }
-    }
-}
-
-/// Hypotheses next to `positions` (each unknown position moved by +-1, +-2
-/// to a free place; masses refitted), best first, at most `opts.keep - 1`;
-/// and the evaluations spent.
-fn probe_neighbours(
-    misfit: &Misfit,
-    unknowns: &MassUnknowns,
-    positions: &[usize],
-    opts: &EnumerateOptions,
-) -> (Vec<(Defects, f64)>, usize) {
-    let allowed = unknowns.allowed_positions();
-    let mut seen: Vec<Vec<usize>> = vec![sorted(positions)];
-    let mut out = Vec::new();
-    let mut evals = 0;
-    for t in 0..positions.len() {
-        for delta in [-2i64, -1, 1, 2] {
-            let p = positions[t] as i64 + delta;
-            if p < 1 || !allowed.contains(&(p as usize)) || positions.contains(&(p as usize)) {
-                continue;
-            }
-            let mut cand = positions.to_vec();
-            cand[t] = p as usize;
-            if seen.contains(&sorted(&cand)) {
-                continue;
-            }
-            seen.push(sorted(&cand));
-            let mut pi = cand.iter();
-            let slots: Vec<(usize, MassUnknown)> = unknowns
-                .defects()
-                .iter()
-                .map(|d| {
-                    (
-                        d.at.unwrap_or_else(|| *pi.next().expect("one per position")),
-                        d.mass,
-                    )
-                })
-                .collect();
-            let (mut d, r, e) = fit_slots(misfit, &slots, opts);
-            evals += e;
-            if unknowns.interchangeable() && unknowns.free_positions().len() == unknowns.k() {
-                d.sort_by_key(|x| x.0);
-            }
-            out.push((d, r));
-        }
-    }
-    out.sort_by(|a, b| a.1.total_cmp(&b.1));
-    out.truncate(opts.keep.saturating_sub(1));
-    (out, evals)
-}
-
-fn sorted(v: &[usize]) -> Vec<usize> {
-    let mut s = v.to_vec();
-    s.sort_unstable();
-    s
 }

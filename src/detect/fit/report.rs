@@ -4,6 +4,7 @@
 
 use crate::chain::Defect;
 use crate::detect::fit::identify::Identifiability;
+use crate::detect::unknowns::DefectKind;
 use serde::Serialize;
 
 /// How the fit ended.
@@ -63,20 +64,9 @@ pub struct DefectEstimate {
 impl DefectEstimate {
     /// As a chain defect.
     pub fn defect(&self) -> Defect {
-        match self.kind {
-            "spring" => Defect::Spring {
-                at: self.at,
-                k: self.value,
-            },
-            "damper" => Defect::Damper {
-                at: self.at,
-                d: self.value,
-            },
-            _ => Defect::Mass {
-                at: self.at,
-                m: self.value,
-            },
-        }
+        DefectKind::from_name(self.kind)
+            .unwrap_or(DefectKind::Mass)
+            .defect(self.at, self.value)
     }
 }
 
@@ -182,6 +172,14 @@ pub struct FitReport {
     pub evaluations: usize,
     /// Position (and kind) sets fitted for the chosen number of defects.
     pub hypotheses: usize,
+    /// Whether every position set was ranked (false: the Woodbury kernel's
+    /// beam search, for more sets than `max_sets`).
+    pub exhaustive: bool,
+    /// `(evaluations, best cost)` per iteration of a stochastic search, when
+    /// traced (`Given::trace`, the scene's `[search] trace`); the cost is the
+    /// misfit the search ran on.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trace: Option<Vec<(usize, f64)>>,
     /// Wall time, seconds.
     pub wall_time_s: f64,
     /// The predicted series (series data only).

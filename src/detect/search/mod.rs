@@ -11,10 +11,11 @@
 //! | [`Method::NelderMead`] | [`nelder_mead`] | fixed per run: discrete descent over positions (memoised fits), argmin Nelder-Mead on the values, restarts |
 //! | [`Method::ParticleSwarm`] | [`pso`] | relax-and-round (with collision repair), argmin particle swarm, then the Nelder-Mead local search; episodes |
 //!
-//! Exhaustive enumeration of position sets lives with the fitting code (it is
-//! not a black-box optimizer: it needs the residual's structure), and so does
-//! the greedy search with moves ([`greedy`], candidates scored by the
-//! rank-one kernel of [`rankone`]): both are [`FitMethod`]s, not [`Method`]s.
+//! Exhaustive enumeration of position sets ([`enumerate`]) needs the
+//! residual's structure (it is not a black-box optimizer), and the greedy
+//! search with moves (`detect::fit::greedy`, one layer up: it refits the
+//! general hypotheses) scores candidates with the rank-one kernel of
+//! [`rankone`]: both are [`FitMethod`]s, not [`Method`]s.
 //!
 //! ## What to expect (Table 1 of the paper, `cargo bench --bench table1`)
 //!
@@ -67,12 +68,13 @@
 
 pub mod enumerate;
 pub mod genetic;
-pub mod greedy;
 pub mod lsq;
 pub mod nelder_mead;
 pub mod pso;
 pub mod rankone;
 
+use crate::detect::misfit::Misfit;
+use crate::detect::unknowns::{MassUnknown, MassUnknowns};
 use crate::error::{Error, Result};
 use rand::Rng;
 use rayon::prelude::*;
@@ -140,7 +142,7 @@ pub enum FitMethod {
     #[serde(alias = "particle-swarm")]
     Pso,
     /// Greedy placement with moves and restarts, candidates scored by
-    /// rank-one updates ([`greedy`]; the data-first fit only).
+    /// rank-one updates (`detect::fit::greedy`; the data-first fit only).
     Greedy,
 }
 
@@ -337,6 +339,36 @@ pub fn minimize(method: Method, obj: &dyn Objective, opts: &SearchOptions) -> Re
 }
 
 impl Space {
+    /// The space of mass-only unknowns: one integer per unknown position,
+    /// one log-scaled value per unknown mass (in its bounds), the known
+    /// positions excluded, each unknown mass paired with its defect's
+    /// position when that is unknown too. Candidates are mapped back to
+    /// defects by [`MassUnknowns::decode`].
+    pub fn for_masses(unknowns: &MassUnknowns) -> Space {
+        let defects = unknowns.defects();
+        let free_pos = unknowns.free_positions();
+        let free_mass = unknowns.free_masses();
+        let mut excluded: Vec<usize> = defects.iter().filter_map(|d| d.at).collect();
+        excluded.sort_unstable();
+        Space {
+            n: unknowns.n(),
+            n_positions: free_pos.len(),
+            excluded,
+            bounds: free_mass
+                .iter()
+                .filter_map(|&i| match defects[i].mass {
+                    MassUnknown::Free { lo, hi } => Some((lo, hi)),
+                    MassUnknown::Known(_) => None,
+                })
+                .collect(),
+            log_scale: vec![true; free_mass.len()],
+            pairing: free_mass
+                .iter()
+                .map(|&i| free_pos.iter().position(|&p| p == i))
+                .collect(),
+        }
+    }
+
     /// `k` unknown-position mass defects, one log-scaled mass each, all in `bounds`.
     pub fn masses(n: usize, k: usize, bounds: (f64, f64)) -> Space {
         Space {
@@ -737,6 +769,49 @@ pub(crate) fn argmin_err(method: &str, e: argmin::core::Error) -> Error {
     }
 }
 
+/// The paper's residual (the mass-only Woodbury kernel, [`Misfit`]) as an
+/// optimizer [`Objective`]: the candidate is decoded by
+/// [`MassUnknowns::decode`] (invalid candidates get its finite penalty, at
+/// least [`crate::detect::unknowns::PENALTY`]) and costed by
+/// [`Misfit::residual`]. The data-first fit's stochastic searches use it
+/// whenever the mass-only kernel applies.
+pub struct MisfitObjective<'a> {
+    misfit: &'a Misfit,
+    unknowns: &'a MassUnknowns,
+    space: Space,
+}
+
+impl<'a> MisfitObjective<'a> {
+    /// Wrap a residual and its unknowns (same `n`); the space is
+    /// [`Space::for_masses`].
+    pub fn new(misfit: &'a Misfit, unknowns: &'a MassUnknowns) -> MisfitObjective<'a> {
+        MisfitObjective {
+            misfit,
+            unknowns,
+            space: Space::for_masses(unknowns),
+        }
+    }
+}
+
+impl Objective for MisfitObjective<'_> {
+    fn space(&self) -> &Space {
+        &self.space
+    }
+    fn cost(&self, c: &Candidate) -> f64 {
+        match self.unknowns.decode(&c.positions, &c.values) {
+            Ok(d) => {
+                let r = self.misfit.residual(&d);
+                if r.is_nan() {
+                    f64::MAX
+                } else {
+                    r
+                }
+            }
+            Err(p) => p,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -870,5 +945,70 @@ mod tests {
             assert!(*p != 3 && (1..=6).contains(p) && !r[..i].contains(p));
         }
         assert_eq!(s.round_positions(&[-5.0, 99.0, f64::NAN]), vec![1, 6, 2]);
+    }
+
+    #[test]
+    fn space_of_mass_unknowns_and_decode() {
+        let u = MassUnknowns::new(
+            10,
+            vec![
+                crate::detect::unknowns::DefectUnknown {
+                    at: Some(3),
+                    mass: MassUnknown::Free { lo: 1.0, hi: 9.0 },
+                },
+                crate::detect::unknowns::DefectUnknown::free(0.1, 10.0),
+                crate::detect::unknowns::DefectUnknown {
+                    at: None,
+                    mass: MassUnknown::Known(7.0),
+                },
+            ],
+        )
+        .unwrap();
+        let sp = Space::for_masses(&u);
+        assert_eq!(sp.n_positions, 2);
+        assert_eq!(sp.excluded, vec![3]);
+        assert_eq!(sp.bounds, vec![(1.0, 9.0), (0.1, 10.0)]);
+        assert_eq!(sp.pairing, vec![None, Some(0)]);
+        assert!(!u.interchangeable());
+        let c = Candidate {
+            positions: vec![5, 9],
+            values: vec![2.0, 0.5],
+        };
+        assert_eq!(
+            u.decode(&c.positions, &c.values).unwrap(),
+            vec![(3, 2.0), (5, 0.5), (9, 7.0)]
+        );
+        for bad in [
+            Candidate {
+                positions: vec![3, 9],
+                values: vec![2.0, 0.5],
+            },
+            Candidate {
+                positions: vec![9, 9],
+                values: vec![2.0, 0.5],
+            },
+            Candidate {
+                positions: vec![0, 11],
+                values: vec![2.0, 0.5],
+            },
+            Candidate {
+                positions: vec![5, 9],
+                values: vec![f64::NAN, 0.5],
+            },
+            Candidate {
+                positions: vec![5, 9],
+                values: vec![2.0, 50.0],
+            },
+            Candidate {
+                positions: vec![5],
+                values: vec![2.0, 0.5],
+            },
+        ] {
+            let p = u.decode(&bad.positions, &bad.values).unwrap_err();
+            assert!(
+                p.is_finite() && p >= crate::detect::unknowns::PENALTY,
+                "{bad:?} {p}"
+            );
+        }
     }
 }

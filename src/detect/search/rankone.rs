@@ -1,5 +1,5 @@
 //! Rank-one scoring of candidate defects and O(n) reciprocity columns: the
-//! kernel behind the greedy search ([`crate::detect::search::greedy`]) and
+//! kernel behind the greedy search (`detect::fit::greedy`) and
 //! of the whole-profile inversion to come (issue 14).
 //!
 //! # Columns by excess stiffness (O(n) per node, any profile)

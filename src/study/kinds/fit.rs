@@ -1,4 +1,5 @@
-//! Kind `fit`: defect detection by fitting ([`crate::detect::fit::paper::fit`]) on a
+//! Kind `fit`: defect detection by fitting ([`crate::detect::fit::paper::fit`], the
+//! data-first fit's pipeline on the scene's data) on a
 //! [`FitScene`]: synthetic data of the scene's true chain (exact, or
 //! simulated and Laplace-transformed, with optional noise), the unknowns, the
 //! residual (quadrature rule and nodes) and the search (method, budget).

@@ -44,7 +44,7 @@
 //! use springmass::{Chain, Complex64, Defect};
 //! use springmass::detect::data::laplace::LaplaceObs;
 //! use springmass::detect::fit::general::Setup;
-//! use springmass::detect::search::greedy::{fit_greedy, GreedyOptions};
+//! use springmass::detect::fit::greedy::{fit_greedy, GreedyOptions};
 //! use springmass::detect::unknowns::{Unknowns, KindChoice};
 //! let truth = Chain::paper(40)?.with_defects([
 //!     Defect::Mass { at: 6, m: 3.0 }, Defect::Mass { at: 19, m: 0.5 }, Defect::Mass { at: 31, m: 2.0 }])?;
@@ -66,7 +66,7 @@ use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
 use crate::detect::search::rankone::{
     score, ScoreOptions, Scored, SetDefect, SetProblem, Sweep, Target,
 };
-use crate::detect::unknowns::{DefectKind, KindBounds, KindChoice, KindPositions, Unknowns};
+use crate::detect::unknowns::{DefectKind, KindChoice, KindPositions, Unknowns};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use rayon::prelude::*;
@@ -223,11 +223,9 @@ pub fn fit_greedy(
     let kinds: Vec<DefectKind> = choice.unwrap_or(KindChoice::Mass).kinds().to_vec();
     let mut kb = *unknowns.kind_bounds();
     if let Some(&i) = free.first() {
-        kb = KindBounds {
-            mass: unknowns.bounds(i, DefectKind::Mass),
-            spring: unknowns.bounds(i, DefectKind::Spring),
-            damper: unknowns.bounds(i, DefectKind::Damper),
-        };
+        for kind in DefectKind::ALL {
+            kb.set(kind, unknowns.bounds(i, kind));
+        }
     }
     let g = Greedy {
         base: base.uniform(),
@@ -267,11 +265,7 @@ impl Greedy<'_> {
     /// The starting value of a defect of `kind` (the coarse start of the
     /// enumeration: twice the uniform mass or spring, a heavier damper).
     fn start_value(&self, kind: DefectKind, chain: &Chain) -> f64 {
-        match kind {
-            DefectKind::Mass => 2.0 * chain.mass(),
-            DefectKind::Spring => 2.0 * chain.k(),
-            DefectKind::Damper => (5.0 * chain.d()).max(0.5),
-        }
+        kind.start(chain)
     }
 
     /// Refit the values of the hypothesis `pairs` (slot order: the known and
@@ -727,7 +721,7 @@ mod tests {
                 Slot::free(KindChoice::Any),
             ],
             vec![Param::D],
-            KindBounds::default(),
+            crate::detect::unknowns::KindBounds::default(),
         )
         .unwrap();
         let start = Chain::paper(15).unwrap().with_d(0.1).unwrap();
