@@ -295,20 +295,28 @@ impl SeriesTransform {
     /// bounded (the record does not decay and `Re s <= 0`, or decays more
     /// slowly than `e^{-Re(s) t}` grows) or the sum overflows.
     pub fn eval(&self, s: Complex64) -> Result<LaplaceValue> {
-        if !(s.re.is_finite() && s.im.is_finite()) {
-            return Err(Error::invalid("s", s, "finite"));
-        }
-        let (q_hi, sum_abs) = self.hi.apply(&self.x, s);
+        check_node(s)?;
         let (q_lo, _) = self.lo.apply(&self.x, s);
-        let sum_w2 = if self.opts.noise_sigma.is_some() {
-            self.hi
-                .weights(&self.t, s)
-                .iter()
-                .map(|w| w.norm_sqr())
-                .sum()
+        if self.opts.noise_sigma.is_some() {
+            let (q_hi, sum_abs, w_hi) = self.hi.apply_and_weights(&self.t, &self.x, s);
+            self.value_of(s, q_hi, sum_abs, q_lo, sum_sq(&w_hi))
         } else {
-            0.0
-        };
+            let (q_hi, sum_abs) = self.hi.apply(&self.x, s);
+            self.value_of(s, q_hi, sum_abs, q_lo, 0.0)
+        }
+    }
+
+    /// The value at `s` from the two rules' sums: `q_hi` (with the l1 bound
+    /// `sum_abs` of its terms), `q_lo`, and `sum_w2 = Σ |w_i|^2` of the
+    /// degree-`p` weights (used only with a noise level).
+    fn value_of(
+        &self,
+        s: Complex64,
+        q_hi: Complex64,
+        sum_abs: f64,
+        q_lo: Complex64,
+        sum_w2: f64,
+    ) -> Result<LaplaceValue> {
         if !(q_hi.re.is_finite() && q_hi.im.is_finite() && q_lo.norm().is_finite()) {
             return Err(Error::Unresolvable {
                 reason: format!(
@@ -394,28 +402,11 @@ impl SeriesTransform {
         if let Some(z) = s.iter().find(|z| !(z.re.is_finite() && z.im.is_finite())) {
             return Err(Error::invalid("s", z, "finite"));
         }
-        let rows = stacked_rows(s);
-        let n = self.t.len();
-        let mut b = DMatrix::<f64>::zeros(rows.len(), n);
-        // Re rows first (every node), then Im rows (complex nodes), as
-        // stack_re_im; the weights of each node computed once
-        let mut im_row = s.len();
+        let mut b = WeightRows::new(s, self.t.len());
         for (q, z) in s.iter().enumerate() {
-            let a = self.weights(*z);
-            for (i, w) in a.iter().enumerate() {
-                b[(q, i)] = w.re;
-            }
-            if z.im != 0.0 {
-                for (i, w) in a.iter().enumerate() {
-                    b[(im_row, i)] = w.im;
-                }
-                im_row += 1;
-            }
+            b.set(q, &self.weights(*z));
         }
-        debug_assert_eq!(im_row, rows.len());
-        let mut c = &b * b.transpose();
-        c *= sigma * sigma;
-        Ok(c)
+        Ok(b.covariance(sigma))
     }
 
     /// The error estimate of `v` (a value of this transform) that is not
@@ -425,19 +416,13 @@ impl SeriesTransform {
     /// contribution to `Q_p - Q_{p-2}` (the discretisation estimate). Equal to
     /// `v.err` when `sigma = 0`.
     pub fn model_error(&self, v: &LaplaceValue, sigma: f64) -> f64 {
-        let noise_disc = if sigma > 0.0 {
+        if sigma > 0.0 {
             let hi = self.hi.weights(&self.t, v.s);
             let lo = self.lo.weights(&self.t, v.s);
-            sigma
-                * hi.iter()
-                    .zip(&lo)
-                    .map(|(a, b)| (a - b).norm_sqr())
-                    .sum::<f64>()
-                    .sqrt()
+            model_error_with(v, sigma, &hi, &lo)
         } else {
-            0.0
-        };
-        v.err_trunc + v.err_round + (v.err_disc - 3.0 * noise_disc).max(0.0)
+            model_error_with(v, 0.0, &[], &[])
+        }
     }
 
     /// The full data covariance of `values` (from [`SeriesTransform::eval_many`]
@@ -463,11 +448,155 @@ impl SeriesTransform {
         let mut c = self.noise_covariance(&s, sigma)?;
         let rows = stacked_rows(&s);
         let model: Vec<f64> = values.iter().map(|v| self.model_error(v, sigma)).collect();
-        for (r, &(q, _)) in rows.iter().enumerate() {
-            let e2 = model[q] * model[q];
-            c[(r, r)] += if s[q].im != 0.0 { 0.5 * e2 } else { e2 };
-        }
+        add_model_error(&mut c, &s, &rows, &model);
         Ok(c)
+    }
+
+    /// [`SeriesTransform::eval_many`] and [`SeriesTransform::data_covariance`]
+    /// of its values in one pass: the quadrature weights of each node are
+    /// formed once (together with the rules' sums) and serve the value, its
+    /// noise variance, the noise-free part of its error estimate
+    /// ([`SeriesTransform::model_error`]) and its rows of the noise covariance.
+    /// The results are those of the two calls (the same operations in the
+    /// same order).
+    ///
+    /// # Errors
+    /// As [`SeriesTransform::eval_many`] (the first failing `s`).
+    pub fn eval_with_covariance(
+        &self,
+        s: &[Complex64],
+    ) -> Result<(Vec<LaplaceValue>, DMatrix<f64>)> {
+        let sigma = self.opts.noise_sigma.unwrap_or(0.0);
+        let mut b = WeightRows::new(s, self.t.len());
+        let mut values = Vec::with_capacity(s.len());
+        let mut model = Vec::with_capacity(s.len());
+        for (q, &z) in s.iter().enumerate() {
+            check_node(z)?;
+            let (q_hi, sum_abs, w_hi) = self.hi.apply_and_weights(&self.t, &self.x, z);
+            let sum_w2 = if self.opts.noise_sigma.is_some() {
+                sum_sq(&w_hi)
+            } else {
+                0.0
+            };
+            let v = if sigma > 0.0 {
+                let (q_lo, _, w_lo) = self.lo.apply_and_weights(&self.t, &self.x, z);
+                let v = self.value_of(z, q_hi, sum_abs, q_lo, sum_w2)?;
+                model.push(model_error_with(&v, sigma, &w_hi, &w_lo));
+                v
+            } else {
+                let (q_lo, _) = self.lo.apply(&self.x, z);
+                let v = self.value_of(z, q_hi, sum_abs, q_lo, sum_w2)?;
+                model.push(model_error_with(&v, 0.0, &[], &[]));
+                v
+            };
+            b.set(q, &w_hi);
+            values.push(v);
+        }
+        let mut c = b.covariance(sigma);
+        add_model_error(&mut c, s, &stacked_rows(s), &model);
+        Ok((values, c))
+    }
+}
+
+/// `s` finite (every evaluation checks it first).
+fn check_node(s: Complex64) -> Result<()> {
+    if !(s.re.is_finite() && s.im.is_finite()) {
+        return Err(Error::invalid("s", s, "finite"));
+    }
+    Ok(())
+}
+
+/// `Σ |w_i|^2`.
+fn sum_sq(w: &[Complex64]) -> f64 {
+    w.iter().map(|w| w.norm_sqr()).sum()
+}
+
+/// [`SeriesTransform::model_error`] of `v` given the weights of the two
+/// rules at its node (unused when `sigma = 0`).
+fn model_error_with(v: &LaplaceValue, sigma: f64, hi: &[Complex64], lo: &[Complex64]) -> f64 {
+    let noise_disc = if sigma > 0.0 {
+        sigma
+            * hi.iter()
+                .zip(lo)
+                .map(|(a, b)| (a - b).norm_sqr())
+                .sum::<f64>()
+                .sqrt()
+    } else {
+        0.0
+    };
+    v.err_trunc + v.err_round + (v.err_disc - 3.0 * noise_disc).max(0.0)
+}
+
+/// The model-error variances on the diagonal of a stacked covariance:
+/// `e_q^2` on the `Re` row of a real node, `e_q^2 / 2` on each row of a
+/// complex one.
+fn add_model_error(c: &mut DMatrix<f64>, s: &[Complex64], rows: &[(usize, bool)], model: &[f64]) {
+    for (r, &(q, _)) in rows.iter().enumerate() {
+        let e2 = model[q] * model[q];
+        c[(r, r)] += if s[q].im != 0.0 { 0.5 * e2 } else { e2 };
+    }
+}
+
+/// The stacked real weight matrix `B = [Re A; Im A]` of
+/// [`SeriesTransform::noise_covariance`], filled node by node: `Re` rows
+/// first (every node), then `Im` rows (complex nodes), as [`stack_re_im`].
+/// Held as `B^T` (one contiguous column per row of `B`: filled in order).
+struct WeightRows {
+    bt: DMatrix<f64>,
+    /// The `Im` row of each node (`None` for a real node).
+    im_row: Vec<Option<usize>>,
+}
+
+impl WeightRows {
+    fn new(s: &[Complex64], samples: usize) -> WeightRows {
+        let mut next = s.len();
+        let im_row = s
+            .iter()
+            .map(|z| {
+                (z.im != 0.0).then(|| {
+                    next += 1;
+                    next - 1
+                })
+            })
+            .collect();
+        WeightRows {
+            bt: DMatrix::zeros(samples, next),
+            im_row,
+        }
+    }
+
+    /// The rows of node `q` from its weights `a`.
+    fn set(&mut self, q: usize, a: &[Complex64]) {
+        for (o, w) in self.bt.column_mut(q).iter_mut().zip(a) {
+            *o = w.re;
+        }
+        if let Some(r) = self.im_row[q] {
+            for (o, w) in self.bt.column_mut(r).iter_mut().zip(a) {
+                *o = w.im;
+            }
+        }
+    }
+
+    /// `sigma^2 B B^T` (`B` by a blocked transpose of `B^T`).
+    fn covariance(&self, sigma: f64) -> DMatrix<f64> {
+        let (n, m) = self.bt.shape();
+        let mut b = DMatrix::<f64>::zeros(m, n);
+        const BLOCK: usize = 64;
+        let src = self.bt.as_slice();
+        let dst = b.as_mut_slice();
+        for j0 in (0..m).step_by(BLOCK) {
+            for i0 in (0..n).step_by(BLOCK) {
+                for j in j0..(j0 + BLOCK).min(m) {
+                    for i in i0..(i0 + BLOCK).min(n) {
+                        // b[(j, i)] = bt[(i, j)], column-major
+                        dst[i * m + j] = src[j * n + i];
+                    }
+                }
+            }
+        }
+        let mut c = &b * &self.bt;
+        c *= sigma * sigma;
+        c
     }
 }
 
@@ -574,6 +703,31 @@ impl Rule {
             }
         });
         out
+    }
+
+    /// [`Rule::apply`] and [`Rule::weights`] from one visit of the panels
+    /// (the same sums as the two calls).
+    fn apply_and_weights(
+        &self,
+        t: &[f64],
+        x: &[f64],
+        s: Complex64,
+    ) -> (Complex64, f64, Vec<Complex64>) {
+        let mut out = vec![Complex64::new(0.0, 0.0); t.len()];
+        let mut acc = Complex64::new(0.0, 0.0);
+        let mut abs = 0.0;
+        self.for_each_panel(s, |first, scale, w| {
+            let mut loc = Complex64::new(0.0, 0.0);
+            let mut la = 0.0;
+            for (j, (wj, xj)) in w.iter().zip(&x[first..]).enumerate() {
+                loc += wj * xj;
+                la += (wj.re.abs() + wj.im.abs()) * xj.abs();
+                out[first + j] += scale * wj;
+            }
+            acc += scale * loc;
+            abs += (scale.re.abs() + scale.im.abs()) * la;
+        });
+        (acc, abs, out)
     }
 
     /// `(Σ w_i x_i, Σ_panels Σ_j |scale W_j| |x_j|)` without forming the weights
@@ -1081,6 +1235,69 @@ mod tests {
             stack_re_im(&s, &[c(1.0, 2.0), c(3.0, 4.0)]),
             vec![1.0, 3.0, 4.0]
         );
+    }
+
+    #[test]
+    fn one_pass_matches_the_per_call_values_and_covariance() {
+        // jittered times (several Lagrange matrices), noise level given or
+        // not, real and complex nodes
+        let t: Vec<f64> = (0..=1203)
+            .map(|i| 0.05 * i as f64 + if i % 5 == 2 { 0.004 } else { 0.0 })
+            .collect();
+        let x: Vec<f64> = t
+            .iter()
+            .enumerate()
+            .map(|(i, t)| (-0.05 * t).exp() * (1.3 * t).sin() + 1e-3 * ((i * 37) % 11) as f64)
+            .collect();
+        let s = [
+            c(0.2, 0.0),
+            c(0.05, 0.0),
+            c(0.05, 0.3),
+            c(0.05, 0.31),
+            c(0.1, 2.5),
+            c(3.0, 0.0),
+        ];
+        for sigma in [Some(1e-3), Some(0.0), None] {
+            let tr = SeriesTransform::new(
+                &t,
+                &x,
+                &TransformOptions {
+                    noise_sigma: sigma,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+            let vals = tr.eval_many(&s).unwrap();
+            let cov = tr.data_covariance(&vals).unwrap();
+            let (v1, c1) = tr.eval_with_covariance(&s).unwrap();
+            let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-12 * scale;
+            for (a, b) in vals.iter().zip(&v1) {
+                assert_eq!(a.s, b.s);
+                assert!(close(a.value.re, b.value.re, a.value.norm()));
+                assert!(close(a.value.im, b.value.im, a.value.norm()));
+                assert!(close(a.err, b.err, a.err));
+                assert!(close(a.err_disc, b.err_disc, a.err_disc));
+                assert_eq!(a.noise_var.is_some(), b.noise_var.is_some());
+                if let (Some(p), Some(q)) = (a.noise_var, b.noise_var) {
+                    assert!(close(p, q, p));
+                }
+                // each node's eval agrees too
+                let e = tr.eval(a.s).unwrap();
+                assert!(close(e.value.re, a.value.re, a.value.norm()));
+                assert!(close(e.err, a.err, a.err));
+            }
+            assert_eq!((c1.nrows(), c1.ncols()), (cov.nrows(), cov.ncols()));
+            for j in 0..cov.nrows() {
+                for k in 0..cov.ncols() {
+                    let scale = (cov[(j, j)] * cov[(k, k)]).sqrt();
+                    assert!(close(cov[(j, k)], c1[(j, k)], scale), "({j},{k})");
+                }
+            }
+        }
+        assert!(SeriesTransform::new(&t, &x, &TransformOptions::default())
+            .unwrap()
+            .eval_with_covariance(&[c(f64::NAN, 0.0)])
+            .is_err());
     }
 
     #[test]

@@ -38,6 +38,46 @@ pub struct LaplaceObs {
     /// The same data at a subset of the nodes, whitened by their own
     /// (marginal) covariance: a cheaper true chi-square for screening.
     screen: Option<Box<LaplaceObs>>,
+    /// Names these nodes, data and measurement for the per-thread memo of
+    /// the last sweep ([`LastSweep`]); a new one whenever they change.
+    id: ObsId,
+}
+
+/// A process-wide unique number naming the content of a [`LaplaceObs`]
+/// (copied by `clone`, which copies the content); compares equal to every
+/// other id (it is not data).
+#[derive(Clone, Debug)]
+struct ObsId(u64);
+
+impl ObsId {
+    fn fresh() -> ObsId {
+        static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        ObsId(NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed))
+    }
+}
+
+impl PartialEq for ObsId {
+    fn eq(&self, _: &ObsId) -> bool {
+        true
+    }
+}
+
+/// The tabulated sweeps of one chain at every node of one observation: per
+/// node `X_1` and its derivatives with respect to every defect value
+/// ([`LaplaceObs::tabulated_gradient`], `None` where the table does not
+/// apply). A least-squares fit asks for the residuals at a point and then
+/// for the Jacobian at the same point (and the driver once more for the
+/// Jacobian at its last point): one sweep per node serves both.
+struct LastSweep {
+    id: u64,
+    chain: Chain,
+    grads: Vec<Option<Gradient<Complex64>>>,
+}
+
+thread_local! {
+    /// The last [`LastSweep`] made on this thread.
+    static LAST_SWEEP: std::cell::RefCell<Option<LastSweep>> =
+        const { std::cell::RefCell::new(None) };
 }
 
 /// Largest chain whose per-node sweep tables are kept (`2 (2n + 2)` complex
@@ -95,6 +135,7 @@ impl LaplaceObs {
             force_hat: None,
             tables: TableCache::default(),
             screen: None,
+            id: ObsId::fresh(),
         })
     }
 
@@ -121,6 +162,7 @@ impl LaplaceObs {
         }
         self.sensor = sensor;
         self.force_hat = force_hat;
+        self.id = ObsId::fresh();
         Ok(self)
     }
 
@@ -224,6 +266,7 @@ impl LaplaceObs {
             return Err(Error::invalid("whitening", "non-finite entry", "finite"));
         }
         obs.whitening = Some(whitening);
+        obs.id = ObsId::fresh();
         Ok(obs)
     }
 
@@ -286,20 +329,14 @@ impl LaplaceObs {
     /// As [`Forward::eval`].
     pub fn residuals(&self, chain: &Chain) -> Result<Vec<f64>> {
         let fwd = Forward::new(chain);
+        let model = self.models(&fwd)?;
         if let Some(w) = &self.whitening {
-            let diff = self
-                .s
-                .iter()
-                .zip(&self.values)
-                .enumerate()
-                .map(|(q, (_, d))| Ok(self.model_at(&fwd, q)? - d))
-                .collect::<Result<Vec<Complex64>>>()?;
-            let r = nalgebra::DVector::from_vec(crate::time::series::stack_re_im(&self.s, &diff));
-            return Ok((w * r).iter().copied().collect());
+            let diff: Vec<Complex64> = model.iter().zip(&self.values).map(|(x, d)| x - d).collect();
+            let r = crate::time::series::stack_re_im(&self.s, &diff);
+            return Ok(whiten(w, &r, 1));
         }
         let mut r = Vec::with_capacity(2 * self.s.len());
-        for q in 0..self.s.len() {
-            let x = self.model_at(&fwd, q)?;
+        for (q, &x) in model.iter().enumerate() {
             let sw = self.weights[q].sqrt();
             let e = (x - self.values[q]) * sw;
             r.push(e.re);
@@ -308,6 +345,58 @@ impl LaplaceObs {
             }
         }
         Ok(r)
+    }
+
+    /// The model at every node for `fwd`'s chain ([`LaplaceObs::model_at`];
+    /// from the memo of the last sweep where it applies).
+    fn models(&self, fwd: &Forward) -> Result<Vec<Complex64>> {
+        if self.sweep_memo_applies() {
+            return self.with_sweep(fwd, |grads| {
+                grads
+                    .iter()
+                    .enumerate()
+                    .map(|(q, g)| match g {
+                        Some(g) => Ok(self.factor(q) * g.value),
+                        None => self.model_at(fwd, q),
+                    })
+                    .collect()
+            });
+        }
+        (0..self.s.len()).map(|q| self.model_at(fwd, q)).collect()
+    }
+
+    /// Whether the tabulated gradient sweep gives the model (observable of
+    /// mass 1 that the table gives): then one sweep per node serves the
+    /// residuals and the Jacobian ([`LastSweep`]).
+    fn sweep_memo_applies(&self) -> bool {
+        self.sensor.at == 1 && self.tabulable()
+    }
+
+    /// `f` of the tabulated gradients of `fwd`'s chain at every node
+    /// (`None` where the table does not apply), swept once per chain and
+    /// thread ([`LastSweep`]).
+    fn with_sweep<T>(
+        &self,
+        fwd: &Forward,
+        f: impl FnOnce(&[Option<Gradient<Complex64>>]) -> T,
+    ) -> T {
+        LAST_SWEEP.with(|cell| {
+            let mut slot = cell.borrow_mut();
+            let hit = slot
+                .as_ref()
+                .is_some_and(|m| m.id == self.id.0 && m.chain == *fwd.chain());
+            if !hit {
+                let grads = (0..self.s.len())
+                    .map(|q| self.tabulated_gradient(fwd, q))
+                    .collect();
+                *slot = Some(LastSweep {
+                    id: self.id.0,
+                    chain: fwd.chain().clone(),
+                    grads,
+                });
+            }
+            f(&slot.as_ref().expect("set above").grads)
+        })
     }
 
     /// `X_1` and its derivatives with respect to every defect value of
@@ -351,21 +440,28 @@ impl LaplaceObs {
         let fwd = Forward::new(chain);
         let mut grads: Vec<Vec<Complex64>> = Vec::with_capacity(self.s.len());
         let paper = self.force_hat.is_none() && self.sensor == Sensor::PAPER;
-        for q in 0..self.s.len() {
+        // defect values of the tabulated observable: the sweeps of the
+        // residuals at this chain (memo), scaled by each node's factor
+        let tabs: Vec<Option<Gradient<Complex64>>> = match &defect_idx {
+            Some(idx) if self.sweep_memo_applies() => self.with_sweep(&fwd, |all| {
+                all.iter()
+                    .enumerate()
+                    .map(|(q, g)| {
+                        g.as_ref().map(|all| {
+                            let c = self.factor(q);
+                            Gradient {
+                                value: all.value * c,
+                                grad: idx.iter().map(|&i| all.grad[i] * c).collect(),
+                            }
+                        })
+                    })
+                    .collect()
+            }),
+            _ => vec![None; self.s.len()],
+        };
+        for (q, tab) in tabs.into_iter().enumerate() {
             let s = self.s[q];
             let force = self.force_hat.as_ref().map(|f| f[q]);
-            let tab = match &defect_idx {
-                Some(idx) if self.sensor.at == 1 && self.tabulable() => {
-                    self.tabulated_gradient(&fwd, q).map(|all| {
-                        let c = self.factor(q);
-                        crate::sensitivity::Gradient {
-                            value: all.value * c,
-                            grad: idx.iter().map(|&i| all.grad[i] * c).collect(),
-                        }
-                    })
-                }
-                _ => None,
-            };
             let g = match &defect_idx {
                 _ if tab.is_some() => tab.expect("checked"),
                 // defect values of an observable of mass 1: O(k) per site
@@ -407,10 +503,134 @@ impl LaplaceObs {
                     grads[q][c].re
                 }
             });
-            return Ok(w * j);
+            return Ok(DMatrix::from_vec(
+                w.nrows(),
+                params.len(),
+                whiten(w, j.as_slice(), params.len()),
+            ));
         }
         Ok(DMatrix::from_fn(rows.len(), params.len(), |i, j| {
             rows[i][j]
         }))
+    }
+}
+
+/// `W X` for the `cols` columns of `x` (column-major, `W.ncols()` rows),
+/// column-major: every column of `W` read once for all columns of `X`. The
+/// same sums in the same order as nalgebra's product (`W[i][0] x_0`, then
+/// `+ W[i][j] x_j` for `j = 1, 2, ...`), so the same values.
+fn whiten(w: &DMatrix<f64>, x: &[f64], cols: usize) -> Vec<f64> {
+    let (k, m) = w.shape();
+    debug_assert_eq!(x.len(), m * cols);
+    let mut out = vec![0.0; k * cols];
+    if k == 0 {
+        return out;
+    }
+    for (j, wc) in w.as_slice().chunks_exact(k).enumerate() {
+        for (c, o) in out.chunks_exact_mut(k).enumerate() {
+            let v = x[c * m + j];
+            if j == 0 {
+                for (o, a) in o.iter_mut().zip(wc) {
+                    *o = a * v;
+                }
+            } else {
+                for (o, a) in o.iter_mut().zip(wc) {
+                    *o += a * v;
+                }
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The residuals and Jacobian through the memo of the last sweep agree
+    /// with the per-call path (the model node by node, nalgebra's `W r` and
+    /// `W J`, the general gradient), whichever of the two is asked first.
+    #[test]
+    fn memo_of_the_sweep_matches_the_per_call_path() {
+        let truth = Chain::paper(12)
+            .unwrap()
+            .with_defects([
+                Defect::Mass { at: 3, m: 2.5 },
+                Defect::Mass { at: 9, m: 0.6 },
+            ])
+            .unwrap();
+        let s: Vec<Complex64> = (0..9)
+            .map(|q| Complex64::new(0.05, 0.4 * q as f64))
+            .chain([Complex64::new(0.3, 0.0)])
+            .collect();
+        let fwd = Forward::new(&truth);
+        let values: Vec<Complex64> = s
+            .iter()
+            .enumerate()
+            .map(|(q, z)| fwd.eval(*z, 1).unwrap() * (1.0 + 1e-3 * q as f64))
+            .collect();
+        let m = crate::time::series::stacked_rows(&s).len();
+        let w = DMatrix::from_fn(m - 2, m, |i, j| {
+            1.0 / (1.0 + (i as f64 - j as f64).abs()) + 0.01 * i as f64
+        });
+        let obs = LaplaceObs::whitened(s.clone(), values.clone(), w.clone()).unwrap();
+        let params = [Param::Defect(0), Param::Defect(1)];
+        let chains = [
+            truth.clone(),
+            Param::Defect(1).set(&truth, 0.9).unwrap(),
+            Param::Defect(0).set(&truth, 1.7).unwrap(),
+        ];
+        for (i, c) in chains.iter().enumerate() {
+            // per call: the model node by node, nalgebra's products
+            let f = Forward::new(c);
+            let diff: Vec<Complex64> = (0..s.len())
+                .map(|q| obs.model_at(&f, q).unwrap() - values[q])
+                .collect();
+            let r0 = &w * nalgebra::DVector::from_vec(crate::time::series::stack_re_im(&s, &diff));
+            let layout = crate::time::series::stacked_rows(&s);
+            let g: Vec<Gradient<Complex64>> = s
+                .iter()
+                .map(|z| gradient(c, *z, 1, &params).unwrap())
+                .collect();
+            let j0 = &w
+                * DMatrix::from_fn(m, params.len(), |r, col| {
+                    let (q, im) = layout[r];
+                    if im {
+                        g[q].grad[col].im
+                    } else {
+                        g[q].grad[col].re
+                    }
+                });
+            // residuals first on even chains, the Jacobian first on odd ones
+            let (r1, j1) = if i % 2 == 0 {
+                let r = obs.residuals(c).unwrap();
+                (r, obs.jacobian(c, &params).unwrap())
+            } else {
+                let j = obs.jacobian(c, &params).unwrap();
+                (obs.residuals(c).unwrap(), j)
+            };
+            assert_eq!(r1.len(), r0.len());
+            for (a, b) in r1.iter().zip(r0.iter()) {
+                assert_eq!(a, b, "chain {i}");
+            }
+            let scale = j0.amax();
+            for (a, b) in j1.iter().zip(j0.iter()) {
+                assert!((a - b).abs() <= 1e-12 * scale, "chain {i}: {a} vs {b}");
+            }
+            // again, now from the memo: the same values
+            assert_eq!(obs.residuals(c).unwrap(), r1);
+            assert_eq!(obs.jacobian(c, &params).unwrap(), j1);
+        }
+        // another observation (same nodes, other data) never reads this one's memo
+        let other =
+            LaplaceObs::whitened(s.clone(), vec![Complex64::new(0.0, 0.0); s.len()], w).unwrap();
+        let _ = obs.residuals(&truth).unwrap();
+        let ro = other.residuals(&truth).unwrap();
+        let ra = obs.residuals(&truth).unwrap();
+        assert_ne!(ro, ra);
+        // whiten() is nalgebra's product, column by column
+        let x = DMatrix::from_fn(m, 3, |i, j| (i * 3 + j) as f64 - 7.5);
+        let wm = DMatrix::from_fn(4, m, |i, j| ((i + 2 * j) % 5) as f64 * 0.3 - 0.4);
+        assert_eq!(whiten(&wm, x.as_slice(), 3), (&wm * &x).as_slice().to_vec());
     }
 }

@@ -231,7 +231,8 @@ fn screen_obs(
 ///   chi-square: the transformed noise is correlated between nodes);
 /// * [`Weighting::Whitened`](crate::detect::data::whiten::Weighting::Whitened)(crate::detect::data::whiten::Weighting::Whitened): the
 ///   full covariance of the transformed data
-///   ([`SeriesTransform::data_covariance`], plus `(1e-15 |X(s_q)|)^2` on the
+///   ([`SeriesTransform::data_covariance`], formed in one pass with the values by
+///   [`SeriesTransform::eval_with_covariance`], plus `(1e-15 |X(s_q)|)^2` on the
 ///   diagonal for the rounding of the model), whitened with the default
 ///   cutoff ([`crate::detect::data::whiten`]): `chi^2` with [`LaplaceObs::dof`]
 ///   degrees of freedom at the true chain.
@@ -253,7 +254,14 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result
         ..TransformOptions::default()
     };
     let tr = SeriesTransform::new(data.t(), data.y(), &opts)?;
-    let vals = tr.eval_many(&s)?;
+    let whitened = setup.weighting == crate::detect::data::whiten::Weighting::Whitened;
+    // whitened: the values and their covariance from one pass of the weights
+    let (vals, cov) = if whitened {
+        let (v, c) = tr.eval_with_covariance(&s)?;
+        (v, Some(c))
+    } else {
+        (tr.eval_many(&s)?, None)
+    };
     // a measured force: its transform by the same rule (noise-free input)
     let m = data.measurement();
     let force_hat = match m.force() {
@@ -266,8 +274,7 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result
         ),
         None => None,
     };
-    if setup.weighting == crate::detect::data::whiten::Weighting::Whitened {
-        let mut cov = tr.data_covariance(&vals)?;
+    if let Some(mut cov) = cov {
         for (r, (q, _)) in crate::time::series::stacked_rows(&s)
             .into_iter()
             .enumerate()
