@@ -120,3 +120,25 @@ def spectral(
     right: str,
 ) -> Dict[str, Any]:
     """{"masses": ndarray, "consistency": float}."""
+
+def fit_profile(
+    t: npt.NDArray[np.float64],
+    x: npt.NDArray[np.float64],
+    *,
+    n: int,
+    profile: str,
+    d: Optional[float] = ...,
+    gamma: Optional[float] = ...,
+    fit: Optional[str] = ...,
+    noise: Optional[str] = ...,
+    k: Optional[float] = ...,
+    mass: Optional[float] = ...,
+    left: Optional[str] = ...,
+    right: Optional[str] = ...,
+    observe: Optional[int] = ...,
+    observe_kind: Optional[str] = ...,
+    force: Optional[npt.NDArray[np.float64]] = ...,
+    change: Optional[float] = ...,
+    penalty: Optional[float] = ...,
+) -> Dict[str, Any]:
+    """{"report": JSON text of the profile report, "summary": str}."""

@@ -560,6 +560,77 @@ fn scene<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
     Ok(out)
 }
 
+/// The whole-profile inversion (`springmass::detect::fit::profile`) of a
+/// series: every mass, spring or both free; the model options are those of
+/// `springmass fit --data ... --profile MODE` ([`FitSpec`]). Returns the
+/// report as the CLI's JSON.
+#[pyfunction]
+#[pyo3(signature = (t, x, *, n, profile, d=None, gamma=None, fit=None, noise=None, k=None,
+    mass=None, left=None, right=None, observe=None, observe_kind=None, force=None,
+    change=None, penalty=None))]
+#[allow(clippy::too_many_arguments)]
+fn fit_profile<'py>(
+    py: Python<'py>,
+    t: PyReadonlyArray1<'py, f64>,
+    x: PyReadonlyArray1<'py, f64>,
+    n: usize,
+    profile: String,
+    d: Option<f64>,
+    gamma: Option<f64>,
+    fit: Option<String>,
+    noise: Option<String>,
+    k: Option<f64>,
+    mass: Option<f64>,
+    left: Option<String>,
+    right: Option<String>,
+    observe: Option<usize>,
+    observe_kind: Option<String>,
+    force: Option<PyReadonlyArray1<'py, f64>>,
+    change: Option<f64>,
+    penalty: Option<f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use springmass::detect::fit::profile::{ProfileMode, ProfileOptions};
+    let spec = FitSpec {
+        d,
+        k,
+        mass,
+        gamma,
+        left,
+        right,
+        observe,
+        observe_kind,
+        fit,
+        noise,
+        ..FitSpec::new(n)
+    };
+    let (t, x) = (values(&t), values(&x));
+    let force = force.as_ref().map(values);
+    let report = py
+        .detach(move || -> Result<_> {
+            let mode = ProfileMode::parse(&profile)?;
+            let (model, opts) = spec.build()?;
+            let measurement = spec.measurement(force)?;
+            let obs = Observations::Series(
+                Series::new(t, x, opts.noise.known())?.with_measurement(measurement)?,
+            );
+            let mut po = ProfileOptions::new(mode);
+            po.noise = opts.noise;
+            if let Some(c) = change {
+                po.change = c;
+            }
+            po.lambda = penalty;
+            springmass::detect::fit::profile::fit_profile(&obs, &model, &po)
+        })
+        .py_err()?;
+    let json = serde_json::to_value(&report).map_err(|e| {
+        NumericalError::new_err(format!("the profile report cannot be written: {e}"))
+    })?;
+    let out = PyDict::new(py);
+    out.set_item("report", json.to_string())?;
+    out.set_item("summary", report.summary())?;
+    Ok(out)
+}
+
 /// Every mass of a chain from the modes of mass 1: natural frequencies
 /// `omega` (rad/s) and residues `r_j` of `X_1(s) / gamma = sum_j r_j /
 /// (s^2 + omega_j^2)`, uniform springs `k`; see
@@ -609,5 +680,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(scene, m)?)?;
     m.add_function(wrap_pyfunction!(read_csv, m)?)?;
     m.add_function(wrap_pyfunction!(spectral, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_profile, m)?)?;
     Ok(())
 }

@@ -131,3 +131,25 @@ def test_spectral_rebuilds_every_mass_from_the_modes():
         assert "residue" in str(e)
     else:
         raise AssertionError("unequal lengths accepted")
+
+
+def test_fit_profile_every_mass_with_error_bars_and_named_errors():
+    import numpy as np
+
+    t = np.arange(0, 150, 0.25)
+    x = springmass.simulate(8, defects=[("mass", 3, 2.0)], t=t, noise="rel:1e-3", seed=4)
+    r = springmass.fit_profile(t, x, n=8)
+    assert r.mode == "masses" and len(r.values) == 8
+    truth = [1.0, 1.0, 2.0, 1.0, 1.0, 1.0, 1.0, 1.0]
+    for v, m in zip(r.values, truth):
+        assert v.kind == "mass" and v.visible
+        assert abs(v.value - m) < 5 * v.se, (v, m)
+    assert r.sigma_estimated and r.sigma > 0
+    assert "profile of masses" in str(r)
+    for kwargs, field in [({"profile": "all"}, "profile"), ({"change": 0.0}, "change")]:
+        try:
+            springmass.fit_profile(t, x, n=8, **kwargs)
+        except ValueError as e:
+            assert field in str(e), e
+        else:
+            raise AssertionError(f"{kwargs} accepted")

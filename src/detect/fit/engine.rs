@@ -156,6 +156,12 @@ impl Engine<'_> {
     }
 
     /// Observations in the forms the misfits use, at noise level `sigma`.
+    /// The observations prepared last and the noise level they are at.
+    pub(super) fn last_prepared(&self) -> Option<(f64, Prepared)> {
+        let guard = self.prepared.lock().ok()?;
+        guard.as_ref().map(|(k, p)| (f64::from_bits(*k), p.clone()))
+    }
+
     fn prepared(&self, sigma: f64) -> Result<Prepared> {
         let key = sigma.to_bits();
         if let Ok(guard) = self.prepared.lock() {
@@ -772,6 +778,7 @@ impl Engine<'_> {
             predicted,
             identifiability: ident,
             modes,
+            visibility: None,
         })
     }
 }

@@ -40,6 +40,11 @@
 //!   sets with the paper's Woodbury kernel
 //!   ([`crate::detect::misfit::Misfit::at_nodes`], the same chi-square) and
 //!   refits the best: chosen by the unknowns, not asked for.
+//! * **visibility**: for mass defects on a user's data the report says how
+//!   deep the data see a 10% mass change ([`profile::Visibility`]) and names
+//!   fitted defects beyond that depth;
+//! * **every value free** instead of a few defects: [`profile::fit_profile`]
+//!   (`springmass fit --profile masses|springs|both`).
 //!
 //! ```
 //! use springmass::{Chain, Defect, noise::NoiseLevel};
@@ -102,6 +107,7 @@ fn fit_with(
     given: Option<engine::Given>,
 ) -> Result<FitReport> {
     opts.validate(obs, model)?;
+    let scene = given.is_some();
     let t0 = Instant::now();
     let misfit = match obs {
         Observations::Series(_) => opts.misfit.unwrap_or(MisfitKind::Time),
@@ -203,7 +209,7 @@ fn fit_with(
         (i, rows, name.to_string())
     };
     let best_fit = &fits[chosen];
-    engine.report(
+    let mut report = engine.report(
         best_fit,
         sigma,
         estimated,
@@ -211,5 +217,30 @@ fn fit_with(
         criterion_name,
         evaluations,
         t0,
-    )
+    )?;
+    // how deep the data see (mass defects of a user's data; not the
+    // scene path, whose data are the model's own)
+    if !scene && report.defects.iter().all(|d| d.kind == "mass") {
+        let chain = model.chain().clone().with_defects(report.found())?;
+        let observe = match obs {
+            Observations::Series(s) => s.measurement().sensor().at,
+            Observations::Laplace(l) => l.sensor().at,
+        };
+        let positions: Vec<usize> = report.found().iter().map(|d| d.at()).collect();
+        if let Some((at_sigma, (l, ..))) = engine.last_prepared() {
+            report.visibility = profile::visibility(
+                &l,
+                &chain,
+                observe,
+                VISIBILITY_CHANGE,
+                &positions,
+                sigma / at_sigma,
+            )
+            .ok();
+        }
+    }
+    Ok(report)
 }
+
+/// The relative mass change the report's visibility is stated for.
+pub const VISIBILITY_CHANGE: f64 = 0.1;

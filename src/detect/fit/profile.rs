@@ -15,28 +15,42 @@
 //!    model's uniform one, `delta_j = (theta_j - u_j) / u_j`: the penalty
 //!    row `sqrt(lambda) delta_j / (delta_j^2 + eps^2)^(1/4)` adds
 //!    `lambda |delta_j|` to the chi-square for `|delta_j| >> eps` (a smooth
-//!    L1; `eps` = [`ProfileOptions::eps`]). `lambda` starts at the number of
-//!    data and drops tenfold per stage, each stage warm-started, until the
+//!    L1; `eps` = [`ProfileOptions::eps`]). `lambda` starts at the data
+//!    chi-square of the uniform chain (at least the number of data: the
+//!    first stage stays near it) and drops tenfold per stage, each stage warm-started, until the
 //!    data chi-square reaches the discrepancy target
 //!    `dof + 2 sqrt(2 dof)` (noise level known or estimated) or `lambda`
 //!    reaches [`ProfileOptions::lambda_min`] times its start.
-//! 3. **Visibility**: from the Fisher information `J^T J` of the whitened
-//!    data at that profile, the free values are taken in order of distance
-//!    from the observed mass; the longest prefix in which every value's
-//!    standard error (with the whole prefix free) satisfies `2 SE <= change
-//!    u_j` is *visible*: the data would show a change of `change` (default
-//!    10%) of the uniform value there at two standard errors. Beyond it the
-//!    data cannot see such a change (a deep, light defect's echo is below
-//!    the noise); those values keep the regularised estimate (close to
-//!    uniform) and are reported as not visible, without a standard error.
-//! 4. **Final fit**: the visible values (and fitted chain parameters) by
-//!    unregularised Levenberg-Marquardt, the others held; standard errors
-//!    from its Gauss-Newton covariance, scaled by the estimated noise when
-//!    the noise level was not given.
+//! 3. **Restarts.** When the data chi-square stays above three times its
+//!    target (a wrong basin: the misfit of a strongly varying profile has
+//!    many local minima), the continuation is run again from a frequency
+//!    continuation ([`BANDS`]: the lowest quarter, half and three quarters
+//!    of the band in turn, warm-started), from a layer-stripping start (the
+//!    values nearest the sensor freed first), from the same data weighted
+//!    by the transform's own error (a series) or relatively (Laplace
+//!    values), and from scaled uniform starts; the lowest chi-square wins.
+//! 4. **Visibility**: from the Fisher information `J^T J` of the data at
+//!    that profile, the free values are taken in order of distance from the
+//!    observed mass; the longest prefix in which every value's standard
+//!    error (with the whole prefix free) satisfies `2 SE <= change u_j` is
+//!    *visible*: the data would show a change of `change` (default 10%) of
+//!    the uniform value there at two standard errors. Beyond it the data
+//!    cannot see such a change (a deep, light defect's echo is below the
+//!    noise); those values are reported as not visible, without a standard
+//!    error.
+//! 5. **Final fit**: every value free, the hidden ones under a Gaussian
+//!    prior of width `change` around the uniform value (they move where the
+//!    data ask, and their uncertainty enters the visible values' standard
+//!    errors), the visible ones and the chain parameters unpenalised. For a
+//!    record, the visible values (at most [`TIME_POLISH_MAX`]) are then
+//!    polished by the time-domain chi-square, the likelihood of the samples
+//!    themselves, whose Gauss-Newton covariance gives the standard errors
+//!    (measured calibrated: `tests/long_chains.rs`).
 //!
 //! With a noise level not given, a first pass runs the continuation to its
 //! end, the residual of that nearly free fit gives `sigma` (`sqrt(chi^2 /
-//! (m - p))`), and the fit is repeated at that level.
+//! (m - p))`), the fit is repeated at that level, and the standard errors
+//! are scaled by the final residual.
 //!
 //! ```
 //! use springmass::{Chain, Defect};
@@ -190,6 +204,134 @@ impl ProfileOptions {
         }
         Ok(())
     }
+}
+
+/// How deep the data see a change of one mass (the rest of the chain as
+/// fitted): the report of the defects the data cannot see.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Visibility {
+    /// The relative change of the uniform mass it is stated for.
+    pub change: f64,
+    /// The observed mass.
+    pub observe: usize,
+    /// The largest distance from the observed mass up to which a change of
+    /// `change` at any one mass would show at two standard errors (`None`:
+    /// not even at the observed mass).
+    pub depth: Option<usize>,
+    /// The standard error of a change of each mass (`1..=n`), the others
+    /// held.
+    pub se: Vec<f64>,
+    /// Fitted defects beyond `depth` (their positions): the data cannot
+    /// tell them from the uniform chain at this noise.
+    pub hidden: Vec<usize>,
+}
+
+impl Visibility {
+    /// One line: how deep the data see, and which defects they do not.
+    pub fn line(&self) -> String {
+        let n = self.se.len();
+        let far = (self.observe - 1).max(n - self.observe);
+        let mut s = match self.depth {
+            Some(d) if d == far => format!(
+                "the data see a {}% mass change at every mass (2 SE)",
+                self.change * 100.0
+            ),
+            Some(d) => format!(
+                "the data see a {}% mass change up to {} masses from mass {} (2 SE); a defect beyond would not be seen",
+                self.change * 100.0,
+                d,
+                self.observe
+            ),
+            None => format!(
+                "the data do not see a {}% mass change anywhere (2 SE)",
+                self.change * 100.0
+            ),
+        };
+        if !self.hidden.is_empty() {
+            s.push_str(&format!(
+                "; fitted defects beyond that depth (not resolved): {:?}",
+                self.hidden
+            ));
+        }
+        s
+    }
+}
+
+/// [`Visibility`] of a change of `change` (relative to the uniform mass) at
+/// every mass of `chain`, seen through the observations `l` (whitened, or
+/// weighted by the data's errors): the standard error of one mass changed
+/// alone is `1 / |J_j|` with `J_j` the column of the whitened Jacobian.
+/// `defects` are the fitted defects' positions (named when beyond the
+/// depth); `scale` multiplies every standard error (the ratio of the noise
+/// level to the one `l` is weighted at). O(n) per node.
+///
+/// # Errors
+/// As the forward model at the nodes.
+pub fn visibility(
+    l: &LaplaceObs,
+    chain: &Chain,
+    observe: usize,
+    change: f64,
+    defects: &[usize],
+    scale: f64,
+) -> Result<Visibility> {
+    let n = chain.n();
+    let mut probe = chain.clone();
+    let mut cols = vec![usize::MAX; n];
+    for (i, d) in chain.defects().iter().enumerate() {
+        if let Defect::Mass { at, .. } = *d {
+            cols[at - 1] = i;
+        }
+    }
+    let mut next = chain.defects().len();
+    for (i, c) in cols.iter_mut().enumerate() {
+        if *c == usize::MAX {
+            probe = probe.with_defect(Defect::Mass {
+                at: i + 1,
+                m: chain.mass(),
+            })?;
+            *c = next;
+            next += 1;
+        }
+    }
+    let params: Vec<Param> = cols.iter().map(|&c| Param::Defect(c)).collect();
+    let j = l.jacobian(&probe, &params)?;
+    let se: Vec<f64> = (0..n)
+        .map(|c| {
+            let norm = j.column(c).norm();
+            if norm > 0.0 {
+                scale / norm
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect();
+    let sees = |i: usize| 2.0 * se[i - 1] <= change * chain.mass();
+    let far = (observe - 1).max(n - observe);
+    let mut depth = None;
+    for dist in 0..=far {
+        let all = [observe.checked_sub(dist), Some(observe + dist)]
+            .into_iter()
+            .flatten()
+            .filter(|&i| i >= 1 && i <= n)
+            .all(sees);
+        if !all {
+            break;
+        }
+        depth = Some(dist);
+    }
+    let hidden = defects
+        .iter()
+        .copied()
+        .filter(|&at| depth.is_none_or(|d| at.abs_diff(observe) > d))
+        .collect();
+    Ok(Visibility {
+        change,
+        observe,
+        depth,
+        se,
+        hidden,
+    })
 }
 
 /// One value of the fitted profile.
@@ -636,8 +778,8 @@ fn laplace_band(
     }
 }
 
-/// Fractions of the band fitted in turn by [`band_start`].
-const BANDS: [f64; 3] = [0.25, 0.5, 0.75];
+/// Fractions of the band fitted in turn by the frequency continuation.
+pub const BANDS: [f64; 3] = [0.25, 0.5, 0.75];
 
 /// A start grown from the low frequencies (a frequency continuation, the
 /// classical remedy for a misfit with many local minima at high

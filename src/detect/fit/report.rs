@@ -186,6 +186,11 @@ pub struct FitReport {
     pub predicted: Option<Predicted>,
     /// The identifiability report of the best answer.
     pub identifiability: Option<Identifiability>,
+    /// How deep the data see a 10% mass change (mass defects on a record or
+    /// Laplace values; `None` for the scene path and other kinds): the
+    /// defects the data cannot see are named there.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub visibility: Option<crate::detect::fit::profile::Visibility>,
     /// Natural frequencies and damping ratios of the fitted chain (its
     /// units: rad/s and Hz when the data and the chain are in SI units).
     pub modes: Vec<ModeEstimate>,
@@ -254,6 +259,9 @@ impl FitReport {
             if self.fits_data { "yes" } else { "NO" },
             self.fit_p_value
         ));
+        if let Some(v) = &self.visibility {
+            out.push_str(&format!("visibility: {}\n", v.line()));
+        }
         if self.k_selection.len() > 1 {
             out.push_str(&format!("number of defects by {}:\n", self.criterion));
             for r in &self.k_selection {
