@@ -208,7 +208,7 @@ fn main() {
         "  {:<12} {:>8} {:>12} {:>12} {:>14}",
         "method", "success", "median ms", "worst ms", "median evals"
     );
-    for (m, row) in &rows {
+    for (m, row) in rows.iter().filter(|(_, row)| row.runs > 0) {
         println!(
             "  {:<12} {:>4}/{:<3} {:>12.1} {:>12.1} {:>14.0}",
             m.name(),
