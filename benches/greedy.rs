@@ -26,7 +26,11 @@
 //! (deeper defects leave `X_1` unchanged to rounding at this damping: the
 //! identifiability limit, not the search's), `d = 0.01`, exact data at 80
 //! nodes of `s = 0.01 + i omega`, `omega in [0, 4]`; greedy only: time per
-//! draw, success, and the process's peak resident memory (`VmHWM`).
+//! draw, success, and the process's peak resident memory (`VmHWM`). The time
+//! is the whole fit, report included: up to `n = 3000` the report's modes of
+//! the fitted chain (a dense eigen decomposition, `O(n^3)`) dominate it
+//! (`--long-n 3000`: about 40 s, against 1 s at `--long-n 3001`, where the
+//! modes are skipped).
 //!
 //! **Noisy record** (`--noisy`, slow: minutes per draw): the issue's
 //! `n = 300`, `k = 4` case. One mass defect in each quarter of the chain
