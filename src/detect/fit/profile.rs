@@ -25,16 +25,18 @@
 //!    target (a wrong basin: the misfit of a strongly varying profile has
 //!    many local minima), the continuation is run again from a frequency
 //!    continuation ([`BANDS`]: the lowest quarter, half and three quarters
-//!    of the band in turn, warm-started), from a layer-stripping start (the
+//!    of the band in turn, warm-started), from the data-first defect fit's
+//!    answer (a few defects, k by BIC), from a layer-stripping start (the
 //!    values nearest the sensor freed first), from the same data weighted
 //!    by the transform's own error (a series) or relatively (Laplace
 //!    values), and from scaled uniform starts; the lowest chi-square wins.
 //! 4. **Visibility**: from the Fisher information `J^T J` of the data at
 //!    that profile, the free values are taken in order of distance from the
 //!    observed mass; the longest prefix in which every value's standard
-//!    error (with the whole prefix free) satisfies `2 SE <= change u_j` is
-//!    *visible*: the data would show a change of `change` (default 10%) of
-//!    the uniform value there at two standard errors. Beyond it the data
+//!    error (with the whole prefix free) satisfies `2 SE <= change
+//!    max(u_j, theta_j)` is *visible*: the data would show a change of
+//!    `change` (default 10%) of the value there (of the uniform value, for a
+//!    value below it) at two standard errors. Beyond it the data
 //!    cannot see such a change (a deep, light defect's echo is below the
 //!    noise); those values are reported as not visible, without a standard
 //!    error.
@@ -42,8 +44,8 @@
 //!    prior of width `change` around the uniform value (they move where the
 //!    data ask, and their uncertainty enters the visible values' standard
 //!    errors), the visible ones and the chain parameters unpenalised. For a
-//!    record, the visible values (at most [`TIME_POLISH_MAX`]) are then
-//!    polished by the time-domain chi-square, the likelihood of the samples
+//!    record whose every value is visible (at most [`TIME_POLISH_MAX`]),
+//!    the values are then polished by the time-domain chi-square, the likelihood of the samples
 //!    themselves, whose Gauss-Newton covariance gives the standard errors
 //!    (measured calibrated: `tests/long_chains.rs`).
 //!
@@ -778,6 +780,51 @@ fn laplace_band(
     }
 }
 
+/// A start from the data-first defect fit ([`crate::detect::fit::fit`],
+/// the number of defects by BIC among `0..=4`, kinds those of the profile):
+/// its defects' values at their positions, the uniform value elsewhere.
+/// `None` when that fit fails.
+fn defect_start(
+    obs: &Observations,
+    model: &Model,
+    space: &Space,
+    opts: &ProfileOptions,
+) -> Option<Vec<f64>> {
+    use crate::detect::fit::{fit, DefectCount, FitOptions, DEFAULT_K_MAX};
+    use crate::detect::unknowns::KindChoice;
+    let fopts = FitOptions {
+        defects: DefectCount::Auto {
+            k_max: DEFAULT_K_MAX.min(model.n()),
+        },
+        kinds: match opts.mode {
+            ProfileMode::Masses => KindChoice::Mass,
+            ProfileMode::Springs => KindChoice::Spring,
+            ProfileMode::Both => KindChoice::Any,
+        },
+        noise: opts.noise,
+        ..FitOptions::default()
+    };
+    let r = fit(obs, model, &fopts).ok()?;
+    let mut theta = space.start(1.0);
+    for d in r.found() {
+        if let Some(i) = space
+            .elems
+            .iter()
+            .position(|e| e.name() == d.kind() && e.at == d.at())
+        {
+            theta[i] = d.value();
+        }
+    }
+    let nf = space.elems.len();
+    for (j, p) in space.params.iter().enumerate() {
+        let name = crate::detect::fit::general::param_name(p);
+        if let Some(e) = r.params.iter().find(|e| e.name == name) {
+            theta[nf + j] = e.value;
+        }
+    }
+    Some(theta)
+}
+
 /// Fractions of the band fitted in turn by the frequency continuation.
 pub const BANDS: [f64; 3] = [0.25, 0.5, 0.75];
 
@@ -858,6 +905,7 @@ pub fn fit_profile(
             &l,
             &|| pre_pass(obs, model, sigma, nf),
             &|| band_start(obs, model, sigma, &space, opts),
+            &|| defect_start(obs, model, &space, opts),
             &space,
             opts,
             None,
@@ -878,6 +926,7 @@ pub fn fit_profile(
         &l,
         &|| pre_pass(obs, model, sigma, nf),
         &|| band_start(obs, model, sigma, &space, opts),
+        &|| defect_start(obs, model, &space, opts),
         &space,
         opts,
         Some(target),
@@ -886,7 +935,7 @@ pub fn fit_profile(
     // visibility at the regularised profile
     let jac = space.problem(&l).jacobian(&path.theta)?;
     let order = depth_order(&space.elems);
-    let visible = visible_prefix(&jac, &space.elems, &order, np, opts.change);
+    let visible = visible_prefix(&jac, &space.elems, &path.theta, &order, np, opts.change);
     // the final fit: every value free; a Gaussian prior of width `change`
     // around the uniform value on the values the data cannot see (they move
     // only where the data ask, and their uncertainty enters the visible
@@ -921,7 +970,7 @@ pub fn fit_profile(
     // a record: the visible values polished by the time-domain chi-square
     // (the likelihood of the samples themselves), the others held
     if let Observations::Series(series) = obs {
-        if p > 0 && p <= TIME_POLISH_MAX {
+        if p > 0 && p <= TIME_POLISH_MAX && visible == nf {
             let tm = TimeMisfit::new(series.time_data(sigma)?);
             let start = space.chain(&theta_f)?;
             let k0 = space.fixed.len();
@@ -1269,6 +1318,7 @@ fn continuation_restarts(
     l: &LaplaceObs,
     pre: &dyn Fn() -> Result<Option<LaplaceObs>>,
     band: &dyn Fn() -> Result<(Vec<f64>, usize)>,
+    defects: &dyn Fn() -> Option<Vec<f64>>,
     space: &Space,
     opts: &ProfileOptions,
     target: Option<f64>,
@@ -1285,6 +1335,8 @@ fn continuation_restarts(
         let (theta, it) = band()?;
         iterations += it;
         starts.push(theta);
+        // the few-defects answer (the data-first defect fit)
+        starts.extend(defects());
         // layer stripping: the values nearest the sensor first
         let (theta, it) = depth_start(l, space, opts, target)?;
         iterations += it;
@@ -1314,12 +1366,14 @@ fn continuation_restarts(
     Ok(best)
 }
 
-/// The longest prefix of `order` whose values all have `2 SE <= change u`
+/// The longest prefix of `order` whose values all have `2 SE <= change
+/// max(u, theta)` (a heavy value is judged relative to itself)
 /// with the prefix (and the `n_params` chain parameters, the last columns of
 /// `jac`) free; by bisection on the prefix length.
 fn visible_prefix(
     jac: &DMatrix<f64>,
     elems: &[Elem],
+    theta: &[f64],
     order: &[usize],
     n_params: usize,
     change: f64,
@@ -1340,7 +1394,7 @@ fn visible_prefix(
         };
         order[..len].iter().enumerate().all(|(k, &i)| {
             let se = cov[(k, k)].max(0.0).sqrt();
-            se.is_finite() && 2.0 * se <= change * elems[i].uniform
+            se.is_finite() && 2.0 * se <= change * elems[i].uniform.max(theta[i])
         })
     };
     if ok(nf) {
