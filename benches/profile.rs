@@ -27,7 +27,7 @@ use springmass::detect::fit::profile::{fit_profile, ProfileMode, ProfileOptions,
 use springmass::detect::fit::{fit, DefectCount, FitOptions, Model};
 use springmass::forward::Observable;
 use springmass::noise::{add_noise, NoiseLevel};
-use springmass::{Chain, Complex64, Defect};
+use springmass::{scenes, Chain, Complex64, Defect};
 use std::time::Duration;
 
 #[path = "common/cputime.rs"]
@@ -86,18 +86,8 @@ fn bench_cpu(c: &mut Criterion<CpuTime>) {
     g.finish();
 
     // six-storey frame, springs from the roof accelerometer
-    let change = [-0.25, 0.05, -0.1, -0.2, 0.0, -0.15];
-    let frame = Chain::paper(6)
-        .unwrap()
-        .with_d(0.02)
-        .unwrap()
-        .with_boundaries(Boundary::Free, Boundary::Fixed)
-        .unwrap()
-        .with_defects((1..=6).map(|j| Defect::Spring {
-            at: j,
-            k: 1.0 + change[j - 1],
-        }))
-        .unwrap();
+    let change = scenes::FRAME6_CHANGE;
+    let frame = scenes::frame6().unwrap();
     let sensor = Sensor {
         at: 1,
         kind: Observable::Acceleration,
@@ -131,20 +121,8 @@ fn bench_cpu(c: &mut Criterion<CpuTime>) {
     g.finish();
 
     // n = 100 masses from noisy Laplace values
-    let m: Vec<f64> = (1..=100)
-        .map(|i| {
-            let x = i as f64;
-            1.0 + 0.2 * (0.7 * x).sin() + 0.1 * (1.9 * x + 0.3).cos()
-        })
-        .collect();
-    let long = Chain::paper(100)
-        .unwrap()
-        .with_defects(
-            m.iter()
-                .enumerate()
-                .map(|(i, &v)| Defect::Mass { at: i + 1, m: v }),
-        )
-        .unwrap();
+    let m = scenes::mass_profile(100);
+    let long = scenes::profile_chain(100, 0.1).unwrap();
     let s: Vec<Complex64> = (0..300)
         .map(|i| Complex64::new(0.02, 3.0 * (i as f64 + 0.5) / 300.0))
         .collect();

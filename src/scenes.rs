@@ -114,6 +114,47 @@ pub fn shear_frame(storeys: usize, d: f64, weakened: Option<(usize, f64)>) -> Re
     }
 }
 
+/// The storey stiffness changes of [`frame6`], storey 1 (the roof's) first.
+pub const FRAME6_CHANGE: [f64; 6] = [-0.25, 0.05, -0.1, -0.2, 0.0, -0.15];
+
+/// A six-storey shear frame seen from its roof (left end free, d = 0.02)
+/// with every storey stiffness changed by [`FRAME6_CHANGE`]: the
+/// whole-profile spring scene of the tests and benches.
+///
+/// # Errors
+/// Never in practice (valid values).
+pub fn frame6() -> Result<Chain> {
+    shear_frame(6, 0.02, None)?.with_defects((1..=6).map(|j| Defect::Spring {
+        at: j,
+        k: 1.0 + FRAME6_CHANGE[j - 1],
+    }))
+}
+
+/// A deterministic "every mass differs" profile of `n` masses in [0.75,
+/// 1.3]: `1 + 0.2 sin(0.7 i) + 0.1 cos(1.9 i + 0.3)`.
+pub fn mass_profile(n: usize) -> Vec<f64> {
+    (1..=n)
+        .map(|i| {
+            let x = i as f64;
+            1.0 + 0.2 * (0.7 * x).sin() + 0.1 * (1.9 * x + 0.3).cos()
+        })
+        .collect()
+}
+
+/// The paper's chain of `n` masses with damping `d` and every mass set by
+/// [`mass_profile`]: the whole-profile mass scene of the tests and benches.
+///
+/// # Errors
+/// `n` out of range, `d < 0`.
+pub fn profile_chain(n: usize, d: f64) -> Result<Chain> {
+    Chain::paper(n)?.with_d(d)?.with_defects(
+        mass_profile(n)
+            .into_iter()
+            .enumerate()
+            .map(|(i, m)| Defect::Mass { at: i + 1, m }),
+    )
+}
+
 fn all_names() -> String {
     NAMES
         .iter()

@@ -13,30 +13,7 @@ use springmass::detect::fit::profile::{fit_profile, ProfileMode, ProfileOptions}
 use springmass::detect::fit::{Model, NoiseSpec};
 use springmass::forward::Observable;
 use springmass::noise::{add_noise, NoiseLevel};
-use springmass::{Chain, Defect};
-
-/// A deterministic "every mass differs" profile in [0.75, 1.3].
-fn mass_profile(n: usize) -> Vec<f64> {
-    (1..=n)
-        .map(|i| {
-            let x = i as f64;
-            1.0 + 0.2 * (0.7 * x).sin() + 0.1 * (1.9 * x + 0.3).cos()
-        })
-        .collect()
-}
-
-fn chain_with_masses(n: usize, d: f64, m: &[f64]) -> Chain {
-    Chain::paper(n)
-        .unwrap()
-        .with_d(d)
-        .unwrap()
-        .with_defects(
-            m.iter()
-                .enumerate()
-                .map(|(i, &v)| Defect::Mass { at: i + 1, m: v }),
-        )
-        .unwrap()
-}
+use springmass::{scenes, Chain, Defect};
 
 /// Laplace values of `truth` on the line `sigma_b + i omega`, `q` nodes
 /// over `omega in (0, w)`, by the O(n) tridiagonal solve.
@@ -60,8 +37,8 @@ fn laplace_values(
 #[test]
 fn profile_of_100_masses_from_exact_values() {
     let n = 100;
-    let m = mass_profile(n);
-    let truth = chain_with_masses(n, 0.01, &m);
+    let m = scenes::mass_profile(n);
+    let truth = scenes::profile_chain(n, 0.01).unwrap();
     let (s, x) = laplace_values(&truth, 300, 0.01, 3.0);
     let obs = Observations::Laplace(LaplaceValues::new(s, x, None).unwrap());
     let model = Model::new(n).unwrap().with_d(0.01).unwrap();
@@ -91,8 +68,8 @@ fn profile_of_100_masses_from_exact_values() {
 #[test]
 fn profile_of_100_masses_at_1e_3_noise_has_calibrated_errors() {
     let n = 100;
-    let m = mass_profile(n);
-    let truth = chain_with_masses(n, 0.1, &m);
+    let m = scenes::mass_profile(n);
+    let truth = scenes::profile_chain(n, 0.1).unwrap();
     let (s, x) = laplace_values(&truth, 300, 0.02, 3.0);
     let scale = x.iter().fold(0.0f64, |a, v| a.max(v.norm()));
     let sigma = 1e-3 * scale;
@@ -136,18 +113,8 @@ fn profile_of_100_masses_at_1e_3_noise_has_calibrated_errors() {
 /// within 1% in each of six records, with calibrated standard errors.
 #[test]
 fn six_storey_frame_every_storey_stiffness_from_the_roof() {
-    let change = [-0.25, 0.05, -0.1, -0.2, 0.0, -0.15];
-    let truth = Chain::paper(6)
-        .unwrap()
-        .with_d(0.02)
-        .unwrap()
-        .with_boundaries(Boundary::Free, Boundary::Fixed)
-        .unwrap()
-        .with_defects((1..=6).map(|j| Defect::Spring {
-            at: j,
-            k: 1.0 + change[j - 1],
-        }))
-        .unwrap();
+    let change = scenes::FRAME6_CHANGE;
+    let truth = scenes::frame6().unwrap();
     let sensor = Sensor {
         at: 1,
         kind: Observable::Acceleration,

@@ -229,6 +229,18 @@ def _chain(n: Any, k: Any, d: Any, gamma: Any, mass: Any, defects: Any, left: An
     }
 
 
+def _fit_text(fit: Union[str, Sequence[str]]) -> str:
+    """Chain parameters to fit, as the comma-separated text the core reads."""
+    if isinstance(fit, str):
+        return fit
+    return ",".join(_text(f"fit[{i}]", p) for i, p in enumerate(fit))
+
+
+def _noise_text(noise: Union[str, float]) -> str:
+    """``"auto"`` or a standard deviation, as the text the core reads."""
+    return noise if isinstance(noise, str) else repr(_real("noise", noise))
+
+
 def _nan(v: Optional[float]) -> float:
     """JSON null (the library's NaN) back to NaN."""
     return math.nan if v is None else float(v)
@@ -575,10 +587,7 @@ def fit(
     [(2, 3.0), (4, 0.5)]
     """
     tv, xv = _vector("t", t), _vector("x", x)
-    if isinstance(fit, str):
-        fit_text = fit
-    else:
-        fit_text = ",".join(_text(f"fit[{i}]", p) for i, p in enumerate(fit))
+    fit_text = _fit_text(fit)
     if isinstance(defects, str):
         defects_text = defects
     else:
@@ -587,10 +596,7 @@ def fit(
         kinds_text, slot_kinds = kinds, []
     else:
         kinds_text, slot_kinds = None, [_text(f"kinds[{i}]", k) for i, k in enumerate(kinds)]
-    if isinstance(noise, str):
-        noise_text = noise
-    else:
-        noise_text = repr(_real("noise", noise))
+    noise_text = _noise_text(noise)
     raw = _core.fit(
         tv,
         xv,
@@ -1229,14 +1235,8 @@ def fit_profile(
     [1.0, 2.0, 1.0, 1.0, 1.0, 1.0]
     """
     tv, xv = _vector("t", t), _vector("x", x)
-    if isinstance(fit, str):
-        fit_text = fit
-    else:
-        fit_text = ",".join(_text(f"fit[{i}]", p) for i, p in enumerate(fit))
-    if isinstance(noise, str):
-        noise_text = noise
-    else:
-        noise_text = repr(_real("noise", noise))
+    fit_text = _fit_text(fit)
+    noise_text = _noise_text(noise)
     raw = _core.fit_profile(
         tv,
         xv,

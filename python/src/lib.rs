@@ -71,6 +71,21 @@ fn values(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
     a.as_array().iter().copied().collect()
 }
 
+/// The record `(t, x)` as observations: the sensor and the measured force
+/// of `spec`, the noise level when known.
+fn series_obs(
+    spec: &FitSpec,
+    t: Vec<f64>,
+    x: Vec<f64>,
+    force: Option<Vec<f64>>,
+    sigma: Option<f64>,
+) -> Result<Observations> {
+    let measurement = spec.measurement(force)?;
+    Ok(Observations::Series(
+        Series::new(t, x, sigma)?.with_measurement(measurement)?,
+    ))
+}
+
 /// The data-first fit (`springmass::detect::fit::fit`) of a series; the
 /// options are those of `springmass fit --data` ([`FitSpec`]). Returns the
 /// report as the CLI's JSON (without the predicted series) and the predicted
@@ -134,10 +149,7 @@ fn fit<'py>(
     let report = py
         .detach(move || -> Result<_> {
             let (model, opts) = spec.build()?;
-            let measurement = spec.measurement(force)?;
-            let obs = Observations::Series(
-                Series::new(t, x, opts.noise.known())?.with_measurement(measurement)?,
-            );
+            let obs = series_obs(&spec, t, x, force, opts.noise.known())?;
             opts.validate(&obs, &model)?;
             springmass::detect::fit::fit(&obs, &model, &opts)
         })
@@ -609,10 +621,7 @@ fn fit_profile<'py>(
         .detach(move || -> Result<_> {
             let mode = ProfileMode::parse(&profile)?;
             let (model, opts) = spec.build()?;
-            let measurement = spec.measurement(force)?;
-            let obs = Observations::Series(
-                Series::new(t, x, opts.noise.known())?.with_measurement(measurement)?,
-            );
+            let obs = series_obs(&spec, t, x, force, opts.noise.known())?;
             let mut po = ProfileOptions::new(mode);
             po.noise = opts.noise;
             if let Some(c) = change {

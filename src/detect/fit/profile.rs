@@ -897,19 +897,23 @@ pub fn fit_profile(
     };
     let estimated = given_sigma.is_none();
     let mut iterations = 0usize;
-    // pass 1 (noise unknown): the continuation to its end, sigma from the residual
-    if estimated {
-        let (l, _) = laplace(obs, model, sigma, nf)?;
-        check_counts(&l, nf + np)?;
-        let path = continuation_restarts(
-            &l,
+    // the continuation with its restarts on `l` (at noise level `sigma`)
+    let restarts = |l: &LaplaceObs, sigma: f64, target: Option<f64>| {
+        continuation_restarts(
+            l,
             &|| pre_pass(obs, model, sigma, nf),
             &|| band_start(obs, model, sigma, &space, opts),
             &|| defect_start(obs, model, &space, opts),
             &space,
             opts,
-            None,
-        )?;
+            target,
+        )
+    };
+    // pass 1 (noise unknown): the continuation to its end, sigma from the residual
+    if estimated {
+        let (l, _) = laplace(obs, model, sigma, nf)?;
+        check_counts(&l, nf + np)?;
+        let path = restarts(&l, sigma, None)?;
         iterations += path.iterations;
         let chi2 = space.problem(&l).data_chi2(&path.theta)?;
         let dof = l.dof().saturating_sub(nf + np).max(1) as f64;
@@ -922,15 +926,7 @@ pub fn fit_profile(
     check_counts(&l, nf + np)?;
     let dof = l.dof() as f64;
     let target = dof + 2.0 * (2.0 * dof).sqrt();
-    let path = continuation_restarts(
-        &l,
-        &|| pre_pass(obs, model, sigma, nf),
-        &|| band_start(obs, model, sigma, &space, opts),
-        &|| defect_start(obs, model, &space, opts),
-        &space,
-        opts,
-        Some(target),
-    )?;
+    let path = restarts(&l, sigma, Some(target))?;
     iterations += path.iterations;
     // visibility at the regularised profile
     let jac = space.problem(&l).jacobian(&path.theta)?;

@@ -380,14 +380,7 @@ pub fn run(s: &Scene, seed: u64) -> Result<CaseOutput> {
             .and_then(|v| v.depth)
             .map_or(f64::NAN, |d| d as f64),
     );
-    put(
-        "sigma_ratio",
-        if data.sigma() > 0.0 {
-            rep.noise_sigma / data.sigma()
-        } else {
-            f64::NAN
-        },
-    );
+    put("sigma_ratio", sigma_ratio(rep.noise_sigma, &data));
     let d = rep.params.iter().find(|p| p.name == "d");
     put("d_fit", d.map_or(f64::NAN, |p| p.value));
     put("d_se", d.map_or(f64::NAN, |p| p.se));
@@ -399,6 +392,15 @@ pub fn run(s: &Scene, seed: u64) -> Result<CaseOutput> {
     );
     out.timings.insert("t_fit".into(), serde_json::json!(t_fit));
     Ok(out)
+}
+
+/// The estimated over the true noise level (NaN for a noise-free record).
+fn sigma_ratio(estimated: f64, data: &TimeData) -> f64 {
+    if data.sigma() > 0.0 {
+        estimated / data.sigma()
+    } else {
+        f64::NAN
+    }
 }
 
 /// A `profile` case: the whole-profile inversion of the record, told the
@@ -463,14 +465,7 @@ fn run_profile(s: &Scene, truth: &Chain, data: &TimeData) -> Result<CaseOutput> 
     put("wrong_flagged", f64::NAN);
     put("resolved", f64::NAN);
     put("fits_data", f64::from(u8::from(rep.fits_data)));
-    put(
-        "sigma_ratio",
-        if data.sigma() > 0.0 {
-            rep.noise_sigma / data.sigma()
-        } else {
-            f64::NAN
-        },
-    );
+    put("sigma_ratio", sigma_ratio(rep.noise_sigma, data));
     put("d_fit", f64::NAN);
     put("d_se", f64::NAN);
     put("d_within_3se", f64::NAN);
