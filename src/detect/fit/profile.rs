@@ -781,7 +781,8 @@ fn laplace_band(
 }
 
 /// A start from the data-first defect fit ([`crate::detect::fit::fit`],
-/// the number of defects by BIC among `0..=4`, kinds those of the profile):
+/// the number of defects by BIC among `0..=4`, kinds those of the profile,
+/// enumeration up to 20 masses and the greedy search beyond):
 /// its defects' values at their positions, the uniform value elsewhere.
 /// `None` when that fit fails.
 fn defect_start(
@@ -802,6 +803,13 @@ fn defect_start(
             ProfileMode::Both => KindChoice::Any,
         },
         noise: opts.noise,
+        // enumeration up to C(20, 4) = 4845 sets; the greedy search beyond
+        method: if model.n() <= 20 {
+            crate::detect::fit::FitMethod::Enumerate
+        } else {
+            crate::detect::fit::FitMethod::Greedy
+        },
+        parallel: false,
         ..FitOptions::default()
     };
     let r = fit(obs, model, &fopts).ok()?;
