@@ -41,7 +41,7 @@
 //! | [`unknowns`] | the unknowns of a fit |
 //! | [`search`] | optimizers ([`search::minimize`], [`search::MisfitObjective`] on the Woodbury kernel), [`search::enumerate`], [`search::lsq`] (bounded Levenberg-Marquardt), [`search::rankone`] (the greedy search's scoring kernel) |
 //! | [`scene`] | the TOML fit scene and its options |
-//! | [`fit`] | [`fit::fit`] from data ([`fit::model`] what is known, [`fit::options`] what to look for, `fit/engine.rs` the machinery); [`fit::paper::fit`] a scene through the same engine (the paper's Table 1 path); [`fit::general`] the hypothesis fits, [`fit::greedy`] the greedy search with moves, [`fit::chainfit`], [`fit::identify`], [`fit::select`] (k), [`fit::noise`] (sigma), [`fit::spectral`] (masses from modes), [`fit::profile`] (every mass or spring free, and the visibility report) |
+//! | [`fit`] | [`fit::fit`] from data ([`fit::model`] what is known, [`fit::options`] what to look for, `fit/engine.rs` the machinery); [`fit::paper::fit`] a scene through the same engine (the paper's Table 1 path); [`fit::general`] the hypothesis fits, [`fit::greedy`] the greedy search with moves, [`fit::chainfit`], [`fit::identify`], [`fit::select`] (k), [`fit::noise`] (sigma), [`fit::spectral`] (masses from modes), [`fit::profile`] (every mass or spring free), [`fit::visibility`] (how deep the data see) |
 //! | [`locate`] | explicit single-defect locators (section 4.1), corrected, any precision |
 //!
 //! ## The cost of a new defect kind

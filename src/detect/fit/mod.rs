@@ -41,7 +41,7 @@
 //!   ([`crate::detect::misfit::Misfit::at_nodes`], the same chi-square) and
 //!   refits the best: chosen by the unknowns, not asked for.
 //! * **visibility**: for mass defects on a user's data the report says how
-//!   deep the data see a 10% mass change ([`profile::Visibility`]) and names
+//!   deep the data see a 10% mass change ([`visibility::Visibility`]) and names
 //!   fitted defects beyond that depth;
 //! * **every value free** instead of a few defects: [`profile::fit_profile`]
 //!   (`springmass fit --profile masses|springs|both`).
@@ -74,6 +74,7 @@ pub mod profile;
 pub mod report;
 pub mod select;
 pub mod spectral;
+pub mod visibility;
 
 pub use crate::detect::search::FitMethod;
 pub use model::{parse_params, Model};
@@ -228,7 +229,7 @@ fn fit_with(
         };
         let positions: Vec<usize> = report.found().iter().map(|d| d.at()).collect();
         if let Some((at_sigma, (l, ..))) = engine.last_prepared() {
-            report.visibility = profile::visibility(
+            report.visibility = visibility::visibility(
                 &l,
                 &chain,
                 observe,

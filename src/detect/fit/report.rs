@@ -190,7 +190,7 @@ pub struct FitReport {
     /// Laplace values; `None` for the scene path and other kinds): the
     /// defects the data cannot see are named there.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub visibility: Option<crate::detect::fit::profile::Visibility>,
+    pub visibility: Option<crate::detect::fit::visibility::Visibility>,
     /// Natural frequencies and damping ratios of the fitted chain (its
     /// units: rad/s and Hz when the data and the chain are in SI units).
     pub modes: Vec<ModeEstimate>,
