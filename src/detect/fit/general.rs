@@ -544,6 +544,51 @@ fn fit_pairs_coarse(
     }
 }
 
+/// The values of one fully placed hypothesis (every slot of `unknowns` at a
+/// position) refitted on `obs` by Levenberg-Marquardt to convergence from
+/// `values` (one per slot, in slot order; known values override), with the
+/// unknowns' chain parameters from `base`'s values: what the fine pass of
+/// [`fit_general`] does for one start. Returns the hypothesis and the
+/// residual evaluations spent.
+///
+/// For a start already at the minimum (the Woodbury kernel's fit of the same
+/// chi-square) it converges in a few evaluations.
+///
+/// # Errors
+/// An unknown-position slot in `unknowns` (field `unknowns`); as the fit.
+pub(crate) fn fit_placed_from(
+    base: &Chain,
+    unknowns: &Unknowns,
+    values: &[f64],
+    obs: &LaplaceObs,
+    max_iter: usize,
+) -> Result<(Hypothesis, usize)> {
+    if unknowns.slots().iter().any(|s| s.at.is_none()) || values.len() != unknowns.k() {
+        return Err(Error::invalid(
+            "unknowns",
+            "a slot without a position",
+            "every slot placed, one start value per slot",
+        ));
+    }
+    let hyps = unknowns.hypotheses(1)?;
+    let pairs = hyps.first().ok_or_else(|| Error::Numerical {
+        method: "fit_placed_from".into(),
+        reason: "no hypothesis".into(),
+    })?;
+    let chain_bounds = crate::detect::fit::chainfit::default_bounds(base, unknowns.chain());
+    let f = fit_pairs(
+        &base.uniform(),
+        unknowns,
+        pairs,
+        values,
+        &chain_bounds,
+        true,
+        Obs::Laplace(obs),
+        max_iter,
+    )?;
+    Ok((f.hyp, f.evaluations))
+}
+
 /// One fitted hypothesis and what it cost.
 struct Fitted {
     hyp: Hypothesis,
