@@ -514,8 +514,8 @@ impl Engine<'_> {
     /// kernel's grid start and the refit's starts can lead to different
     /// basins):
     ///
-    /// * the best `REFIT` sets (the answer and the runner-up that sets the
-    ///   gap) are refitted by Levenberg-Marquardt on the shared chi-square
+    /// * the best `REFIT` sets after the restarts (the answer and the
+    ///   runner-up that sets the gap) are refitted by Levenberg-Marquardt on the shared chi-square
     ///   from the kernel's values, which converges in a few evaluations and
     ///   gives the shared fit's values, chi-square, standard errors and
     ///   convergence flag; a set whose fit fails, or ends with a free value
@@ -545,10 +545,17 @@ impl Engine<'_> {
         const REFIT: usize = 2;
         let mut all = Vec::with_capacity(sets.len());
         let mut spent = 0;
+        // the restarts can reorder the sets: the best two after them are refitted
+        let mut sets: Vec<KernelSet> = sets
+            .iter()
+            .map(|set| {
+                let (set, e) = self.kernel_restarts(misfit, mass, set);
+                spent += e;
+                set
+            })
+            .collect();
+        sets.sort_by(|a, b| a.chi2.total_cmp(&b.chi2));
         for (j, set) in sets.iter().enumerate() {
-            let (set, e) = self.kernel_restarts(misfit, mass, set);
-            let set = &set;
-            spent += e;
             let u = self.placed(unknowns, &set.free)?;
             if j >= REFIT {
                 if let Ok(h) = self.kernel_hypothesis(&u, set, misfit, sigma) {
