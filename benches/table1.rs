@@ -1,7 +1,15 @@
 //! The paper's Table 1, rerun with every optimizer.
 //!
 //! `cargo bench --bench table1 [-- --seeds 20 --budget 20000 --only ga,pso
-//!  --systems 1,3 --data exact|pipeline --t-end 400 --dt 0.05 --verbose]`
+//!  --systems 1,3 --data exact|pipeline --t-end 400 --dt 0.05 --verbose
+//!  --scene-only --reps 200]`
+//!
+//! First, per system, the cost of the scene path's enumeration
+//! (`detect::fit::paper::fit` on the system's synthetic scene: exact-model
+//! data, the default 80-node real-axis rule, masses in [0.1, 100], keep 5,
+//! single thread): median thread CPU time and wall time over `--reps` fits
+//! (default 200), the Woodbury tables and the refit of the kept sets
+//! included. `--scene-only` stops after it.
 //!
 //! Systems 1-4 (n = 5, 10, 20, 20; two mass defects; k = 1, d = 0.1); the
 //! unknowns are 2 positions and 2 masses in [0.1, 20] (log scale). The
@@ -18,7 +26,9 @@
 //! quantity that limits every method.
 
 use springmass::detect::data::exact::Data;
+use springmass::detect::fit::paper;
 use springmass::detect::misfit::{Misfit, MisfitSpec};
+use springmass::detect::scene::FitScene;
 use springmass::detect::search::nelder_mead::{polish, Positions};
 use springmass::detect::search::pso::Finish;
 use springmass::detect::search::MisfitObjective;
@@ -123,6 +133,68 @@ fn gap(obj: &dyn Objective, truth: &Candidate) -> (f64, f64, Vec<usize>) {
     (r_truth, best.0, best.1)
 }
 
+/// This thread's CPU time, seconds (Linux `CLOCK_THREAD_CPUTIME_ID`).
+fn thread_cpu_s() -> f64 {
+    #[repr(C)]
+    struct Timespec {
+        tv_sec: i64,
+        tv_nsec: i64,
+    }
+    extern "C" {
+        fn clock_gettime(clk: i32, tp: *mut Timespec) -> i32;
+    }
+    let mut t = Timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes one timespec; 3 = CLOCK_THREAD_CPUTIME_ID on Linux.
+    let rc = unsafe { clock_gettime(3, &mut t) };
+    assert_eq!(rc, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID) failed");
+    t.tv_sec as f64 + 1e-9 * t.tv_nsec as f64
+}
+
+/// The scene path's enumeration per system (module docs): median CPU and
+/// wall milliseconds per fit, with the answer.
+fn scene_enumeration(systems: &[usize], reps: usize) {
+    println!(
+        "Scene path, enumerate (paper::fit, exact-model data, 80-node real-axis rule, keep 5, one thread), median over {reps} fits:"
+    );
+    println!(
+        "  {:<8} {:>6} {:>10} {:>10}  answer",
+        "system", "sets", "cpu ms", "wall ms"
+    );
+    for &sys in systems {
+        let chain = scenes::table1(sys).expect("Table 1 system");
+        let mut scene = FitScene::synthetic(&chain);
+        scene.search.parallel = false;
+        let data = scene.data().expect("scene data");
+        let opts = scene.options();
+        let (mut cpu, mut wall) = (Vec::with_capacity(reps), Vec::with_capacity(reps));
+        let mut last = None;
+        for _ in 0..reps.max(1) {
+            let (c0, t0) = (thread_cpu_s(), Instant::now());
+            let r = paper::fit(&scene, &data, &opts).expect("scene fit");
+            cpu.push((thread_cpu_s() - c0) * 1e3);
+            wall.push(t0.elapsed().as_secs_f64() * 1e3);
+            last = Some(r);
+        }
+        let r = last.expect("one fit");
+        let answer: Vec<String> = r
+            .defects
+            .iter()
+            .map(|d| format!("({}, {:.6})", d.at(), d.value()))
+            .collect();
+        println!(
+            "  {:<8} {:>6} {:>10.3} {:>10.3}  {}",
+            sys,
+            r.sets.unwrap_or(0),
+            median(cpu),
+            median(wall),
+            answer.join(", ")
+        );
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let get = |flag: &str| {
@@ -138,6 +210,11 @@ fn main() {
     let systems: Vec<usize> = get("--systems")
         .map(|s| s.split(',').filter_map(|x| x.parse().ok()).collect())
         .unwrap_or(vec![1, 2, 3, 4]);
+    let reps: usize = get("--reps").and_then(|s| s.parse().ok()).unwrap_or(200);
+    scene_enumeration(&systems, reps);
+    if args.iter().any(|a| a == "--scene-only") {
+        return;
+    }
     let spec = MisfitSpec::default();
     let pipeline = get("--data").is_some_and(|d| d == "pipeline");
     let t_end: f64 = get("--t-end").and_then(|s| s.parse().ok()).unwrap_or(400.0);

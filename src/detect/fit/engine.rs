@@ -15,11 +15,13 @@ use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::observations::Observations;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::{Misfit, MisfitKind};
-use crate::detect::search::enumerate::{enumerate, EnumerateOptions};
+use crate::detect::search::enumerate::{enumerate, fit_slots_from, EnumerateOptions};
 use crate::detect::search::{
     minimize, Candidate, MisfitObjective, Objective, SearchOptions, SearchResult, Space,
 };
-use crate::detect::unknowns::{DefectKind, KindBounds, KindChoice, MassUnknowns, Slot, Unknowns};
+use crate::detect::unknowns::{
+    DefectKind, KindBounds, KindChoice, MassUnknown, MassUnknowns, Slot, Unknowns,
+};
 use crate::error::{Error, Result};
 use std::time::Instant;
 
@@ -256,8 +258,17 @@ impl Engine<'_> {
                     let (sets, screened, all, spent) = self.woodbury_sets(misfit, mass)?;
                     hypotheses = screened;
                     exhaustive = all;
-                    let (r, e) =
-                        self.refit_sets(&unknowns, &sets, &coarse, fine.as_ref(), &setup, &gopts)?;
+                    let (r, e) = self.refit_from_kernel(
+                        &unknowns,
+                        &sets,
+                        misfit,
+                        mass,
+                        sigma,
+                        &coarse,
+                        fine.as_ref(),
+                        &setup,
+                        &gopts,
+                    )?;
                     (r, e + spent)
                 } else if self.opts.method == FitMethod::Enumerate || k == 0 {
                     method_name = "enumerate".into();
@@ -434,36 +445,244 @@ impl Engine<'_> {
     }
 
     /// The Woodbury kernel's enumeration ranks every position set (beam
-    /// search beyond `max_sets`) by the chi-square; returns the positions of
-    /// the unknown-position defects (in slot order) of the `alternatives +
-    /// 1` best sets, the number of sets ranked, whether the ranking was
-    /// exhaustive, and the kernel's residual evaluations.
+    /// search beyond `max_sets`) by the chi-square; returns the best
+    /// `alternatives + 1` sets as the kernel fitted them, the number of sets ranked,
+    /// whether the ranking was exhaustive, and the kernel's residual
+    /// evaluations.
     fn woodbury_sets(
         &self,
         misfit: &Misfit,
         mass: &MassUnknowns,
-    ) -> Result<(Vec<Vec<usize>>, usize, bool, usize)> {
+    ) -> Result<(Vec<KernelSet>, usize, bool, usize)> {
+        let e = enumerate(misfit, mass, &self.enumerate_options())?;
+        let free = mass.free_positions();
+        let sets = e
+            .ranked
+            .into_iter()
+            .map(|h| KernelSet {
+                free: free.iter().map(|&i| h.defects[i].0).collect(),
+                defects: h.defects,
+                chi2: h.residual,
+            })
+            .collect();
+        Ok((sets, e.sets, e.exhaustive, e.evaluations))
+    }
+
+    /// The options of the Woodbury kernel's enumeration.
+    fn enumerate_options(&self) -> EnumerateOptions {
         let base = match &self.given {
             Some(g) => g.enumerate.clone(),
             None => EnumerateOptions::default(),
         };
-        let e = enumerate(
-            misfit,
-            mass,
-            &EnumerateOptions {
-                parallel: self.opts.parallel,
-                max_sets: self.opts.max_sets,
-                keep: self.opts.alternatives + 1,
-                ..base
-            },
-        )?;
-        let free = mass.free_positions();
-        let sets = e
-            .ranked
+        EnumerateOptions {
+            parallel: self.opts.parallel,
+            max_sets: self.opts.max_sets,
+            keep: self.opts.alternatives + 1,
+            ..base
+        }
+    }
+
+    /// The kernel's fit of one set, also from the starts of the full
+    /// refit ([`fit_general`]: every free mass at 2, 5 (its heavier retry)
+    /// and 0.5 times the chain's mass), the lowest chi-square kept; and the
+    /// kernel's evaluations spent.
+    fn kernel_restarts(
+        &self,
+        misfit: &Misfit,
+        mass: &MassUnknowns,
+        set: &KernelSet,
+    ) -> (KernelSet, usize) {
+        let slots: Vec<(usize, MassUnknown)> = set
+            .defects
             .iter()
-            .map(|h| free.iter().map(|&i| h.defects[i].0).collect())
+            .zip(mass.defects())
+            .map(|(d, u)| (d.0, u.mass))
             .collect();
-        Ok((sets, e.sets, e.exhaustive, e.evaluations))
+        let opts = self.enumerate_options();
+        let m = misfit.chain().mass();
+        let mut best = set.clone();
+        let mut spent = 0;
+        for m0 in [2.0 * m, 5.0 * m, 0.5 * m] {
+            let (defects, chi2, e) = fit_slots_from(misfit, &slots, &vec![m0; slots.len()], &opts);
+            spent += e;
+            if chi2 < best.chi2 {
+                best.defects = defects;
+                best.chi2 = chi2;
+            }
+        }
+        (best, spent)
+    }
+
+    /// The kernel's best sets as hypotheses of the shared chi-square. The
+    /// kernel has fitted every set's masses on the same nodes, weights and
+    /// data, so its values are the shared fit's minimum already, once it has
+    /// also tried the full refit's starts ([`Self::kernel_restarts`]: the
+    /// kernel's grid start and the refit's starts can lead to different
+    /// basins):
+    ///
+    /// * the best `REFIT` sets after the restarts (the answer and the
+    ///   runner-up that sets the gap) are refitted by Levenberg-Marquardt on the shared chi-square
+    ///   from the kernel's values, which converges in a few evaluations and
+    ///   gives the shared fit's values, chi-square, standard errors and
+    ///   convergence flag; a set whose fit fails, or ends with a free value
+    ///   on a bound (where [`fit_general`]'s other starts might find a better
+    ///   basin), also goes through the full [`Self::refit_sets`], the lower
+    ///   chi-square kept;
+    /// * the others are the kernel's fits as they are (values, chi-square,
+    ///   Gauss-Newton standard errors of the kernel's Jacobian), at the
+    ///   noise level `sigma` of the shared chi-square (the kernel weighs
+    ///   values without errors by 1).
+    ///
+    /// Ranked by chi-square.
+    #[allow(clippy::too_many_arguments)]
+    fn refit_from_kernel(
+        &self,
+        unknowns: &Unknowns,
+        sets: &[KernelSet],
+        misfit: &Misfit,
+        mass: &MassUnknowns,
+        sigma: f64,
+        coarse: &LaplaceObs,
+        fine: Option<&TimeMisfit>,
+        setup: &Setup,
+        gopts: &GeneralOptions,
+    ) -> Result<(Vec<Hypothesis>, usize)> {
+        /// Sets refitted on the shared chi-square: the best and the runner-up.
+        const REFIT: usize = 2;
+        let mut all = Vec::with_capacity(sets.len());
+        let mut spent = 0;
+        // the restarts can reorder the sets: the best two after them are refitted
+        let mut sets: Vec<KernelSet> = sets
+            .iter()
+            .map(|set| {
+                let (set, e) = self.kernel_restarts(misfit, mass, set);
+                spent += e;
+                set
+            })
+            .collect();
+        sets.sort_by(|a, b| a.chi2.total_cmp(&b.chi2));
+        for (j, set) in sets.iter().enumerate() {
+            let u = self.placed(unknowns, &set.free)?;
+            if j >= REFIT {
+                if let Ok(h) = self.kernel_hypothesis(&u, set, misfit, sigma) {
+                    all.push(h);
+                }
+                continue;
+            }
+            let values: Vec<f64> = set.defects.iter().map(|d| d.1).collect();
+            let quick = general::fit_placed_from(self.model.chain(), &u, &values, coarse, 100).ok();
+            let on_bound = |h: &Hypothesis| {
+                h.defects.iter().enumerate().any(|(i, d)| {
+                    u.slots()[i].known.is_none() && {
+                        let (lo, hi) = u.bounds(i, DefectKind::of(d));
+                        let x = d.value();
+                        let tol = 1e-9 * hi.abs().max(1.0);
+                        x <= lo + tol || x >= hi - tol
+                    }
+                })
+            };
+            match quick {
+                Some((h, e)) if h.converged && !on_bound(&h) => {
+                    spent += e;
+                    all.push(h);
+                }
+                quick => {
+                    let (mut full, e) = self
+                        .refit_sets(
+                            unknowns,
+                            std::slice::from_ref(&set.free),
+                            coarse,
+                            fine,
+                            setup,
+                            gopts,
+                        )
+                        .unwrap_or_default();
+                    spent += e;
+                    if let Some((h, e)) = quick {
+                        spent += e;
+                        full.push(h);
+                    }
+                    full.sort_by(|a, b| a.chi2.total_cmp(&b.chi2));
+                    all.extend(full.into_iter().take(1));
+                }
+            }
+        }
+        if all.is_empty() {
+            return Err(Error::Numerical {
+                method: self.opts.method.name().into(),
+                reason: "no position set could be fitted".into(),
+            });
+        }
+        all.sort_by(|a, b| {
+            a.chi2
+                .total_cmp(&b.chi2)
+                .then_with(|| a.key().cmp(&b.key()))
+        });
+        Ok((all, spent))
+    }
+
+    /// One kernel fit as a hypothesis (`u` the unknowns placed at its
+    /// positions): its masses and chi-square, and standard errors
+    /// `sqrt(diag(H^-1))` of the free masses from the kernel's Gauss-Newton
+    /// matrix `H = J^T J` at the fitted masses (NaN when `H` is singular; 0
+    /// for a known mass). Values without errors, which the kernel weighs by
+    /// 1, are weighed by `1 / sigma^2` in the shared chi-square: the
+    /// chi-square and standard errors are scaled to it.
+    fn kernel_hypothesis(
+        &self,
+        u: &Unknowns,
+        set: &KernelSet,
+        misfit: &Misfit,
+        sigma: f64,
+    ) -> Result<Hypothesis> {
+        // the kernel's errors: the values' own, or 1 (Self::woodbury)
+        let scale = match self.obs {
+            Observations::Laplace(l) if l.sigma().is_none() => sigma,
+            _ => 1.0,
+        };
+        let positions: Vec<usize> = set.defects.iter().map(|d| d.0).collect();
+        let base = misfit.chain().mass();
+        let dm: Vec<f64> = set.defects.iter().map(|d| d.1 - base).collect();
+        let k = dm.len();
+        let (mut g, mut h) = (vec![0.0; k], vec![0.0; k * k]);
+        misfit.set(&positions).gauss_newton(&dm, &mut g, &mut h);
+        let free: Vec<usize> = (0..k).filter(|&i| u.slots()[i].known.is_none()).collect();
+        let hf =
+            nalgebra::DMatrix::from_fn(free.len(), free.len(), |a, b| h[free[a] * k + free[b]]);
+        let cov = hf.try_inverse();
+        let mut std_errors = vec![0.0; k];
+        for (a, &i) in free.iter().enumerate() {
+            std_errors[i] = cov
+                .as_ref()
+                .map_or(f64::NAN, |c| c[(a, a)].max(0.0).sqrt() * scale);
+        }
+        let chain = self
+            .model
+            .chain()
+            .uniform()
+            .with_defects(set.defects.iter().map(|&(at, m)| Defect::Mass { at, m }))?;
+        Ok(Hypothesis::from_parts(
+            chain.defects().to_vec(),
+            std_errors,
+            Vec::new(),
+            set.chi2 / (scale * scale),
+        ))
+    }
+
+    /// The unknowns with their unknown-position slots placed at `q` (in
+    /// slot order).
+    fn placed(&self, unknowns: &Unknowns, q: &[usize]) -> Result<Unknowns> {
+        let mut slots = unknowns.slots().to_vec();
+        let mut at = q.iter();
+        for slot in slots.iter_mut().filter(|s| s.at.is_none()) {
+            slot.at = at.next().copied();
+        }
+        Unknowns::new(
+            self.model.n(),
+            slots,
+            unknowns.chain().to_vec(),
+            *unknowns.kind_bounds(),
+        )
     }
 
     /// Fit every position set of `sets` (the positions of the unknowns'
@@ -481,17 +700,7 @@ impl Engine<'_> {
         let mut all = Vec::new();
         let mut spent = 0;
         for q in sets {
-            let mut slots = unknowns.slots().to_vec();
-            let mut at = q.iter();
-            for slot in slots.iter_mut().filter(|s| s.at.is_none()) {
-                slot.at = at.next().copied();
-            }
-            let u = Unknowns::new(
-                self.model.n(),
-                slots,
-                unknowns.chain().to_vec(),
-                *unknowns.kind_bounds(),
-            )?;
+            let u = self.placed(unknowns, q)?;
             if let Ok(g) = fit_general(self.model.chain(), &u, coarse, fine, setup, gopts) {
                 spent += g.evaluations;
                 all.extend(g.ranked);
@@ -783,6 +992,17 @@ impl Engine<'_> {
     }
 }
 
+/// One position set as the Woodbury kernel's enumeration fitted it.
+#[derive(Clone)]
+struct KernelSet {
+    /// Positions of the unknown-position slots, in slot order.
+    free: Vec<usize>,
+    /// `(position, mass)` of every slot, in slot order.
+    defects: Vec<(usize, f64)>,
+    /// The kernel's chi-square at these masses.
+    chi2: f64,
+}
+
 /// The position set a stochastic search found (`positions` of the unknowns'
 /// unknown-position slots, in slot order) and its neighbours: each position
 /// moved by one or two to a place that is free (in `1..=n`, not a known position,
@@ -841,6 +1061,94 @@ impl Objective for LaplaceObjective<'_> {
         match chain.and_then(|ch| self.obs.chi2(&ch)) {
             Ok(v) if v.is_finite() => v,
             _ => 1e300,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detect::data::observations::LaplaceValues;
+    use crate::detect::fit::DefectCount;
+    use num_complex::Complex64;
+
+    /// The Woodbury path's hypotheses (best two refitted from the kernel's
+    /// values, the others the kernel's fits) against the full refit of the
+    /// same sets: same ranking, chi-squares, values and standard errors, with
+    /// and without errors on the values, at two noise levels.
+    #[test]
+    fn kernel_hypotheses_match_the_full_refit() {
+        let truth = Chain::paper(5)
+            .unwrap()
+            .with_defects([
+                Defect::Mass { at: 2, m: 3.0 },
+                Defect::Mass { at: 4, m: 0.5 },
+            ])
+            .unwrap();
+        let s: Vec<Complex64> = (1..=40)
+            .map(|i| Complex64::new(0.1, 0.05 * i as f64))
+            .collect();
+        let fwd = crate::forward::Forward::new(&truth);
+        // data off the model by a relative 1e-6, so that every set has a
+        // chi-square well above rounding
+        let values: Vec<Complex64> = s
+            .iter()
+            .enumerate()
+            .map(|(i, z)| fwd.eval(*z, 1).unwrap() * (1.0 + 1e-6 * ((i * 7 % 5) as f64 - 2.0)))
+            .collect();
+        let model = Model::new(5).unwrap();
+        let opts = FitOptions {
+            defects: DefectCount::Exactly(2),
+            alternatives: 4,
+            parallel: false,
+            ..FitOptions::default()
+        };
+        for errors in [None, Some(vec![1e-3; s.len()])] {
+            for sigma in [1.0, 1e-6] {
+                let obs = Observations::Laplace(
+                    LaplaceValues::new(s.clone(), values.clone(), errors.clone()).unwrap(),
+                );
+                let engine = Engine {
+                    obs: &obs,
+                    model: &model,
+                    opts: &opts,
+                    misfit: MisfitKind::Bromwich,
+                    prepared: std::sync::Mutex::new(None),
+                    given: None,
+                };
+                let fast = engine.fit_k(2, sigma).unwrap();
+                let (coarse, fine, _, mut setup) = engine.prepared(sigma).unwrap();
+                setup.shortlist = setup.shortlist.max(5);
+                let unknowns = engine.unknowns(2).unwrap().unwrap();
+                let (misfit, mass) = engine.woodbury(&unknowns).unwrap().unwrap();
+                let (sets, ..) = engine.woodbury_sets(&misfit, &mass).unwrap();
+                let free: Vec<Vec<usize>> = sets.iter().map(|s| s.free.clone()).collect();
+                let gopts = GeneralOptions {
+                    parallel: false,
+                    ..GeneralOptions::default()
+                };
+                let (full, _) = engine
+                    .refit_sets(&unknowns, &free, &coarse, fine.as_ref(), &setup, &gopts)
+                    .unwrap();
+                let case = format!("errors {:?}, sigma {sigma}", errors.is_some());
+                assert_eq!(fast.ranked.len(), full.len(), "{case}");
+                for (a, b) in fast.ranked.iter().zip(&full) {
+                    assert_eq!(a.positions(), b.positions(), "{case}");
+                    assert!(
+                        (a.chi2 - b.chi2).abs() <= 1e-6 * b.chi2,
+                        "{case}: {a:?} vs {b:?}"
+                    );
+                    // equal within the fits' tolerance: they stop at a
+                    // relative chi-square change of 1e-9, and along a bound
+                    // or a flat valley the values move more than that
+                    for (x, y) in a.masses().iter().zip(b.masses()) {
+                        assert!((x - y).abs() <= 1e-4 * y, "{case}: {a:?} vs {b:?}");
+                    }
+                    for (x, y) in a.std_errors.iter().zip(&b.std_errors) {
+                        assert!((x - y).abs() <= 1e-3 * y, "{case}: {a:?} vs {b:?}");
+                    }
+                }
+            }
         }
     }
 }

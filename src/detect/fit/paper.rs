@@ -22,8 +22,11 @@
 //!   [`FitOptions`] do not describe.
 //!
 //! The search is the data-first fit's: `enumerate` ranks every position set
-//! with the Woodbury kernel and refits the best `keep` by bounded
-//! Levenberg-Marquardt; `ga`, `nelder-mead` and `pso` run
+//! with the Woodbury kernel, retries the best `keep` sets' kernel fits from
+//! the general fit's starts, and refits the answer and the runner-up by
+//! bounded Levenberg-Marquardt on the shared chi-square from the kernel's
+//! values (a few evaluations each; the other runners-up are the kernel's
+//! fits); `ga`, `nelder-mead` and `pso` run
 //! [`crate::detect::search::minimize`] on the same residual
 //! ([`MisfitObjective`]; they need interchangeable unknown-position
 //! defects: the optimizers' spaces are unordered), and the best set and its

@@ -460,6 +460,28 @@ pub fn fit_slots(
     slots: &[(usize, MassUnknown)],
     opts: &EnumerateOptions,
 ) -> Fitted {
+    fit_slots_inner(misfit, slots, None, opts)
+}
+
+/// [`fit_slots`] from the given masses `start` (one per slot, the known
+/// ones ignored, the free ones clamped into their bounds) instead of the
+/// best point of the grid: the kernel's fit from another start, to look for
+/// another basin of a set's chi-square.
+pub fn fit_slots_from(
+    misfit: &Misfit,
+    slots: &[(usize, MassUnknown)],
+    start: &[f64],
+    opts: &EnumerateOptions,
+) -> Fitted {
+    fit_slots_inner(misfit, slots, Some(start), opts)
+}
+
+fn fit_slots_inner(
+    misfit: &Misfit,
+    slots: &[(usize, MassUnknown)],
+    start: Option<&[f64]>,
+    opts: &EnumerateOptions,
+) -> Fitted {
     let k = slots.len();
     let mut pos_stack = [0usize; STACK_K];
     let pos_heap: Vec<usize>;
@@ -520,8 +542,8 @@ pub fn fit_slots(
         let r = table.residual(dm);
         return done(m, r, 1);
     }
-    // grid of starts (at most 729 points): the best becomes u
-    let mut g = opts.starts;
+    // grid of starts (at most 729 points): the best becomes u; or the given start
+    let mut g = if start.is_some() { 0 } else { opts.starts };
     while g > 1 && g.checked_pow(f as u32).is_none_or(|t| t > 729) {
         g -= 1;
     }
@@ -544,6 +566,18 @@ pub fn fit_slots(
                 *v = m[slot].ln();
             }
         }
+    }
+    if let Some(start) = start {
+        for (v, &(slot, lo, hi)) in u.iter_mut().zip(free) {
+            *v = start
+                .get(slot)
+                .filter(|m| m.is_finite() && **m > 0.0)
+                .map_or(0.5 * (lo + hi), |m| m.ln().clamp(lo, hi));
+            m[slot] = v.exp();
+        }
+        set_dm(dm, m);
+        best = table.residual(dm);
+        evals += 1;
     }
     let u = &mut u[..f];
     let mut bounds_stack = [(0.0f64, 0.0f64); STACK_K];
