@@ -192,7 +192,9 @@ pub struct FitReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub visibility: Option<crate::detect::fit::visibility::Visibility>,
     /// Natural frequencies and damping ratios of the fitted chain (its
-    /// units: rad/s and Hz when the data and the chain are in SI units).
+    /// units: rad/s and Hz when the data and the chain are in SI units);
+    /// empty for a non-uniform chain of more than 400 masses (the dense
+    /// eigen solver is O(n^3)).
     pub modes: Vec<ModeEstimate>,
 }
 

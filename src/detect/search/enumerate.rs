@@ -611,17 +611,36 @@ fn fit_slots_inner(
     };
     // the grid's best is inside the bounds and gives a finite chi^2, so the
     // driver cannot fail; a failure keeps the grid's best
-    let r = match lm_normal(&mut problem, u, bounds, &slot_lm_options(opts.max_iter)) {
+    let lm_opts = slot_lm_options(opts.max_iter);
+    let mut r = match lm_normal(&mut problem, u, bounds, &lm_opts) {
         Ok(rep) => {
             evals += rep.evaluations;
-            problem.set(u);
             rep.chi2
         }
-        Err(_) => {
-            problem.set(u);
-            best
-        }
+        Err(_) => best,
     };
+    // a free mass on its lower bound: retry from the uniform mass (for a defect
+    // next to the far wall the kernel's landscape in ln m has a second
+    // basin at the lower bound, which the grid's best can fall into) and
+    // keep the better
+    let on_bound = u
+        .iter()
+        .zip(bounds)
+        .any(|(v, &(lo, _))| (v - lo).abs() < 1e-9);
+    if on_bound {
+        let mut u2: Vec<f64> = bounds
+            .iter()
+            .map(|&(lo, hi)| base.ln().clamp(lo, hi))
+            .collect();
+        if let Ok(rep) = lm_normal(&mut problem, &mut u2, bounds, &lm_opts) {
+            evals += rep.evaluations;
+            if rep.chi2 < r {
+                r = rep.chi2;
+                u.copy_from_slice(&u2);
+            }
+        }
+    }
+    problem.set(u);
     done(problem.m, r, evals)
 }
 
