@@ -611,6 +611,12 @@ impl Engine<'_> {
                 }
             }
         }
+        self.ranked(all, spent)
+    }
+
+    /// The hypotheses fitted, best first (ties by positions), with the
+    /// evaluations spent; an error when none could be fitted.
+    fn ranked(&self, mut all: Vec<Hypothesis>, spent: usize) -> Result<(Vec<Hypothesis>, usize)> {
         if all.is_empty() {
             return Err(Error::Numerical {
                 method: self.opts.method.name().into(),
@@ -710,18 +716,7 @@ impl Engine<'_> {
                 all.extend(g.ranked);
             }
         }
-        if all.is_empty() {
-            return Err(Error::Numerical {
-                method: self.opts.method.name().into(),
-                reason: "no position set could be fitted".into(),
-            });
-        }
-        all.sort_by(|a, b| {
-            a.chi2
-                .total_cmp(&b.chi2)
-                .then_with(|| a.key().cmp(&b.key()))
-        });
-        Ok((all, spent))
+        self.ranked(all, spent)
     }
 
     /// A stochastic search over the positions and values of mass defects:
