@@ -143,7 +143,7 @@ pub struct ProfileOptions {
     /// [default: 0.1].
     pub change: f64,
     /// Fixed penalty weight (`> 0`) instead of the continuation; `None`: the
-    /// continuation with the discrepancy target [default].
+    /// continuation with the discrepancy target (the default).
     pub lambda: Option<f64>,
     /// Smallest weight of the continuation relative to its start (in `(0,
     /// 1)`) [default: 1e-10].
