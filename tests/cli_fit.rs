@@ -13,6 +13,17 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_springmass"))
 }
 
+/// Run the command; it must succeed and print JSON.
+fn json_of(cmd: &mut Command) -> serde_json::Value {
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
 fn temp_dir(tag: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("springmass-cli-fit-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
@@ -39,21 +50,15 @@ fn fit_data_recovers_both_defects_from_n_and_d_only() {
     let dir = temp_dir("ok");
     let csv = dir.join("x1.csv");
     write_record(&csv, 1e-3);
-    let out = bin()
-        .args(["fit", "--data"])
-        .arg(&csv)
-        .args(["--n", "10", "--d", "0.1", "--json", "--plot"])
-        .arg(dir.join("fit.svg"))
-        .arg("--out-csv")
-        .arg(dir.join("fit.csv"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let v = json_of(
+        bin()
+            .args(["fit", "--data"])
+            .arg(&csv)
+            .args(["--n", "10", "--d", "0.1", "--json", "--plot"])
+            .arg(dir.join("fit.svg"))
+            .arg("--out-csv")
+            .arg(dir.join("fit.csv")),
     );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["k"], 2, "{v}");
     let at: Vec<u64> = v["defects"]
         .as_array()
@@ -269,22 +274,16 @@ fn fit_data_profile_of_every_mass() {
     let dir = temp_dir("profile");
     let csv = dir.join("x1.csv");
     write_record(&csv, 1e-3);
-    let out = bin()
-        .args(["fit", "--data"])
-        .arg(&csv)
-        .args(["--n", "10", "--d", "0.1", "--profile", "masses", "--json"])
-        .arg("--plot")
-        .arg(dir.join("profile.svg"))
-        .arg("--out-csv")
-        .arg(dir.join("profile.csv"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let v = json_of(
+        bin()
+            .args(["fit", "--data"])
+            .arg(&csv)
+            .args(["--n", "10", "--d", "0.1", "--profile", "masses", "--json"])
+            .arg("--plot")
+            .arg(dir.join("profile.svg"))
+            .arg("--out-csv")
+            .arg(dir.join("profile.csv")),
     );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let elems = v["elements"].as_array().unwrap();
     assert_eq!(elems.len(), 10, "{v}");
     for e in elems {

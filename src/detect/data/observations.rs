@@ -17,6 +17,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::measurement::{Measurement, Sensor};
 use crate::detect::data::series::TimeData;
 use crate::error::{check_f64, Error, Result};
@@ -249,6 +250,36 @@ impl LaplaceValues {
     /// The standard errors, if known.
     pub fn sigma(&self) -> Option<&[f64]> {
         self.sigma.as_deref()
+    }
+
+    /// The chi-square observation of these values: node `q` weighted by
+    /// `1 / sigma_q^2`, or by `1 / sigma^2` when they carry no errors.
+    ///
+    /// # Errors
+    /// `sigma` not positive and finite when needed (as [`LaplaceObs::new`]).
+    pub fn obs(&self, sigma: f64) -> Result<LaplaceObs> {
+        self.obs_where(sigma, |_| true)
+    }
+
+    /// As [`LaplaceValues::obs`], on the nodes `q` with `keep(q)`.
+    ///
+    /// # Errors
+    /// As [`LaplaceValues::obs`]; no node kept (field `s`).
+    pub fn obs_where(&self, sigma: f64, keep: impl Fn(usize) -> bool) -> Result<LaplaceObs> {
+        let q: Vec<usize> = (0..self.s.len()).filter(|&q| keep(q)).collect();
+        let w = q
+            .iter()
+            .map(|&i| match &self.sigma {
+                Some(sg) => 1.0 / (sg[i] * sg[i]),
+                None => 1.0 / (sigma * sigma),
+            })
+            .collect();
+        LaplaceObs::new(
+            q.iter().map(|&i| self.s[i]).collect(),
+            q.iter().map(|&i| self.values[i]).collect(),
+            w,
+        )?
+        .with_measurement(self.sensor, None)
     }
 }
 

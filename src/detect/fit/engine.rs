@@ -216,12 +216,7 @@ impl Engine<'_> {
                 Ok((coarse, fine, name, setup))
             }
             Observations::Laplace(l) => {
-                let w: Vec<f64> = match l.sigma() {
-                    Some(sg) => sg.iter().map(|v| 1.0 / (v * v)).collect(),
-                    None => vec![1.0 / (sigma * sigma); l.s().len()],
-                };
-                let obs = LaplaceObs::new(l.s().to_vec(), l.values().to_vec(), w)?
-                    .with_measurement(l.sensor(), None)?;
+                let obs = l.obs(sigma)?;
                 let name = format!(
                     "{} (chi-square at {} given nodes)",
                     self.misfit.name(),

@@ -630,23 +630,8 @@ fn laplace_band(
         }
         Observations::Laplace(l) => {
             let w_max = l.s().iter().fold(0.0f64, |a, z| a.max(z.im.abs()));
-            let keep: Vec<usize> = (0..l.s().len())
-                .filter(|&q| l.s()[q].im.abs() <= band * w_max)
-                .collect();
-            let w: Vec<f64> = keep
-                .iter()
-                .map(|&q| match l.sigma() {
-                    Some(sg) => 1.0 / (sg[q] * sg[q]),
-                    None => 1.0 / (sigma * sigma),
-                })
-                .collect();
-            let o = LaplaceObs::new(
-                keep.iter().map(|&q| l.s()[q]).collect(),
-                keep.iter().map(|&q| l.values()[q]).collect(),
-                w,
-            )?
-            .with_measurement(l.sensor(), None)?;
-            let name = format!("chi-square at {} given Laplace nodes", keep.len());
+            let o = l.obs_where(sigma, |q| l.s()[q].im.abs() <= band * w_max)?;
+            let name = format!("chi-square at {} given Laplace nodes", o.nodes().len());
             Ok((o, name))
         }
     }
