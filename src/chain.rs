@@ -78,6 +78,67 @@ impl std::str::FromStr for Boundary {
 /// O(n) reference solver and the simulator are not).
 pub const MAX_N: usize = 1_000_000_000;
 
+/// A vector the Green's function is applied to: a point load `e_j` (mass
+/// and damper defects, observations) or a strain `e_i - e_{i+1}` (spring `i`,
+/// `0..=n`, with `e_0 = e_{n+1} = 0`; spring `0` and `n` exist only at a
+/// fixed end).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Probe {
+    /// `e_j`, `1 <= j <= n`.
+    Point(usize),
+    /// `e_i - e_{i+1}`, `0 <= i <= n`.
+    Diff(usize),
+}
+
+impl Probe {
+    /// The first and last mass index the probe touches (`0` and `n + 1`
+    /// stand for the walls).
+    pub fn span(self) -> (usize, usize) {
+        match self {
+            Probe::Point(j) => (j, j),
+            Probe::Diff(i) => (i, i + 1),
+        }
+    }
+
+    /// `(mass index, weight)` of the probe's nonzero entries inside `1..=n`.
+    pub fn entries(self, n: usize) -> impl Iterator<Item = (usize, f64)> {
+        let (a, b) = match self {
+            Probe::Point(j) => ((j, 1.0), None),
+            Probe::Diff(i) => ((i, 1.0), Some((i + 1, -1.0))),
+        };
+        std::iter::once(a)
+            .chain(b)
+            .filter(move |&(i, _)| i >= 1 && i <= n)
+    }
+}
+
+/// Where a defect enters the equations of motion `(M s^2 + D s + K) x = f`:
+/// the rank-one update `u (value - uniform) s^power u^T` with `u = probe`
+/// (`power` 2: a mass, 1: a damper, 0: a stiffness).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Site {
+    /// The vector `u`.
+    pub probe: Probe,
+    /// The power of `s` that multiplies the change of value.
+    pub power: u32,
+}
+
+/// The coefficient arrays of a chain's equations of motion
+/// `m_i x_i'' + d_i x_i' + (g_i + k_{i-1} + k_i) x_i - k_{i-1} x_{i-1} - k_i x_{i+1} = f_i`
+/// ([`Chain::coefficients`]); every solver that assembles the matrices
+/// reads them from here.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Coefficients {
+    /// `n` masses (0-based).
+    pub m: Vec<f64>,
+    /// `n` dampers to the ground (0-based).
+    pub d: Vec<f64>,
+    /// `n` ground stiffnesses (0-based; zero in the uniform chain).
+    pub g: Vec<f64>,
+    /// `n + 1` springs, `k[i]` between mass `i` and `i + 1` (`0` at a free end).
+    pub k: Vec<f64>,
+}
+
 /// One place where the chain differs from the uniform chain.
 ///
 /// Each defect is a rank-1 update `u c(s) u^T` of the uniform chain's dynamic
@@ -118,7 +179,19 @@ pub enum Defect {
     },
 }
 
+impl Coefficients {
+    /// The diagonal of `K`: `g_i + k_{i-1} + k_i` (0-based).
+    pub fn k_diag(&self) -> Vec<f64> {
+        (0..self.m.len())
+            .map(|i| self.g[i] + self.k[i] + self.k[i + 1])
+            .collect()
+    }
+}
+
 impl Defect {
+    /// Every kind's name, in the order of [`Defect::KINDS`]'s variants.
+    pub const KINDS: [&'static str; 3] = ["mass", "spring", "damper"];
+
     /// `mass`, `spring` or `damper`.
     pub fn kind(&self) -> &'static str {
         match self {
@@ -126,6 +199,18 @@ impl Defect {
             Defect::Spring { .. } => "spring",
             Defect::Damper { .. } => "damper",
         }
+    }
+
+    /// The defect of kind `kind` (a name of [`Defect::KINDS`]) at `at` with
+    /// value `value`; `None` for an unknown name. Not validated (see
+    /// [`Chain::with_defect`]).
+    pub fn of_kind(kind: &str, at: usize, value: f64) -> Option<Defect> {
+        Some(match kind {
+            "mass" => Defect::Mass { at, m: value },
+            "spring" => Defect::Spring { at, k: value },
+            "damper" => Defect::Damper { at, d: value },
+            _ => return None,
+        })
     }
 
     /// The position (mass index or spring index).
@@ -142,6 +227,65 @@ impl Defect {
             Defect::Spring { k, .. } => k,
             Defect::Damper { d, .. } => d,
         }
+    }
+
+    /// Where the defect enters the equations of motion: its probe `u` and
+    /// the power of `s` in `c(s)` (the table above). Every kernel that is
+    /// not specific to one kind (the Woodbury forward model, the
+    /// sensitivities, the Jacobians, the greedy search's rank-one scores,
+    /// the matrices of [`Chain::coefficients`]) reads a defect through this.
+    pub fn site(&self) -> Site {
+        match *self {
+            Defect::Mass { at, .. } => Site {
+                probe: Probe::Point(at),
+                power: 2,
+            },
+            Defect::Damper { at, .. } => Site {
+                probe: Probe::Point(at),
+                power: 1,
+            },
+            Defect::Spring { at, .. } => Site {
+                probe: Probe::Diff(at),
+                power: 0,
+            },
+        }
+    }
+
+    /// The value the uniform chain has where this defect sits (its
+    /// `c(s) = (value - uniform) s^power`).
+    pub fn uniform_value(&self, chain: &Chain) -> f64 {
+        match self {
+            Defect::Mass { .. } => chain.mass(),
+            Defect::Spring { .. } => chain.k(),
+            Defect::Damper { .. } => chain.d(),
+        }
+    }
+
+    /// The value's name in scene files (`m`, `k`, `d`) and its allowed
+    /// range: `(name, value is allowed, range in words)`.
+    fn value_rule(&self) -> (&'static str, bool, &'static str) {
+        let v = self.value();
+        match self {
+            Defect::Mass { .. } => ("m", v > 0.0, "m > 0 and finite"),
+            Defect::Spring { .. } => ("k", v > 0.0, "k > 0 and finite"),
+            Defect::Damper { .. } => ("d", v >= 0.0, "d >= 0 and finite"),
+        }
+    }
+
+    /// Whether a value of zero is allowed (a damper may vanish; a mass or a
+    /// spring may not).
+    pub fn may_vanish(&self) -> bool {
+        self.with_value(0.0).value_rule().1
+    }
+
+    /// The same kind and position with value `value`.
+    pub fn with_value(self, value: f64) -> Defect {
+        Defect::of_kind(self.kind(), self.at(), value).unwrap_or(self)
+    }
+
+    /// The same kind and value at position `at`.
+    pub fn with_at(self, at: usize) -> Defect {
+        Defect::of_kind(self.kind(), at, self.value()).unwrap_or(self)
     }
 
     /// Parse the CLI form `kind:at:value`, for example `mass:8:5`,
@@ -161,7 +305,8 @@ impl Defect {
                 "defect",
                 text,
                 format!(
-                    "{why}; expected kind:at:value with kind mass|spring|damper, e.g. mass:8:5"
+                    "{why}; expected kind:at:value with kind {}, e.g. mass:8:5",
+                    Defect::KINDS.join("|")
                 ),
             )
         };
@@ -177,12 +322,14 @@ impl Defect {
             .trim()
             .parse()
             .map_err(|_| bad("value is not a number"))?;
-        match parts[0].trim().to_ascii_lowercase().as_str() {
-            "mass" | "m" => Ok(Defect::Mass { at, m: v }),
-            "spring" | "k" => Ok(Defect::Spring { at, k: v }),
-            "damper" | "d" => Ok(Defect::Damper { at, d: v }),
-            _ => Err(bad("unknown kind")),
-        }
+        let name = parts[0].trim().to_ascii_lowercase();
+        let name = match name.as_str() {
+            "m" => "mass",
+            "k" => "spring",
+            "d" => "damper",
+            other => other,
+        };
+        Defect::of_kind(name, at, v).ok_or_else(|| bad("unknown kind"))
     }
 }
 
@@ -291,7 +438,7 @@ impl Chain {
         self.left = left;
         self.right = right;
         for (idx, d) in self.defects.iter().enumerate() {
-            if let Defect::Spring { at, .. } = *d {
+            if let Probe::Diff(at) = d.site().probe {
                 self.check_spring_at(idx, at)?;
             }
         }
@@ -381,26 +528,18 @@ impl Chain {
     pub fn with_defect(mut self, defect: Defect) -> Result<Chain> {
         let idx = self.defects.len();
         let n = self.n;
-        match defect {
-            Defect::Mass { at, m } => {
-                check_pos(&format!("defects[{idx}].at"), at, 1, n)?;
-                check_f64(&format!("defects[{idx}].m"), m, m > 0.0, "m > 0 and finite")?;
+        let field = format!("defects[{idx}].at");
+        match defect.site().probe {
+            Probe::Point(at) => {
+                check_pos(&field, at, 1, n)?;
             }
-            Defect::Damper { at, d } => {
-                check_pos(&format!("defects[{idx}].at"), at, 1, n)?;
-                check_f64(
-                    &format!("defects[{idx}].d"),
-                    d,
-                    d >= 0.0,
-                    "d >= 0 and finite",
-                )?;
-            }
-            Defect::Spring { at, k } => {
-                check_pos(&format!("defects[{idx}].at"), at, 0, n)?;
+            Probe::Diff(at) => {
+                check_pos(&field, at, 0, n)?;
                 self.check_spring_at(idx, at)?;
-                check_f64(&format!("defects[{idx}].k"), k, k > 0.0, "k > 0 and finite")?;
             }
         }
+        let (name, ok, range) = defect.value_rule();
+        check_f64(&format!("defects[{idx}].{name}"), defect.value(), ok, range)?;
         if self
             .defects
             .iter()
@@ -453,15 +592,24 @@ impl Chain {
         &self.defects
     }
 
-    /// All `n` masses (0-based vector: `masses()[i-1] = m_i`). O(n) memory.
-    pub fn masses(&self) -> Vec<f64> {
-        let mut v = vec![self.mass; self.n];
+    /// The diagonal of the matrix that multiplies `s^power` (`power` 2: the
+    /// masses, 1: the dampers; 0: the stiffness that ties each mass to the
+    /// ground beside its springs, zero in the uniform chain), 0-based,
+    /// `uniform` where no defect sits. O(n) memory.
+    fn point_values(&self, power: u32, uniform: f64) -> Vec<f64> {
+        let mut v = vec![uniform; self.n];
         for d in &self.defects {
-            if let Defect::Mass { at, m } = *d {
-                v[at - 1] = m;
+            let site = d.site();
+            if let (Probe::Point(at), true) = (site.probe, site.power == power) {
+                v[at - 1] = d.value();
             }
         }
         v
+    }
+
+    /// All `n` masses (0-based vector: `masses()[i-1] = m_i`). O(n) memory.
+    pub fn masses(&self) -> Vec<f64> {
+        self.point_values(2, self.mass)
     }
 
     /// The mass of mass `i` (1-based), O(number of defects); the uniform
@@ -469,9 +617,13 @@ impl Chain {
     pub fn mass_at(&self, i: usize) -> f64 {
         self.defects
             .iter()
-            .find_map(|d| match *d {
-                Defect::Mass { at, m } if at == i => Some(m),
-                _ => None,
+            .find_map(|d| {
+                (d.site()
+                    == Site {
+                        probe: Probe::Point(i),
+                        power: 2,
+                    })
+                .then(|| d.value())
             })
             .unwrap_or(self.mass)
     }
@@ -481,8 +633,9 @@ impl Chain {
     pub fn springs(&self) -> Vec<f64> {
         let mut v = vec![self.k; self.n + 1];
         for d in &self.defects {
-            if let Defect::Spring { at, k } = *d {
-                v[at] = k;
+            let site = d.site();
+            if let (Probe::Diff(at), 0) = (site.probe, site.power) {
+                v[at] = d.value();
             }
         }
         if self.left.is_free() {
@@ -496,13 +649,25 @@ impl Chain {
 
     /// All `n` damping coefficients (0-based vector).
     pub fn dampers(&self) -> Vec<f64> {
-        let mut v = vec![self.d; self.n];
-        for d in &self.defects {
-            if let Defect::Damper { at, d: dd } = *d {
-                v[at - 1] = dd;
-            }
+        self.point_values(1, self.d)
+    }
+
+    /// All `n` ground stiffnesses: the stiffness that holds mass `i` to the
+    /// ground besides its two springs (0-based; zero in the uniform chain).
+    pub fn grounds(&self) -> Vec<f64> {
+        self.point_values(0, 0.0)
+    }
+
+    /// The coefficients of the equations of motion, the one place the
+    /// matrices are assembled from the defects' [`Site`]s: `M = diag(m)`,
+    /// `D = diag(d)`, `K = diag(g) + ` the springs' Laplacian.
+    pub fn coefficients(&self) -> Coefficients {
+        Coefficients {
+            m: self.masses(),
+            d: self.dampers(),
+            g: self.grounds(),
+            k: self.springs(),
         }
-        v
     }
 
     /// Check a 1-based observed mass index.
@@ -607,10 +772,9 @@ impl Chain {
         let defects: Vec<Defect> = self
             .defects
             .iter()
-            .map(|d| match *d {
-                Defect::Mass { at, m } => Defect::Mass { at, m: m * ms },
-                Defect::Spring { at, k } => Defect::Spring { at, k: k * ks },
-                Defect::Damper { at, d } => Defect::Damper { at, d: d * ds },
+            .map(|d| {
+                let scale = [ks, ds, ms][d.site().power as usize];
+                d.with_value(d.value() * scale)
             })
             .collect();
         Chain::new(self.n)?

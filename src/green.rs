@@ -80,26 +80,7 @@
 use crate::chain::{Boundary, Chain};
 use crate::scalar::Scalar;
 
-/// A vector the Green's function is applied to: a point load `e_j` (mass
-/// and damper defects, observations) or a strain `e_i - e_{i+1}` (spring `i`,
-/// `0..=n`, with `e_0 = e_{n+1} = 0`; spring `0` and `n` exist only at a
-/// fixed end).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Probe {
-    /// `e_j`, `1 <= j <= n`.
-    Point(usize),
-    /// `e_i - e_{i+1}`, `0 <= i <= n`.
-    Diff(usize),
-}
-
-impl Probe {
-    fn span(self) -> (usize, usize) {
-        match self {
-            Probe::Point(j) => (j, j),
-            Probe::Diff(i) => (i, i + 1),
-        }
-    }
-}
+pub use crate::chain::Probe;
 
 /// A factor `e^{h lambda / 2} * mantissa` (the exponent is kept as an integer
 /// number of half-`lambda`s and cancelled analytically against the denominator).

@@ -46,7 +46,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::chain::{Chain, Defect};
+use crate::chain::{Chain, Defect, Probe, Site};
 use crate::error::{Error, Result};
 use crate::forward::{check_s, Forward, Observable};
 use crate::scalar::Scalar;
@@ -129,11 +129,7 @@ impl Param {
         match *self {
             Param::Defect(i) => {
                 let old = *self.defect(chain, i)?;
-                defects[i] = match old {
-                    Defect::Mass { at, .. } => Defect::Mass { at, m: value },
-                    Defect::Spring { at, .. } => Defect::Spring { at, k: value },
-                    Defect::Damper { at, .. } => Defect::Damper { at, d: value },
-                };
+                defects[i] = old.with_value(value);
             }
             Param::D => d = value,
             Param::K => k = value,
@@ -258,25 +254,37 @@ pub fn gradient<T: Scalar>(
     let spring =
         |j: usize| -> T { (at(go_ref, j) - at(go_ref, j + 1)) * (at(&g1, j) - at(&g1, j + 1)) };
     let s2 = s.clone() * s.clone();
+    let s_pow = |power: u32| -> T {
+        match power {
+            0 => T::one(),
+            1 => s.clone(),
+            _ => s2.clone(),
+        }
+    };
+    // the sites a defect takes over from the uniform parameters
     let mut mass_def = vec![false; n + 1];
     let mut damp_def = vec![false; n + 1];
     let mut spring_def = vec![false; n + 1];
-    for d in chain.defects() {
-        match *d {
-            Defect::Mass { at, .. } => mass_def[at] = true,
-            Defect::Damper { at, .. } => damp_def[at] = true,
-            Defect::Spring { at, .. } => spring_def[at] = true,
+    for site in chain.defects().iter().map(|d| d.site()) {
+        match (site.probe, site.power) {
+            (Probe::Point(at), 2) => mass_def[at] = true,
+            (Probe::Point(at), 1) => damp_def[at] = true,
+            (Probe::Diff(at), 0) => spring_def[at] = true,
+            _ => {}
         }
     }
     let mut grad = Vec::with_capacity(params.len());
     for p in params {
         // b = (G e_o)^T dK (G e_1); derivative = -gamma b
         let b = match *p {
-            Param::Defect(i) => match *p.defect(chain, i)? {
-                Defect::Mass { at, .. } => s2.clone() * point(at),
-                Defect::Damper { at, .. } => s.clone() * point(at),
-                Defect::Spring { at, .. } => spring(at),
-            },
+            Param::Defect(i) => {
+                let site = p.defect(chain, i)?.site();
+                let u = match site.probe {
+                    Probe::Point(at) => point(at),
+                    Probe::Diff(at) => spring(at),
+                };
+                s_pow(site.power) * u
+            }
             Param::Mass => {
                 let mut acc = T::zero();
                 for (i, _) in mass_def.iter().enumerate().skip(1).filter(|(_, d)| !**d) {
@@ -316,13 +324,14 @@ pub fn gradient<T: Scalar>(
 
 /// Does `param` change the mass of mass 1?
 fn moves_m1(chain: &Chain, param: &Param) -> bool {
-    let defect_at_1 = chain
-        .defects()
-        .iter()
-        .any(|d| matches!(*d, Defect::Mass { at: 1, .. }));
+    let m1 = Site {
+        probe: Probe::Point(1),
+        power: 2,
+    };
+    let defect_at_1 = chain.defects().iter().any(|d| d.site() == m1);
     match *param {
         Param::Mass => !defect_at_1,
-        Param::Defect(i) => matches!(chain.defects().get(i), Some(Defect::Mass { at: 1, .. })),
+        Param::Defect(i) => chain.defects().get(i).is_some_and(|d| d.site() == m1),
         _ => false,
     }
 }
@@ -473,20 +482,15 @@ pub fn defect_gradient_from<T: Scalar>(
     let inv = if gamma == 0.0 { 0.0 } else { 1.0 / gamma };
     let mut grad = Vec::with_capacity(chain.defects().len());
     for d in chain.defects() {
-        let b = match *d {
-            Defect::Mass { at, .. } => {
-                let xa = x(at)?;
-                s.clone() * s.clone() * xa.clone() * xa
-            }
-            Defect::Damper { at, .. } => {
-                let xa = x(at)?;
-                s.clone() * xa.clone() * xa
-            }
-            Defect::Spring { at, .. } => {
-                let dx = x(at)? - x(at + 1)?;
-                dx.clone() * dx
-            }
+        let site = d.site();
+        let u = match site.probe {
+            Probe::Point(at) => x(at)?,
+            Probe::Diff(at) => x(at)? - x(at + 1)?,
         };
+        let mut b = u.clone() * u;
+        for _ in 0..site.power {
+            b = s.clone() * b;
+        }
         grad.push(-b.scale(inv));
     }
     Ok(Gradient { value, grad })

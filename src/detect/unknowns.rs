@@ -37,7 +37,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::chain::{Chain, Defect};
+use crate::chain::{Chain, Defect, Probe, Site};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use serde::{Deserialize, Serialize};
@@ -550,12 +550,20 @@ impl DefectKind {
         }
     }
 
-    /// The positions of this kind in a chain of `n` masses.
+    /// The positions of this kind in a chain of `n` masses (`0..=n` for a
+    /// spring-like site, `1..=n` for a point site; a free end removes spring
+    /// `0` or `n`: see [`Chain::spring_range`]).
     pub fn positions(self, n: usize) -> std::ops::RangeInclusive<usize> {
-        match self {
-            DefectKind::Spring => 0..=n,
-            _ => 1..=n,
+        match self.site(1).probe {
+            Probe::Diff(_) => 0..=n,
+            Probe::Point(_) => 1..=n,
         }
+    }
+
+    /// Where a defect of this kind at `at` enters the equations of motion
+    /// ([`Defect::site`]).
+    pub fn site(self, at: usize) -> Site {
+        self.defect(at, 0.0).site()
     }
 
     /// The defect of this kind at `at` with `value` (unchecked).
@@ -578,13 +586,24 @@ impl DefectKind {
         }
     }
 
+    /// The alternative start of the fine pass of the hypothesis fits (a
+    /// lighter mass or spring, a lighter damper than [`DefectKind::start`]).
+    pub fn alt_start(self, chain: &Chain) -> f64 {
+        match self {
+            DefectKind::Mass => 0.5 * chain.mass(),
+            DefectKind::Spring => 0.5 * chain.k(),
+            DefectKind::Damper => 0.2 * chain.d(),
+        }
+    }
+
+    /// Whether a value of zero is allowed ([`Defect::may_vanish`]).
+    pub fn may_vanish(self) -> bool {
+        self.defect(1, 1.0).may_vanish()
+    }
+
     /// The uniform chain's value of this kind (`mass`, `k` or `d`).
     pub fn uniform(self, chain: &Chain) -> f64 {
-        match self {
-            DefectKind::Mass => chain.mass(),
-            DefectKind::Spring => chain.k(),
-            DefectKind::Damper => chain.d(),
-        }
+        self.defect(1, 0.0).uniform_value(chain)
     }
 }
 
@@ -794,10 +813,9 @@ impl Unknowns {
                 }
             }
             if let Some(v) = s.known {
-                let ok = match s.kind {
-                    KindChoice::Mass | KindChoice::Spring => v > 0.0,
-                    KindChoice::Damper => v >= 0.0,
-                    KindChoice::Any => false,
+                let ok = match s.kind.kinds() {
+                    [kind] => v > 0.0 || (v == 0.0 && kind.may_vanish()),
+                    _ => false,
                 };
                 if !(v.is_finite() && ok) {
                     return Err(Error::invalid(
@@ -808,7 +826,7 @@ impl Unknowns {
                 }
             }
             if let Some((lo, hi)) = s.bounds {
-                let positive = s.kind.kinds().iter().any(|k| *k != DefectKind::Damper);
+                let positive = s.kind.kinds().iter().any(|k| !k.may_vanish());
                 check_bounds(&format!("unknowns.defects[{i}].bounds"), [lo, hi], positive)?;
             }
         }

@@ -63,7 +63,7 @@ pub mod tridiag;
 
 use transfer::Transfer;
 
-use crate::chain::{Chain, Defect};
+use crate::chain::Chain;
 use crate::error::{Error, Result};
 use crate::green::{Green, Probe};
 use crate::linalg::solve_in_place;
@@ -203,11 +203,10 @@ impl std::str::FromStr for Observable {
 pub fn updates(chain: &Chain) -> Vec<Update> {
     let mut out: Vec<Update> = Vec::with_capacity(chain.defects().len());
     for d in chain.defects() {
-        let (probe, dm, dd, dk) = match *d {
-            Defect::Mass { at, m } => (Probe::Point(at), m - chain.mass(), 0.0, 0.0),
-            Defect::Damper { at, d } => (Probe::Point(at), 0.0, d - chain.d(), 0.0),
-            Defect::Spring { at, k } => (Probe::Diff(at), 0.0, 0.0, k - chain.k()),
-        };
+        let site = d.site();
+        let mut c = [0.0; 3]; // [dk, dd, dm]: the change times s^0, s^1, s^2
+        c[site.power as usize] = d.value() - d.uniform_value(chain);
+        let (probe, [dk, dd, dm]) = (site.probe, c);
         if let Some(u) = out.iter_mut().find(|u| u.probe == probe) {
             u.dm += dm;
             u.dd += dd;
@@ -490,6 +489,7 @@ pub fn transfer_function<T: Scalar>(chain: &Chain, s: T, at: usize, obs: Observa
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::chain::Defect;
     use num_complex::Complex64;
 
     #[test]

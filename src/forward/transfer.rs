@@ -38,7 +38,7 @@
 //! fixed-end one and nothing else changes. Mass 1 is always a special mass,
 //! which gives the impedance it sees as a plain sum ([`Transfer::eval_parts`]).
 
-use crate::chain::Chain;
+use crate::chain::{Chain, Probe};
 use crate::scalar::Scalar;
 
 /// One piece of the chain, in increasing position.
@@ -49,6 +49,8 @@ enum Seg {
         i: usize,
         m: f64,
         d: f64,
+        /// stiffness to the ground besides the two springs
+        g: f64,
         /// spring to the left (`kappa_{i-1}`)
         kl: f64,
         /// spring to the right (`kappa_i`)
@@ -83,19 +85,7 @@ impl Transfer {
         let n = chain.n();
         let mut special: Vec<usize> = Vec::new();
         for d in chain.defects() {
-            match *d {
-                crate::Defect::Mass { at, .. } | crate::Defect::Damper { at, .. } => {
-                    special.push(at)
-                }
-                crate::Defect::Spring { at, .. } => {
-                    if at >= 1 {
-                        special.push(at);
-                    }
-                    if at < n {
-                        special.push(at + 1);
-                    }
-                }
-            }
+            special.extend(d.site().probe.entries(n).map(|(i, _)| i));
         }
         // mass 1 is always its own segment: its local sum gives the
         // impedance `Z_1` behind the acceleration of mass 1 without
@@ -107,26 +97,29 @@ impl Transfer {
         }
         special.sort_unstable();
         special.dedup();
-        let value = |i: usize| -> (f64, f64, f64, f64) {
-            let mut m = chain.mass();
-            let mut dd = chain.d();
+        // (m, d, g, kl, kr) of mass i: the uniform values, then the
+        // defects' sites (a point site's power picks m, d or g; a spring
+        // site is the spring left or right of its masses)
+        let value = |i: usize| -> (f64, f64, f64, f64, f64) {
+            let mut pt = [0.0, chain.d(), chain.mass()];
             let (mut kl, mut kr) = (chain.k(), chain.k());
             for def in chain.defects() {
-                match *def {
-                    crate::Defect::Mass { at, m: v } if at == i => m = v,
-                    crate::Defect::Damper { at, d: v } if at == i => dd = v,
-                    crate::Defect::Spring { at, k: v } if at + 1 == i => kl = v,
-                    crate::Defect::Spring { at, k: v } if at == i => kr = v,
+                let site = def.site();
+                match site.probe {
+                    Probe::Point(at) if at == i => pt[site.power as usize] = def.value(),
+                    Probe::Diff(at) if at + 1 == i => kl = def.value(),
+                    Probe::Diff(at) if at == i => kr = def.value(),
                     _ => {}
                 }
             }
+            let [g, dd, m] = pt;
             if i == 1 && chain.left().is_free() {
                 kl = 0.0;
             }
             if i == n && chain.right().is_free() {
                 kr = 0.0;
             }
-            (m, dd, kl, kr)
+            (m, dd, g, kl, kr)
         };
         let mut segs = Vec::with_capacity(2 * special.len() + 1);
         let mut next = 1;
@@ -134,8 +127,8 @@ impl Transfer {
             if i > next {
                 segs.push(Seg::Run { l: next, r: i - 1 });
             }
-            let (m, d, kl, kr) = value(i);
-            segs.push(Seg::Special { i, m, d, kl, kr });
+            let (m, d, g, kl, kr) = value(i);
+            segs.push(Seg::Special { i, m, d, g, kl, kr });
             next = i + 1;
         }
         if next <= n {
@@ -218,15 +211,15 @@ impl Transfer {
         let mut right: Option<T> = None;
         for seg in self.segs.iter().rev() {
             match *seg {
-                Seg::Special { i, m, d, kl, kr } => {
+                Seg::Special { i, m, d, g, kl, kr } => {
                     let tail = match &right {
                         None => T::from_f64(kr),
                         Some(e) => e.clone().scale(kr) / (e.clone() + T::from_f64(kr)),
                     };
                     if i == 1 {
-                        z1 = s.scale(d) + T::from_f64(kl) + tail.clone();
+                        z1 = s.scale(d) + T::from_f64(g + kl) + tail.clone();
                     }
-                    let e = local(m, d) + tail;
+                    let e = local(m, d) + T::from_f64(g) + tail;
                     swept.push(Swept {
                         e_left: e.clone(),
                         one_m_psi: T::zero(),

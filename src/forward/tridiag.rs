@@ -37,13 +37,12 @@ pub fn solve_all<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
         return solve_all_real(chain, s);
     }
     let n = chain.n();
-    let m = chain.masses();
-    let k = chain.springs();
-    let d = chain.dampers();
+    let c = chain.coefficients();
+    let (m, k, d, kd) = (&c.m, &c.k, &c.d, c.k_diag());
     let s2 = s.clone() * s.clone();
     // diagonal, super/sub diagonal (symmetric: dl = du = -k_i, i = 1..n-1)
     let mut diag: Vec<T> = (0..n)
-        .map(|i| s2.scale(m[i]) + s.scale(d[i]) + T::from_f64(k[i] + k[i + 1]))
+        .map(|i| s2.scale(m[i]) + s.scale(d[i]) + T::from_f64(kd[i]))
         .collect();
     let mut dl: Vec<T> = (0..n.saturating_sub(1))
         .map(|i| T::from_f64(-k[i + 1]))
@@ -109,13 +108,14 @@ pub fn solve_all<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
 /// Real `s`: excess-stiffness elimination (see the module docs).
 fn solve_all_real<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
     let n = chain.n();
-    let (m, k, d) = (chain.masses(), chain.springs(), chain.dampers());
+    let c = chain.coefficients();
+    let (m, k, d, g) = (&c.m, &c.k, &c.d, &c.g);
     let s2 = s.clone() * s.clone();
     // e[i] = E_{i+1} (0-based), dd[i] = D_{i+1} = E + kappa_{i}
     let mut e = vec![T::zero(); n];
     let mut tail = T::from_f64(k[n]); // kappa_n * (E_{n+1}/D_{n+1}) with the wall ratio 1
     for i in (0..n).rev() {
-        e[i] = s2.scale(m[i]) + s.scale(d[i]) + tail;
+        e[i] = s2.scale(m[i]) + s.scale(d[i]) + T::from_f64(g[i]) + tail;
         let kap = k[i]; // spring to the left of mass i+1
         tail = e[i].clone().scale(kap) / (e[i].clone() + T::from_f64(kap));
     }
@@ -148,10 +148,11 @@ mod tests {
 
     fn dense(chain: &Chain, s: Complex64) -> Vec<Complex64> {
         let n = chain.n();
-        let (m, k, d) = (chain.masses(), chain.springs(), chain.dampers());
+        let c = chain.coefficients();
+        let (m, k, d, g) = (&c.m, &c.k, &c.d, &c.g);
         let mut a = nalgebra::DMatrix::<Complex64>::zeros(n, n);
         for i in 0..n {
-            a[(i, i)] = s * s * m[i] + s * d[i] + k[i] + k[i + 1];
+            a[(i, i)] = s * s * m[i] + s * d[i] + g[i] + k[i] + k[i + 1];
             if i + 1 < n {
                 a[(i, i + 1)] = (-k[i + 1]).into();
                 a[(i + 1, i)] = (-k[i + 1]).into();

@@ -521,6 +521,7 @@ enum Inner {
         clusters: Vec<(f64, f64)>,
         k: Vec<f64>,
         d: Vec<f64>,
+        g: Vec<f64>,
     },
 }
 
@@ -566,8 +567,9 @@ impl Modes {
         })?;
         let masses = chain.masses();
         let springs = chain.springs();
+        let grounds = chain.grounds();
         let ends = (chain.left(), chain.right());
-        let uniform_m = masses.iter().all(|&m| m == masses[0]);
+        let uniform_m = masses.iter().all(|&m| m == masses[0]) && grounds.iter().all(|&g| g == 0.0);
         let (lo, hi) = chain.spring_range();
         let uniform_k = (lo..=hi).all(|j| springs[j] == chain.k());
         if uniform_m && uniform_k {
@@ -599,7 +601,7 @@ impl Modes {
         }
         let kt = DMatrix::from_fn(n, n, |i, j| {
             if i == j {
-                (springs[i] + springs[i + 1]) / masses[i]
+                (grounds[i] + springs[i] + springs[i + 1]) / masses[i]
             } else if j == i + 1 {
                 -springs[j] / (masses[i] * masses[j]).sqrt()
             } else if i == j + 1 {
@@ -647,11 +649,12 @@ impl Modes {
         let m = chain.masses();
         let k = chain.springs();
         let d = chain.dampers();
+        let g = chain.grounds();
         let n2 = 2 * n;
         let mut l = DMatrix::zeros(n2, n2);
         for i in 0..n {
             l[(i, n + i)] = 1.0;
-            l[(n + i, i)] = -(k[i] + k[i + 1]) / m[i];
+            l[(n + i, i)] = -(g[i] + k[i] + k[i + 1]) / m[i];
             l[(n + i, n + i)] = -d[i] / m[i];
             if i + 1 < n {
                 let c = k[i + 1] / (m[i] * m[i + 1]).sqrt();
@@ -683,6 +686,7 @@ impl Modes {
             m: &m,
             k: &k,
             d: &d,
+            g: &g,
         };
         // near-double pole pairs: one second-order term each, fitted per
         // response (see `Modes::response`)
@@ -780,6 +784,7 @@ impl Modes {
                 clusters,
                 k,
                 d,
+                g,
             },
         })
     }
@@ -838,6 +843,7 @@ impl Modes {
                 clusters,
                 k,
                 d,
+                g,
             } => {
                 for (((p, v), nu), cond) in poles.iter().zip(vecs).zip(norms).zip(conds) {
                     let r = v[i0] * v[j0] * amp / nu;
@@ -854,6 +860,7 @@ impl Modes {
                         m: &self.masses,
                         k,
                         d,
+                        g,
                     };
                     terms.extend(fit_clusters(&qep, clusters, &terms, i0, j0, amp)?);
                 }
@@ -1267,9 +1274,11 @@ pub fn natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
     let masses = chain.masses();
     let dampers = chain.dampers();
     let springs = chain.springs();
+    let grounds = chain.grounds();
     let ends = (chain.left(), chain.right());
     let (lo, hi) = chain.spring_range();
     let uniform = masses.iter().all(|&m| m == chain.mass())
+        && grounds.iter().all(|&g| g == 0.0)
         && (lo..=hi).all(|j| springs[j] == chain.k())
         && dampers.iter().all(|&d| d == chain.d());
     // (omega^2, sum_i (d_i/m_i) q_i^2)
@@ -1291,7 +1300,7 @@ pub fn natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
         }
         let kt = DMatrix::from_fn(n, n, |i, j| {
             if i == j {
-                (springs[i] + springs[i + 1]) / masses[i]
+                (grounds[i] + springs[i] + springs[i + 1]) / masses[i]
             } else if j == i + 1 || i == j + 1 {
                 let s = springs[i.max(j)];
                 -s / (masses[i] * masses[j]).sqrt()
@@ -1346,6 +1355,8 @@ struct Qep<'a> {
     m: &'a [f64],
     k: &'a [f64],
     d: &'a [f64],
+    /// Ground stiffness per mass.
+    g: &'a [f64],
 }
 
 impl Qep<'_> {
@@ -1358,7 +1369,7 @@ impl Qep<'_> {
     fn solve(&self, p: Complex64, b: &[Complex64]) -> Vec<Complex64> {
         let n = self.n();
         let mut dg: Vec<Complex64> = (0..n)
-            .map(|i| p * p * self.m[i] + p * self.d[i] + (self.k[i] + self.k[i + 1]))
+            .map(|i| p * p * self.m[i] + p * self.d[i] + (self.g[i] + self.k[i] + self.k[i + 1]))
             .collect();
         let mut dl: Vec<Complex64> = (0..n.saturating_sub(1))
             .map(|i| Complex64::new(-self.k[i + 1], 0.0))
@@ -1417,7 +1428,7 @@ impl Qep<'_> {
         let (mut log, mut sign) = (0.0_f64, 1.0_f64);
         let mut prev = 0.0_f64;
         for i in 0..n {
-            let mut r = self.m[i] * s * s + self.d[i] * s + self.k[i] + self.k[i + 1];
+            let mut r = self.m[i] * s * s + self.d[i] * s + self.g[i] + self.k[i] + self.k[i + 1];
             if i > 0 {
                 r -= self.k[i] * self.k[i] / prev;
             }
@@ -1497,7 +1508,7 @@ impl Qep<'_> {
                 let v2 = v[i] * v[i];
                 a += v2 * self.m[i];
                 b += v2 * self.d[i];
-                c += v2 * (self.k[i] + self.k[i + 1]);
+                c += v2 * (self.g[i] + self.k[i] + self.k[i + 1]);
                 if i + 1 < n {
                     c -= v[i] * v[i + 1] * (2.0 * self.k[i + 1]);
                 }

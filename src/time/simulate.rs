@@ -582,9 +582,11 @@ struct System<'a> {
     n: usize,
     m: Vec<f64>,
     inv_m: Vec<f64>,
-    /// per mass: [k_i, -(k_i + k_{i+1}), k_{i+1}, -d_i] / m_i
+    /// per mass: [k_i, -(k_i + k_{i+1} + g_i), k_{i+1}, -d_i] / m_i
     rows: Vec<[f64; 4]>,
     k: Vec<f64>,
+    /// Ground stiffness per mass.
+    g: Vec<f64>,
     d: Vec<f64>,
     v0: f64,
     forcing: &'a Forcing,
@@ -615,6 +617,7 @@ impl<'a> System<'a> {
         let vinv = v.try_inverse().unwrap_or_else(|| DMatrix::zeros(q, q));
         let springs = chain.springs();
         let dampers = chain.dampers();
+        let grounds = chain.grounds();
         System {
             n: chain.n(),
             v0: chain.gamma() / m[0],
@@ -624,7 +627,7 @@ impl<'a> System<'a> {
                     let (k, d) = (&springs, &dampers);
                     [
                         k[i] / m[i],
-                        -(k[i] + k[i + 1]) / m[i],
+                        -(k[i] + k[i + 1] + grounds[i]) / m[i],
                         k[i + 1] / m[i],
                         -d[i] / m[i],
                     ]
@@ -632,6 +635,7 @@ impl<'a> System<'a> {
                 .collect(),
             m,
             k: springs.clone(),
+            g: grounds.clone(),
             d: dampers.clone(),
             forcing,
             observe: opts.observe.clone(),
@@ -723,7 +727,7 @@ impl<'a> System<'a> {
 
     fn norm_a(&self) -> f64 {
         (0..self.n)
-            .map(|i| (2.0 * (self.k[i] + self.k[i + 1]) + self.d[i]) / self.m[i])
+            .map(|i| (2.0 * (self.k[i] + self.k[i + 1]) + self.g[i] + self.d[i]) / self.m[i])
             .fold(1.0, f64::max)
     }
 
@@ -732,7 +736,7 @@ impl<'a> System<'a> {
         let mut a = DMatrix::zeros(2 * n, 2 * n);
         for i in 0..n {
             a[(i, n + i)] = 1.0;
-            a[(n + i, i)] = -(self.k[i] + self.k[i + 1]) / self.m[i];
+            a[(n + i, i)] = -(self.k[i] + self.k[i + 1] + self.g[i]) / self.m[i];
             a[(n + i, n + i)] = -self.d[i] / self.m[i];
             if i > 0 {
                 a[(n + i, i - 1)] = self.k[i] / self.m[i];

@@ -5,7 +5,7 @@
 //! of the measured force when there is one
 //! ([`crate::detect::data::measurement`]).
 
-use crate::chain::{Chain, Defect};
+use crate::chain::Chain;
 use crate::detect::data::measurement::{laplace_gradient, laplace_model, scale_gradient, Sensor};
 use crate::error::{check_f64, Error, Result};
 use crate::forward::transfer::SweepTable;
@@ -408,12 +408,7 @@ impl LaplaceObs {
         let n = chain.n();
         let mut sites = vec![1];
         for d in chain.defects() {
-            match *d {
-                Defect::Mass { at, .. } | Defect::Damper { at, .. } => sites.push(at),
-                Defect::Spring { at, .. } => {
-                    sites.extend([at, at + 1].into_iter().filter(|&i| i >= 1 && i <= n))
-                }
-            }
+            sites.extend(d.site().probe.entries(n).map(|(i, _)| i));
         }
         sites.sort_unstable();
         sites.dedup();
@@ -546,6 +541,7 @@ fn whiten(w: &DMatrix<f64>, x: &[f64], cols: usize) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::chain::Defect;
 
     /// The residuals and Jacobian through the memo of the last sweep agree
     /// with the per-call path (the model node by node, nalgebra's `W r` and

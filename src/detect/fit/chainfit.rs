@@ -163,7 +163,7 @@ pub fn default_bounds(chain: &Chain, params: &[Param]) -> Vec<(f64, f64)> {
                 Param::D => (0.0, 100.0 * v.max(0.01)),
                 Param::Gamma => (-100.0 * v.abs().max(1e-300), 100.0 * v.abs().max(1e-300)),
                 Param::Defect(i) => match chain.defects().get(*i) {
-                    Some(crate::Defect::Damper { .. }) => (0.0, 100.0 * v.max(0.01)),
+                    Some(d) if d.may_vanish() => (0.0, 100.0 * v.max(0.01)),
                     _ => (v / 100.0, v * 100.0),
                 },
                 _ => (v / 100.0, v * 100.0),

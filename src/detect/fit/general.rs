@@ -478,11 +478,7 @@ fn rank(mut v: Vec<Hypothesis>) -> Vec<Hypothesis> {
 /// Starting values of a defect value of `kind` on `base`: the first starts
 /// the coarse pass, the second is the alternative start of the fine pass.
 fn starts(kind: DefectKind, base: &Chain) -> [f64; 2] {
-    match kind {
-        DefectKind::Mass => [2.0 * base.mass(), 0.5 * base.mass()],
-        DefectKind::Spring => [2.0 * base.k(), 0.5 * base.k()],
-        DefectKind::Damper => [(5.0 * base.d()).max(0.5), 0.2 * base.d()],
-    }
+    [kind.start(base), kind.alt_start(base)]
 }
 
 /// The coarse fit of one hypothesis: [`fit_pairs`] from `values`; when a

@@ -42,7 +42,7 @@ use crate::chain::{Boundary, Defect};
 use crate::detect::data::measurement::{Measurement, Sensor};
 use crate::detect::data::observations::Observations;
 use crate::detect::misfit::MisfitKind;
-use crate::detect::unknowns::KindChoice;
+use crate::detect::unknowns::{DefectKind, KindChoice};
 use crate::error::{Error, Result};
 use crate::forward::Observable;
 use serde::Serialize;
@@ -424,11 +424,13 @@ impl FitSpec {
 /// ```
 pub fn parse_kinds(text: &str) -> Result<KindChoice> {
     match text.trim() {
-        "mass" => Ok(KindChoice::Mass),
-        "spring" => Ok(KindChoice::Spring),
-        "damper" => Ok(KindChoice::Damper),
         "any" => Ok(KindChoice::Any),
-        _ => Err(Error::invalid("kinds", text, "mass, spring, damper or any")),
+        name => DefectKind::from_name(name)
+            .map(KindChoice::from)
+            .ok_or_else(|| {
+                let names: Vec<&str> = DefectKind::ALL.iter().map(|k| k.name()).collect();
+                Error::invalid("kinds", text, format!("{} or any", names.join(", ")))
+            }),
     }
 }
 

@@ -26,7 +26,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::chain::{Chain, Defect};
+use crate::chain::Chain;
 use crate::detect::data::series::TimeData;
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
@@ -129,17 +129,9 @@ impl TimeMisfit {
                             format!("an index below {}", chain.defects().len()),
                         )
                     })?;
-                    let (u, power) = match *d {
-                        Defect::Mass { at, .. } => (vec![(at, 1.0)], 2),
-                        Defect::Damper { at, .. } => (vec![(at, 1.0)], 1),
-                        Defect::Spring { at, .. } => (
-                            [(at, 1.0), (at + 1, -1.0)]
-                                .into_iter()
-                                .filter(|&(i, _)| i >= 1 && i <= n)
-                                .collect(),
-                            0,
-                        ),
-                    };
+                    let site = d.site();
+                    let (u, power): (Vec<(usize, f64)>, u32) =
+                        (site.probe.entries(n).collect(), site.power);
                     match modes.value_derivative(1, 1, gamma, &u, power)? {
                         Some(d) => d.eval_many(t),
                         None => return Ok(None),

@@ -54,7 +54,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::chain::{Chain, Defect};
+use crate::chain::{Chain, Defect, Probe};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::unknowns::{DefectKind, KindBounds};
 use crate::error::{Error, Result};
@@ -72,6 +72,9 @@ pub struct Profile {
     pub dampers: Vec<f64>,
     /// `kappa_0..kappa_n` (`kappa_j` joins masses `j` and `j + 1`; 0 at a free end).
     pub springs: Vec<f64>,
+    /// `g_1..g_n`, the stiffness to the ground besides the springs (zero in
+    /// the uniform chain).
+    pub grounds: Vec<f64>,
     /// Impulse on mass 1.
     pub gamma: f64,
 }
@@ -83,6 +86,7 @@ impl Profile {
             masses: chain.masses(),
             dampers: chain.dampers(),
             springs: chain.springs(),
+            grounds: chain.grounds(),
             gamma: chain.gamma(),
         }
     }
@@ -102,7 +106,7 @@ pub struct Column {
     pub er: Vec<C>,
     /// `E^L_j`.
     pub el: Vec<C>,
-    /// `l_j = m_j s^2 + d_j s`.
+    /// `l_j = m_j s^2 + d_j s + g_j`.
     pub local: Vec<C>,
 }
 
@@ -114,7 +118,7 @@ impl Column {
         let kap = &p.springs;
         let s2 = s * s;
         let local: Vec<C> = (0..n)
-            .map(|i| s2 * p.masses[i] + s * p.dampers[i])
+            .map(|i| s2 * p.masses[i] + s * p.dampers[i] + p.grounds[i])
             .collect();
         let mut er = vec![C::new(0.0, 0.0); n];
         for i in (0..n).rev() {
@@ -151,12 +155,12 @@ impl Column {
     }
 
     /// `(a, b) = (u^T G e_1, u^T G u)` of the probe of `kind` at `at`
-    /// (mass and damper: `u = e_at`; spring `at` joins `at` and `at + 1`).
+    /// (a point site: `u = e_at`; a spring-like site `at` joins `at` and `at + 1`).
     pub fn probe(&self, p: &Profile, kind: DefectKind, at: usize) -> (C, C) {
         let n = p.n();
-        match kind {
-            DefectKind::Mass | DefectKind::Damper => (self.g1[at - 1], self.diag(at)),
-            DefectKind::Spring => {
+        match kind.site(at).probe {
+            Probe::Point(_) => (self.g1[at - 1], self.diag(at)),
+            Probe::Diff(_) => {
                 if at == 0 {
                     let b = self.diag(1);
                     (-b, b)
@@ -174,21 +178,18 @@ impl Column {
     }
 }
 
-/// The coefficient `kappa(s)` of a kind: `c = delta kappa(s)`.
+/// The coefficient `kappa(s) = s^power` of a kind: `c = delta kappa(s)`.
 pub fn kind_factor(kind: DefectKind, s: C) -> C {
-    match kind {
-        DefectKind::Mass => s * s,
-        DefectKind::Damper => s,
-        DefectKind::Spring => C::new(1.0, 0.0),
+    match kind.site(1).power {
+        0 => C::new(1.0, 0.0),
+        1 => s,
+        _ => s * s,
     }
 }
 
 /// Is the probe `+-e_1` (then `X_1' = gamma b / (1 + c b)`)?
 fn probe_is_e1(kind: DefectKind, at: usize) -> bool {
-    match kind {
-        DefectKind::Mass | DefectKind::Damper => at == 1,
-        DefectKind::Spring => at == 0,
-    }
+    matches!(kind.site(at).probe, Probe::Point(1) | Probe::Diff(0))
 }
 
 /// The data side of a Laplace least-squares problem: nodes, values, and
@@ -312,9 +313,9 @@ impl Sweep {
         let (lo, hi) = chain.spring_range();
         let positions: Vec<Vec<usize>> = kinds
             .iter()
-            .map(|k| match k {
-                DefectKind::Spring => (lo..=hi).collect(),
-                _ => (1..=chain.n()).collect(),
+            .map(|k| match k.site(1).probe {
+                Probe::Diff(_) => (lo..=hi).collect(),
+                Probe::Point(_) => (1..=chain.n()).collect(),
             })
             .collect();
         let uniform = kinds.iter().map(|k| k.uniform(chain)).collect();
@@ -772,9 +773,10 @@ impl<'a> SetProblem<'a> {
         let mut p = 0;
         for (i, d) in defects.iter().enumerate() {
             let (kind, at) = d.kind_at();
-            let ok = match kind {
-                DefectKind::Spring => (slo..=shi).contains(&at),
-                _ => (1..=n).contains(&at),
+            let probe = kind.site(at).probe;
+            let ok = match probe {
+                Probe::Diff(_) => (slo..=shi).contains(&at),
+                Probe::Point(_) => (1..=n).contains(&at),
             };
             if !ok {
                 return Err(Error::invalid(
@@ -786,10 +788,6 @@ impl<'a> SetProblem<'a> {
             if let SetDefect::Free(_, _, j) = *d {
                 p = p.max(j + 1);
             }
-            let probe = match kind {
-                DefectKind::Spring => crate::green::Probe::Diff(at),
-                _ => crate::green::Probe::Point(at),
-            };
             let c = match probes.iter().position(|&q| q == probe) {
                 Some(c) => c,
                 None => {
@@ -816,12 +814,12 @@ impl<'a> SetProblem<'a> {
         let e1 = probes
             .iter()
             .map(|pr| match *pr {
-                crate::green::Probe::Point(1) => Some(1.0),
-                crate::green::Probe::Diff(0) => Some(-1.0),
+                Probe::Point(1) => Some(1.0),
+                Probe::Diff(0) => Some(-1.0),
                 _ => None,
             })
             .collect();
-        let src = crate::green::Probe::Point(1);
+        let src = Probe::Point(1);
         let per: Vec<(Vec<C>, Vec<C>, C)> = target
             .nodes()
             .par_iter()

@@ -158,7 +158,7 @@ pub fn prefix_chain(e: Error) -> Error {
 /// `chain.defects[1].m`): the uniform parameters one by one, each defect
 /// on its own, then the defects together (duplicates).
 pub fn chain_problems(spec: &crate::chain::ChainSpec) -> Vec<Error> {
-    use crate::chain::{Chain, Defect};
+    use crate::chain::Chain;
     let prefix = prefix_chain;
     let base = match Chain::new(spec.n) {
         Ok(c) => c,
@@ -177,11 +177,7 @@ pub fn chain_problems(spec: &crate::chain::ChainSpec) -> Vec<Error> {
     let mut each_ok = true;
     for (i, d) in spec.defects.iter().enumerate() {
         // a bad position hides a bad value: check the value at position 1 too
-        let at_one = match *d {
-            Defect::Mass { m, .. } => Defect::Mass { at: 1, m },
-            Defect::Spring { k, .. } => Defect::Spring { at: 1, k },
-            Defect::Damper { d, .. } => Defect::Damper { at: 1, d },
-        };
+        let at_one = d.with_at(1);
         let errs: Vec<Error> = match base.clone().with_defect(*d) {
             Ok(_) => Vec::new(),
             Err(e) => {

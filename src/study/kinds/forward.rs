@@ -333,7 +333,7 @@ impl Scene {
         let r = &self.random_defects;
         let kind = defect_kind(&r.kind)?;
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let (lo, hi) = if kind == "spring" {
+        let (lo, hi) = if spring_like(kind) {
             (0, spec.n)
         } else {
             (1, spec.n)
@@ -352,31 +352,40 @@ impl Scene {
             };
             let u: f64 = rng.random();
             let v = (r.min.ln() + u * (r.max.ln() - r.min.ln())).exp();
-            spec.defects.push(match kind {
-                "spring" => Defect::Spring { at, k: v },
-                "damper" => Defect::Damper { at, d: v },
-                _ => Defect::Mass { at, m: v },
-            });
+            // `kind` is one of Defect::KINDS (checked by `defect_kind`)
+            spec.defects
+                .extend(Defect::of_kind(kind, at, v).or(Some(Defect::Mass { at, m: v })));
         }
         Ok(spec)
     }
 }
 
 fn defect_kind(kind: &str) -> Result<&'static str> {
-    match kind {
-        "mass" => Ok("mass"),
-        "spring" => Ok("spring"),
-        "damper" => Ok("damper"),
-        other => Err(Error::invalid(
-            "random_defects.kind",
-            other,
-            "\"mass\", \"spring\" or \"damper\"",
-        )),
-    }
+    Defect::KINDS
+        .into_iter()
+        .find(|k| *k == kind)
+        .ok_or_else(|| {
+            Error::invalid(
+                "random_defects.kind",
+                kind,
+                format!("one of {}", Defect::KINDS.join(", ")),
+            )
+        })
+}
+
+/// Whether defects of `kind` sit on springs (positions `0..=n`) rather
+/// than on masses (`1..=n`).
+fn spring_like(kind: &str) -> bool {
+    Defect::of_kind(kind, 1, 1.0)
+        .is_some_and(|d| matches!(d.site().probe, crate::chain::Probe::Diff(_)))
 }
 
 fn free_positions(spec: &ChainSpec, kind: &str) -> usize {
-    let total = if kind == "spring" { spec.n + 1 } else { spec.n };
+    let total = if spring_like(kind) {
+        spec.n + 1
+    } else {
+        spec.n
+    };
     let mut used: Vec<usize> = spec
         .defects
         .iter()
