@@ -160,7 +160,7 @@ pub struct Gradient<T> {
 ///
 /// Method: excess stiffnesses from the right, `E^R_i = l_i + kappa_i E^R_{i+1} / (E^R_{i+1} + kappa_i)`,
 /// and from the left, `E^L_i = l_i + kappa_{i-1} E^L_{i-1} / (E^L_{i-1} + kappa_{i-1})`,
-/// `l_i = m_i s^2 + d_i s` (walls: the tail is the wall spring); then
+/// `l_i = m_i s^2 + d_i s + g_i` (walls: the tail is the wall spring); then
 /// `G_oo = 1 / (E^R_o + E^L_o - l_o)`, and moving away from `o`,
 /// `G_{i+1,o} = kappa_i G_io / (E^R_{i+1} + kappa_i)`, `G_{i-1,o} = kappa_{i-1} G_io / (E^L_{i-1} + kappa_{i-1})`.
 /// For real `s >= 0` every term is positive.
@@ -175,8 +175,11 @@ pub fn green_column<T: Scalar>(chain: &Chain, s: T, o: usize) -> Result<Vec<T>> 
     let m = chain.masses();
     let kap = chain.springs();
     let dmp = chain.dampers();
+    let gnd = chain.grounds();
     let s2 = s.clone() * s.clone();
-    let local: Vec<T> = (0..n).map(|i| s2.scale(m[i]) + s.scale(dmp[i])).collect();
+    let local: Vec<T> = (0..n)
+        .map(|i| s2.scale(m[i]) + s.scale(dmp[i]) + T::from_f64(gnd[i]))
+        .collect();
     // tails: tr[i] = contribution from the right of mass i+1 (0-based i), tl likewise.
     let mut er: Vec<T> = vec![T::zero(); n];
     let mut tail_r: Vec<T> = vec![T::zero(); n];
