@@ -149,6 +149,7 @@ pub struct Coefficients {
 /// | `Mass { at: j, m }` | `e_j` | `(m - mass) s^2` |
 /// | `Damper { at: j, d }` | `e_j` | `(d - d_uniform) s` |
 /// | `Spring { at: i, k }` | `e_i - e_{i+1}` (`e_0 = e_{n+1} = 0`) | `k - k_uniform` |
+/// | `Ground { at: j, g }` | `e_j` | `g` (the uniform chain has no spring from a mass to the ground) |
 ///
 /// Positions are 1-based (`1..=n`) for masses and dampers; springs are numbered
 /// `0..=n`, spring `i` joining mass `i` and mass `i+1`, springs `0` and `n`
@@ -177,6 +178,16 @@ pub enum Defect {
         /// Damping, `>= 0`.
         d: f64,
     },
+    /// A spring of stiffness `g` from mass `at` (1-based) to the ground: an
+    /// elastic support or a stray contact. (At mass 1 it acts as a change of
+    /// the left wall spring, at mass `n` of the right one: the data cannot
+    /// tell those apart.)
+    Ground {
+        /// Position, `1..=n`.
+        at: usize,
+        /// Stiffness, `>= 0`.
+        g: f64,
+    },
 }
 
 impl Coefficients {
@@ -190,7 +201,7 @@ impl Coefficients {
 
 impl Defect {
     /// Every kind's name, in the order of [`Defect::KINDS`]'s variants.
-    pub const KINDS: [&'static str; 3] = ["mass", "spring", "damper"];
+    pub const KINDS: [&'static str; 4] = ["mass", "spring", "damper", "ground"];
 
     /// `mass`, `spring` or `damper`.
     pub fn kind(&self) -> &'static str {
@@ -198,6 +209,7 @@ impl Defect {
             Defect::Mass { .. } => "mass",
             Defect::Spring { .. } => "spring",
             Defect::Damper { .. } => "damper",
+            Defect::Ground { .. } => "ground",
         }
     }
 
@@ -209,6 +221,7 @@ impl Defect {
             "mass" => Defect::Mass { at, m: value },
             "spring" => Defect::Spring { at, k: value },
             "damper" => Defect::Damper { at, d: value },
+            "ground" => Defect::Ground { at, g: value },
             _ => return None,
         })
     }
@@ -216,7 +229,10 @@ impl Defect {
     /// The position (mass index or spring index).
     pub fn at(&self) -> usize {
         match *self {
-            Defect::Mass { at, .. } | Defect::Spring { at, .. } | Defect::Damper { at, .. } => at,
+            Defect::Mass { at, .. }
+            | Defect::Spring { at, .. }
+            | Defect::Damper { at, .. }
+            | Defect::Ground { at, .. } => at,
         }
     }
 
@@ -226,6 +242,7 @@ impl Defect {
             Defect::Mass { m, .. } => m,
             Defect::Spring { k, .. } => k,
             Defect::Damper { d, .. } => d,
+            Defect::Ground { g, .. } => g,
         }
     }
 
@@ -248,6 +265,10 @@ impl Defect {
                 probe: Probe::Diff(at),
                 power: 0,
             },
+            Defect::Ground { at, .. } => Site {
+                probe: Probe::Point(at),
+                power: 0,
+            },
         }
     }
 
@@ -258,6 +279,7 @@ impl Defect {
             Defect::Mass { .. } => chain.mass(),
             Defect::Spring { .. } => chain.k(),
             Defect::Damper { .. } => chain.d(),
+            Defect::Ground { .. } => 0.0,
         }
     }
 
@@ -269,6 +291,7 @@ impl Defect {
             Defect::Mass { .. } => ("m", v > 0.0, "m > 0 and finite"),
             Defect::Spring { .. } => ("k", v > 0.0, "k > 0 and finite"),
             Defect::Damper { .. } => ("d", v >= 0.0, "d >= 0 and finite"),
+            Defect::Ground { .. } => ("g", v >= 0.0, "g >= 0 and finite"),
         }
     }
 

@@ -284,13 +284,13 @@ fn woodbury_matches_tridiagonal_million() {
 proptest! {
     #![proptest_config(ProptestConfig { cases: 300, .. ProptestConfig::default() })]
 
-    /// Random chains: up to 5 defects of any kind anywhere, masses in
+    /// Random chains: up to 5 defects of any kind (ground springs too) anywhere, masses in
     /// [1e-3, 1e6], springs in [1e-2, 1e2], d in {0, 0.1, 10}, s from 1e-6 to 1e4.
     #[test]
     fn woodbury_random_chains(
         n in prop_oneof![1usize..8, 8usize..200],
         d_idx in 0usize..3,
-        raw in proptest::collection::vec((0u8..3, 0usize..1000, -3.0f64..6.0), 0..6),
+        raw in proptest::collection::vec((0u8..4, 0usize..1000, -3.0f64..6.0), 0..6),
         log_s in -6.0f64..4.0,
         im in prop_oneof![Just(0.0), -100.0f64..100.0],
     ) {
@@ -300,7 +300,8 @@ proptest! {
             let def = match kind {
                 0 => Defect::Mass { at: 1 + pos % n, m: 10f64.powf(lv) },
                 1 => Defect::Spring { at: pos % (n + 1), k: 10f64.powf(lv / 3.0 - 0.5) },
-                _ => Defect::Damper { at: 1 + pos % n, d: 10f64.powf(lv / 3.0 - 1.0) },
+                2 => Defect::Damper { at: 1 + pos % n, d: 10f64.powf(lv / 3.0 - 1.0) },
+                _ => Defect::Ground { at: 1 + pos % n, g: 10f64.powf(lv / 3.0 - 1.0) },
             };
             if let Ok(c) = chain.clone().with_defect(def) { chain = c; }
         }

@@ -473,7 +473,7 @@ mod props {
             prop_oneof![Just(0.0), 0.001f64..0.05, 0.05f64..3.0],
             0.3f64..4.0,
             0.3f64..4.0,
-            proptest::collection::vec((0u8..3, 0usize..15, 0.05f64..12.0), 0..4),
+            proptest::collection::vec((0u8..4, 0usize..15, 0.05f64..12.0), 0..4),
         )
             .prop_map(|(n, d, k, mass, defs)| {
                 let mut c = Chain::new(n)
@@ -494,9 +494,13 @@ mod props {
                             at: at % (n + 1),
                             k: v,
                         },
-                        _ => Defect::Damper {
+                        2 => Defect::Damper {
                             at: 1 + at % n,
                             d: v,
+                        },
+                        _ => Defect::Ground {
+                            at: 1 + at % n,
+                            g: v,
                         },
                     };
                     if let Ok(c2) = c.clone().with_defect(def) {

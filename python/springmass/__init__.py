@@ -157,12 +157,12 @@ class Defect:
 
     Parameters
     ----------
-    kind : {"mass", "spring", "damper"}
-        What differs.
+    kind : {"mass", "spring", "damper", "ground"}
+        What differs (``"ground"``: a spring from a mass to the ground).
     at : int
-        Position: masses and dampers ``1..=n``, springs ``0..=n`` (spring
-        ``i`` joins masses ``i`` and ``i + 1``; ``0`` and ``n`` are the wall
-        springs).
+        Position: masses, dampers and ground springs ``1..=n``, springs
+        ``0..=n`` (spring ``i`` joins masses ``i`` and ``i + 1``; ``0`` and
+        ``n`` are the wall springs).
     value : float
         The defect's mass, stiffness or damping.
 
@@ -212,7 +212,8 @@ def _defects(name: str, ds: Any) -> List[str]:
 
 
 def _defect_from_json(d: Dict[str, Any]) -> Defect:
-    value = d.get("m", d.get("k", d.get("d")))
+    # the one field besides kind and at is the value (m, k, d or g)
+    value = next(v for key, v in d.items() if key not in ("kind", "at"))
     return Defect(d["kind"], int(d["at"]), float(value))
 
 
@@ -532,7 +533,8 @@ def fit(
         Number of defects; ``"auto"`` tries 0 to 4 (or ``n``) and chooses by
         ``criterion``.
     kinds : str or sequence of str, default "mass"
-        ``"mass"``, ``"spring"``, ``"damper"`` or ``"any"``; a sequence gives
+        ``"mass"``, ``"spring"``, ``"damper"``, ``"ground"`` or ``"any"``
+        (mass, spring or damper); a sequence gives
         one kind per defect (with ``defects`` the same number).
     noise : "auto" or float, default "auto"
         Standard deviation of the samples' noise, or ``"auto"`` to estimate it.

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 #[derive(ClapArgs, Debug)]
 #[command(
     after_help = "Data-first: springmass fit --data x1.csv --n 37 [--d 0.05 | --fit d,gamma] \
-[--defects auto|K] [--kinds mass|spring|damper|any] [--noise auto|SIGMA] [--misfit time|bromwich|real-axis] \
+[--defects auto|K] [--kinds mass|spring|damper|ground|any] [--noise auto|SIGMA] [--misfit time|bromwich|real-axis] \
 [--method enumerate|greedy|ga|nelder-mead|pso] [--left fixed|free] [--right fixed|free] \
 [--observe-kind displacement|velocity|acceleration] [--force-column f | --force force.csv] \
 [--plot fit.svg] [--out-csv fit.csv] [--json]\n\
@@ -50,7 +50,8 @@ pub struct Args {
     /// Number of defects: auto (0..=4 by the criterion), auto:KMAX, or K [default: auto].
     #[arg(long, requires = "data")]
     pub defects: Option<String>,
-    /// Kinds of defect sought: mass, spring, damper or any [default: mass].
+    /// Kinds of defect sought: mass, spring, damper, ground (a spring to the
+    /// ground) or any (mass, spring or damper) [default: mass].
     #[arg(long, requires = "data")]
     pub kinds: Option<String>,
     /// Noise standard deviation of the samples: auto (estimated) or SIGMA [default: auto].

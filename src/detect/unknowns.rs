@@ -283,7 +283,7 @@ impl MassUnknowns {
 /// ```toml
 /// [unknowns]
 /// k = 2
-/// kind = "spring"            # "mass" (default) | "spring" | "damper" | "any"
+/// kind = "spring"            # "mass" (default) | "spring" | "damper" | "ground" | "any"
 /// chain = ["d"]              # chain parameters fitted too: "d", "gamma", "k", "mass" (default [])
 /// chain_start = { d = 0.2 }  # their starting values (default: the [chain] values)
 /// spring_bounds = [0.01, 100]   # default bounds of unknown springs
@@ -309,7 +309,8 @@ pub struct UnknownsSpec {
     /// Per-defect information (default none: all free).
     #[serde(default)]
     pub defects: Vec<DefectUnknownSpec>,
-    /// Kind of the defects: `mass` (default), `spring`, `damper` or `any`.
+    /// Kind of the defects: `mass` (default), `spring`, `damper`, `ground`
+    /// (a spring from a mass to the ground) or `any` (mass, spring or damper).
     #[serde(default)]
     pub kind: KindChoice,
     /// Uniform chain parameters fitted alongside: `d`, `gamma`, `k`, `mass`
@@ -410,6 +411,7 @@ impl UnknownsSpec {
             mass: check_bounds("unknowns.mass_bounds", self.mass_bounds, true)?,
             spring: check_bounds("unknowns.spring_bounds", self.spring_bounds, true)?,
             damper: check_bounds("unknowns.damper_bounds", self.damper_bounds, false)?,
+            ground: KindBounds::default().ground,
         };
         let mut chain = Vec::with_capacity(self.chain.len());
         for name in &self.chain {
@@ -521,11 +523,23 @@ pub enum DefectKind {
     Spring,
     /// A damper to ground (positions `1..=n`).
     Damper,
+    /// A spring from a mass to the ground (positions `1..=n`).
+    Ground,
 }
 
 impl DefectKind {
-    /// Every kind, in the order `any` tries them.
-    pub const ALL: [DefectKind; 3] = [DefectKind::Mass, DefectKind::Spring, DefectKind::Damper];
+    /// Every kind.
+    pub const ALL: [DefectKind; 4] = [
+        DefectKind::Mass,
+        DefectKind::Spring,
+        DefectKind::Damper,
+        DefectKind::Ground,
+    ];
+
+    /// The kinds `any` tries, in this order: the chain's own elements. A
+    /// ground spring is fitted only when asked for by name (at mass 1 and
+    /// `n` it acts as a change of a wall spring, which `any` already tries).
+    pub const ANY: [DefectKind; 3] = [DefectKind::Mass, DefectKind::Spring, DefectKind::Damper];
 
     /// The kind called `name` ([`DefectKind::name`]).
     pub fn from_name(name: &str) -> Option<DefectKind> {
@@ -538,6 +552,7 @@ impl DefectKind {
             Defect::Mass { .. } => DefectKind::Mass,
             Defect::Spring { .. } => DefectKind::Spring,
             Defect::Damper { .. } => DefectKind::Damper,
+            Defect::Ground { .. } => DefectKind::Ground,
         }
     }
 
@@ -547,6 +562,7 @@ impl DefectKind {
             DefectKind::Mass => "mass",
             DefectKind::Spring => "spring",
             DefectKind::Damper => "damper",
+            DefectKind::Ground => "ground",
         }
     }
 
@@ -572,6 +588,7 @@ impl DefectKind {
             DefectKind::Mass => Defect::Mass { at, m: value },
             DefectKind::Spring => Defect::Spring { at, k: value },
             DefectKind::Damper => Defect::Damper { at, d: value },
+            DefectKind::Ground => Defect::Ground { at, g: value },
         }
     }
 
@@ -583,6 +600,7 @@ impl DefectKind {
             DefectKind::Mass => 2.0 * chain.mass(),
             DefectKind::Spring => 2.0 * chain.k(),
             DefectKind::Damper => (5.0 * chain.d()).max(0.5),
+            DefectKind::Ground => 0.5 * chain.k(),
         }
     }
 
@@ -593,6 +611,7 @@ impl DefectKind {
             DefectKind::Mass => 0.5 * chain.mass(),
             DefectKind::Spring => 0.5 * chain.k(),
             DefectKind::Damper => 0.2 * chain.d(),
+            DefectKind::Ground => 0.05 * chain.k(),
         }
     }
 
@@ -618,7 +637,9 @@ pub enum KindChoice {
     Spring,
     /// A damper.
     Damper,
-    /// Any of the three.
+    /// A spring to the ground.
+    Ground,
+    /// Any of mass, spring and damper ([`DefectKind::ANY`]).
     Any,
 }
 
@@ -629,6 +650,7 @@ impl From<DefectKind> for KindChoice {
             DefectKind::Mass => KindChoice::Mass,
             DefectKind::Spring => KindChoice::Spring,
             DefectKind::Damper => KindChoice::Damper,
+            DefectKind::Ground => KindChoice::Ground,
         }
     }
 }
@@ -640,7 +662,8 @@ impl KindChoice {
             KindChoice::Mass => &[DefectKind::Mass],
             KindChoice::Spring => &[DefectKind::Spring],
             KindChoice::Damper => &[DefectKind::Damper],
-            KindChoice::Any => &DefectKind::ALL,
+            KindChoice::Ground => &[DefectKind::Ground],
+            KindChoice::Any => &DefectKind::ANY,
         }
     }
 
@@ -650,6 +673,7 @@ impl KindChoice {
             KindChoice::Mass => "mass",
             KindChoice::Spring => "spring",
             KindChoice::Damper => "damper",
+            KindChoice::Ground => "ground",
             KindChoice::Any => "any",
         }
     }
@@ -664,6 +688,8 @@ pub struct KindBounds {
     pub spring: (f64, f64),
     /// Dampers, `0 <= lo < hi`.
     pub damper: (f64, f64),
+    /// Springs to the ground, `0 <= lo < hi`.
+    pub ground: (f64, f64),
 }
 
 impl Default for KindBounds {
@@ -673,6 +699,7 @@ impl Default for KindBounds {
             mass: (0.1, 100.0),
             spring: (0.01, 100.0),
             damper: (0.0, 100.0),
+            ground: (0.0, 100.0),
         }
     }
 }
@@ -696,6 +723,7 @@ impl KindBounds {
             mass: (0.1 * m, 100.0 * m),
             spring: (0.01 * k, 100.0 * k),
             damper: (0.0, 100.0 * (k * m).sqrt()),
+            ground: (0.0, 100.0 * k),
         }
     }
 
@@ -705,6 +733,7 @@ impl KindBounds {
             DefectKind::Mass => self.mass,
             DefectKind::Spring => self.spring,
             DefectKind::Damper => self.damper,
+            DefectKind::Ground => self.ground,
         }
     }
 
@@ -714,6 +743,7 @@ impl KindBounds {
             DefectKind::Mass => self.mass = bounds,
             DefectKind::Spring => self.spring = bounds,
             DefectKind::Damper => self.damper = bounds,
+            DefectKind::Ground => self.ground = bounds,
         }
     }
 }

@@ -27,7 +27,7 @@
 //! * **number of defects** ([`DefectCount`]): given, or `auto`: every `k` in
 //!   `0..=k_max` is fitted and the criterion ([`Criterion`], BIC by default)
 //!   chooses; the table is in the report.
-//! * **kinds** ([`KindChoice`](crate::detect::unknowns::KindChoice)): mass, spring, damper or any.
+//! * **kinds** ([`KindChoice`](crate::detect::unknowns::KindChoice)): mass, spring, damper, ground (a spring from a mass to the ground) or any (mass, spring or damper).
 //! * **method** ([`FitMethod`]): `enumerate` (every position set, values by
 //!   bounded Levenberg-Marquardt) works for every kind; `greedy`
 //!   ([`greedy`]: one defect at a time, candidates
