@@ -46,37 +46,34 @@
 //!
 //! ## The cost of a new defect kind
 //!
-//! Counted for a "grounding spring" (a spring from mass `i` to the ground:
-//! `k_g` added to the stiffness matrix's diagonal at `i`), by the places
-//! that match on the kinds today (`Defect::{Mass, Spring, Damper}`,
-//! `DefectKind`, `KindChoice`). The issue's target is at most five files;
-//! **it does not hold: a new kind touches 13 source files** (plus the
-//! docs: `docs/config.md`, the scene and study schema texts):
+//! Every kernel reads a defect through its [`Site`](crate::chain::Site):
+//! the probe `u` (a point `e_j` or a strain `e_i - e_{i+1}`) and the power
+//! of `s` in `c(s) = (value - uniform) s^power` (2 a mass, 1 a damper, 0 a
+//! stiffness). The matrices are assembled in one place
+//! ([`Chain::coefficients`](crate::Chain::coefficients): `M`, `D`, and `K`
+//! as a ground-stiffness diagonal plus the springs' Laplacian), and the
+//! Woodbury forward model, the transfer sweep, the tridiagonal and modal
+//! solvers, the simulator, the sensitivities, both Jacobians and the greedy
+//! search's rank-one scores are written for any site.
 //!
-//! | file | what the new kind needs there |
+//! Measured by adding one: the ground spring (`Defect::Ground`, a spring
+//! from mass `j` to the ground; commit "Ground spring: a fourth defect
+//! kind"). Its code is in **two source files**:
+//!
+//! | file | what the kind needs there |
 //! |---|---|
-//! | `src/chain.rs` | the `Defect` variant: name, position, value, text form, checks, its place in the matrices |
-//! | `src/forward/mod.rs` | the defect as a low-rank update of the uniform Green's function (probe and coefficients) |
-//! | `src/forward/transfer.rs` | its site in the transfer-matrix model |
-//! | `src/sensitivity.rs` | the derivative of the response with respect to its value |
-//! | `src/detect/data/laplace.rs` | its sites in the Laplace chi-square's Jacobian |
-//! | `src/detect/misfit/time.rs` | its sites in the time-domain Jacobian |
-//! | `src/detect/unknowns.rs` | `DefectKind` (name, positions, value, start, uniform value), `KindChoice`, `KindBounds` |
-//! | `src/detect/search/rankone.rs` | its rank-one update in the greedy search's scoring kernel |
-//! | `src/detect/fit/general.rs` | its starting values in the hypothesis fits |
-//! | `src/detect/fit/chainfit.rs` | the bounds of a known defect of this kind in the chain-parameter fits |
-//! | `src/detect/fit/options.rs` | its text form in `--kinds` |
-//! | `src/study/kinds/forward.rs` | its text form in the forward study |
-//! | `src/study/kinds/case.rs` | the scene check that moves each defect to position 1 |
-//! | `src/time/modal.rs`, `src/time/simulate.rs` | nothing: they assemble the chain's matrices from `src/chain.rs` |
+//! | `src/chain.rs` | the `Defect` variant: its name, position, value, site (`e_j`, power 0), uniform value (0), value range |
+//! | `src/detect/unknowns.rs` | `DefectKind` and `KindChoice` entries (name, starting values, bounds) |
 //!
-//! The first eight are the kind's physics and its derivatives (inherent
-//! while each kernel is written per kind); the last five are bookkeeping
-//! that could go through `DefectKind` (as `report.rs`, `engine.rs` and the
-//! greedy search now do with `DefectKind::ALL`, `from_name`, `start` and
-//! `KindBounds::set`): folding them would bring the count to about nine,
-//! still above five unless the chain, forward and sensitivity code take a
-//! per-kind trait.
+//! and its name in three help or schema texts (`src/cmd/fit.rs`,
+//! `src/detect/fit/mod.rs`, `src/study/kinds/fit.rs`), the README and the
+//! Python docstrings. Everything else, the CLI, the scene and study files,
+//! the Python package, every fit method, reads it from these two; the
+//! tests in `tests/ground.rs` check each path against references written
+//! out by hand. A kind whose site is not a point or a stiffness between
+//! neighbours (a dashpot between two masses: a strain probe with power 1)
+//! would also need the assembly and the transfer sweep to carry an
+//! off-diagonal damping, which no kind needs today.
 
 pub mod data;
 pub mod fit;
