@@ -342,3 +342,92 @@ fn fit_data_profile_of_every_mass() {
         "penalty",
     );
 }
+
+/// A scene's `[profile]` table (the shipped `configs/scenes/profile-masses.toml`):
+/// every mass of its 30-mass chain from the simulated record, compared with
+/// the scene's truth; `--profile` on the command line overrides the table;
+/// bad profile settings in a scene, and `--plot` with a defect-fit scene,
+/// are refused by name.
+#[test]
+fn fit_scene_profile_of_every_mass() {
+    let scene = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/configs/scenes/profile-masses.toml"
+    );
+    let dir = temp_dir("scene-profile");
+    let v = json_of(bin().args(["fit", "--scene", scene, "--json"]));
+    let elems = v["elements"].as_array().unwrap();
+    assert_eq!(elems.len(), 30, "{v}");
+    let mut within = 0;
+    let mut visible = 0;
+    for e in elems.iter().filter(|e| e["visible"] == true) {
+        let truth = match e["at"].as_u64().unwrap() {
+            4 => 1.5,
+            9 => 0.7,
+            20 => 1.3,
+            _ => 1.0,
+        };
+        let (value, se) = (e["value"].as_f64().unwrap(), e["se"].as_f64().unwrap());
+        visible += 1;
+        within += usize::from((value - truth).abs() <= 2.0 * se);
+    }
+    assert!(
+        visible >= 20 && within * 10 >= visible * 8,
+        "{within} of {visible}: {v}"
+    );
+    let out = bin().args(["fit", "--scene", scene]).output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.contains("truth ([chain]): "),
+        "{text}"
+    );
+    // --profile overrides the table; a defect-fit scene refuses --plot
+    let spring_scene = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/configs/scenes/table1-system3.toml"
+    );
+    let v = json_of(bin().args([
+        "fit",
+        "--scene",
+        spring_scene,
+        "--profile",
+        "masses",
+        "--json",
+    ]));
+    assert_eq!(v["elements"].as_array().unwrap().len(), 20, "{v}");
+    refused(
+        &["fit", "--scene", spring_scene, "--plot", "p.svg"],
+        &dir,
+        "plot",
+    );
+    for (table, field) in [
+        ("mode = \"all\"", "profile"),
+        ("mode = \"masses\"\nchange = 0", "profile.change"),
+        ("mode = \"masses\"\npenalty = -1", "profile.penalty"),
+    ] {
+        let text = std::fs::read_to_string(scene).unwrap();
+        let bad = text.replace(
+            "[profile]\nmode = \"masses\"",
+            &format!("[profile]\n{table}"),
+        );
+        std::fs::write(dir.join("bad.toml"), bad).unwrap();
+        refused(&["fit", "--scene", "bad.toml"], &dir, field);
+    }
+    // an unknown field of the table: the TOML parser's message names it
+    let text = std::fs::read_to_string(scene).unwrap();
+    std::fs::write(
+        dir.join("bad.toml"),
+        text.replace("mode = \"masses\"", "mood = \"masses\""),
+    )
+    .unwrap();
+    let out = bin()
+        .args(["fit", "--scene", "bad.toml"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.code() == Some(2) && err.contains("mood"),
+        "{err}"
+    );
+}

@@ -87,16 +87,19 @@ pub struct Args {
     /// times as --data (its first value column, or --force-column).
     #[arg(long, requires = "data")]
     pub force: Option<PathBuf>,
-    /// Draw data, model and residual to this SVG (--data).
-    #[arg(long, requires = "data")]
+    /// Draw data, model and residual to this SVG (--data; with a profile,
+    /// the profile, also for --scene).
+    #[arg(long)]
     pub plot: Option<PathBuf>,
-    /// Write t, observed, model, residual to this CSV (--data).
-    #[arg(long, requires = "data")]
+    /// Write t, observed, model, residual to this CSV (--data; with a
+    /// profile, the profile's values, also for --scene).
+    #[arg(long)]
     pub out_csv: Option<PathBuf>,
     /// Whole-profile inversion instead of a defect search: every mass,
     /// every spring, or both free (masses|springs|both), with standard
-    /// errors and the depth the data can see (--data).
-    #[arg(long, requires = "data", conflicts_with_all = ["defects", "kinds", "method", "criterion", "known"])]
+    /// errors and the depth the data can see (--data, or --scene, whose
+    /// [profile] table it overrides).
+    #[arg(long, conflicts_with_all = ["defects", "kinds", "method", "criterion", "known"])]
     pub profile: Option<String>,
     /// The relative change the profile's visibility is stated for: a value
     /// is visible when the data show such a change at 2 standard errors [default: 0.1].
@@ -157,6 +160,39 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     if a.trace {
         scene.search.trace = true;
+    }
+    if let Some(m) = &a.profile {
+        scene.profile.mode = Some(m.clone());
+    }
+    if let Some(c) = a.profile_change {
+        scene.profile.change = Some(c);
+    }
+    if let Some(w) = a.penalty {
+        scene.profile.penalty = Some(w);
+    }
+    if let Some(mode) = scene.profile.requested() {
+        let mode = springmass::detect::fit::profile::ProfileMode::parse(mode)?;
+        scene.profile.check()?;
+        let truth = scene.truth()?;
+        let model = springmass::detect::fit::Model::from_chain(&truth.uniform());
+        let (obs, sigma) = scene.observations().context("in [data]")?;
+        let noise = sigma.map_or(
+            springmass::detect::fit::NoiseSpec::Auto,
+            springmass::detect::fit::NoiseSpec::Sigma,
+        );
+        let (change, penalty) = (scene.profile.change, scene.profile.penalty);
+        let r = run_profile(&a, &scene_path, &obs, &model, mode, noise, change, penalty)?;
+        if !a.json {
+            println!("{}", truth_line(&r, &truth));
+        }
+        return Ok(());
+    }
+    if a.plot.is_some() || a.out_csv.is_some() {
+        anyhow::bail!(springmass::Error::invalid(
+            if a.plot.is_some() { "plot" } else { "out_csv" },
+            "(with --scene)",
+            "--data FILE, or a profile (--profile or the scene's [profile] table)"
+        ));
     }
     let data = scene.data().context("in [data]")?;
     let report = fit(&scene, &data, &scene.options())?;
@@ -271,7 +307,17 @@ fn run_data(a: Args) -> anyhow::Result<()> {
     };
     let obs = Observations::Series(series.with_measurement(measurement)?);
     if let Some(mode) = profile {
-        return run_profile(&a, &path, &obs, &model, mode, opts.noise);
+        run_profile(
+            &a,
+            &path,
+            &obs,
+            &model,
+            mode,
+            opts.noise,
+            a.profile_change,
+            a.penalty,
+        )?;
+        return Ok(());
     }
     opts.validate(&obs, &model)?;
     let report = dfit::fit(&obs, &model, &opts)?;
@@ -318,7 +364,32 @@ fn run_data(a: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `springmass fit --data ... --profile MODE`: the whole-profile inversion.
+/// How the truth of a scene compares with its fitted profile: the visible
+/// values within 2 standard errors of it, and the largest error.
+fn truth_line(
+    r: &springmass::detect::fit::profile::ProfileReport,
+    truth: &springmass::Chain,
+) -> String {
+    let (masses, springs) = (truth.masses(), truth.springs());
+    let (mut within, mut visible, mut worst) = (0, 0, 0.0f64);
+    for e in r.elements.iter().filter(|e| e.visible) {
+        let t = if e.kind == "mass" {
+            masses[e.at - 1]
+        } else {
+            springs[e.at]
+        };
+        visible += 1;
+        within += usize::from((e.value - t).abs() <= 2.0 * e.se);
+        worst = worst.max((e.value / t - 1.0).abs());
+    }
+    format!(
+        "truth ([chain]): {within} of {visible} visible values within 2 SE; largest relative error {worst:.2e}"
+    )
+}
+
+/// `springmass fit --data ... --profile MODE` (or a scene's profile): the
+/// whole-profile inversion.
+#[allow(clippy::too_many_arguments)]
 fn run_profile(
     a: &Args,
     path: &std::path::Path,
@@ -326,14 +397,16 @@ fn run_profile(
     model: &springmass::detect::fit::Model,
     mode: springmass::detect::fit::profile::ProfileMode,
     noise: springmass::detect::fit::NoiseSpec,
-) -> anyhow::Result<()> {
+    change: Option<f64>,
+    penalty: Option<f64>,
+) -> anyhow::Result<springmass::detect::fit::profile::ProfileReport> {
     use springmass::detect::fit::profile::{fit_profile, ProfileOptions};
     let mut po = ProfileOptions::new(mode);
     po.noise = noise;
-    if let Some(c) = a.profile_change {
+    if let Some(c) = change {
         po.change = c;
     }
-    po.lambda = a.penalty;
+    po.lambda = penalty;
     let r = fit_profile(obs, model, &po)?;
     if let Some(out) = &a.out_csv {
         let mut w = csv::Writer::from_path(out)
@@ -412,7 +485,7 @@ fn run_profile(
     } else {
         print!("{}", r.summary());
     }
-    Ok(())
+    Ok(r)
 }
 
 /// The JSON form of a data-first report: the answer first, the predicted

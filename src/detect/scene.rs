@@ -26,7 +26,7 @@
 //! [unknowns]         # optional; see crate::detect::unknowns::UnknownsSpec
 //! k = 2              # default: number of defects in [chain]
 //! mass_bounds = [0.1, 100]
-//! # kind = "mass"    # "mass" | "spring" | "damper" | "any" (per defect:
+//! # kind = "mass"    # "mass" | "spring" | "damper" | "ground" | "any" (per defect:
 //! #                  #   [[unknowns.defects]] kind = ...)
 //! # chain = []       # chain parameters fitted too: "d", "gamma", "k", "mass"
 //! # chain_start = { d = 0.2 }     # their starting values
@@ -41,6 +41,11 @@
 //! [search]           # optional; see SearchSpec
 //! method = "enumerate"   # enumerate | ga | nelder-mead | pso
 //! seed = 0
+//!
+//! [profile]          # optional; see ProfileSpec: fit every mass or spring
+//! mode = "masses"    #   "none" (default: the defect fit) | "masses" | "springs" | "both"
+//! # change = 0.1     #   the relative change the visibility is stated for
+//! # penalty = 1e-3   #   a fixed penalty weight (default: continuation to the noise)
 //! ```
 //!
 //! Every table rejects unknown fields.
@@ -65,13 +70,15 @@
 use crate::chain::{Chain, ChainSpec};
 use crate::detect::data::exact::Data;
 use crate::detect::data::measurement::{hammer, Measurement, Sensor};
+use crate::detect::data::observations::{LaplaceValues, Observations, Series};
 use crate::detect::data::series::TimeData;
-use crate::detect::misfit::MisfitSpec;
+use crate::detect::misfit::{MisfitKind, MisfitSpec};
 use crate::detect::search::enumerate::EnumerateOptions;
 use crate::detect::search::FitMethod;
 use crate::detect::unknowns::{DefectKind, Unknowns, UnknownsSpec};
 use crate::error::{Error, Result};
 use crate::forward::Observable;
+use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -265,6 +272,50 @@ pub struct FitScene {
     /// The search.
     #[serde(default)]
     pub search: SearchSpec,
+    /// The whole-profile inversion instead of the defect fit.
+    #[serde(default)]
+    pub profile: ProfileSpec,
+}
+
+/// The `[profile]` table: every mass (spring, both) of the chain fitted
+/// instead of a few defects (`detect::fit::profile`), on the scene's data.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProfileSpec {
+    /// `none` (default), `masses`, `springs` or `both`.
+    #[serde(default)]
+    pub mode: Option<String>,
+    /// The relative change the visibility is stated for (default 0.1).
+    #[serde(default)]
+    pub change: Option<f64>,
+    /// A fixed penalty weight instead of the continuation (default none).
+    #[serde(default)]
+    pub penalty: Option<f64>,
+}
+
+impl ProfileSpec {
+    /// The mode's name when a profile is asked for (`None` for `none` or
+    /// no table).
+    pub fn requested(&self) -> Option<&str> {
+        self.mode.as_deref().filter(|m| m.trim() != "none")
+    }
+
+    /// Check `change` and `penalty` (the mode's name is checked where it
+    /// is parsed).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `profile.change` or `profile.penalty`.
+    pub fn check(&self) -> Result<()> {
+        for (field, v) in [
+            ("profile.change", self.change),
+            ("profile.penalty", self.penalty),
+        ] {
+            if let Some(v) = v {
+                crate::error::check_f64(field, v, v > 0.0, "> 0 and finite")?;
+            }
+        }
+        Ok(())
+    }
 }
 
 impl FitScene {
@@ -299,6 +350,7 @@ impl FitScene {
             unknowns: UnknownsSpec::default(),
             misfit: MisfitSpec::default(),
             search: SearchSpec::default(),
+            profile: ProfileSpec::default(),
         }
     }
 
@@ -354,6 +406,52 @@ impl FitScene {
                     (sigma > 0.0).then_some(sigma),
                 )
             }
+        }
+    }
+
+    /// The scene's data as the pipeline's observations, and the samples'
+    /// known noise level (`None`: to be estimated): the sampled record
+    /// (simulated or read) with its sensor, or for `exact` data the values
+    /// at the misfit's nodes (the Bromwich line for `bromwich`, the real
+    /// axis otherwise) with their errors.
+    ///
+    /// # Errors
+    /// As [`FitScene::data`], [`FitScene::measurement`] and the misfit's
+    /// rule; `data.source` for exact data with the time misfit.
+    pub fn observations(&self) -> Result<(Observations, Option<f64>)> {
+        let data = self.data()?;
+        if let Some((t, x)) = data.samples() {
+            let sigma = self.noise_sigma()?;
+            let sg = (sigma > 0.0).then_some(sigma);
+            let series =
+                Series::new(t.to_vec(), x.to_vec(), sg)?.with_measurement(self.measurement(t)?)?;
+            return Ok((Observations::Series(series), sg));
+        }
+        if self.misfit.kind == MisfitKind::Time {
+            return Err(Error::invalid(
+                "data.source",
+                "exact",
+                "\"simulated\" or \"series\" (the time misfit needs a sampled series)",
+            ));
+        }
+        let s = self.laplace_nodes(&self.misfit.rule()?.nodes);
+        let sm = data.sample(&s)?;
+        let sigma = sm.sigma.iter().map(|v| v.max(1e-300)).collect();
+        Ok((
+            Observations::Laplace(LaplaceValues::new(s, sm.values, Some(sigma))?),
+            Some(1.0),
+        ))
+    }
+
+    /// The Laplace nodes of the misfit's rule: `sigma + i w` on the
+    /// Bromwich line for `bromwich`, the real nodes otherwise.
+    pub fn laplace_nodes(&self, rule_nodes: &[f64]) -> Vec<Complex64> {
+        match self.misfit.kind {
+            MisfitKind::Bromwich => rule_nodes
+                .iter()
+                .map(|&w| Complex64::new(self.misfit.sigma, w))
+                .collect(),
+            _ => rule_nodes.iter().map(|&x| Complex64::new(x, 0.0)).collect(),
         }
     }
 

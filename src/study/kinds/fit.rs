@@ -94,6 +94,9 @@ pub const FIELDS: &[FieldDoc] = &[
     FieldDoc::new("search.beam", "integer", "16", "Enumeration: beam width."),
     FieldDoc::new("search.parallel", "bool", "true", "Parallel residual evaluations (on the study's thread pool)."),
     FieldDoc::new("search.trace", "bool", "false", "Record the optimizer's trace."),
+    FieldDoc::new("profile.mode", "\"none\" | \"masses\" | \"springs\" | \"both\"", "\"none\"", "`springmass fit --scene`: fit every mass (spring, both) of the chain instead of the defects (the whole-profile inversion). Studies profile through the `noise` kind's `profile` field; a `fit` study refuses it."),
+    FieldDoc::new("profile.change", "float", "0.1", "The relative change the profile's visibility is stated for (> 0)."),
+    FieldDoc::new("profile.penalty", "float", "(continuation)", "A fixed penalty weight instead of the continuation to the noise level (> 0)."),
 ];
 
 /// Every metric and timing of kind `fit`.
@@ -305,6 +308,21 @@ impl KindScene for FitScene {
                 ">= 1 for a stochastic method",
             ));
         }
+        // [profile]
+        if let Err(e) = self.profile.check() {
+            out.push(e);
+        }
+        if let Some(mode) = self.profile.mode.as_deref() {
+            if mode.trim() != "none" {
+                if let Err(e) = crate::detect::fit::profile::ProfileMode::parse(mode) {
+                    out.push(Error::invalid(
+                        "profile.mode",
+                        mode,
+                        format!("none, masses, springs or both ({e})"),
+                    ));
+                }
+            }
+        }
         out
     }
 }
@@ -324,6 +342,13 @@ pub fn scene(value: &toml::Value) -> Result<FitScene> {
 /// An invalid scene; the fit's own errors.
 pub fn run(value: &toml::Value, seed: u64) -> Result<CaseOutput> {
     let s = scene(&seeded(value, seed))?;
+    if let Some(mode) = s.profile.requested() {
+        return Err(Error::invalid(
+            "profile.mode",
+            mode,
+            "\"none\" in a `fit` study (profile studies use the `noise` kind's `profile` field)",
+        ));
+    }
     let data = s.data()?;
     let r = fit(&s, &data, &s.options())?;
     let truth = positions(s.truth()?.defects());
