@@ -119,6 +119,16 @@ def test_slot_kinds_and_known_defects(s1_record):
     assert [e.at for e in r.defects if not e.known] == [4]
 
 
+def test_ground_spring_kind_round_trip():
+    # a spring from mass 7 to the ground, found by kinds="ground" with sigma unknown
+    t = np.arange(0.0, 200.0 + 1e-9, 0.25)
+    x = springmass.simulate(12, t=t, defects=[("ground", 7, 0.3)], noise="rel:1e-3", seed=3)
+    r = springmass.fit(t, x, n=12, defects=1, kinds="ground")
+    (e,) = r.defects
+    assert (e.kind, e.at) == ("ground", 7)
+    assert abs(e.value - 0.3) < 4 * e.se and e.se > 1e-8
+
+
 def test_seeded_stochastic_fit_is_reproducible(s1_record):
     t, x = s1_record
     kw = dict(n=5, defects=2, method="pso", max_evals=1500)
