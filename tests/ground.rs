@@ -198,15 +198,20 @@ fn ground_truth() -> Chain {
         .unwrap()
 }
 
-#[test]
-fn a_ground_spring_is_found_from_exact_laplace_values() {
-    let truth = ground_truth();
+/// Exact `X_1` of `truth` at 60 nodes of the Bromwich line `0.05 + i w`.
+fn exact_values(truth: &Chain) -> Observations {
     let s: Vec<Complex64> = (0..60)
         .map(|q| Complex64::new(0.05, 0.05 * q as f64))
         .collect();
-    let fwd = Forward::new(&truth);
+    let fwd = Forward::new(truth);
     let values: Vec<Complex64> = s.iter().map(|&z| fwd.eval(z, 1).unwrap()).collect();
-    let obs = Observations::Laplace(LaplaceValues::new(s, values, None).unwrap());
+    Observations::Laplace(LaplaceValues::new(s, values, None).unwrap())
+}
+
+#[test]
+fn a_ground_spring_is_found_from_exact_laplace_values() {
+    let truth = ground_truth();
+    let obs = exact_values(&truth);
     for method in [FitMethod::Enumerate, FitMethod::Greedy] {
         let opts = FitOptions {
             defects: DefectCount::Exactly(1),
@@ -282,12 +287,7 @@ fn a_known_ground_spring_in_the_model_is_kept_while_a_mass_is_fitted() {
             Defect::Mass { at: 8, m: 2.5 },
         ])
         .unwrap();
-    let s: Vec<Complex64> = (0..60)
-        .map(|q| Complex64::new(0.05, 0.05 * q as f64))
-        .collect();
-    let fwd = Forward::new(&truth);
-    let values: Vec<Complex64> = s.iter().map(|&z| fwd.eval(z, 1).unwrap()).collect();
-    let obs = Observations::Laplace(LaplaceValues::new(s, values, None).unwrap());
+    let obs = exact_values(&truth);
     let model = Model::new(10)
         .unwrap()
         .with_known(Defect::Ground { at: 3, g: 0.8 })
