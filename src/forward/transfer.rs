@@ -71,8 +71,11 @@ pub struct Transfer {
 
 /// Per-`s` state of one segment after the backward sweep.
 struct Swept<T> {
-    /// `E` at the segment's left index.
-    e_left: T,
+    /// `E` at the segment's left index, as `e_num / e_den` (a run's
+    /// division is left to its consumers, which fold it into their own:
+    /// `e_den = 1` for a special mass and in the static limit).
+    e_num: T,
+    e_den: T,
     /// For runs: `1 - psi` (in the static limit: `k / E_{r+1}`).
     one_m_psi: T,
 }
@@ -203,9 +206,14 @@ impl Transfer {
         let qpow = |p: usize| -> T { pw.q(p) };
         let one_m_q = pw.one_m_q(1);
         let one_m_q2 = pw.one_m_q(2);
-        let em1 = pw.em1();
-        let e_lam = pw.e_lam();
+        let em1k = pw.em1().scale(k);
+        let ek = pw.e_lam().scale(k);
         let q = qpow(1);
+        // 1 - psi = (1 - q^2) / (E_{r+1} / (k e^lambda) + q (1 - q))
+        //         = (1 - q^2) k e^lambda / (E_{r+1} + k e^lambda q (1 - q)):
+        // one division, a sum of positive terms for real s
+        let omp_num = one_m_q2.clone() * ek.clone();
+        let omp_shift = ek * q.clone() * one_m_q;
         let s2 = s.clone() * s.clone();
         let local = |m: f64, d: f64| -> T { s2.scale(m) + s.scale(d) };
         // B(p) = (1 - q^{2p}) + (1 - psi) q^{2p}
@@ -214,55 +222,55 @@ impl Transfer {
         // ---- backward sweep: E at each segment's left index ----
         let nseg = self.segs.len();
         let mut swept: Vec<Swept<T>> = Vec::with_capacity(nseg);
-        // `e_right` = E_{i+1} of the index right of the current segment; None at the wall.
-        let mut right: Option<T> = None;
+        // `E_{i+1}` of the index right of the current segment as a fraction
+        // `(num, den)`; None at the wall.
+        let mut right: Option<(T, T)> = None;
         for seg in self.segs.iter().rev() {
             match *seg {
                 Seg::Special { i, m, d, kl, kr } => {
+                    // kr E / (E + kr) with E = num / den: kr num / (num + kr den)
                     let tail = match &right {
                         None => T::from_f64(kr),
-                        Some(e) => e.clone().scale(kr) / (e.clone() + T::from_f64(kr)),
+                        Some((en, ed)) => en.scale(kr) / (en.clone() + ed.scale(kr)),
                     };
                     if i == 1 {
                         z1 = s.scale(d) + T::from_f64(kl) + tail.clone();
                     }
                     let e = local(m, d) + tail;
                     swept.push(Swept {
-                        e_left: e.clone(),
+                        e_num: e.clone(),
+                        e_den: T::one(),
                         one_m_psi: T::zero(),
                     });
-                    right = Some(e);
+                    right = Some((e, T::one()));
                 }
                 Seg::Run { l, r } => {
                     let p = r + 1 - l;
-                    let (e, omp) = if stat {
+                    let (en, ed, omp) = if stat {
                         // springs in series: E_l = 1 / (p/k + 1/E_{r+1})
                         let inv_right = match &right {
                             None => T::zero(),
-                            Some(e) => T::one() / e.clone(),
+                            Some((en, ed)) => ed.clone() / en.clone(),
                         };
                         let e = T::one() / (T::from_f64(p as f64 / k) + inv_right.clone());
                         // store c0 = k / E_{r+1} in `one_m_psi` for the static ratio
-                        (e, inv_right.scale(k))
+                        (e, T::one(), inv_right.scale(k))
                     } else {
                         let omp = match &right {
                             None => T::zero(),
-                            Some(e) => {
-                                let rho_m_q2 =
-                                    e.clone() / (e_lam.scale(k)) + q.clone() * one_m_q.clone();
-                                one_m_q2.clone() / rho_m_q2
-                            }
+                            // a special mass to the right: its E is a value
+                            Some((e, _)) => omp_num.clone() / (e.clone() + omp_shift.clone()),
                         };
                         let psi = T::one() - omp.clone();
                         let num = T::one() + psi * qpow(2 * p + 1);
-                        let e = em1.scale(k) * num / big_b(p, &omp);
-                        (e, omp)
+                        (em1k.clone() * num, big_b(p, &omp), omp)
                     };
                     swept.push(Swept {
-                        e_left: e.clone(),
+                        e_num: en.clone(),
+                        e_den: ed.clone(),
                         one_m_psi: omp,
                     });
-                    right = Some(e);
+                    right = Some((en, ed));
                 }
             }
         }
@@ -271,7 +279,10 @@ impl Transfer {
         // ---- forward substitution through the sites ----
         let mut out: Vec<T> = Vec::with_capacity(sites.len());
         let mut next = 0;
+        // X at the last index crossed, as `x / x_den` (a run without sites
+        // leaves its division to the next special mass)
         let mut x = T::zero();
+        let mut x_den = T::one();
         let mut kappa_left = 0.0; // spring joining the previous index to this segment
         for (idx, seg) in self.segs.iter().enumerate() {
             if next == sites.len() {
@@ -280,12 +291,13 @@ impl Transfer {
             let sw = &swept[idx];
             match *seg {
                 Seg::Special { i, kl, kr, .. } => {
-                    let dd = sw.e_left.clone() + T::from_f64(kl);
+                    let dd = sw.e_num.clone() + T::from_f64(kl);
                     x = if i == 1 {
                         T::from_f64(gamma) / dd
                     } else {
-                        x.scale(kappa_left) / dd
+                        x.scale(kappa_left) / (x_den * dd)
                     };
+                    x_den = T::one();
                     while next < sites.len() && sites[next] == i {
                         out.push(x.clone());
                         next += 1;
@@ -293,13 +305,30 @@ impl Transfer {
                     kappa_left = kr;
                 }
                 Seg::Run { l, r } => {
-                    let dd = sw.e_left.clone() + T::from_f64(k);
+                    let pl = r + 1 - l;
+                    let inside = next < sites.len() && sites[next] >= l && sites[next] <= r;
+                    if !stat && !inside && l != 1 {
+                        // X_r = X_{l-1} kappa q^{r-l} B(1) / (D_l B(p_l)),
+                        // D_l = E_l + k = (e_num + k e_den) / e_den: no division
+                        let dd = sw.e_num.clone() + sw.e_den.scale(k);
+                        let mut xn = x.scale(kappa_left) * sw.e_den.clone();
+                        let mut xd = x_den * dd;
+                        if r > l {
+                            xn = xn * qpow(r - l) * big_b(1, &sw.one_m_psi);
+                            xd = xd * big_b(pl, &sw.one_m_psi);
+                        }
+                        x = xn;
+                        x_den = xd;
+                        kappa_left = k;
+                        continue;
+                    }
+                    // x_den is 1 here: runs follow special masses
+                    let dd = sw.e_num.clone() / sw.e_den.clone() + T::from_f64(k);
                     let xl = if l == 1 {
                         T::from_f64(gamma) / dd
                     } else {
                         x.scale(kappa_left) / dd
                     };
-                    let pl = r + 1 - l;
                     let ratio = |target: usize| -> T {
                         let pt = r + 1 - target;
                         if stat {

@@ -523,25 +523,75 @@ fn whiten(w: &DMatrix<f64>, x: &[f64], cols: usize) -> Vec<f64> {
     let (k, m) = w.shape();
     debug_assert_eq!(x.len(), m * cols);
     let mut out = vec![0.0; k * cols];
-    if k == 0 {
+    if k == 0 || m == 0 {
         return out;
     }
-    for (j, wc) in w.as_slice().chunks_exact(k).enumerate() {
-        for (c, o) in out.chunks_exact_mut(k).enumerate() {
-            let v = x[c * m + j];
-            if j == 0 {
-                for (o, a) in o.iter_mut().zip(wc) {
-                    *o = a * v;
+    let ws = w.as_slice();
+    // blocks of `WHITEN_ROWS` rows of W held in registers across all its
+    // columns (every entry of W read once, no store until the block is
+    // done); per output the same sums in the same order as above
+    let mut i0 = 0;
+    while i0 + WHITEN_ROWS <= k {
+        let mut c = 0;
+        while c + 2 <= cols {
+            let (x0, x1) = (&x[c * m..(c + 1) * m], &x[(c + 1) * m..(c + 2) * m]);
+            let w0: &[f64; WHITEN_ROWS] = ws[i0..i0 + WHITEN_ROWS].try_into().expect("block");
+            let mut a0 = w0.map(|v| v * x0[0]);
+            let mut a1 = w0.map(|v| v * x1[0]);
+            for j in 1..m {
+                let wj: &[f64; WHITEN_ROWS] = ws[j * k + i0..j * k + i0 + WHITEN_ROWS]
+                    .try_into()
+                    .expect("block");
+                let (v0, v1) = (x0[j], x1[j]);
+                for l in 0..WHITEN_ROWS {
+                    a0[l] += wj[l] * v0;
+                    a1[l] += wj[l] * v1;
                 }
-            } else {
-                for (o, a) in o.iter_mut().zip(wc) {
-                    *o += a * v;
+            }
+            out[c * k + i0..c * k + i0 + WHITEN_ROWS].copy_from_slice(&a0);
+            out[(c + 1) * k + i0..(c + 1) * k + i0 + WHITEN_ROWS].copy_from_slice(&a1);
+            c += 2;
+        }
+        if c < cols {
+            let x0 = &x[c * m..(c + 1) * m];
+            let w0: &[f64; WHITEN_ROWS] = ws[i0..i0 + WHITEN_ROWS].try_into().expect("block");
+            let mut a0 = w0.map(|v| v * x0[0]);
+            for j in 1..m {
+                let wj: &[f64; WHITEN_ROWS] = ws[j * k + i0..j * k + i0 + WHITEN_ROWS]
+                    .try_into()
+                    .expect("block");
+                let v0 = x0[j];
+                for l in 0..WHITEN_ROWS {
+                    a0[l] += wj[l] * v0;
+                }
+            }
+            out[c * k + i0..c * k + i0 + WHITEN_ROWS].copy_from_slice(&a0);
+        }
+        i0 += WHITEN_ROWS;
+    }
+    // the last rows, column by column
+    if i0 < k {
+        for (j, wc) in ws.chunks_exact(k).enumerate() {
+            for (c, o) in out.chunks_exact_mut(k).enumerate() {
+                let v = x[c * m + j];
+                let (o, wc) = (&mut o[i0..], &wc[i0..]);
+                if j == 0 {
+                    for (o, a) in o.iter_mut().zip(wc) {
+                        *o = a * v;
+                    }
+                } else {
+                    for (o, a) in o.iter_mut().zip(wc) {
+                        *o += a * v;
+                    }
                 }
             }
         }
     }
     out
 }
+
+/// Rows of `W` per register block of [`whiten`].
+const WHITEN_ROWS: usize = 8;
 
 #[cfg(test)]
 mod tests {
@@ -632,5 +682,22 @@ mod tests {
         let x = DMatrix::from_fn(m, 3, |i, j| (i * 3 + j) as f64 - 7.5);
         let wm = DMatrix::from_fn(4, m, |i, j| ((i + 2 * j) % 5) as f64 * 0.3 - 0.4);
         assert_eq!(whiten(&wm, x.as_slice(), 3), (&wm * &x).as_slice().to_vec());
+        // register blocks and the rows left over: the same sums in the same
+        // order as column by column (`W[i][0] x_0`, then `+ W[i][j] x_j`)
+        for (rows, cols) in [(8, 1), (17, 2), (19, 3), (24, 5)] {
+            let x = DMatrix::from_fn(m, cols, |i, j| ((i * 7 + j) % 11) as f64 * 0.37 - 1.1);
+            let wm = DMatrix::from_fn(rows, m, |i, j| ((i * 5 + 3 * j) % 13) as f64 * 0.21 - 1.3);
+            let mut want = vec![0.0; rows * cols];
+            for c in 0..cols {
+                for i in 0..rows {
+                    let mut acc = wm[(i, 0)] * x[(0, c)];
+                    for j in 1..m {
+                        acc += wm[(i, j)] * x[(j, c)];
+                    }
+                    want[c * rows + i] = acc;
+                }
+            }
+            assert_eq!(whiten(&wm, x.as_slice(), cols), want, "{rows} x {cols}");
+        }
     }
 }
