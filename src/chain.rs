@@ -381,7 +381,15 @@ impl Chain {
     pub fn with_defect(mut self, defect: Defect) -> Result<Chain> {
         let idx = self.defects.len();
         let n = self.n;
+        // a valid mass or damper is checked without formatting the field
+        // names (the fits rebuild chains at every evaluation)
+        let plain = match defect {
+            Defect::Mass { at, m } => (1..=n).contains(&at) && m.is_finite() && m > 0.0,
+            Defect::Damper { at, d } => (1..=n).contains(&at) && d.is_finite() && d >= 0.0,
+            Defect::Spring { .. } => false,
+        };
         match defect {
+            _ if plain => {}
             Defect::Mass { at, m } => {
                 check_pos(&format!("defects[{idx}].at"), at, 1, n)?;
                 check_f64(&format!("defects[{idx}].m"), m, m > 0.0, "m > 0 and finite")?;

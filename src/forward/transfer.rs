@@ -69,7 +69,32 @@ pub struct Transfer {
     segs: Vec<Seg>,
 }
 
+/// Buffers of a sweep, reused across the sweeps of many `s`
+/// ([`Transfer::eval_sites_into`]): no allocation per sweep once grown.
+#[derive(Debug)]
+pub struct SweepWork<T> {
+    swept: Vec<Swept<T>>,
+    out: Vec<T>,
+}
+
+impl<T> Default for SweepWork<T> {
+    fn default() -> Self {
+        SweepWork {
+            swept: Vec::new(),
+            out: Vec::new(),
+        }
+    }
+}
+
+impl<T> SweepWork<T> {
+    /// `X` at the sites of the last sweep.
+    pub fn out(&self) -> &[T] {
+        &self.out
+    }
+}
+
 /// Per-`s` state of one segment after the backward sweep.
+#[derive(Debug)]
 struct Swept<T> {
     /// `E` at the segment's left index, as `e_num / e_den` (a run's
     /// division is left to its consumers, which fold it into their own:
@@ -186,6 +211,20 @@ impl Transfer {
         self.sweep(s, table, sites, gamma)
     }
 
+    /// [`Transfer::eval_sites`] into `work` (`X` at the sites in
+    /// [`SweepWork::out`]), returning `Z_1`: the same values, without
+    /// allocating once `work` has grown.
+    pub fn eval_sites_into<T: Scalar>(
+        &self,
+        s: &T,
+        table: &SweepTable<T>,
+        sites: &[usize],
+        gamma: f64,
+        work: &mut SweepWork<T>,
+    ) -> T {
+        self.sweep_into(s, table, sites, gamma, work)
+    }
+
     /// Whether `table` was built for this chain's uniform part.
     pub fn fits<T: Scalar>(&self, table: &SweepTable<T>) -> bool {
         table.key == (self.k.to_bits(), self.mass.to_bits(), self.d.to_bits())
@@ -199,6 +238,22 @@ impl Transfer {
         sites: &[usize],
         gamma: f64,
     ) -> (Vec<T>, T) {
+        let mut work = SweepWork {
+            swept: Vec::with_capacity(self.segs.len()),
+            out: Vec::with_capacity(sites.len()),
+        };
+        let z1 = self.sweep_into(s, pw, sites, gamma, &mut work);
+        (work.out, z1)
+    }
+
+    fn sweep_into<T: Scalar, P: Powers<T>>(
+        &self,
+        s: &T,
+        pw: &P,
+        sites: &[usize],
+        gamma: f64,
+        work: &mut SweepWork<T>,
+    ) -> T {
         let k = self.k;
         let mut z1 = T::zero();
         let lam = pw.lam();
@@ -220,8 +275,8 @@ impl Transfer {
         let big_b = |p: usize, omp: &T| -> T { pw.one_m_q(2 * p) + omp.clone() * qpow(2 * p) };
 
         // ---- backward sweep: E at each segment's left index ----
-        let nseg = self.segs.len();
-        let mut swept: Vec<Swept<T>> = Vec::with_capacity(nseg);
+        let swept = &mut work.swept;
+        swept.clear();
         // `E_{i+1}` of the index right of the current segment as a fraction
         // `(num, den)`; None at the wall.
         let mut right: Option<(T, T)> = None;
@@ -277,7 +332,8 @@ impl Transfer {
         swept.reverse();
 
         // ---- forward substitution through the sites ----
-        let mut out: Vec<T> = Vec::with_capacity(sites.len());
+        let out = &mut work.out;
+        out.clear();
         let mut next = 0;
         // X at the last index crossed, as `x / x_den` (a run without sites
         // leaves its division to the next special mass)
@@ -354,7 +410,7 @@ impl Transfer {
         }
         // sites out of order or beyond n
         out.resize(sites.len(), T::from_f64(f64::NAN));
-        (out, z1)
+        z1
     }
 }
 

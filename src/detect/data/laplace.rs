@@ -8,7 +8,7 @@
 use crate::chain::{Chain, Defect};
 use crate::detect::data::measurement::{laplace_gradient, laplace_model, scale_gradient, Sensor};
 use crate::error::{check_f64, Error, Result};
-use crate::forward::transfer::SweepTable;
+use crate::forward::transfer::{SweepTable, SweepWork};
 use crate::forward::Forward;
 use crate::sensitivity::{
     defect_gradient_from, defect_gradient_with, gradient, observe_defect_gradient_with, Gradient,
@@ -64,7 +64,7 @@ impl PartialEq for ObsId {
 
 /// The tabulated sweeps of one chain at every node of one observation: per
 /// node `X_1` and its derivatives with respect to every defect value
-/// ([`LaplaceObs::tabulated_gradient`], `None` where the table does not
+/// ([`LaplaceObs::tabulated_gradients`], `None` where the table does not
 /// apply). A least-squares fit asks for the residuals at a point and then
 /// for the Jacobian at the same point (and the driver once more for the
 /// Jacobian at its last point): one sweep per node serves both.
@@ -386,9 +386,7 @@ impl LaplaceObs {
                 .as_ref()
                 .is_some_and(|m| m.id == self.id.0 && m.chain == *fwd.chain());
             if !hit {
-                let grads = (0..self.s.len())
-                    .map(|q| self.tabulated_gradient(fwd, q))
-                    .collect();
+                let grads = self.tabulated_gradients(fwd);
                 *slot = Some(LastSweep {
                     id: self.id.0,
                     chain: fwd.chain().clone(),
@@ -400,11 +398,15 @@ impl LaplaceObs {
     }
 
     /// `X_1` and its derivatives with respect to every defect value of
-    /// `fwd`'s chain at node `q`, from `X` at mass 1 and the defect sites in
-    /// one tabulated sweep (as [`defect_gradient_with`]); `None` when the
-    /// table does not apply.
-    fn tabulated_gradient(&self, fwd: &Forward, q: usize) -> Option<Gradient<Complex64>> {
+    /// `fwd`'s chain at every node, from `X` at mass 1 and the defect sites
+    /// in one tabulated sweep per node (as [`defect_gradient_with`]); `None`
+    /// where the table does not apply. The sites once per chain, the sweep's
+    /// buffers once for all nodes.
+    fn tabulated_gradients(&self, fwd: &Forward) -> Vec<Option<Gradient<Complex64>>> {
         let chain = fwd.chain();
+        let Some(tables) = self.tables(chain) else {
+            return vec![None; self.s.len()];
+        };
         let n = chain.n();
         let mut sites = vec![1];
         for d in chain.defects() {
@@ -417,14 +419,24 @@ impl LaplaceObs {
         }
         sites.sort_unstable();
         sites.dedup();
-        let x = self.x_sites(fwd, q, &sites)?;
-        // x_0 = x_{n+1} = 0
-        let at = |i: usize| -> Result<Complex64> {
-            Ok(sites
-                .binary_search(&i)
-                .map_or(Complex64::new(0.0, 0.0), |j| x[j]))
-        };
-        defect_gradient_from(chain, &self.s[q], at).ok()
+        let mut work = SweepWork::default();
+        self.s
+            .iter()
+            .zip(tables)
+            .map(|(s, table)| {
+                if !fwd.sites_into(s, table, &sites, &mut work) {
+                    return None;
+                }
+                let x = work.out();
+                // x_0 = x_{n+1} = 0
+                let at = |i: usize| -> Result<Complex64> {
+                    Ok(sites
+                        .binary_search(&i)
+                        .map_or(Complex64::new(0.0, 0.0), |j| x[j]))
+                };
+                defect_gradient_from(chain, s, at).ok()
+            })
+            .collect()
     }
 
     pub(crate) fn jacobian(&self, chain: &Chain, params: &[Param]) -> Result<DMatrix<f64>> {
@@ -438,6 +450,30 @@ impl LaplaceObs {
             })
             .collect();
         let fwd = Forward::new(chain);
+        // whitened defect values of the tabulated observable: the stacked
+        // Jacobian straight from the memo of the sweep (the same values as
+        // the node-by-node path below)
+        if let (Some(idx), Some(w)) = (&defect_idx, &self.whitening) {
+            if self.sweep_memo_applies() {
+                let layout = crate::time::series::stacked_rows(&self.s);
+                let (m, p) = (layout.len(), idx.len());
+                let stacked: Option<Vec<f64>> = self.with_sweep(&fwd, |all| {
+                    let mut j = vec![0.0; m * p];
+                    for (r, &(q, im)) in layout.iter().enumerate() {
+                        let g = all[q].as_ref()?;
+                        let c = self.factor(q);
+                        for (col, &i) in idx.iter().enumerate() {
+                            let v = g.grad[i] * c;
+                            j[col * m + r] = if im { v.im } else { v.re };
+                        }
+                    }
+                    Some(j)
+                });
+                if let Some(j) = stacked {
+                    return Ok(DMatrix::from_vec(w.nrows(), p, whiten(w, &j, p)));
+                }
+            }
+        }
         let mut grads: Vec<Vec<Complex64>> = Vec::with_capacity(self.s.len());
         let paper = self.force_hat.is_none() && self.sensor == Sensor::PAPER;
         // defect values of the tabulated observable: the sweeps of the
