@@ -485,6 +485,23 @@ fn starts(kind: DefectKind, base: &Chain) -> [f64; 2] {
     }
 }
 
+/// Relative decrease of the chi-square that ends the fits whose values only
+/// rank a hypothesis or start a later fit (the screen, the coarse pass, the
+/// Laplace fine pass ahead of a time-domain refit): at `1e-8` the fit
+/// stops one or two Gauss-Newton steps before the default `1e-10`, while
+/// the chi-square is within `1e-8` relative of its minimum (`6e-5` for a
+/// time chi-square of 6000 samples: far below one, the scale on which
+/// hypotheses differ) and the values within about `1e-4` of their standard
+/// errors of it; every value that is reported is refitted to the default
+/// tolerance, or (the time-domain refit) to this one.
+const SEED_RTOL: f64 = 1e-8;
+
+/// Relative decrease of the chi-square that ends the time-domain refit of
+/// the shortlist (see [`SEED_RTOL`]: its last Gauss-Newton step lowers the
+/// chi-square of 6000 samples by about `1e-8`, which no comparison of
+/// hypotheses resolves, and costs a modal decomposition and a Jacobian).
+const TIME_RTOL: f64 = 1e-8;
+
 /// The coarse fit of one hypothesis: [`fit_pairs`] from `values`; when a
 /// fitted value ends on a bound of its range (the mark of a wrong basin:
 /// from too light a start the Levenberg-Marquardt path can drive a deep
@@ -511,6 +528,7 @@ fn fit_pairs_coarse(
         false,
         obs,
         max_iter,
+        SEED_RTOL,
     );
     let on_bound = |f: &Fitted| {
         f.hyp.defects.iter().enumerate().any(|(i, d)| {
@@ -535,6 +553,7 @@ fn fit_pairs_coarse(
                 false,
                 obs,
                 max_iter,
+                SEED_RTOL,
             );
             match (first, second) {
                 (Ok(a), Ok(b)) => {
@@ -591,6 +610,7 @@ pub(crate) fn fit_placed_from(
         true,
         Obs::Laplace(obs),
         max_iter,
+        LmOptions::default().rtol,
     )?;
     Ok((f.hyp, f.evaluations))
 }
@@ -616,6 +636,7 @@ fn fit_pairs(
     with_chain: bool,
     obs: Obs<'_>,
     max_iter: usize,
+    rtol: f64,
 ) -> Result<Fitted> {
     let slots = unknowns.slots();
     let mut theta0 = Vec::new();
@@ -663,6 +684,7 @@ fn fit_pairs(
     let problem = ChainProblem::new(&chain, &params, obs)?;
     let opts = LmOptions {
         max_iter,
+        rtol,
         ..LmOptions::default()
     };
     let lm = levenberg_marquardt(&problem, &theta0, &bounds, &opts)?;
@@ -842,7 +864,13 @@ pub fn fit_general(
         let mut ranked: Vec<(Hypothesis, KindPositions)> =
             ranked.into_iter().map(|(h, p)| (h, p.clone())).collect();
         ranked.truncate(setup.shortlist);
-        // fine pass: values and chain parameters
+        // fine pass: values and chain parameters (ahead of a time-domain
+        // refit the Laplace fits only choose its start)
+        let laplace_rtol = if fine.is_some() {
+            SEED_RTOL
+        } else {
+            LmOptions::default().rtol
+        };
         let fine_fits: Vec<Result<Fitted>> = map_maybe_par(&ranked, opts.parallel, |(h, pairs)| {
             let a = fit_pairs(
                 &current,
@@ -853,6 +881,7 @@ pub fn fit_general(
                 true,
                 Obs::Laplace(coarse),
                 100,
+                laplace_rtol,
             );
             let alt: Vec<f64> = pairs.iter().map(|&(k, _)| starts(k, &current)[1]).collect();
             let b = fit_pairs(
@@ -864,6 +893,7 @@ pub fn fit_general(
                 true,
                 Obs::Laplace(coarse),
                 100,
+                laplace_rtol,
             );
             let (best, spent) = match (a, b) {
                 (Ok(a), Ok(b)) => {
@@ -893,6 +923,7 @@ pub fn fit_general(
                         true,
                         Obs::Time(t),
                         100,
+                        TIME_RTOL,
                     )?
                 }
             };
@@ -971,6 +1002,7 @@ fn coarse_pass<'h>(
                     false,
                     Obs::Laplace(obs),
                     max_iter,
+                    SEED_RTOL,
                 )
             }
             .ok()
