@@ -563,47 +563,26 @@ fn whiten(w: &DMatrix<f64>, x: &[f64], cols: usize) -> Vec<f64> {
         return out;
     }
     let ws = w.as_slice();
-    // blocks of `WHITEN_ROWS` rows of W held in registers across all its
-    // columns (every entry of W read once, no store until the block is
-    // done); per output the same sums in the same order as above
+    // blocks of rows of W held in registers across all its columns (every
+    // entry of W read once per pair of columns of X, no store until the
+    // block is done); per output the same sums in the same order as below
     let mut i0 = 0;
-    while i0 + WHITEN_ROWS <= k {
+    if cols == 1 {
+        while i0 + 16 <= k {
+            whiten_block::<16, 1>(ws, k, m, x, &mut out, i0, 0);
+            i0 += 16;
+        }
+    }
+    while i0 + 8 <= k {
         let mut c = 0;
         while c + 2 <= cols {
-            let (x0, x1) = (&x[c * m..(c + 1) * m], &x[(c + 1) * m..(c + 2) * m]);
-            let w0: &[f64; WHITEN_ROWS] = ws[i0..i0 + WHITEN_ROWS].try_into().expect("block");
-            let mut a0 = w0.map(|v| v * x0[0]);
-            let mut a1 = w0.map(|v| v * x1[0]);
-            for j in 1..m {
-                let wj: &[f64; WHITEN_ROWS] = ws[j * k + i0..j * k + i0 + WHITEN_ROWS]
-                    .try_into()
-                    .expect("block");
-                let (v0, v1) = (x0[j], x1[j]);
-                for l in 0..WHITEN_ROWS {
-                    a0[l] += wj[l] * v0;
-                    a1[l] += wj[l] * v1;
-                }
-            }
-            out[c * k + i0..c * k + i0 + WHITEN_ROWS].copy_from_slice(&a0);
-            out[(c + 1) * k + i0..(c + 1) * k + i0 + WHITEN_ROWS].copy_from_slice(&a1);
+            whiten_block::<8, 2>(ws, k, m, x, &mut out, i0, c);
             c += 2;
         }
         if c < cols {
-            let x0 = &x[c * m..(c + 1) * m];
-            let w0: &[f64; WHITEN_ROWS] = ws[i0..i0 + WHITEN_ROWS].try_into().expect("block");
-            let mut a0 = w0.map(|v| v * x0[0]);
-            for j in 1..m {
-                let wj: &[f64; WHITEN_ROWS] = ws[j * k + i0..j * k + i0 + WHITEN_ROWS]
-                    .try_into()
-                    .expect("block");
-                let v0 = x0[j];
-                for l in 0..WHITEN_ROWS {
-                    a0[l] += wj[l] * v0;
-                }
-            }
-            out[c * k + i0..c * k + i0 + WHITEN_ROWS].copy_from_slice(&a0);
+            whiten_block::<8, 1>(ws, k, m, x, &mut out, i0, c);
         }
-        i0 += WHITEN_ROWS;
+        i0 += 8;
     }
     // the last rows, column by column
     if i0 < k {
@@ -626,8 +605,38 @@ fn whiten(w: &DMatrix<f64>, x: &[f64], cols: usize) -> Vec<f64> {
     out
 }
 
-/// Rows of `W` per register block of [`whiten`].
-const WHITEN_ROWS: usize = 8;
+/// Rows `i0..i0 + R` of `W X` for the columns `c0..c0 + C` of `X` (`W`
+/// column-major `k x m` in `ws`, `X` column-major `m x cols` in `x`, the
+/// result column-major `k x cols` in `out`): `W[i][0] x_0`, then
+/// `+ W[i][j] x_j` for `j = 1, 2, ...`, in registers.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn whiten_block<const R: usize, const C: usize>(
+    ws: &[f64],
+    k: usize,
+    m: usize,
+    x: &[f64],
+    out: &mut [f64],
+    i0: usize,
+    c0: usize,
+) {
+    let xs: [&[f64]; C] = std::array::from_fn(|c| &x[(c0 + c) * m..(c0 + c + 1) * m]);
+    let w0: &[f64; R] = ws[i0..i0 + R].try_into().expect("block");
+    let mut acc: [[f64; R]; C] = std::array::from_fn(|c| w0.map(|v| v * xs[c][0]));
+    for j in 1..m {
+        let wj: &[f64; R] = ws[j * k + i0..j * k + i0 + R].try_into().expect("block");
+        for (a, xc) in acc.iter_mut().zip(&xs) {
+            let v = xc[j];
+            for (a, w) in a.iter_mut().zip(wj) {
+                *a += w * v;
+            }
+        }
+    }
+    for (c, a) in acc.iter().enumerate() {
+        let o = (c0 + c) * k + i0;
+        out[o..o + R].copy_from_slice(a);
+    }
+}
 
 #[cfg(test)]
 mod tests {
@@ -720,7 +729,7 @@ mod tests {
         assert_eq!(whiten(&wm, x.as_slice(), 3), (&wm * &x).as_slice().to_vec());
         // register blocks and the rows left over: the same sums in the same
         // order as column by column (`W[i][0] x_0`, then `+ W[i][j] x_j`)
-        for (rows, cols) in [(8, 1), (17, 2), (19, 3), (24, 5)] {
+        for (rows, cols) in [(8, 1), (17, 2), (19, 3), (24, 5), (19, 1), (40, 1)] {
             let x = DMatrix::from_fn(m, cols, |i, j| ((i * 7 + j) % 11) as f64 * 0.37 - 1.1);
             let wm = DMatrix::from_fn(rows, m, |i, j| ((i * 5 + 3 * j) % 13) as f64 * 0.21 - 1.3);
             let mut want = vec![0.0; rows * cols];

@@ -42,7 +42,7 @@
 //! ```
 
 use crate::error::{Error, Result};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 
 /// A weighted least-squares problem (see the module docs).
 pub trait LeastSquares {
@@ -413,13 +413,25 @@ impl<P: LeastSquares + ?Sized> NormalEquations for Adapter<'_, P> {
         }
         let j = self.problem.jacobian(theta)?;
         let p = theta.len();
-        let rv = DVector::from_column_slice(&self.r);
-        let jtr = j.transpose() * rv;
-        let jtj = j.transpose() * &j;
+        let m = self.r.len();
+        if j.nrows() != m || j.ncols() != p {
+            return Err(Error::Numerical {
+                method: "levenberg-marquardt".into(),
+                reason: format!(
+                    "a {}x{} Jacobian for {m} residuals and {p} parameters",
+                    j.nrows(),
+                    j.ncols()
+                ),
+            });
+        }
+        // J^T r and J^T J from the columns of J (column-major), no temporaries
+        let col = |a: usize| &j.as_slice()[a * m..(a + 1) * m];
         for a in 0..p {
-            g[a] = jtr[a];
-            for b in 0..p {
-                h[a * p + b] = jtj[(a, b)];
+            g[a] = dot(col(a), &self.r);
+            for b in 0..=a {
+                let v = dot(col(a), col(b));
+                h[a * p + b] = v;
+                h[b * p + a] = v;
             }
         }
         Ok(chi2)
@@ -522,6 +534,20 @@ pub fn covariance(j: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     Ok(DMatrix::from_fn(p, p, |a, b| {
         cov[(a, b)] * scale[a] * scale[b]
     }))
+}
+
+/// `sum_i a_i b_i`, four interleaved partial sums.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for ((s, x), y) in acc.iter_mut().zip(x).zip(y) {
+            *s += x * y;
+        }
+    }
+    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+    ((acc[0] + acc[1]) + (acc[2] + acc[3])) + tail
 }
 
 fn chi2_of(r: &[f64]) -> f64 {
