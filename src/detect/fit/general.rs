@@ -485,22 +485,41 @@ fn starts(kind: DefectKind, base: &Chain) -> [f64; 2] {
     }
 }
 
-/// Relative decrease of the chi-square that ends the fits whose values only
-/// rank a hypothesis or start a later fit (the screen, the coarse pass, the
-/// Laplace fine pass ahead of a time-domain refit): at `1e-8` the fit
-/// stops one or two Gauss-Newton steps before the default `1e-10`, while
-/// the chi-square is within `1e-8` relative of its minimum (`6e-5` for a
-/// time chi-square of 6000 samples: far below one, the scale on which
-/// hypotheses differ) and the values within about `1e-4` of their standard
-/// errors of it; every value that is reported is refitted to the default
-/// tolerance, or (the time-domain refit) to this one.
-const SEED_RTOL: f64 = 1e-8;
+/// How far a value fit goes ([`fit_pairs`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Tol {
+    /// The driver's defaults (relative chi-square decrease `1e-10`).
+    Full,
+    /// The fits whose values only rank a hypothesis or start a later fit
+    /// (the screen, the coarse pass, the Laplace fine pass ahead of a
+    /// time-domain refit) and the time-domain refit itself: stop at a
+    /// relative chi-square decrease of `1e-8`, of the last step or the one
+    /// the Gauss-Newton model predicts for the next
+    /// ([`LmOptions::predicted_stop`]). The chi-square is then within about
+    /// `1e-8` relative of its minimum (`6e-5` for a time chi-square of 6000
+    /// samples: far below one, the scale on which hypotheses differ), the
+    /// values within a few thousandths of their standard errors of it; the
+    /// last Gauss-Newton steps, each a residual and a Jacobian (in the time
+    /// domain a modal decomposition each), are saved.
+    Seed,
+}
 
-/// Relative decrease of the chi-square that ends the time-domain refit of
-/// the shortlist (see [`SEED_RTOL`]: its last Gauss-Newton step lowers the
-/// chi-square of 6000 samples by about `1e-8`, which no comparison of
-/// hypotheses resolves, and costs a modal decomposition and a Jacobian).
-const TIME_RTOL: f64 = 1e-8;
+impl Tol {
+    fn options(self, max_iter: usize) -> LmOptions {
+        match self {
+            Tol::Full => LmOptions {
+                max_iter,
+                ..LmOptions::default()
+            },
+            Tol::Seed => LmOptions {
+                max_iter,
+                rtol: 1e-8,
+                predicted_stop: true,
+                ..LmOptions::default()
+            },
+        }
+    }
+}
 
 /// The coarse fit of one hypothesis: [`fit_pairs`] from `values`; when a
 /// fitted value ends on a bound of its range (the mark of a wrong basin:
@@ -528,7 +547,7 @@ fn fit_pairs_coarse(
         false,
         obs,
         max_iter,
-        SEED_RTOL,
+        Tol::Seed,
     );
     let on_bound = |f: &Fitted| {
         f.hyp.defects.iter().enumerate().any(|(i, d)| {
@@ -553,7 +572,7 @@ fn fit_pairs_coarse(
                 false,
                 obs,
                 max_iter,
-                SEED_RTOL,
+                Tol::Seed,
             );
             match (first, second) {
                 (Ok(a), Ok(b)) => {
@@ -610,7 +629,7 @@ pub(crate) fn fit_placed_from(
         true,
         Obs::Laplace(obs),
         max_iter,
-        LmOptions::default().rtol,
+        Tol::Full,
     )?;
     Ok((f.hyp, f.evaluations))
 }
@@ -636,7 +655,7 @@ fn fit_pairs(
     with_chain: bool,
     obs: Obs<'_>,
     max_iter: usize,
-    rtol: f64,
+    tol: Tol,
 ) -> Result<Fitted> {
     let slots = unknowns.slots();
     let mut theta0 = Vec::new();
@@ -682,12 +701,7 @@ fn fit_pairs(
         });
     }
     let problem = ChainProblem::new(&chain, &params, obs)?;
-    let opts = LmOptions {
-        max_iter,
-        rtol,
-        ..LmOptions::default()
-    };
-    let lm = levenberg_marquardt(&problem, &theta0, &bounds, &opts)?;
+    let lm = levenberg_marquardt(&problem, &theta0, &bounds, &tol.options(max_iter))?;
     let se = lm
         .std_errors()
         .unwrap_or_else(|_| vec![f64::NAN; params.len()]);
@@ -866,11 +880,7 @@ pub fn fit_general(
         ranked.truncate(setup.shortlist);
         // fine pass: values and chain parameters (ahead of a time-domain
         // refit the Laplace fits only choose its start)
-        let laplace_rtol = if fine.is_some() {
-            SEED_RTOL
-        } else {
-            LmOptions::default().rtol
-        };
+        let laplace_tol = if fine.is_some() { Tol::Seed } else { Tol::Full };
         let fine_fits: Vec<Result<Fitted>> = map_maybe_par(&ranked, opts.parallel, |(h, pairs)| {
             let a = fit_pairs(
                 &current,
@@ -881,7 +891,7 @@ pub fn fit_general(
                 true,
                 Obs::Laplace(coarse),
                 100,
-                laplace_rtol,
+                laplace_tol,
             );
             let alt: Vec<f64> = pairs.iter().map(|&(k, _)| starts(k, &current)[1]).collect();
             let b = fit_pairs(
@@ -893,7 +903,7 @@ pub fn fit_general(
                 true,
                 Obs::Laplace(coarse),
                 100,
-                laplace_rtol,
+                laplace_tol,
             );
             let (best, spent) = match (a, b) {
                 (Ok(a), Ok(b)) => {
@@ -923,7 +933,7 @@ pub fn fit_general(
                         true,
                         Obs::Time(t),
                         100,
-                        TIME_RTOL,
+                        Tol::Seed,
                     )?
                 }
             };
@@ -1002,7 +1012,7 @@ fn coarse_pass<'h>(
                     false,
                     Obs::Laplace(obs),
                     max_iter,
-                    SEED_RTOL,
+                    Tol::Seed,
                 )
             }
             .ok()

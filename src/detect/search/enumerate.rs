@@ -436,9 +436,10 @@ impl NormalEquations for SlotFit<'_> {
     }
 }
 
-/// The driver's settings of the mass fits: `rtol = 1e-9`, steps below
-/// `1e-13` in `ln m` stop, `mu` from `1e-3`, times 0.2 or 5, in
-/// `[1e-15, 1e12]`.
+/// The driver's settings of the mass fits: `rtol = 1e-9` (on the decrease
+/// of the last step or the one predicted for the next,
+/// [`LmOptions::predicted_stop`]), steps below `1e-13` in `ln m` stop, `mu`
+/// from `1e-3`, times 0.2 or 5, in `[1e-15, 1e12]`.
 fn slot_lm_options(max_iter: usize) -> LmOptions {
     LmOptions {
         max_iter,
@@ -450,6 +451,7 @@ fn slot_lm_options(max_iter: usize) -> LmOptions {
         mu_up: 5.0,
         mu_min: 1e-15,
         mu_max: 1e12,
+        predicted_stop: true,
     }
 }
 
