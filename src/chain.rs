@@ -551,18 +551,26 @@ impl Chain {
     pub fn with_defect(mut self, defect: Defect) -> Result<Chain> {
         let idx = self.defects.len();
         let n = self.n;
-        let field = format!("defects[{idx}].at");
-        match defect.site().probe {
-            Probe::Point(at) => {
-                check_pos(&field, at, 1, n)?;
-            }
-            Probe::Diff(at) => {
-                check_pos(&field, at, 0, n)?;
-                self.check_spring_at(idx, at)?;
-            }
-        }
+        // a valid defect at a mass is checked without formatting the field
+        // names (the fits rebuild chains at every evaluation)
         let (name, ok, range) = defect.value_rule();
-        check_f64(&format!("defects[{idx}].{name}"), defect.value(), ok, range)?;
+        let site = defect.site();
+        let plain = matches!(site.probe, Probe::Point(at) if (1..=n).contains(&at))
+            && ok
+            && defect.value().is_finite();
+        if !plain {
+            let field = format!("defects[{idx}].at");
+            match site.probe {
+                Probe::Point(at) => {
+                    check_pos(&field, at, 1, n)?;
+                }
+                Probe::Diff(at) => {
+                    check_pos(&field, at, 0, n)?;
+                    self.check_spring_at(idx, at)?;
+                }
+            }
+            check_f64(&format!("defects[{idx}].{name}"), defect.value(), ok, range)?;
+        }
         if self
             .defects
             .iter()

@@ -362,6 +362,24 @@ impl Forward {
         x.iter().all(|v| v.is_finite()).then_some(x)
     }
 
+    /// [`Forward::sites_with`] into `work` (`X` at the sites in
+    /// [`transfer::SweepWork::out`]): true when the table applies and every
+    /// value is finite. No allocation once `work` has grown.
+    pub fn sites_into<T: Scalar>(
+        &self,
+        s: &T,
+        table: &transfer::SweepTable<T>,
+        sites: &[usize],
+        work: &mut transfer::SweepWork<T>,
+    ) -> bool {
+        if !self.transfer.fits(table) {
+            return false;
+        }
+        self.transfer
+            .eval_sites_into(s, table, sites, self.chain.gamma(), work);
+        work.out().iter().all(|v| v.is_finite())
+    }
+
     /// `X_observe(s)` by Woodbury on the closed-form Green's function (checked).
     /// Accurate to rounding for `observe = 1` and at defect sites; see the
     /// module docs for masses behind heavy defects.

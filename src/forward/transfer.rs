@@ -71,10 +71,38 @@ pub struct Transfer {
     segs: Vec<Seg>,
 }
 
+/// Buffers of a sweep, reused across the sweeps of many `s`
+/// ([`Transfer::eval_sites_into`]): no allocation per sweep once grown.
+#[derive(Debug)]
+pub struct SweepWork<T> {
+    swept: Vec<Swept<T>>,
+    out: Vec<T>,
+}
+
+impl<T> Default for SweepWork<T> {
+    fn default() -> Self {
+        SweepWork {
+            swept: Vec::new(),
+            out: Vec::new(),
+        }
+    }
+}
+
+impl<T> SweepWork<T> {
+    /// `X` at the sites of the last sweep.
+    pub fn out(&self) -> &[T] {
+        &self.out
+    }
+}
+
 /// Per-`s` state of one segment after the backward sweep.
+#[derive(Debug)]
 struct Swept<T> {
-    /// `E` at the segment's left index.
-    e_left: T,
+    /// `E` at the segment's left index, as `e_num / e_den` (a run's
+    /// division is left to its consumers, which fold it into their own:
+    /// `e_den = 1` for a special mass and in the static limit).
+    e_num: T,
+    e_den: T,
     /// For runs: `1 - psi` (in the static limit: `k / E_{r+1}`).
     one_m_psi: T,
 }
@@ -176,6 +204,20 @@ impl Transfer {
         self.sweep(s, table, sites, gamma)
     }
 
+    /// [`Transfer::eval_sites`] into `work` (`X` at the sites in
+    /// [`SweepWork::out`]), returning `Z_1`: the same values, without
+    /// allocating once `work` has grown.
+    pub fn eval_sites_into<T: Scalar>(
+        &self,
+        s: &T,
+        table: &SweepTable<T>,
+        sites: &[usize],
+        gamma: f64,
+        work: &mut SweepWork<T>,
+    ) -> T {
+        self.sweep_into(s, table, sites, gamma, work)
+    }
+
     /// Whether `table` was built for this chain's uniform part.
     pub fn fits<T: Scalar>(&self, table: &SweepTable<T>) -> bool {
         table.key == (self.k.to_bits(), self.mass.to_bits(), self.d.to_bits())
@@ -189,6 +231,22 @@ impl Transfer {
         sites: &[usize],
         gamma: f64,
     ) -> (Vec<T>, T) {
+        let mut work = SweepWork {
+            swept: Vec::with_capacity(self.segs.len()),
+            out: Vec::with_capacity(sites.len()),
+        };
+        let z1 = self.sweep_into(s, pw, sites, gamma, &mut work);
+        (work.out, z1)
+    }
+
+    fn sweep_into<T: Scalar, P: Powers<T>>(
+        &self,
+        s: &T,
+        pw: &P,
+        sites: &[usize],
+        gamma: f64,
+        work: &mut SweepWork<T>,
+    ) -> T {
         let k = self.k;
         let mut z1 = T::zero();
         let lam = pw.lam();
@@ -196,75 +254,84 @@ impl Transfer {
         let qpow = |p: usize| -> T { pw.q(p) };
         let one_m_q = pw.one_m_q(1);
         let one_m_q2 = pw.one_m_q(2);
-        let em1 = pw.em1();
-        let e_lam = pw.e_lam();
+        let em1k = pw.em1().scale(k);
+        let ek = pw.e_lam().scale(k);
         let q = qpow(1);
+        // 1 - psi = (1 - q^2) / (E_{r+1} / (k e^lambda) + q (1 - q))
+        //         = (1 - q^2) k e^lambda / (E_{r+1} + k e^lambda q (1 - q)):
+        // one division, a sum of positive terms for real s
+        let omp_num = one_m_q2.clone() * ek.clone();
+        let omp_shift = ek * q.clone() * one_m_q;
         let s2 = s.clone() * s.clone();
         let local = |m: f64, d: f64| -> T { s2.scale(m) + s.scale(d) };
         // B(p) = (1 - q^{2p}) + (1 - psi) q^{2p}
         let big_b = |p: usize, omp: &T| -> T { pw.one_m_q(2 * p) + omp.clone() * qpow(2 * p) };
 
         // ---- backward sweep: E at each segment's left index ----
-        let nseg = self.segs.len();
-        let mut swept: Vec<Swept<T>> = Vec::with_capacity(nseg);
-        // `e_right` = E_{i+1} of the index right of the current segment; None at the wall.
-        let mut right: Option<T> = None;
+        let swept = &mut work.swept;
+        swept.clear();
+        // `E_{i+1}` of the index right of the current segment as a fraction
+        // `(num, den)`; None at the wall.
+        let mut right: Option<(T, T)> = None;
         for seg in self.segs.iter().rev() {
             match *seg {
                 Seg::Special { i, m, d, g, kl, kr } => {
+                    // kr E / (E + kr) with E = num / den: kr num / (num + kr den)
                     let tail = match &right {
                         None => T::from_f64(kr),
-                        Some(e) => e.clone().scale(kr) / (e.clone() + T::from_f64(kr)),
+                        Some((en, ed)) => en.scale(kr) / (en.clone() + ed.scale(kr)),
                     };
                     if i == 1 {
                         z1 = s.scale(d) + T::from_f64(g + kl) + tail.clone();
                     }
                     let e = local(m, d) + T::from_f64(g) + tail;
                     swept.push(Swept {
-                        e_left: e.clone(),
+                        e_num: e.clone(),
+                        e_den: T::one(),
                         one_m_psi: T::zero(),
                     });
-                    right = Some(e);
+                    right = Some((e, T::one()));
                 }
                 Seg::Run { l, r } => {
                     let p = r + 1 - l;
-                    let (e, omp) = if stat {
+                    let (en, ed, omp) = if stat {
                         // springs in series: E_l = 1 / (p/k + 1/E_{r+1})
                         let inv_right = match &right {
                             None => T::zero(),
-                            Some(e) => T::one() / e.clone(),
+                            Some((en, ed)) => ed.clone() / en.clone(),
                         };
                         let e = T::one() / (T::from_f64(p as f64 / k) + inv_right.clone());
                         // store c0 = k / E_{r+1} in `one_m_psi` for the static ratio
-                        (e, inv_right.scale(k))
+                        (e, T::one(), inv_right.scale(k))
                     } else {
                         let omp = match &right {
                             None => T::zero(),
-                            Some(e) => {
-                                let rho_m_q2 =
-                                    e.clone() / (e_lam.scale(k)) + q.clone() * one_m_q.clone();
-                                one_m_q2.clone() / rho_m_q2
-                            }
+                            // a special mass to the right: its E is a value
+                            Some((e, _)) => omp_num.clone() / (e.clone() + omp_shift.clone()),
                         };
                         let psi = T::one() - omp.clone();
                         let num = T::one() + psi * qpow(2 * p + 1);
-                        let e = em1.scale(k) * num / big_b(p, &omp);
-                        (e, omp)
+                        (em1k.clone() * num, big_b(p, &omp), omp)
                     };
                     swept.push(Swept {
-                        e_left: e.clone(),
+                        e_num: en.clone(),
+                        e_den: ed.clone(),
                         one_m_psi: omp,
                     });
-                    right = Some(e);
+                    right = Some((en, ed));
                 }
             }
         }
         swept.reverse();
 
         // ---- forward substitution through the sites ----
-        let mut out: Vec<T> = Vec::with_capacity(sites.len());
+        let out = &mut work.out;
+        out.clear();
         let mut next = 0;
+        // X at the last index crossed, as `x / x_den` (a run without sites
+        // leaves its division to the next special mass)
         let mut x = T::zero();
+        let mut x_den = T::one();
         let mut kappa_left = 0.0; // spring joining the previous index to this segment
         for (idx, seg) in self.segs.iter().enumerate() {
             if next == sites.len() {
@@ -273,12 +340,13 @@ impl Transfer {
             let sw = &swept[idx];
             match *seg {
                 Seg::Special { i, kl, kr, .. } => {
-                    let dd = sw.e_left.clone() + T::from_f64(kl);
+                    let dd = sw.e_num.clone() + T::from_f64(kl);
                     x = if i == 1 {
                         T::from_f64(gamma) / dd
                     } else {
-                        x.scale(kappa_left) / dd
+                        x.scale(kappa_left) / (x_den * dd)
                     };
+                    x_den = T::one();
                     while next < sites.len() && sites[next] == i {
                         out.push(x.clone());
                         next += 1;
@@ -286,13 +354,30 @@ impl Transfer {
                     kappa_left = kr;
                 }
                 Seg::Run { l, r } => {
-                    let dd = sw.e_left.clone() + T::from_f64(k);
+                    let pl = r + 1 - l;
+                    let inside = next < sites.len() && sites[next] >= l && sites[next] <= r;
+                    if !stat && !inside && l != 1 {
+                        // X_r = X_{l-1} kappa q^{r-l} B(1) / (D_l B(p_l)),
+                        // D_l = E_l + k = (e_num + k e_den) / e_den: no division
+                        let dd = sw.e_num.clone() + sw.e_den.scale(k);
+                        let mut xn = x.scale(kappa_left) * sw.e_den.clone();
+                        let mut xd = x_den * dd;
+                        if r > l {
+                            xn = xn * qpow(r - l) * big_b(1, &sw.one_m_psi);
+                            xd = xd * big_b(pl, &sw.one_m_psi);
+                        }
+                        x = xn;
+                        x_den = xd;
+                        kappa_left = k;
+                        continue;
+                    }
+                    // x_den is 1 here: runs follow special masses
+                    let dd = sw.e_num.clone() / sw.e_den.clone() + T::from_f64(k);
                     let xl = if l == 1 {
                         T::from_f64(gamma) / dd
                     } else {
                         x.scale(kappa_left) / dd
                     };
-                    let pl = r + 1 - l;
                     let ratio = |target: usize| -> T {
                         let pt = r + 1 - target;
                         if stat {
@@ -318,7 +403,7 @@ impl Transfer {
         }
         // sites out of order or beyond n
         out.resize(sites.len(), T::from_f64(f64::NAN));
-        (out, z1)
+        z1
     }
 }
 

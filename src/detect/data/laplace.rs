@@ -8,7 +8,7 @@
 use crate::chain::Chain;
 use crate::detect::data::measurement::{laplace_gradient, laplace_model, scale_gradient, Sensor};
 use crate::error::{check_f64, Error, Result};
-use crate::forward::transfer::SweepTable;
+use crate::forward::transfer::{SweepTable, SweepWork};
 use crate::forward::Forward;
 use crate::sensitivity::{
     defect_gradient_from, defect_gradient_with, gradient, observe_defect_gradient_with, Gradient,
@@ -64,7 +64,7 @@ impl PartialEq for ObsId {
 
 /// The tabulated sweeps of one chain at every node of one observation: per
 /// node `X_1` and its derivatives with respect to every defect value
-/// ([`LaplaceObs::tabulated_gradient`], `None` where the table does not
+/// ([`LaplaceObs::tabulated_gradients`], `None` where the table does not
 /// apply). A least-squares fit asks for the residuals at a point and then
 /// for the Jacobian at the same point (and the driver once more for the
 /// Jacobian at its last point): one sweep per node serves both.
@@ -386,9 +386,7 @@ impl LaplaceObs {
                 .as_ref()
                 .is_some_and(|m| m.id == self.id.0 && m.chain == *fwd.chain());
             if !hit {
-                let grads = (0..self.s.len())
-                    .map(|q| self.tabulated_gradient(fwd, q))
-                    .collect();
+                let grads = self.tabulated_gradients(fwd);
                 *slot = Some(LastSweep {
                     id: self.id.0,
                     chain: fwd.chain().clone(),
@@ -400,11 +398,15 @@ impl LaplaceObs {
     }
 
     /// `X_1` and its derivatives with respect to every defect value of
-    /// `fwd`'s chain at node `q`, from `X` at mass 1 and the defect sites in
-    /// one tabulated sweep (as [`defect_gradient_with`]); `None` when the
-    /// table does not apply.
-    fn tabulated_gradient(&self, fwd: &Forward, q: usize) -> Option<Gradient<Complex64>> {
+    /// `fwd`'s chain at every node, from `X` at mass 1 and the defect sites
+    /// in one tabulated sweep per node (as [`defect_gradient_with`]); `None`
+    /// where the table does not apply. The sites once per chain, the sweep's
+    /// buffers once for all nodes.
+    fn tabulated_gradients(&self, fwd: &Forward) -> Vec<Option<Gradient<Complex64>>> {
         let chain = fwd.chain();
+        let Some(tables) = self.tables(chain) else {
+            return vec![None; self.s.len()];
+        };
         let n = chain.n();
         let mut sites = vec![1];
         for d in chain.defects() {
@@ -412,14 +414,24 @@ impl LaplaceObs {
         }
         sites.sort_unstable();
         sites.dedup();
-        let x = self.x_sites(fwd, q, &sites)?;
-        // x_0 = x_{n+1} = 0
-        let at = |i: usize| -> Result<Complex64> {
-            Ok(sites
-                .binary_search(&i)
-                .map_or(Complex64::new(0.0, 0.0), |j| x[j]))
-        };
-        defect_gradient_from(chain, &self.s[q], at).ok()
+        let mut work = SweepWork::default();
+        self.s
+            .iter()
+            .zip(tables)
+            .map(|(s, table)| {
+                if !fwd.sites_into(s, table, &sites, &mut work) {
+                    return None;
+                }
+                let x = work.out();
+                // x_0 = x_{n+1} = 0
+                let at = |i: usize| -> Result<Complex64> {
+                    Ok(sites
+                        .binary_search(&i)
+                        .map_or(Complex64::new(0.0, 0.0), |j| x[j]))
+                };
+                defect_gradient_from(chain, s, at).ok()
+            })
+            .collect()
     }
 
     pub(crate) fn jacobian(&self, chain: &Chain, params: &[Param]) -> Result<DMatrix<f64>> {
@@ -433,6 +445,30 @@ impl LaplaceObs {
             })
             .collect();
         let fwd = Forward::new(chain);
+        // whitened defect values of the tabulated observable: the stacked
+        // Jacobian straight from the memo of the sweep (the same values as
+        // the node-by-node path below)
+        if let (Some(idx), Some(w)) = (&defect_idx, &self.whitening) {
+            if self.sweep_memo_applies() {
+                let layout = crate::time::series::stacked_rows(&self.s);
+                let (m, p) = (layout.len(), idx.len());
+                let stacked: Option<Vec<f64>> = self.with_sweep(&fwd, |all| {
+                    let mut j = vec![0.0; m * p];
+                    for (r, &(q, im)) in layout.iter().enumerate() {
+                        let g = all[q].as_ref()?;
+                        let c = self.factor(q);
+                        for (col, &i) in idx.iter().enumerate() {
+                            let v = g.grad[i] * c;
+                            j[col * m + r] = if im { v.im } else { v.re };
+                        }
+                    }
+                    Some(j)
+                });
+                if let Some(j) = stacked {
+                    return Ok(DMatrix::from_vec(w.nrows(), p, whiten(w, &j, p)));
+                }
+            }
+        }
         let mut grads: Vec<Vec<Complex64>> = Vec::with_capacity(self.s.len());
         let paper = self.force_hat.is_none() && self.sensor == Sensor::PAPER;
         // defect values of the tabulated observable: the sweeps of the
@@ -518,24 +554,83 @@ fn whiten(w: &DMatrix<f64>, x: &[f64], cols: usize) -> Vec<f64> {
     let (k, m) = w.shape();
     debug_assert_eq!(x.len(), m * cols);
     let mut out = vec![0.0; k * cols];
-    if k == 0 {
+    if k == 0 || m == 0 {
         return out;
     }
-    for (j, wc) in w.as_slice().chunks_exact(k).enumerate() {
-        for (c, o) in out.chunks_exact_mut(k).enumerate() {
-            let v = x[c * m + j];
-            if j == 0 {
-                for (o, a) in o.iter_mut().zip(wc) {
-                    *o = a * v;
-                }
-            } else {
-                for (o, a) in o.iter_mut().zip(wc) {
-                    *o += a * v;
+    let ws = w.as_slice();
+    // blocks of rows of W held in registers across all its columns (every
+    // entry of W read once per pair of columns of X, no store until the
+    // block is done); per output the same sums in the same order as below
+    let mut i0 = 0;
+    if cols == 1 {
+        while i0 + 16 <= k {
+            whiten_block::<16, 1>(ws, k, m, x, &mut out, i0, 0);
+            i0 += 16;
+        }
+    }
+    while i0 + 8 <= k {
+        let mut c = 0;
+        while c + 2 <= cols {
+            whiten_block::<8, 2>(ws, k, m, x, &mut out, i0, c);
+            c += 2;
+        }
+        if c < cols {
+            whiten_block::<8, 1>(ws, k, m, x, &mut out, i0, c);
+        }
+        i0 += 8;
+    }
+    // the last rows, column by column
+    if i0 < k {
+        for (j, wc) in ws.chunks_exact(k).enumerate() {
+            for (c, o) in out.chunks_exact_mut(k).enumerate() {
+                let v = x[c * m + j];
+                let (o, wc) = (&mut o[i0..], &wc[i0..]);
+                if j == 0 {
+                    for (o, a) in o.iter_mut().zip(wc) {
+                        *o = a * v;
+                    }
+                } else {
+                    for (o, a) in o.iter_mut().zip(wc) {
+                        *o += a * v;
+                    }
                 }
             }
         }
     }
     out
+}
+
+/// Rows `i0..i0 + R` of `W X` for the columns `c0..c0 + C` of `X` (`W`
+/// column-major `k x m` in `ws`, `X` column-major `m x cols` in `x`, the
+/// result column-major `k x cols` in `out`): `W[i][0] x_0`, then
+/// `+ W[i][j] x_j` for `j = 1, 2, ...`, in registers.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn whiten_block<const R: usize, const C: usize>(
+    ws: &[f64],
+    k: usize,
+    m: usize,
+    x: &[f64],
+    out: &mut [f64],
+    i0: usize,
+    c0: usize,
+) {
+    let xs: [&[f64]; C] = std::array::from_fn(|c| &x[(c0 + c) * m..(c0 + c + 1) * m]);
+    let w0: &[f64; R] = ws[i0..i0 + R].try_into().expect("block");
+    let mut acc: [[f64; R]; C] = std::array::from_fn(|c| w0.map(|v| v * xs[c][0]));
+    for j in 1..m {
+        let wj: &[f64; R] = ws[j * k + i0..j * k + i0 + R].try_into().expect("block");
+        for (a, xc) in acc.iter_mut().zip(&xs) {
+            let v = xc[j];
+            for (a, w) in a.iter_mut().zip(wj) {
+                *a += w * v;
+            }
+        }
+    }
+    for (c, a) in acc.iter().enumerate() {
+        let o = (c0 + c) * k + i0;
+        out[o..o + R].copy_from_slice(a);
+    }
 }
 
 #[cfg(test)]
@@ -628,5 +723,22 @@ mod tests {
         let x = DMatrix::from_fn(m, 3, |i, j| (i * 3 + j) as f64 - 7.5);
         let wm = DMatrix::from_fn(4, m, |i, j| ((i + 2 * j) % 5) as f64 * 0.3 - 0.4);
         assert_eq!(whiten(&wm, x.as_slice(), 3), (&wm * &x).as_slice().to_vec());
+        // register blocks and the rows left over: the same sums in the same
+        // order as column by column (`W[i][0] x_0`, then `+ W[i][j] x_j`)
+        for (rows, cols) in [(8, 1), (17, 2), (19, 3), (24, 5), (19, 1), (40, 1)] {
+            let x = DMatrix::from_fn(m, cols, |i, j| ((i * 7 + j) % 11) as f64 * 0.37 - 1.1);
+            let wm = DMatrix::from_fn(rows, m, |i, j| ((i * 5 + 3 * j) % 13) as f64 * 0.21 - 1.3);
+            let mut want = vec![0.0; rows * cols];
+            for c in 0..cols {
+                for i in 0..rows {
+                    let mut acc = wm[(i, 0)] * x[(0, c)];
+                    for j in 1..m {
+                        acc += wm[(i, j)] * x[(j, c)];
+                    }
+                    want[c * rows + i] = acc;
+                }
+            }
+            assert_eq!(whiten(&wm, x.as_slice(), cols), want, "{rows} x {cols}");
+        }
     }
 }

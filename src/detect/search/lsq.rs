@@ -21,7 +21,9 @@
 //! the box. `mu` shrinks by `mu_down` (default 1/3) after an accepted step and
 //! grows by `mu_up` (default 4) after a rejected one or a failed solve. Stops
 //! when `chi^2` is zero, the relative decrease of `chi^2` falls below `rtol`
-//! (default 1e-10), the step below `xtol` relative (default 1e-10) or below
+//! (default 1e-10) (with [`LmOptions::predicted_stop`], also when the
+//! decrease the Gauss-Newton model predicts for the next step does), the
+//! step below `xtol` relative (default 1e-10) or below
 //! `xtol_abs` absolute (default 0: off), `mu` passes `mu_max`, or after
 //! `max_iter` (default 100) normal-equation evaluations. It allocates no
 //! memory per iteration (none at all for up to 8 parameters).
@@ -42,7 +44,7 @@
 //! ```
 
 use crate::error::{Error, Result};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 
 /// A weighted least-squares problem (see the module docs).
 pub trait LeastSquares {
@@ -113,6 +115,12 @@ pub struct LmOptions {
     pub mu_min: f64,
     /// Largest `mu`: beyond it the fit stops (converged) [default 1e20].
     pub mu_max: f64,
+    /// Also stop (converged) when the decrease of `chi^2` the Gauss-Newton
+    /// model predicts for the next step is below `rtol` (relative), while
+    /// `mu <= mu0`: one evaluation fewer per fit, the point kept being that
+    /// step short of the minimum (`chi^2` within about `rtol` relative of
+    /// it) [default false].
+    pub predicted_stop: bool,
 }
 
 impl Default for LmOptions {
@@ -127,6 +135,7 @@ impl Default for LmOptions {
             mu_up: 4.0,
             mu_min: 1e-12,
             mu_max: 1e20,
+            predicted_stop: false,
         }
     }
 }
@@ -267,6 +276,24 @@ pub fn lm_normal<P: NormalEquations + ?Sized>(
             }
             continue;
         }
+        // the decrease the Gauss-Newton model predicts for the step,
+        // -(2 g.delta + delta^T H delta): below `rtol chi^2` (undamped
+        // beyond the start, so that the step is not merely shortened) the
+        // step would end the fit anyway; stop before evaluating it
+        if opts.predicted_stop && mu <= opts.mu0 {
+            let mut pred = 0.0;
+            for (r, &i) in act.iter().enumerate() {
+                let mut hd = 0.0;
+                for (c, &j) in act.iter().enumerate() {
+                    hd += h[i * p + j] * b[c];
+                }
+                pred -= b[r] * (2.0 * g[i] + hd);
+            }
+            if pred.is_finite() && pred >= 0.0 && pred < opts.rtol * chi2 {
+                converged = true;
+                break;
+            }
+        }
         trial.copy_from_slice(theta);
         let (mut moved_abs, mut moved) = (0.0f64, 0.0f64);
         for (r, &i) in act.iter().enumerate() {
@@ -387,6 +414,9 @@ struct Adapter<'a, P: ?Sized> {
     /// The last point evaluated and its residuals.
     last: Vec<f64>,
     r: Vec<f64>,
+    /// The last Jacobian formed and its point (the driver's last accepted
+    /// point, where the fit often ends).
+    jac: Option<(Vec<f64>, DMatrix<f64>)>,
 }
 
 impl<P: LeastSquares + ?Sized> Adapter<'_, P> {
@@ -413,15 +443,28 @@ impl<P: LeastSquares + ?Sized> NormalEquations for Adapter<'_, P> {
         }
         let j = self.problem.jacobian(theta)?;
         let p = theta.len();
-        let rv = DVector::from_column_slice(&self.r);
-        let jtr = j.transpose() * rv;
-        let jtj = j.transpose() * &j;
+        let m = self.r.len();
+        if j.nrows() != m || j.ncols() != p {
+            return Err(Error::Numerical {
+                method: "levenberg-marquardt".into(),
+                reason: format!(
+                    "a {}x{} Jacobian for {m} residuals and {p} parameters",
+                    j.nrows(),
+                    j.ncols()
+                ),
+            });
+        }
+        // J^T r and J^T J from the columns of J (column-major), no temporaries
+        let col = |a: usize| &j.as_slice()[a * m..(a + 1) * m];
         for a in 0..p {
-            g[a] = jtr[a];
-            for b in 0..p {
-                h[a * p + b] = jtj[(a, b)];
+            g[a] = dot(col(a), &self.r);
+            for b in 0..=a {
+                let v = dot(col(a), col(b));
+                h[a * p + b] = v;
+                h[b * p + a] = v;
             }
         }
+        self.jac = Some((theta.to_vec(), j));
         Ok(chi2)
     }
 }
@@ -524,6 +567,20 @@ pub fn covariance(j: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     }))
 }
 
+/// `sum_i a_i b_i`, four interleaved partial sums.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for ((s, x), y) in acc.iter_mut().zip(x).zip(y) {
+            *s += x * y;
+        }
+    }
+    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+    ((acc[0] + acc[1]) + (acc[2] + acc[3])) + tail
+}
+
 fn chi2_of(r: &[f64]) -> f64 {
     r.iter().map(|v| v * v).sum()
 }
@@ -546,11 +603,16 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
         problem,
         last: Vec::new(),
         r: Vec::new(),
+        jac: None,
     };
     let mut theta = theta0.to_vec();
     let report = lm_normal(&mut adapter, &mut theta, bounds, opts)?;
-    // Jacobian at the final point
-    let jacobian = problem.jacobian(&theta)?;
+    // Jacobian at the final point (formed there already when the fit ended
+    // at an accepted point without a further step)
+    let jacobian = match adapter.jac.take() {
+        Some((at, j)) if at == theta => j,
+        _ => problem.jacobian(&theta)?,
+    };
     let m = adapter.residuals_at(&theta)?.len();
     let at_bound = theta
         .iter()
