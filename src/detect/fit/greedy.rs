@@ -71,6 +71,9 @@ use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use rayon::prelude::*;
 
+mod time;
+pub use time::TimeStage;
+
 /// Options of [`fit_greedy`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct GreedyOptions {
@@ -86,6 +89,9 @@ pub struct GreedyOptions {
     pub score: ScoreOptions,
     /// Score and refit in parallel (rayon); the result does not depend on it (default true).
     pub parallel: bool,
+    /// The time-record stage, used instead of the Bromwich line's when the
+    /// fit has a sampled record ([module docs](self)).
+    pub time: TimeStage,
 }
 
 impl Default for GreedyOptions {
@@ -97,6 +103,7 @@ impl Default for GreedyOptions {
             max_iter: 100,
             score: ScoreOptions::default(),
             parallel: true,
+            time: TimeStage::default(),
         }
     }
 }
@@ -116,6 +123,19 @@ impl GreedyOptions {
         }
         if self.score.grid < 2 {
             return Err(Error::invalid("greedy.grid", self.score.grid, ">= 2"));
+        }
+        if self.time.refit == 0 {
+            return Err(Error::invalid("greedy.time.refit", 0, ">= 1"));
+        }
+        if self.time.max_iter == 0 {
+            return Err(Error::invalid("greedy.time.max_iter", 0, ">= 1"));
+        }
+        if !(self.time.move_ratio >= 0.0 && self.time.move_ratio.is_finite()) {
+            return Err(Error::invalid(
+                "greedy.time.move_ratio",
+                self.time.move_ratio,
+                ">= 0 and finite",
+            ));
         }
         Ok(())
     }
@@ -284,23 +304,7 @@ impl Greedy<'_> {
         obs: Obs<'_>,
     ) -> Result<Fit> {
         let slots = self.unknowns.slots();
-        let n_fixed = slot_of.iter().filter(|&&i| slots[i].at.is_some()).count();
-        let mut order: Vec<(DefectKind, usize, f64)> = pairs[n_fixed..]
-            .iter()
-            .zip(&values[n_fixed..])
-            .map(|(&(k, a), &v)| (k, a, v))
-            .collect();
-        order.sort_by_key(|&(k, a, _)| (a, k));
-        let pairs: KindPositions = pairs[..n_fixed]
-            .iter()
-            .copied()
-            .chain(order.iter().map(|&(k, a, _)| (k, a)))
-            .collect();
-        let values: Vec<f64> = values[..n_fixed]
-            .iter()
-            .copied()
-            .chain(order.iter().map(|o| o.2))
-            .collect();
+        let (pairs, values) = self.canonical(pairs, slot_of, values);
         let mut defects = Vec::with_capacity(pairs.len());
         let mut set = Vec::with_capacity(pairs.len());
         let mut params = Vec::new();
@@ -412,13 +416,41 @@ impl Greedy<'_> {
         v
     }
 
-    /// The start: known and fixed-position slots, fitted (with the chain parameters).
-    fn start(&self) -> Result<Fit> {
+    /// The placed defects of `pairs` (after the fixed slots of `slot_of`)
+    /// in canonical order (position, kind), `values` along.
+    fn canonical(
+        &self,
+        pairs: &KindPositions,
+        slot_of: &[usize],
+        values: &[f64],
+    ) -> (KindPositions, Vec<f64>) {
         let slots = self.unknowns.slots();
-        let slot_of = self.slot_of(0);
+        let n_fixed = slot_of.iter().filter(|&&i| slots[i].at.is_some()).count();
+        let mut order: Vec<(DefectKind, usize, f64)> = pairs[n_fixed..]
+            .iter()
+            .zip(&values[n_fixed..])
+            .map(|(&(k, a), &v)| (k, a, v))
+            .collect();
+        order.sort_by_key(|&(k, a, _)| (a, k));
+        let pairs: KindPositions = pairs[..n_fixed]
+            .iter()
+            .copied()
+            .chain(order.iter().map(|&(k, a, _)| (k, a)))
+            .collect();
+        let values: Vec<f64> = values[..n_fixed]
+            .iter()
+            .copied()
+            .chain(order.iter().map(|o| o.2))
+            .collect();
+        (pairs, values)
+    }
+
+    /// The known and fixed-position slots: their pairs and starting values.
+    fn start_pairs(&self) -> (KindPositions, Vec<f64>) {
+        let slots = self.unknowns.slots();
         let mut pairs = Vec::new();
         let mut values = Vec::new();
-        for &i in &slot_of {
+        for i in self.slot_of(0) {
             let at = slots[i].at.expect("fixed slots have a position");
             let kind = *slots[i]
                 .kind
@@ -429,9 +461,15 @@ impl Greedy<'_> {
             pairs.push((kind, at));
             values.push(slots[i].known.unwrap_or(self.start_value(kind, &self.base)));
         }
+        (pairs, values)
+    }
+
+    /// The start: known and fixed-position slots, fitted (with the chain parameters).
+    fn start(&self) -> Result<Fit> {
+        let (pairs, values) = self.start_pairs();
         self.refit(
             &pairs,
-            &slot_of,
+            &self.slot_of(0),
             &values,
             &self.base,
             Obs::Laplace(self.obs),
@@ -556,6 +594,11 @@ impl Greedy<'_> {
     }
 
     fn run(&self, fine: Option<&TimeMisfit>, setup: &Setup) -> Result<GreedyFit> {
+        if let Some(t) = fine {
+            if let Some(f) = time::run(self, t)? {
+                return Ok(f);
+            }
+        }
         let start = self.start()?;
         let mut seen: Vec<Fit> = vec![start.clone()];
         let mut paths = Vec::new();
