@@ -784,6 +784,114 @@ mod tests {
         assert_eq!(best.std_errors[0], 0.0);
     }
 
+    /// A sampled record: `(coarse, fine)` for `fit_greedy` (the coarse
+    /// Laplace values are not used by the time stage).
+    fn record(truth: &Chain, t_end: f64, seed: u64) -> (LaplaceObs, TimeMisfit) {
+        use crate::detect::data::series::TimeData;
+        use crate::noise::NoiseLevel;
+        let data =
+            TimeData::simulate(truth, t_end, 0.25, NoiseLevel::RelativeMax(1e-3), seed).unwrap();
+        let s = nodes(20, 0.05, 4.0);
+        let coarse = LaplaceObs::exact(truth, s, vec![1.0; 20]).unwrap();
+        (coarse, TimeMisfit::new(data))
+    }
+
+    #[test]
+    fn time_stage_finds_masses_alike_with_threads_and_memo() {
+        let truth = Chain::paper(40)
+            .unwrap()
+            .with_d(0.02)
+            .unwrap()
+            .with_defects([
+                Defect::Mass { at: 7, m: 2.5 },
+                Defect::Mass { at: 31, m: 0.6 },
+            ])
+            .unwrap();
+        let (coarse, fine) = record(&truth, 120.0, 1);
+        let u = Unknowns::free(40, &[KindChoice::Mass; 2], &[]).unwrap();
+        let setup = Setup::new().unwrap();
+        let run = |parallel: bool, memo: bool| {
+            fit_greedy(
+                &truth.uniform(),
+                &u,
+                &coarse,
+                Some(&fine),
+                &setup,
+                &GreedyOptions {
+                    parallel,
+                    time: TimeStage {
+                        memo,
+                        ..TimeStage::default()
+                    },
+                    ..GreedyOptions::default()
+                },
+            )
+            .unwrap()
+        };
+        let a = run(true, false);
+        assert_eq!(a.ranked[0].positions(), vec![7, 31], "{:?}", a.ranked[0]);
+        for (d, t) in a.ranked[0].defects.iter().zip(truth.defects()) {
+            assert!((d.value() / t.value() - 1.0).abs() < 0.01, "{d:?}");
+        }
+        assert_eq!(a.residuals, fine.data().len());
+        assert!(a.ranked.len() > 1 && a.ranked[1].chi2 > a.ranked[0].chi2);
+        // at the truth the chi-square is about the number of samples
+        let n = fine.data().len() as f64;
+        assert!(a.ranked[0].chi2 < 1.2 * n, "{}", a.ranked[0].chi2);
+        assert!(a.ranked[0].std_errors.iter().all(|s| *s > 0.0 && *s < 0.01));
+        assert_eq!(a, run(false, false));
+        // the memo: k = 1 first, then k = 2 from its stages
+        let one = Unknowns::free(40, &[KindChoice::Mass], &[]).unwrap();
+        let opts = GreedyOptions::default();
+        let f1 = fit_greedy(&truth.uniform(), &one, &coarse, Some(&fine), &setup, &opts).unwrap();
+        assert_eq!(f1.ranked[0].positions(), vec![7]);
+        assert_eq!(a, run(true, true));
+        assert_eq!(a, run(false, true));
+    }
+
+    #[test]
+    fn time_stage_any_kind_with_a_known_defect() {
+        let truth = Chain::paper(24)
+            .unwrap()
+            .with_d(0.02)
+            .unwrap()
+            .with_defects([
+                Defect::Mass { at: 3, m: 2.0 },
+                Defect::Spring { at: 9, k: 0.5 },
+                Defect::Damper { at: 17, d: 0.4 },
+            ])
+            .unwrap();
+        let (coarse, fine) = record(&truth, 100.0, 2);
+        let u = Unknowns::new(
+            24,
+            vec![
+                Slot {
+                    kind: KindChoice::Mass,
+                    at: Some(3),
+                    known: None,
+                    bounds: None,
+                },
+                Slot::free(KindChoice::Any),
+                Slot::free(KindChoice::Any),
+            ],
+            vec![],
+            crate::detect::unknowns::KindBounds::default(),
+        )
+        .unwrap();
+        let f = fit_greedy(
+            &truth.uniform(),
+            &u,
+            &coarse,
+            Some(&fine),
+            &Setup::new().unwrap(),
+            &GreedyOptions::default(),
+        )
+        .unwrap();
+        let best = &f.ranked[0];
+        assert!(best.positions_match(&truth), "{best:?}");
+        assert!(best.matches(&truth, 0.05), "{best:?}");
+    }
+
     #[test]
     fn typed_errors() {
         let c = Chain::paper(6).unwrap();
