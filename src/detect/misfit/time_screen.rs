@@ -354,6 +354,9 @@ impl Fft {
 /// A candidate whose sensitivity [`Screen`] computes.
 pub type Candidate = (DefectKind, usize);
 
+/// The residual `y - x_1` and, per candidate, `(r.g, g.g)`.
+pub type Scores = (Vec<f64>, Vec<(f64, f64)>);
+
 /// Screening of candidates against one record (see the module docs).
 #[derive(Clone, Debug)]
 pub struct Screen {
@@ -621,7 +624,7 @@ impl Screen {
         chain: &Chain,
         cands: &[Candidate],
         parallel: bool,
-    ) -> Result<(Vec<f64>, Vec<(f64, f64)>)> {
+    ) -> Result<Scores> {
         let (x1, s) = self.each_with_residual(chain, cands, parallel, |_, r, g| {
             let rg: f64 = r.iter().zip(g).map(|(a, b)| a * b).sum();
             let gg: f64 = g.iter().map(|b| b * b).sum();
