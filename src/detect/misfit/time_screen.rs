@@ -619,12 +619,7 @@ impl Screen {
     ///
     /// # Errors
     /// As [`Screen::each`].
-    pub fn score(
-        &self,
-        chain: &Chain,
-        cands: &[Candidate],
-        parallel: bool,
-    ) -> Result<Scores> {
+    pub fn score(&self, chain: &Chain, cands: &[Candidate], parallel: bool) -> Result<Scores> {
         let (x1, s) = self.each_with_residual(chain, cands, parallel, |_, r, g| {
             let rg: f64 = r.iter().zip(g).map(|(a, b)| a * b).sum();
             let gg: f64 = g.iter().map(|b| b * b).sum();

@@ -16,10 +16,10 @@
 //!   decomposition); the best is kept.
 //! * **Neighbours.** The defect just added is tried one and two positions
 //!   away (same kind), each refit started from its fitted value: the
-//!   linear score misjudges large defects (a mass of 3 next to the wall
-//!   shifts the phase of the whole late record, and scored 33rd where it
-//!   was, against 2% of the drop its refit gives), while its neighbours' do
-//!   not.
+//!   linear score misjudges large defects: a mass of 3 next to the wall
+//!   shifts the phase of the whole late record; where it was, its linear
+//!   drop was 0.3% of what its refit gave and ranked 33rd, while the search
+//!   had placed it two masses away.
 //! * **Moves.** Each placed defect is taken out in turn, the candidates
 //!   rescored against the rest, and those scoring at least `time.move_ratio`
 //!   of where it was (at most `time.refit`) refitted; the best refit
