@@ -42,6 +42,7 @@
 
 pub mod quadrature;
 pub mod time;
+pub mod time_screen;
 
 use crate::chain::Chain;
 use crate::detect::data::exact::Data;
