@@ -301,3 +301,64 @@ fn a_known_ground_spring_in_the_model_is_kept_while_a_mass_is_fitted() {
     assert_eq!((d.kind, d.at), ("mass", 8), "{}", r.summary());
     assert!((d.value - 2.5).abs() < 1e-6, "{d:?}");
 }
+
+/// The record's search path (`detect::misfit::time_screen`, and the time
+/// misfit's fast simulation for chains of 100 masses or more): a ground
+/// spring's sensitivity against the modal derivative, and the simulated
+/// model of a long chain with ground springs against the modal sum.
+#[test]
+fn record_scores_and_the_long_chain_time_model_read_ground_springs() {
+    use springmass::detect::misfit::time::TimeMisfit;
+    use springmass::detect::misfit::time_screen::Screen;
+    use springmass::time::modal::Modes;
+    let n = 12;
+    let c = Chain::paper(n)
+        .unwrap()
+        .with_defects([
+            Defect::Ground { at: 6, g: 0.4 },
+            Defect::Mass { at: 3, m: 2.0 },
+        ])
+        .unwrap();
+    let t: Vec<f64> = (0..1201).map(|i| 0.1 * i as f64).collect();
+    let screen = Screen::new(&t, &vec![0.0; t.len()], &c).unwrap();
+    let modes = Modes::new(&c).unwrap();
+    let cands = vec![(DefectKind::Ground, 6), (DefectKind::Ground, 9)];
+    let (_, gs) = screen.each(&c, &cands, false, |_, g| g.to_vec()).unwrap();
+    for (&(_, p), g) in cands.iter().zip(&gs) {
+        let exact = modes
+            .value_derivative(1, 1, c.gamma(), &[(p, 1.0)], 0)
+            .unwrap()
+            .unwrap()
+            .eval_many(&t);
+        let norm = exact.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let err = g
+            .iter()
+            .zip(&exact)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f64>()
+            .sqrt()
+            / norm;
+        assert!(err < 1e-9, "ground at {p}: relative error {err:e}");
+    }
+    // n = 120: the time misfit's model is the fast simulation
+    let long = Chain::paper(120)
+        .unwrap()
+        .with_d(0.05)
+        .unwrap()
+        .with_defects([
+            Defect::Ground { at: 4, g: 0.5 },
+            Defect::Ground { at: 30, g: 2.0 },
+        ])
+        .unwrap();
+    let data = TimeData::simulate(&long, 100.0, 0.25, NoiseLevel::RelativeMax(0.0), 1).unwrap();
+    let model = TimeMisfit::new(data.clone()).model(&long).unwrap();
+    let exact = ModalResponse::impulse(&long, 1)
+        .unwrap()
+        .eval_many(data.t());
+    let scale = exact.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let e = model
+        .iter()
+        .zip(&exact)
+        .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+    assert!(e <= 1e-10 * scale, "max error {e:e} of {scale:e}");
+}

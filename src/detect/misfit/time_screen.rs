@@ -55,7 +55,7 @@
 //! (g.g)` (`(r.g)^2 / (g.g)` unclamped); over `sigma^2` that is the
 //! chi-square drop.
 
-use crate::chain::Chain;
+use crate::chain::{Chain, Probe};
 use crate::detect::unknowns::DefectKind;
 use crate::error::{Error, Result};
 use num_complex::Complex64;
@@ -130,8 +130,9 @@ impl TimeGrid {
 fn omega_max(chain: &Chain) -> f64 {
     let m = chain.masses();
     let k = chain.springs();
+    let g = chain.grounds();
     (0..chain.n())
-        .map(|i| 2.0 * (k[i] + k[i + 1]) / m[i])
+        .map(|i| (2.0 * (k[i] + k[i + 1]) + g[i]) / m[i])
         .fold(0.0, f64::max)
         .sqrt()
 }
@@ -186,6 +187,7 @@ pub fn simulate(chain: &Chain, grid: &TimeGrid, masses: &[usize]) -> Result<Run>
     let m = chain.masses();
     let k = chain.springs();
     let d = chain.dampers();
+    let g = chain.grounds();
     // rows of M^-1 (-K x - D v), padded: index i + 1 for mass i + 1 (0-based i)
     let mut lo = vec![0.0; n + 2];
     let mut dg = vec![0.0; n + 2];
@@ -193,7 +195,7 @@ pub fn simulate(chain: &Chain, grid: &TimeGrid, masses: &[usize]) -> Result<Run>
     let mut dd = vec![0.0; n + 2];
     for i in 0..n {
         lo[i + 1] = k[i] / m[i];
-        dg[i + 1] = -(k[i] + k[i + 1]) / m[i];
+        dg[i + 1] = -(k[i] + k[i + 1] + g[i]) / m[i];
         up[i + 1] = k[i + 1] / m[i];
         dd[i + 1] = -d[i] / m[i];
     }
@@ -399,48 +401,50 @@ impl Screen {
     /// The masses whose responses the sensitivity of `c` needs.
     fn needs(c: Candidate, n: usize, out: &mut Vec<usize>) {
         let (kind, p) = c;
-        match kind {
-            DefectKind::Mass | DefectKind::Damper => out.push(p),
-            DefectKind::Spring => {
-                out.extend([p, p + 1].into_iter().filter(|&i| i >= 1 && i <= n));
-            }
-        }
+        out.extend(kind.site(p).probe.entries(n).map(|(i, _)| i));
     }
 
-    /// `(a, b)` of the sensitivity `-(a * b) / gamma` of `c` on `run`
-    /// (springs: `a = b = x_p - x_{p+1}`, written into `buf`).
+    /// `(a, b)` of the sensitivity `-(a * b) / gamma` of `c` on `run`: with
+    /// `u = probe^T x` the probe's displacement and `u'` its velocity,
+    /// `(u', u')` for a site of power 2 (a mass), `(u', u)` for power 1 (a
+    /// damper), `(u, u)` for power 0 (a spring); a strain probe's `u`, `u'`
+    /// are written into `buf`.
     fn factors<'r>(
         run: &'r Run,
         c: Candidate,
         n: usize,
-        buf: &'r mut Vec<f64>,
+        buf: &'r mut (Vec<f64>, Vec<f64>),
     ) -> Result<(&'r [f64], &'r [f64])> {
         let missing = || Error::invalid("candidate", format!("{c:?}"), "a simulated position");
         let (kind, p) = c;
-        match kind {
-            DefectKind::Mass => {
-                let v = run.v(p).ok_or_else(missing)?;
-                Ok((v, v))
-            }
-            DefectKind::Damper => {
-                Ok((run.v(p).ok_or_else(missing)?, run.x(p).ok_or_else(missing)?))
-            }
-            DefectKind::Spring => {
-                buf.clear();
-                buf.resize(run.steps, 0.0);
-                if p >= 1 && p <= n {
-                    for (b, a) in buf.iter_mut().zip(run.x(p).ok_or_else(missing)?) {
-                        *b += a;
+        let site = kind.site(p);
+        let (x, v): (&[f64], &[f64]) = match site.probe {
+            Probe::Point(q) => (run.x(q).ok_or_else(missing)?, run.v(q).ok_or_else(missing)?),
+            Probe::Diff(_) => {
+                // u = probe^T x (and u' = probe^T v when the power needs it)
+                let combine = |out: &mut Vec<f64>, of: fn(&Run, usize) -> Option<&[f64]>| {
+                    out.clear();
+                    out.resize(run.steps, 0.0);
+                    for (i, w) in site.probe.entries(n) {
+                        for (o, a) in out.iter_mut().zip(of(run, i).ok_or_else(missing)?) {
+                            *o += w * a;
+                        }
                     }
+                    Ok::<(), Error>(())
+                };
+                let (bx, bv) = (&mut buf.0, &mut buf.1);
+                combine(bx, Run::x)?;
+                if site.power > 0 {
+                    combine(bv, Run::v)?;
                 }
-                if p < n {
-                    for (b, a) in buf.iter_mut().zip(run.x(p + 1).ok_or_else(missing)?) {
-                        *b -= a;
-                    }
-                }
-                Ok((&buf[..], &buf[..]))
+                (&bx[..], &bv[..])
             }
-        }
+        };
+        Ok(match site.power {
+            0 => (x, x),
+            1 => (v, x),
+            _ => (v, v),
+        })
     }
 
     /// The sensitivities `d x_1(t_i) / d value` of the candidates `cands`
@@ -547,7 +551,7 @@ impl Screen {
     ) -> Result<Vec<Vec<f64>>> {
         let size = self.fft.n;
         let steps = run.steps;
-        let (mut b0, mut b1) = (Vec::new(), Vec::new());
+        let (mut b0, mut b1) = ((Vec::new(), Vec::new()), (Vec::new(), Vec::new()));
         let (a0, c0) = Self::factors(run, cands[pair[0]], n, &mut b0)?;
         let (a1, c1) = match pair.get(1) {
             Some(&i) => Self::factors(run, cands[i], n, &mut b1)?,
@@ -710,17 +714,9 @@ mod tests {
                 .unwrap();
             assert_eq!(x1.len(), t.len());
             for (&(kind, p), g) in cands.iter().zip(&gs) {
-                let (u, power) = match kind {
-                    DefectKind::Mass => (vec![(p, 1.0)], 2),
-                    DefectKind::Damper => (vec![(p, 1.0)], 1),
-                    DefectKind::Spring => (
-                        [(p, 1.0), (p + 1, -1.0)]
-                            .into_iter()
-                            .filter(|&(i, _)| i >= 1 && i <= n)
-                            .collect(),
-                        0,
-                    ),
-                };
+                let site = kind.site(p);
+                let (u, power): (Vec<(usize, f64)>, u32) =
+                    (site.probe.entries(n).collect(), site.power);
                 let exact = modes
                     .value_derivative(1, 1, c.gamma(), &u, power)
                     .unwrap()
