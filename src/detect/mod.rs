@@ -53,8 +53,9 @@
 //! ([`Chain::coefficients`](crate::Chain::coefficients): `M`, `D`, and `K`
 //! as a ground-stiffness diagonal plus the springs' Laplacian), and the
 //! Woodbury forward model, the transfer sweep, the tridiagonal and modal
-//! solvers, the simulator, the sensitivities, both Jacobians and the greedy
-//! search's rank-one scores are written for any site.
+//! solvers, both simulators, the sensitivities, both Jacobians, the greedy
+//! search's rank-one scores and its candidate sensitivities on a sampled
+//! record ([`misfit::time_screen`]) are written for any site.
 //!
 //! Measured by adding one: the ground spring (`Defect::Ground`, a spring
 //! from mass `j` to the ground; commit "Ground spring: a fourth defect
