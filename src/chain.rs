@@ -590,6 +590,16 @@ impl Chain {
         defects.into_iter().try_fold(self, |c, d| c.with_defect(d))
     }
 
+    /// The same chain without its `i`-th defect (the others in order; the
+    /// chain itself for an index out of range).
+    pub fn without_defect(&self, i: usize) -> Chain {
+        let mut c = self.clone();
+        if i < c.defects.len() {
+            c.defects.remove(i);
+        }
+        c
+    }
+
     /// The same chain without defects.
     pub fn uniform(&self) -> Chain {
         Chain {

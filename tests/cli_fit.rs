@@ -431,3 +431,58 @@ fn fit_scene_profile_of_every_mass() {
         "{err}"
     );
 }
+
+/// A 1000-mass record fitted with the defaults: enumeration of every set of
+/// up to four positions would pass `max_sets`, so the greedy search is
+/// chosen (and named); both defects are found within 3 SE.
+#[test]
+fn fit_data_of_a_long_chain_with_the_defaults_searches_greedily() {
+    let dir = temp_dir("long");
+    let truth = Chain::paper(1000)
+        .unwrap()
+        .with_defects([
+            Defect::Mass { at: 5, m: 2.0 },
+            Defect::Mass { at: 30, m: 0.6 },
+        ])
+        .unwrap();
+    let d = TimeData::simulate(&truth, 300.0, 0.25, NoiseLevel::RelativeMax(1e-3), 1).unwrap();
+    let csv = dir.join("x1000.csv");
+    TimeSeries::new(d.t().to_vec(), vec![("x1".into(), d.y().to_vec())])
+        .unwrap()
+        .write_csv(&csv)
+        .unwrap();
+    let v = json_of(
+        bin()
+            .args(["fit", "--data"])
+            .arg(&csv)
+            .args(["--n", "1000", "--json"]),
+    );
+    assert!(
+        v["method"].as_str().unwrap().contains("greedy"),
+        "{}",
+        v["method"]
+    );
+    let found: Vec<(u64, f64, f64)> = v["defects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| {
+            (
+                e["at"].as_u64().unwrap(),
+                e["value"].as_f64().unwrap(),
+                e["se"].as_f64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        found.iter().map(|f| f.0).collect::<Vec<_>>(),
+        vec![5, 30],
+        "{v}"
+    );
+    for ((_, value, se), truth) in found.iter().zip([2.0, 0.6]) {
+        assert!(
+            (value - truth).abs() < 3.0 * se,
+            "{value} +- {se} vs {truth}"
+        );
+    }
+}

@@ -576,15 +576,7 @@ impl Greedy<'_> {
                 // the rest, at their fitted values
                 let mut rest = cur.clone();
                 rest.pairs.remove(p);
-                let defects: Vec<_> = cur
-                    .chain
-                    .defects()
-                    .iter()
-                    .enumerate()
-                    .filter(|(i, _)| *i != p)
-                    .map(|(_, d)| *d)
-                    .collect();
-                rest.chain = cur.chain.uniform().with_defects(defects)?;
+                rest.chain = cur.chain.without_defect(p);
                 let s = self.scored(&rest.chain, &rest.pairs)?;
                 let cands: Vec<Scored> = s
                     .into_iter()

@@ -16,7 +16,7 @@
 //! | `slot_kinds` | one kind per defect | [`parse_kinds`] each |
 //! | `noise` | `auto` or a standard deviation | [`NoiseSpec::parse`] |
 //! | `misfit` | `time`, `bromwich`, `real-axis` | [`MisfitKind::parse`] |
-//! | `method` | `enumerate`, `ga`, `nelder-mead`, `pso` | [`FitMethod::parse`] |
+//! | `method` | `enumerate`, `greedy`, `ga`, `nelder-mead`, `pso` (default enumerate; greedy when enumeration would exceed `max_sets` sets) | [`FitMethod::parse`] |
 //! | `criterion` | `bic`, `aic`, `chi2`, `chi2:ALPHA` | [`Criterion::parse`] |
 //! | `fit` | comma-separated subset of `d,gamma,k,mass` | [`parse_params`] |
 //! | `known` | `kind:at:value` each | [`Defect::parse`] |
@@ -277,7 +277,9 @@ pub struct FitSpec {
     pub noise: Option<String>,
     /// `time`, `bromwich` or `real-axis` [default time for a series].
     pub misfit: Option<String>,
-    /// `enumerate`, `ga`, `nelder-mead` or `pso` [default enumerate].
+    /// `enumerate`, `greedy`, `ga`, `nelder-mead` or `pso` [default
+    /// enumerate, or greedy when the position sets of the largest k exceed
+    /// `max_sets`, 200 000: a long chain].
     pub method: Option<String>,
     /// Criterion of `defects = auto`: `bic`, `aic`, `chi2`, `chi2:ALPHA` [default bic].
     pub criterion: Option<String>,
@@ -322,6 +324,10 @@ impl FitSpec {
         }
         if let Some(m) = &self.method {
             opts.method = FitMethod::parse(m)?;
+        } else if enumeration_too_large(self.n, &opts) {
+            // not asked for: a chain too long to enumerate is searched
+            // greedily (the report's method line says so)
+            opts.method = FitMethod::Greedy;
         }
         if let Some(c) = &self.criterion {
             opts.criterion = Criterion::parse(c)?;
@@ -408,6 +414,28 @@ impl FitSpec {
         let opts = self.options()?;
         Ok((self.model()?, opts))
     }
+}
+
+/// Whether enumerating the position sets of the largest number of defects
+/// `opts` may try would exceed `opts.max_sets` (about `C(P, k)` sets for `P`
+/// positions of the allowed kinds), with one kind choice for every defect
+/// (what the greedy search needs).
+fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
+    let k = match opts.defects {
+        DefectCount::Exactly(k) => k,
+        DefectCount::Auto { k_max } => k_max,
+    };
+    let same_kinds = opts.slot_kinds.windows(2).all(|w| w[0] == w[1]);
+    let per = opts
+        .slot_kinds
+        .first()
+        .copied()
+        .unwrap_or(opts.kinds)
+        .kinds()
+        .len();
+    let positions = ((n + 1) * per) as f64;
+    let sets = (0..k).fold(1.0, |c, i| c * (positions - i as f64) / (i + 1) as f64);
+    same_kinds && sets > opts.max_sets as f64
 }
 
 /// `mass`, `spring`, `damper` or `any` (surrounding blanks ignored).

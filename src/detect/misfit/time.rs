@@ -98,7 +98,8 @@ impl TimeMisfit {
     /// columns. `Ok(None)` where that does not apply (another measurement
     /// than the paper's, a uniform chain parameter other than `gamma`, a
     /// decomposition without simple poles, the analytic Jacobian switched
-    /// off): difference the residuals then.
+    /// off, a chain of 100 masses or more whose modes this thread
+    /// has not decomposed): difference the residuals then.
     ///
     /// # Errors
     /// A defect index out of range (field `params`); as [`Modes::new`].
@@ -109,6 +110,13 @@ impl TimeMisfit {
                 .iter()
                 .any(|p| !matches!(p, Param::Defect(_) | Param::Gamma))
         {
+            return Ok(None);
+        }
+        // a long chain whose modes are not at hand: its record is simulated
+        // ([`TimeMisfit::model`]), and so are the differenced residuals (a
+        // modal decomposition is O(n^3): minutes at n = 1000)
+        let cached = LAST_MODES.with(|c| c.borrow().as_ref().is_some_and(|(k, _)| k == chain));
+        if !cached && chain.n() >= STEP_MIN_N && chain.gamma() != 0.0 {
             return Ok(None);
         }
         with_modes(chain, |modes| self.jacobian_with(modes, chain, params))

@@ -403,15 +403,7 @@ impl Ctx<'_, '_> {
                 let (kind, at) = cur.pairs[p];
                 let mut rest = cur.clone();
                 rest.pairs.remove(p);
-                let defects: Vec<_> = cur
-                    .chain
-                    .defects()
-                    .iter()
-                    .enumerate()
-                    .filter(|(i, _)| *i != p)
-                    .map(|(_, d)| *d)
-                    .collect();
-                rest.chain = cur.chain.uniform().with_defects(defects)?;
+                rest.chain = cur.chain.without_defect(p);
                 let s = self.scored(&rest.chain, &rest.pairs)?;
                 let here = s
                     .iter()
