@@ -96,10 +96,9 @@ pub struct Setup {
     pub bromwich_sigma: f64,
     /// Bromwich rule in `omega`.
     pub bromwich_rule: Rule,
-    /// Sets kept after the coarse pass.
+    /// Sets kept after the coarse pass (with a time misfit, each is
+    /// refitted in the time domain).
     pub shortlist: usize,
-    /// Bromwich sets refitted in the time domain.
-    pub time_shortlist: usize,
     /// LM iterations of the coarse pass.
     pub coarse_iter: usize,
     /// Weighting of the Laplace misfits (used by [`laplace_obs`]).
@@ -129,7 +128,7 @@ impl Setup {
     /// residual (`MisfitSpec::default()`'s rule: 10 log-graded panels of 8
     /// points on [0, 300]); the Bromwich line of a record of the paper's
     /// chain ([`Setup::for_record`] without a record: `sigma_B = 0.05`,
-    /// 10 x 8 points on `omega in [0, 4]`); shortlist 8, time shortlist 5,
+    /// 10 x 8 points on `omega in [0, 4]`); shortlist 8,
     /// 12 coarse iterations. The value bounds are the unknowns' own
     /// ([`crate::detect::unknowns::KindBounds`]).
     ///
@@ -141,7 +140,6 @@ impl Setup {
             bromwich_sigma: 0.05,
             bromwich_rule: Rule::gauss_legendre_uniform(0.0, 4.0, 10, 8)?,
             shortlist: 8,
-            time_shortlist: 5,
             coarse_iter: 12,
             weighting: crate::detect::data::whiten::Weighting::default(),
             screen_nodes: 20,
