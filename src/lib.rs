@@ -76,7 +76,7 @@
 //! | [`detect::misfit`] | one [`detect::misfit::MisfitKind`] (real axis, Bromwich, time), quadrature rules, the mass-only Woodbury kernel |
 //! | [`detect::unknowns`] | what is unknown: positions, kinds, values, chain parameters |
 //! | [`detect::search`] | enumeration, genetic algorithm, Nelder-Mead, particle swarm, bounded Levenberg-Marquardt |
-//! | [`detect::fit`] | `fit(observations, model, options) -> FitReport`: noise and number of defects estimated, standard errors, status, how deep the data see; [`detect::fit::profile::fit_profile`] every mass or spring free (whole-profile inversion) |
+//! | [`detect::fit`] | `fit(observations, model, options) -> FitReport`: noise and number of defects estimated, standard errors, status, how deep the data see; [`detect::fit::fit_profile`] every mass or spring free (whole-profile inversion) |
 //! | [`detect::scene`] | TOML fit scenes (truth for synthetic data + unknowns + misfit + search) |
 //! | [`detect::locate`] | explicit single-defect locators (section 4.1), error floors, any precision |
 //! | [`study`] | config-driven studies: sweeps, parallel resumable runs, reports; the noise studies are its kind [`study::kinds::noise`] |

@@ -491,7 +491,7 @@ def fit(
     kinds: Union[str, Sequence[str]] = "mass",
     noise: Union[str, float] = "auto",
     misfit: Optional[str] = None,
-    method: str = "enumerate",
+    method: Optional[str] = None,
     seed: int = 0,
     gamma: float = 1.0,
     known: Sequence[DefectLike] = (),
@@ -540,8 +540,10 @@ def fit(
         Standard deviation of the samples' noise, or ``"auto"`` to estimate it.
     misfit : {"time", "bromwich", "real-axis"}, optional
         The data misfit (default ``"time"``, the time-domain chi-square).
-    method : {"enumerate", "ga", "nelder-mead", "pso"}, default "enumerate"
-        The search over positions.
+    method : {"enumerate", "greedy", "relax", "ga", "nelder-mead", "pso"}, optional
+        The search over positions (default ``"enumerate"``, or ``"greedy"``
+        when enumeration would pass 200 000 position sets); ``"relax"``
+        seeds it from the whole-profile inversion's support.
     seed : int, default 0
         Seed of the stochastic searches (same seed, same answer).
     gamma : float, default 1.0
@@ -612,7 +614,7 @@ def fit(
         slot_kinds=slot_kinds,
         noise=noise_text,
         misfit=None if misfit is None else _text("misfit", misfit),
-        method=_text("method", method),
+        method=None if method is None else _text("method", method),
         criterion=_text("criterion", criterion),
         seed=_count("seed", seed),
         max_evals=_count("max_evals", max_evals),

@@ -628,7 +628,7 @@ fn fit_profile<'py>(
                 po.change = c;
             }
             po.lambda = penalty;
-            springmass::detect::fit::profile::fit_profile(&obs, &model, &po)
+            springmass::detect::fit::fit_profile(&obs, &model, &po)
         })
         .py_err()?;
     let json = serde_json::to_value(&report).map_err(|e| {

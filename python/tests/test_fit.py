@@ -129,6 +129,13 @@ def test_ground_spring_kind_round_trip():
     assert abs(e.value - 0.3) < 4 * e.se and e.se > 1e-8
 
 
+def test_relax_method_seeds_the_fit_from_the_profile(s1_record):
+    t, x = s1_record
+    r = springmass.fit(t, x, n=5, method="relax")
+    assert r.method.startswith("relax")
+    assert [e.at for e in r.defects] == [2, 4]
+
+
 def test_seeded_stochastic_fit_is_reproducible(s1_record):
     t, x = s1_record
     kw = dict(n=5, defects=2, method="pso", max_evals=1500)

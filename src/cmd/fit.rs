@@ -14,7 +14,7 @@ use std::path::PathBuf;
 #[command(
     after_help = "Data-first: springmass fit --data x1.csv --n 37 [--d 0.05 | --fit d,gamma] \
 [--defects auto|K] [--kinds mass|spring|damper|ground|any] [--noise auto|SIGMA] [--misfit time|bromwich|real-axis] \
-[--method enumerate|greedy|ga|nelder-mead|pso] [--left fixed|free] [--right fixed|free] \
+[--method enumerate|greedy|relax|ga|nelder-mead|pso] [--left fixed|free] [--right fixed|free] \
 [--observe-kind displacement|velocity|acceleration] [--force-column f | --force force.csv] \
 [--plot fit.svg] [--out-csv fit.csv] [--json]\n\
 Scene file: springmass fit --scene configs/scenes/table1-system3.toml (its [chain] defects are the truth that synthesises the data)."
@@ -112,7 +112,7 @@ pub struct Args {
     /// The fit scene (TOML with [chain], [data], [unknowns], [misfit], [search]).
     #[arg(long)]
     pub scene: Option<PathBuf>,
-    /// enumerate | greedy | ga | nelder-mead | pso (greedy: one defect at a time, then moves; for long chains).
+    /// enumerate | greedy | relax | ga | nelder-mead | pso (greedy: one defect at a time, then moves, for long chains; relax: every mass or spring free, its support refitted).
     #[arg(long)]
     pub method: Option<String>,
     /// Seed of stochastic methods.
@@ -400,7 +400,8 @@ fn run_profile(
     change: Option<f64>,
     penalty: Option<f64>,
 ) -> anyhow::Result<springmass::detect::fit::profile::ProfileReport> {
-    use springmass::detect::fit::profile::{fit_profile, ProfileOptions};
+    use springmass::detect::fit::fit_profile;
+    use springmass::detect::fit::profile::ProfileOptions;
     let mut po = ProfileOptions::new(mode);
     po.noise = noise;
     if let Some(c) = change {

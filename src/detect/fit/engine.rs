@@ -124,6 +124,9 @@ pub(super) struct Engine<'a> {
     pub(super) prepared: std::sync::Mutex<Option<(u64, Prepared)>>,
     /// Unknowns and search details given by the caller (the scene path).
     pub(super) given: Option<Given>,
+    /// The `relax` method's support: the profile's positions, farthest
+    /// from uniform first (computed once per fit).
+    pub(super) support: std::sync::Mutex<Option<Vec<usize>>>,
 }
 
 /// The coarse (Laplace) and fine (time) observations, the misfit's name and
@@ -281,6 +284,30 @@ impl Engine<'_> {
                     )?;
                     hypotheses = g.hypotheses;
                     (g.ranked, g.evaluations)
+                } else if self.opts.method == FitMethod::Relax {
+                    // the continuous relaxation's support seeds the discrete
+                    // fit: the f positions farthest from uniform, refitted
+                    // with their neighbours (each moved by +-1, +-2)
+                    method_name =
+                        "relax (the profile's support, refitted with its neighbours)".into();
+                    let support = self.support(&unknowns)?;
+                    let taken: Vec<usize> = unknowns.slots().iter().filter_map(|s| s.at).collect();
+                    let free = unknowns.slots().iter().filter(|s| s.at.is_none()).count();
+                    let start: Vec<usize> = support
+                        .into_iter()
+                        .filter(|p| !taken.contains(p))
+                        .take(free)
+                        .collect();
+                    if start.len() < free {
+                        return Err(Error::invalid(
+                            "method",
+                            "relax",
+                            format!("{free} free positions in the profile's support"),
+                        ));
+                    }
+                    let sets = neighbour_sets(&unknowns, &start);
+                    hypotheses = sets.len();
+                    self.refit_sets(&unknowns, &sets, &coarse, fine.as_ref(), &setup, &gopts)?
                 } else if self.opts.method == FitMethod::Greedy {
                     // greedy search with moves (fit::greedy)
                     let g = super::greedy::fit_greedy(
@@ -719,6 +746,53 @@ impl Engine<'_> {
     /// unknowns' own space), else on the Laplace chi-square of the coarse
     /// observations (free masses in the kind's bounds, the model's known
     /// defects excluded).
+    /// The `relax` method's support: the whole-profile inversion of the
+    /// observations ([`super::profile::fit_profile_with`], every mass or
+    /// every spring as the unknowns' one kind, without its restart from a
+    /// defect fit) and its positions ordered visible first, then by
+    /// standard errors from uniform, then position; once per fit.
+    fn support(&self, unknowns: &Unknowns) -> Result<Vec<usize>> {
+        use super::profile::{fit_profile_with, ProfileMode, ProfileOptions};
+        let mut cached = self.support.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(s) = cached.as_ref() {
+            return Ok(s.clone());
+        }
+        let kinds: Vec<DefectKind> = unknowns
+            .slots()
+            .iter()
+            .filter(|s| s.at.is_none())
+            .flat_map(|s| s.kind.kinds().iter().copied())
+            .collect();
+        let mode = match kinds.first() {
+            Some(DefectKind::Mass) if kinds.iter().all(|k| *k == DefectKind::Mass) => ProfileMode::Masses,
+            Some(DefectKind::Spring) if kinds.iter().all(|k| *k == DefectKind::Spring) => {
+                ProfileMode::Springs
+            }
+            _ => {
+                return Err(Error::invalid(
+                    "method",
+                    "relax",
+                    "mass or spring defects of one kind (the relaxation frees every mass or every spring)",
+                ))
+            }
+        };
+        let popts = ProfileOptions {
+            noise: self.opts.noise,
+            ..ProfileOptions::new(mode)
+        };
+        let p = fit_profile_with(self.obs, self.model, &popts, None)?;
+        let mut els: Vec<_> = p.elements.iter().collect();
+        els.sort_by(|a, b| {
+            b.visible
+                .cmp(&a.visible)
+                .then(b.significance().total_cmp(&a.significance()))
+                .then(a.at.cmp(&b.at))
+        });
+        let s: Vec<usize> = els.iter().map(|e| e.at).collect();
+        *cached = Some(s.clone());
+        Ok(s)
+    }
+
     fn stochastic(
         &self,
         unknowns: &Unknowns,
@@ -1116,6 +1190,7 @@ mod tests {
                     misfit: MisfitKind::Bromwich,
                     prepared: std::sync::Mutex::new(None),
                     given: None,
+                    support: std::sync::Mutex::new(None),
                 };
                 let fast = engine.fit_k(2, sigma).unwrap();
                 let (coarse, fine, _, mut setup) = engine.prepared(sigma).unwrap();

@@ -43,7 +43,7 @@
 //! * **visibility**: for mass defects on a user's data the report says how
 //!   deep the data see a 10% mass change ([`visibility::Visibility`]) and names
 //!   fitted defects beyond that depth;
-//! * **every value free** instead of a few defects: [`profile::fit_profile`]
+//! * **every value free** instead of a few defects: [`fit_profile`]
 //!   (`springmass fit --profile masses|springs|both`).
 //!
 //! ```
@@ -99,6 +99,20 @@ pub fn fit(obs: &Observations, model: &Model, opts: &FitOptions) -> Result<FitRe
     fit_with(obs, model, opts, None)
 }
 
+/// Fit every mass (spring, both) of the chain instead of a few defects: the
+/// whole-profile inversion ([`profile`]), with [`fit`] for its restart from
+/// a defect fit.
+///
+/// # Errors
+/// As [`profile::fit_profile_with`].
+pub fn fit_profile(
+    obs: &Observations,
+    model: &Model,
+    opts: &profile::ProfileOptions,
+) -> Result<profile::ProfileReport> {
+    profile::fit_profile_with(obs, model, opts, Some(&fit))
+}
+
 /// [`fit`] with unknowns and search details given by the caller (the scene
 /// path, [`paper::fit`]); the same pipeline.
 fn fit_with(
@@ -131,6 +145,7 @@ fn fit_with(
         misfit,
         prepared: std::sync::Mutex::new(None),
         given,
+        support: std::sync::Mutex::new(None),
     };
     // the noise level: given, or a first guess then the residual estimate
     let (mut sigma, estimated) = match (obs, opts.noise) {

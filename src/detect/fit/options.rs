@@ -16,7 +16,7 @@
 //! | `slot_kinds` | one kind per defect | [`parse_kinds`] each |
 //! | `noise` | `auto` or a standard deviation | [`NoiseSpec::parse`] |
 //! | `misfit` | `time`, `bromwich`, `real-axis` | [`MisfitKind::parse`] |
-//! | `method` | `enumerate`, `greedy`, `ga`, `nelder-mead`, `pso` (default enumerate; greedy when enumeration would exceed `max_sets` sets) | [`FitMethod::parse`] |
+//! | `method` | `enumerate`, `greedy`, `relax`, `ga`, `nelder-mead`, `pso` (default enumerate; greedy when enumeration would exceed `max_sets` sets) | [`FitMethod::parse`] |
 //! | `criterion` | `bic`, `aic`, `chi2`, `chi2:ALPHA` | [`Criterion::parse`] |
 //! | `fit` | comma-separated subset of `d,gamma,k,mass` | [`parse_params`] |
 //! | `known` | `kind:at:value` each | [`Defect::parse`] |
@@ -204,14 +204,31 @@ impl FitOptions {
         }
         let all_mass = self.kinds == KindChoice::Mass
             && self.slot_kinds.iter().all(|k| *k == KindChoice::Mass);
-        if !matches!(self.method, FitMethod::Enumerate | FitMethod::Greedy)
-            && (!all_mass || !model.fitted().is_empty())
+        if !matches!(
+            self.method,
+            FitMethod::Enumerate | FitMethod::Greedy | FitMethod::Relax
+        ) && (!all_mass || !model.fitted().is_empty())
         {
             return Err(Error::invalid(
                 "method",
                 self.method.name(),
-                "enumerate or greedy for spring, damper or any-kind defects and for fitted chain parameters (ga, nelder-mead and pso search mass defects only)",
+                "enumerate, greedy or relax for spring, damper or any-kind defects and for fitted chain parameters (ga, nelder-mead and pso search mass defects only)",
             ));
+        }
+        if self.method == FitMethod::Relax {
+            let one = |k: KindChoice| matches!(k, KindChoice::Mass | KindChoice::Spring);
+            let kinds_ok = if self.slot_kinds.is_empty() {
+                one(self.kinds)
+            } else {
+                one(self.slot_kinds[0]) && self.slot_kinds.iter().all(|k| *k == self.slot_kinds[0])
+            };
+            if !kinds_ok {
+                return Err(Error::invalid(
+                    "kinds",
+                    self.kinds.name(),
+                    "mass or spring, one kind for every defect, with the relax method (the relaxation frees every mass or every spring)",
+                ));
+            }
         }
         if self.method == FitMethod::Greedy && self.slot_kinds.windows(2).any(|w| w[0] != w[1]) {
             return Err(Error::invalid(
@@ -277,7 +294,7 @@ pub struct FitSpec {
     pub noise: Option<String>,
     /// `time`, `bromwich` or `real-axis` [default time for a series].
     pub misfit: Option<String>,
-    /// `enumerate`, `greedy`, `ga`, `nelder-mead` or `pso` [default
+    /// `enumerate`, `greedy`, `relax`, `ga`, `nelder-mead` or `pso` [default
     /// enumerate, or greedy when the position sets of the largest k exceed
     /// `max_sets`, 200 000: a long chain].
     pub method: Option<String>,

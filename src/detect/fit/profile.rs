@@ -57,8 +57,8 @@
 //! ```
 //! use springmass::{Chain, Defect};
 //! use springmass::detect::data::observations::{LaplaceValues, Observations};
-//! use springmass::detect::fit::{Model, NoiseSpec};
-//! use springmass::detect::fit::profile::{fit_profile, ProfileMode, ProfileOptions};
+//! use springmass::detect::fit::{fit_profile, Model, NoiseSpec};
+//! use springmass::detect::fit::profile::{ProfileMode, ProfileOptions};
 //! use num_complex::Complex64;
 //! // exact Laplace values of a chain whose masses all differ
 //! let truth = Chain::paper(8)?.with_defects(
@@ -82,7 +82,8 @@ use crate::detect::fit::chainfit::{fit_chain, Obs};
 use crate::detect::fit::general::{laplace_obs, Setup};
 use crate::detect::fit::model::Model;
 use crate::detect::fit::noise::high_frequency_sigma;
-use crate::detect::fit::options::NoiseSpec;
+use crate::detect::fit::options::{FitOptions, NoiseSpec};
+use crate::detect::fit::report::FitReport;
 use crate::detect::fit::report::Status;
 use crate::detect::fit::select::chi2_sf;
 use crate::detect::misfit::time::TimeMisfit;
@@ -131,7 +132,7 @@ impl ProfileMode {
     }
 }
 
-/// Options of [`fit_profile`].
+/// Options of [`crate::detect::fit::fit_profile`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct ProfileOptions {
     /// What is free.
@@ -238,7 +239,7 @@ impl ElementEstimate {
     }
 }
 
-/// The answer of [`fit_profile`].
+/// The answer of [`crate::detect::fit::fit_profile`].
 #[derive(Clone, Debug, Serialize)]
 pub struct ProfileReport {
     /// What was free.
@@ -643,12 +644,13 @@ fn laplace_band(
 /// its defects' values at their positions, the uniform value elsewhere.
 /// `None` when that fit fails.
 fn defect_start(
+    fit: DefectFitter,
     obs: &Observations,
     model: &Model,
     space: &Space,
     opts: &ProfileOptions,
 ) -> Option<Vec<f64>> {
-    use crate::detect::fit::{fit, DefectCount, FitOptions, DEFAULT_K_MAX};
+    use crate::detect::fit::options::{DefectCount, DEFAULT_K_MAX};
     use crate::detect::unknowns::KindChoice;
     let fopts = FitOptions {
         defects: DefectCount::Auto {
@@ -662,9 +664,9 @@ fn defect_start(
         noise: opts.noise,
         // enumeration up to C(20, 4) = 4845 sets; the greedy search beyond
         method: if model.n() <= 20 {
-            crate::detect::fit::FitMethod::Enumerate
+            crate::detect::search::FitMethod::Enumerate
         } else {
-            crate::detect::fit::FitMethod::Greedy
+            crate::detect::search::FitMethod::Greedy
         },
         parallel: false,
         ..FitOptions::default()
@@ -722,15 +724,25 @@ fn band_start(
     Ok((theta, iterations))
 }
 
-/// Fit every value of `opts.mode` (see the module docs).
+/// The data-first defect fit handed to [`fit_profile_with`] for its
+/// restart from a defect fit ([`crate::detect::fit::fit`]; passed in, so
+/// that the defect fit's own `relax` method can run the profile without an
+/// import cycle).
+pub type DefectFitter<'a> =
+    &'a (dyn Fn(&Observations, &Model, &FitOptions) -> Result<FitReport> + Sync);
+
+/// Fit every value of `opts.mode` (see the module docs), with `defect_fit`
+/// for the restart from a defect fit (`None`: that restart is skipped).
+/// [`crate::detect::fit::fit_profile`] passes the data-first fit.
 ///
 /// # Errors
 /// Invalid options; a mode with nothing free; fewer data than free values
 /// (field `profile`); a numerical failure of the forward model.
-pub fn fit_profile(
+pub fn fit_profile_with(
     obs: &Observations,
     model: &Model,
     opts: &ProfileOptions,
+    defect_fit: Option<DefectFitter>,
 ) -> Result<ProfileReport> {
     opts.validate()?;
     let t0 = Instant::now();
@@ -768,7 +780,7 @@ pub fn fit_profile(
             l,
             &|| pre_pass(obs, model, sigma, nf),
             &|| band_start(obs, model, sigma, &space, opts),
-            &|| defect_start(obs, model, &space, opts),
+            &|| defect_fit.and_then(|f| defect_start(f, obs, model, &space, opts)),
             &space,
             opts,
             target,
@@ -1276,6 +1288,11 @@ fn visible_prefix(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The profile without the restart from a defect fit.
+    fn fit_profile(o: &Observations, m: &Model, p: &ProfileOptions) -> Result<ProfileReport> {
+        fit_profile_with(o, m, p, None)
+    }
     use crate::chain::Boundary;
     use crate::detect::data::observations::LaplaceValues;
     use num_complex::Complex64;

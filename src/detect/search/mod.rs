@@ -144,10 +144,15 @@ pub enum FitMethod {
     /// Greedy placement with moves and restarts, candidates scored by
     /// rank-one updates (`detect::fit::greedy`; the data-first fit only).
     Greedy,
+    /// The continuous relaxation: every mass (or spring) free under a
+    /// sparsity penalty (the whole-profile inversion); its support, the
+    /// values farthest from uniform in standard errors, seeds the discrete
+    /// fit, which refits it and its neighbours (the data-first fit only).
+    Relax,
 }
 
 impl FitMethod {
-    /// Parse `enumerate`, `ga`, `nelder-mead`, `pso`, `greedy` (aliases
+    /// Parse `enumerate`, `ga`, `nelder-mead`, `pso`, `greedy`, `relax` (aliases
     /// `genetic`, `particle-swarm`, `nm`).
     ///
     /// # Errors
@@ -159,10 +164,11 @@ impl FitMethod {
             "nelder-mead" | "nm" => Ok(FitMethod::NelderMead),
             "pso" | "particle-swarm" => Ok(FitMethod::Pso),
             "greedy" => Ok(FitMethod::Greedy),
+            "relax" => Ok(FitMethod::Relax),
             _ => Err(Error::parse(
                 "method",
                 text,
-                "expected enumerate, ga, nelder-mead, pso or greedy",
+                "expected enumerate, ga, nelder-mead, pso, greedy or relax",
             )),
         }
     }
@@ -175,6 +181,7 @@ impl FitMethod {
             FitMethod::NelderMead => "nelder-mead",
             FitMethod::Pso => "pso",
             FitMethod::Greedy => "greedy",
+            FitMethod::Relax => "relax",
         }
     }
 
@@ -182,7 +189,7 @@ impl FitMethod {
     /// and the greedy search.
     pub fn stochastic(self) -> Option<Method> {
         match self {
-            FitMethod::Enumerate | FitMethod::Greedy => None,
+            FitMethod::Enumerate | FitMethod::Greedy | FitMethod::Relax => None,
             FitMethod::Ga => Some(Method::Genetic),
             FitMethod::NelderMead => Some(Method::NelderMead),
             FitMethod::Pso => Some(Method::ParticleSwarm),

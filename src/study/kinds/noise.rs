@@ -410,7 +410,8 @@ fn sigma_ratio(estimated: f64, data: &TimeData) -> f64 {
 /// the true defects' (of the profiled kind).
 fn run_profile(s: &Scene, truth: &Chain, data: &TimeData) -> Result<CaseOutput> {
     use crate::detect::data::observations::{Observations, Series};
-    use crate::detect::fit::profile::{fit_profile, ProfileMode, ProfileOptions};
+    use crate::detect::fit::fit_profile;
+    use crate::detect::fit::profile::{ProfileMode, ProfileOptions};
     use crate::detect::fit::{Model, NoiseSpec};
     let sigma = (s.noise == "given" && data.sigma() > 0.0).then_some(data.sigma());
     let obs = Observations::Series(Series::new(data.t().to_vec(), data.y().to_vec(), sigma)?);
