@@ -2,20 +2,23 @@
 //! prepared once per noise level, the fits for one number of defects
 //! ([`KFit`]), and the report built from the chosen one.
 
-use super::{
-    chainfit::{default_bounds, fit_chain, Obs},
-    general::{
-        self, fit_general, identify_general, laplace_obs, GeneralOptions, Hypothesis, Setup,
-    },
-    identify, noise, select, Alternative, DefectEstimate, FitMethod, FitOptions, FitReport, KRow,
-    ModeEstimate, Model, ParamEstimate, Predicted, Status,
+use super::chainfit::{default_bounds, fit_chain, Obs};
+use super::general::{
+    self, fit_general, identify_general, laplace_obs, GeneralOptions, Hypothesis, Setup,
 };
+use super::model::Model;
+use super::options::FitOptions;
+use super::report::{
+    Alternative, DefectEstimate, FitReport, KRow, ModeEstimate, ParamEstimate, Predicted, Status,
+};
+use super::{identify, noise, select};
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::observations::Observations;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::{Misfit, MisfitKind};
 use crate::detect::search::enumerate::{enumerate, fit_slots_from, EnumerateOptions};
+use crate::detect::search::FitMethod;
 use crate::detect::search::{
     minimize, Candidate, MisfitObjective, Objective, SearchOptions, SearchResult, Space,
 };

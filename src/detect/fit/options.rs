@@ -37,11 +37,13 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::{parse_params, Criterion, FitMethod, Model};
+use super::model::{parse_params, Model};
+use super::select::Criterion;
 use crate::chain::{Boundary, Defect};
 use crate::detect::data::measurement::{Measurement, Sensor};
 use crate::detect::data::observations::Observations;
 use crate::detect::misfit::MisfitKind;
+use crate::detect::search::FitMethod;
 use crate::detect::unknowns::{DefectKind, KindChoice};
 use crate::error::{Error, Result};
 use crate::forward::Observable;

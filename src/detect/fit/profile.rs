@@ -132,7 +132,7 @@ impl ProfileMode {
     }
 }
 
-/// Options of [`crate::detect::fit::fit_profile`].
+/// Options of `detect::fit::fit_profile`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ProfileOptions {
     /// What is free.
@@ -239,7 +239,7 @@ impl ElementEstimate {
     }
 }
 
-/// The answer of [`crate::detect::fit::fit_profile`].
+/// The answer of `detect::fit::fit_profile`.
 #[derive(Clone, Debug, Serialize)]
 pub struct ProfileReport {
     /// What was free.
@@ -638,7 +638,7 @@ fn laplace_band(
     }
 }
 
-/// A start from the data-first defect fit ([`crate::detect::fit::fit`],
+/// A start from the data-first defect fit (`detect::fit::fit`,
 /// the number of defects by BIC among `0..=4`, kinds those of the profile,
 /// enumeration up to 20 masses and the greedy search beyond):
 /// its defects' values at their positions, the uniform value elsewhere.
@@ -725,7 +725,7 @@ fn band_start(
 }
 
 /// The data-first defect fit handed to [`fit_profile_with`] for its
-/// restart from a defect fit ([`crate::detect::fit::fit`]; passed in, so
+/// restart from a defect fit (`detect::fit::fit`; passed in, so
 /// that the defect fit's own `relax` method can run the profile without an
 /// import cycle).
 pub type DefectFitter<'a> =
@@ -733,7 +733,7 @@ pub type DefectFitter<'a> =
 
 /// Fit every value of `opts.mode` (see the module docs), with `defect_fit`
 /// for the restart from a defect fit (`None`: that restart is skipped).
-/// [`crate::detect::fit::fit_profile`] passes the data-first fit.
+/// `detect::fit::fit_profile` passes the data-first fit.
 ///
 /// # Errors
 /// Invalid options; a mode with nothing free; fewer data than free values
