@@ -88,6 +88,29 @@ use rayon::prelude::*;
 mod time;
 pub use time::TimeStage;
 
+/// The work of a search, counted across its threads: hypotheses refitted,
+/// misfit evaluations, candidates scored, sweeps.
+#[derive(Debug, Default)]
+struct Counters(std::sync::Mutex<(usize, usize, usize, usize)>);
+
+impl Counters {
+    fn add(&self, hyps: usize, evals: usize, scored: usize, sweeps: usize) {
+        let mut c = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        c.0 += hyps;
+        c.1 += evals;
+        c.2 += scored;
+        c.3 += sweeps;
+    }
+
+    fn get(&self) -> (usize, usize, usize, usize) {
+        *self.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn set(&self, to: (usize, usize, usize, usize)) {
+        *self.0.lock().unwrap_or_else(|e| e.into_inner()) = to;
+    }
+}
+
 /// Options of [`fit_greedy`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct GreedyOptions {
@@ -206,7 +229,7 @@ struct Greedy<'a> {
     kinds: Vec<DefectKind>,
     score_opts: ScoreOptions,
     chain_bounds: Vec<(f64, f64)>,
-    counters: std::sync::Mutex<(usize, usize, usize, usize)>,
+    counters: Counters,
 }
 
 /// Greedy search with moves and restarts (module docs) for the defects of
@@ -274,18 +297,14 @@ pub fn fit_greedy(
             ..opts.score.clone()
         },
         chain_bounds: default_bounds(base, unknowns.chain()),
-        counters: std::sync::Mutex::new((0, 0, 0, 0)),
+        counters: Counters::default(),
     };
     g.run(fine, setup)
 }
 
 impl Greedy<'_> {
     fn count(&self, hyps: usize, evals: usize, scored: usize, sweeps: usize) {
-        let mut c = self.counters.lock().unwrap_or_else(|e| e.into_inner());
-        c.0 += hyps;
-        c.1 += evals;
-        c.2 += scored;
-        c.3 += sweeps;
+        self.counters.add(hyps, evals, scored, sweeps);
     }
 
     fn map<T: Sync, U: Send>(&self, items: &[T], f: impl Fn(&T) -> U + Sync + Send) -> Vec<U> {
@@ -675,8 +694,7 @@ impl Greedy<'_> {
             residuals = timed[0].m;
             seen = timed;
         }
-        let (hypotheses, evaluations, scored, sweeps) =
-            *self.counters.lock().unwrap_or_else(|e| e.into_inner());
+        let (hypotheses, evaluations, scored, sweeps) = self.counters.get();
         Ok(GreedyFit {
             ranked: seen.into_iter().map(|f| f.hyp).collect(),
             hypotheses,

@@ -37,7 +37,7 @@
 //! Deterministic: candidates are ranked by `(score, position, kind)`, refits
 //! by `(chi-square, sorted pairs)`; parallel work (rayon) only evaluates.
 
-use super::{Greedy, GreedyFit};
+use super::{Counters, Greedy, GreedyFit};
 use crate::chain::Chain;
 use crate::detect::fit::general::Hypothesis;
 use crate::detect::misfit::time::TimeMisfit;
@@ -129,7 +129,7 @@ struct Ctx<'a, 'g> {
     /// Internal whitening of the refits (`max|y| 1e-3`): the LM is scale
     /// invariant, so results do not depend on it.
     scale: f64,
-    counters: Mutex<(usize, usize, usize, usize)>,
+    counters: Counters,
 }
 
 /// The time stage for `g` on `t` (module docs), or `None` where it does not
@@ -153,7 +153,7 @@ pub(super) fn run(g: &Greedy<'_>, t: &TimeMisfit) -> Result<Option<GreedyFit>> {
         g,
         screen,
         scale: if big > 0.0 { 1e-3 * big } else { 1.0 },
-        counters: Mutex::new((0, 0, 0, 0)),
+        counters: Counters::default(),
     };
     let key = Key {
         t: data.t().iter().map(|v| v.to_bits()).collect(),
@@ -171,7 +171,7 @@ pub(super) fn run(g: &Greedy<'_>, t: &TimeMisfit) -> Result<Option<GreedyFit>> {
         Vec::new()
     };
     if let Some(last) = stages.last() {
-        *ctx.counters.lock().unwrap_or_else(|e| e.into_inner()) = last.counters;
+        ctx.counters.set(last.counters);
     }
     let grew = stages.len() <= k;
     while stages.len() <= k {
@@ -223,15 +223,11 @@ pub(super) fn run(g: &Greedy<'_>, t: &TimeMisfit) -> Result<Option<GreedyFit>> {
 
 impl Ctx<'_, '_> {
     fn count(&self, hyps: usize, evals: usize, scored: usize, sweeps: usize) {
-        let mut c = self.counters.lock().unwrap_or_else(|e| e.into_inner());
-        c.0 += hyps;
-        c.1 += evals;
-        c.2 += scored;
-        c.3 += sweeps;
+        self.counters.add(hyps, evals, scored, sweeps);
     }
 
     fn counters(&self) -> (usize, usize, usize, usize) {
-        *self.counters.lock().unwrap_or_else(|e| e.into_inner())
+        self.counters.get()
     }
 
     /// What the stages depend on besides the record.
