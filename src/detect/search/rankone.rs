@@ -748,6 +748,9 @@ pub struct SetProblem<'a> {
     col: Vec<usize>,
     /// uniform value of each defect's kind
     uniform: Vec<f64>,
+    /// `kappa(s)` of each defect's kind at each node (`[q * defects + i]`):
+    /// depends only on the nodes, so made once
+    factor: Vec<C>,
     ncol: usize,
     /// per column: `Some(sign)` when the probe is `+-e_1`
     e1: Vec<Option<f64>>,
@@ -847,9 +850,15 @@ impl<'a> SetProblem<'a> {
             rhs.extend(pr);
             g11.push(g);
         }
+        let factor = target
+            .nodes()
+            .iter()
+            .flat_map(|&z| defects.iter().map(move |d| kind_factor(d.kind_at().0, z)))
+            .collect();
         Ok(SetProblem {
             target,
             gamma: chain.gamma(),
+            factor,
             uniform: defects
                 .iter()
                 .map(|d| d.kind_at().0.uniform(chain))
@@ -884,14 +893,16 @@ impl<'a> SetProblem<'a> {
             j.clear();
             j.resize(s.len() * self.p, C::new(0.0, 0.0));
         }
-        for (q, &z) in s.iter().enumerate() {
+        let nd = self.defects.len();
+        for q in 0..s.len() {
+            let factor = &self.factor[q * nd..(q + 1) * nd];
             c.iter_mut().for_each(|v| *v = C::new(0.0, 0.0));
             for (i, d) in self.defects.iter().enumerate() {
-                let (kind, v) = match *d {
-                    SetDefect::Fixed(k, _, v) => (k, v),
-                    SetDefect::Free(k, _, j) => (k, theta[j]),
+                let v = match *d {
+                    SetDefect::Fixed(_, _, v) => v,
+                    SetDefect::Free(_, _, j) => theta[j],
                 };
-                c[self.col[i]] += kind_factor(kind, z) * (v - self.uniform[i]);
+                c[self.col[i]] += factor[i] * (v - self.uniform[i]);
             }
             let a = &self.a[q * nc * nc..(q + 1) * nc * nc];
             let rhs = &self.rhs[q * nc..(q + 1) * nc];
@@ -917,9 +928,9 @@ impl<'a> SetProblem<'a> {
             x.push(xv);
             if let Some(j) = jac.as_mut() {
                 for (i, d) in self.defects.iter().enumerate() {
-                    if let SetDefect::Free(k, _, jj) = *d {
+                    if let SetDefect::Free(_, _, jj) = *d {
                         let yl = y[self.col[i]];
-                        j[q * self.p + jj] = -(kind_factor(k, z) * yl * yl) * self.gamma;
+                        j[q * self.p + jj] = -(factor[i] * yl * yl) * self.gamma;
                     }
                 }
             }
