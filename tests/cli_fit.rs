@@ -38,7 +38,12 @@ fn write_record(path: &Path, level: f64) {
             Defect::Mass { at: 7, m: 2.0 },
         ])
         .unwrap();
-    let d = TimeData::simulate(&truth, 150.0, 0.25, NoiseLevel::RelativeMax(level), 21).unwrap();
+    write_series(path, &truth, 150.0, level, 21);
+}
+
+/// `x_1` of `truth` on `[0, t_end]` every 0.25 with noise `level` of max |x_1|, as a CSV.
+fn write_series(path: &Path, truth: &Chain, t_end: f64, level: f64, seed: u64) {
+    let d = TimeData::simulate(truth, t_end, 0.25, NoiseLevel::RelativeMax(level), seed).unwrap();
     TimeSeries::new(d.t().to_vec(), vec![("x1".into(), d.y().to_vec())])
         .unwrap()
         .write_csv(path)
@@ -445,12 +450,8 @@ fn fit_data_of_a_long_chain_with_the_defaults_searches_greedily() {
             Defect::Mass { at: 30, m: 0.6 },
         ])
         .unwrap();
-    let d = TimeData::simulate(&truth, 300.0, 0.25, NoiseLevel::RelativeMax(1e-3), 1).unwrap();
     let csv = dir.join("x1000.csv");
-    TimeSeries::new(d.t().to_vec(), vec![("x1".into(), d.y().to_vec())])
-        .unwrap()
-        .write_csv(&csv)
-        .unwrap();
+    write_series(&csv, &truth, 300.0, 1e-3, 1);
     let v = json_of(
         bin()
             .args(["fit", "--data"])
