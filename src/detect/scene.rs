@@ -419,7 +419,15 @@ impl FitScene {
     /// As [`FitScene::data`], [`FitScene::measurement`] and the misfit's
     /// rule; `data.source` for exact data with the time misfit.
     pub fn observations(&self) -> Result<(Observations, Option<f64>)> {
-        let data = self.data()?;
+        self.observations_of(&self.data()?)
+    }
+
+    /// [`FitScene::observations`] of the data `data` (the scene's
+    /// [`FitScene::data`] or data given in its place).
+    ///
+    /// # Errors
+    /// As [`FitScene::observations`].
+    pub fn observations_of(&self, data: &Data) -> Result<(Observations, Option<f64>)> {
         if let Some((t, x)) = data.samples() {
             let sigma = self.noise_sigma()?;
             let sg = (sigma > 0.0).then_some(sigma);

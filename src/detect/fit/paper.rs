@@ -69,9 +69,8 @@ use super::engine::Given;
 use super::{fit_with, DefectCount, FitOptions, FitReport, Model, NoiseSpec};
 use crate::chain::Defect;
 use crate::detect::data::exact::Data;
-use crate::detect::data::observations::{LaplaceValues, Observations, Series};
+use crate::detect::data::observations::{LaplaceValues, Observations};
 use crate::detect::fit::general::FittedParam;
-use crate::detect::misfit::quadrature::Rule;
 use crate::detect::misfit::MisfitKind;
 use crate::detect::scene::{FitScene, SceneOptions};
 use crate::detect::search::FitMethod;
@@ -177,7 +176,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
     // the data at the rule's nodes, with the data's own errors
     let (s, values, errors): (Vec<Complex64>, Vec<Complex64>, Vec<f64>) = match scene.misfit.kind {
         MisfitKind::Bromwich => {
-            let s = laplace_nodes(scene, &rule);
+            let s = scene.laplace_nodes(&rule.nodes);
             let sm = data.sample(&s)?;
             (s, sm.values, sm.sigma)
         }
@@ -185,7 +184,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
             // sampled in real arithmetic, as the paper's residual always was
             let sm = data.sample(&rule.nodes)?;
             (
-                laplace_nodes(scene, &rule),
+                scene.laplace_nodes(&rule.nodes),
                 sm.values.iter().map(|&v| Complex64::new(v, 0.0)).collect(),
                 sm.sigma,
             )
@@ -260,19 +259,6 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
     })
 }
 
-/// The Laplace nodes of the scene's rule: `s = sigma + i omega` on the
-/// Bromwich line, the rule's nodes on the real axis otherwise.
-fn laplace_nodes(scene: &FitScene, rule: &Rule) -> Vec<Complex64> {
-    match scene.misfit.kind {
-        MisfitKind::Bromwich => rule
-            .nodes
-            .iter()
-            .map(|&w| Complex64::new(scene.misfit.sigma, w))
-            .collect(),
-        _ => rule.nodes.iter().map(|&x| Complex64::new(x, 0.0)).collect(),
-    }
-}
-
 /// The alternatives of a shared report in the scene's terms.
 fn alternatives(r: &FitReport) -> Vec<Alternative> {
     r.alternatives
@@ -322,36 +308,10 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
         }
     }
     model = model.fitting(unknowns.chain())?;
-    let (obs, noise) = match data.samples() {
-        Some((t, x)) => {
-            let sigma = scene.noise_sigma()?;
-            let noise = if sigma > 0.0 {
-                NoiseSpec::Sigma(sigma)
-            } else {
-                NoiseSpec::Auto
-            };
-            let sg = (sigma > 0.0).then_some(sigma);
-            let series =
-                Series::new(t.to_vec(), x.to_vec(), sg)?.with_measurement(scene.measurement(t)?)?;
-            (Observations::Series(series), noise)
-        }
-        None => {
-            if scene.misfit.kind == MisfitKind::Time {
-                return Err(Error::invalid(
-                    "data.source",
-                    "exact",
-                    "\"simulated\" or \"series\" (the time misfit needs a sampled series)",
-                ));
-            }
-            let s = laplace_nodes(scene, &scene.misfit.rule()?);
-            let sm = data.sample(&s)?;
-            let sigma = sm.sigma.iter().map(|v| v.max(1e-300)).collect();
-            (
-                Observations::Laplace(LaplaceValues::new(s, sm.values, Some(sigma))?),
-                NoiseSpec::Sigma(1.0),
-            )
-        }
-    };
+    // the data given, as the pipeline's observations (the samples' known
+    // noise, or the Laplace values' own errors; else estimated)
+    let (obs, sigma) = scene.observations_of(data)?;
+    let noise = sigma.map_or(NoiseSpec::Auto, NoiseSpec::Sigma);
     let opts = FitOptions {
         defects: DefectCount::Exactly(kinds.len()),
         slot_kinds: kinds,
