@@ -45,6 +45,15 @@ thread_local! {
         const { std::cell::RefCell::new(None) };
 }
 
+/// Whether `chain`'s record is simulated rather than summed over its
+/// modes: a chain of [`STEP_MIN_N`] masses or more whose modes this thread
+/// has not decomposed (an impulse to respond to).
+fn simulated(chain: &Chain) -> bool {
+    chain.n() >= STEP_MIN_N
+        && chain.gamma() != 0.0
+        && !LAST_MODES.with(|c| c.borrow().as_ref().is_some_and(|(k, _)| k == chain))
+}
+
 /// `f` of `chain`'s modal decomposition, made once per chain and thread.
 fn with_modes<T>(chain: &Chain, f: impl FnOnce(&Modes) -> Result<T>) -> Result<T> {
     let cached = LAST_MODES.with(|c| {
@@ -115,8 +124,7 @@ impl TimeMisfit {
         // a long chain whose modes are not at hand: its record is simulated
         // ([`TimeMisfit::model`]), and so are the differenced residuals (a
         // modal decomposition is O(n^3): minutes at n = 1000)
-        let cached = LAST_MODES.with(|c| c.borrow().as_ref().is_some_and(|(k, _)| k == chain));
-        if !cached && chain.n() >= STEP_MIN_N && chain.gamma() != 0.0 {
+        if simulated(chain) {
             return Ok(None);
         }
         with_modes(chain, |modes| self.jacobian_with(modes, chain, params))
@@ -182,8 +190,7 @@ impl TimeMisfit {
             // a long chain whose modes are not at hand: the sparse stepping
             // (O(n T), exact to rounding as the modal sum) rather than a
             // modal decomposition (O(n^3): 0.3 s at n = 300)
-            let cached = LAST_MODES.with(|c| c.borrow().as_ref().is_some_and(|(k, _)| k == chain));
-            if !cached && chain.n() >= STEP_MIN_N && chain.gamma() != 0.0 {
+            if simulated(chain) {
                 if let Some(grid) = TimeGrid::new(self.data.t(), chain) {
                     return Ok(simulate(chain, &grid, &[])?.x1);
                 }
