@@ -44,7 +44,7 @@
 //! nodes, `screen_keep` short fits, `shortlist` full fits. On the noise
 //! study's systems (S1-S4, C3a, C3b) at 1e-3 and 1e-2 noise the earlier
 //! path's winner ranks at most 12th on the screen (test
-//! `screen_keeps_the_reference_winner`); [`Setup::reference`] keeps that
+//! `screen_and_slack_keep_the_reference_winner`); [`Setup::reference`] keeps that
 //! path (every set through the coarse pass, time Jacobians by differences).
 //!
 //! **General fit** ([`fit_general`], [`fit_noisy_general`]): defects of kind
@@ -126,7 +126,10 @@ pub struct Setup {
     /// With the time misfit, the shortlist's sets refitted in the time
     /// domain: the best two on the Laplace line and every set whose Laplace
     /// chi-square is within `time_slack` of the best (default 25; see
-    /// [`fit_general`]); `f64::INFINITY`: every set of the shortlist.
+    /// [`fit_general`]); `f64::INFINITY`: every set of the shortlist. The
+    /// sets left out are not ranked: the runner-up is the best refitted
+    /// set, and when it is more than the slack behind, a set left out may
+    /// be closer (never within the slack).
     pub time_slack: f64,
     /// Time-domain Jacobian exact where it applies
     /// ([`TimeMisfit::jacobian`]); `false`: central differences throughout.
@@ -1245,7 +1248,7 @@ mod screen_tests {
     /// screen's keep on the screen, and the new path's winner is the same
     /// position set with the same time-domain chi-square (to 1e-6).
     #[test]
-    fn screen_keeps_the_reference_winner() {
+    fn screen_and_slack_keep_the_reference_winner() {
         let mut cases = Vec::new();
         for name in crate::scenes::NOISE_SYSTEMS {
             let truth = crate::scenes::by_name(name).unwrap();
@@ -1312,6 +1315,21 @@ mod screen_tests {
                 );
                 let (a, b) = (&old.ranked[0], &new.ranked[0]);
                 assert_eq!(a.key(), b.key(), "{} {level:e} seed {seed}", name);
+                // the time refits left out by the slack change neither the
+                // winner nor a runner-up within the slack (beyond it another
+                // set left out may be closer: S4 at 1e-2, seed 0: 291
+                // against the 304 reported)
+                let gap = |f: &GeneralFit| f.ranked[1].chi2 - f.ranked[0].chi2;
+                if gap(&old) <= setup.time_slack {
+                    assert_eq!(
+                        old.ranked[1].key(),
+                        new.ranked[1].key(),
+                        "{} {level:e} seed {seed}: runner-up",
+                        name
+                    );
+                } else {
+                    assert!(gap(&new) >= gap(&old) - 1e-9 * old.ranked[0].chi2);
+                }
                 assert!(
                     (a.chi2 - b.chi2).abs() <= 1e-6 * a.chi2,
                     "{} {level:e} seed {seed}: chi2 {} vs {}",

@@ -147,7 +147,10 @@ pub struct FitOptions {
     pub seed: u64,
     /// Evaluation budget of the stochastic searches (default 20 000).
     pub max_evals: usize,
-    /// Alternatives reported (default 5).
+    /// Alternatives reported, at most (default 5). With the time misfit only
+    /// the sets refitted in the time domain are ranked: the Bromwich line's
+    /// best two and those within its chi-square slack
+    /// ([`crate::detect::fit::general::Setup::time_slack`]).
     pub alternatives: usize,
     /// Fit hypotheses in parallel; the result does not depend on it.
     pub parallel: bool,
