@@ -200,13 +200,13 @@ impl LaplaceObs {
     /// Whether the model is `s^p F(s) X_at(s)` (or `X_at`), which the
     /// tabulated sweep gives; the acceleration after the impulse needs the
     /// direct evaluation (its jump).
-    fn tabulable(&self) -> bool {
+    pub(crate) fn tabulable(&self) -> bool {
         self.force_hat.is_some() || self.sensor.kind != crate::forward::Observable::Acceleration
     }
 
     /// The factor turning `X_at` into the model at node `q`: `s^p F(s)`, or
     /// `s^p` for the impulse (velocity: `x(0) = 0`, no jump).
-    fn factor(&self, q: usize) -> Complex64 {
+    pub(crate) fn factor(&self, q: usize) -> Complex64 {
         let sp = self.s[q].powu(self.sensor.kind.power());
         match &self.force_hat {
             Some(f) => sp * f[q],
@@ -550,7 +550,7 @@ impl LaplaceObs {
 /// column-major: every column of `W` read once for all columns of `X`. The
 /// same sums in the same order as nalgebra's product (`W[i][0] x_0`, then
 /// `+ W[i][j] x_j` for `j = 1, 2, ...`), so the same values.
-fn whiten(w: &DMatrix<f64>, x: &[f64], cols: usize) -> Vec<f64> {
+pub(crate) fn whiten(w: &DMatrix<f64>, x: &[f64], cols: usize) -> Vec<f64> {
     let (k, m) = w.shape();
     debug_assert_eq!(x.len(), m * cols);
     let mut out = vec![0.0; k * cols];

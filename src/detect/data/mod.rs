@@ -14,4 +14,5 @@ pub mod laplace;
 pub mod measurement;
 pub mod observations;
 pub mod series;
+pub mod set_model;
 pub mod whiten;

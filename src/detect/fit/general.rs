@@ -79,12 +79,13 @@
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::series::TimeData;
+use crate::detect::data::set_model::SetTables;
 use crate::detect::fit::chainfit::{ChainProblem, Obs};
 use crate::detect::fit::identify::{identify, Alternative, FittedDefect, Identifiability};
 use crate::detect::misfit::quadrature::Rule;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::MisfitKind;
-use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
+use crate::detect::search::lsq::{levenberg_marquardt, LeastSquares, LmOptions};
 use crate::detect::unknowns::{DefectKind, KindPositions, Unknowns};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
@@ -567,27 +568,13 @@ impl Tol {
 /// 2.5 times heavier starts, keeping the lower chi-square. Measured on the
 /// noise study's System 2 at 1e-6 noise: one seed in 20 lost the truth this
 /// way on the Bromwich line (chi2 6.9e10 against 71 at the truth).
-#[allow(clippy::too_many_arguments)]
 fn fit_pairs_coarse(
-    base: &Chain,
     unknowns: &Unknowns,
     pairs: &[(DefectKind, usize)],
     values: &[f64],
-    chain_bounds: &[(f64, f64)],
-    obs: Obs<'_>,
-    max_iter: usize,
+    fit: impl Fn(&[f64]) -> Result<Fitted>,
 ) -> Result<Fitted> {
-    let first = fit_pairs(
-        base,
-        unknowns,
-        pairs,
-        values,
-        chain_bounds,
-        false,
-        obs,
-        max_iter,
-        Tol::Seed,
-    );
+    let first = fit(values);
     let on_bound = |f: &Fitted| {
         f.hyp.defects.iter().enumerate().any(|(i, d)| {
             unknowns.slots()[i].known.is_none() && {
@@ -602,17 +589,7 @@ fn fit_pairs_coarse(
         Ok(f) if !on_bound(&f) => Ok(f),
         first => {
             let heavier: Vec<f64> = values.iter().map(|v| 2.5 * v).collect();
-            let second = fit_pairs(
-                base,
-                unknowns,
-                pairs,
-                &heavier,
-                chain_bounds,
-                false,
-                obs,
-                max_iter,
-                Tol::Seed,
-            );
+            let second = fit(&heavier);
             match (first, second) {
                 (Ok(a), Ok(b)) => {
                     let evaluations = a.evaluations + b.evaluations;
@@ -625,6 +602,79 @@ fn fit_pairs_coarse(
             }
         }
     }
+}
+
+/// [`fit_pairs`] of the defect values alone (chain parameters held) on the
+/// rational form of the set's Laplace model ([`SetTables`]): the same
+/// residuals and Jacobian to rounding, a few products per node instead of a
+/// transfer sweep. `None` when the form does not apply to the set. The
+/// hypothesis carries no standard errors (NaN): the coarse pass ranks and
+/// seeds, it does not report.
+fn fit_pairs_fast(
+    tables: &SetTables<'_>,
+    base: &Chain,
+    unknowns: &Unknowns,
+    pairs: &[(DefectKind, usize)],
+    values: &[f64],
+    max_iter: usize,
+    tol: Tol,
+) -> Option<Result<Fitted>> {
+    let slots = unknowns.slots();
+    let mut sites = Vec::with_capacity(pairs.len());
+    let mut uniform = Vec::with_capacity(pairs.len());
+    let mut fixed = Vec::with_capacity(pairs.len());
+    let mut theta0 = Vec::new();
+    let mut bounds = Vec::new();
+    for (i, (&(kind, at), &v)) in pairs.iter().zip(values).enumerate() {
+        sites.push(kind.site(at));
+        uniform.push(kind.uniform(base));
+        fixed.push(slots[i].known);
+        if slots[i].known.is_none() {
+            let b = unknowns.bounds(i, kind);
+            theta0.push(v.clamp(b.0, b.1));
+            bounds.push(b);
+        }
+    }
+    let model = tables.set(&sites, &uniform, &fixed)?;
+    let defects_at = |theta: &[f64]| -> Vec<Defect> {
+        let mut it = theta.iter();
+        pairs
+            .iter()
+            .zip(&fixed)
+            .map(|(&(kind, at), known)| {
+                kind.defect(
+                    at,
+                    known.unwrap_or_else(|| *it.next().expect("one per slot")),
+                )
+            })
+            .collect()
+    };
+    if theta0.is_empty() {
+        return Some(model.residuals(&[]).map(|r| Fitted {
+            hyp: Hypothesis {
+                defects: defects_at(&[]),
+                std_errors: vec![0.0; pairs.len()],
+                chain: Vec::new(),
+                chi2: r.iter().map(|v| v * v).sum(),
+                converged: true,
+            },
+            evaluations: 1,
+            m: r.len(),
+        }));
+    }
+    Some(
+        levenberg_marquardt(&model, &theta0, &bounds, &tol.options(max_iter)).map(|lm| Fitted {
+            hyp: Hypothesis {
+                defects: defects_at(&lm.theta),
+                std_errors: vec![f64::NAN; pairs.len()],
+                chain: Vec::new(),
+                chi2: lm.chi2,
+                converged: lm.converged,
+            },
+            evaluations: lm.evaluations,
+            m: lm.m,
+        }),
+    )
 }
 
 /// The values of one fully placed hypothesis (every slot of `unknowns` at a
@@ -1054,31 +1104,38 @@ fn coarse_pass<'h>(
     retry: bool,
     parallel: bool,
 ) -> (Vec<(Hypothesis, &'h KindPositions)>, usize) {
+    // the rational form of each set's model, when it applies (chain
+    // parameters are held here): per-node Green's data shared by every set
+    let probes = hyps
+        .iter()
+        .flat_map(|h| h.iter().map(|&(kind, at)| kind.site(at).probe));
+    let tables = SetTables::new(obs, current, probes);
     let fits: Vec<Option<Fitted>> = map_maybe_par(hyps, parallel, |h| {
-        let from = |which: usize| {
-            let v: Vec<f64> = h.iter().map(|&(k, _)| starts(k, current)[which]).collect();
-            if retry {
-                fit_pairs_coarse(
+        let fit = |v: &[f64]| -> Result<Fitted> {
+            let fast = tables
+                .as_ref()
+                .and_then(|t| fit_pairs_fast(t, current, unknowns, h, v, max_iter, Tol::Seed));
+            match fast {
+                Some(f) => f,
+                None => fit_pairs(
                     current,
                     unknowns,
                     h,
-                    &v,
-                    chain_bounds,
-                    Obs::Laplace(obs),
-                    max_iter,
-                )
-            } else {
-                fit_pairs(
-                    current,
-                    unknowns,
-                    h,
-                    &v,
+                    v,
                     chain_bounds,
                     false,
                     Obs::Laplace(obs),
                     max_iter,
                     Tol::Seed,
-                )
+                ),
+            }
+        };
+        let from = |which: usize| {
+            let v: Vec<f64> = h.iter().map(|&(k, _)| starts(k, current)[which]).collect();
+            if retry {
+                fit_pairs_coarse(unknowns, h, &v, fit)
+            } else {
+                fit(&v)
             }
             .ok()
         };
