@@ -277,16 +277,13 @@ impl SetModel<'_> {
                 format!("{} values", self.free.len()),
             ));
         }
-        let mut out = vec![0.0; self.k];
         let mut it = theta.iter();
-        for l in 0..self.k {
-            let v = match self.fixed[l] {
-                Some(v) => v,
-                None => *it.next().expect("one per free slot"),
-            };
-            out[l] = v - self.uniform[l];
-        }
-        Ok(out)
+        Ok(self
+            .fixed
+            .iter()
+            .zip(&self.uniform)
+            .map(|(fixed, u)| fixed.unwrap_or_else(|| *it.next().expect("one per free slot")) - u)
+            .collect())
     }
 
     /// `prod_{l in S} delta_l` for every subset `S`.
