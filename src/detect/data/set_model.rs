@@ -33,6 +33,7 @@ use crate::detect::data::laplace::{whiten, LaplaceObs};
 use crate::detect::search::lsq::LeastSquares;
 use crate::error::{Error, Result};
 use crate::green::{Green, ProbeFactors};
+use crate::time::series::stacked_rows;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 use std::collections::HashMap;
@@ -50,10 +51,20 @@ pub struct SetTables<'a> {
     scale: Vec<Complex64>,
     /// `G_o1` at each node.
     g_o1: Vec<Complex64>,
-    probes: HashMap<Probe, ProbeData>,
+    probes: HashMap<Probe, usize>,
+    data: Vec<ProbeData>,
+    /// `p_i^T G p_j` of every pair of tabled probes at every node,
+    /// `[(q P + i) P + j]` for `P` probes, when small enough
+    /// ([`MAX_PAIR_TABLE`]; otherwise formed per set).
+    pairs: Option<Vec<Complex64>>,
+    /// The stacked real layout of the residual ([`stacked_rows`]).
+    rows: Vec<(usize, bool)>,
     /// The observed mass.
     at: usize,
 }
+
+/// Largest pair table of [`SetTables`] (entries; 16 bytes each).
+const MAX_PAIR_TABLE: usize = 1 << 21;
 
 /// One probe at every node: its factors, `p^T G e_o`, `p^T G e_1`, `p^T G p`.
 struct ProbeData {
@@ -99,6 +110,7 @@ impl<'a> SetTables<'a> {
             .map(|(g, (o, one))| g.pair(o, one))
             .collect();
         let mut probes = HashMap::new();
+        let mut data = Vec::new();
         for p in sites {
             if probes.contains_key(&p) {
                 continue;
@@ -115,22 +127,39 @@ impl<'a> SetTables<'a> {
             let a = pair(&e_o);
             let b = if at == 1 { a.clone() } else { pair(&e_1) };
             let diag = pair(&factors);
-            probes.insert(
-                p,
-                ProbeData {
-                    factors,
-                    a,
-                    b,
-                    diag,
-                },
-            );
+            probes.insert(p, data.len());
+            data.push(ProbeData {
+                factors,
+                a,
+                b,
+                diag,
+            });
         }
+        let np = data.len();
+        let nq = greens.len();
+        let pairs = (np * np * nq <= MAX_PAIR_TABLE).then(|| {
+            let mut t = vec![Complex64::new(0.0, 0.0); np * np * nq];
+            for (q, g) in greens.iter().enumerate() {
+                for i in 0..np {
+                    t[(q * np + i) * np + i] = data[i].diag[q];
+                    for j in i + 1..np {
+                        let v = g.pair(&data[i].factors[q], &data[j].factors[q]);
+                        t[(q * np + i) * np + j] = v;
+                        t[(q * np + j) * np + i] = v;
+                    }
+                }
+            }
+            t
+        });
         Some(SetTables {
             obs,
             greens,
             scale,
             g_o1,
             probes,
+            data,
+            pairs,
+            rows: stacked_rows(s),
             at,
         })
     }
@@ -139,6 +168,7 @@ impl<'a> SetTables<'a> {
     /// the values of the slots with `fixed[l] = Some(v)` are held, the others
     /// are the parameters in slot order. `None` for a probe not tabled, more
     /// than [`MAX_K`] sites, or a coefficient that overflows.
+    #[allow(clippy::needless_range_loop)] // bit loops over the slots
     pub fn set(
         &self,
         sites: &[Site],
@@ -149,47 +179,60 @@ impl<'a> SetTables<'a> {
         if k == 0 || k > MAX_K || uniform.len() != k || fixed.len() != k {
             return None;
         }
-        let data: Vec<&ProbeData> = sites
+        let idx: Vec<usize> = sites
             .iter()
-            .map(|st| self.probes.get(&st.probe))
+            .map(|st| self.probes.get(&st.probe).copied())
             .collect::<Option<_>>()?;
+        let data: Vec<&ProbeData> = idx.iter().map(|&i| &self.data[i]).collect();
         let nq = self.greens.len();
+        let np = self.data.len();
         let subsets = 1usize << k;
         let mut num = vec![Complex64::new(0.0, 0.0); subsets * nq];
         let mut den = vec![Complex64::new(0.0, 0.0); subsets * nq];
-        let mut a = vec![Complex64::new(0.0, 0.0); k * k];
+        let zero = Complex64::new(0.0, 0.0);
+        let mut a = [zero; MAX_K * MAX_K];
+        let mut pw = [zero; MAX_K];
+        let mut minor = [zero; MAX_K * MAX_K];
+        let mut bordered = [zero; (MAX_K + 1) * (MAX_K + 1)];
+        let mut members = [0usize; MAX_K];
         let s = self.obs.nodes();
         for q in 0..nq {
             for l in 0..k {
                 a[l * k + l] = data[l].diag[q];
                 for m in l + 1..k {
-                    let v = self.greens[q].pair(&data[l].factors[q], &data[m].factors[q]);
+                    let v = match &self.pairs {
+                        Some(t) => t[(q * np + idx[l]) * np + idx[m]],
+                        None => self.greens[q].pair(&data[l].factors[q], &data[m].factors[q]),
+                    };
                     a[l * k + m] = v;
                     a[m * k + l] = v;
                 }
+                pw[l] = s[q].powu(sites[l].power);
             }
-            let pw: Vec<Complex64> = sites.iter().map(|st| s[q].powu(st.power)).collect();
             for set in 0..subsets {
-                let idx: Vec<usize> = (0..k).filter(|l| set >> l & 1 == 1).collect();
-                let m = idx.len();
+                let mut m = 0;
                 let mut factor = Complex64::new(1.0, 0.0);
-                for &l in &idx {
-                    factor *= pw[l];
-                }
-                // det(A_SS) and the bordered det [[G_o1, a_S^T], [b_S, A_SS]]
-                let mut minor = vec![Complex64::new(0.0, 0.0); m * m];
-                let mut bordered = vec![Complex64::new(0.0, 0.0); (m + 1) * (m + 1)];
-                bordered[0] = self.g_o1[q];
-                for (i, &l) in idx.iter().enumerate() {
-                    bordered[i + 1] = data[l].a[q];
-                    bordered[(i + 1) * (m + 1)] = data[l].b[q];
-                    for (j, &r) in idx.iter().enumerate() {
-                        minor[i * m + j] = a[l * k + r];
-                        bordered[(i + 1) * (m + 1) + j + 1] = a[l * k + r];
+                for l in 0..k {
+                    if set >> l & 1 == 1 {
+                        members[m] = l;
+                        m += 1;
+                        factor *= pw[l];
                     }
                 }
-                den[set * nq + q] = det(&mut minor, m) * factor;
-                num[set * nq + q] = det(&mut bordered, m + 1) * factor * self.scale[q];
+                let members = &members[..m];
+                // det(A_SS) and the bordered det [[G_o1, a_S^T], [b_S, A_SS]]
+                let b = m + 1;
+                bordered[0] = self.g_o1[q];
+                for (i, &l) in members.iter().enumerate() {
+                    bordered[i + 1] = data[l].a[q];
+                    bordered[(i + 1) * b] = data[l].b[q];
+                    for (j, &r) in members.iter().enumerate() {
+                        minor[i * m + j] = a[l * k + r];
+                        bordered[(i + 1) * b + j + 1] = a[l * k + r];
+                    }
+                }
+                den[set * nq + q] = det(&mut minor[..m * m], m) * factor;
+                num[set * nq + q] = det(&mut bordered[..b * b], b) * factor * self.scale[q];
             }
         }
         if num
@@ -218,9 +261,24 @@ impl<'a> SetTables<'a> {
     }
 }
 
-/// Determinant of the `m x m` row-major `a` by Gaussian elimination with
-/// partial pivoting (destroys `a`); 1 for `m = 0`.
+/// Determinant of the `m x m` row-major `a`: by the cofactor formulas up to
+/// `m = 3`, by Gaussian elimination with partial pivoting beyond (destroys
+/// `a`); 1 for `m = 0`.
 fn det(a: &mut [Complex64], m: usize) -> Complex64 {
+    match m {
+        0 => Complex64::new(1.0, 0.0),
+        1 => a[0],
+        2 => a[0] * a[3] - a[1] * a[2],
+        3 => {
+            a[0] * (a[4] * a[8] - a[5] * a[7]) - a[1] * (a[3] * a[8] - a[5] * a[6])
+                + a[2] * (a[3] * a[7] - a[4] * a[6])
+        }
+        _ => det_elimination(a, m),
+    }
+}
+
+/// Determinant by Gaussian elimination with partial pivoting (destroys `a`).
+fn det_elimination(a: &mut [Complex64], m: usize) -> Complex64 {
     let mut d = Complex64::new(1.0, 0.0);
     for c in 0..m {
         let mut piv = c;
@@ -327,10 +385,14 @@ impl SetModel<'_> {
         let s = obs.nodes();
         match obs.whitening() {
             Some(w) => {
-                let mut stacked = Vec::with_capacity(w.ncols() * columns);
+                let rows = &self.tables.rows;
+                let mut stacked = Vec::with_capacity(rows.len() * columns);
                 for c in 0..columns {
                     let col = &x[c * self.nq..(c + 1) * self.nq];
-                    stacked.extend(crate::time::series::stack_re_im(s, col));
+                    stacked.extend(
+                        rows.iter()
+                            .map(|&(q, im)| if im { col[q].im } else { col[q].re }),
+                    );
                 }
                 whiten(w, &stacked, columns)
             }
@@ -580,6 +642,26 @@ mod tests {
             ],
         ];
         check(&truth2, &other, &sets2, &obs2);
+    }
+
+    #[test]
+    fn cofactor_determinants_equal_elimination() {
+        for m in 1..=3usize {
+            for seed in 0..20u64 {
+                let a: Vec<Complex64> = (0..m * m)
+                    .map(|i| {
+                        let x = (seed * 31 + i as u64 * 17) as f64;
+                        Complex64::new((x * 0.37).sin() * 3.0, (x * 0.91).cos())
+                    })
+                    .collect();
+                let want = det_elimination(&mut a.clone(), m);
+                let got = det(&mut a.clone(), m);
+                assert!(
+                    (got - want).norm() <= 1e-13 * (1.0 + want.norm()),
+                    "{m}: {got} vs {want}"
+                );
+            }
+        }
     }
 
     #[test]
