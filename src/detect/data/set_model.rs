@@ -78,10 +78,14 @@ impl<'a> SetTables<'a> {
     /// The tables of `obs` for the uniform part of `chain` and the probes of
     /// `sites`; `None` when the form does not apply (the observable is not
     /// the tabulated one, or a node is singular for the uniform chain).
+    /// `pair_uses`: how many probe pairs the sets to come hold in all (the
+    /// table of every pair is built when that is more than the pairs of
+    /// distinct probes; otherwise each set forms its own).
     pub fn new(
         obs: &'a LaplaceObs,
         chain: &Chain,
         sites: impl IntoIterator<Item = Probe>,
+        pair_uses: usize,
     ) -> Option<SetTables<'a>> {
         if !obs.tabulable() {
             return None;
@@ -137,20 +141,21 @@ impl<'a> SetTables<'a> {
         }
         let np = data.len();
         let nq = greens.len();
-        let pairs = (np * np * nq <= MAX_PAIR_TABLE).then(|| {
-            let mut t = vec![Complex64::new(0.0, 0.0); np * np * nq];
-            for (q, g) in greens.iter().enumerate() {
-                for i in 0..np {
-                    t[(q * np + i) * np + i] = data[i].diag[q];
-                    for j in i + 1..np {
-                        let v = g.pair(&data[i].factors[q], &data[j].factors[q]);
-                        t[(q * np + i) * np + j] = v;
-                        t[(q * np + j) * np + i] = v;
+        let pairs = (np * np * nq <= MAX_PAIR_TABLE && pair_uses > np * np.saturating_sub(1) / 2)
+            .then(|| {
+                let mut t = vec![Complex64::new(0.0, 0.0); np * np * nq];
+                for (q, g) in greens.iter().enumerate() {
+                    for i in 0..np {
+                        t[(q * np + i) * np + i] = data[i].diag[q];
+                        for j in i + 1..np {
+                            let v = g.pair(&data[i].factors[q], &data[j].factors[q]);
+                            t[(q * np + i) * np + j] = v;
+                            t[(q * np + j) * np + i] = v;
+                        }
                     }
                 }
-            }
-            t
-        });
+                t
+            });
         Some(SetTables {
             obs,
             greens,
@@ -501,8 +506,22 @@ mod tests {
     }
 
     fn check(truth: &Chain, base: &Chain, sets: &[Vec<Defect>], obs: &LaplaceObs) {
-        let probes = sets.iter().flatten().map(|d| d.site().probe);
-        let tables = SetTables::new(obs, base, probes).expect("applies");
+        // with the table of every pair and with pairs formed per set
+        for uses in [0, usize::MAX] {
+            let probes = sets.iter().flatten().map(|d| d.site().probe);
+            let tables = SetTables::new(obs, base, probes, uses).expect("applies");
+            assert_eq!(tables.pairs.is_some(), uses > 0);
+            check_sets(truth, base, sets, obs, &tables);
+        }
+    }
+
+    fn check_sets(
+        truth: &Chain,
+        base: &Chain,
+        sets: &[Vec<Defect>],
+        obs: &LaplaceObs,
+        tables: &SetTables<'_>,
+    ) {
         for defects in sets {
             let sites: Vec<Site> = defects.iter().map(|d| d.site()).collect();
             let uniform: Vec<f64> = defects.iter().map(|d| d.uniform_value(base)).collect();
@@ -680,7 +699,7 @@ mod tests {
             Defect::Mass { at: 5, m: 3.0 },
         ];
         let sites: Vec<Site> = defs.iter().map(|d| d.site()).collect();
-        let tables = SetTables::new(&obs, &base, sites.iter().map(|s| s.probe)).unwrap();
+        let tables = SetTables::new(&obs, &base, sites.iter().map(|s| s.probe), 0).unwrap();
         // the second value held at the truth: zero residual at the first's truth
         let model = tables.set(&sites, &[1.0, 1.0], &[None, Some(3.0)]).unwrap();
         let r = model.residuals(&[2.0]).unwrap();
@@ -699,6 +718,6 @@ mod tests {
         let obs_acc = observations(&truth, true)
             .with_measurement(acc, None)
             .unwrap();
-        assert!(SetTables::new(&obs_acc, &base, sites.iter().map(|s| s.probe)).is_none());
+        assert!(SetTables::new(&obs_acc, &base, sites.iter().map(|s| s.probe), 0).is_none());
     }
 }

@@ -1109,7 +1109,11 @@ fn coarse_pass<'h>(
     let probes = hyps
         .iter()
         .flat_map(|h| h.iter().map(|&(kind, at)| kind.site(at).probe));
-    let tables = SetTables::new(obs, current, probes);
+    let pair_uses = hyps
+        .iter()
+        .map(|h| h.len() * h.len().saturating_sub(1) / 2)
+        .sum();
+    let tables = SetTables::new(obs, current, probes, pair_uses);
     let fits: Vec<Option<Fitted>> = map_maybe_par(hyps, parallel, |h| {
         let fit = |v: &[f64]| -> Result<Fitted> {
             let fast = tables
