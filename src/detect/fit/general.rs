@@ -132,6 +132,10 @@ pub struct Setup {
     /// set, and when it is more than the slack behind, a set left out may
     /// be closer (never within the slack).
     pub time_slack: f64,
+    /// Fit the screen's and the coarse pass's sets on the rational form of
+    /// their Laplace model ([`SetTables`], default true) where it applies;
+    /// `false`: a transfer sweep per node and evaluation.
+    pub rational_sets: bool,
     /// Time-domain Jacobian exact where it applies
     /// ([`TimeMisfit::jacobian`]); `false`: central differences throughout.
     pub exact_time_jacobian: bool,
@@ -161,6 +165,7 @@ impl Setup {
             screen_iter: 4,
             screen_retry: false,
             time_slack: 25.0,
+            rational_sets: true,
             exact_time_jacobian: true,
         })
     }
@@ -190,9 +195,10 @@ impl Setup {
     }
 
     /// The earlier path, kept as a baseline for benchmarks and tests: no
-    /// screen (every hypothesis through the full coarse pass), every set of
-    /// the shortlist refitted in the time domain, time-domain Jacobians by
-    /// central differences. The defaults otherwise.
+    /// screen (every hypothesis through the full coarse pass), each set's
+    /// model by transfer sweeps, every set of the shortlist refitted in the
+    /// time domain, time-domain Jacobians by central differences. The
+    /// defaults otherwise.
     ///
     /// # Errors
     /// As [`Setup::new`].
@@ -201,6 +207,7 @@ impl Setup {
             screen_nodes: 0,
             screen_keep: 0,
             time_slack: f64::INFINITY,
+            rational_sets: false,
             exact_time_jacobian: false,
             ..Setup::new()?
         })
@@ -947,6 +954,7 @@ pub fn fit_general(
                     setup.screen_iter,
                     setup.screen_retry,
                     opts.parallel,
+                    setup.rational_sets,
                 );
                 evaluations += spent;
                 ranked
@@ -966,6 +974,7 @@ pub fn fit_general(
             setup.coarse_iter,
             true,
             opts.parallel,
+            setup.rational_sets,
         );
         evaluations += spent;
         let mut ranked: Vec<(Hypothesis, KindPositions)> =
@@ -1091,7 +1100,8 @@ pub fn fit_general(
 
 /// The coarse pass over `hyps` on `obs` (defect values only, chain
 /// parameters at `current`'s values; with `retry`, [`fit_pairs_coarse`]'s
-/// heavier retry on a bound): the fitted hypotheses ranked by
+/// heavier retry on a bound; with `rational`, on the sets' rational form,
+/// [`fit_pairs_fast`], where it applies): the fitted hypotheses ranked by
 /// `(chi2, hypothesis)`, and the evaluations spent.
 #[allow(clippy::too_many_arguments)]
 fn coarse_pass<'h>(
@@ -1103,6 +1113,7 @@ fn coarse_pass<'h>(
     max_iter: usize,
     retry: bool,
     parallel: bool,
+    rational: bool,
 ) -> (Vec<(Hypothesis, &'h KindPositions)>, usize) {
     // the rational form of each set's model, when it applies (chain
     // parameters are held here): per-node Green's data shared by every set
@@ -1113,7 +1124,11 @@ fn coarse_pass<'h>(
         .iter()
         .map(|h| h.len() * h.len().saturating_sub(1) / 2)
         .sum();
-    let tables = SetTables::new(obs, current, probes, pair_uses);
+    let tables = if rational {
+        SetTables::new(obs, current, probes, pair_uses)
+    } else {
+        None
+    };
     let fits: Vec<Option<Fitted>> = map_maybe_par(hyps, parallel, |h| {
         let fit = |v: &[f64]| -> Result<Fitted> {
             let fast = tables
@@ -1365,6 +1380,7 @@ mod screen_tests {
                     setup.screen_iter,
                     setup.screen_retry,
                     false,
+                    setup.rational_sets,
                 );
                 let rank = screened.iter().position(|(_, h)| **h == winner);
                 let keep = setup.screen_keep.max(hyps.len() / 20);
