@@ -4,11 +4,30 @@
 //! (one complex exponential per sample), the cheapest possible O(N) pass.
 //! The Filon transform is reported against it as a ratio; it evaluates two
 //! rules (degree 7 and 5) and the weight vector for the noise variance.
+//!
+//! `cpu/eval_with_covariance/*` (CPU time of this thread): the values and
+//! the full data covariance at the 80 Bromwich nodes of `Setup::new()` on
+//! the record of the `datafit` bench (n = 20 chain, masses 5 at 8 and 2 at
+//! 15, `x_1` on `[0, 300]` with `dt = 0.05`, 6001 samples, noise 1% of
+//! `max |x_1|`, seed 1), as `laplace_obs` forms them: `periodic` (the
+//! uniform-grid sums) against `general` (the weight vectors and `B B^T`) in
+//! the same run; also a single `eval` with a noise level.
+//!
+//! `cargo bench --bench series -- cpu/`
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
+use springmass::detect::data::series::TimeData;
+use springmass::detect::fit::general::Setup;
+use springmass::detect::misfit::MisfitKind;
+use springmass::noise::NoiseLevel;
 use springmass::time::inverse::{invert, InverseOptions};
 use springmass::time::series::{SeriesTransform, TransformOptions};
-use springmass::Complex64;
+use springmass::{Chain, Complex64, Defect};
+use std::time::Duration;
+
+#[path = "common/cputime.rs"]
+mod cputime;
+use cputime::CpuTime;
 
 fn x1(n: usize, d: f64, t: f64) -> f64 {
     let np1 = (n + 1) as f64;
@@ -72,5 +91,53 @@ fn bench(c: &mut Criterion) {
     });
 }
 
+fn bench_covariance(c: &mut Criterion<CpuTime>) {
+    let truth = Chain::paper(20)
+        .unwrap()
+        .with_defects([
+            Defect::Mass { at: 8, m: 5.0 },
+            Defect::Mass { at: 15, m: 2.0 },
+        ])
+        .unwrap();
+    let data = TimeData::simulate(&truth, 300.0, 0.05, NoiseLevel::RelativeMax(1e-2), 1).unwrap();
+    let setup = Setup::new().unwrap();
+    let (s, _) = MisfitKind::Bromwich
+        .laplace_nodes(&setup.real_rule, setup.bromwich_sigma, &setup.bromwich_rule)
+        .unwrap();
+    let opts = TransformOptions {
+        noise_sigma: Some(data.sigma()),
+        ..TransformOptions::default()
+    };
+    let tr = SeriesTransform::new(data.t(), data.y(), &opts).unwrap();
+    assert!(tr.has_periodic_sums());
+    let general = tr.clone().general_path();
+    let mut g = c.benchmark_group(format!(
+        "cpu/eval_with_covariance/n{}_q{}",
+        data.t().len(),
+        s.len()
+    ));
+    g.sample_size(20).measurement_time(Duration::from_secs(3));
+    g.bench_function("periodic", |b| {
+        b.iter(|| tr.eval_with_covariance(black_box(&s)).unwrap())
+    });
+    g.bench_function("general", |b| {
+        b.iter(|| general.eval_with_covariance(black_box(&s)).unwrap())
+    });
+    g.finish();
+    let mut g = c.benchmark_group(format!("cpu/eval_noisy/n{}", data.t().len()));
+    g.sample_size(20).measurement_time(Duration::from_secs(2));
+    let z = s[s.len() / 2];
+    g.bench_function("periodic", |b| b.iter(|| tr.eval(black_box(z)).unwrap()));
+    g.bench_function("general", |b| {
+        b.iter(|| general.eval(black_box(z)).unwrap())
+    });
+    g.finish();
+}
+
 criterion_group!(benches, bench);
-criterion_main!(benches);
+criterion_group! {
+    name = benches_cpu;
+    config = Criterion::default().with_measurement(CpuTime);
+    targets = bench_covariance
+}
+criterion_main!(benches, benches_cpu);
