@@ -14,5 +14,4 @@ pub mod laplace;
 pub mod measurement;
 pub mod observations;
 pub mod series;
-pub mod set_model;
 pub mod whiten;

@@ -29,8 +29,13 @@
 //! 80 whitened nodes ([`LaplaceObs::screen`]: their marginal covariance,
 //! whitened on its own, so still a true chi-square), and the best
 //! `max(screen_keep = 40, C(n, k) / 20)` sets go on to the coarse pass proper
-//! ([`Setup::coarse_iter`] iterations on every node, analytic Jacobian, O(k)
-//! per node); the best `shortlist` sets are then fitted to convergence from
+//! ([`Setup::coarse_iter`] iterations on every node, analytic Jacobian). Both
+//! fit each set on the rational form of its Laplace model
+//! ([`crate::detect::misfit::laplace_sets`]: per node a ratio of two multilinear
+//! polynomials in the defect values, their coefficients formed once per set
+//! from Green's data shared by every set), where it applies, instead of a
+//! transfer sweep per node and evaluation; the best `shortlist` sets are then
+//! fitted to convergence from
 //! that point and from `m = 0.5`, and ranked. The time misfit costs a modal
 //! decomposition per evaluation (about 1.5 ms for `n = 20`), so it refines
 //! the Bromwich shortlist: its best two position sets, and any other within
@@ -79,9 +84,9 @@
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::series::TimeData;
-use crate::detect::data::set_model::SetTables;
 use crate::detect::fit::chainfit::{ChainProblem, Obs};
 use crate::detect::fit::identify::{identify, Alternative, FittedDefect, Identifiability};
+use crate::detect::misfit::laplace_sets::{SetModel, SetTables};
 use crate::detect::misfit::quadrature::Rule;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::MisfitKind;
@@ -611,6 +616,19 @@ fn fit_pairs_coarse(
     }
 }
 
+/// A set's rational model as a least-squares problem.
+struct Rational<'t>(SetModel<'t>);
+
+impl LeastSquares for Rational<'_> {
+    fn residuals(&self, theta: &[f64]) -> Result<Vec<f64>> {
+        self.0.residuals(theta)
+    }
+
+    fn jacobian(&self, theta: &[f64]) -> Result<nalgebra::DMatrix<f64>> {
+        self.0.jacobian(theta)
+    }
+}
+
 /// [`fit_pairs`] of the defect values alone (chain parameters held) on the
 /// rational form of the set's Laplace model ([`SetTables`]): the same
 /// residuals and Jacobian to rounding, a few products per node instead of a
@@ -670,16 +688,18 @@ fn fit_pairs_fast(
         }));
     }
     Some(
-        levenberg_marquardt(&model, &theta0, &bounds, &tol.options(max_iter)).map(|lm| Fitted {
-            hyp: Hypothesis {
-                defects: defects_at(&lm.theta),
-                std_errors: vec![f64::NAN; pairs.len()],
-                chain: Vec::new(),
-                chi2: lm.chi2,
-                converged: lm.converged,
-            },
-            evaluations: lm.evaluations,
-            m: lm.m,
+        levenberg_marquardt(&Rational(model), &theta0, &bounds, &tol.options(max_iter)).map(|lm| {
+            Fitted {
+                hyp: Hypothesis {
+                    defects: defects_at(&lm.theta),
+                    std_errors: vec![f64::NAN; pairs.len()],
+                    chain: Vec::new(),
+                    chi2: lm.chi2,
+                    converged: lm.converged,
+                },
+                evaluations: lm.evaluations,
+                m: lm.m,
+            }
         }),
     )
 }

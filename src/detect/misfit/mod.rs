@@ -40,6 +40,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+pub mod laplace_sets;
 pub mod quadrature;
 pub mod time;
 pub mod time_screen;

@@ -1,7 +1,7 @@
 //! The Laplace-domain model of one defect position set as a rational
 //! function of its defect values, for fitting many sets against the same
 //! data cheaply (the screens and the coarse pass of
-//! [`crate::detect::fit::general`]).
+//! `detect::fit::general`).
 //!
 //! With `G = Z_0(s)^{-1}` the uniform chain's Green's function and the set's
 //! defects `c_l(s) = (v_l - u_l) s^{p_l}` on probes `p_l` (the Woodbury form
@@ -30,7 +30,6 @@
 
 use crate::chain::{Chain, Probe, Site};
 use crate::detect::data::laplace::{whiten, LaplaceObs};
-use crate::detect::search::lsq::LeastSquares;
 use crate::error::{Error, Result};
 use crate::green::{Green, ProbeFactors};
 use crate::time::series::stacked_rows;
@@ -314,9 +313,9 @@ fn det_elimination(a: &mut [Complex64], m: usize) -> Complex64 {
     d
 }
 
-/// One position set's model on its [`SetTables`]: a [`LeastSquares`]
-/// problem in the values of its free slots, with the residuals of
-/// [`LaplaceObs::residuals`] (whitened, or weighted by the nodes' weights).
+/// One position set's model on its [`SetTables`]: the residuals of
+/// [`LaplaceObs::residuals`] (whitened, or weighted by the nodes' weights)
+/// and their Jacobian as functions of the values of its free slots.
 pub struct SetModel<'t> {
     tables: &'t SetTables<'t>,
     k: usize,
@@ -430,8 +429,13 @@ fn products_of(delta: &[f64], set: usize) -> f64 {
     p
 }
 
-impl LeastSquares for SetModel<'_> {
-    fn residuals(&self, theta: &[f64]) -> Result<Vec<f64>> {
+impl SetModel<'_> {
+    /// The residuals of [`LaplaceObs::residuals`] for the set with the values
+    /// `theta` of its free slots (slot order).
+    ///
+    /// # Errors
+    /// `theta` of another length than the free slots.
+    pub fn residuals(&self, theta: &[f64]) -> Result<Vec<f64>> {
         let delta = self.deltas(theta)?;
         let (num, den) = self.num_den(&self.products(&delta));
         let values = self.tables.obs.values();
@@ -439,7 +443,11 @@ impl LeastSquares for SetModel<'_> {
         Ok(self.residual_of(&diff, 1))
     }
 
-    fn jacobian(&self, theta: &[f64]) -> Result<DMatrix<f64>> {
+    /// Their Jacobian in `theta` (one column per free slot).
+    ///
+    /// # Errors
+    /// As [`SetModel::residuals`].
+    pub fn jacobian(&self, theta: &[f64]) -> Result<DMatrix<f64>> {
         let delta = self.deltas(theta)?;
         let prod = self.products(&delta);
         let (num, den) = self.num_den(&prod);
