@@ -16,7 +16,9 @@
 //!   standard errors are the best calibrated (the truth within 3 SE for
 //!   99.7% of the values), and with masses judged within 5% it led at 1%
 //!   noise (S3: 0.70 against 0.45 for the Bromwich line). Its shortlist
-//!   comes from the whitened Bromwich chi-square. `bromwich` and `real-axis` are the whitened
+//!   comes from the whitened Bromwich chi-square, and only the sets that
+//!   could win there are refitted in the time domain
+//!   ([`general::Setup::time_slack`]). `bromwich` and `real-axis` are the whitened
 //!   Laplace chi-squares of the transformed series ([`general::laplace_obs`]).
 //!   For Laplace values the misfit is the chi-square at the given nodes.
 //! * **noise** ([`NoiseSpec`]): given, or estimated (`auto`): a first guess

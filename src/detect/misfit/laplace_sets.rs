@@ -24,7 +24,7 @@
 //! a node), which a whitened misfit of noisy data does not resolve anyway.
 //!
 //! Applies to data whose model is the tabulated observable
-//! ([`LaplaceObs::tabulable`]: displacement or velocity after the impulse,
+//! (displacement or velocity after the impulse,
 //! any observable with a measured force) and sets of at most [`MAX_K`]
 //! defects.
 
