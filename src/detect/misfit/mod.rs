@@ -890,70 +890,96 @@ impl Folded {
         let nq = g.len();
         let np = nq.div_ceil(LANES) * LANES;
         let k = pos.len();
-        let mut c = vec![0.0; ROWS * np];
         let a = pos[0];
         let b = pos.get(1).copied();
         let obs_a = a == 1;
         let obs_b = b == Some(1);
-        // G_1j and G_jj: from the rows when tabled, else from the table
-        let one = |q: usize, j: usize| match rows {
-            Some(r) => (r.g1[(j - 1) * nq + q], r.gd[(j - 1) * nq + q]),
-            None => (g.entry(q, 1, j), g.entry(q, j, j)),
+        // G_1j and G_jj per node: the tabled rows, else gathered from the
+        // table; the b columns zero for one defect
+        let gathered;
+        let column = |j: usize| -> (&[f64], &[f64]) {
+            let r = rows.expect("tabled rows");
+            (&r.g1[(j - 1) * nq..j * nq], &r.gd[(j - 1) * nq..j * nq])
         };
-        for (q, &s) in g.s().iter().enumerate() {
-            let s2 = s * s;
-            let (g11, _) = one(q, 1);
-            let (g1a, gaa) = one(q, a);
-            let (g1b, gab, gbb) = match b {
-                Some(b) => {
-                    let (g1b, gbb) = one(q, b);
-                    (g1b, g.entry(q, a, b), gbb)
+        let zeros = vec![0.0; if b.is_none() { 2 * nq } else { 0 }];
+        let ((g11, g1a, gaa), (g1b, gbb)) = match rows {
+            Some(_) => {
+                let (g11, _) = column(1);
+                let (g1a, gaa) = column(a);
+                let bb = match b {
+                    Some(b) => column(b),
+                    None => zeros.split_at(nq),
+                };
+                ((g11, g1a, gaa), bb)
+            }
+            None => {
+                let col = |i: usize, j: usize| (0..nq).map(move |q| g.entry(q, i, j));
+                let mut v: Vec<f64> = col(1, 1).collect();
+                v.extend(col(1, a));
+                v.extend(col(a, a));
+                match b {
+                    Some(b) => {
+                        v.extend(col(1, b));
+                        v.extend(col(b, b));
+                    }
+                    None => v.resize(5 * nq, 0.0),
                 }
-                None => (0.0, 0.0, 0.0),
-            };
-            let delta = gaa * gbb - gab * gab;
-            let minor3 = g11 * delta - g1a * g1a * gbb - g1b * g1b * gaa + 2.0 * g1a * g1b * gab;
-            // sqrt(w) on X and the datum, w^(1/4) on s z_l
-            let (sw, qw) = match rows {
-                Some(r) => r.roots[q],
-                None => (w[q].sqrt(), w[q].sqrt().sqrt()),
-            };
-            let gs2 = sw * gamma * s2;
-            let qs = qw * s;
-            let mut row = |r: usize, v: f64| c[r * np + q] = v;
-            row(N0, sw * gamma * g11);
-            row(
-                N1,
-                if obs_a {
-                    0.0
-                } else {
-                    gs2 * (g11 * gaa - g1a * g1a)
-                },
-            );
-            row(
-                N2,
-                if obs_b {
-                    0.0
-                } else {
-                    gs2 * (g11 * gbb - g1b * g1b)
-                },
-            );
-            row(
-                N12,
-                if obs_a || obs_b {
-                    0.0
-                } else {
-                    gs2 * s2 * minor3
-                },
-            );
-            row(D1, s2 * gaa);
-            row(D2, s2 * gbb);
-            row(D12, s2 * s2 * delta);
-            row(A0, qs * g1a);
-            row(A2, qs * s2 * (g1a * gbb - gab * g1b));
-            row(B0, qs * g1b);
-            row(B1, qs * s2 * (g1b * gaa - gab * g1a));
-            row(DATA, sw * d[q]);
+                gathered = v;
+                let (x, y) = gathered.split_at(3 * nq);
+                let (g11, x) = x.split_at(nq);
+                let (g1a, gaa) = x.split_at(nq);
+                ((g11, g1a, gaa), y.split_at(nq))
+            }
+        };
+        let mut c = vec![0.0; ROWS * np];
+        {
+            let mut it = c.chunks_exact_mut(np).map(|r| &mut r[..nq]);
+            let mut next = || it.next().expect("ROWS rows");
+            let (n0, n1, n2, n12) = (next(), next(), next(), next());
+            let (d1, d2, d12) = (next(), next(), next());
+            let (a0, a2, b0, b1) = (next(), next(), next(), next());
+            let data = next();
+            let s = g.s();
+            let (d, w) = (&d[..nq], &w[..nq]);
+            for q in 0..nq {
+                let s = s[q];
+                let s2 = s * s;
+                let (g11, g1a, gaa, g1b, gbb) = (g11[q], g1a[q], gaa[q], g1b[q], gbb[q]);
+                let gab = match b {
+                    Some(b) => g.entry(q, a, b),
+                    None => 0.0,
+                };
+                let delta = gaa * gbb - gab * gab;
+                let minor3 =
+                    g11 * delta - g1a * g1a * gbb - g1b * g1b * gaa + 2.0 * g1a * g1b * gab;
+                // sqrt(w) on X and the datum, w^(1/4) on s z_l
+                let (sw, qw) = match rows {
+                    Some(r) => r.roots[q],
+                    None => (w[q].sqrt(), w[q].sqrt().sqrt()),
+                };
+                let gs2 = sw * gamma * s2;
+                let qs = qw * s;
+                // the terms that vanish identically when a position is the
+                // observed mass stay zero
+                n0[q] = sw * gamma * g11;
+                if !obs_a {
+                    n1[q] = gs2 * (g11 * gaa - g1a * g1a);
+                }
+                if !obs_b {
+                    n2[q] = gs2 * (g11 * gbb - g1b * g1b);
+                }
+                if !(obs_a || obs_b) {
+                    n12[q] = gs2 * s2 * minor3;
+                }
+                d1[q] = s2 * gaa;
+                d2[q] = s2 * gbb;
+                d12[q] = s2 * s2 * delta;
+                a0[q] = qs * g1a;
+                a2[q] = qs * s2 * (g1a * gbb - gab * g1b);
+                b0[q] = qs * g1b;
+                b1[q] = qs * s2 * (g1b * gaa - gab * g1a);
+                data[q] = sw * d[q];
+            }
         }
         Folded { k, np, gamma, c }
     }
