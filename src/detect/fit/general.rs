@@ -601,18 +601,29 @@ fn fit_pairs_coarse(
         Ok(f) if !on_bound(&f) => Ok(f),
         first => {
             let heavier: Vec<f64> = values.iter().map(|v| 2.5 * v).collect();
-            let second = fit(&heavier);
-            match (first, second) {
-                (Ok(a), Ok(b)) => {
-                    let evaluations = a.evaluations + b.evaluations;
-                    let mut best = if b.hyp.chi2 < a.hyp.chi2 { b } else { a };
-                    best.evaluations = evaluations;
-                    Ok(best)
-                }
-                (Ok(a), Err(_)) => Ok(a),
-                (Err(_), second) => second,
+            match (first, fit(&heavier)) {
+                // the heavier retry's error, as before, when both fail
+                (Err(_), Err(e)) => Err(e),
+                (a, b) => better(a, b),
             }
         }
+    }
+}
+
+/// The better of two fits of one hypothesis (the lower chi-square; the first
+/// on a tie), charged with the evaluations of both; the first error when
+/// neither succeeded.
+fn better(a: Result<Fitted>, b: Result<Fitted>) -> Result<Fitted> {
+    match (a, b) {
+        (Ok(a), Ok(b)) => {
+            let evaluations = a.evaluations + b.evaluations;
+            let mut best = if b.hyp.chi2 < a.hyp.chi2 { b } else { a };
+            best.evaluations = evaluations;
+            Ok(best)
+        }
+        (Ok(a), Err(_)) => Ok(a),
+        (Err(_), Ok(b)) => Ok(b),
+        (Err(e), Err(_)) => Err(e),
     }
 }
 
@@ -675,17 +686,11 @@ fn fit_pairs_fast(
             .collect()
     };
     if theta0.is_empty() {
-        return Some(model.residuals(&[]).map(|r| Fitted {
-            hyp: Hypothesis {
-                defects: defects_at(&[]),
-                std_errors: vec![0.0; pairs.len()],
-                chain: Vec::new(),
-                chi2: r.iter().map(|v| v * v).sum(),
-                converged: true,
-            },
-            evaluations: 1,
-            m: r.len(),
-        }));
+        return Some(
+            model
+                .residuals(&[])
+                .map(|r| Fitted::held(defects_at(&[]), &r)),
+        );
     }
     Some(
         levenberg_marquardt(&Rational(model), &theta0, &bounds, &tol.options(max_iter)).map(|lm| {
@@ -757,6 +762,24 @@ struct Fitted {
     m: usize,
 }
 
+impl Fitted {
+    /// A hypothesis with every value held (nothing to fit): its residuals
+    /// `r`, one evaluation.
+    fn held(defects: Vec<Defect>, r: &[f64]) -> Fitted {
+        Fitted {
+            hyp: Hypothesis {
+                std_errors: vec![0.0; defects.len()],
+                defects,
+                chain: Vec::new(),
+                chi2: r.iter().map(|v| v * v).sum(),
+                converged: true,
+            },
+            evaluations: 1,
+            m: r.len(),
+        }
+    }
+}
+
 /// Fit the values of the hypothesis `pairs` of `unknowns` (and, with
 /// `with_chain`, its chain parameters) on `base` (whose uniform parameters
 /// are the current chain estimates), from `values` (one per slot; known
@@ -804,17 +827,7 @@ fn fit_pairs(
             Obs::Laplace(l) => l.residuals(&chain)?,
             Obs::Time(t) => t.residuals(&chain)?,
         };
-        return Ok(Fitted {
-            hyp: Hypothesis {
-                defects: chain.defects().to_vec(),
-                std_errors: vec![0.0; pairs.len()],
-                chain: Vec::new(),
-                chi2: r.iter().map(|v| v * v).sum(),
-                converged: true,
-            },
-            evaluations: 1,
-            m: r.len(),
-        });
+        return Ok(Fitted::held(chain.defects().to_vec(), &r));
     }
     let problem = ChainProblem::new(&chain, &params, obs)?;
     let lm = levenberg_marquardt(&problem, &theta0, &bounds, &tol.options(max_iter))?;
@@ -1028,17 +1041,7 @@ pub fn fit_general(
                     100,
                     laplace_tol,
                 );
-                match (a, b) {
-                    (Ok(a), Ok(b)) => {
-                        let s = a.evaluations + b.evaluations;
-                        let mut best = if b.hyp.chi2 < a.hyp.chi2 { b } else { a };
-                        best.evaluations = s;
-                        Ok(best)
-                    }
-                    (Ok(a), Err(_)) => Ok(a),
-                    (Err(_), Ok(b)) => Ok(b),
-                    (Err(e), Err(_)) => Err(e),
-                }
+                better(a, b)
             });
         let fine_fits: Vec<Result<Fitted>> = match fine {
             None => laplace_fits,
@@ -1176,23 +1179,14 @@ fn coarse_pass<'h>(
             } else {
                 fit(&v)
             }
-            .ok()
         };
         let first = from(0);
         // springs and dampers: a weakening is as likely as a stiffening,
         // so the coarse pass starts from both sides of the uniform value
         if h.iter().all(|&(k, _)| k == DefectKind::Mass) {
-            return first;
+            return first.ok();
         }
-        match (first, from(1)) {
-            (Some(a), Some(b)) => {
-                let evaluations = a.evaluations + b.evaluations;
-                let mut best = if b.hyp.chi2 < a.hyp.chi2 { b } else { a };
-                best.evaluations = evaluations;
-                Some(best)
-            }
-            (a, b) => a.or(b),
-        }
+        better(first, from(1)).ok()
     });
     let mut evaluations = 0;
     let mut ranked = Vec::with_capacity(hyps.len());
