@@ -58,6 +58,8 @@ pub struct SetTables<'a> {
     pairs: Option<Vec<Complex64>>,
     /// The stacked real layout of the residual ([`stacked_rows`]).
     rows: Vec<(usize, bool)>,
+    /// `s_q^p` for the powers of the sites, `[p * nq + q]`, `p = 0..=2`.
+    powers: Vec<Complex64>,
     /// The observed mass.
     at: usize,
 }
@@ -164,6 +166,9 @@ impl<'a> SetTables<'a> {
             data,
             pairs,
             rows: stacked_rows(s),
+            powers: (0..=2)
+                .flat_map(|p| s.iter().map(move |z| z.powu(p)))
+                .collect(),
             at,
         })
     }
@@ -180,7 +185,12 @@ impl<'a> SetTables<'a> {
         fixed: &[Option<f64>],
     ) -> Option<SetModel<'_>> {
         let k = sites.len();
-        if k == 0 || k > MAX_K || uniform.len() != k || fixed.len() != k {
+        if k == 0
+            || k > MAX_K
+            || uniform.len() != k
+            || fixed.len() != k
+            || sites.iter().any(|st| st.power > 2)
+        {
             return None;
         }
         let idx: Vec<usize> = sites
@@ -199,7 +209,6 @@ impl<'a> SetTables<'a> {
         let mut minor = [zero; MAX_K * MAX_K];
         let mut bordered = [zero; (MAX_K + 1) * (MAX_K + 1)];
         let mut members = [0usize; MAX_K];
-        let s = self.obs.nodes();
         for q in 0..nq {
             for l in 0..k {
                 a[l * k + l] = data[l].diag[q];
@@ -211,7 +220,7 @@ impl<'a> SetTables<'a> {
                     a[l * k + m] = v;
                     a[m * k + l] = v;
                 }
-                pw[l] = s[q].powu(sites[l].power);
+                pw[l] = self.powers[sites[l].power as usize * nq + q];
             }
             for set in 0..subsets {
                 let mut m = 0;
