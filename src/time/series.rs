@@ -943,10 +943,11 @@ fn periodic_covariance(s: &[Complex64], w: &[Periodic], sigma: f64) -> DMatrix<f
     c
 }
 
-/// `Σ_{k<m} e^{-z k}` as `expm1(-m z) / expm1(-z)` (no cancellation when
+/// `Σ_{k<m} e^{-z k}` as `expm1(-m z) / expm1(-z)` ([`Scalar::expm1`](crate::scalar::Scalar::expm1): no cancellation when
 /// `e^{-z}` is near 1), with `Im z` first reduced to `[-π, π]` (the terms
 /// are `2πi`-periodic in `z`); `m` when the reduced `z` is 0.
 fn geometric(z: Complex64, m: usize) -> Complex64 {
+    use crate::scalar::Scalar;
     if m == 0 {
         return Complex64::new(0.0, 0.0);
     }
@@ -954,21 +955,13 @@ fn geometric(z: Complex64, m: usize) -> Complex64 {
     if z.re == 0.0 && z.im == 0.0 {
         return Complex64::new(m as f64, 0.0);
     }
-    expm1(-z * m as f64) / expm1(-z)
+    (-z * m as f64).expm1() / (-z).expm1()
 }
 
 /// `z - 2πi k` with the imaginary part in `[-π, π]`.
 fn reduce_phase(z: Complex64) -> Complex64 {
     let tau = std::f64::consts::TAU;
     Complex64::new(z.re, z.im - tau * (z.im / tau).round())
-}
-
-/// `e^w - 1`, accurate also for small `|w|`: the real part as
-/// `expm1(Re w) cos(Im w) - 2 sin^2(Im w / 2)`.
-fn expm1(w: Complex64) -> Complex64 {
-    let (sy, cy) = w.im.sin_cos();
-    let sh = (0.5 * w.im).sin();
-    Complex64::new(w.re.exp_m1() * cy - 2.0 * sh * sh, w.re.exp() * sy)
 }
 
 /// Which part of which node each row of the stacked real vector holds:
