@@ -60,6 +60,8 @@ pub struct SetTables<'a> {
     rows: Vec<(usize, bool)>,
     /// `s_q^p` for the powers of the sites, `[p * nq + q]`, `p = 0..=2`.
     powers: Vec<Complex64>,
+    /// `sqrt(w_q)`: the factors of the residuals of unwhitened data.
+    root_weights: Vec<f64>,
     /// The observed mass.
     at: usize,
 }
@@ -166,6 +168,7 @@ impl<'a> SetTables<'a> {
             data,
             pairs,
             rows: stacked_rows(s),
+            root_weights: obs.weights().iter().map(|w| w.sqrt()).collect(),
             powers: (0..=2)
                 .flat_map(|p| s.iter().map(move |z| z.powu(p)))
                 .collect(),
@@ -414,7 +417,7 @@ impl SetModel<'_> {
                 for c in 0..columns {
                     let col = &x[c * self.nq..(c + 1) * self.nq];
                     for (q, e) in col.iter().enumerate() {
-                        let e = e * obs.weights()[q].sqrt();
+                        let e = e * self.tables.root_weights[q];
                         out.push(e.re);
                         if s[q].im != 0.0 {
                             out.push(e.im);
