@@ -20,7 +20,7 @@
 use criterion::measurement::Measurement;
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use springmass::detect::data::whiten::Weighting;
-use springmass::detect::fit::chainfit::{ChainProblem, Obs};
+use springmass::detect::fit::chainfit::ChainProblem;
 use springmass::detect::fit::general::{laplace_obs, Setup};
 use springmass::detect::misfit::MisfitKind;
 use springmass::detect::search::lsq::LeastSquares;
@@ -46,7 +46,7 @@ fn bench_generic<M: Measurement + 'static>(c: &mut Criterion<M>) {
                 ..Setup::new().unwrap()
             };
             let obs = laplace_obs(&data, choice, &setup).unwrap();
-            let problem = ChainProblem::new(&truth, &params, Obs::Laplace(&obs)).unwrap();
+            let problem = ChainProblem::new(&truth, &params, &obs).unwrap();
             let name = format!(
                 "{}/{}",
                 choice.name(),
@@ -70,7 +70,7 @@ fn bench_generic<M: Measurement + 'static>(c: &mut Criterion<M>) {
         }
     }
     let misfit = TimeMisfit::new(data.clone());
-    let problem = ChainProblem::new(&truth, &params, Obs::Time(&misfit)).unwrap();
+    let problem = ChainProblem::new(&truth, &params, &misfit).unwrap();
     group.bench_function("time/residuals", |b| {
         b.iter(|| problem.residuals(black_box(&theta)).unwrap())
     });

@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 use springmass::detect::data::laplace::LaplaceObs;
-use springmass::detect::fit::chainfit::{fit_chain, Obs};
+use springmass::detect::fit::chainfit::fit_chain;
 use springmass::detect::misfit::MisfitKind;
 use springmass::detect::{data::series::TimeData, misfit::time::TimeMisfit};
 use springmass::noise::NoiseLevel;
@@ -75,7 +75,7 @@ fn time_misfit_sees_the_deep_defect_the_real_axis_cannot() {
             Defect::Mass { at: 16, m: 2.0 },
         ])
         .unwrap();
-    let fit = fit_chain(&wrong, &Param::defects(&wrong), &Obs::Time(&misfit), None).unwrap();
+    let fit = fit_chain(&wrong, &Param::defects(&wrong), &misfit, None).unwrap();
     let truth_chi2 = misfit.chi2(s3).unwrap();
     assert!(truth_chi2 < 1001.0 + 5.0 * (2.0f64 * 1001.0).sqrt());
     assert!(
@@ -189,7 +189,7 @@ fn laplace_observations_with_unknown_gamma_and_k() {
         .with_defect(Defect::Mass { at: 4, m: 2.0 })
         .unwrap();
     let params = [Param::Defect(0), Param::Gamma, Param::K, Param::D];
-    let f = fit_chain(&start, &params, &Obs::Laplace(&obs), None).unwrap();
+    let f = fit_chain(&start, &params, &obs, None).unwrap();
     assert!(
         (f.chain.gamma() - 2.0).abs() < 1e-8 && (f.chain.k() - 0.8).abs() < 1e-8,
         "{:?}",

@@ -80,6 +80,7 @@ pub mod data;
 pub mod fit;
 pub mod locate;
 pub mod misfit;
+pub mod model;
 pub mod scene;
 pub mod search;
 pub mod unknowns;

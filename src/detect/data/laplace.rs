@@ -435,7 +435,6 @@ impl LaplaceObs {
     }
 
     pub(crate) fn jacobian(&self, chain: &Chain, params: &[Param]) -> Result<DMatrix<f64>> {
-        let mut rows: Vec<Vec<f64>> = Vec::with_capacity(2 * self.s.len());
         // defect parameters only: O(k) per site by the transfer sweep
         let defect_idx: Option<Vec<usize>> = params
             .iter()
@@ -445,83 +444,22 @@ impl LaplaceObs {
             })
             .collect();
         let fwd = Forward::new(chain);
-        // whitened defect values of the tabulated observable: the stacked
-        // Jacobian straight from the memo of the sweep (the same values as
-        // the node-by-node path below)
         if let (Some(idx), Some(w)) = (&defect_idx, &self.whitening) {
-            if self.sweep_memo_applies() {
-                let layout = crate::time::series::stacked_rows(&self.s);
-                let (m, p) = (layout.len(), idx.len());
-                let stacked: Option<Vec<f64>> = self.with_sweep(&fwd, |all| {
-                    let mut j = vec![0.0; m * p];
-                    for (r, &(q, im)) in layout.iter().enumerate() {
-                        let g = all[q].as_ref()?;
-                        let c = self.factor(q);
-                        for (col, &i) in idx.iter().enumerate() {
-                            let v = g.grad[i] * c;
-                            j[col * m + r] = if im { v.im } else { v.re };
-                        }
-                    }
-                    Some(j)
-                });
-                if let Some(j) = stacked {
-                    return Ok(DMatrix::from_vec(w.nrows(), p, whiten(w, &j, p)));
-                }
+            if let Some(j) = self.memo_whitened_jacobian(&fwd, idx, w) {
+                return Ok(j);
             }
         }
-        let mut grads: Vec<Vec<Complex64>> = Vec::with_capacity(self.s.len());
-        let paper = self.force_hat.is_none() && self.sensor == Sensor::PAPER;
-        // defect values of the tabulated observable: the sweeps of the
-        // residuals at this chain (memo), scaled by each node's factor
-        let tabs: Vec<Option<Gradient<Complex64>>> = match &defect_idx {
-            Some(idx) if self.sweep_memo_applies() => self.with_sweep(&fwd, |all| {
-                all.iter()
-                    .enumerate()
-                    .map(|(q, g)| {
-                        g.as_ref().map(|all| {
-                            let c = self.factor(q);
-                            Gradient {
-                                value: all.value * c,
-                                grad: idx.iter().map(|&i| all.grad[i] * c).collect(),
-                            }
-                        })
-                    })
-                    .collect()
-            }),
+        let tabs = match &defect_idx {
+            Some(idx) if self.sweep_memo_applies() => self.memo_gradients(&fwd, idx),
             _ => vec![None; self.s.len()],
         };
+        let mut grads: Vec<Vec<Complex64>> = Vec::with_capacity(self.s.len());
         for (q, tab) in tabs.into_iter().enumerate() {
-            let s = self.s[q];
-            let force = self.force_hat.as_ref().map(|f| f[q]);
-            let g = match &defect_idx {
-                _ if tab.is_some() => tab.expect("checked"),
-                // defect values of an observable of mass 1: O(k) per site
-                Some(idx) if self.sensor.at == 1 => {
-                    let all = match (paper, force) {
-                        (true, _) => defect_gradient_with(&fwd, s)?,
-                        (false, None) => observe_defect_gradient_with(&fwd, s, self.sensor.kind)?,
-                        (false, Some(f)) => scale_gradient(
-                            defect_gradient_with(&fwd, s)?,
-                            s.powu(self.sensor.kind.power()) * f,
-                        ),
-                    };
-                    crate::sensitivity::Gradient {
-                        value: all.value,
-                        grad: idx.iter().map(|&i| all.grad[i]).collect(),
-                    }
-                }
-                _ if paper => gradient(chain, s, 1, params)?,
-                _ => laplace_gradient(self.sensor, chain, s, force, params)?,
+            let g = match tab {
+                Some(g) => g,
+                None => self.node_gradient(&fwd, chain, q, defect_idx.as_deref(), params)?,
             };
-            if self.whitening.is_some() {
-                grads.push(g.grad);
-                continue;
-            }
-            let sw = self.weights[q].sqrt();
-            rows.push(g.grad.iter().map(|v| v.re * sw).collect());
-            if self.s[q].im != 0.0 {
-                rows.push(g.grad.iter().map(|v| v.im * sw).collect());
-            }
+            grads.push(g.grad);
         }
         if let Some(w) = &self.whitening {
             // stacked rows: Re of every node, then Im of the complex nodes
@@ -540,9 +478,100 @@ impl LaplaceObs {
                 whiten(w, j.as_slice(), params.len()),
             ));
         }
+        let mut rows: Vec<Vec<f64>> = Vec::with_capacity(2 * self.s.len());
+        for (q, g) in grads.iter().enumerate() {
+            let sw = self.weights[q].sqrt();
+            rows.push(g.iter().map(|v| v.re * sw).collect());
+            if self.s[q].im != 0.0 {
+                rows.push(g.iter().map(|v| v.im * sw).collect());
+            }
+        }
         Ok(DMatrix::from_fn(rows.len(), params.len(), |i, j| {
             rows[i][j]
         }))
+    }
+
+    /// Whitened defect values of the tabulated observable: the stacked
+    /// Jacobian straight from the memo of the sweep (the same values as the
+    /// node-by-node path of [`LaplaceObs::jacobian`]); `None` where the memo
+    /// does not apply.
+    fn memo_whitened_jacobian(
+        &self,
+        fwd: &Forward,
+        idx: &[usize],
+        w: &DMatrix<f64>,
+    ) -> Option<DMatrix<f64>> {
+        if !self.sweep_memo_applies() {
+            return None;
+        }
+        let layout = crate::time::series::stacked_rows(&self.s);
+        let (m, p) = (layout.len(), idx.len());
+        let j = self.with_sweep(fwd, |all| {
+            let mut j = vec![0.0; m * p];
+            for (r, &(q, im)) in layout.iter().enumerate() {
+                let g = all[q].as_ref()?;
+                let c = self.factor(q);
+                for (col, &i) in idx.iter().enumerate() {
+                    let v = g.grad[i] * c;
+                    j[col * m + r] = if im { v.im } else { v.re };
+                }
+            }
+            Some(j)
+        })?;
+        Some(DMatrix::from_vec(w.nrows(), p, whiten(w, &j, p)))
+    }
+
+    /// Defect values of the tabulated observable: the sweeps of the
+    /// residuals at this chain (memo), scaled by each node's factor.
+    fn memo_gradients(&self, fwd: &Forward, idx: &[usize]) -> Vec<Option<Gradient<Complex64>>> {
+        self.with_sweep(fwd, |all| {
+            all.iter()
+                .enumerate()
+                .map(|(q, g)| {
+                    g.as_ref().map(|all| {
+                        let c = self.factor(q);
+                        Gradient {
+                            value: all.value * c,
+                            grad: idx.iter().map(|&i| all.grad[i] * c).collect(),
+                        }
+                    })
+                })
+                .collect()
+        })
+    }
+
+    /// The gradient of the model at node `q` with respect to `params`
+    /// (`defect_idx`: their defect indices when all are defect values).
+    fn node_gradient(
+        &self,
+        fwd: &Forward,
+        chain: &Chain,
+        q: usize,
+        defect_idx: Option<&[usize]>,
+        params: &[Param],
+    ) -> Result<Gradient<Complex64>> {
+        let s = self.s[q];
+        let force = self.force_hat.as_ref().map(|f| f[q]);
+        let paper = self.force_hat.is_none() && self.sensor == Sensor::PAPER;
+        Ok(match defect_idx {
+            // defect values of an observable of mass 1: O(k) per site
+            Some(idx) if self.sensor.at == 1 => {
+                let all = match (paper, force) {
+                    (true, _) => defect_gradient_with(fwd, s)?,
+                    (false, None) => observe_defect_gradient_with(fwd, s, self.sensor.kind)?,
+                    (false, Some(f)) => scale_gradient(
+                        defect_gradient_with(fwd, s)?,
+                        s.powu(self.sensor.kind.power()) * f,
+                    ),
+                };
+                Gradient {
+                    value: all.value,
+                    grad: idx.iter().map(|&i| all.grad[i]).collect(),
+                }
+            }
+            _ if paper => gradient(chain, s, 1, params)?,
+            _ => laplace_gradient(self.sensor, chain, s, force, params)?,
+        })
     }
 }
 
@@ -630,6 +659,21 @@ fn whiten_block<const R: usize, const C: usize>(
     for (c, a) in acc.iter().enumerate() {
         let o = (c0 + c) * k + i0;
         out[o..o + R].copy_from_slice(a);
+    }
+}
+
+impl crate::detect::model::MeasurementModel for LaplaceObs {
+    fn name(&self) -> &'static str {
+        "laplace"
+    }
+    fn dof(&self) -> usize {
+        LaplaceObs::dof(self)
+    }
+    fn residuals(&self, chain: &Chain) -> Result<Vec<f64>> {
+        LaplaceObs::residuals(self, chain)
+    }
+    fn jacobian(&self, chain: &Chain, params: &[Param]) -> Result<Option<DMatrix<f64>>> {
+        LaplaceObs::jacobian(self, chain, params).map(Some)
     }
 }
 

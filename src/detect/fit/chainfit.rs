@@ -2,13 +2,13 @@
 //! `mass`, impulse `gamma`) at fixed defect positions, by Levenberg-Marquardt
 //! ([`crate::detect::search::lsq`]).
 //!
-//! Two kinds of observation:
+//! The data are any [`MeasurementModel`]; today two:
 //!
-//! * [`Obs::Time`]: the time-domain chi-square ([`TimeMisfit`]); Jacobian
+//! * the time-domain chi-square ([`TimeMisfit`]); Jacobian
 //!   exact for defect values and `gamma` ([`TimeMisfit::jacobian`]: the modal
 //!   sum's derivative), by central differences of the exact modal sum
 //!   otherwise;
-//! * [`Obs::Laplace`]: values `d_q` at Laplace nodes `s_q` (real or complex)
+//! * [`LaplaceObs`]: values `d_q` at Laplace nodes `s_q` (real or complex)
 //!   with weights `w_q` (`chi^2 = sum_q w_q |X_1(s_q) - d_q|^2`, for example
 //!   quadrature weights over `sigma^2`), or with a whitening matrix `W`
 //!   ([`LaplaceObs::whitened`]: `chi^2 = ||W r||^2`, `r` the stacked real
@@ -21,7 +21,7 @@
 //!
 //! ```
 //! use springmass::{Chain, Defect, noise::NoiseLevel, sensitivity::Param};
-//! use springmass::detect::{fit::chainfit::{fit_chain, Obs}, data::series::TimeData, misfit::time::TimeMisfit};
+//! use springmass::detect::{fit::chainfit::fit_chain, data::series::TimeData, misfit::time::TimeMisfit};
 //! let truth = Chain::paper(5)?.with_defects([
 //!     Defect::Mass { at: 2, m: 3.0 }, Defect::Mass { at: 4, m: 0.5 }])?;
 //! let misfit = TimeMisfit::new(TimeData::simulate(&truth, 100.0, 0.5, NoiseLevel::RelativeMax(1e-3), 1)?);
@@ -29,35 +29,27 @@
 //! let start = Chain::paper(5)?.with_d(0.2)?.with_defects([
 //!     Defect::Mass { at: 2, m: 2.0 }, Defect::Mass { at: 4, m: 1.0 }])?;
 //! let params = [Param::Defect(0), Param::Defect(1), Param::D];
-//! let fit = fit_chain(&start, &params, &Obs::Time(&misfit), None)?;
+//! let fit = fit_chain(&start, &params, &misfit, None)?;
 //! assert!((fit.chain.d() - 0.1).abs() < 3.0 * fit.std_errors[2] + 1e-6);
 //! assert!((fit.chain.defects()[0].value() - 3.0).abs() < 1e-2);
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
 use crate::chain::Chain;
-use crate::detect::data::laplace::LaplaceObs;
-use crate::detect::misfit::time::TimeMisfit;
+use crate::detect::model::MeasurementModel;
 use crate::detect::search::lsq::{covariance, levenberg_marquardt, LeastSquares, LmFit, LmOptions};
+#[cfg(doc)]
+use crate::detect::{data::laplace::LaplaceObs, misfit::time::TimeMisfit};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use nalgebra::DMatrix;
-
-/// What a chain is fitted to.
-#[derive(Clone, Copy, Debug)]
-pub enum Obs<'a> {
-    /// Time-domain chi-square.
-    Time(&'a TimeMisfit),
-    /// Laplace-domain weighted values.
-    Laplace(&'a LaplaceObs),
-}
 
 /// The least-squares problem "parameters `params` of `base`".
 #[derive(Clone, Debug)]
 pub struct ChainProblem<'a> {
     base: Chain,
     params: Vec<Param>,
-    obs: Obs<'a>,
+    obs: &'a dyn MeasurementModel,
 }
 
 impl<'a> ChainProblem<'a> {
@@ -65,7 +57,11 @@ impl<'a> ChainProblem<'a> {
     ///
     /// # Errors
     /// A repeated parameter or a defect index out of range (field `params`).
-    pub fn new(base: &Chain, params: &[Param], obs: Obs<'a>) -> Result<ChainProblem<'a>> {
+    pub fn new(
+        base: &Chain,
+        params: &[Param],
+        obs: &'a dyn MeasurementModel,
+    ) -> Result<ChainProblem<'a>> {
         for (i, p) in params.iter().enumerate() {
             p.get(base)?;
             if params[..i].contains(p) {
@@ -106,19 +102,12 @@ impl<'a> ChainProblem<'a> {
 
 impl LeastSquares for ChainProblem<'_> {
     fn residuals(&self, theta: &[f64]) -> Result<Vec<f64>> {
-        let c = self.chain(theta)?;
-        match self.obs {
-            Obs::Time(m) => m.residuals(&c),
-            Obs::Laplace(l) => l.residuals(&c),
-        }
+        self.obs.residuals(&self.chain(theta)?)
     }
     fn jacobian(&self, theta: &[f64]) -> Result<DMatrix<f64>> {
-        match self.obs {
-            Obs::Time(m) => match m.jacobian(&self.chain(theta)?, &self.params)? {
-                Some(j) => Ok(j),
-                None => crate::detect::search::lsq::central_jacobian(self, theta, 1e-6),
-            },
-            Obs::Laplace(l) => l.jacobian(&self.chain(theta)?, &self.params),
+        match self.obs.jacobian(&self.chain(theta)?, &self.params)? {
+            Some(j) => Ok(j),
+            None => crate::detect::search::lsq::central_jacobian(self, theta, 1e-6),
         }
     }
 }
@@ -181,10 +170,10 @@ pub fn default_bounds(chain: &Chain, params: &[Param]) -> Vec<(f64, f64)> {
 pub fn fit_chain(
     start: &Chain,
     params: &[Param],
-    obs: &Obs<'_>,
+    obs: &dyn MeasurementModel,
     bounds: Option<&[(f64, f64)]>,
 ) -> Result<ChainFitReport> {
-    let problem = ChainProblem::new(start, params, *obs)?;
+    let problem = ChainProblem::new(start, params, obs)?;
     let b = match bounds {
         Some(b) => b.to_vec(),
         None => default_bounds(start, params),
@@ -208,6 +197,7 @@ pub fn fit_chain(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::detect::data::laplace::LaplaceObs;
     use crate::Defect;
     use num_complex::Complex64;
 
@@ -245,7 +235,7 @@ mod tests {
         let params = Param::all(&start);
         // mass (uniform) is fixed: drop it (it and gamma, k are otherwise near-degenerate)
         let params: Vec<Param> = params.into_iter().filter(|p| *p != Param::Mass).collect();
-        let f = fit_chain(&start, &params, &Obs::Laplace(&obs), None).unwrap();
+        let f = fit_chain(&start, &params, &obs, None).unwrap();
         for p in &params {
             let (a, b) = (p.get(&f.chain).unwrap(), p.get(&truth).unwrap());
             assert!(
@@ -294,7 +284,7 @@ mod tests {
         let (ga, gb) = (ja.transpose() * &ja, jb.transpose() * &jb);
         assert!((ga - &gb).norm() <= 1e-12 * gb.norm());
         // a whitened fit recovers the truth
-        let f = fit_chain(&guess, &p, &Obs::Laplace(&wh), None).unwrap();
+        let f = fit_chain(&guess, &p, &wh, None).unwrap();
         assert!((f.values[0] - 3.0).abs() < 1e-8 && (f.values[1] - 0.5).abs() < 1e-8);
         assert!(LaplaceObs::whitened(s, data.values().to_vec(), DMatrix::zeros(3, 5)).is_err());
     }
@@ -303,8 +293,8 @@ mod tests {
     fn bad_problems() {
         let c = Chain::paper(3).unwrap();
         let obs = LaplaceObs::exact(&c, vec![Complex64::new(1.0, 0.0)], vec![1.0]).unwrap();
-        assert!(ChainProblem::new(&c, &[Param::D, Param::D], Obs::Laplace(&obs)).is_err());
-        assert!(ChainProblem::new(&c, &[Param::Defect(0)], Obs::Laplace(&obs)).is_err());
+        assert!(ChainProblem::new(&c, &[Param::D, Param::D], &obs).is_err());
+        assert!(ChainProblem::new(&c, &[Param::Defect(0)], &obs).is_err());
         assert!(LaplaceObs::new(
             vec![Complex64::new(-1.0, 0.0)],
             vec![Complex64::new(0.0, 0.0)],

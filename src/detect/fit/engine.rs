@@ -2,7 +2,7 @@
 //! prepared once per noise level, the fits for one number of defects
 //! ([`KFit`]), and the report built from the chosen one.
 
-use super::chainfit::{default_bounds, fit_chain, Obs};
+use super::chainfit::{default_bounds, fit_chain};
 use super::general::{
     self, fit_general, identify_general, laplace_obs, GeneralOptions, Hypothesis, Setup,
 };
@@ -17,6 +17,7 @@ use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::observations::Observations;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::{Misfit, MisfitKind};
+use crate::detect::model::MeasurementModel;
 use crate::detect::search::enumerate::{enumerate, fit_slots_from, EnumerateOptions};
 use crate::detect::search::FitMethod;
 use crate::detect::search::{
@@ -397,16 +398,13 @@ impl Engine<'_> {
     ) -> Result<(Vec<Hypothesis>, usize)> {
         let chain_bounds = default_bounds(self.model.chain(), self.model.fitted());
         // the uniform chain, chain parameters fitted if any
-        let obs = match fine {
-            Some(t) => Obs::Time(t),
-            None => Obs::Laplace(coarse),
+        let obs: &dyn MeasurementModel = match fine {
+            Some(t) => t,
+            None => coarse,
         };
         let base = self.model.chain().uniform();
         if self.model.fitted().is_empty() {
-            let r = match obs {
-                Obs::Time(t) => t.residuals(&base)?,
-                Obs::Laplace(l) => l.residuals(&base)?,
-            };
+            let r = obs.residuals(&base)?;
             Ok((
                 vec![Hypothesis::from_parts(
                     Vec::new(),
@@ -417,7 +415,7 @@ impl Engine<'_> {
                 1,
             ))
         } else {
-            let f = fit_chain(&base, self.model.fitted(), &obs, Some(&chain_bounds))?;
+            let f = fit_chain(&base, self.model.fitted(), obs, Some(&chain_bounds))?;
             let params = f
                 .names
                 .iter()

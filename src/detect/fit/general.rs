@@ -84,12 +84,13 @@
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::series::TimeData;
-use crate::detect::fit::chainfit::{ChainProblem, Obs};
+use crate::detect::fit::chainfit::ChainProblem;
 use crate::detect::fit::identify::{identify, Alternative, FittedDefect, Identifiability};
 use crate::detect::misfit::laplace_sets::{SetModel, SetTables};
 use crate::detect::misfit::quadrature::Rule;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::MisfitKind;
+use crate::detect::model::MeasurementModel;
 use crate::detect::search::lsq::{levenberg_marquardt, LeastSquares, LmOptions};
 use crate::detect::unknowns::{DefectKind, KindPositions, Unknowns};
 use crate::error::{Error, Result};
@@ -748,7 +749,7 @@ pub(crate) fn fit_placed_from(
         values,
         &chain_bounds,
         true,
-        Obs::Laplace(obs),
+        obs,
         max_iter,
         Tol::Full,
     )?;
@@ -792,7 +793,7 @@ fn fit_pairs(
     values: &[f64],
     chain_bounds: &[(f64, f64)],
     with_chain: bool,
-    obs: Obs<'_>,
+    obs: &dyn MeasurementModel,
     max_iter: usize,
     tol: Tol,
 ) -> Result<Fitted> {
@@ -823,10 +824,7 @@ fn fit_pairs(
     }
     let chain = base.uniform().with_defects(defects)?;
     if params.is_empty() {
-        let r = match obs {
-            Obs::Laplace(l) => l.residuals(&chain)?,
-            Obs::Time(t) => t.residuals(&chain)?,
-        };
+        let r = obs.residuals(&chain)?;
         return Ok(Fitted::held(chain.defects().to_vec(), &r));
     }
     let problem = ChainProblem::new(&chain, &params, obs)?;
@@ -959,8 +957,14 @@ pub fn fit_general(
         Some(t) if !setup.exact_time_jacobian => Some(t.clone().with_analytic_jacobian(false)),
         _ => None,
     };
-    let fine = differenced.as_ref().or(fine);
-    let chain_bounds = crate::detect::fit::chainfit::default_bounds(base, unknowns.chain());
+    let passes = Passes {
+        unknowns,
+        coarse,
+        fine: differenced.as_ref().or(fine),
+        setup,
+        parallel: opts.parallel,
+        chain_bounds: crate::detect::fit::chainfit::default_bounds(base, unknowns.chain()),
+    };
     let rounds = if unknowns.chain().is_empty() {
         1
     } else {
@@ -970,145 +974,8 @@ pub fn fit_general(
     let mut evaluations = 0;
     let mut last: Option<(Vec<Hypothesis>, usize)> = None;
     for _ in 0..rounds {
-        // screen: every hypothesis on the screening nodes, the best
-        // `screen_keep` go through the coarse pass proper
-        let screen = coarse
-            .screen()
-            .filter(|_| setup.screen_keep > 0 && hyps.len() > setup.screen_keep);
-        let pool: Vec<&KindPositions> = match screen {
-            Some(sc) => {
-                let all: Vec<&KindPositions> = hyps.iter().collect();
-                let (ranked, spent) = coarse_pass(
-                    &current,
-                    unknowns,
-                    &all,
-                    &chain_bounds,
-                    sc,
-                    setup.screen_iter,
-                    setup.screen_retry,
-                    opts.parallel,
-                    setup.rational_sets,
-                );
-                evaluations += spent;
-                ranked
-                    .into_iter()
-                    .take(setup.screen_keep.max(hyps.len() / 20))
-                    .map(|(_, h)| h)
-                    .collect()
-            }
-            None => hyps.iter().collect(),
-        };
-        let (ranked, spent) = coarse_pass(
-            &current,
-            unknowns,
-            &pool,
-            &chain_bounds,
-            coarse,
-            setup.coarse_iter,
-            true,
-            opts.parallel,
-            setup.rational_sets,
-        );
+        let (ranked, m, spent) = passes.round(&current, &hyps)?;
         evaluations += spent;
-        let mut ranked: Vec<(Hypothesis, KindPositions)> =
-            ranked.into_iter().map(|(h, p)| (h, p.clone())).collect();
-        ranked.truncate(setup.shortlist);
-        // fine pass: values and chain parameters (ahead of a time-domain
-        // refit the Laplace fits only choose its start)
-        let laplace_tol = if fine.is_some() { Tol::Seed } else { Tol::Full };
-        let laplace_fits: Vec<Result<Fitted>> =
-            map_maybe_par(&ranked, opts.parallel, |(h, pairs)| {
-                let a = fit_pairs(
-                    &current,
-                    unknowns,
-                    pairs,
-                    &h.masses(),
-                    &chain_bounds,
-                    true,
-                    Obs::Laplace(coarse),
-                    100,
-                    laplace_tol,
-                );
-                let alt: Vec<f64> = pairs.iter().map(|&(k, _)| starts(k, &current)[1]).collect();
-                let b = fit_pairs(
-                    &current,
-                    unknowns,
-                    pairs,
-                    &alt,
-                    &chain_bounds,
-                    true,
-                    Obs::Laplace(coarse),
-                    100,
-                    laplace_tol,
-                );
-                better(a, b)
-            });
-        let fine_fits: Vec<Result<Fitted>> = match fine {
-            None => laplace_fits,
-            Some(t) => {
-                let refit = time_refits(&laplace_fits, setup.time_slack);
-                let mut skipped = 0;
-                let mut failed = Vec::new();
-                let chosen: Vec<(Fitted, &KindPositions)> = laplace_fits
-                    .into_iter()
-                    .zip(&ranked)
-                    .zip(refit)
-                    .filter_map(|((f, (_, pairs)), go)| match f {
-                        Ok(f) if go => Some((f, pairs)),
-                        Ok(f) => {
-                            skipped += f.evaluations;
-                            None
-                        }
-                        Err(e) => {
-                            failed.push(Err(e));
-                            None
-                        }
-                    })
-                    .collect();
-                evaluations += skipped;
-                map_maybe_par(&chosen, opts.parallel, |(best, pairs)| {
-                    let start = best.hyp.to_chain(&current)?.uniform();
-                    let mut out = fit_pairs(
-                        &start,
-                        unknowns,
-                        pairs,
-                        &best.hyp.masses(),
-                        &chain_bounds,
-                        true,
-                        Obs::Time(t),
-                        100,
-                        Tol::Seed,
-                    )?;
-                    out.evaluations += best.evaluations;
-                    Ok(out)
-                })
-                .into_iter()
-                .chain(failed)
-                .collect()
-            }
-        };
-        let mut fitted = Vec::with_capacity(fine_fits.len());
-        let mut m = 0;
-        let mut first_err = None;
-        for f in fine_fits {
-            match f {
-                Ok(f) => {
-                    evaluations += f.evaluations;
-                    m = f.m;
-                    fitted.push(f.hyp);
-                }
-                Err(e) => {
-                    first_err.get_or_insert(e);
-                }
-            }
-        }
-        if fitted.is_empty() {
-            return Err(first_err.unwrap_or_else(|| Error::Numerical {
-                method: "fit_general".into(),
-                reason: "no hypothesis could be fitted".into(),
-            }));
-        }
-        let ranked = rank(fitted);
         current = ranked[0].to_chain(&current)?.uniform();
         last = Some((ranked, m));
     }
@@ -1119,6 +986,198 @@ pub fn fit_general(
         evaluations,
         residuals,
     })
+}
+
+/// What every round of [`fit_general`] shares: the unknowns, the two
+/// misfits (`coarse` Laplace values, optional `fine` time-domain refit),
+/// the setup and the chain parameters' bounds.
+struct Passes<'a> {
+    unknowns: &'a Unknowns,
+    coarse: &'a LaplaceObs,
+    fine: Option<&'a TimeMisfit>,
+    setup: &'a Setup,
+    parallel: bool,
+    chain_bounds: Vec<(f64, f64)>,
+}
+
+impl Passes<'_> {
+    /// One round from the chain-parameter values of `current`: screen,
+    /// coarse pass, fine pass, then the time-domain refits. Returns the
+    /// fitted hypotheses ranked, the residual count of the final misfit and
+    /// the evaluations spent.
+    fn round(
+        &self,
+        current: &Chain,
+        hyps: &[KindPositions],
+    ) -> Result<(Vec<Hypothesis>, usize, usize)> {
+        let (pool, screened) = self.screen(current, hyps);
+        let (ranked, spent) = coarse_pass(
+            current,
+            self.unknowns,
+            &pool,
+            &self.chain_bounds,
+            self.coarse,
+            self.setup.coarse_iter,
+            true,
+            self.parallel,
+            self.setup.rational_sets,
+        );
+        let mut ranked: Vec<(Hypothesis, KindPositions)> =
+            ranked.into_iter().map(|(h, p)| (h, p.clone())).collect();
+        ranked.truncate(self.setup.shortlist);
+        let laplace_fits = self.laplace_fits(current, &ranked);
+        let (fine_fits, skipped) = match self.fine {
+            None => (laplace_fits, 0),
+            Some(t) => self.time_fits(current, t, &ranked, laplace_fits),
+        };
+        let (fitted, m, fine_spent) = collect_fits(fine_fits)?;
+        Ok((rank(fitted), m, screened + spent + skipped + fine_spent))
+    }
+
+    /// Every hypothesis on the screening nodes, the best `screen_keep` (at
+    /// least a twentieth) kept for the coarse pass proper; all of them when
+    /// there is no screen. Returns the pool and the evaluations spent.
+    fn screen<'h>(
+        &self,
+        current: &Chain,
+        hyps: &'h [KindPositions],
+    ) -> (Vec<&'h KindPositions>, usize) {
+        let keep = self.setup.screen_keep;
+        let all: Vec<&KindPositions> = hyps.iter().collect();
+        let screen = self
+            .coarse
+            .screen()
+            .filter(|_| keep > 0 && hyps.len() > keep);
+        let Some(sc) = screen else {
+            return (all, 0);
+        };
+        let (ranked, spent) = coarse_pass(
+            current,
+            self.unknowns,
+            &all,
+            &self.chain_bounds,
+            sc,
+            self.setup.screen_iter,
+            self.setup.screen_retry,
+            self.parallel,
+            self.setup.rational_sets,
+        );
+        let pool = ranked
+            .into_iter()
+            .take(keep.max(hyps.len() / 20))
+            .map(|(_, h)| h)
+            .collect();
+        (pool, spent)
+    }
+
+    /// The fine pass on the Laplace values: values and chain parameters
+    /// from the coarse values and from a second start, the better kept
+    /// (ahead of a time-domain refit these fits only choose its start).
+    fn laplace_fits(
+        &self,
+        current: &Chain,
+        ranked: &[(Hypothesis, KindPositions)],
+    ) -> Vec<Result<Fitted>> {
+        let tol = if self.fine.is_some() {
+            Tol::Seed
+        } else {
+            Tol::Full
+        };
+        map_maybe_par(ranked, self.parallel, |(h, pairs)| {
+            let fit = |values: &[f64]| {
+                fit_pairs(
+                    current,
+                    self.unknowns,
+                    pairs,
+                    values,
+                    &self.chain_bounds,
+                    true,
+                    self.coarse,
+                    100,
+                    tol,
+                )
+            };
+            let alt: Vec<f64> = pairs.iter().map(|&(k, _)| starts(k, current)[1]).collect();
+            better(fit(&h.masses()), fit(&alt))
+        })
+    }
+
+    /// The time-domain refits of the Laplace fits within the slack
+    /// ([`time_refits`]), from the Laplace fits' values; the others are
+    /// dropped (their evaluations returned as the second value), failed
+    /// Laplace fits kept as errors.
+    fn time_fits(
+        &self,
+        current: &Chain,
+        t: &TimeMisfit,
+        ranked: &[(Hypothesis, KindPositions)],
+        laplace_fits: Vec<Result<Fitted>>,
+    ) -> (Vec<Result<Fitted>>, usize) {
+        let refit = time_refits(&laplace_fits, self.setup.time_slack);
+        let mut skipped = 0;
+        let mut failed = Vec::new();
+        let chosen: Vec<(Fitted, &KindPositions)> = laplace_fits
+            .into_iter()
+            .zip(ranked)
+            .zip(refit)
+            .filter_map(|((f, (_, pairs)), go)| match f {
+                Ok(f) if go => Some((f, pairs)),
+                Ok(f) => {
+                    skipped += f.evaluations;
+                    None
+                }
+                Err(e) => {
+                    failed.push(Err(e));
+                    None
+                }
+            })
+            .collect();
+        let fits = map_maybe_par(&chosen, self.parallel, |(best, pairs)| {
+            let start = best.hyp.to_chain(current)?.uniform();
+            let mut out = fit_pairs(
+                &start,
+                self.unknowns,
+                pairs,
+                &best.hyp.masses(),
+                &self.chain_bounds,
+                true,
+                t,
+                100,
+                Tol::Seed,
+            )?;
+            out.evaluations += best.evaluations;
+            Ok(out)
+        });
+        (fits.into_iter().chain(failed).collect(), skipped)
+    }
+}
+
+/// The hypotheses of the fits that succeeded, the residual count of the
+/// last, and their evaluations; the first error when none succeeded.
+fn collect_fits(fits: Vec<Result<Fitted>>) -> Result<(Vec<Hypothesis>, usize, usize)> {
+    let mut fitted = Vec::with_capacity(fits.len());
+    let mut m = 0;
+    let mut evaluations = 0;
+    let mut first_err = None;
+    for f in fits {
+        match f {
+            Ok(f) => {
+                evaluations += f.evaluations;
+                m = f.m;
+                fitted.push(f.hyp);
+            }
+            Err(e) => {
+                first_err.get_or_insert(e);
+            }
+        }
+    }
+    if fitted.is_empty() {
+        return Err(first_err.unwrap_or_else(|| Error::Numerical {
+            method: "fit_general".into(),
+            reason: "no hypothesis could be fitted".into(),
+        }));
+    }
+    Ok((fitted, m, evaluations))
 }
 
 /// The coarse pass over `hyps` on `obs` (defect values only, chain
@@ -1166,7 +1225,7 @@ fn coarse_pass<'h>(
                     v,
                     chain_bounds,
                     false,
-                    Obs::Laplace(obs),
+                    obs,
                     max_iter,
                     Tol::Seed,
                 ),

@@ -71,12 +71,13 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::chain::Chain;
+use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
-use crate::detect::fit::chainfit::{default_bounds, ChainProblem, Obs};
+use crate::detect::fit::chainfit::{default_bounds, ChainProblem};
 use crate::detect::fit::general::{param_name, FittedParam, Hypothesis, Setup};
 use crate::detect::misfit::time::TimeMisfit;
-use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
+use crate::detect::model::MeasurementModel;
+use crate::detect::search::lsq::{levenberg_marquardt, LmFit, LmOptions};
 use crate::detect::search::rankone::{
     score, ScoreOptions, Scored, SetDefect, SetProblem, Sweep, Target,
 };
@@ -325,54 +326,23 @@ impl Greedy<'_> {
     /// fixed-position slots, then as many free slots as placed, `slot_of`
     /// their slot indices) from `values`, chain parameters from `start`, on
     /// `obs`. The placed defects are put in canonical order (position, kind).
-    /// Without chain parameters on Laplace data the values are fitted on the
-    /// gathered Woodbury kernel ([`SetProblem`], O(Q) per evaluation whatever
-    /// `n`), otherwise on the chain's own residuals ([`ChainProblem`]).
+    /// Without chain parameters, given the `kernel` of the Laplace values
+    /// `obs` holds, the values are fitted on that gathered Woodbury kernel
+    /// ([`SetProblem`], O(Q) per evaluation whatever `n`), otherwise on the chain's own residuals ([`ChainProblem`]).
     fn refit(
         &self,
         pairs: &KindPositions,
         slot_of: &[usize],
         values: &[f64],
         start: &Chain,
-        obs: Obs<'_>,
+        obs: &dyn MeasurementModel,
+        kernel: Option<&Target>,
     ) -> Result<Fit> {
-        let slots = self.unknowns.slots();
         let (pairs, values) = self.canonical(pairs, slot_of, values);
-        let mut defects = Vec::with_capacity(pairs.len());
-        let mut set = Vec::with_capacity(pairs.len());
-        let mut params = Vec::new();
-        let mut theta0 = Vec::new();
-        let mut bounds = Vec::new();
-        for (j, (&(kind, at), &v)) in pairs.iter().zip(&values).enumerate() {
-            let slot = &slots[slot_of[j]];
-            match slot.known {
-                Some(known) => {
-                    defects.push(kind.defect(at, known));
-                    set.push(SetDefect::Fixed(kind, at, known));
-                }
-                None => {
-                    let b = self.unknowns.bounds(slot_of[j], kind);
-                    let v = v.clamp(b.0, b.1);
-                    defects.push(kind.defect(at, v));
-                    set.push(SetDefect::Free(kind, at, theta0.len()));
-                    params.push(Param::Defect(j));
-                    theta0.push(v);
-                    bounds.push(b);
-                }
-            }
-        }
-        let n_values = theta0.len();
-        for (p, b) in self.unknowns.chain().iter().zip(&self.chain_bounds) {
-            params.push(*p);
-            theta0.push(p.get(start)?.clamp(b.0, b.1));
-            bounds.push(*b);
-        }
-        let chain = start.uniform().with_defects(defects)?;
-        if params.is_empty() {
-            let r = match obs {
-                Obs::Laplace(l) => l.residuals(&chain)?,
-                Obs::Time(t) => t.residuals(&chain)?,
-            };
+        let p = self.values_problem(&pairs, slot_of, &values, start)?;
+        let chain = start.uniform().with_defects(p.defects)?;
+        if p.params.is_empty() {
+            let r = obs.residuals(&chain)?;
             self.count(1, 1, 0, 0);
             let m = r.len();
             return Ok(Fit {
@@ -391,52 +361,71 @@ impl Greedy<'_> {
             max_iter: self.opts.max_iter,
             ..LmOptions::default()
         };
-        let fast = self.unknowns.chain().is_empty() && matches!(obs, Obs::Laplace(_));
-        let (lm, fitted) = if fast {
-            let problem = SetProblem::new(&chain, &set, &self.target)?;
-            let lm = levenberg_marquardt(&problem, &theta0, &bounds, &lm_opts)?;
+        // the gathered Woodbury kernel of the Laplace values `kernel` was built from
+        let fast = kernel.filter(|_| self.unknowns.chain().is_empty());
+        let (lm, fitted) = if let Some(target) = fast {
+            let problem = SetProblem::new(&chain, &p.set, target)?;
+            let lm = levenberg_marquardt(&problem, &p.theta0, &p.bounds, &lm_opts)?;
             let mut d = chain.defects().to_vec();
-            for (p, &v) in params.iter().zip(&lm.theta) {
-                if let Param::Defect(i) = p {
+            for (param, &v) in p.params.iter().zip(&lm.theta) {
+                if let Param::Defect(i) = param {
                     d[*i] = pairs[*i].0.defect(pairs[*i].1, v);
                 }
             }
             let fitted = chain.uniform().with_defects(d)?;
             (lm, fitted)
         } else {
-            let problem = ChainProblem::new(&chain, &params, obs)?;
-            let lm = levenberg_marquardt(&problem, &theta0, &bounds, &lm_opts)?;
+            let problem = ChainProblem::new(&chain, &p.params, obs)?;
+            let lm = levenberg_marquardt(&problem, &p.theta0, &p.bounds, &lm_opts)?;
             let fitted = problem.chain(&lm.theta)?;
             (lm, fitted)
         };
-        debug_assert_eq!(n_values + self.unknowns.chain().len(), params.len());
         self.count(1, lm.evaluations, 0, 0);
-        let se = lm
-            .std_errors()
-            .unwrap_or_else(|_| vec![f64::NAN; params.len()]);
-        let mut std_errors = vec![0.0; pairs.len()];
-        let mut chain_params = Vec::new();
-        for (j, p) in params.iter().enumerate() {
-            match p {
-                Param::Defect(i) => std_errors[*i] = se[j],
-                _ => chain_params.push(FittedParam {
-                    name: param_name(p).to_string(),
-                    value: lm.theta[j],
-                    std_error: se[j],
-                }),
+        Ok(fit_of(pairs, &p.params, &lm, fitted))
+    }
+
+    /// The values problem of the canonical hypothesis `pairs` with `values`
+    /// (clamped into their bounds; known slots held), chain parameters from
+    /// `start`.
+    fn values_problem(
+        &self,
+        pairs: &KindPositions,
+        slot_of: &[usize],
+        values: &[f64],
+        start: &Chain,
+    ) -> Result<ValuesProblem> {
+        let slots = self.unknowns.slots();
+        let mut p = ValuesProblem {
+            defects: Vec::with_capacity(pairs.len()),
+            set: Vec::with_capacity(pairs.len()),
+            params: Vec::new(),
+            theta0: Vec::new(),
+            bounds: Vec::new(),
+        };
+        for (j, (&(kind, at), &v)) in pairs.iter().zip(values).enumerate() {
+            let slot = &slots[slot_of[j]];
+            match slot.known {
+                Some(known) => {
+                    p.defects.push(kind.defect(at, known));
+                    p.set.push(SetDefect::Fixed(kind, at, known));
+                }
+                None => {
+                    let b = self.unknowns.bounds(slot_of[j], kind);
+                    let v = v.clamp(b.0, b.1);
+                    p.defects.push(kind.defect(at, v));
+                    p.set.push(SetDefect::Free(kind, at, p.theta0.len()));
+                    p.params.push(Param::Defect(j));
+                    p.theta0.push(v);
+                    p.bounds.push(b);
+                }
             }
         }
-        Ok(Fit {
-            pairs,
-            hyp: Hypothesis::from_parts(
-                fitted.defects().to_vec(),
-                std_errors,
-                chain_params,
-                lm.chi2,
-            ),
-            chain: fitted,
-            m: lm.m,
-        })
+        for (param, b) in self.unknowns.chain().iter().zip(&self.chain_bounds) {
+            p.params.push(*param);
+            p.theta0.push(param.get(start)?.clamp(b.0, b.1));
+            p.bounds.push(*b);
+        }
+        Ok(p)
     }
 
     /// Slot indices of a hypothesis with the fixed slots and `placed` free ones.
@@ -505,7 +494,8 @@ impl Greedy<'_> {
             &self.slot_of(0),
             &values,
             &self.base,
-            Obs::Laplace(self.obs),
+            self.obs,
+            Some(&self.target),
         )
     }
 
@@ -537,7 +527,8 @@ impl Greedy<'_> {
                 &slot_of,
                 &values,
                 &cur.chain,
-                Obs::Laplace(self.obs),
+                self.obs,
+                Some(&self.target),
             )
             .ok()
         });
@@ -626,28 +617,7 @@ impl Greedy<'_> {
         }
         let start = self.start()?;
         let mut seen: Vec<Fit> = vec![start.clone()];
-        let mut paths = Vec::new();
-        if !self.free.is_empty() {
-            let step0 = self.scored(&start.chain, &start.pairs)?;
-            let best = self.path(&start, None, &step0, &mut seen)?;
-            paths.push(best.hyp.chi2);
-            // restarts from the runners-up, away from earlier starts
-            let mut starts: Vec<(DefectKind, usize)> = vec![best.pairs[start.pairs.len()]];
-            for c in &step0 {
-                if starts.len() > self.opts.restarts {
-                    break;
-                }
-                if starts
-                    .iter()
-                    .any(|&(k, a)| k == c.kind && a.abs_diff(c.at) < 2)
-                {
-                    continue;
-                }
-                starts.push((c.kind, c.at));
-                let f = self.path(&start, Some(c), &step0, &mut seen)?;
-                paths.push(f.hyp.chi2);
-            }
-        }
+        let paths = self.explore(&start, &mut seen)?;
         // distinct hypotheses, best first, the full set only
         let k_total = start.pairs.len() + self.free.len();
         seen.retain(|f| f.pairs.len() == k_total);
@@ -657,43 +627,17 @@ impl Greedy<'_> {
                 .then_with(|| a.hyp.chi2.total_cmp(&b.hyp.chi2))
         });
         seen.dedup_by(|a, b| a.key() == b.key());
-        seen.sort_by(|a, b| {
-            a.hyp
-                .chi2
-                .total_cmp(&b.hyp.chi2)
-                .then_with(|| a.key().cmp(&b.key()))
-        });
+        sort_ranked(&mut seen);
         if seen.is_empty() {
             return Err(Error::Numerical {
                 method: "greedy".into(),
                 reason: "no hypothesis could be fitted".into(),
             });
         }
-        let mut residuals = seen[0].m;
         if let Some(t) = fine {
-            let short: Vec<Fit> = seen.iter().take(setup.shortlist.max(1)).cloned().collect();
-            let slot_of = self.slot_of(self.free.len());
-            let refits: Vec<Option<Fit>> = self.map(&short, |f| {
-                let values: Vec<f64> = f.chain.defects().iter().map(|d| d.value()).collect();
-                self.refit(&f.pairs, &slot_of, &values, &f.chain, Obs::Time(t))
-                    .ok()
-            });
-            let mut timed: Vec<Fit> = refits.into_iter().flatten().collect();
-            if timed.is_empty() {
-                return Err(Error::Numerical {
-                    method: "greedy".into(),
-                    reason: "no hypothesis could be refitted in the time domain".into(),
-                });
-            }
-            timed.sort_by(|a, b| {
-                a.hyp
-                    .chi2
-                    .total_cmp(&b.hyp.chi2)
-                    .then_with(|| a.key().cmp(&b.key()))
-            });
-            residuals = timed[0].m;
-            seen = timed;
+            seen = self.time_refits(&seen, t, setup)?;
         }
+        let residuals = seen[0].m;
         let (hypotheses, evaluations, scored, sweeps) = self.counters.get();
         Ok(GreedyFit {
             ranked: seen.into_iter().map(|f| f.hyp).collect(),
@@ -704,6 +648,102 @@ impl Greedy<'_> {
             residuals,
             paths,
         })
+    }
+
+    /// The greedy path from `start`, then restarts from the runners-up of
+    /// its first step (away from earlier starts); every fit seen is added
+    /// to `seen`. Returns each path's best chi-square.
+    fn explore(&self, start: &Fit, seen: &mut Vec<Fit>) -> Result<Vec<f64>> {
+        let mut paths = Vec::new();
+        if self.free.is_empty() {
+            return Ok(paths);
+        }
+        let step0 = self.scored(&start.chain, &start.pairs)?;
+        let best = self.path(start, None, &step0, seen)?;
+        paths.push(best.hyp.chi2);
+        let mut starts: Vec<(DefectKind, usize)> = vec![best.pairs[start.pairs.len()]];
+        for c in &step0 {
+            if starts.len() > self.opts.restarts {
+                break;
+            }
+            if starts
+                .iter()
+                .any(|&(k, a)| k == c.kind && a.abs_diff(c.at) < 2)
+            {
+                continue;
+            }
+            starts.push((c.kind, c.at));
+            let f = self.path(start, Some(c), &step0, seen)?;
+            paths.push(f.hyp.chi2);
+        }
+        Ok(paths)
+    }
+
+    /// The best `setup.shortlist` of `seen` refitted on the time-domain
+    /// chi-square from their values, ranked by it.
+    fn time_refits(&self, seen: &[Fit], t: &TimeMisfit, setup: &Setup) -> Result<Vec<Fit>> {
+        let short: Vec<Fit> = seen.iter().take(setup.shortlist.max(1)).cloned().collect();
+        let slot_of = self.slot_of(self.free.len());
+        let refits: Vec<Option<Fit>> = self.map(&short, |f| {
+            let values: Vec<f64> = f.chain.defects().iter().map(|d| d.value()).collect();
+            self.refit(&f.pairs, &slot_of, &values, &f.chain, t, None)
+                .ok()
+        });
+        let mut timed: Vec<Fit> = refits.into_iter().flatten().collect();
+        if timed.is_empty() {
+            return Err(Error::Numerical {
+                method: "greedy".into(),
+                reason: "no hypothesis could be refitted in the time domain".into(),
+            });
+        }
+        sort_ranked(&mut timed);
+        Ok(timed)
+    }
+}
+
+/// Best chi-square first, ties broken by the hypothesis.
+fn sort_ranked(fits: &mut [Fit]) {
+    fits.sort_by(|a, b| {
+        a.hyp
+            .chi2
+            .total_cmp(&b.hyp.chi2)
+            .then_with(|| a.key().cmp(&b.key()))
+    });
+}
+
+/// The least-squares problem of one greedy hypothesis: its defects at their
+/// starting values, the rank-one set description, and the free parameters
+/// (defect values, then chain parameters) with starts and bounds.
+struct ValuesProblem {
+    defects: Vec<Defect>,
+    set: Vec<SetDefect>,
+    params: Vec<Param>,
+    theta0: Vec<f64>,
+    bounds: Vec<(f64, f64)>,
+}
+
+/// The [`Fit`] of `pairs` from a converged values problem over `params`.
+fn fit_of(pairs: KindPositions, params: &[Param], lm: &LmFit, fitted: Chain) -> Fit {
+    let se = lm
+        .std_errors()
+        .unwrap_or_else(|_| vec![f64::NAN; params.len()]);
+    let mut std_errors = vec![0.0; pairs.len()];
+    let mut chain_params = Vec::new();
+    for (j, p) in params.iter().enumerate() {
+        match p {
+            Param::Defect(i) => std_errors[*i] = se[j],
+            _ => chain_params.push(FittedParam {
+                name: param_name(p).to_string(),
+                value: lm.theta[j],
+                std_error: se[j],
+            }),
+        }
+    }
+    Fit {
+        pairs,
+        hyp: Hypothesis::from_parts(fitted.defects().to_vec(), std_errors, chain_params, lm.chi2),
+        chain: fitted,
+        m: lm.m,
     }
 }
 

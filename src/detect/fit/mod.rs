@@ -126,7 +126,39 @@ fn fit_with(
     opts.validate(obs, model)?;
     let scene = given.is_some();
     let t0 = Instant::now();
-    let misfit = match obs {
+    let engine = Engine {
+        obs,
+        model,
+        opts,
+        misfit: misfit_of(obs, opts),
+        prepared: std::sync::Mutex::new(None),
+        given,
+        support: std::sync::Mutex::new(None),
+    };
+    let (sigma, estimated) = first_sigma(obs, opts);
+    let (fits, sigma, evaluations) = fit_every_k(&engine, sigma, estimated)?;
+    let (chosen, rows, criterion_name) = choose_k(&fits, sigma, estimated, opts.criterion)?;
+    let mut report = engine.report(
+        &fits[chosen],
+        sigma,
+        estimated,
+        rows,
+        criterion_name,
+        evaluations,
+        t0,
+    )?;
+    // how deep the data see (mass defects of a user's data; not the
+    // scene path, whose data are the model's own)
+    if !scene && report.defects.iter().all(|d| d.kind == "mass") {
+        add_visibility(&mut report, &engine, sigma)?;
+    }
+    Ok(report)
+}
+
+/// The misfit: the options' (time by default) for a series; for Laplace
+/// values the real axis when every node is real, else the Bromwich line.
+fn misfit_of(obs: &Observations, opts: &FitOptions) -> MisfitKind {
+    match obs {
         Observations::Series(_) => opts.misfit.unwrap_or(MisfitKind::Time),
         Observations::Laplace(l) => {
             if l.s().iter().all(|z| z.im == 0.0) {
@@ -135,28 +167,35 @@ fn fit_with(
                 MisfitKind::Bromwich
             }
         }
-    };
-    let ks: Vec<usize> = match opts.defects {
-        DefectCount::Exactly(k) => vec![k],
-        DefectCount::Auto { k_max } => (0..=k_max).collect(),
-    };
-    let engine = Engine {
-        obs,
-        model,
-        opts,
-        misfit,
-        prepared: std::sync::Mutex::new(None),
-        given,
-        support: std::sync::Mutex::new(None),
-    };
-    // the noise level: given, or a first guess then the residual estimate
-    let (mut sigma, estimated) = match (obs, opts.noise) {
+    }
+}
+
+/// The noise level to start from, and whether it is estimated: given, or a
+/// first guess from the record's finest scales (1 for Laplace values).
+fn first_sigma(obs: &Observations, opts: &FitOptions) -> (f64, bool) {
+    match (obs, opts.noise) {
         (_, NoiseSpec::Sigma(s)) => (s, false),
         (Observations::Series(s), NoiseSpec::Auto) => {
             let hf = noise::high_frequency_sigma(s.x());
             (hf.max(1e-12 * s.max_abs()).max(1e-300), true)
         }
         (Observations::Laplace(_), NoiseSpec::Auto) => (1.0, true),
+    }
+}
+
+/// Every number of defects asked for, fitted at `sigma` (stopping early
+/// when `auto`); with an estimated noise level, refitted at the largest
+/// model's estimate when it differs by more than a factor 2, and the final
+/// level read from the largest model fitted (it holds every defect the
+/// others hold). Returns the fits, the final level and the evaluations.
+fn fit_every_k(
+    engine: &Engine,
+    mut sigma: f64,
+    estimated: bool,
+) -> Result<(Vec<KFit>, f64, usize)> {
+    let ks: Vec<usize> = match engine.opts.defects {
+        DefectCount::Exactly(k) => vec![k],
+        DefectCount::Auto { k_max } => (0..=k_max).collect(),
     };
     let mut evaluations = 0;
     let mut fits: Vec<KFit> = Vec::with_capacity(ks.len());
@@ -164,17 +203,14 @@ fn fit_with(
         let f = engine.fit_k(k, sigma)?;
         evaluations += f.evaluations;
         fits.push(f);
-        if let DefectCount::Auto { .. } = opts.defects {
-            if stop_early(&fits, obs.len()) {
+        if let DefectCount::Auto { .. } = engine.opts.defects {
+            if stop_early(&fits, engine.obs.len()) {
                 break;
             }
         }
     }
-    // the estimate of sigma from the largest model fitted (it holds every
-    // defect the others hold), then the final chi-squares at that sigma
     if estimated {
-        let largest = fits.last().expect("at least one k");
-        let s_hat = largest.sigma_hat;
+        let s_hat = fits.last().expect("at least one k").sigma_hat;
         if s_hat > 0.0 && !(0.5..=2.0).contains(&(s_hat / sigma)) {
             sigma = s_hat;
             let mut refit = Vec::with_capacity(fits.len());
@@ -191,73 +227,69 @@ fn fit_with(
             .sigma_hat
             .max(f64::MIN_POSITIVE);
     }
-    // choose k
-    let n_data = fits[0].n_data;
-    let (chosen, rows, criterion_name) = if fits.len() == 1 {
-        (
-            0,
-            vec![krow(&fits[0], sigma, estimated, f64::NAN)],
-            "given".to_string(),
-        )
-    } else {
-        let mf: Vec<select::ModelFit> = fits
-            .iter()
-            .map(|f| select::ModelFit::new(f.k, f.chi2_at(sigma, estimated), f.params))
-            .collect();
-        let sel = select::select(&mf, n_data, opts.criterion)?;
-        let value = |e: &select::Evidence| match opts.criterion {
-            Criterion::Aic => e.aic,
-            Criterion::Bic => e.bic,
-            Criterion::ChiSquare { .. } => e.p_value,
-        };
-        let rows = fits
-            .iter()
-            .zip(&sel.evidence)
-            .map(|(f, e)| krow(f, sigma, estimated, value(e)))
-            .collect();
-        let i = fits
-            .iter()
-            .position(|f| f.k == sel.chosen)
-            .expect("chosen among the fits");
-        let name = match opts.criterion {
-            Criterion::Aic => "aic",
-            Criterion::Bic => "bic",
-            Criterion::ChiSquare { .. } => "chi2 p-value",
-        };
-        (i, rows, name.to_string())
-    };
-    let best_fit = &fits[chosen];
-    let mut report = engine.report(
-        best_fit,
-        sigma,
-        estimated,
-        rows,
-        criterion_name,
-        evaluations,
-        t0,
-    )?;
-    // how deep the data see (mass defects of a user's data; not the
-    // scene path, whose data are the model's own)
-    if !scene && report.defects.iter().all(|d| d.kind == "mass") {
-        let chain = model.chain().clone().with_defects(report.found())?;
-        let observe = match obs {
-            Observations::Series(s) => s.measurement().sensor().at,
-            Observations::Laplace(l) => l.sensor().at,
-        };
-        let positions: Vec<usize> = report.found().iter().map(|d| d.at()).collect();
-        if let Some((at_sigma, (l, ..))) = engine.last_prepared() {
-            report.visibility = visibility::visibility(
-                &l,
-                &chain,
-                observe,
-                VISIBILITY_CHANGE,
-                &positions,
-                sigma / at_sigma,
-            )
-            .ok();
-        }
+    Ok((fits, sigma, evaluations))
+}
+
+/// The number of defects: the only fit, or the criterion's choice. Returns
+/// the chosen fit's index, the evidence table and the criterion's name.
+fn choose_k(
+    fits: &[KFit],
+    sigma: f64,
+    estimated: bool,
+    criterion: Criterion,
+) -> Result<(usize, Vec<KRow>, String)> {
+    if fits.len() == 1 {
+        let rows = vec![krow(&fits[0], sigma, estimated, f64::NAN)];
+        return Ok((0, rows, "given".to_string()));
     }
-    Ok(report)
+    let mf: Vec<select::ModelFit> = fits
+        .iter()
+        .map(|f| select::ModelFit::new(f.k, f.chi2_at(sigma, estimated), f.params))
+        .collect();
+    let sel = select::select(&mf, fits[0].n_data, criterion)?;
+    let value = |e: &select::Evidence| match criterion {
+        Criterion::Aic => e.aic,
+        Criterion::Bic => e.bic,
+        Criterion::ChiSquare { .. } => e.p_value,
+    };
+    let rows = fits
+        .iter()
+        .zip(&sel.evidence)
+        .map(|(f, e)| krow(f, sigma, estimated, value(e)))
+        .collect();
+    let i = fits
+        .iter()
+        .position(|f| f.k == sel.chosen)
+        .expect("chosen among the fits");
+    let name = match criterion {
+        Criterion::Aic => "aic",
+        Criterion::Bic => "bic",
+        Criterion::ChiSquare { .. } => "chi2 p-value",
+    };
+    Ok((i, rows, name.to_string()))
+}
+
+/// The report's visibility: how deep the data see a
+/// [`VISIBILITY_CHANGE`] of mass, from the last prepared Laplace data.
+fn add_visibility(report: &mut FitReport, engine: &Engine, sigma: f64) -> Result<()> {
+    let chain = engine.model.chain().clone().with_defects(report.found())?;
+    let observe = match engine.obs {
+        Observations::Series(s) => s.measurement().sensor().at,
+        Observations::Laplace(l) => l.sensor().at,
+    };
+    let positions: Vec<usize> = report.found().iter().map(|d| d.at()).collect();
+    if let Some((at_sigma, (l, ..))) = engine.last_prepared() {
+        report.visibility = visibility::visibility(
+            &l,
+            &chain,
+            observe,
+            VISIBILITY_CHANGE,
+            &positions,
+            sigma / at_sigma,
+        )
+        .ok();
+    }
+    Ok(())
 }
 
 /// The relative mass change the report's visibility is stated for.

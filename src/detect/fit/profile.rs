@@ -78,7 +78,7 @@
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::observations::Observations;
-use crate::detect::fit::chainfit::{fit_chain, Obs};
+use crate::detect::fit::chainfit::fit_chain;
 use crate::detect::fit::general::{laplace_obs, Setup};
 use crate::detect::fit::model::Model;
 use crate::detect::fit::noise::high_frequency_sigma;
@@ -858,7 +858,7 @@ pub fn fit_profile_with(
                 .map(|&i| bounds[i])
                 .chain(bounds[nf..].iter().copied())
                 .collect();
-            let r = fit_chain(&start, &pvis, &Obs::Time(&tm), Some(&b))?;
+            let r = fit_chain(&start, &pvis, &tm, Some(&b))?;
             iterations += r.lm.iterations;
             for (k, &i) in vis_idx.iter().enumerate() {
                 theta_f[i] = r.values[k];

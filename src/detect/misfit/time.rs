@@ -225,6 +225,21 @@ impl TimeMisfit {
     }
 }
 
+impl crate::detect::model::MeasurementModel for TimeMisfit {
+    fn name(&self) -> &'static str {
+        "time"
+    }
+    fn dof(&self) -> usize {
+        self.data.t().len()
+    }
+    fn residuals(&self, chain: &Chain) -> Result<Vec<f64>> {
+        TimeMisfit::residuals(self, chain)
+    }
+    fn jacobian(&self, chain: &Chain, params: &[Param]) -> Result<Option<DMatrix<f64>>> {
+        TimeMisfit::jacobian(self, chain, params)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -184,107 +184,28 @@ pub fn simulate(chain: &Chain, grid: &TimeGrid, masses: &[usize]) -> Result<Run>
         }
         slot[p - 1] = Some(c);
     }
-    let m = chain.masses();
-    let k = chain.springs();
-    let d = chain.dampers();
-    let g = chain.grounds();
-    // rows of M^-1 (-K x - D v), padded: index i + 1 for mass i + 1 (0-based i)
-    let mut lo = vec![0.0; n + 2];
-    let mut dg = vec![0.0; n + 2];
-    let mut up = vec![0.0; n + 2];
-    let mut dd = vec![0.0; n + 2];
-    for i in 0..n {
-        lo[i + 1] = k[i] / m[i];
-        dg[i + 1] = -(k[i] + k[i + 1] + g[i]) / m[i];
-        up[i + 1] = k[i + 1] / m[i];
-        dd[i + 1] = -d[i] / m[i];
-    }
+    let mut st = Stepper::new(chain);
     // in the energy norm A is skew (norm omega_max) plus the damping
+    let (m, d) = (chain.masses(), chain.dampers());
     let norm = omega_max(chain) + (0..n).map(|i| d[i] / m[i]).fold(0.0, f64::max);
     let inner = ((grid.dt * norm / THETA).ceil() as usize).max(1);
     let h = grid.dt / inner as f64;
-    // state and Taylor terms, padded with a zero at each end
-    let mut x = vec![0.0; n + 2];
-    let mut v = vec![0.0; n + 2];
-    v[1] = chain.gamma() / m[0];
-    let (mut tx, mut tv) = (vec![0.0; n + 2], vec![0.0; n + 2]);
-    let (mut nx, mut nv) = (vec![0.0; n + 2], vec![0.0; n + 2]);
     let mut xs = vec![0.0; masses.len() * steps];
     let mut vs = vec![0.0; masses.len() * steps];
     let mut x1 = Vec::with_capacity(grid.samples);
     let mut next_sample = grid.first;
-    // the masses the impulse has reached: beyond `reach` the state is below
-    // 1e-30 of its largest value (exactly 0 at first); each Taylor term
-    // spreads it by one mass, so a step works on `reach + SPREAD` masses
-    const SPREAD: usize = 48;
-    let mut reach = 1usize;
     for j in 0..steps {
         if j > 0 {
             for _ in 0..inner {
-                // y <- sum_k (h A)^k y / k!
-                let hi = (reach + SPREAD).min(n);
-                tx[..=hi + 1].copy_from_slice(&x[..=hi + 1]);
-                tv[..=hi + 1].copy_from_slice(&v[..=hi + 1]);
-                let scale = x[1..=hi]
-                    .iter()
-                    .chain(&v[1..=hi])
-                    .fold(0.0f64, |a, b| a.max(b.abs()))
-                    .max(f64::MIN_POSITIVE);
-                for term in 1..=SPREAD {
-                    let alpha = h / term as f64;
-                    let w = hi + 2;
-                    let (txw, tvw) = (&tx[..w], &tv[..w]);
-                    let (nxw, nvw) = (&mut nx[1..=hi], &mut nv[1..=hi]);
-                    let (xw, vw) = (&mut x[1..=hi], &mut v[1..=hi]);
-                    let (low, dgw, upw, ddw) = (&lo[1..=hi], &dg[1..=hi], &up[1..=hi], &dd[1..=hi]);
-                    for i in 0..hi {
-                        let a = alpha
-                            * (low[i] * txw[i]
-                                + dgw[i] * txw[i + 1]
-                                + upw[i] * txw[i + 2]
-                                + ddw[i] * tvw[i + 1]);
-                        let b = alpha * tvw[i + 1];
-                        nvw[i] = a;
-                        nxw[i] = b;
-                        vw[i] += a;
-                        xw[i] += b;
-                    }
-                    let big = nvw.iter().chain(nxw.iter()).fold(0.0f64, |m, &a| {
-                        if a.abs() > m {
-                            a.abs()
-                        } else {
-                            m
-                        }
-                    });
-                    std::mem::swap(&mut tx, &mut nx);
-                    std::mem::swap(&mut tv, &mut nv);
-                    if big <= 1.1e-16 * scale {
-                        break;
-                    }
-                }
-                if reach < n {
-                    let tiny = 1e-30 * scale;
-                    reach = (1..=hi)
-                        .rev()
-                        .find(|&i| x[i].abs() > tiny || v[i].abs() > tiny)
-                        .unwrap_or(1);
-                    // what lies beyond is dropped (below 1e-30 of the state)
-                    for i in reach + 1..=hi {
-                        x[i] = 0.0;
-                        v[i] = 0.0;
-                    }
-                    if reach + SPREAD >= n {
-                        reach = n;
-                    }
-                }
+                st.sub_step(h);
             }
         }
         for (c, &p) in masses.iter().enumerate() {
-            xs[c * steps + j] = x[p];
-            vs[c * steps + j] = v[p];
+            xs[c * steps + j] = st.x[p];
+            vs[c * steps + j] = st.v[p];
         }
         if j == next_sample {
-            x1.push(x[1]);
+            x1.push(st.x[1]);
             next_sample += grid.sub;
         }
     }
@@ -302,6 +223,140 @@ pub fn simulate(chain: &Chain, grid: &TimeGrid, masses: &[usize]) -> Result<Run>
         slot,
         steps,
     })
+}
+
+/// Each Taylor term spreads the state by one mass; a sub-step works on the
+/// masses the impulse has reached plus this many, and sums at most this
+/// many terms.
+const SPREAD: usize = 48;
+
+/// The state of [`simulate`]'s sparse Taylor stepping, padded with a zero
+/// at each end (index `i + 1` for mass `i + 1`), and the rows of
+/// `M^-1 (-K x - D v)`.
+struct Stepper {
+    n: usize,
+    lo: Vec<f64>,
+    dg: Vec<f64>,
+    up: Vec<f64>,
+    dd: Vec<f64>,
+    x: Vec<f64>,
+    v: Vec<f64>,
+    tx: Vec<f64>,
+    tv: Vec<f64>,
+    nx: Vec<f64>,
+    nv: Vec<f64>,
+    /// The masses the impulse has reached: beyond `reach` the state is
+    /// below 1e-30 of its largest value (exactly 0 at first).
+    reach: usize,
+}
+
+impl Stepper {
+    /// At rest but for the impulse's velocity `gamma / m_1` of mass 1.
+    fn new(chain: &Chain) -> Stepper {
+        let n = chain.n();
+        let m = chain.masses();
+        let k = chain.springs();
+        let d = chain.dampers();
+        let g = chain.grounds();
+        let mut st = Stepper {
+            n,
+            lo: vec![0.0; n + 2],
+            dg: vec![0.0; n + 2],
+            up: vec![0.0; n + 2],
+            dd: vec![0.0; n + 2],
+            x: vec![0.0; n + 2],
+            v: vec![0.0; n + 2],
+            tx: vec![0.0; n + 2],
+            tv: vec![0.0; n + 2],
+            nx: vec![0.0; n + 2],
+            nv: vec![0.0; n + 2],
+            reach: 1,
+        };
+        for i in 0..n {
+            st.lo[i + 1] = k[i] / m[i];
+            st.dg[i + 1] = -(k[i] + k[i + 1] + g[i]) / m[i];
+            st.up[i + 1] = k[i + 1] / m[i];
+            st.dd[i + 1] = -d[i] / m[i];
+        }
+        st.v[1] = chain.gamma() / m[0];
+        st
+    }
+
+    /// One sub-step `y <- sum_k (h A)^k y / k!` over the reached masses,
+    /// terms until they fall below `2^-53` of the state, then the reach
+    /// updated.
+    #[inline]
+    fn sub_step(&mut self, h: f64) {
+        let n = self.n;
+        let hi = (self.reach + SPREAD).min(n);
+        self.tx[..=hi + 1].copy_from_slice(&self.x[..=hi + 1]);
+        self.tv[..=hi + 1].copy_from_slice(&self.v[..=hi + 1]);
+        let scale = self.x[1..=hi]
+            .iter()
+            .chain(&self.v[1..=hi])
+            .fold(0.0f64, |a, b| a.max(b.abs()))
+            .max(f64::MIN_POSITIVE);
+        for term in 1..=SPREAD {
+            let big = self.term(h / term as f64, hi);
+            std::mem::swap(&mut self.tx, &mut self.nx);
+            std::mem::swap(&mut self.tv, &mut self.nv);
+            if big <= 1.1e-16 * scale {
+                break;
+            }
+        }
+        if self.reach < n {
+            self.trim(hi, scale);
+        }
+    }
+
+    /// The next Taylor term `alpha A t` into `n*`, added to the state;
+    /// returns its largest entry.
+    #[inline]
+    fn term(&mut self, alpha: f64, hi: usize) -> f64 {
+        let w = hi + 2;
+        let (txw, tvw) = (&self.tx[..w], &self.tv[..w]);
+        let (nxw, nvw) = (&mut self.nx[1..=hi], &mut self.nv[1..=hi]);
+        let (xw, vw) = (&mut self.x[1..=hi], &mut self.v[1..=hi]);
+        let (low, dgw, upw, ddw) = (
+            &self.lo[1..=hi],
+            &self.dg[1..=hi],
+            &self.up[1..=hi],
+            &self.dd[1..=hi],
+        );
+        for i in 0..hi {
+            let a = alpha
+                * (low[i] * txw[i]
+                    + dgw[i] * txw[i + 1]
+                    + upw[i] * txw[i + 2]
+                    + ddw[i] * tvw[i + 1]);
+            let b = alpha * tvw[i + 1];
+            nvw[i] = a;
+            nxw[i] = b;
+            vw[i] += a;
+            xw[i] += b;
+        }
+        nvw.iter()
+            .chain(nxw.iter())
+            .fold(0.0f64, |m, &a| if a.abs() > m { a.abs() } else { m })
+    }
+
+    /// The new reach after a sub-step on `1..=hi`; what lies beyond is
+    /// dropped (below 1e-30 of the state).
+    fn trim(&mut self, hi: usize, scale: f64) {
+        let tiny = 1e-30 * scale;
+        let (x, v) = (&mut self.x, &mut self.v);
+        self.reach = (1..=hi)
+            .rev()
+            .find(|&i| x[i].abs() > tiny || v[i].abs() > tiny)
+            .unwrap_or(1);
+        for i in self.reach + 1..=hi {
+            x[i] = 0.0;
+            v[i] = 0.0;
+        }
+        if self.reach + SPREAD >= self.n {
+            self.reach = self.n;
+        }
+    }
 }
 
 /// Radix-2 complex FFT of one size.

@@ -160,38 +160,17 @@ pub(super) fn run(g: &Greedy<'_>, t: &TimeMisfit) -> Result<Option<GreedyFit>> {
         y: data.y().iter().map(|v| v.to_bits()).collect(),
         problem: ctx.describe(),
     };
-    let k = g.free.len();
-    let mut stages: Vec<Stage> = if opts.memo {
-        let memo = STAGES.lock().unwrap_or_else(|e| e.into_inner());
-        memo.iter()
-            .find(|(kk, _)| *kk == key)
-            .map(|(_, s)| s.clone())
-            .unwrap_or_default()
-    } else {
-        Vec::new()
-    };
-    if let Some(last) = stages.last() {
-        ctx.counters.set(last.counters);
-    }
-    let grew = stages.len() <= k;
-    while stages.len() <= k {
-        let stage = if stages.is_empty() {
-            ctx.start()?
-        } else {
-            ctx.next(&stages[stages.len() - 1].best, stages.len())?
-        };
-        stages.push(stage);
-    }
-    if opts.memo && grew {
-        let mut memo = STAGES.lock().unwrap_or_else(|e| e.into_inner());
-        memo.retain(|(kk, _)| *kk != key);
-        memo.push((key, stages.clone()));
-        if memo.len() > MEMO {
-            memo.remove(0);
-        }
-    }
-    let stage = &stages[k];
-    let sigma = data.sigma_eff();
+    let stages = ctx.stages(key, g.free.len(), opts.memo)?;
+    Ok(Some(result(
+        &stages[g.free.len()],
+        data.sigma_eff(),
+        data.len(),
+    )))
+}
+
+/// The report of the stage with every defect placed: its distinct fits,
+/// best first, at the noise level `sigma`.
+fn result(stage: &Stage, sigma: f64, residuals: usize) -> GreedyFit {
     let mut seen = stage.seen.clone();
     seen.sort_by(|a, b| a.key().cmp(&b.key()).then_with(|| a.rss.total_cmp(&b.rss)));
     seen.dedup_by(|a, b| a.key() == b.key());
@@ -210,18 +189,54 @@ pub(super) fn run(g: &Greedy<'_>, t: &TimeMisfit) -> Result<Option<GreedyFit>> {
         })
         .collect();
     let (hypotheses, evaluations, scored, sweeps) = stage.counters;
-    Ok(Some(GreedyFit {
+    GreedyFit {
         paths: vec![stage.best.rss / (sigma * sigma)],
         ranked,
         hypotheses,
         evaluations,
         scored,
         sweeps,
-        residuals: data.len(),
-    }))
+        residuals,
+    }
 }
 
 impl Ctx<'_, '_> {
+    /// Stages `0..=k` (one more defect placed each), from the memo of
+    /// earlier fits of the same record and problem when `memo`, the memo
+    /// updated with what was added.
+    fn stages(&self, key: Key, k: usize, memo: bool) -> Result<Vec<Stage>> {
+        let mut stages: Vec<Stage> = if memo {
+            let memo = STAGES.lock().unwrap_or_else(|e| e.into_inner());
+            memo.iter()
+                .find(|(kk, _)| *kk == key)
+                .map(|(_, s)| s.clone())
+                .unwrap_or_default()
+        } else {
+            Vec::new()
+        };
+        if let Some(last) = stages.last() {
+            self.counters.set(last.counters);
+        }
+        let grew = stages.len() <= k;
+        while stages.len() <= k {
+            let stage = if stages.is_empty() {
+                self.start()?
+            } else {
+                self.next(&stages[stages.len() - 1].best, stages.len())?
+            };
+            stages.push(stage);
+        }
+        if memo && grew {
+            let mut memo = STAGES.lock().unwrap_or_else(|e| e.into_inner());
+            memo.retain(|(kk, _)| *kk != key);
+            memo.push((key, stages.clone()));
+            if memo.len() > MEMO {
+                memo.remove(0);
+            }
+        }
+        Ok(stages)
+    }
+
     fn count(&self, hyps: usize, evals: usize, scored: usize, sweeps: usize) {
         self.counters.add(hyps, evals, scored, sweeps);
     }

@@ -1,0 +1,82 @@
+//! One measurement-model interface: every way of comparing a candidate
+//! chain with data implements [`MeasurementModel`].
+//!
+//! A measurement model owns its data and their noise (whitening or weights
+//! live with the data, never in the caller), and answers three questions
+//! about a candidate chain:
+//!
+//! * its **residuals** `r(chain)`, whitened so that `chi^2 = |r|^2` is a
+//!   chi-square at the truth (unit noise per entry);
+//! * their **Jacobian** with respect to any chain parameters
+//!   ([`Param`]: defect values, `d`, `k`, `gamma`, `mass`), or `None` where
+//!   the model has no analytic one (the caller then differences the
+//!   residuals, [`crate::detect::search::lsq::central_jacobian`]);
+//! * its **degrees of freedom** (the number of independent residual entries).
+//!
+//! Implementations, one file each:
+//!
+//! | model | file | residuals |
+//! |---|---|---|
+//! | time domain | [`crate::detect::misfit::time`] ([`TimeMisfit`](crate::detect::misfit::time::TimeMisfit)) | `(x_1(t_i) - y_i) / sigma` from the exact modal sum |
+//! | Laplace values, real axis or Bromwich line | [`crate::detect::data::laplace`] ([`LaplaceObs`](crate::detect::data::laplace::LaplaceObs)) | `W (X_1(s_q) - d_q)` stacked real and imaginary parts, or `sqrt(w_q)` weights |
+//!
+//! The continuous fit ([`crate::detect::fit::chainfit::fit_chain`]), the
+//! hypothesis fits of the general path, the greedy search and the
+//! whole-profile inversion take a `&dyn MeasurementModel`, so a new kind of
+//! data (modal data, several sensors, an output spectrum) is one new file
+//! implementing this trait. The fast kernels for one position set (the
+//! mass-only Woodbury kernel [`crate::detect::misfit::Misfit`], the
+//! rational set model [`crate::detect::misfit::laplace_sets`], the rank-one
+//! set problem of the greedy search) are built from Laplace values and
+//! reproduce [`MeasurementModel::residuals`] of those values to rounding.
+//!
+//! ```
+//! use springmass::{Chain, Defect, noise::NoiseLevel, sensitivity::Param};
+//! use springmass::detect::{data::series::TimeData, misfit::time::TimeMisfit, model::MeasurementModel};
+//! let truth = Chain::paper(5)?.with_defect(Defect::Mass { at: 2, m: 3.0 })?;
+//! let data = TimeData::simulate(&truth, 50.0, 0.5, NoiseLevel::RelativeMax(1e-3), 1)?;
+//! let model: &dyn MeasurementModel = &TimeMisfit::new(data);
+//! assert_eq!(model.residuals(&truth)?.len(), model.dof());
+//! assert!(model.chi2(&truth)? < 2.0 * model.dof() as f64);
+//! let j = model.jacobian(&truth, &[Param::Defect(0)])?.expect("analytic");
+//! assert_eq!((j.nrows(), j.ncols()), (model.dof(), 1));
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+use crate::chain::Chain;
+use crate::error::Result;
+use crate::sensitivity::Param;
+use nalgebra::DMatrix;
+
+/// A way of comparing a candidate chain with data (see the module docs).
+pub trait MeasurementModel: Sync + std::fmt::Debug {
+    /// A short name for reports (`time`, `laplace`).
+    fn name(&self) -> &'static str;
+
+    /// Degrees of freedom of `chi^2` at a fixed chain: the number of
+    /// independent residual entries.
+    fn dof(&self) -> usize;
+
+    /// Whitened residuals of `chain` (`chi^2` is their sum of squares).
+    ///
+    /// # Errors
+    /// The forward model's errors for this chain.
+    fn residuals(&self, chain: &Chain) -> Result<Vec<f64>>;
+
+    /// The Jacobian of [`MeasurementModel::residuals`] with respect to
+    /// `params` of `chain` (one column per parameter), or `Ok(None)` where
+    /// the model has no analytic Jacobian for these parameters.
+    ///
+    /// # Errors
+    /// A parameter that `chain` does not have (field `params`); the forward
+    /// model's errors.
+    fn jacobian(&self, chain: &Chain, params: &[Param]) -> Result<Option<DMatrix<f64>>>;
+
+    /// `chi^2 = |r|^2`.
+    ///
+    /// # Errors
+    /// As [`MeasurementModel::residuals`].
+    fn chi2(&self, chain: &Chain) -> Result<f64> {
+        Ok(self.residuals(chain)?.iter().map(|r| r * r).sum())
+    }
+}
