@@ -73,6 +73,7 @@
 //! | [`io`] | safe atomic writes (never a device, FIFO or directory), size-capped reads, memory budget and limits |
 //! | [`control`] | vibration suppression (Theorem 3.1, Corollary 3.2): Laplace, exact time domain, verification |
 //! | [`detect::data`] | the inverse side starts here: observations (a series or Laplace values), their noise model, whitening |
+//! | [`detect::model`] | one measurement-model interface, [`detect::model::MeasurementModel`] (residuals, Jacobian, degrees of freedom), implemented by the time-domain misfit and the Laplace values |
 //! | [`detect::misfit`] | one [`detect::misfit::MisfitKind`] (real axis, Bromwich, time), quadrature rules, the mass-only Woodbury kernel |
 //! | [`detect::unknowns`] | what is unknown: positions, kinds, values, chain parameters |
 //! | [`detect::search`] | enumeration, genetic algorithm, Nelder-Mead, particle swarm, bounded Levenberg-Marquardt |

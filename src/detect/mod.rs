@@ -21,7 +21,10 @@
 //! ```
 //!
 //! Data flow, one direction: [`data`] (observations and their noise) ->
-//! [`misfit`] (one misfit kind each: real axis, Bromwich line, time) ->
+//! [`model`] (the measurement-model interface every continuous fit takes:
+//! residuals, Jacobian, degrees of freedom) ->
+//! [`misfit`] (one misfit kind each: real axis, Bromwich line, time; the
+//! fast kernels for one position set) ->
 //! [`unknowns`] (positions, kinds, values, chain parameters) -> [`search`]
 //! (enumeration, GA, Nelder-Mead, PSO, bounded Levenberg-Marquardt) ->
 //! [`scene`] (a TOML description: truth for synthetic data, unknowns,
@@ -37,6 +40,7 @@
 //! | module | what |
 //! |---|---|
 //! | [`data`] | observations: a sampled series or Laplace values; [`data::exact`] the exact-model values of synthetic data; whitening |
+//! | [`model`] | [`model::MeasurementModel`]: one interface for every way of comparing a chain with data (see `docs/architecture.md` for how to add one) |
 //! | [`misfit`] | [`misfit::MisfitKind`], the quadrature rules ([`misfit::quadrature`]), the mass-only Woodbury kernel, the time-domain chi-square ([`misfit::time`]) |
 //! | [`unknowns`] | the unknowns of a fit |
 //! | [`search`] | optimizers ([`search::minimize`], [`search::MisfitObjective`] on the Woodbury kernel), [`search::enumerate`], [`search::lsq`] (bounded Levenberg-Marquardt), [`search::rankone`] (the greedy search's scoring kernel) |

@@ -303,19 +303,7 @@ pub fn invert<F: Fn(Complex64) -> Complex64>(
     opts: &InverseOptions,
 ) -> Result<Inversion> {
     check_t(t)?;
-    crate::error::check_f64("atol", opts.atol, opts.atol >= 0.0, ">= 0 and finite")?;
-    crate::error::check_f64("rtol", opts.rtol, opts.rtol >= 0.0, ">= 0 and finite")?;
-    crate::error::check_f64("alpha", opts.alpha, true, "finite")?;
-    if opts.m < 4 {
-        return Err(Error::invalid("m", opts.m, ">= 4"));
-    }
-    if opts.max_m < opts.m || opts.max_m > 300 {
-        return Err(Error::invalid(
-            "max_m",
-            opts.max_m,
-            format!("{}..=300 (at least m)", opts.m),
-        ));
-    }
+    opts.validate()?;
     let mut evaluations = 0;
     let mut m = opts.m;
     let mut last;
@@ -340,17 +328,9 @@ pub fn invert<F: Fn(Complex64) -> Complex64>(
                 let round = ROUND_GROWTH * p2.m as f64 * f64::EPSILON * sc1.max(sc2);
                 let err = 4.0 * diff + ALIAS_FLOOR + round + 1e-13 * v1.abs();
                 if err <= tol {
-                    let (talbot_v, agrees) = if opts.talbot_m > 0 {
-                        match talbot(f, t, opts.talbot_m) {
-                            Ok(v) => {
-                                evaluations += opts.talbot_m;
-                                (Some(v), Some((v - v1).abs() <= err + tol))
-                            }
-                            Err(_) => (None, None),
-                        }
-                    } else {
-                        (None, None)
-                    };
+                    let (talbot_v, agrees, spent) =
+                        talbot_check(f, t, opts.talbot_m, v1, err + tol);
+                    evaluations += spent;
                     return Ok(Inversion {
                         t,
                         value: v1,
@@ -380,6 +360,48 @@ pub fn invert<F: Fn(Complex64) -> Complex64>(
              damping need higher precision or the exact residue sum"
         ),
     })
+}
+
+impl InverseOptions {
+    /// Check the tolerances and the orders.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the field.
+    fn validate(&self) -> Result<()> {
+        crate::error::check_f64("atol", self.atol, self.atol >= 0.0, ">= 0 and finite")?;
+        crate::error::check_f64("rtol", self.rtol, self.rtol >= 0.0, ">= 0 and finite")?;
+        crate::error::check_f64("alpha", self.alpha, true, "finite")?;
+        if self.m < 4 {
+            return Err(Error::invalid("m", self.m, ">= 4"));
+        }
+        if self.max_m < self.m || self.max_m > 300 {
+            return Err(Error::invalid(
+                "max_m",
+                self.max_m,
+                format!("{}..=300 (at least m)", self.m),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The fixed Talbot rule with `talbot_m` nodes as a second method (none when
+/// 0): its value, whether it agrees with `v1` within `bound`, and the
+/// evaluations spent (none when it failed).
+fn talbot_check<F: Fn(Complex64) -> Complex64>(
+    f: &F,
+    t: f64,
+    talbot_m: usize,
+    v1: f64,
+    bound: f64,
+) -> (Option<f64>, Option<bool>, usize) {
+    if talbot_m == 0 {
+        return (None, None, 0);
+    }
+    match talbot(f, t, talbot_m) {
+        Ok(v) => (Some(v), Some((v - v1).abs() <= bound), talbot_m),
+        Err(_) => (None, None, 0),
+    }
 }
 
 #[cfg(test)]

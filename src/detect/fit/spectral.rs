@@ -117,6 +117,38 @@ pub struct SpectralStart {
 /// `spectrum`). [`Error::Numerical`] when the Lanczos recursion breaks down
 /// (a weight too small for f64) or gives a non-positive diagonal.
 pub fn masses_from_spectrum(springs: &[f64], spectrum: &Spectrum) -> Result<SpectralStart> {
+    check_springs(springs)?;
+    let n = springs.len() - 1;
+    let (lam, res) = (&spectrum.lambda, &spectrum.residue);
+    check_spectrum(lam, res, n)?;
+    let total: f64 = res.iter().sum();
+    let m1 = 1.0 / total;
+    let (diag, off) = lanczos(lam, res.iter().map(|r| (r / total).sqrt()).collect())?;
+    let masses: Vec<f64> = diag
+        .iter()
+        .enumerate()
+        .map(|(i, &a)| (springs[i] + springs[i + 1]) / a)
+        .collect();
+    if masses.iter().any(|m| !(m.is_finite() && *m > 0.0)) {
+        return Err(Error::Numerical {
+            method: "spectral start (Lanczos)".into(),
+            reason: "a non-positive diagonal: the spectrum is not an undamped chain's with these springs".into(),
+        });
+    }
+    // m_1 twice (residue sum, diagonal) and every product twice
+    let mut consistency = (masses[0] / m1 - 1.0).abs();
+    for (i, &b) in off.iter().enumerate() {
+        let prod = springs[i + 1] * springs[i + 1] / (b * b);
+        consistency = consistency.max((prod / (masses[i] * masses[i + 1]) - 1.0).abs());
+    }
+    Ok(SpectralStart {
+        masses,
+        consistency,
+    })
+}
+
+/// `springs`: at least 2, finite, `>= 0`, the inner ones `> 0`.
+fn check_springs(springs: &[f64]) -> Result<()> {
     if springs.len() < 2 || springs.iter().any(|k| !(k.is_finite() && *k >= 0.0)) {
         return Err(Error::invalid(
             "springs",
@@ -124,15 +156,18 @@ pub fn masses_from_spectrum(springs: &[f64], spectrum: &Spectrum) -> Result<Spec
             "n + 1 >= 2 finite values >= 0 (the wall springs included)",
         ));
     }
-    let n = springs.len() - 1;
-    if springs[1..n].contains(&0.0) {
+    if springs[1..springs.len() - 1].contains(&0.0) {
         return Err(Error::invalid(
             "springs",
             "an inner spring of 0",
             "inner springs > 0 (a connected chain)",
         ));
     }
-    let (lam, res) = (&spectrum.lambda, &spectrum.residue);
+    Ok(())
+}
+
+/// `n` eigenvalues and residues, positive and finite, the eigenvalues distinct.
+fn check_spectrum(lam: &[f64], res: &[f64], n: usize) -> Result<()> {
     if lam.len() != n || res.len() != n {
         return Err(Error::invalid(
             "spectrum",
@@ -160,19 +195,21 @@ pub fn masses_from_spectrum(springs: &[f64], spectrum: &Spectrum) -> Result<Spec
             "distinct eigenvalues (a chain's are)",
         ));
     }
-    let total: f64 = res.iter().sum();
-    let m1 = 1.0 / total;
-    // Lanczos on diag(lambda) from sqrt(w), full reorthogonalisation (twice)
+    Ok(())
+}
+
+/// Lanczos on `diag(lam)` from the unit vector `q` (the square roots of the
+/// weights), full reorthogonalisation (twice): the Jacobi matrix's diagonal
+/// and off-diagonal.
+///
+/// # Errors
+/// [`Error::Numerical`] when the recursion breaks down.
+fn lanczos(lam: &[f64], mut q: Vec<f64>) -> Result<(Vec<f64>, Vec<f64>)> {
+    let n = lam.len();
     let mut qs: Vec<Vec<f64>> = Vec::with_capacity(n);
-    let mut q: Vec<f64> = res.iter().map(|r| (r / total).sqrt()).collect();
     let mut diag = Vec::with_capacity(n);
     let mut off = Vec::with_capacity(n.saturating_sub(1));
-    let breakdown = |i: usize| Error::Numerical {
-        method: "spectral start (Lanczos)".into(),
-        reason: format!(
-            "the recursion broke down at row {i}: a weight or a gap below f64 resolution"
-        ),
-    };
+    let scale = lam.iter().fold(0.0f64, |m, v| m.max(*v));
     for i in 0..n {
         let mut z: Vec<f64> = lam.iter().zip(&q).map(|(l, x)| l * x).collect();
         let a: f64 = q.iter().zip(&z).map(|(x, y)| x * y).sum();
@@ -190,34 +227,19 @@ pub fn masses_from_spectrum(springs: &[f64], spectrum: &Spectrum) -> Result<Spec
             }
         }
         let b = z.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let scale = lam.iter().fold(0.0f64, |m, v| m.max(*v));
         if !(b.is_finite() && b > 1e3 * f64::EPSILON * scale) {
-            return Err(breakdown(i + 1));
+            return Err(Error::Numerical {
+                method: "spectral start (Lanczos)".into(),
+                reason: format!(
+                    "the recursion broke down at row {}: a weight or a gap below f64 resolution",
+                    i + 1
+                ),
+            });
         }
         off.push(b);
         q = z.iter().map(|v| v / b).collect();
     }
-    let masses: Vec<f64> = diag
-        .iter()
-        .enumerate()
-        .map(|(i, &a)| (springs[i] + springs[i + 1]) / a)
-        .collect();
-    if masses.iter().any(|m| !(m.is_finite() && *m > 0.0)) {
-        return Err(Error::Numerical {
-            method: "spectral start (Lanczos)".into(),
-            reason: "a non-positive diagonal: the spectrum is not an undamped chain's with these springs".into(),
-        });
-    }
-    // m_1 twice (residue sum, diagonal) and every product twice
-    let mut consistency = (masses[0] / m1 - 1.0).abs();
-    for (i, &b) in off.iter().enumerate() {
-        let prod = springs[i + 1] * springs[i + 1] / (b * b);
-        consistency = consistency.max((prod / (masses[i] * masses[i + 1]) - 1.0).abs());
-    }
-    Ok(SpectralStart {
-        masses,
-        consistency,
-    })
+    Ok((diag, off))
 }
 
 #[cfg(test)]

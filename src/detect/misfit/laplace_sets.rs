@@ -116,49 +116,8 @@ impl<'a> SetTables<'a> {
             .zip(e_o.iter().zip(&e_1))
             .map(|(g, (o, one))| g.pair(o, one))
             .collect();
-        let mut probes = HashMap::new();
-        let mut data = Vec::new();
-        for p in sites {
-            if probes.contains_key(&p) {
-                continue;
-            }
-            let factors: Vec<ProbeFactors<Complex64>> =
-                greens.iter().map(|g| g.factors(p)).collect();
-            let pair = |other: &[ProbeFactors<Complex64>]| -> Vec<Complex64> {
-                greens
-                    .iter()
-                    .zip(factors.iter().zip(other))
-                    .map(|(g, (f, o))| g.pair(f, o))
-                    .collect()
-            };
-            let a = pair(&e_o);
-            let b = if at == 1 { a.clone() } else { pair(&e_1) };
-            let diag = pair(&factors);
-            probes.insert(p, data.len());
-            data.push(ProbeData {
-                factors,
-                a,
-                b,
-                diag,
-            });
-        }
-        let np = data.len();
-        let nq = greens.len();
-        let pairs = (np * np * nq <= MAX_PAIR_TABLE && pair_uses > np * np.saturating_sub(1) / 2)
-            .then(|| {
-                let mut t = vec![Complex64::new(0.0, 0.0); np * np * nq];
-                for (q, g) in greens.iter().enumerate() {
-                    for i in 0..np {
-                        t[(q * np + i) * np + i] = data[i].diag[q];
-                        for j in i + 1..np {
-                            let v = g.pair(&data[i].factors[q], &data[j].factors[q]);
-                            t[(q * np + i) * np + j] = v;
-                            t[(q * np + j) * np + i] = v;
-                        }
-                    }
-                }
-                t
-            });
+        let (probes, data) = probe_data(&greens, sites, &e_o, &e_1, at);
+        let pairs = pair_table(&greens, &data, pair_uses);
         Some(SetTables {
             obs,
             greens,
@@ -209,9 +168,6 @@ impl<'a> SetTables<'a> {
         let zero = Complex64::new(0.0, 0.0);
         let mut a = [zero; MAX_K * MAX_K];
         let mut pw = [zero; MAX_K];
-        let mut minor = [zero; MAX_K * MAX_K];
-        let mut bordered = [zero; (MAX_K + 1) * (MAX_K + 1)];
-        let mut members = [0usize; MAX_K];
         for q in 0..nq {
             for l in 0..k {
                 a[l * k + l] = data[l].diag[q];
@@ -225,31 +181,7 @@ impl<'a> SetTables<'a> {
                 }
                 pw[l] = self.powers[sites[l].power as usize * nq + q];
             }
-            for set in 0..subsets {
-                let mut m = 0;
-                let mut factor = Complex64::new(1.0, 0.0);
-                for l in 0..k {
-                    if set >> l & 1 == 1 {
-                        members[m] = l;
-                        m += 1;
-                        factor *= pw[l];
-                    }
-                }
-                let members = &members[..m];
-                // det(A_SS) and the bordered det [[G_o1, a_S^T], [b_S, A_SS]]
-                let b = m + 1;
-                bordered[0] = self.g_o1[q];
-                for (i, &l) in members.iter().enumerate() {
-                    bordered[i + 1] = data[l].a[q];
-                    bordered[(i + 1) * b] = data[l].b[q];
-                    for (j, &r) in members.iter().enumerate() {
-                        minor[i * m + j] = a[l * k + r];
-                        bordered[(i + 1) * b + j + 1] = a[l * k + r];
-                    }
-                }
-                den[set * nq + q] = det(&mut minor[..m * m], m) * factor;
-                num[set * nq + q] = det(&mut bordered[..b * b], b) * factor * self.scale[q];
-            }
+            self.subset_minors(q, &a[..k * k], &pw[..k], &data, &mut num, &mut den);
         }
         if num
             .iter()
@@ -271,10 +203,122 @@ impl<'a> SetTables<'a> {
         })
     }
 
+    /// At node `q`, for every subset `S` of the `k` sites (capacitance
+    /// `a`, `k x k`; `pw` the sites' `s^p`): the denominator `det(A_SS)` and
+    /// the numerator, the bordered determinant
+    /// `[[G_o1, a_S^T], [b_S, A_SS]]`, each times the product of the
+    /// members' `s^p` (the numerator also times the node's scale), into
+    /// `num[set * nq + q]`, `den[set * nq + q]`.
+    #[inline]
+    fn subset_minors(
+        &self,
+        q: usize,
+        a: &[Complex64],
+        pw: &[Complex64],
+        data: &[&ProbeData],
+        num: &mut [Complex64],
+        den: &mut [Complex64],
+    ) {
+        let k = pw.len();
+        let nq = self.greens.len();
+        let zero = Complex64::new(0.0, 0.0);
+        let mut minor = [zero; MAX_K * MAX_K];
+        let mut bordered = [zero; (MAX_K + 1) * (MAX_K + 1)];
+        let mut members = [0usize; MAX_K];
+        for set in 0..1usize << k {
+            let mut m = 0;
+            let mut factor = Complex64::new(1.0, 0.0);
+            for (l, &p) in pw.iter().enumerate() {
+                if set >> l & 1 == 1 {
+                    members[m] = l;
+                    m += 1;
+                    factor *= p;
+                }
+            }
+            let members = &members[..m];
+            let b = m + 1;
+            bordered[0] = self.g_o1[q];
+            for (i, &l) in members.iter().enumerate() {
+                bordered[i + 1] = data[l].a[q];
+                bordered[(i + 1) * b] = data[l].b[q];
+                for (j, &r) in members.iter().enumerate() {
+                    minor[i * m + j] = a[l * k + r];
+                    bordered[(i + 1) * b + j + 1] = a[l * k + r];
+                }
+            }
+            den[set * nq + q] = det(&mut minor[..m * m], m) * factor;
+            num[set * nq + q] = det(&mut bordered[..b * b], b) * factor * self.scale[q];
+        }
+    }
+
     /// The observed mass.
     pub fn observed(&self) -> usize {
         self.at
     }
+}
+
+/// The data of every distinct probe of `sites` at every node, and each
+/// probe's index in them.
+fn probe_data(
+    greens: &[Green<Complex64>],
+    sites: impl IntoIterator<Item = Probe>,
+    e_o: &[ProbeFactors<Complex64>],
+    e_1: &[ProbeFactors<Complex64>],
+    at: usize,
+) -> (HashMap<Probe, usize>, Vec<ProbeData>) {
+    let mut probes = HashMap::new();
+    let mut data = Vec::new();
+    for p in sites {
+        if probes.contains_key(&p) {
+            continue;
+        }
+        let factors: Vec<ProbeFactors<Complex64>> = greens.iter().map(|g| g.factors(p)).collect();
+        let pair = |other: &[ProbeFactors<Complex64>]| -> Vec<Complex64> {
+            greens
+                .iter()
+                .zip(factors.iter().zip(other))
+                .map(|(g, (f, o))| g.pair(f, o))
+                .collect()
+        };
+        let a = pair(e_o);
+        let b = if at == 1 { a.clone() } else { pair(e_1) };
+        let diag = pair(&factors);
+        probes.insert(p, data.len());
+        data.push(ProbeData {
+            factors,
+            a,
+            b,
+            diag,
+        });
+    }
+    (probes, data)
+}
+
+/// `p_i^T G p_j` of every probe pair at every node, `[(q * np + i) * np + j]`,
+/// when the sets to come use more pairs (`pair_uses`) than the distinct
+/// probes have and the table fits [`MAX_PAIR_TABLE`].
+fn pair_table(
+    greens: &[Green<Complex64>],
+    data: &[ProbeData],
+    pair_uses: usize,
+) -> Option<Vec<Complex64>> {
+    let np = data.len();
+    let nq = greens.len();
+    if !(np * np * nq <= MAX_PAIR_TABLE && pair_uses > np * np.saturating_sub(1) / 2) {
+        return None;
+    }
+    let mut t = vec![Complex64::new(0.0, 0.0); np * np * nq];
+    for (q, g) in greens.iter().enumerate() {
+        for i in 0..np {
+            t[(q * np + i) * np + i] = data[i].diag[q];
+            for j in i + 1..np {
+                let v = g.pair(&data[i].factors[q], &data[j].factors[q]);
+                t[(q * np + i) * np + j] = v;
+                t[(q * np + j) * np + i] = v;
+            }
+        }
+    }
+    Some(t)
 }
 
 /// Determinant of the `m x m` row-major `a`: by the cofactor formulas up to

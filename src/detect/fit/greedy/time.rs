@@ -385,29 +385,48 @@ impl Ctx<'_, '_> {
             method: "greedy (time record)".into(),
             reason: format!("no candidate for defect {j} could be fitted"),
         })?;
-        // the new defect's neighbours, from its fitted value (the linear
-        // score misjudges a large defect: a heavy mass by the wall shifts
-        // the phase of the whole late record)
-        if let Some(i) = (n_fixed..cur.pairs.len()).find(|&i| !prev.pairs.contains(&cur.pairs[i])) {
-            let (kind, at) = cur.pairs[i];
-            let v = cur.chain.defects()[i].value();
-            let n = self.g.base.n();
-            let (lo, hi) = self.g.base.spring_range();
-            let near: Vec<_> = [at.wrapping_sub(2), at.wrapping_sub(1), at + 1, at + 2]
-                .into_iter()
-                .filter(|&q| kind.positions(n).contains(&q))
-                .filter(|&q| kind != DefectKind::Spring || (lo..=hi).contains(&q))
-                .filter(|&q| !cur.pairs.contains(&(kind, q)))
-                .map(|q| (0.0, kind, q, v))
-                .collect();
-            let fits = self.extend(prev, &near, cur.rss, &seen);
-            seen.extend(fits.iter().cloned());
-            if let Some(b) = Self::best_of(fits) {
-                if b.rss < cur.rss * (1.0 - 1e-9) {
-                    cur = b;
-                }
-            }
+        cur = self.neighbours(prev, cur, n_fixed, &mut seen);
+        cur = self.moves(cur, n_fixed, &mut seen)?;
+        Ok(Stage {
+            best: cur,
+            seen,
+            counters: self.counters(),
+        })
+    }
+
+    /// The new defect's neighbours (two positions each side), from its
+    /// fitted value: the linear score misjudges a large defect (a heavy mass
+    /// by the wall shifts the phase of the whole late record). Returns the
+    /// better of `cur` and the best neighbour; every fit is added to `seen`.
+    fn neighbours(&self, prev: &TFit, cur: TFit, n_fixed: usize, seen: &mut Vec<TFit>) -> TFit {
+        let Some(i) = (n_fixed..cur.pairs.len()).find(|&i| !prev.pairs.contains(&cur.pairs[i]))
+        else {
+            return cur;
+        };
+        let (kind, at) = cur.pairs[i];
+        let v = cur.chain.defects()[i].value();
+        let n = self.g.base.n();
+        let (lo, hi) = self.g.base.spring_range();
+        let near: Vec<_> = [at.wrapping_sub(2), at.wrapping_sub(1), at + 1, at + 2]
+            .into_iter()
+            .filter(|&q| kind.positions(n).contains(&q))
+            .filter(|&q| kind != DefectKind::Spring || (lo..=hi).contains(&q))
+            .filter(|&q| !cur.pairs.contains(&(kind, q)))
+            .map(|q| (0.0, kind, q, v))
+            .collect();
+        let fits = self.extend(prev, &near, cur.rss, seen);
+        seen.extend(fits.iter().cloned());
+        match Self::best_of(fits) {
+            Some(b) if b.rss < cur.rss * (1.0 - 1e-9) => b,
+            _ => cur,
         }
+    }
+
+    /// Moves: each placed defect in turn taken out and the best candidates
+    /// for its place refitted, while that improves (at most `max_passes`
+    /// passes); every fit is added to `seen`.
+    fn moves(&self, mut cur: TFit, n_fixed: usize, seen: &mut Vec<TFit>) -> Result<TFit> {
+        let opts = &self.g.opts.time;
         for _ in 0..self.g.opts.max_passes {
             let mut improved = false;
             for p in n_fixed..cur.pairs.len() {
@@ -428,7 +447,7 @@ impl Ctx<'_, '_> {
                 if cands.is_empty() {
                     continue;
                 }
-                let fits = self.extend(&rest, &cands, cur.rss, &seen);
+                let fits = self.extend(&rest, &cands, cur.rss, seen);
                 seen.extend(fits.iter().cloned());
                 if let Some(b) = Self::best_of(fits) {
                     if b.rss < cur.rss * (1.0 - 1e-9) {
@@ -441,11 +460,7 @@ impl Ctx<'_, '_> {
                 break;
             }
         }
-        Ok(Stage {
-            best: cur,
-            seen,
-            counters: self.counters(),
-        })
+        Ok(cur)
     }
 
     /// Refit the free values of `pairs` (slot order, `slot_of` their slots)
@@ -512,22 +527,7 @@ impl Ctx<'_, '_> {
         let lm = lm_normal(&mut problem, &mut theta, &bounds, &lm_opts)?;
         self.count(1, problem.evaluations, 0, 0);
         let chain = problem.chain_at(&theta)?;
-        let p = free.len();
-        let mut se_unit = vec![0.0; pairs.len()];
-        if let Some((_, th, h)) = &problem.best {
-            if *th == theta {
-                // (J_u^T J_u)^-1 = s^2 (J^T J)^-1 with J = s J_u
-                let m = nalgebra::DMatrix::from_row_slice(p, p, h);
-                let inv = m.try_inverse();
-                for (c, &j) in free.iter().enumerate() {
-                    se_unit[j] = inv
-                        .as_ref()
-                        .map(|i| i[(c, c)])
-                        .filter(|v| *v >= 0.0)
-                        .map_or(f64::NAN, |v| v.sqrt() * problem.scale);
-                }
-            }
-        }
+        let se_unit = problem.unit_errors(&theta, pairs.len());
         Ok(TFit {
             pairs,
             chain,
@@ -535,6 +535,30 @@ impl Ctx<'_, '_> {
             se_unit,
             converged: lm.converged && !problem.abandoned,
         })
+    }
+}
+
+impl Values<'_> {
+    /// Standard errors at unit noise of the defect values (0 for a held
+    /// one; all 0 when the last normal matrix is not at `theta`):
+    /// `(J_u^T J_u)^-1 = s^2 (J^T J)^-1` with `J = s J_u`.
+    fn unit_errors(&self, theta: &[f64], k: usize) -> Vec<f64> {
+        let mut se_unit = vec![0.0; k];
+        let p = self.free.len();
+        if let Some((_, th, h)) = &self.best {
+            if th.as_slice() == theta {
+                let m = nalgebra::DMatrix::from_row_slice(p, p, h);
+                let inv = m.try_inverse();
+                for (c, &j) in self.free.iter().enumerate() {
+                    se_unit[j] = inv
+                        .as_ref()
+                        .map(|i| i[(c, c)])
+                        .filter(|v| *v >= 0.0)
+                        .map_or(f64::NAN, |v| v.sqrt() * self.scale);
+                }
+            }
+        }
+        se_unit
     }
 }
 
