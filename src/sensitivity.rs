@@ -243,86 +243,128 @@ pub fn gradient<T: Scalar>(
         Some(green_column(chain, s.clone(), observe)?)
     };
     let go_ref: &[T] = go.as_deref().unwrap_or(&g1);
-    let n = chain.n();
     let value = g1[observe - 1].scale(gamma);
-    // bilinear forms: point p (1-based) and spring j (joins j, j+1; 0 and n walls)
-    let at = |v: &[T], i: usize| -> T {
-        if i == 0 || i > n {
+    let forms = Forms {
+        go: go_ref,
+        g1: &g1,
+        n: chain.n(),
+    };
+    let sites = DefectSites::of(chain);
+    let mut grad = Vec::with_capacity(params.len());
+    for p in params {
+        // b = (G e_o)^T dK (G e_1); derivative = -gamma b
+        match forms.form(chain, p, &sites, &s)? {
+            Some(b) => grad.push(-b.scale(gamma)),
+            None => grad.push(go_ref[0].clone()),
+        }
+    }
+    Ok(Gradient { value, grad })
+}
+
+/// The bilinear forms of [`gradient`] between the Green columns of the
+/// observed mass (`go`) and of mass 1 (`g1`).
+struct Forms<'a, T> {
+    go: &'a [T],
+    g1: &'a [T],
+    n: usize,
+}
+
+/// The sites a defect takes over from the uniform parameters: masses,
+/// dampers (1-based) and springs (0-based).
+struct DefectSites {
+    mass: Vec<bool>,
+    damp: Vec<bool>,
+    spring: Vec<bool>,
+}
+
+impl DefectSites {
+    fn of(chain: &Chain) -> DefectSites {
+        let n = chain.n();
+        let mut out = DefectSites {
+            mass: vec![false; n + 1],
+            damp: vec![false; n + 1],
+            spring: vec![false; n + 1],
+        };
+        for site in chain.defects().iter().map(|d| d.site()) {
+            match (site.probe, site.power) {
+                (Probe::Point(at), 2) => out.mass[at] = true,
+                (Probe::Point(at), 1) => out.damp[at] = true,
+                (Probe::Diff(at), 0) => out.spring[at] = true,
+                _ => {}
+            }
+        }
+        out
+    }
+}
+
+impl<T: Scalar> Forms<'_, T> {
+    /// Entry `i` (1-based) of `v`, zero at the walls (`0` and `n + 1`).
+    fn at(&self, v: &[T], i: usize) -> T {
+        if i == 0 || i > self.n {
             T::zero()
         } else {
             v[i - 1].clone()
         }
-    };
-    let point = |p: usize| -> T { at(go_ref, p) * at(&g1, p) };
-    let spring =
-        |j: usize| -> T { (at(go_ref, j) - at(go_ref, j + 1)) * (at(&g1, j) - at(&g1, j + 1)) };
-    let s2 = s.clone() * s.clone();
-    let s_pow = |power: u32| -> T {
-        match power {
-            0 => T::one(),
-            1 => s.clone(),
-            _ => s2.clone(),
-        }
-    };
-    // the sites a defect takes over from the uniform parameters
-    let mut mass_def = vec![false; n + 1];
-    let mut damp_def = vec![false; n + 1];
-    let mut spring_def = vec![false; n + 1];
-    for site in chain.defects().iter().map(|d| d.site()) {
-        match (site.probe, site.power) {
-            (Probe::Point(at), 2) => mass_def[at] = true,
-            (Probe::Point(at), 1) => damp_def[at] = true,
-            (Probe::Diff(at), 0) => spring_def[at] = true,
-            _ => {}
-        }
     }
-    let mut grad = Vec::with_capacity(params.len());
-    for p in params {
-        // b = (G e_o)^T dK (G e_1); derivative = -gamma b
+
+    /// The form of point `p` (1-based).
+    fn point(&self, p: usize) -> T {
+        self.at(self.go, p) * self.at(self.g1, p)
+    }
+
+    /// The form of spring `j` (joins `j`, `j + 1`; `0` and `n` the walls).
+    fn spring(&self, j: usize) -> T {
+        (self.at(self.go, j) - self.at(self.go, j + 1))
+            * (self.at(self.g1, j) - self.at(self.g1, j + 1))
+    }
+
+    /// `b = (G e_o)^T dK (G e_1)` of parameter `p` (`None` for `Gamma`,
+    /// whose derivative is `X_o / gamma`, not of this form).
+    fn form(&self, chain: &Chain, p: &Param, sites: &DefectSites, s: &T) -> Result<Option<T>> {
+        let s2 = s.clone() * s.clone();
         let b = match *p {
             Param::Defect(i) => {
                 let site = p.defect(chain, i)?.site();
                 let u = match site.probe {
-                    Probe::Point(at) => point(at),
-                    Probe::Diff(at) => spring(at),
+                    Probe::Point(at) => self.point(at),
+                    Probe::Diff(at) => self.spring(at),
                 };
-                s_pow(site.power) * u
+                let s_pow = match site.power {
+                    0 => T::one(),
+                    1 => s.clone(),
+                    _ => s2,
+                };
+                s_pow * u
             }
-            Param::Mass => {
-                let mut acc = T::zero();
-                for (i, _) in mass_def.iter().enumerate().skip(1).filter(|(_, d)| !**d) {
-                    acc = acc + point(i);
-                }
-                s2.clone() * acc
-            }
-            Param::D => {
-                let mut acc = T::zero();
-                for (i, _) in damp_def.iter().enumerate().skip(1).filter(|(_, d)| !**d) {
-                    acc = acc + point(i);
-                }
-                s.clone() * acc
-            }
+            Param::Mass => s2 * self.points(&sites.mass),
+            Param::D => s.clone() * self.points(&sites.damp),
             Param::K => {
                 // the springs that exist (a free end has no wall spring)
                 let (lo, hi) = chain.spring_range();
                 let mut acc = T::zero();
-                for (j, _) in spring_def
+                for (j, _) in sites
+                    .spring
                     .iter()
                     .enumerate()
                     .filter(|(j, d)| !**d && *j >= lo && *j <= hi)
                 {
-                    acc = acc + spring(j);
+                    acc = acc + self.spring(j);
                 }
                 acc
             }
-            Param::Gamma => {
-                grad.push(go_ref[0].clone());
-                continue;
-            }
+            Param::Gamma => return Ok(None),
         };
-        grad.push(-b.scale(gamma));
+        Ok(Some(b))
     }
-    Ok(Gradient { value, grad })
+
+    /// The sum of the point forms of the masses not taken by a defect.
+    fn points(&self, taken: &[bool]) -> T {
+        let mut acc = T::zero();
+        for (i, _) in taken.iter().enumerate().skip(1).filter(|(_, d)| !**d) {
+            acc = acc + self.point(i);
+        }
+        acc
+    }
 }
 
 /// Does `param` change the mass of mass 1?

@@ -776,6 +776,53 @@ impl Slot {
 /// A hypothesis of a general fit: `(kind, position)` per slot.
 pub type KindPositions = Vec<(DefectKind, usize)>;
 
+/// The checks of slot `i` of `slots` (see [`Unknowns::new`]): its known
+/// position distinct and of its kind, its known value in the kind's range,
+/// its bounds.
+fn check_slot(n: usize, slots: &[Slot], i: usize) -> Result<()> {
+    let s = &slots[i];
+    if let Some(at) = s.at {
+        if let Some(j) = slots[..i]
+            .iter()
+            .position(|o| o.at == Some(at) && o.kind == s.kind)
+        {
+            return Err(Error::invalid(
+                format!("unknowns.defects[{i}].at"),
+                at,
+                format!("distinct from unknowns.defects[{j}].at"),
+            ));
+        }
+        if !s.kind.kinds().iter().any(|k| k.positions(n).contains(&at)) {
+            return Err(Error::invalid(
+                format!("unknowns.defects[{i}].at"),
+                at,
+                format!(
+                    "a {} position of n = {n} (masses and dampers 1..=n, springs 0..=n)",
+                    s.kind.name()
+                ),
+            ));
+        }
+    }
+    if let Some(v) = s.known {
+        let ok = match s.kind.kinds() {
+            [kind] => v > 0.0 || (v == 0.0 && kind.may_vanish()),
+            _ => false,
+        };
+        if !(v.is_finite() && ok) {
+            return Err(Error::invalid(
+                format!("unknowns.defects[{i}].m"),
+                v,
+                "finite, in the kind's range, and a concrete kind",
+            ));
+        }
+    }
+    if let Some((lo, hi)) = s.bounds {
+        let positive = s.kind.kinds().iter().any(|k| !k.may_vanish());
+        check_bounds(&format!("unknowns.defects[{i}].bounds"), [lo, hi], positive)?;
+    }
+    Ok(())
+}
+
 /// Validated unknowns of a fit (see the module docs).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Unknowns {
@@ -819,46 +866,8 @@ impl Unknowns {
                 ),
             ));
         }
-        for (i, s) in slots.iter().enumerate() {
-            if let Some(at) = s.at {
-                if let Some(j) = slots[..i]
-                    .iter()
-                    .position(|o| o.at == Some(at) && o.kind == s.kind)
-                {
-                    return Err(Error::invalid(
-                        format!("unknowns.defects[{i}].at"),
-                        at,
-                        format!("distinct from unknowns.defects[{j}].at"),
-                    ));
-                }
-                if !s.kind.kinds().iter().any(|k| k.positions(n).contains(&at)) {
-                    return Err(Error::invalid(
-                        format!("unknowns.defects[{i}].at"),
-                        at,
-                        format!(
-                            "a {} position of n = {n} (masses and dampers 1..=n, springs 0..=n)",
-                            s.kind.name()
-                        ),
-                    ));
-                }
-            }
-            if let Some(v) = s.known {
-                let ok = match s.kind.kinds() {
-                    [kind] => v > 0.0 || (v == 0.0 && kind.may_vanish()),
-                    _ => false,
-                };
-                if !(v.is_finite() && ok) {
-                    return Err(Error::invalid(
-                        format!("unknowns.defects[{i}].m"),
-                        v,
-                        "finite, in the kind's range, and a concrete kind",
-                    ));
-                }
-            }
-            if let Some((lo, hi)) = s.bounds {
-                let positive = s.kind.kinds().iter().any(|k| !k.may_vanish());
-                check_bounds(&format!("unknowns.defects[{i}].bounds"), [lo, hi], positive)?;
-            }
+        for i in 0..slots.len() {
+            check_slot(n, &slots, i)?;
         }
         for (i, p) in chain.iter().enumerate() {
             if matches!(p, Param::Defect(_)) || chain[..i].contains(p) {

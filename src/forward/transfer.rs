@@ -247,16 +247,23 @@ impl Transfer {
         gamma: f64,
         work: &mut SweepWork<T>,
     ) -> T {
+        let z1 = self.backward(s, pw, &mut work.swept);
+        self.forward(pw, sites, gamma, &work.swept, &mut work.out);
+        z1
+    }
+
+    /// The backward sweep: `E` at each segment's left index into `swept`
+    /// (in the order of the segments); returns `Z_1`.
+    #[inline]
+    fn backward<T: Scalar, P: Powers<T>>(&self, s: &T, pw: &P, swept: &mut Vec<Swept<T>>) -> T {
         let k = self.k;
         let mut z1 = T::zero();
-        let lam = pw.lam();
-        let stat = lam.is_zero();
-        let qpow = |p: usize| -> T { pw.q(p) };
+        let stat = pw.lam().is_zero();
         let one_m_q = pw.one_m_q(1);
         let one_m_q2 = pw.one_m_q(2);
         let em1k = pw.em1().scale(k);
         let ek = pw.e_lam().scale(k);
-        let q = qpow(1);
+        let q = pw.q(1);
         // 1 - psi = (1 - q^2) / (E_{r+1} / (k e^lambda) + q (1 - q))
         //         = (1 - q^2) k e^lambda / (E_{r+1} + k e^lambda q (1 - q)):
         // one division, a sum of positive terms for real s
@@ -264,11 +271,6 @@ impl Transfer {
         let omp_shift = ek * q.clone() * one_m_q;
         let s2 = s.clone() * s.clone();
         let local = |m: f64, d: f64| -> T { s2.scale(m) + s.scale(d) };
-        // B(p) = (1 - q^{2p}) + (1 - psi) q^{2p}
-        let big_b = |p: usize, omp: &T| -> T { pw.one_m_q(2 * p) + omp.clone() * qpow(2 * p) };
-
-        // ---- backward sweep: E at each segment's left index ----
-        let swept = &mut work.swept;
         swept.clear();
         // `E_{i+1}` of the index right of the current segment as a fraction
         // `(num, den)`; None at the wall.
@@ -310,8 +312,8 @@ impl Transfer {
                             Some((e, _)) => omp_num.clone() / (e.clone() + omp_shift.clone()),
                         };
                         let psi = T::one() - omp.clone();
-                        let num = T::one() + psi * qpow(2 * p + 1);
-                        (em1k.clone() * num, big_b(p, &omp), omp)
+                        let num = T::one() + psi * pw.q(2 * p + 1);
+                        (em1k.clone() * num, big_b(pw, p, &omp), omp)
                     };
                     swept.push(Swept {
                         e_num: en.clone(),
@@ -323,9 +325,22 @@ impl Transfer {
             }
         }
         swept.reverse();
+        z1
+    }
 
-        // ---- forward substitution through the sites ----
-        let out = &mut work.out;
+    /// The forward substitution through the sites: `X` at each site into
+    /// `out` (NaN for sites out of order or beyond `n`).
+    #[inline]
+    fn forward<T: Scalar, P: Powers<T>>(
+        &self,
+        pw: &P,
+        sites: &[usize],
+        gamma: f64,
+        swept: &[Swept<T>],
+        out: &mut Vec<T>,
+    ) {
+        let k = self.k;
+        let stat = pw.lam().is_zero();
         out.clear();
         let mut next = 0;
         // X at the last index crossed, as `x / x_den` (a run without sites
@@ -354,20 +369,9 @@ impl Transfer {
                     kappa_left = kr;
                 }
                 Seg::Run { l, r } => {
-                    let pl = r + 1 - l;
                     let inside = next < sites.len() && sites[next] >= l && sites[next] <= r;
                     if !stat && !inside && l != 1 {
-                        // X_r = X_{l-1} kappa q^{r-l} B(1) / (D_l B(p_l)),
-                        // D_l = E_l + k = (e_num + k e_den) / e_den: no division
-                        let dd = sw.e_num.clone() + sw.e_den.scale(k);
-                        let mut xn = x.scale(kappa_left) * sw.e_den.clone();
-                        let mut xd = x_den * dd;
-                        if r > l {
-                            xn = xn * qpow(r - l) * big_b(1, &sw.one_m_psi);
-                            xd = xd * big_b(pl, &sw.one_m_psi);
-                        }
-                        x = xn;
-                        x_den = xd;
+                        (x, x_den) = cross_run(pw, k, sw, l, r, x.scale(kappa_left), x_den);
                         kappa_left = k;
                         continue;
                     }
@@ -378,24 +382,12 @@ impl Transfer {
                     } else {
                         x.scale(kappa_left) / dd
                     };
-                    let ratio = |target: usize| -> T {
-                        let pt = r + 1 - target;
-                        if stat {
-                            // static displacement is linear: Y ~ p + k / E_{r+1}
-                            let c0 = sw.one_m_psi.clone();
-                            (T::from_f64(pt as f64) + c0.clone()) / (T::from_f64(pl as f64) + c0)
-                        } else if target == l {
-                            T::one()
-                        } else {
-                            qpow(target - l) * big_b(pt, &sw.one_m_psi) / big_b(pl, &sw.one_m_psi)
-                        }
-                    };
                     while next < sites.len() && sites[next] >= l && sites[next] <= r {
-                        out.push(xl.clone() * ratio(sites[next]));
+                        out.push(xl.clone() * run_ratio(pw, stat, sw, l, r, sites[next]));
                         next += 1;
                     }
                     if next < sites.len() {
-                        x = xl * ratio(r);
+                        x = xl * run_ratio(pw, stat, sw, l, r, r);
                     }
                     kappa_left = k;
                 }
@@ -403,7 +395,59 @@ impl Transfer {
         }
         // sites out of order or beyond n
         out.resize(sites.len(), T::from_f64(f64::NAN));
-        z1
+    }
+}
+
+/// `B(p) = (1 - q^{2p}) + (1 - psi) q^{2p}`.
+#[inline]
+fn big_b<T: Scalar, P: Powers<T>>(pw: &P, p: usize, omp: &T) -> T {
+    pw.one_m_q(2 * p) + omp.clone() * pw.q(2 * p)
+}
+
+/// Across a run `l..=r` without sites (not at the wall, `s` not static),
+/// from `X_{l-1} kappa = xk` (over `x_den`): `X_r = X_{l-1} kappa q^{r-l}
+/// B(1) / (D_l B(p_l))`, `D_l = E_l + k = (e_num + k e_den) / e_den`, as a
+/// fraction: no division.
+#[inline]
+fn cross_run<T: Scalar, P: Powers<T>>(
+    pw: &P,
+    k: f64,
+    sw: &Swept<T>,
+    l: usize,
+    r: usize,
+    xk: T,
+    x_den: T,
+) -> (T, T) {
+    let dd = sw.e_num.clone() + sw.e_den.scale(k);
+    let mut xn = xk * sw.e_den.clone();
+    let mut xd = x_den * dd;
+    if r > l {
+        xn = xn * pw.q(r - l) * big_b(pw, 1, &sw.one_m_psi);
+        xd = xd * big_b(pw, r + 1 - l, &sw.one_m_psi);
+    }
+    (xn, xd)
+}
+
+/// `X_target / X_l` inside a run `l..=r`.
+#[inline]
+fn run_ratio<T: Scalar, P: Powers<T>>(
+    pw: &P,
+    stat: bool,
+    sw: &Swept<T>,
+    l: usize,
+    r: usize,
+    target: usize,
+) -> T {
+    let pl = r + 1 - l;
+    let pt = r + 1 - target;
+    if stat {
+        // static displacement is linear: Y ~ p + k / E_{r+1}
+        let c0 = sw.one_m_psi.clone();
+        (T::from_f64(pt as f64) + c0.clone()) / (T::from_f64(pl as f64) + c0)
+    } else if target == l {
+        T::one()
+    } else {
+        pw.q(target - l) * big_b(pw, pt, &sw.one_m_psi) / big_b(pw, pl, &sw.one_m_psi)
     }
 }
 

@@ -1,7 +1,7 @@
 //! `config check`: every problem of a study file in one pass.
 
 use super::config::{
-    check_structure, Aggregate, InvalidCases, StudyFile, MAIN_PART, PART_COLUMN, STUDY_FIELDS,
+    check_structure, Aggregate, Axis, InvalidCases, StudyFile, MAIN_PART, PART_COLUMN, STUDY_FIELDS,
 };
 use super::kinds::{typed_scene, Kind};
 use super::paths::remove_path;
@@ -24,15 +24,9 @@ use crate::error::Error;
 /// assert!(problems[0].message.contains("did you mean 'seed'"));
 /// ```
 pub fn check(text: &str) -> Vec<Problem> {
-    let value: toml::Table = match toml::from_str(text) {
+    let value = match parse_table(text) {
         Ok(v) => v,
-        Err(e) => {
-            return vec![Problem {
-                path: String::new(),
-                line: e.span().map(|s| line_of(text, s.start)),
-                message: format!("not valid TOML: {}", one_line(e.message())),
-            }]
-        }
+        Err(p) => return p,
     };
     let locate = Locator::new(text);
     // unknown fields everywhere (the scenes against their kinds' schemas)
@@ -69,401 +63,434 @@ pub fn check(text: &str) -> Vec<Problem> {
     problems
 }
 
+/// `text` as a TOML table, or the one problem of its syntax.
+fn parse_table(text: &str) -> Result<toml::Table, Vec<Problem>> {
+    toml::from_str(text).map_err(|e: toml::de::Error| {
+        vec![Problem {
+            path: String::new(),
+            line: e.span().map(|s| line_of(text, s.start)),
+            message: format!("not valid TOML: {}", one_line(e.message())),
+        }]
+    })
+}
+
 /// `((path, message), (first failing case, failing cases, line at the axis))`.
 type Found = ((String, String), (usize, usize, Option<usize>));
 
 /// Checks that need the whole study: axes, report references, every case.
 fn check_semantics(file: &StudyFile, locate: &Locator) -> Vec<Problem> {
-    let problems = std::cell::RefCell::new(Vec::new());
-    let push = |path: String, message: String| {
-        let line = locate.line(&path);
-        problems.borrow_mut().push(Problem {
-            path,
-            line,
-            message,
-        })
+    let mut c = Semantics {
+        file,
+        locate,
+        problems: Vec::new(),
+        names: vec![MAIN_PART],
+        columns: vec!["repeat".into()],
     };
-    let name = &file.study.name;
-    if name.is_empty()
-        || !name
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
-        || name.starts_with('.')
-    {
-        push(
-            "study.name".into(),
-            format!("{name:?} is not allowed: use letters, digits, '-', '_', '.', not starting with '.'"),
-        );
-    }
-    if file.study.repeats == 0 {
-        push(
-            "study.repeats".into(),
-            "0 is not allowed: repeats >= 1".into(),
-        );
-    }
-    let mut columns: Vec<String> = vec!["repeat".into()];
-    if !file.part.is_empty() {
-        columns.push(PART_COLUMN.into());
-    }
-    let mut names: Vec<&str> = vec![MAIN_PART];
-    for (i, p) in file.part.iter().enumerate() {
-        let n = p.name.as_str();
-        if n.is_empty()
-            || !n
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
-        {
-            push(
-                format!("part[{i}].name"),
-                format!("{n:?} is not allowed: use letters, digits, '-', '_', '.'"),
-            );
-        } else if names.contains(&n) {
-            push(
-                format!("part[{i}].name"),
-                format!("{n:?} is used twice (`main` is the part of [scene] and [[sweep]])"),
-            );
-        }
-        names.push(n);
-    }
-    let part_axes = std::iter::once((String::new(), &file.sweep)).chain(
-        file.part
-            .iter()
-            .enumerate()
-            .map(|(i, p)| (format!("part[{i}]."), &p.sweep)),
-    );
-    for (prefix, axes) in part_axes {
-        let mut own: Vec<String> = Vec::new();
-        for (i, axis) in axes.iter().enumerate() {
-            if let Err(e) = sweep::axis_values(axis) {
-                push(format!("{prefix}sweep[{i}]"), e);
-            }
-            if let Err(e) = sweep::parse_path(&axis.path) {
-                push(format!("{prefix}sweep[{i}].path"), e);
-            }
-            let col = axis.column().to_string();
-            if own.contains(&col) || col == "repeat" || col == PART_COLUMN {
-                push(
-                    format!("{prefix}sweep[{i}].name"),
-                    format!("axis column {col:?} is used twice (give the axes distinct `name`s)"),
-                );
-            }
-            own.push(col.clone());
-            if !columns.contains(&col) {
-                columns.push(col);
-            }
-        }
-    }
-    // a report item's `part` must name a part; its metrics are those of the
-    // kinds of the parts it covers
-    let check_part = |path: String, part: &Option<String>| {
-        if let Some(p) = part {
-            if !names.contains(&p.as_str()) {
-                push(
-                    path,
-                    format!("{p:?} is not a part; parts: {}", names.join(", ")),
-                );
-            }
-        }
-    };
-    // an unknown part is reported once (check_part); its metrics are then
-    // checked against every kind
-    let known_part = |part: &Option<String>| -> Option<String> {
-        part.clone().filter(|p| names.contains(&p.as_str()))
-    };
-    let kinds_label = |part: &Option<String>| {
-        file.kinds_of(known_part(part).as_deref())
-            .iter()
-            .map(|k| k.name())
-            .collect::<Vec<_>>()
-            .join(" or ")
-    };
-    let known_metric = |m: &str, part: &Option<String>| {
-        file.kinds_of(known_part(part).as_deref())
-            .iter()
-            .any(|k| k.metrics().iter().any(|x| x.0 == m))
-    };
-    let metric_list = |part: &Option<String>| {
-        let mut v: Vec<&str> = Vec::new();
-        for k in file.kinds_of(known_part(part).as_deref()) {
-            for m in k.metrics() {
-                if !v.contains(&m.0) {
-                    v.push(m.0);
-                }
-            }
-        }
-        v.join(", ")
-    };
-    for (i, t) in file.report.table.iter().enumerate() {
-        for (j, r) in t.rows.iter().flatten().enumerate() {
-            if !columns.contains(r) {
-                push(
-                    format!("report.table[{i}].rows[{j}]"),
-                    format!("{r:?} is not an axis column; axes: {}", columns.join(", ")),
-                );
-            }
-        }
-        check_part(format!("report.table[{i}].part"), &t.part);
-        for (j, m) in t.metrics.iter().flatten().enumerate() {
-            if !known_metric(m, &t.part) {
-                push(
-                    format!("report.table[{i}].metrics[{j}]"),
-                    format!(
-                        "{m:?} is not a metric of kind {}; metrics: {}",
-                        kinds_label(&t.part),
-                        metric_list(&t.part)
-                    ),
-                );
-            }
-        }
-    }
-    for (i, p) in file.report.plot.iter().enumerate() {
-        if !columns.contains(&p.x) {
-            push(
-                format!("report.plot[{i}].x"),
-                format!(
-                    "{:?} is not an axis column; axes: {}",
-                    p.x,
-                    columns.join(", ")
-                ),
-            );
-        }
-        if let Some(s) = &p.series {
-            if !columns.contains(s) {
-                push(
-                    format!("report.plot[{i}].series"),
-                    format!("{s:?} is not an axis column; axes: {}", columns.join(", ")),
-                );
-            }
-        }
-        check_part(format!("report.plot[{i}].part"), &p.part);
-        if !known_metric(&p.y, &p.part) {
-            push(
-                format!("report.plot[{i}].y"),
-                format!(
-                    "{:?} is not a metric of kind {}; metrics: {}",
-                    p.y,
-                    kinds_label(&p.part),
-                    metric_list(&p.part)
-                ),
-            );
-        }
-    }
-    for (i, h) in file.report.heatmap.iter().enumerate() {
-        for (field, col) in [("x", &h.x), ("y", &h.y)] {
-            if !columns.contains(col) {
-                push(
-                    format!("report.heatmap[{i}].{field}"),
-                    format!(
-                        "{col:?} is not an axis column; axes: {}",
-                        columns.join(", ")
-                    ),
-                );
-            }
-        }
-        check_part(format!("report.heatmap[{i}].part"), &h.part);
-        if !known_metric(&h.z, &h.part) {
-            push(
-                format!("report.heatmap[{i}].z"),
-                format!(
-                    "{:?} is not a metric of kind {}; metrics: {}",
-                    h.z,
-                    kinds_label(&h.part),
-                    metric_list(&h.part)
-                ),
-            );
-        }
-    }
-    for (i, t) in file.report.trace.iter().enumerate() {
-        check_part(format!("report.trace[{i}].part"), &t.part);
-        if !file
-            .kinds_of(known_part(&t.part).as_deref())
-            .contains(&Kind::Fit)
-        {
-            push(
-                format!("report.trace[{i}]"),
-                format!(
-                    "optimizer traces are recorded by kind fit only, not {}",
-                    kinds_label(&t.part)
-                ),
-            );
-        }
-        for (j, c) in t.series.iter().flatten().enumerate() {
-            if !columns.contains(c) {
-                push(
-                    format!("report.trace[{i}].series[{j}]"),
-                    format!("{c:?} is not an axis column; axes: {}", columns.join(", ")),
-                );
-            }
-        }
-        for (c, v) in &t.filter {
-            if !columns.contains(c) {
-                push(
-                    format!("report.trace[{i}].filter.{c}"),
-                    format!("{c:?} is not an axis column; axes: {}", columns.join(", ")),
-                );
-            }
-            let ok = match v {
-                toml::Value::String(_) => true,
-                toml::Value::Array(a) => a.iter().all(|x| x.is_str()),
-                _ => false,
-            };
-            if !ok {
-                push(
-                    format!("report.trace[{i}].filter.{c}"),
-                    "a label (string) or an array of labels".into(),
-                );
-            }
-        }
-        if matches!(t.aggregate, Aggregate::Rate | Aggregate::Count) {
-            push(
-                format!("report.trace[{i}].aggregate"),
-                format!(
-                    "{:?} is not allowed here: median, mean, min or max",
-                    t.aggregate.name()
-                ),
-            );
-        }
-    }
+    c.study_block();
+    c.part_names();
+    c.sweep_axes();
+    c.report_tables();
+    c.report_plots();
+    c.report_heatmaps();
+    c.report_traces();
     let axes_ok = file
         .sweep
         .iter()
         .chain(file.part.iter().flat_map(|p| &p.sweep))
         .all(|a| sweep::axis_values(a).is_ok() && sweep::parse_path(&a.path).is_ok());
-    if !axes_ok || file.study.repeats == 0 {
-        return problems.into_inner();
+    if axes_ok && file.study.repeats > 0 {
+        c.cases();
     }
-    let skip = file.study.invalid_cases == InvalidCases::Skip;
-    // Every case: the kind's deserialisation and semantic checks. One problem
-    // per distinct message (a bad base field fails every case alike).
-    match sweep::expand(file) {
-        Err(e) => push(String::new(), e.to_string()),
-        Ok(cases) => {
-            // (path, message) -> (first failing case, number of failing cases),
-            // in order of first appearance
-            let mut found: Vec<Found> = Vec::new();
-            for (ci, case) in cases.iter().enumerate() {
-                let errs = case.kind.validate_all(&case.scene);
-                // with `skip`, unknown fields and values of the wrong type
-                // still are errors (a misspelling or a type error would
-                // otherwise skip every case): only failed range checks skip
-                let errs: Vec<Error> = errs
-                    .into_iter()
-                    .filter(|e| {
-                        !skip
-                            || matches!(e, Error::InvalidParameter { value, .. } if value == "present" || value == "?")
-                    })
-                    .collect();
-                // the scene and the axes of the case's part
-                let (scene, prefix, axes) = match case.params.first() {
-                    Some(p) if p.column == PART_COLUMN && p.label != MAIN_PART => {
-                        let i = file
-                            .part
-                            .iter()
-                            .position(|x| x.name == p.label)
-                            .unwrap_or(0);
-                        (
-                            format!("part[{i}].scene"),
-                            format!("part[{i}]."),
-                            file.part.get(i).map(|p| &p.sweep[..]).unwrap_or(&[]),
-                        )
-                    }
-                    _ => ("scene".to_string(), String::new(), &file.sweep[..]),
-                };
-                for e in errs {
-                    let (path, message) = plain_message(&e, Some(&case.scene), case.kind.schema());
-                    // a field set by an axis is reported at the axis
-                    let line = axes
-                        .iter()
-                        .position(|a| {
-                            path == a.path
-                                || path.starts_with(&format!("{}.", a.path))
-                                || path.starts_with(&format!("{}[", a.path))
-                        })
-                        .and_then(|i| {
-                            let field = if message.starts_with("unknown field") {
-                                "path"
-                            } else if axes[i].values.is_some() {
-                                "values"
-                            } else {
-                                "range"
-                            };
-                            locate
-                                .line(&format!("{prefix}sweep[{i}].{field}"))
-                                .or_else(|| locate.line(&format!("{prefix}sweep[{i}]")))
-                        });
-                    let path = if path.is_empty() || path == "scene" {
-                        scene.clone()
-                    } else {
-                        format!("{scene}.{path}")
-                    };
-                    let key = (path, message);
-                    match found.iter_mut().find(|(k, _)| *k == key) {
-                        Some((_, (_, count, _))) => *count += 1,
-                        None => found.push((key, (ci, 1, line))),
-                    }
-                }
-            }
-            for t in &file.report.trace {
-                let untraced: Vec<usize> = (0..cases.len())
-                    .filter(|&i| {
-                        cases[i].kind == Kind::Fit
-                            && t.part.as_deref().is_none_or(|p| {
-                                cases[i]
-                                    .params
-                                    .first()
-                                    .is_some_and(|x| x.column == PART_COLUMN && x.label == p)
-                                    || (p == MAIN_PART && file.part.is_empty())
-                            })
-                            && cases[i]
-                                .scene
-                                .get("search")
-                                .and_then(|s| s.get("trace"))
-                                .and_then(|t| t.as_bool())
-                                != Some(true)
-                    })
-                    .collect();
-                let key = (
-                    "scene.search.trace".to_string(),
-                    "report.trace needs the optimizer trace of every case: set search.trace = true (in every value of a swept `search` table too)".to_string(),
+    c.problems
+}
+
+/// The state of [`check_semantics`]: the problems found so far, the part
+/// names and the axis columns (the names report items may refer to).
+struct Semantics<'a> {
+    file: &'a StudyFile,
+    locate: &'a Locator,
+    problems: Vec<Problem>,
+    /// `main` and the names of the `[[part]]`s, in file order.
+    names: Vec<&'a str>,
+    /// `repeat`, the part column when there are parts, then every axis column.
+    columns: Vec<String>,
+}
+
+/// Whether `name` is made of letters, digits, '-', '_' and '.' only (and is not empty).
+fn plain_name(name: &str) -> bool {
+    !name.is_empty()
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
+}
+
+impl<'a> Semantics<'a> {
+    /// A problem at `path`, on the line of `path` in the file.
+    fn push(&mut self, path: String, message: String) {
+        let line = self.locate.line(&path);
+        self.problems.push(Problem {
+            path,
+            line,
+            message,
+        })
+    }
+
+    /// `[study]`: the name (a file name) and the number of repeats.
+    fn study_block(&mut self) {
+        let name = &self.file.study.name;
+        if !plain_name(name) || name.starts_with('.') {
+            self.push(
+                "study.name".into(),
+                format!("{name:?} is not allowed: use letters, digits, '-', '_', '.', not starting with '.'"),
+            );
+        }
+        if self.file.study.repeats == 0 {
+            self.push(
+                "study.repeats".into(),
+                "0 is not allowed: repeats >= 1".into(),
+            );
+        }
+    }
+
+    /// `[[part]]`: every name plain and distinct (`main` included).
+    fn part_names(&mut self) {
+        let file = self.file;
+        if !file.part.is_empty() {
+            self.columns.push(PART_COLUMN.into());
+        }
+        for (i, p) in file.part.iter().enumerate() {
+            let n = p.name.as_str();
+            if !plain_name(n) {
+                self.push(
+                    format!("part[{i}].name"),
+                    format!("{n:?} is not allowed: use letters, digits, '-', '_', '.'"),
                 );
-                if let Some(&first) = untraced
-                    .first()
-                    .filter(|_| !found.iter().any(|f| f.0 == key))
-                {
-                    found.push((
-                        (
-                            "scene.search.trace".to_string(),
-                            "report.trace needs the optimizer trace of every case: set search.trace = true (in every value of a swept `search` table too)".to_string(),
-                        ),
-                        (first, untraced.len(), None),
-                    ));
-                }
+            } else if self.names.contains(&n) {
+                self.push(
+                    format!("part[{i}].name"),
+                    format!("{n:?} is used twice (`main` is the part of [scene] and [[sweep]])"),
+                );
             }
-            for ((path, message), (first, count, line)) in found {
-                let case = &cases[first];
-                let where_ = if count == cases.len() || case.params.is_empty() {
-                    String::new()
-                } else {
-                    format!(
-                        " ({count} of {} cases, first {}: {})",
-                        cases.len(),
-                        case.id,
-                        case.describe()
-                    )
-                };
-                let message = format!("{message}{where_}");
-                match line {
-                    Some(l) => problems.borrow_mut().push(Problem {
-                        path,
-                        line: Some(l),
-                        message,
-                    }),
-                    None => push(path, message),
+            self.names.push(n);
+        }
+    }
+
+    /// `[[sweep]]` of the main part and of every part: values, paths and
+    /// distinct columns; collects the columns.
+    fn sweep_axes(&mut self) {
+        let file = self.file;
+        let part_axes = std::iter::once((String::new(), &file.sweep)).chain(
+            file.part
+                .iter()
+                .enumerate()
+                .map(|(i, p)| (format!("part[{i}]."), &p.sweep)),
+        );
+        for (prefix, axes) in part_axes {
+            let mut own: Vec<String> = Vec::new();
+            for (i, axis) in axes.iter().enumerate() {
+                if let Err(e) = sweep::axis_values(axis) {
+                    self.push(format!("{prefix}sweep[{i}]"), e);
+                }
+                if let Err(e) = sweep::parse_path(&axis.path) {
+                    self.push(format!("{prefix}sweep[{i}].path"), e);
+                }
+                let col = axis.column().to_string();
+                if own.contains(&col) || col == "repeat" || col == PART_COLUMN {
+                    self.push(
+                        format!("{prefix}sweep[{i}].name"),
+                        format!(
+                            "axis column {col:?} is used twice (give the axes distinct `name`s)"
+                        ),
+                    );
+                }
+                own.push(col.clone());
+                if !self.columns.contains(&col) {
+                    self.columns.push(col);
                 }
             }
         }
     }
-    problems.into_inner()
+
+    /// A report reference to an axis column.
+    fn column(&mut self, path: String, col: &str) {
+        if !self.columns.iter().any(|c| c == col) {
+            let message = format!(
+                "{col:?} is not an axis column; axes: {}",
+                self.columns.join(", ")
+            );
+            self.push(path, message);
+        }
+    }
+
+    /// A report item's `part` must name a part.
+    fn part(&mut self, path: String, part: &Option<String>) {
+        if let Some(p) = part {
+            if !self.names.contains(&p.as_str()) {
+                let message = format!("{p:?} is not a part; parts: {}", self.names.join(", "));
+                self.push(path, message);
+            }
+        }
+    }
+
+    /// The kinds of the parts a report item covers: of its part when that is
+    /// known, of every part otherwise (an unknown part is reported once, by
+    /// [`Self::part`]; its metrics are then checked against every kind).
+    fn kinds(&self, part: &Option<String>) -> Vec<Kind> {
+        let known = part.as_deref().filter(|p| self.names.contains(p));
+        self.file.kinds_of(known)
+    }
+
+    /// A report reference to a metric of the kinds of `part`.
+    fn metric(&mut self, path: String, m: &str, part: &Option<String>) {
+        let kinds = self.kinds(part);
+        if kinds.iter().any(|k| k.metrics().iter().any(|x| x.0 == m)) {
+            return;
+        }
+        let mut list: Vec<&str> = Vec::new();
+        for k in &kinds {
+            for x in k.metrics() {
+                if !list.contains(&x.0) {
+                    list.push(x.0);
+                }
+            }
+        }
+        let message = format!(
+            "{m:?} is not a metric of kind {}; metrics: {}",
+            kinds_label(&kinds),
+            list.join(", ")
+        );
+        self.push(path, message);
+    }
+
+    /// `[[report.table]]`: rows, part, metrics.
+    fn report_tables(&mut self) {
+        for (i, t) in self.file.report.table.iter().enumerate() {
+            for (j, r) in t.rows.iter().flatten().enumerate() {
+                self.column(format!("report.table[{i}].rows[{j}]"), r);
+            }
+            self.part(format!("report.table[{i}].part"), &t.part);
+            for (j, m) in t.metrics.iter().flatten().enumerate() {
+                self.metric(format!("report.table[{i}].metrics[{j}]"), m, &t.part);
+            }
+        }
+    }
+
+    /// `[[report.plot]]`: x, series, part, y.
+    fn report_plots(&mut self) {
+        for (i, p) in self.file.report.plot.iter().enumerate() {
+            self.column(format!("report.plot[{i}].x"), &p.x);
+            if let Some(s) = &p.series {
+                self.column(format!("report.plot[{i}].series"), s);
+            }
+            self.part(format!("report.plot[{i}].part"), &p.part);
+            self.metric(format!("report.plot[{i}].y"), &p.y, &p.part);
+        }
+    }
+
+    /// `[[report.heatmap]]`: x, y, part, z.
+    fn report_heatmaps(&mut self) {
+        for (i, h) in self.file.report.heatmap.iter().enumerate() {
+            for (field, col) in [("x", &h.x), ("y", &h.y)] {
+                self.column(format!("report.heatmap[{i}].{field}"), col);
+            }
+            self.part(format!("report.heatmap[{i}].part"), &h.part);
+            self.metric(format!("report.heatmap[{i}].z"), &h.z, &h.part);
+        }
+    }
+
+    /// `[[report.trace]]`: part (of kind fit), series, filter, aggregate.
+    fn report_traces(&mut self) {
+        for (i, t) in self.file.report.trace.iter().enumerate() {
+            self.part(format!("report.trace[{i}].part"), &t.part);
+            let kinds = self.kinds(&t.part);
+            if !kinds.contains(&Kind::Fit) {
+                self.push(
+                    format!("report.trace[{i}]"),
+                    format!(
+                        "optimizer traces are recorded by kind fit only, not {}",
+                        kinds_label(&kinds)
+                    ),
+                );
+            }
+            for (j, c) in t.series.iter().flatten().enumerate() {
+                self.column(format!("report.trace[{i}].series[{j}]"), c);
+            }
+            for (c, v) in &t.filter {
+                self.column(format!("report.trace[{i}].filter.{c}"), c);
+                let ok = match v {
+                    toml::Value::String(_) => true,
+                    toml::Value::Array(a) => a.iter().all(|x| x.is_str()),
+                    _ => false,
+                };
+                if !ok {
+                    self.push(
+                        format!("report.trace[{i}].filter.{c}"),
+                        "a label (string) or an array of labels".into(),
+                    );
+                }
+            }
+            if matches!(t.aggregate, Aggregate::Rate | Aggregate::Count) {
+                self.push(
+                    format!("report.trace[{i}].aggregate"),
+                    format!(
+                        "{:?} is not allowed here: median, mean, min or max",
+                        t.aggregate.name()
+                    ),
+                );
+            }
+        }
+    }
+
+    /// Every case: the kind's deserialisation and semantic checks. One
+    /// problem per distinct message (a bad base field fails every case
+    /// alike), naming the failing cases unless all fail.
+    fn cases(&mut self) {
+        let cases = match sweep::expand(self.file) {
+            Err(e) => return self.push(String::new(), e.to_string()),
+            Ok(cases) => cases,
+        };
+        let mut found = self.case_errors(&cases);
+        self.untraced(&cases, &mut found);
+        for ((path, message), (first, count, line)) in found {
+            let case = &cases[first];
+            let where_ = if count == cases.len() || case.params.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " ({count} of {} cases, first {}: {})",
+                    cases.len(),
+                    case.id,
+                    case.describe()
+                )
+            };
+            let message = format!("{message}{where_}");
+            match line {
+                Some(l) => self.problems.push(Problem {
+                    path,
+                    line: Some(l),
+                    message,
+                }),
+                None => self.push(path, message),
+            }
+        }
+    }
+
+    /// The errors of every case, `(path, message) -> (first failing case,
+    /// number of failing cases, line of the axis that sets the field)`, in
+    /// order of first appearance.
+    fn case_errors(&self, cases: &[sweep::Case]) -> Vec<Found> {
+        let skip = self.file.study.invalid_cases == InvalidCases::Skip;
+        let mut found: Vec<Found> = Vec::new();
+        for (ci, case) in cases.iter().enumerate() {
+            let errs = case.kind.validate_all(&case.scene);
+            // with `skip`, unknown fields and values of the wrong type
+            // still are errors (a misspelling or a type error would
+            // otherwise skip every case): only failed range checks skip
+            let errs = errs.into_iter().filter(|e| {
+                !skip
+                    || matches!(e, Error::InvalidParameter { value, .. } if value == "present" || value == "?")
+            });
+            let (scene, prefix, axes) = self.case_part(case);
+            for e in errs {
+                let (path, message) = plain_message(&e, Some(&case.scene), case.kind.schema());
+                let line = self.axis_line(&path, &message, &prefix, axes);
+                let path = if path.is_empty() || path == "scene" {
+                    scene.clone()
+                } else {
+                    format!("{scene}.{path}")
+                };
+                let key = (path, message);
+                match found.iter_mut().find(|(k, _)| *k == key) {
+                    Some((_, (_, count, _))) => *count += 1,
+                    None => found.push((key, (ci, 1, line))),
+                }
+            }
+        }
+        found
+    }
+
+    /// The scene path, the axis prefix and the axes of the case's part.
+    fn case_part(&self, case: &sweep::Case) -> (String, String, &'a [Axis]) {
+        let file = self.file;
+        match case.params.first() {
+            Some(p) if p.column == PART_COLUMN && p.label != MAIN_PART => {
+                let i = file
+                    .part
+                    .iter()
+                    .position(|x| x.name == p.label)
+                    .unwrap_or(0);
+                (
+                    format!("part[{i}].scene"),
+                    format!("part[{i}]."),
+                    file.part.get(i).map(|p| &p.sweep[..]).unwrap_or(&[]),
+                )
+            }
+            _ => ("scene".to_string(), String::new(), &file.sweep[..]),
+        }
+    }
+
+    /// A field set by an axis is reported at the axis: the line of its
+    /// `path` (an unknown field), `values` or `range`.
+    fn axis_line(&self, path: &str, message: &str, prefix: &str, axes: &[Axis]) -> Option<usize> {
+        let i = axes.iter().position(|a| {
+            path == a.path
+                || path.starts_with(&format!("{}.", a.path))
+                || path.starts_with(&format!("{}[", a.path))
+        })?;
+        let field = if message.starts_with("unknown field") {
+            "path"
+        } else if axes[i].values.is_some() {
+            "values"
+        } else {
+            "range"
+        };
+        self.locate
+            .line(&format!("{prefix}sweep[{i}].{field}"))
+            .or_else(|| self.locate.line(&format!("{prefix}sweep[{i}]")))
+    }
+
+    /// `report.trace` needs the optimizer trace of every fit case it covers.
+    fn untraced(&self, cases: &[sweep::Case], found: &mut Vec<Found>) {
+        let file = self.file;
+        for t in &file.report.trace {
+            let untraced: Vec<usize> = (0..cases.len())
+                .filter(|&i| {
+                    cases[i].kind == Kind::Fit
+                        && t.part.as_deref().is_none_or(|p| {
+                            cases[i]
+                                .params
+                                .first()
+                                .is_some_and(|x| x.column == PART_COLUMN && x.label == p)
+                                || (p == MAIN_PART && file.part.is_empty())
+                        })
+                        && cases[i]
+                            .scene
+                            .get("search")
+                            .and_then(|s| s.get("trace"))
+                            .and_then(|t| t.as_bool())
+                            != Some(true)
+                })
+                .collect();
+            let key = (
+                "scene.search.trace".to_string(),
+                "report.trace needs the optimizer trace of every case: set search.trace = true (in every value of a swept `search` table too)".to_string(),
+            );
+            if let Some(&first) = untraced.first() {
+                if !found.iter().any(|f| f.0 == key) {
+                    found.push((key, (first, untraced.len(), None)));
+                }
+            }
+        }
+    }
+}
+
+/// The kinds' names, joined by "or".
+fn kinds_label(kinds: &[Kind]) -> String {
+    kinds
+        .iter()
+        .map(|k| k.name())
+        .collect::<Vec<_>>()
+        .join(" or ")
 }
 
 /// What a TOML file is, for `config check`.
@@ -520,15 +547,9 @@ pub fn check_file(text: &str) -> (FileKind, Vec<Problem>) {
 /// [`crate::detect::scene::FitScene::from_toml`] and building its truth and
 /// unknowns, in case those refuse what the checks let through.
 pub fn check_fit_scene(text: &str) -> Vec<Problem> {
-    let value: toml::Value = match toml::from_str::<toml::Table>(text) {
+    let value = match parse_table(text) {
         Ok(v) => toml::Value::Table(v),
-        Err(e) => {
-            return vec![Problem {
-                path: String::new(),
-                line: e.span().map(|s| line_of(text, s.start)),
-                message: format!("not valid TOML: {}", one_line(e.message())),
-            }]
-        }
+        Err(p) => return p,
     };
     let locate = Locator::new(text);
     let mut problems: Vec<Problem> = Vec::new();

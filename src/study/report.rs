@@ -596,8 +596,21 @@ pub fn trace_chart(records: &[Record], spec: &TraceSpec) -> Result<LinePlot> {
 
 /// The `report.md` text; also returns the plots to write `(file, svg)`.
 fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)>) {
+    let mut s = header_md(study, records);
+    for t in &report_tables(study) {
+        s.push_str(&table_md(study, records, t));
+    }
+    let plots = plots_md(study, records, &mut s);
+    failed_md(records, &mut s);
+    case_plots_md(records, &mut s);
+    cases_md(study, records, &mut s);
+    (s, plots)
+}
+
+/// The title, the description and the table of the study's facts (kind,
+/// cases, seed, repeats, axes, parts, hash), with the note on the files.
+fn header_md(study: &Study, records: &[Record]) -> String {
     let f = &study.file;
-    let cols = columns(study);
     let counts = Counts::of(records);
     let mut s = format!("# Study `{}`\n\n", f.study.name);
     if !f.study.description.trim().is_empty() {
@@ -619,8 +632,7 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
         f.study.seed, f.study.repeats
     ));
     for a in &f.sweep {
-        let vals = super::sweep::axis_values(a).unwrap_or_default();
-        let labels: Vec<&str> = vals.iter().map(|v| v.1.as_str()).collect();
+        let labels = axis_labels(a);
         let shown = if labels.len() <= 8 {
             labels.join(", ")
         } else {
@@ -646,14 +658,12 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
             p.kind.name()
         ));
         for a in &p.sweep {
-            let vals = super::sweep::axis_values(a).unwrap_or_default();
-            let labels: Vec<&str> = vals.iter().map(|v| v.1.as_str()).collect();
             s.push_str(&format!(
                 "| axis `{}` (part `{}`) | `{}` = {} |\n",
                 md_escape(a.column()),
                 md_escape(&p.name),
                 md_escape(&a.path),
-                md_escape(&labels.join(", "))
+                md_escape(&axis_labels(a).join(", "))
             ));
         }
     }
@@ -663,9 +673,22 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
         s.push_str(" Columns `t_*` are wall-clock measurements on the machine that ran the case (with the other cases running beside it): reported, not reproducible.");
     }
     s.push_str("\n\n");
+    s
+}
+
+/// The labels of an axis's values (none when the axis is invalid).
+fn axis_labels(a: &super::config::Axis) -> Vec<String> {
+    let vals = super::sweep::axis_values(a).unwrap_or_default();
+    vals.into_iter().map(|v| v.1).collect()
+}
+
+/// The report's tables: those of `[[report.table]]`, or by default one mean
+/// table by every axis per part (one table when there are no parts; none
+/// without axes).
+fn report_tables(study: &Study) -> Vec<TableSpec> {
+    let f = &study.file;
     let mut tables = f.report.table.clone();
-    if tables.is_empty() && !cols.axes.is_empty() {
-        // one table per part (one table when there are no parts)
+    if tables.is_empty() && !columns(study).axes.is_empty() {
         let parts: Vec<Option<String>> = if f.part.is_empty() {
             vec![None]
         } else {
@@ -683,103 +706,121 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
             });
         }
     }
-    for t in &tables {
-        s.push_str(&table_md(study, records, t));
-    }
+    tables
+}
+
+/// The `## Plots` section (plots, heatmaps, traces) into `s`; returns the
+/// plots to write `(file, svg)`.
+fn plots_md(study: &Study, records: &[Record], s: &mut String) -> Vec<(String, String)> {
+    let r = &study.file.report;
     let mut plots = Vec::new();
-    if !f.report.plot.is_empty() || !f.report.heatmap.is_empty() || !f.report.trace.is_empty() {
-        s.push_str("## Plots\n\n");
-        for p in &f.report.plot {
-            let file = plot_file(p);
-            match plot_chart(records, p).and_then(|c| c.to_svg_string()) {
-                Ok(svg) => {
-                    s.push_str(&format!("![{}]({file})\n\n", md_escape(&file)));
-                    plots.push((file, svg));
-                }
-                Err(e) => s.push_str(&format!(
-                    "Plot `{file}` not drawn: {}\n\n",
-                    md_escape(&e.to_string())
-                )),
-            }
-        }
-        for h in &f.report.heatmap {
-            let file = heatmap_file(h);
-            match heatmap_chart(records, h).and_then(|c| c.to_svg_string()) {
-                Ok(svg) => {
-                    s.push_str(&format!("![{}]({file})\n\n", md_escape(&file)));
-                    plots.push((file, svg));
-                }
-                Err(e) => s.push_str(&format!(
-                    "Heatmap `{file}` not drawn: {}\n\n",
-                    md_escape(&e.to_string())
-                )),
-            }
-        }
-        for t in &f.report.trace {
-            let file = trace_file(t);
-            match trace_chart(records, t).and_then(|c| c.to_svg_string()) {
-                Ok(svg) => {
-                    s.push_str(&format!("![{}]({file})\n\n", md_escape(&file)));
-                    plots.push((file, svg));
-                }
-                Err(e) => s.push_str(&format!(
-                    "Trace plot `{file}` not drawn: {}\n\n",
-                    md_escape(&e.to_string())
-                )),
-            }
-        }
+    if r.plot.is_empty() && r.heatmap.is_empty() && r.trace.is_empty() {
+        return plots;
     }
+    s.push_str("## Plots\n\n");
+    for p in &r.plot {
+        let svg = plot_chart(records, p).and_then(|c| c.to_svg_string());
+        one_plot_md("Plot", plot_file(p), svg, s, &mut plots);
+    }
+    for h in &r.heatmap {
+        let svg = heatmap_chart(records, h).and_then(|c| c.to_svg_string());
+        one_plot_md("Heatmap", heatmap_file(h), svg, s, &mut plots);
+    }
+    for t in &r.trace {
+        let svg = trace_chart(records, t).and_then(|c| c.to_svg_string());
+        one_plot_md("Trace plot", trace_file(t), svg, s, &mut plots);
+    }
+    plots
+}
+
+/// One plot's link into `s` and its svg into `plots`, or why it was not
+/// drawn (`what` names the plot's sort).
+fn one_plot_md(
+    what: &str,
+    file: String,
+    svg: Result<String>,
+    s: &mut String,
+    plots: &mut Vec<(String, String)>,
+) {
+    match svg {
+        Ok(svg) => {
+            s.push_str(&format!("![{}]({file})\n\n", md_escape(&file)));
+            plots.push((file, svg));
+        }
+        Err(e) => s.push_str(&format!(
+            "{what} `{file}` not drawn: {}\n\n",
+            md_escape(&e.to_string())
+        )),
+    }
+}
+
+/// A record's parameters, `column = label, ...`, escaped for markdown.
+fn params_md(r: &Record) -> String {
+    let params: Vec<String> = r
+        .params
+        .iter()
+        .map(|p| format!("{} = {}", p.column, p.label))
+        .collect();
+    md_escape(&params.join(", "))
+}
+
+/// The table of the failed and skipped cases, when there are some.
+fn failed_md(records: &[Record], s: &mut String) {
     let failed: Vec<&Record> = records.iter().filter(|r| !r.ok()).collect();
-    if !failed.is_empty() {
-        s.push_str("## Failed and skipped cases\n\n| id | parameters | status | reason |\n|---|---|---|---|\n");
-        for r in failed {
-            let params: Vec<String> = r
-                .params
-                .iter()
-                .map(|p| format!("{} = {}", p.column, p.label))
-                .collect();
-            s.push_str(&format!(
-                "| {} | {} | {} | {} |\n",
-                r.id,
-                md_escape(&params.join(", ")),
-                r.status,
-                md_escape(r.error.as_deref().unwrap_or(""))
-            ));
-        }
-        s.push('\n');
+    if failed.is_empty() {
+        return;
     }
+    s.push_str(
+        "## Failed and skipped cases\n\n| id | parameters | status | reason |\n|---|---|---|---|\n",
+    );
+    for r in failed {
+        s.push_str(&format!(
+            "| {} | {} | {} | {} |\n",
+            r.id,
+            params_md(r),
+            r.status,
+            md_escape(r.error.as_deref().unwrap_or(""))
+        ));
+    }
+    s.push('\n');
+}
+
+/// The links to the cases' own plots, when there are some.
+fn case_plots_md(records: &[Record], s: &mut String) {
     let with_files: Vec<&Record> = records.iter().filter(|r| !r.files.is_empty()).collect();
-    if !with_files.is_empty() {
-        s.push_str("## Case plots\n\n");
-        for r in with_files {
-            let params: Vec<String> = r
-                .params
-                .iter()
-                .map(|p| format!("{} = {}", p.column, p.label))
-                .collect();
-            let links: Vec<String> = r
-                .files
-                .iter()
-                .map(|f| {
-                    let name = f
-                        .rsplit('/')
-                        .next()
-                        .unwrap_or(f)
-                        .trim_start_matches(r.id.as_str())
-                        .trim_start_matches('-')
-                        .trim_end_matches(".svg");
-                    format!("[{name}]({f})")
-                })
-                .collect();
-            s.push_str(&format!(
-                "- {} ({}): {}\n",
-                r.id,
-                md_escape(&params.join(", ")),
-                links.join(", ")
-            ));
-        }
-        s.push('\n');
+    if with_files.is_empty() {
+        return;
     }
+    s.push_str("## Case plots\n\n");
+    for r in with_files {
+        let links: Vec<String> = r
+            .files
+            .iter()
+            .map(|f| {
+                let name = f
+                    .rsplit('/')
+                    .next()
+                    .unwrap_or(f)
+                    .trim_start_matches(r.id.as_str())
+                    .trim_start_matches('-')
+                    .trim_end_matches(".svg");
+                format!("[{name}]({f})")
+            })
+            .collect();
+        s.push_str(&format!(
+            "- {} ({}): {}\n",
+            r.id,
+            params_md(r),
+            links.join(", ")
+        ));
+    }
+    s.push('\n');
+}
+
+/// The `## Cases` section: one row per case, or a pointer to `summary.csv`
+/// beyond `report.max_case_rows`.
+fn cases_md(study: &Study, records: &[Record], s: &mut String) {
+    let f = &study.file;
     s.push_str("## Cases\n\n");
     if records.len() > f.report.max_case_rows {
         s.push_str(&format!(
@@ -787,38 +828,38 @@ fn report_md(study: &Study, records: &[Record]) -> (String, Vec<(String, String)
             records.len(),
             f.report.max_case_rows
         ));
-    } else {
-        let mut header: Vec<String> = vec!["id".into()];
-        if f.study.repeats > 1 {
-            header.push("repeat".into());
-        }
-        header.extend(cols.axes.iter().map(|a| format!("`{a}`")));
-        header.push("status".into());
-        header.extend(
-            cols.metrics
-                .iter()
-                .map(|m| format!("`{}`", cols.metric_header(m))),
-        );
-        s.push_str(&format!(
-            "| {} |\n|{}\n",
-            header.join(" | "),
-            "---|".repeat(header.len())
-        ));
-        for r in records {
-            let mut cells = vec![r.id.clone()];
-            if f.study.repeats > 1 {
-                cells.push(r.repeat.to_string());
-            }
-            cells.extend(cols.axes.iter().map(|a| md_escape(&axis_label(r, a))));
-            cells.push(r.status.clone());
-            cells.extend(cols.metrics.iter().map(|m| match metric(r, m) {
-                Some(x) => fmt_num(x),
-                None => md_escape(&metric_text(r, m)),
-            }));
-            s.push_str(&format!("| {} |\n", cells.join(" | ")));
-        }
+        return;
     }
-    (s, plots)
+    let cols = columns(study);
+    let mut header: Vec<String> = vec!["id".into()];
+    if f.study.repeats > 1 {
+        header.push("repeat".into());
+    }
+    header.extend(cols.axes.iter().map(|a| format!("`{a}`")));
+    header.push("status".into());
+    header.extend(
+        cols.metrics
+            .iter()
+            .map(|m| format!("`{}`", cols.metric_header(m))),
+    );
+    s.push_str(&format!(
+        "| {} |\n|{}\n",
+        header.join(" | "),
+        "---|".repeat(header.len())
+    ));
+    for r in records {
+        let mut cells = vec![r.id.clone()];
+        if f.study.repeats > 1 {
+            cells.push(r.repeat.to_string());
+        }
+        cells.extend(cols.axes.iter().map(|a| md_escape(&axis_label(r, a))));
+        cells.push(r.status.clone());
+        cells.extend(cols.metrics.iter().map(|m| match metric(r, m) {
+            Some(x) => fmt_num(x),
+            None => md_escape(&metric_text(r, m)),
+        }));
+        s.push_str(&format!("| {} |\n", cells.join(" | ")));
+    }
 }
 
 /// Write `summary.csv`, `report.md` and the plots into `out`, atomically.

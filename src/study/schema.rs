@@ -48,11 +48,8 @@ impl FieldDoc {
         doc: &'static str,
     ) -> FieldDoc {
         FieldDoc {
-            path,
-            ty,
-            default,
-            doc,
             opaque: true,
+            ..FieldDoc::new(path, ty, default, doc)
         }
     }
 }

@@ -592,31 +592,12 @@ impl Modes {
                 },
             });
         }
-        if n > MAX_N_SYMMETRIC {
-            return Err(Error::invalid(
-                "n",
-                n,
-                format!("n <= {MAX_N_SYMMETRIC} for a modal decomposition of a non-uniform chain"),
-            ));
-        }
-        let kt = DMatrix::from_fn(n, n, |i, j| {
-            if i == j {
-                (grounds[i] + springs[i] + springs[i + 1]) / masses[i]
-            } else if j == i + 1 {
-                -springs[j] / (masses[i] * masses[j]).sqrt()
-            } else if i == j + 1 {
-                -springs[i] / (masses[i] * masses[j]).sqrt()
-            } else {
-                0.0
-            }
-        });
-        let eig =
-            nalgebra::SymmetricEigen::try_new(kt, f64::EPSILON, 100 * n).ok_or_else(|| {
-                Error::Numerical {
-                    method: "symmetric eigen".into(),
-                    reason: "did not converge".into(),
-                }
-            })?;
+        let eig = symmetric_eigen(
+            &masses,
+            &springs,
+            &grounds,
+            "a modal decomposition of a non-uniform chain",
+        )?;
         Ok(Modes {
             n,
             ends,
@@ -650,113 +631,17 @@ impl Modes {
         let k = chain.springs();
         let d = chain.dampers();
         let g = chain.grounds();
-        let n2 = 2 * n;
-        let mut l = DMatrix::zeros(n2, n2);
-        for i in 0..n {
-            l[(i, n + i)] = 1.0;
-            l[(n + i, i)] = -(g[i] + k[i] + k[i + 1]) / m[i];
-            l[(n + i, n + i)] = -d[i] / m[i];
-            if i + 1 < n {
-                let c = k[i + 1] / (m[i] * m[i + 1]).sqrt();
-                l[(n + i, i + 1)] = c;
-                l[(n + i + 1, i)] = c;
-            }
-        }
-        let fail = |reason: String| Error::Numerical {
-            method: "quadratic eigenproblem".into(),
-            reason,
-        };
-        let schur = nalgebra::Schur::try_new(l, f64::EPSILON, 1000 * n2)
-            .ok_or_else(|| fail("the Schur iteration did not converge".into()))?;
-        let mut ev: Vec<Complex64> = schur.complex_eigenvalues().iter().copied().collect();
-        if chain.is_free_free() {
-            // the rigid-body pole is exactly 0 (K 1 = 0): snap the Schur value
-            if let Some(i0) = (0..ev.len()).min_by(|&a, &b| ev[a].norm().total_cmp(&ev[b].norm())) {
-                ev[i0] = Complex64::new(0.0, 0.0);
-            }
-        }
-        let npos = ev.iter().filter(|z| z.im > 0.0).count();
-        let nneg = ev.iter().filter(|z| z.im < 0.0).count();
-        if npos != nneg || ev.len() != n2 {
-            return Err(fail(format!(
-                "{npos} poles above and {nneg} below the real axis (expected conjugate pairs)"
-            )));
-        }
         let qep = Qep {
             m: &m,
             k: &k,
             d: &d,
             g: &g,
         };
+        let ev = schur_poles(chain, &qep)?;
         // near-double pole pairs: one second-order term each, fitted per
         // response (see `Modes::response`)
-        let mut used = vec![false; n2];
-        let mut clusters = Vec::new();
-        for (idx, p0) in ev.iter().enumerate() {
-            if p0.im > 0.0 && 2.0 * p0.im <= CLUSTER * p0.norm() {
-                used[idx] = true;
-                clusters.push((-p0.re, p0.im * p0.im));
-            }
-        }
-        let mut reals: Vec<(usize, f64)> = ev
-            .iter()
-            .enumerate()
-            .filter(|(_, z)| z.im == 0.0)
-            .map(|(i, z)| (i, z.re))
-            .collect();
-        reals.sort_by(|a, b| a.1.total_cmp(&b.1));
-        let mut r = 0;
-        while r + 1 < reals.len() {
-            let ((i1, p1), (i2, p2)) = (reals[r], reals[r + 1]);
-            if (p1 - p2).abs() <= CLUSTER * p1.abs().max(p2.abs()) {
-                used[i1] = true;
-                used[i2] = true;
-                let h = 0.5 * (p1 - p2);
-                clusters.push((-0.5 * (p1 + p2), -h * h));
-                r += 2;
-            } else {
-                r += 1;
-            }
-        }
-        let mut poles = Vec::new();
-        let mut vecs = Vec::new();
-        let mut norms = Vec::new();
-        let mut conds = Vec::new();
-        for (idx, &p0) in ev.iter().enumerate() {
-            if p0.im < 0.0 || used[idx] {
-                continue;
-            }
-            let sep = ev
-                .iter()
-                .enumerate()
-                .filter(|(j, _)| *j != idx)
-                .map(|(_, z)| (z - p0).norm())
-                .fold(f64::INFINITY, f64::min);
-            let real = p0.im == 0.0;
-            if p0 == Complex64::new(0.0, 0.0) && chain.is_free_free() {
-                // rigid-body mode: v = 1, residue amp / sum d
-                let v = vec![Complex64::new(1.0, 0.0); n];
-                let nu: Complex64 = d.iter().sum::<f64>().into();
-                poles.push(p0);
-                vecs.push(v);
-                norms.push(nu);
-                conds.push(0.0);
-                continue;
-            }
-            let (mut p, mut v) = qep.refine(p0, real);
-            if (p - p0).norm() > 0.5 * sep {
-                // converged to a neighbour: keep the Schur value
-                p = p0;
-                v = qep.null_vector(p0);
-            }
-            let nu: Complex64 = (0..n)
-                .map(|i| (p * (2.0 * m[i]) + d[i]) * v[i] * v[i])
-                .sum();
-            poles.push(p);
-            vecs.push(v);
-            norms.push(nu);
-            conds.push(p.norm() / sep);
-        }
+        let (used, mut clusters) = near_double_pairs(&ev);
+        let (poles, vecs, norms, conds) = simple_modes(chain, &qep, &ev, &used);
         // the pair's product (w2) from the determinant: the Schur 2x2 blocks
         // split a near-double pair with cancellation, its centre is reliable
         let schur_clusters = clusters.clone();
@@ -1109,6 +994,175 @@ impl DoublePoleSum {
     }
 }
 
+/// The `2n` poles of the chain: the eigenvalues of the symmetrised
+/// first-order companion matrix, by a complex Schur form (the rigid-body
+/// pole of a free-free chain snapped to exactly 0).
+///
+/// # Errors
+/// The Schur iteration does not converge, or the poles are not `2n` in
+/// conjugate pairs.
+fn schur_poles(chain: &Chain, qep: &Qep) -> Result<Vec<Complex64>> {
+    let (m, k, d, g) = (qep.m, qep.k, qep.d, qep.g);
+    let n = m.len();
+    let n2 = 2 * n;
+    let mut l = DMatrix::zeros(n2, n2);
+    for i in 0..n {
+        l[(i, n + i)] = 1.0;
+        l[(n + i, i)] = -(g[i] + k[i] + k[i + 1]) / m[i];
+        l[(n + i, n + i)] = -d[i] / m[i];
+        if i + 1 < n {
+            let c = k[i + 1] / (m[i] * m[i + 1]).sqrt();
+            l[(n + i, i + 1)] = c;
+            l[(n + i + 1, i)] = c;
+        }
+    }
+    let fail = |reason: String| Error::Numerical {
+        method: "quadratic eigenproblem".into(),
+        reason,
+    };
+    let schur = nalgebra::Schur::try_new(l, f64::EPSILON, 1000 * n2)
+        .ok_or_else(|| fail("the Schur iteration did not converge".into()))?;
+    let mut ev: Vec<Complex64> = schur.complex_eigenvalues().iter().copied().collect();
+    if chain.is_free_free() {
+        // the rigid-body pole is exactly 0 (K 1 = 0): snap the Schur value
+        if let Some(i0) = (0..ev.len()).min_by(|&a, &b| ev[a].norm().total_cmp(&ev[b].norm())) {
+            ev[i0] = Complex64::new(0.0, 0.0);
+        }
+    }
+    let npos = ev.iter().filter(|z| z.im > 0.0).count();
+    let nneg = ev.iter().filter(|z| z.im < 0.0).count();
+    if npos != nneg || ev.len() != n2 {
+        return Err(fail(format!(
+            "{npos} poles above and {nneg} below the real axis (expected conjugate pairs)"
+        )));
+    }
+    Ok(ev)
+}
+
+/// The near-double pole pairs (relative distance below [`CLUSTER`]): the
+/// poles they use, and each pair's `(a, w2)` (centre `-a`, product `w2`).
+fn near_double_pairs(ev: &[Complex64]) -> (Vec<bool>, Vec<(f64, f64)>) {
+    let mut used = vec![false; ev.len()];
+    let mut clusters = Vec::new();
+    for (idx, p0) in ev.iter().enumerate() {
+        if p0.im > 0.0 && 2.0 * p0.im <= CLUSTER * p0.norm() {
+            used[idx] = true;
+            clusters.push((-p0.re, p0.im * p0.im));
+        }
+    }
+    let mut reals: Vec<(usize, f64)> = ev
+        .iter()
+        .enumerate()
+        .filter(|(_, z)| z.im == 0.0)
+        .map(|(i, z)| (i, z.re))
+        .collect();
+    reals.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let mut r = 0;
+    while r + 1 < reals.len() {
+        let ((i1, p1), (i2, p2)) = (reals[r], reals[r + 1]);
+        if (p1 - p2).abs() <= CLUSTER * p1.abs().max(p2.abs()) {
+            used[i1] = true;
+            used[i2] = true;
+            let h = 0.5 * (p1 - p2);
+            clusters.push((-0.5 * (p1 + p2), -h * h));
+            r += 2;
+        } else {
+            r += 1;
+        }
+    }
+    (used, clusters)
+}
+
+/// The simple poles (upper half-plane and real, not `used` by a pair):
+/// poles refined on the quadratic eigenproblem, their vectors, the vectors'
+/// norms and the poles' condition numbers.
+type SimpleModes = (
+    Vec<Complex64>,
+    Vec<Vec<Complex64>>,
+    Vec<Complex64>,
+    Vec<f64>,
+);
+
+/// [`SimpleModes`] of the poles `ev`.
+fn simple_modes(chain: &Chain, qep: &Qep, ev: &[Complex64], used: &[bool]) -> SimpleModes {
+    let (m, d) = (qep.m, qep.d);
+    let n = m.len();
+    let mut poles = Vec::new();
+    let mut vecs = Vec::new();
+    let mut norms = Vec::new();
+    let mut conds = Vec::new();
+    for (idx, &p0) in ev.iter().enumerate() {
+        if p0.im < 0.0 || used[idx] {
+            continue;
+        }
+        let sep = ev
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| *j != idx)
+            .map(|(_, z)| (z - p0).norm())
+            .fold(f64::INFINITY, f64::min);
+        let real = p0.im == 0.0;
+        if p0 == Complex64::new(0.0, 0.0) && chain.is_free_free() {
+            // rigid-body mode: v = 1, residue amp / sum d
+            let v = vec![Complex64::new(1.0, 0.0); n];
+            let nu: Complex64 = d.iter().sum::<f64>().into();
+            poles.push(p0);
+            vecs.push(v);
+            norms.push(nu);
+            conds.push(0.0);
+            continue;
+        }
+        let (mut p, mut v) = qep.refine(p0, real);
+        if (p - p0).norm() > 0.5 * sep {
+            // converged to a neighbour: keep the Schur value
+            p = p0;
+            v = qep.null_vector(p0);
+        }
+        let nu: Complex64 = (0..n)
+            .map(|i| (p * (2.0 * m[i]) + d[i]) * v[i] * v[i])
+            .sum();
+        poles.push(p);
+        vecs.push(v);
+        norms.push(nu);
+        conds.push(p.norm() / sep);
+    }
+    (poles, vecs, norms, conds)
+}
+
+/// The eigen-decomposition of the mass-symmetrised stiffness matrix
+/// `M^{-1/2} K M^{-1/2}` (tridiagonal; grounds on the diagonal), for `what`.
+///
+/// # Errors
+/// `n >` [`MAX_N_SYMMETRIC`] (field `n`); the iteration does not converge.
+fn symmetric_eigen(
+    masses: &[f64],
+    springs: &[f64],
+    grounds: &[f64],
+    what: &str,
+) -> Result<nalgebra::SymmetricEigen<f64, nalgebra::Dyn>> {
+    let n = masses.len();
+    if n > MAX_N_SYMMETRIC {
+        return Err(Error::invalid(
+            "n",
+            n,
+            format!("n <= {MAX_N_SYMMETRIC} for {what}"),
+        ));
+    }
+    let kt = DMatrix::from_fn(n, n, |i, j| {
+        if i == j {
+            (grounds[i] + springs[i] + springs[i + 1]) / masses[i]
+        } else if j == i + 1 || i == j + 1 {
+            -springs[i.max(j)] / (masses[i] * masses[j]).sqrt()
+        } else {
+            0.0
+        }
+    });
+    nalgebra::SymmetricEigen::try_new(kt, f64::EPSILON, 100 * n).ok_or_else(|| Error::Numerical {
+        method: "symmetric eigen".into(),
+        reason: "did not converge".into(),
+    })
+}
+
 /// Relative distance below which two poles are treated as one near-double
 /// pair. Generous on purpose: the pair's term is exact for any separation,
 /// while separate residues lose about `eps / sep^2`, and the Schur form can
@@ -1116,22 +1170,11 @@ impl DoublePoleSum {
 /// (seen: 1e-3 at the edge of critical damping).
 const CLUSTER: f64 = 0.05;
 
-/// The second-order terms `(e (s + a) + c) / ((s + a)^2 + w2)` of the
-/// near-double pole pairs, fitted (jointly, least squares) so that the modal
-/// sum equals the exact `amp [K(s)^-1]_{ij}` (an O(n) tridiagonal solve) at
-/// two points per pair on a circle around the pair's centre `-a` (radius half
-/// the distance to the nearest other pole, at least twice the pair's
-/// half-width), where the pair dominates. `a`, `w2` (the pair's sum and
-/// product) are well conditioned even where the two poles are not.
-fn fit_clusters(
-    qep: &Qep,
-    clusters: &[(f64, f64)],
-    others: &[Term],
-    i0: usize,
-    j0: usize,
-    amp: f64,
-) -> Result<Vec<Term>> {
-    let nc = clusters.len();
+/// Two points per near-double pair on a circle around its centre `-a`
+/// (radius half the distance to the nearest other pole, at least twice the
+/// pair's half-width), where the pair dominates: the points of
+/// [`fit_clusters`].
+fn cluster_points(clusters: &[(f64, f64)], others: &[Term]) -> Vec<Complex64> {
     let mut other_poles: Vec<Complex64> = Vec::new();
     for t in others {
         match *t {
@@ -1143,7 +1186,7 @@ fn fit_clusters(
             Term::Osc { .. } => {}
         }
     }
-    let mut pts = Vec::with_capacity(2 * nc);
+    let mut pts = Vec::with_capacity(2 * clusters.len());
     for (ci, &(a, w2)) in clusters.iter().enumerate() {
         let centre = Complex64::new(-a, 0.0);
         let half_width = w2.abs().sqrt();
@@ -1169,6 +1212,26 @@ fn fit_clusters(
             pts.push(centre + Complex64::from_polar(rho, angle));
         }
     }
+    pts
+}
+
+/// The second-order terms `(e (s + a) + c) / ((s + a)^2 + w2)` of the
+/// near-double pole pairs, fitted (jointly, least squares) so that the modal
+/// sum equals the exact `amp [K(s)^-1]_{ij}` (an O(n) tridiagonal solve) at
+/// two points per pair on a circle around the pair's centre `-a` (radius half
+/// the distance to the nearest other pole, at least twice the pair's
+/// half-width), where the pair dominates. `a`, `w2` (the pair's sum and
+/// product) are well conditioned even where the two poles are not.
+fn fit_clusters(
+    qep: &Qep,
+    clusters: &[(f64, f64)],
+    others: &[Term],
+    i0: usize,
+    j0: usize,
+    amp: f64,
+) -> Result<Vec<Term>> {
+    let nc = clusters.len();
+    let pts = cluster_points(clusters, others);
     let mut mat = DMatrix::zeros(2 * pts.len(), 2 * nc);
     let mut rhs = nalgebra::DVector::zeros(2 * pts.len());
     for (row, &s) in pts.iter().enumerate() {
@@ -1291,30 +1354,12 @@ pub fn natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
             })
             .collect()
     } else {
-        if n > MAX_N_SYMMETRIC {
-            return Err(Error::invalid(
-                "n",
-                n,
-                format!("n <= {MAX_N_SYMMETRIC} for the natural modes of a non-uniform chain"),
-            ));
-        }
-        let kt = DMatrix::from_fn(n, n, |i, j| {
-            if i == j {
-                (grounds[i] + springs[i] + springs[i + 1]) / masses[i]
-            } else if j == i + 1 || i == j + 1 {
-                let s = springs[i.max(j)];
-                -s / (masses[i] * masses[j]).sqrt()
-            } else {
-                0.0
-            }
-        });
-        let eig =
-            nalgebra::SymmetricEigen::try_new(kt, f64::EPSILON, 100 * n).ok_or_else(|| {
-                Error::Numerical {
-                    method: "symmetric eigen".into(),
-                    reason: "did not converge".into(),
-                }
-            })?;
+        let eig = symmetric_eigen(
+            &masses,
+            &springs,
+            &grounds,
+            "the natural modes of a non-uniform chain",
+        )?;
         (0..n)
             .map(|c| {
                 let q = eig.eigenvectors.column(c);

@@ -77,7 +77,7 @@
 
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
-use crate::detect::data::observations::Observations;
+use crate::detect::data::observations::{Observations, Series};
 use crate::detect::fit::chainfit::fit_chain;
 use crate::detect::fit::general::{laplace_obs, Setup};
 use crate::detect::fit::model::Model;
@@ -746,42 +746,109 @@ pub fn fit_profile_with(
 ) -> Result<ProfileReport> {
     opts.validate()?;
     let t0 = Instant::now();
-    let observe = match obs {
-        Observations::Series(s) => s.measurement().sensor().at,
-        Observations::Laplace(l) => l.sensor().at,
-    };
-    model.chain().check_observe(observe)?;
-    let (elems, fixed) = elements(model, opts.mode, observe)?;
-    let space = Space {
-        // the uniform part: the profile's values replace the uniform one
-        base: model.chain().uniform(),
-        fixed,
-        elems,
-        params: model.fitted().to_vec(),
-    };
+    let space = profile_space(obs, model, opts)?;
     let (nf, np) = (space.elems.len(), space.params.len());
-    let given_sigma = match (obs, opts.noise) {
-        (_, NoiseSpec::Sigma(s)) => Some(s),
-        (Observations::Laplace(l), NoiseSpec::Auto) if l.sigma().is_some() => Some(1.0),
-        _ => None,
+    let (sigma, estimated) = start_sigma(obs, opts);
+    let (sigma, l, misfit, path) =
+        regularised_path(obs, model, opts, defect_fit, &space, sigma, estimated)?;
+    let mut iterations = path.iterations;
+    // visibility at the regularised profile
+    let jac = space.problem(&l).jacobian(&path.theta)?;
+    let order = depth_order(&space.elems);
+    let visible = visible_prefix(&jac, &space.elems, &path.theta, &order, np, opts.change);
+    let mut visible_set = vec![false; nf];
+    for &i in &order[..visible] {
+        visible_set[i] = true;
+    }
+    let bounds = bounds_of(&space, opts.bound);
+    let mut fin = final_fit(&space, &l, &path.theta, &visible_set, &bounds, opts, misfit)?;
+    let p = visible + np;
+    // a record: the visible values polished by the time-domain chi-square
+    // (the likelihood of the samples themselves), the others held
+    if let Observations::Series(series) = obs {
+        if p > 0 && p <= TIME_POLISH_MAX && visible == nf {
+            time_polish(series, sigma, &space, &visible_set, &bounds, &mut fin)?;
+        }
+    }
+    iterations += fin.iterations;
+    let fit_dof = fin.m.saturating_sub(p).max(1) as f64;
+    // with an estimated sigma, the final level from this fit's residual
+    let scale = if estimated {
+        (fin.chi2 / fit_dof).sqrt()
+    } else {
+        1.0
     };
-    let mut sigma = match (obs, given_sigma) {
-        (_, Some(s)) => s,
-        (Observations::Series(s), None) => high_frequency_sigma(s.x())
-            .max(1e-12 * s.max_abs())
-            .max(1e-300),
-        (Observations::Laplace(_), None) => 1.0,
-    };
-    let estimated = given_sigma.is_none();
+    let chi2_out = fin.chi2 / (scale * scale);
+    let fit_p_value = chi2_sf(chi2_out, fit_dof);
+    let fits_data = estimated || fit_p_value > 0.01;
+    let (elements, params) = estimates(&space, &fin, &visible_set, scale);
+    let visible_depth = order[..visible]
+        .iter()
+        .map(|&i| space.elems[i].depth)
+        .fold(None, |a: Option<f64>, d| Some(a.map_or(d, |x| x.max(d))));
+    let any_bound = elements.iter().any(|e| e.at_bound);
+    let (status, mut message) = verdict(fin.converged, any_bound, visible);
+    let first_hidden = order.get(visible).map(|&i| &space.elems[i]);
+    message.push_str(&visibility_note(
+        visible,
+        nf,
+        opts.change,
+        visible_depth,
+        first_hidden,
+    ));
+    if !fits_data {
+        message.push_str(&format!(
+            "; the residual is not noise (p = {fit_p_value:.2e})"
+        ));
+    }
+    Ok(ProfileReport {
+        mode: opts.mode,
+        elements,
+        params,
+        visible_depth,
+        change: opts.change,
+        noise_sigma: sigma * scale,
+        noise_estimated: estimated,
+        chi2: chi2_out,
+        m: fin.m,
+        p,
+        lambda: path.lambda,
+        stages: path.stages,
+        fits_data,
+        fit_p_value,
+        status,
+        message,
+        misfit: fin.misfit,
+        iterations,
+        seconds: t0.elapsed().as_secs_f64(),
+        chain: space.chain(&fin.theta)?,
+    })
+}
+
+/// The regularised profile (the continuation with its restarts) at the
+/// noise level `sigma`, or, when it is `estimated`, at the level the
+/// residual of a first continuation to its end gives: that level, the
+/// Laplace observation and its misfit's name, and the path (its iterations
+/// those of both passes).
+fn regularised_path(
+    obs: &Observations,
+    model: &Model,
+    opts: &ProfileOptions,
+    defect_fit: Option<DefectFitter>,
+    space: &Space,
+    mut sigma: f64,
+    estimated: bool,
+) -> Result<(f64, LaplaceObs, String, Path)> {
+    let (nf, np) = (space.elems.len(), space.params.len());
     let mut iterations = 0usize;
     // the continuation with its restarts on `l` (at noise level `sigma`)
     let restarts = |l: &LaplaceObs, sigma: f64, target: Option<f64>| {
         continuation_restarts(
             l,
             &|| pre_pass(obs, model, sigma, nf),
-            &|| band_start(obs, model, sigma, &space, opts),
-            &|| defect_fit.and_then(|f| defect_start(f, obs, model, &space, opts)),
-            &space,
+            &|| band_start(obs, model, sigma, space, opts),
+            &|| defect_fit.and_then(|f| defect_start(f, obs, model, space, opts)),
+            space,
             opts,
             target,
         )
@@ -803,128 +870,200 @@ pub fn fit_profile_with(
     check_counts(&l, nf + np)?;
     let dof = l.dof() as f64;
     let target = dof + 2.0 * (2.0 * dof).sqrt();
-    let path = restarts(&l, sigma, Some(target))?;
-    iterations += path.iterations;
-    // visibility at the regularised profile
-    let jac = space.problem(&l).jacobian(&path.theta)?;
-    let order = depth_order(&space.elems);
-    let visible = visible_prefix(&jac, &space.elems, &path.theta, &order, np, opts.change);
-    // the final fit: every value free; a Gaussian prior of width `change`
-    // around the uniform value on the values the data cannot see (they move
-    // only where the data ask, and their uncertainty enters the visible
-    // values' standard errors); the visible ones and the chain parameters
-    // unpenalised
-    let mut visible_set = vec![false; nf];
-    for &i in &order[..visible] {
-        visible_set[i] = true;
-    }
+    let mut path = restarts(&l, sigma, Some(target))?;
+    path.iterations += iterations;
+    Ok((sigma, l, misfit, path))
+}
+
+/// The space of the profile: the chain's uniform part, the defects held
+/// fixed, the profile's elements and the fitted chain parameters.
+fn profile_space(obs: &Observations, model: &Model, opts: &ProfileOptions) -> Result<Space> {
+    let observe = match obs {
+        Observations::Series(s) => s.measurement().sensor().at,
+        Observations::Laplace(l) => l.sensor().at,
+    };
+    model.chain().check_observe(observe)?;
+    let (elems, fixed) = elements(model, opts.mode, observe)?;
+    Ok(Space {
+        // the uniform part: the profile's values replace the uniform one
+        base: model.chain().uniform(),
+        fixed,
+        elems,
+        params: model.fitted().to_vec(),
+    })
+}
+
+/// The noise level the fit starts from, and whether it is estimated (from
+/// the record's high frequencies, or 1 for Laplace values without their
+/// own sigma) rather than given.
+fn start_sigma(obs: &Observations, opts: &ProfileOptions) -> (f64, bool) {
+    let given_sigma = match (obs, opts.noise) {
+        (_, NoiseSpec::Sigma(s)) => Some(s),
+        (Observations::Laplace(l), NoiseSpec::Auto) if l.sigma().is_some() => Some(1.0),
+        _ => None,
+    };
+    let sigma = match (obs, given_sigma) {
+        (_, Some(s)) => s,
+        (Observations::Series(s), None) => high_frequency_sigma(s.x())
+            .max(1e-12 * s.max_abs())
+            .max(1e-300),
+        (Observations::Laplace(_), None) => 1.0,
+    };
+    (sigma, given_sigma.is_none())
+}
+
+/// The final fit of a profile and what it reports.
+struct FinalFit {
+    /// Every value, then the chain parameters.
+    theta: Vec<f64>,
+    /// Their standard errors (NaN where the covariance fails).
+    ses: Vec<f64>,
+    /// The data chi-square.
+    chi2: f64,
+    converged: bool,
+    at_bound: Vec<usize>,
+    /// Degrees of freedom of the data.
+    m: usize,
+    /// What the chi-square compares.
+    misfit: String,
+    iterations: usize,
+}
+
+/// The final fit: every value free from `start`; a Gaussian prior of width
+/// `change` around the uniform value on the values the data cannot see
+/// (they move only where the data ask, and their uncertainty enters the
+/// visible values' standard errors); the visible ones and the chain
+/// parameters unpenalised.
+fn final_fit(
+    space: &Space,
+    l: &LaplaceObs,
+    start: &[f64],
+    visible_set: &[bool],
+    bounds: &[(f64, f64)],
+    opts: &ProfileOptions,
+    misfit: String,
+) -> Result<FinalFit> {
+    let all_visible = visible_set.iter().all(|v| *v);
     let final_prob = Problem {
-        lambda: if visible < nf { 1.0 } else { 0.0 },
+        lambda: if all_visible { 0.0 } else { 1.0 },
         penalised: Some(visible_set.iter().map(|v| !v).collect()),
         prior_width: Some(opts.change),
-        ..space.problem(&l)
+        ..space.problem(l)
     };
-    let bounds = bounds_of(&space, opts.bound);
     let lm_opts = LmOptions {
         max_iter: opts.max_iter,
         ..LmOptions::default()
     };
-    let f = levenberg_marquardt(&final_prob, &path.theta, &bounds, &lm_opts)?;
-    iterations += f.iterations;
-    let mut ses: Vec<f64> = match covariance(&f.jacobian) {
+    let f = levenberg_marquardt(&final_prob, start, bounds, &lm_opts)?;
+    let ses: Vec<f64> = match covariance(&f.jacobian) {
         Ok(c) => c.diagonal().iter().map(|v| v.max(0.0).sqrt()).collect(),
         Err(_) => vec![f64::NAN; f.theta.len()],
     };
-    let mut chi2 = final_prob.data_chi2(&f.theta)?;
-    let (mut theta_f, mut converged, mut at_bound) = (f.theta, f.converged, f.at_bound);
-    let mut m = l.dof();
-    let p = visible + np;
-    let mut misfit = misfit;
-    // a record: the visible values polished by the time-domain chi-square
-    // (the likelihood of the samples themselves), the others held
-    if let Observations::Series(series) = obs {
-        if p > 0 && p <= TIME_POLISH_MAX && visible == nf {
-            let tm = TimeMisfit::new(series.time_data(sigma)?);
-            let start = space.chain(&theta_f)?;
-            let k0 = space.fixed.len();
-            let vis_idx: Vec<usize> = (0..nf).filter(|&i| visible_set[i]).collect();
-            let pvis: Vec<Param> = vis_idx
-                .iter()
-                .map(|&i| Param::Defect(k0 + i))
-                .chain(space.params.iter().copied())
-                .collect();
-            let b: Vec<(f64, f64)> = vis_idx
-                .iter()
-                .map(|&i| bounds[i])
-                .chain(bounds[nf..].iter().copied())
-                .collect();
-            let r = fit_chain(&start, &pvis, &tm, Some(&b))?;
-            iterations += r.lm.iterations;
-            for (k, &i) in vis_idx.iter().enumerate() {
-                theta_f[i] = r.values[k];
-                ses[i] = r.std_errors[k];
-            }
-            for j in 0..np {
-                theta_f[nf + j] = r.values[vis_idx.len() + j];
-                ses[nf + j] = r.std_errors[vis_idx.len() + j];
-            }
-            at_bound =
-                r.lm.at_bound
-                    .iter()
-                    .filter_map(|&k| vis_idx.get(k).copied())
-                    .collect();
-            converged = r.lm.converged;
-            chi2 = r.chi2();
-            m = r.m();
-            misfit = format!(
-                "time (chi-square of {m} samples) for the {p} visible values, from the profile of the {misfit}"
-            );
-        }
+    Ok(FinalFit {
+        chi2: final_prob.data_chi2(&f.theta)?,
+        theta: f.theta,
+        ses,
+        converged: f.converged,
+        at_bound: f.at_bound,
+        m: l.dof(),
+        misfit,
+        iterations: f.iterations,
+    })
+}
+
+/// The visible values and the chain parameters of `fin` polished by the
+/// time-domain chi-square of the record (noise `sigma`), the others held.
+fn time_polish(
+    series: &Series,
+    sigma: f64,
+    space: &Space,
+    visible_set: &[bool],
+    bounds: &[(f64, f64)],
+    fin: &mut FinalFit,
+) -> Result<()> {
+    let (nf, np) = (space.elems.len(), space.params.len());
+    let tm = TimeMisfit::new(series.time_data(sigma)?);
+    let start = space.chain(&fin.theta)?;
+    let k0 = space.fixed.len();
+    let vis_idx: Vec<usize> = (0..nf).filter(|&i| visible_set[i]).collect();
+    let p = vis_idx.len() + np;
+    let pvis: Vec<Param> = vis_idx
+        .iter()
+        .map(|&i| Param::Defect(k0 + i))
+        .chain(space.params.iter().copied())
+        .collect();
+    let b: Vec<(f64, f64)> = vis_idx
+        .iter()
+        .map(|&i| bounds[i])
+        .chain(bounds[nf..].iter().copied())
+        .collect();
+    let r = fit_chain(&start, &pvis, &tm, Some(&b))?;
+    fin.iterations += r.lm.iterations;
+    for (k, &i) in vis_idx.iter().enumerate() {
+        fin.theta[i] = r.values[k];
+        fin.ses[i] = r.std_errors[k];
     }
-    let fit_dof = m.saturating_sub(p).max(1) as f64;
-    // with an estimated sigma, the final level from this fit's residual
-    let scale = if estimated {
-        (chi2 / fit_dof).sqrt()
-    } else {
-        1.0
-    };
-    let sigma_out = sigma * scale;
-    let chi2_out = chi2 / (scale * scale);
-    let fit_p_value = chi2_sf(chi2_out, fit_dof);
-    let fits_data = estimated || fit_p_value > 0.01;
-    let chain = space.chain(&theta_f)?;
+    for j in 0..np {
+        fin.theta[nf + j] = r.values[vis_idx.len() + j];
+        fin.ses[nf + j] = r.std_errors[vis_idx.len() + j];
+    }
+    fin.at_bound =
+        r.lm.at_bound
+            .iter()
+            .filter_map(|&k| vis_idx.get(k).copied())
+            .collect();
+    fin.converged = r.lm.converged;
+    fin.chi2 = r.chi2();
+    fin.m = r.m();
+    fin.misfit = format!(
+        "time (chi-square of {} samples) for the {p} visible values, from the profile of the {}",
+        fin.m, fin.misfit
+    );
+    Ok(())
+}
+
+/// The estimates of the elements and of the chain parameters, standard
+/// errors scaled by `scale` (the hidden elements' NaN).
+fn estimates(
+    space: &Space,
+    fin: &FinalFit,
+    visible_set: &[bool],
+    scale: f64,
+) -> (Vec<ElementEstimate>, Vec<(String, f64, f64)>) {
+    let nf = space.elems.len();
+    let (theta, ses) = (&fin.theta, &fin.ses);
     let mut out = Vec::with_capacity(nf);
     for (i, e) in space.elems.iter().enumerate() {
         let vis = visible_set[i];
         out.push(ElementEstimate {
             kind: e.name(),
             at: e.at,
-            value: theta_f[i],
+            value: theta[i],
             se: if vis { ses[i] * scale } else { f64::NAN },
             uniform: e.uniform,
             visible: vis,
-            at_bound: vis && at_bound.contains(&i),
+            at_bound: vis && fin.at_bound.contains(&i),
             depth: e.depth,
         });
     }
-    let params_out: Vec<(String, f64, f64)> = space
+    let params = space
         .params
         .iter()
         .enumerate()
         .map(|(i, pm)| {
             (
                 crate::detect::fit::general::param_name(pm).to_string(),
-                theta_f[nf + i],
+                theta[nf + i],
                 ses.get(nf + i).copied().unwrap_or(f64::NAN) * scale,
             )
         })
         .collect();
-    let visible_depth = order[..visible]
-        .iter()
-        .map(|&i| space.elems[i].depth)
-        .fold(None, |a: Option<f64>, d| Some(a.map_or(d, |x| x.max(d))));
-    let any_bound = out.iter().any(|e| e.at_bound);
-    let (status, mut message) = if !converged {
+    (out, params)
+}
+
+/// The profile's status and the first words of its message.
+fn verdict(converged: bool, any_bound: bool, visible: usize) -> (Status, String) {
+    if !converged {
         (
             Status::Stalled,
             "the final fit stopped at its iteration limit".to_string(),
@@ -942,51 +1081,33 @@ pub fn fit_profile_with(
         )
     } else {
         (Status::Converged, "converged".to_string())
-    };
-    if visible < nf {
-        let first_hidden = order[visible];
-        message.push_str(&format!(
+    }
+}
+
+/// How many of the `nf` values are visible, to which depth, and the first
+/// hidden one, for the message.
+fn visibility_note(
+    visible: usize,
+    nf: usize,
+    change: f64,
+    visible_depth: Option<f64>,
+    first_hidden: Option<&Elem>,
+) -> String {
+    match first_hidden {
+        Some(e) if visible < nf => format!(
             "; {} of {} values visible (a {}% change at 2 SE), up to depth {}; from {} {} on the data cannot see such a change",
             visible,
             nf,
-            opts.change * 100.0,
+            change * 100.0,
             visible_depth.map_or("-".to_string(), |d| format!("{d}")),
-            space.elems[first_hidden].name(),
-            space.elems[first_hidden].at
-        ));
-    } else {
-        message.push_str(&format!(
+            e.name(),
+            e.at
+        ),
+        _ => format!(
             "; every value visible (a {}% change at 2 SE)",
-            opts.change * 100.0
-        ));
+            change * 100.0
+        ),
     }
-    if !fits_data {
-        message.push_str(&format!(
-            "; the residual is not noise (p = {fit_p_value:.2e})"
-        ));
-    }
-    Ok(ProfileReport {
-        mode: opts.mode,
-        elements: out,
-        params: params_out,
-        visible_depth,
-        change: opts.change,
-        noise_sigma: sigma_out,
-        noise_estimated: estimated,
-        chi2: chi2_out,
-        m,
-        p,
-        lambda: path.lambda,
-        stages: path.stages,
-        fits_data,
-        fit_p_value,
-        status,
-        message,
-        misfit,
-        iterations,
-        seconds: t0.elapsed().as_secs_f64(),
-        chain,
-    })
 }
 
 /// The pre-pass observation of a series: the same transformed data

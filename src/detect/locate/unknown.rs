@@ -36,6 +36,72 @@ struct Datum {
 
 pub(crate) fn fit<T: RealScalar>(model: &Model<T>, data: &LaplaceData<T>) -> Result<Location<T>> {
     let n = model.n();
+    let (picked, heavy) = usable_data(model, data)?;
+    let trial = Trial {
+        picked: &picked,
+        heavy,
+        mass: model.mass().to_f64(),
+        tol: root_tol::<f64>(n),
+        hi: n as f64 + 0.5,
+        n,
+    };
+    let mut guess = vec![f64::NAN; picked.len()];
+    // t = ln|u|, u = ln(m / mass): |u| from 1e-7 to 25 (heavy: m up to 7e10 mass;
+    // light: m down to 1.4e-11 mass)
+    let (t0, t1) = (1e-7f64.ln(), 25f64.ln());
+    let k = 60;
+    let ts: Vec<f64> = (0..=k)
+        .map(|i| t0 + (t1 - t0) * i as f64 / k as f64)
+        .collect();
+    let phis: Vec<f64> = ts.iter().map(|&t| trial.phi(t, &mut guess)).collect();
+    let (ib, _) =
+        phis.iter().enumerate().fold(
+            (0, f64::INFINITY),
+            |acc, (i, &p)| if p < acc.1 { (i, p) } else { acc },
+        );
+    if !phis[ib].is_finite() {
+        return Err(Error::Unresolvable {
+            reason: "unknown-mass locator: no trial mass places the defect inside 1..n at every usable s".into(),
+        });
+    }
+    let a = ts[ib.saturating_sub(1)];
+    let b = ts[(ib + 1).min(k)];
+    let mut g2 = vec![f64::NAN; picked.len()];
+    let _ = trial.positions(ts[ib], &mut g2);
+    let (tb, _) = golden(|t| trial.phi(t, &mut g2), a, b, 50);
+    let js = trial
+        .positions(tb, &mut g2)
+        .ok_or_else(|| Error::Unresolvable {
+            reason: "unknown-mass locator: the fit left the range 1..n".into(),
+        })?;
+    let (mean, phi, sw) = stats(&js);
+    let sigma = trial.sigma(tb, &g2, phi, sw);
+    let bias = (phi / sw).sqrt();
+    let m = trial.mass_of(tb);
+    let s_used: Vec<f64> = picked.iter().map(|d| d.s).collect();
+    let last = *s_used.last().unwrap_or(&f64::NAN);
+    Location {
+        method: Method::UnknownMass,
+        n,
+        j: T::from_f64(mean),
+        position: mean.round().max(0.0) as usize,
+        s: last,
+        sigma,
+        bias,
+        mass: Some(m),
+        raw_j: None,
+        used: s_used,
+    }
+    .check()
+}
+
+/// The data whose defect signal is above `MIN_SNR` times its error floor
+/// (at most `MAX_POINTS`, spread over `s`), and whether the defect is
+/// heavy (the signal's sign, the same at every datum).
+fn usable_data<T: RealScalar>(
+    model: &Model<T>,
+    data: &LaplaceData<T>,
+) -> Result<(Vec<Datum>, bool)> {
     let mut usable: Vec<(Datum, bool)> = Vec::new();
     let model64 = model.to_f64();
     for p in data.points() {
@@ -86,24 +152,42 @@ pub(crate) fn fit<T: RealScalar>(model: &Model<T>, data: &LaplaceData<T>) -> Res
             .map(|(_, u)| u.0)
             .collect()
     };
-    let mass = model.mass().to_f64();
-    let mass_of = |t: f64| -> f64 {
-        let u = if heavy { t.exp() } else { -t.exp() };
-        mass * u.exp()
-    };
-    let tol = root_tol::<f64>(n);
-    let hi = n as f64 + 0.5;
-    // positions for a trial mass; warm-started from the previous trial
-    let positions = |t: f64, guess: &mut Vec<f64>| -> Option<Vec<(f64, f64)>> {
-        let m = mass_of(t);
-        let mut out = Vec::with_capacity(picked.len());
-        for (i, dm) in picked.iter().enumerate() {
+    Ok((picked, heavy))
+}
+
+/// The one-parameter problem in `t = ln|ln(m / mass)|`.
+struct Trial<'a> {
+    picked: &'a [Datum],
+    heavy: bool,
+    mass: f64,
+    tol: f64,
+    /// The right end of the positions' range, `n + 0.5`.
+    hi: f64,
+    n: usize,
+}
+
+impl Trial<'_> {
+    /// The trial mass at `t`.
+    fn mass_of(&self, t: f64) -> f64 {
+        let u = if self.heavy { t.exp() } else { -t.exp() };
+        self.mass * u.exp()
+    }
+
+    /// The position of every datum for the trial mass at `t`, with its
+    /// standard deviation; warm-started from the previous trial (`guess`).
+    fn positions(&self, t: f64, guess: &mut [f64]) -> Option<Vec<(f64, f64)>> {
+        let m = self.mass_of(t);
+        let n = self.n;
+        let mut out = Vec::with_capacity(self.picked.len());
+        for (i, dm) in self.picked.iter().enumerate() {
             let c = dm.at.c(&m);
             let g = |j: &f64| dm.at.ln_f_exact(j, &c) - dm.ln_d;
             let j = if guess[i].is_finite() {
-                near(&g, guess[i], 0.5, hi, scan_points(n), tol)
+                near(&g, guess[i], 0.5, self.hi, scan_points(n), self.tol)
             } else {
-                roots(&g, 0.5, hi, scan_points(n), tol).into_iter().next()
+                roots(&g, 0.5, self.hi, scan_points(n), self.tol)
+                    .into_iter()
+                    .next()
             }?;
             let jf = j;
             let h = 1e-4;
@@ -114,19 +198,12 @@ pub(crate) fn fit<T: RealScalar>(model: &Model<T>, data: &LaplaceData<T>) -> Res
             out.push((jf, dm.rel / slope.max(f64::MIN_POSITIVE)));
         }
         Some(out)
-    };
-    let stats = |js: &[(f64, f64)]| -> (f64, f64, f64) {
-        let sw: f64 = js.iter().map(|&(_, s)| 1.0 / (s * s)).sum();
-        let mean = js.iter().map(|&(j, s)| j / (s * s)).sum::<f64>() / sw;
-        let phi = js
-            .iter()
-            .map(|&(j, s)| (j - mean).powi(2) / (s * s))
-            .sum::<f64>();
-        (mean, phi, sw)
-    };
-    let mut guess = vec![f64::NAN; picked.len()];
-    let phi_at = |t: f64, guess: &mut Vec<f64>| -> f64 {
-        match positions(t, guess) {
+    }
+
+    /// `Phi` at `t` (infinite where a datum has no position; the guesses
+    /// are then reset).
+    fn phi(&self, t: f64, guess: &mut [f64]) -> f64 {
+        match self.positions(t, guess) {
             Some(js) => {
                 let (_, phi, _) = stats(&js);
                 if phi.is_finite() {
@@ -140,40 +217,19 @@ pub(crate) fn fit<T: RealScalar>(model: &Model<T>, data: &LaplaceData<T>) -> Res
                 f64::INFINITY
             }
         }
-    };
-    // t = ln|u|, u = ln(m / mass): |u| from 1e-7 to 25 (heavy: m up to 7e10 mass;
-    // light: m down to 1.4e-11 mass)
-    let (t0, t1) = (1e-7f64.ln(), 25f64.ln());
-    let k = 60;
-    let ts: Vec<f64> = (0..=k)
-        .map(|i| t0 + (t1 - t0) * i as f64 / k as f64)
-        .collect();
-    let phis: Vec<f64> = ts.iter().map(|&t| phi_at(t, &mut guess)).collect();
-    let (ib, _) =
-        phis.iter().enumerate().fold(
-            (0, f64::INFINITY),
-            |acc, (i, &p)| if p < acc.1 { (i, p) } else { acc },
-        );
-    if !phis[ib].is_finite() {
-        return Err(Error::Unresolvable {
-            reason: "unknown-mass locator: no trial mass places the defect inside 1..n at every usable s".into(),
-        });
     }
-    let a = ts[ib.saturating_sub(1)];
-    let b = ts[(ib + 1).min(k)];
-    let mut g2 = vec![f64::NAN; picked.len()];
-    let _ = positions(ts[ib], &mut g2);
-    let (tb, _) = golden(|t| phi_at(t, &mut g2), a, b, 50);
-    let js = positions(tb, &mut g2).ok_or_else(|| Error::Unresolvable {
-        reason: "unknown-mass locator: the fit left the range 1..n".into(),
-    })?;
-    let (mean, phi, sw) = stats(&js);
-    // curvature of Phi in t, and d jbar / dt
-    let h = 1e-3;
-    let jp = positions(tb + h, &mut g2.clone());
-    let jm = positions(tb - h, &mut g2.clone());
-    let mut sigma = (1.0 / sw).sqrt();
-    if let (Some(jp), Some(jm)) = (jp, jm) {
+
+    /// The standard deviation of `jbar` at the minimiser `tb` (where `Phi =
+    /// phi` and the weights sum to `sw`): the weighted mean's combined with
+    /// that of the mass, from the curvature of `Phi` in `t` and `d jbar / dt`.
+    fn sigma(&self, tb: f64, guess: &[f64], phi: f64, sw: f64) -> f64 {
+        let h = 1e-3;
+        let jp = self.positions(tb + h, &mut guess.to_vec());
+        let jm = self.positions(tb - h, &mut guess.to_vec());
+        let (Some(jp), Some(jm)) = (jp, jm) else {
+            return f64::INFINITY;
+        };
+        let sigma = (1.0 / sw).sqrt();
         let (mp, pp, _) = stats(&jp);
         let (mm, pm, _) = stats(&jm);
         let curv = (pp - 2.0 * phi + pm) / (h * h);
@@ -183,25 +239,18 @@ pub(crate) fn fit<T: RealScalar>(model: &Model<T>, data: &LaplaceData<T>) -> Res
         } else {
             f64::INFINITY
         };
-        sigma = (sigma * sigma + (dj * dt).powi(2)).sqrt();
-    } else {
-        sigma = f64::INFINITY;
+        (sigma * sigma + (dj * dt).powi(2)).sqrt()
     }
-    let bias = (phi / sw).sqrt();
-    let m = mass_of(tb);
-    let s_used: Vec<f64> = picked.iter().map(|d| d.s).collect();
-    let last = *s_used.last().unwrap_or(&f64::NAN);
-    Location {
-        method: Method::UnknownMass,
-        n,
-        j: T::from_f64(mean),
-        position: mean.round().max(0.0) as usize,
-        s: last,
-        sigma,
-        bias,
-        mass: Some(m),
-        raw_j: None,
-        used: s_used,
-    }
-    .check()
+}
+
+/// The weighted mean of positions `(j, sigma)`, their `Phi` and the sum of
+/// the weights.
+fn stats(js: &[(f64, f64)]) -> (f64, f64, f64) {
+    let sw: f64 = js.iter().map(|&(_, s)| 1.0 / (s * s)).sum();
+    let mean = js.iter().map(|&(j, s)| j / (s * s)).sum::<f64>() / sw;
+    let phi = js
+        .iter()
+        .map(|&(j, s)| (j - mean).powi(2) / (s * s))
+        .sum::<f64>();
+    (mean, phi, sw)
 }

@@ -185,6 +185,24 @@ pub struct LmReport {
 /// Parameters up to which [`lm_normal`] works in stack buffers.
 const STACK_P: usize = 8;
 
+/// The first `n` places of `stack` when they are enough, else `heap`
+/// resized to `n` (filled with `fill`): scratch space without an
+/// allocation in the common case.
+#[inline]
+pub(crate) fn scratch<'a, T: Copy>(
+    stack: &'a mut [T],
+    heap: &'a mut Vec<T>,
+    n: usize,
+    fill: T,
+) -> &'a mut [T] {
+    if n <= stack.len() {
+        &mut stack[..n]
+    } else {
+        heap.resize(n, fill);
+        heap
+    }
+}
+
 /// Bounded Levenberg-Marquardt on the normal equations from `theta`
 /// (clamped into the bounds), which holds the minimiser on return.
 ///
@@ -205,15 +223,9 @@ pub fn lm_normal<P: NormalEquations + ?Sized>(
     }
     // workspace: g, h, trial g, trial h, the reduced system a, b, the trial
     // point, and the active indices
-    let need = 3 * p * p + 4 * p;
     let mut stack = [0.0f64; 3 * STACK_P * STACK_P + 4 * STACK_P];
     let mut heap = Vec::new();
-    let ws: &mut [f64] = if p <= STACK_P {
-        &mut stack[..need]
-    } else {
-        heap.resize(need, 0.0);
-        &mut heap
-    };
+    let ws = scratch(&mut stack, &mut heap, 3 * p * p + 4 * p, 0.0);
     let (g, ws) = ws.split_at_mut(p);
     let (h, ws) = ws.split_at_mut(p * p);
     let (g_t, ws) = ws.split_at_mut(p);
@@ -222,23 +234,54 @@ pub fn lm_normal<P: NormalEquations + ?Sized>(
     let (b, trial) = ws.split_at_mut(p);
     let mut act_stack = [0usize; STACK_P];
     let mut act_heap = Vec::new();
-    let act: &mut [usize] = if p <= STACK_P {
-        &mut act_stack[..p]
-    } else {
-        act_heap.resize(p, 0);
-        &mut act_heap
-    };
-
-    let cheap = problem.pieces_are_cheap();
-    let mut chi2 = problem.normal(theta, g, h)?;
-    let mut iterations = 1;
-    let mut evaluations = 1;
+    let act = scratch(&mut act_stack, &mut act_heap, p, 0);
+    let chi2 = problem.normal(theta, g, h)?;
     if !chi2.is_finite() {
         return Err(Error::Numerical {
             method: "levenberg-marquardt".into(),
             reason: "chi-square not finite at the starting point".into(),
         });
     }
+    let mut w = Work {
+        g,
+        h,
+        g_t,
+        h_t,
+        a,
+        b,
+        trial,
+        act,
+    };
+    iterate(problem, theta, bounds, opts, &mut w, chi2)
+}
+
+/// The workspace of [`lm_normal`]: `g` and `h` at the current point and at
+/// the trial point, the reduced system `a`, `b` of the active set `act`, and
+/// the trial point.
+struct Work<'w> {
+    g: &'w mut [f64],
+    h: &'w mut [f64],
+    g_t: &'w mut [f64],
+    h_t: &'w mut [f64],
+    a: &'w mut [f64],
+    b: &'w mut [f64],
+    trial: &'w mut [f64],
+    act: &'w mut [usize],
+}
+
+/// The iterations of [`lm_normal`] from `theta`, where `chi^2 = chi2` and
+/// the normal equations are in `w.g`, `w.h`.
+fn iterate<P: NormalEquations + ?Sized>(
+    problem: &mut P,
+    theta: &mut [f64],
+    bounds: &[(f64, f64)],
+    opts: &LmOptions,
+    w: &mut Work,
+    mut chi2: f64,
+) -> Result<LmReport> {
+    let cheap = problem.pieces_are_cheap();
+    let mut iterations = 1;
+    let mut evaluations = 1;
     let mut mu = opts.mu0;
     let mut converged = false;
     while iterations <= opts.max_iter {
@@ -246,28 +289,14 @@ pub fn lm_normal<P: NormalEquations + ?Sized>(
             converged = true;
             break;
         }
-        // active set: free variables, and those at a bound whose descent
-        // direction (-g) points into the box
-        let mut fa = 0;
-        for (i, (&v, &(lo, hi))) in theta.iter().zip(bounds).enumerate() {
-            if !((v <= lo && g[i] > 0.0) || (v >= hi && g[i] < 0.0)) {
-                act[fa] = i;
-                fa += 1;
-            }
-        }
+        let fa = active_set(theta, bounds, w.g, w.act);
         if fa == 0 {
             converged = true;
             break;
         }
-        let act = &act[..fa];
-        let (a, b) = (&mut a[..fa * fa], &mut b[..fa]);
-        for (r, &i) in act.iter().enumerate() {
-            b[r] = -g[i];
-            for (c, &j) in act.iter().enumerate() {
-                a[r * fa + c] = h[i * p + j];
-            }
-            a[r * fa + r] += mu * h[i * p + i].max(1e-300);
-        }
+        let act = &w.act[..fa];
+        let (a, b) = (&mut w.a[..fa * fa], &mut w.b[..fa]);
+        damped_system(act, w.g, w.h, mu, a, b);
         if !cholesky_solve(a, b, fa) {
             mu *= opts.mu_up;
             if mu > opts.mu_max {
@@ -276,48 +305,33 @@ pub fn lm_normal<P: NormalEquations + ?Sized>(
             }
             continue;
         }
-        // the decrease the Gauss-Newton model predicts for the step,
-        // -(2 g.delta + delta^T H delta): below `rtol chi^2` (undamped
-        // beyond the start, so that the step is not merely shortened) the
-        // step would end the fit anyway; stop before evaluating it
+        // the decrease the Gauss-Newton model predicts for the step: below
+        // `rtol chi^2` (undamped beyond the start, so that the step is not
+        // merely shortened) the step would end the fit anyway; stop before
+        // evaluating it
         if opts.predicted_stop && mu <= opts.mu0 {
-            let mut pred = 0.0;
-            for (r, &i) in act.iter().enumerate() {
-                let mut hd = 0.0;
-                for (c, &j) in act.iter().enumerate() {
-                    hd += h[i * p + j] * b[c];
-                }
-                pred -= b[r] * (2.0 * g[i] + hd);
-            }
+            let pred = predicted_decrease(act, w.g, w.h, b);
             if pred.is_finite() && pred >= 0.0 && pred < opts.rtol * chi2 {
                 converged = true;
                 break;
             }
         }
-        trial.copy_from_slice(theta);
-        let (mut moved_abs, mut moved) = (0.0f64, 0.0f64);
-        for (r, &i) in act.iter().enumerate() {
-            let (lo, hi) = bounds[i];
-            trial[i] = (theta[i] + b[r]).clamp(lo, hi);
-            let d = (trial[i] - theta[i]).abs();
-            moved_abs = moved_abs.max(d);
-            moved = moved.max(d / theta[i].abs().max(1e-12));
-        }
+        let (moved_abs, moved) = trial_point(theta, bounds, act, b, w.trial);
         if moved_abs < opts.xtol_abs {
             converged = true;
             break;
         }
         let c2 = if cheap {
             iterations += 1;
-            problem.normal(trial, g_t, h_t)
+            problem.normal(w.trial, w.g_t, w.h_t)
         } else {
-            problem.chi2(trial)
+            problem.chi2(w.trial)
         };
         evaluations += 1;
         let c2 = c2.unwrap_or(f64::INFINITY);
         if c2.is_finite() && c2 <= chi2 {
             let dec = (chi2 - c2) / chi2.max(1e-300);
-            theta.copy_from_slice(trial);
+            theta.copy_from_slice(w.trial);
             chi2 = c2;
             mu = (mu * opts.mu_down).max(opts.mu_min);
             if dec < opts.rtol || moved < opts.xtol {
@@ -325,10 +339,10 @@ pub fn lm_normal<P: NormalEquations + ?Sized>(
                 break;
             }
             if cheap {
-                g.copy_from_slice(g_t);
-                h.copy_from_slice(h_t);
+                w.g.copy_from_slice(w.g_t);
+                w.h.copy_from_slice(w.h_t);
             } else {
-                chi2 = problem.normal(theta, g, h)?;
+                chi2 = problem.normal(theta, w.g, w.h)?;
                 iterations += 1;
             }
         } else {
@@ -345,6 +359,72 @@ pub fn lm_normal<P: NormalEquations + ?Sized>(
         evaluations,
         converged,
     })
+}
+
+/// The active set into `act`: the free variables, and those at a bound
+/// whose descent direction (`-g`) points into the box. Returns its size.
+#[inline]
+fn active_set(theta: &[f64], bounds: &[(f64, f64)], g: &[f64], act: &mut [usize]) -> usize {
+    let mut fa = 0;
+    for (i, (&v, &(lo, hi))) in theta.iter().zip(bounds).enumerate() {
+        if !((v <= lo && g[i] > 0.0) || (v >= hi && g[i] < 0.0)) {
+            act[fa] = i;
+            fa += 1;
+        }
+    }
+    fa
+}
+
+/// The damped system of the active variables `act`: `a = H_aa + mu
+/// diag(H_aa)` (row-major) and `b = -g_a`, for the full `g` and `h`.
+#[inline]
+fn damped_system(act: &[usize], g: &[f64], h: &[f64], mu: f64, a: &mut [f64], b: &mut [f64]) {
+    let (p, fa) = (g.len(), act.len());
+    for (r, &i) in act.iter().enumerate() {
+        b[r] = -g[i];
+        for (c, &j) in act.iter().enumerate() {
+            a[r * fa + c] = h[i * p + j];
+        }
+        a[r * fa + r] += mu * h[i * p + i].max(1e-300);
+    }
+}
+
+/// The decrease of `chi^2` the Gauss-Newton model predicts for the step
+/// `delta` of the active variables: `-(2 g.delta + delta^T H delta)`.
+#[inline]
+fn predicted_decrease(act: &[usize], g: &[f64], h: &[f64], delta: &[f64]) -> f64 {
+    let p = g.len();
+    let mut pred = 0.0;
+    for (r, &i) in act.iter().enumerate() {
+        let mut hd = 0.0;
+        for (c, &j) in act.iter().enumerate() {
+            hd += h[i * p + j] * delta[c];
+        }
+        pred -= delta[r] * (2.0 * g[i] + hd);
+    }
+    pred
+}
+
+/// The trial point `theta + delta` on the active variables, clamped into
+/// the box, into `trial`; returns the largest absolute and relative moves.
+#[inline]
+fn trial_point(
+    theta: &[f64],
+    bounds: &[(f64, f64)],
+    act: &[usize],
+    delta: &[f64],
+    trial: &mut [f64],
+) -> (f64, f64) {
+    trial.copy_from_slice(theta);
+    let (mut moved_abs, mut moved) = (0.0f64, 0.0f64);
+    for (r, &i) in act.iter().enumerate() {
+        let (lo, hi) = bounds[i];
+        trial[i] = (theta[i] + delta[r]).clamp(lo, hi);
+        let d = (trial[i] - theta[i]).abs();
+        moved_abs = moved_abs.max(d);
+        moved = moved.max(d / theta[i].abs().max(1e-12));
+    }
+    (moved_abs, moved)
 }
 
 fn check_bounds(bounds: &[(f64, f64)], p: usize) -> Result<()> {
@@ -529,6 +609,15 @@ pub fn covariance(j: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     if p == 0 {
         return Ok(DMatrix::zeros(0, 0));
     }
+    if j.nrows() < p {
+        // fewer residuals than parameters: `J^T J` has rank <= rows < p
+        return Err(Error::Unresolvable {
+            reason: format!(
+                "the data do not constrain all {p} parameters: only {} residual rows (need at least {p}; use a longer or denser record, or fewer unknowns)",
+                j.nrows()
+            ),
+        });
+    }
     // column scaling for conditioning
     let scale: Vec<f64> = (0..p)
         .map(|c| {
@@ -650,6 +739,35 @@ mod tests {
                 .map(|(t, y)| (p[0] * (-p[1] * t).exp() - y) / 0.01)
                 .collect())
         }
+    }
+
+    #[test]
+    fn fewer_residuals_than_parameters_is_an_error_not_a_panic() {
+        // one datum, two parameters: J is 1 x 2, J^T J singular
+        let pr = Exp {
+            t: vec![0.5],
+            y: vec![1.0],
+        };
+        let f = levenberg_marquardt(
+            &pr,
+            &[1.0, 0.1],
+            &[(0.1, 10.0), (0.0, 5.0)],
+            &LmOptions::default(),
+        )
+        .unwrap();
+        assert_eq!((f.jacobian.nrows(), f.jacobian.ncols()), (1, 2));
+        assert_eq!(f.dof(), 0);
+        for e in [f.covariance().unwrap_err(), f.std_errors().unwrap_err()] {
+            match e {
+                Error::Unresolvable { reason } => {
+                    assert!(reason.contains("only 1 residual rows"), "{reason}");
+                    assert!(reason.contains("all 2 parameters"), "{reason}");
+                }
+                e => panic!("{e:?}"),
+            }
+        }
+        assert!(covariance(&DMatrix::zeros(2, 3)).is_err());
+        assert!(covariance(&DMatrix::identity(3, 3)).is_ok());
     }
 
     #[test]

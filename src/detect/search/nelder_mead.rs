@@ -122,19 +122,13 @@ impl NelderMeadOptions {
         if !(self.step > 0.0 && self.step <= 1.0) {
             return Err(Error::invalid("nelder_mead.step", self.step, "in (0, 1]"));
         }
-        if !(self.sd_tolerance >= 0.0 && self.sd_tolerance.is_finite()) {
-            return Err(Error::invalid(
-                "nelder_mead.sd_tolerance",
-                self.sd_tolerance,
-                ">= 0 and finite",
-            ));
-        }
-        if !(self.sd_rel >= 0.0 && self.sd_rel.is_finite()) {
-            return Err(Error::invalid(
-                "nelder_mead.sd_rel",
-                self.sd_rel,
-                ">= 0 and finite",
-            ));
+        for (f, v) in [
+            ("nelder_mead.sd_tolerance", self.sd_tolerance),
+            ("nelder_mead.sd_rel", self.sd_rel),
+        ] {
+            if !(v >= 0.0 && v.is_finite()) {
+                return Err(Error::invalid(f, v, ">= 0 and finite"));
+            }
         }
         if !(self.min_progress >= 0.0 && self.min_progress < 1.0) {
             return Err(Error::invalid(
@@ -143,19 +137,23 @@ impl NelderMeadOptions {
                 "in [0, 1)",
             ));
         }
-        if self.rounds == 0 {
-            return Err(Error::invalid("nelder_mead.rounds", 0, ">= 1"));
-        }
-        if self.max_iters_per_fit == 0 {
-            return Err(Error::invalid("nelder_mead.max_iters_per_fit", 0, ">= 1"));
-        }
-        if self.neighbourhood == 0 {
-            return Err(Error::invalid("nelder_mead.neighbourhood", 0, ">= 1"));
-        }
-        if self.patience == 0 {
-            return Err(Error::invalid("nelder_mead.patience", 0, ">= 1"));
-        }
-        Ok(())
+        at_least_one(&[
+            ("nelder_mead.rounds", self.rounds),
+            ("nelder_mead.max_iters_per_fit", self.max_iters_per_fit),
+            ("nelder_mead.neighbourhood", self.neighbourhood),
+            ("nelder_mead.patience", self.patience),
+        ])
+    }
+}
+
+/// The first of the `(field, count)` that is 0, as an error (`>= 1`).
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming that field.
+pub(crate) fn at_least_one(counts: &[(&str, usize)]) -> Result<()> {
+    match counts.iter().find(|c| c.1 == 0) {
+        Some(&(field, _)) => Err(Error::invalid(field, 0, ">= 1")),
+        None => Ok(()),
     }
 }
 

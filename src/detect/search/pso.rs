@@ -114,12 +114,10 @@ impl PsoOptions {
                 return Err(Error::invalid(f, v, ">= 0 and finite"));
             }
         }
-        if self.stall_iters == 0 {
-            return Err(Error::invalid("pso.stall_iters", 0, ">= 1"));
-        }
-        if self.patience == 0 {
-            return Err(Error::invalid("pso.patience", 0, ">= 1"));
-        }
+        super::nelder_mead::at_least_one(&[
+            ("pso.stall_iters", self.stall_iters),
+            ("pso.patience", self.patience),
+        ])?;
         if !(self.swarm_share > 0.0 && self.swarm_share <= 1.0) {
             return Err(Error::invalid(
                 "pso.swarm_share",
@@ -201,36 +199,10 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
     let mut memo = FitMemo::new();
     while !tracked.done() && idle < o.patience {
         let stop_at = tracked.evaluations() + swarm_cap.min(tracked.remaining());
-        let rng = ChaCha8Rng::seed_from_u64(episode_seed(opts.seed, episode));
-        let pso = ParticleSwarm::new((lo.clone(), hi.clone()), o.particles)
-            .with_inertia_factor(o.inertia)
-            .and_then(|p| p.with_cognitive_factor(o.cognitive))
-            .and_then(|p| p.with_social_factor(o.social))
-            .map_err(|e| argmin_err("particle-swarm", e))?
-            .with_rng_generator(rng);
-        let res = Executor::new(
-            Swarmed {
-                tracked,
-                parallel: o.parallel,
-            },
-            Budgeted::new(pso, tracked, stop_at, Some((o.stall_iters, 1e-12))),
-        )
-        .configure(|s| s.max_iters(u64::MAX))
-        .ctrlc(false)
-        .run()
-        .map_err(|e| argmin_err("particle-swarm", e))?;
-        let st = res.state();
-        let Some(best) = st.get_best_param() else {
+        let Some((best, cost)) = swarm_episode(tracked, opts, (&lo, &hi), stop_at, episode)? else {
             break;
         };
-        let best = space.canonicalize(
-            &Swarmed {
-                tracked,
-                parallel: false,
-            }
-            .candidate(&best.position),
-        );
-        let mut out = (best.clone(), st.get_best_cost());
+        let mut out = (best.clone(), cost);
         if !tracked.done() {
             match o.finish {
                 Finish::None => {}
@@ -255,6 +227,49 @@ pub(crate) fn run(tracked: &Tracked<'_>, opts: &SearchOptions) -> Result<()> {
         episode += 1;
     }
     Ok(())
+}
+
+/// One swarm episode (seeded by `episode`) in the box `(lo, hi)` until
+/// `stop_at` evaluations: its best candidate (canonical) and cost, `None`
+/// when it has none.
+fn swarm_episode(
+    tracked: &Tracked<'_>,
+    opts: &SearchOptions,
+    (lo, hi): (&[f64], &[f64]),
+    stop_at: usize,
+    episode: u64,
+) -> Result<Option<(Candidate, f64)>> {
+    let o = &opts.pso;
+    let rng = ChaCha8Rng::seed_from_u64(episode_seed(opts.seed, episode));
+    let pso = ParticleSwarm::new((lo.to_vec(), hi.to_vec()), o.particles)
+        .with_inertia_factor(o.inertia)
+        .and_then(|p| p.with_cognitive_factor(o.cognitive))
+        .and_then(|p| p.with_social_factor(o.social))
+        .map_err(|e| argmin_err("particle-swarm", e))?
+        .with_rng_generator(rng);
+    let res = Executor::new(
+        Swarmed {
+            tracked,
+            parallel: o.parallel,
+        },
+        Budgeted::new(pso, tracked, stop_at, Some((o.stall_iters, 1e-12))),
+    )
+    .configure(|s| s.max_iters(u64::MAX))
+    .ctrlc(false)
+    .run()
+    .map_err(|e| argmin_err("particle-swarm", e))?;
+    let st = res.state();
+    let Some(best) = st.get_best_param() else {
+        return Ok(None);
+    };
+    let best = tracked.space().canonicalize(
+        &Swarmed {
+            tracked,
+            parallel: false,
+        }
+        .candidate(&best.position),
+    );
+    Ok(Some((best, st.get_best_cost())))
 }
 
 /// Seed of swarm episode `e`: a SplitMix64 step of `seed` and `e`.

@@ -450,6 +450,94 @@ fn grid_values(lo: f64, hi: f64, g: usize) -> Vec<f64> {
     }
 }
 
+/// The distinct probes of `defects` (the columns of the capacitance
+/// systems), the column of each defect and the number of free values.
+///
+/// # Errors
+/// As [`SetProblem::new`].
+fn probe_columns(chain: &Chain, defects: &[SetDefect]) -> Result<(Vec<Probe>, Vec<usize>, usize)> {
+    let n = chain.n();
+    let (slo, shi) = chain.spring_range();
+    let mut probes: Vec<Probe> = Vec::new();
+    let mut col = Vec::with_capacity(defects.len());
+    let mut p = 0;
+    for (i, d) in defects.iter().enumerate() {
+        let (kind, at) = d.kind_at();
+        let probe = kind.site(at).probe;
+        let ok = match probe {
+            Probe::Diff(_) => (slo..=shi).contains(&at),
+            Probe::Point(_) => (1..=n).contains(&at),
+        };
+        if !ok {
+            return Err(Error::invalid(
+                format!("defects[{i}].at"),
+                at,
+                "a position of the defect's kind in this chain",
+            ));
+        }
+        if let SetDefect::Free(_, _, j) = *d {
+            p = p.max(j + 1);
+        }
+        let c = match probes.iter().position(|&q| q == probe) {
+            Some(c) => c,
+            None => {
+                probes.push(probe);
+                probes.len() - 1
+            }
+        };
+        col.push(c);
+    }
+    let mut seen = vec![false; p];
+    for d in defects {
+        if let SetDefect::Free(_, _, j) = *d {
+            seen[j] = true;
+        }
+    }
+    if seen.iter().any(|s| !s) {
+        return Err(Error::invalid(
+            "defects",
+            "free indices with gaps",
+            "free value indices 0..p, each used",
+        ));
+    }
+    Ok((probes, col, p))
+}
+
+/// Per node of `target`, in node order: the capacitance matrix of the
+/// probes (`ncol^2`), its right-hand side (`ncol`) and `g11`.
+fn node_tables(chain: &Chain, target: &Target, probes: &[Probe]) -> (Vec<C>, Vec<C>, Vec<C>) {
+    let ncol = probes.len();
+    let src = Probe::Point(1);
+    let per: Vec<(Vec<C>, Vec<C>, C)> = target
+        .nodes()
+        .par_iter()
+        .map(|&z| {
+            let g = crate::green::Green::of_chain(chain, z);
+            let fs = g.factors(src);
+            let fu: Vec<_> = probes.iter().map(|&pr| g.factors(pr)).collect();
+            let mut a = vec![C::new(0.0, 0.0); ncol * ncol];
+            for l in 0..ncol {
+                for m in l..ncol {
+                    let v = g.pair(&fu[l], &fu[m]);
+                    a[l * ncol + m] = v;
+                    a[m * ncol + l] = v;
+                }
+            }
+            let rhs = fu.iter().map(|f| g.pair(f, &fs)).collect();
+            (a, rhs, g.pair(&fs, &fs))
+        })
+        .collect();
+    let mut a = Vec::with_capacity(per.len() * ncol * ncol);
+    let mut rhs = Vec::with_capacity(per.len() * ncol);
+    let mut g11 = Vec::with_capacity(per.len());
+    for (pa, pr, g) in per {
+        a.extend(pa);
+        rhs.extend(pr);
+        g11.push(g);
+    }
+    (a, rhs, g11)
+}
+
 /// Score every candidate of `sweep` not in `exclude` against `target`
 /// (module docs): the best value of each and the chi-square it gives, best
 /// first (ties by position, then kind). Parallel over candidates when
@@ -502,23 +590,10 @@ pub fn score(
             evaluations,
         }
     };
-    let mut out: Vec<Scored> = if parallel {
-        jobs.par_iter()
-            .map_init(|| Scratch::new(target), grid)
-            .collect()
-    } else {
-        let mut sc = Scratch::new(target);
-        jobs.iter().map(|j| grid(&mut sc, j)).collect()
-    };
+    let mut out = with_scratch(&jobs, parallel, target, grid);
     // polish of the best by grid chi-square
     let mut idx: Vec<usize> = (0..out.len()).collect();
-    idx.sort_by(|&a, &b| {
-        out[a]
-            .chi2
-            .total_cmp(&out[b].chi2)
-            .then(out[a].at.cmp(&out[b].at))
-            .then(out[a].kind.cmp(&out[b].kind))
-    });
+    idx.sort_by(|&a, &b| best_first(&out[a], &out[b]));
     idx.truncate(opts.polish);
     let polish = |scratch: &mut Scratch, &i: &usize| -> Scored {
         let (ki, pi) = jobs[i];
@@ -530,24 +605,37 @@ pub fn score(
         sc.evaluations += e;
         sc
     };
-    let polished: Vec<Scored> = if parallel {
-        idx.par_iter()
-            .map_init(|| Scratch::new(target), polish)
-            .collect()
-    } else {
-        let mut sc = Scratch::new(target);
-        idx.iter().map(|j| polish(&mut sc, j)).collect()
-    };
+    let polished = with_scratch(&idx, parallel, target, polish);
     for (&i, p) in idx.iter().zip(polished) {
         out[i] = p;
     }
-    out.sort_by(|a, b| {
-        a.chi2
-            .total_cmp(&b.chi2)
-            .then(a.at.cmp(&b.at))
-            .then(a.kind.cmp(&b.kind))
-    });
+    out.sort_by(best_first);
     out
+}
+
+/// `f` on every item with a [`Scratch`] of its thread (one per worker when
+/// `parallel`); the results in the order of `items`.
+fn with_scratch<I: Sync, F>(items: &[I], parallel: bool, target: &Target, f: F) -> Vec<Scored>
+where
+    F: Fn(&mut Scratch, &I) -> Scored + Sync + Send,
+{
+    if parallel {
+        items
+            .par_iter()
+            .map_init(|| Scratch::new(target), f)
+            .collect()
+    } else {
+        let mut sc = Scratch::new(target);
+        items.iter().map(|j| f(&mut sc, j)).collect()
+    }
+}
+
+/// Scores best first: by chi-square, then position, then kind.
+fn best_first(a: &Scored, b: &Scored) -> std::cmp::Ordering {
+    a.chi2
+        .total_cmp(&b.chi2)
+        .then(a.at.cmp(&b.at))
+        .then(a.kind.cmp(&b.kind))
 }
 
 struct Scratch {
@@ -769,50 +857,7 @@ impl<'a> SetProblem<'a> {
     /// A position outside the kind's range (field `defects[i].at`); free
     /// indices that are not `0..p` (field `defects`).
     pub fn new(chain: &Chain, defects: &[SetDefect], target: &'a Target) -> Result<SetProblem<'a>> {
-        let n = chain.n();
-        let (slo, shi) = chain.spring_range();
-        let mut probes: Vec<crate::green::Probe> = Vec::new();
-        let mut col = Vec::with_capacity(defects.len());
-        let mut p = 0;
-        for (i, d) in defects.iter().enumerate() {
-            let (kind, at) = d.kind_at();
-            let probe = kind.site(at).probe;
-            let ok = match probe {
-                Probe::Diff(_) => (slo..=shi).contains(&at),
-                Probe::Point(_) => (1..=n).contains(&at),
-            };
-            if !ok {
-                return Err(Error::invalid(
-                    format!("defects[{i}].at"),
-                    at,
-                    "a position of the defect's kind in this chain",
-                ));
-            }
-            if let SetDefect::Free(_, _, j) = *d {
-                p = p.max(j + 1);
-            }
-            let c = match probes.iter().position(|&q| q == probe) {
-                Some(c) => c,
-                None => {
-                    probes.push(probe);
-                    probes.len() - 1
-                }
-            };
-            col.push(c);
-        }
-        let mut seen = vec![false; p];
-        for d in defects {
-            if let SetDefect::Free(_, _, j) = *d {
-                seen[j] = true;
-            }
-        }
-        if seen.iter().any(|s| !s) {
-            return Err(Error::invalid(
-                "defects",
-                "free indices with gaps",
-                "free value indices 0..p, each used",
-            ));
-        }
+        let (probes, col, p) = probe_columns(chain, defects)?;
         let ncol = probes.len();
         let e1 = probes
             .iter()
@@ -822,34 +867,7 @@ impl<'a> SetProblem<'a> {
                 _ => None,
             })
             .collect();
-        let src = Probe::Point(1);
-        let per: Vec<(Vec<C>, Vec<C>, C)> = target
-            .nodes()
-            .par_iter()
-            .map(|&z| {
-                let g = crate::green::Green::of_chain(chain, z);
-                let fs = g.factors(src);
-                let fu: Vec<_> = probes.iter().map(|&pr| g.factors(pr)).collect();
-                let mut a = vec![C::new(0.0, 0.0); ncol * ncol];
-                for l in 0..ncol {
-                    for m in l..ncol {
-                        let v = g.pair(&fu[l], &fu[m]);
-                        a[l * ncol + m] = v;
-                        a[m * ncol + l] = v;
-                    }
-                }
-                let rhs = fu.iter().map(|f| g.pair(f, &fs)).collect();
-                (a, rhs, g.pair(&fs, &fs))
-            })
-            .collect();
-        let mut a = Vec::with_capacity(per.len() * ncol * ncol);
-        let mut rhs = Vec::with_capacity(per.len() * ncol);
-        let mut g11 = Vec::with_capacity(per.len());
-        for (pa, pr, g) in per {
-            a.extend(pa);
-            rhs.extend(pr);
-            g11.push(g);
-        }
+        let (a, rhs, g11) = node_tables(chain, target, &probes);
         let factor = target
             .nodes()
             .iter()

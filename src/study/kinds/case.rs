@@ -280,3 +280,10 @@ fn field_at(text: &str, at: usize) -> Option<String> {
     }
     None
 }
+
+/// A metric's number: JSON `null` for a value that is not finite.
+pub(crate) fn num(x: f64) -> serde_json::Value {
+    serde_json::Number::from_f64(x)
+        .map(serde_json::Value::Number)
+        .unwrap_or(serde_json::Value::Null)
+}

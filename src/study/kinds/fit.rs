@@ -20,9 +20,9 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::case::{chain_problems, CaseOutput, KindScene};
+use super::case::{chain_problems, num, CaseOutput, KindScene};
 use crate::chain::Defect;
-use crate::detect::fit::paper::fit;
+use crate::detect::fit::paper::{fit, SceneReport};
 use crate::detect::fit::FitMethod;
 use crate::detect::scene::{DataSourceKind, FitScene};
 use crate::error::{check_f64, Error, Result};
@@ -220,6 +220,80 @@ pub fn seeded(value: &toml::Value, seed: u64) -> toml::Value {
     v
 }
 
+/// The problems of `[unknowns]` against the chain's n and defects, and of
+/// the search method and data source they allow.
+fn unknowns_problems(scene: &FitScene, out: &mut Vec<Error>) {
+    if scene.is_general() {
+        if let Err(e) = scene.unknowns() {
+            out.push(e);
+        }
+        if !matches!(
+            scene.search.method,
+            FitMethod::Enumerate | FitMethod::Greedy
+        ) {
+            out.push(Error::invalid(
+                    "search.method",
+                    scene.search.method.name(),
+                    "enumerate or greedy for the general fit (non-mass kinds, chain parameters or the time misfit)",
+                ));
+        }
+        if scene.misfit.kind == crate::detect::misfit::MisfitKind::Time
+            && scene.data.source == crate::detect::scene::DataSourceKind::Exact
+        {
+            out.push(Error::invalid(
+                "data.source",
+                "exact",
+                "simulated or series for misfit.kind = \"time\"",
+            ));
+        }
+    } else {
+        match scene.unknowns().and_then(|u| u.to_mass()) {
+            Err(e) => out.push(e),
+            Ok(u) => {
+                if !matches!(
+                    scene.search.method,
+                    FitMethod::Enumerate | FitMethod::Greedy
+                ) && !u.interchangeable()
+                {
+                    out.push(Error::invalid(
+                            "search.method",
+                            scene.search.method.name(),
+                            "enumerate when the defects at unknown positions differ (known, unequal masses or unequal bounds)",
+                        ));
+                }
+            }
+        }
+    }
+}
+
+/// The problems of `[data]`.
+fn data_problems(d: &crate::detect::scene::DataSpec, out: &mut Vec<Error>) {
+    if let Err(e) = check_f64("data.noise", d.noise, d.noise >= 0.0, ">= 0 and finite") {
+        out.push(e);
+    }
+    let t_end = d.t_end.unwrap_or(300.0);
+    if let Err(e) = check_f64("data.t_end", t_end, t_end > 0.0, "> 0 and finite") {
+        out.push(e);
+    }
+    if let Some(dt) = d.dt {
+        if let Err(e) = check_f64(
+            "data.dt",
+            dt,
+            dt > 0.0 && dt <= t_end.abs() && t_end / dt <= 2e7,
+            "0 < dt <= t_end, at most 2e7 steps",
+        ) {
+            out.push(e);
+        }
+    }
+    if d.source == DataSourceKind::Series && d.path.is_none() {
+        out.push(Error::invalid(
+            "data.path",
+            "(none)",
+            "a CSV file for source = \"series\"",
+        ));
+    }
+}
+
 /// The fit scene's checks, sub-table by sub-table, so that
 /// `springmass config check` lists every problem of a scene (with
 /// [`KindScene::all_problems`]: every unknown field and every type error
@@ -231,68 +305,9 @@ impl KindScene for FitScene {
         let mut out = chain_problems(&self.chain);
         // the unknowns need only n (and the number of mass defects)
         let chain_ok = crate::chain::Chain::new(self.chain.n).is_ok();
-        // [data]
-        let d = &self.data;
-        if let Err(e) = check_f64("data.noise", d.noise, d.noise >= 0.0, ">= 0 and finite") {
-            out.push(e);
-        }
-        let t_end = d.t_end.unwrap_or(300.0);
-        if let Err(e) = check_f64("data.t_end", t_end, t_end > 0.0, "> 0 and finite") {
-            out.push(e);
-        }
-        if let Some(dt) = d.dt {
-            if let Err(e) = check_f64(
-                "data.dt",
-                dt,
-                dt > 0.0 && dt <= t_end.abs() && t_end / dt <= 2e7,
-                "0 < dt <= t_end, at most 2e7 steps",
-            ) {
-                out.push(e);
-            }
-        }
-        if d.source == DataSourceKind::Series && d.path.is_none() {
-            out.push(Error::invalid(
-                "data.path",
-                "(none)",
-                "a CSV file for source = \"series\"",
-            ));
-        }
-        // [unknowns] (against the chain's n and defects)
-        if chain_ok && self.is_general() {
-            if let Err(e) = self.unknowns() {
-                out.push(e);
-            }
-            if !matches!(self.search.method, FitMethod::Enumerate | FitMethod::Greedy) {
-                out.push(Error::invalid(
-                    "search.method",
-                    self.search.method.name(),
-                    "enumerate or greedy for the general fit (non-mass kinds, chain parameters or the time misfit)",
-                ));
-            }
-            if self.misfit.kind == crate::detect::misfit::MisfitKind::Time
-                && self.data.source == crate::detect::scene::DataSourceKind::Exact
-            {
-                out.push(Error::invalid(
-                    "data.source",
-                    "exact",
-                    "simulated or series for misfit.kind = \"time\"",
-                ));
-            }
-        } else if chain_ok {
-            match self.unknowns().and_then(|u| u.to_mass()) {
-                Err(e) => out.push(e),
-                Ok(u) => {
-                    if !matches!(self.search.method, FitMethod::Enumerate | FitMethod::Greedy)
-                        && !u.interchangeable()
-                    {
-                        out.push(Error::invalid(
-                            "search.method",
-                            self.search.method.name(),
-                            "enumerate when the defects at unknown positions differ (known, unequal masses or unequal bounds)",
-                        ));
-                    }
-                }
-            }
+        data_problems(&self.data, &mut out);
+        if chain_ok {
+            unknowns_problems(self, &mut out);
         }
         // [misfit]
         if self.misfit.kind != crate::detect::misfit::MisfitKind::Time {
@@ -336,22 +351,14 @@ pub fn scene(value: &toml::Value) -> Result<FitScene> {
     <FitScene as KindScene>::from_value(value)
 }
 
-/// Run one `fit` case.
-///
-/// # Errors
-/// An invalid scene; the fit's own errors.
-pub fn run(value: &toml::Value, seed: u64) -> Result<CaseOutput> {
-    let s = scene(&seeded(value, seed))?;
-    if let Some(mode) = s.profile.requested() {
-        return Err(Error::invalid(
-            "profile.mode",
-            mode,
-            "\"none\" in a `fit` study (profile studies use the `noise` kind's `profile` field)",
-        ));
-    }
-    let data = s.data()?;
-    let r = fit(&s, &data, &s.options())?;
-    let truth = positions(s.truth()?.defects());
+/// The metrics of the fit's answer `r` against the `truth` (labels and
+/// values): success, found, truth, position_error, mass_max_rel_err and
+/// (with standard errors) value_max_se.
+fn outcome_metrics(
+    truth: &[(String, f64)],
+    r: &SceneReport,
+    m: &mut serde_json::Map<String, serde_json::Value>,
+) {
     let found = positions(&r.defects);
     let list = |p: &[(String, f64)]| p.iter().map(|x| x.0.clone()).collect::<Vec<_>>().join(";");
     let same = truth.len() == found.len() && truth.iter().zip(&found).all(|(a, b)| a.0 == b.0);
@@ -364,16 +371,9 @@ pub fn run(value: &toml::Value, seed: u64) -> Result<CaseOutput> {
     } else {
         usize::MAX
     };
-    let num = |x: f64| {
-        serde_json::Number::from_f64(x)
-            .map(serde_json::Value::Number)
-            .unwrap_or(serde_json::Value::Null)
-    };
-    let mut out = CaseOutput::default();
-    let m = &mut out.metrics;
     m.insert("success".into(), same.into());
     m.insert("found".into(), list(&found).into());
-    m.insert("truth".into(), list(&truth).into());
+    m.insert("truth".into(), list(truth).into());
     m.insert(
         "position_error".into(),
         if pos_err == usize::MAX {
@@ -421,6 +421,27 @@ pub fn run(value: &toml::Value, seed: u64) -> Result<CaseOutput> {
         };
         m.insert("value_max_se".into(), num(zmax));
     }
+}
+
+/// Run one `fit` case.
+///
+/// # Errors
+/// An invalid scene; the fit's own errors.
+pub fn run(value: &toml::Value, seed: u64) -> Result<CaseOutput> {
+    let s = scene(&seeded(value, seed))?;
+    if let Some(mode) = s.profile.requested() {
+        return Err(Error::invalid(
+            "profile.mode",
+            mode,
+            "\"none\" in a `fit` study (profile studies use the `noise` kind's `profile` field)",
+        ));
+    }
+    let data = s.data()?;
+    let r = fit(&s, &data, &s.options())?;
+    let truth = positions(s.truth()?.defects());
+    let mut out = CaseOutput::default();
+    outcome_metrics(&truth, &r, &mut out.metrics);
+    let m = &mut out.metrics;
     for p in &r.chain_params {
         m.insert(format!("fit_{}", p.name), num(p.value));
         m.insert(format!("fit_{}_se", p.name), num(p.std_error));

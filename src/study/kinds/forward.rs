@@ -29,7 +29,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::case::{prefix_chain, CaseOutput, KindScene};
+use super::case::{num, prefix_chain, CaseOutput, KindScene};
 use crate::chain::{ChainSpec, Defect};
 use crate::error::{check_f64, Error, Result};
 use crate::forward::transfer::Transfer;
@@ -413,11 +413,6 @@ pub fn run(scene: &Scene, seed: u64) -> Result<CaseOutput> {
         Some(sig) => measure(&chain, &ts, obs, min_t, |t| Complex64::new(sig, t))?,
     };
     let mut out = CaseOutput::default();
-    let num = |x: f64| {
-        serde_json::Number::from_f64(x)
-            .map(serde_json::Value::Number)
-            .unwrap_or(serde_json::Value::Null)
-    };
     out.metrics.insert("n".into(), chain.n().into());
     out.metrics
         .insert("defects".into(), chain.defects().len().into());
@@ -474,6 +469,59 @@ fn time_per_pass(min_t: f64, mut pass: impl FnMut()) -> f64 {
     best
 }
 
+/// The accuracy of the Woodbury values `xw` and the transfer values `xt`
+/// against the reference `xr` (times left at zero).
+fn compare<T: Scalar>(xw: &[T], xr: &[T], xt: &[T]) -> Measured {
+    let mut m = Measured {
+        unresolved: 0,
+        nonfinite: 0,
+        max_rel: 0.0,
+        max_rel_transfer: 0.0,
+        rms_rel: 0.0,
+        x_min: f64::INFINITY,
+        x_max: 0.0,
+        t_woodbury: 0.0,
+        t_reference: 0.0,
+        t_transfer: 0.0,
+    };
+    let mut sum2 = 0.0;
+    let mut resolved = 0usize;
+    for ((w, r), t) in xw.iter().zip(xr).zip(xt) {
+        let mag = r.magnitude();
+        if !(mag.is_finite() && mag >= f64::MIN_POSITIVE) {
+            m.unresolved += 1;
+            continue;
+        }
+        resolved += 1;
+        m.x_min = m.x_min.min(mag);
+        m.x_max = m.x_max.max(mag);
+        let rel_t = (t.clone() - r.clone()).magnitude() / mag;
+        m.max_rel_transfer = if rel_t.is_nan() {
+            f64::INFINITY
+        } else {
+            m.max_rel_transfer.max(rel_t)
+        };
+        if !w.is_finite() {
+            m.nonfinite += 1;
+            m.max_rel = f64::INFINITY;
+            continue;
+        }
+        let rel = (w.clone() - r.clone()).magnitude() / mag;
+        m.max_rel = m.max_rel.max(rel);
+        sum2 += rel * rel;
+    }
+    if resolved == 0 {
+        m.max_rel = f64::NAN;
+        m.max_rel_transfer = f64::NAN;
+        m.rms_rel = f64::NAN;
+        m.x_min = f64::NAN;
+        m.x_max = f64::NAN;
+    } else {
+        m.rms_rel = (sum2 / resolved as f64).sqrt();
+    }
+    m
+}
+
 fn measure<T: Scalar>(
     chain: &crate::Chain,
     ts: &[f64],
@@ -518,53 +566,10 @@ fn measure<T: Scalar>(
     if let Some(e) = err {
         return Err(e);
     }
-    let mut m = Measured {
-        unresolved: 0,
-        nonfinite: 0,
-        max_rel: 0.0,
-        max_rel_transfer: 0.0,
-        rms_rel: 0.0,
-        x_min: f64::INFINITY,
-        x_max: 0.0,
-        t_woodbury: t_w / pts.len() as f64,
-        t_reference: t_r / pts.len() as f64,
-        t_transfer: t_t / pts.len() as f64,
-    };
-    let mut sum2 = 0.0;
-    let mut resolved = 0usize;
-    for ((w, r), t) in xw.iter().zip(&xr).zip(&xt) {
-        let mag = r.magnitude();
-        if !(mag.is_finite() && mag >= f64::MIN_POSITIVE) {
-            m.unresolved += 1;
-            continue;
-        }
-        resolved += 1;
-        m.x_min = m.x_min.min(mag);
-        m.x_max = m.x_max.max(mag);
-        let rel_t = (t.clone() - r.clone()).magnitude() / mag;
-        m.max_rel_transfer = if rel_t.is_nan() {
-            f64::INFINITY
-        } else {
-            m.max_rel_transfer.max(rel_t)
-        };
-        if !w.is_finite() {
-            m.nonfinite += 1;
-            m.max_rel = f64::INFINITY;
-            continue;
-        }
-        let rel = (w.clone() - r.clone()).magnitude() / mag;
-        m.max_rel = m.max_rel.max(rel);
-        sum2 += rel * rel;
-    }
-    if resolved == 0 {
-        m.max_rel = f64::NAN;
-        m.max_rel_transfer = f64::NAN;
-        m.rms_rel = f64::NAN;
-        m.x_min = f64::NAN;
-        m.x_max = f64::NAN;
-    } else {
-        m.rms_rel = (sum2 / resolved as f64).sqrt();
-    }
+    let mut m = compare(&xw, &xr, &xt);
+    m.t_woodbury = t_w / pts.len() as f64;
+    m.t_reference = t_r / pts.len() as f64;
+    m.t_transfer = t_t / pts.len() as f64;
     Ok(m)
 }
 

@@ -24,7 +24,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::case::{chain_problems, CaseOutput, CasePlot, KindScene};
+use super::case::{chain_problems, num, CaseOutput, CasePlot, KindScene};
 use crate::chain::{Chain, ChainSpec, Defect};
 use crate::detect::locate::{curve, default_grid, locate, LaplaceData, Method, Model, SChoice};
 use crate::error::{check_f64, Error, Result};
@@ -325,11 +325,6 @@ fn run_in<T: RealScalar>(scene: &Scene, _seed: u64, bits: usize) -> Result<CaseO
     let model: Model<T> = Model::from_chain(&chain);
     let result = locate(&model, &data, method, choice);
     let t = start.elapsed().as_secs_f64();
-    let num = |x: f64| {
-        serde_json::Number::from_f64(x)
-            .map(serde_json::Value::Number)
-            .unwrap_or(serde_json::Value::Null)
-    };
     let mut out = CaseOutput::default();
     let m = &mut out.metrics;
     m.insert("truth".into(), at.into());
@@ -369,29 +364,40 @@ fn run_in<T: RealScalar>(scene: &Scene, _seed: u64, bits: usize) -> Result<CaseO
     }
     out.timings.insert("t_locate".into(), num(t));
     if scene.plots {
-        let est = curve(&model, &data, method)?;
-        let pts: Vec<(f64, f64)> = est.iter().map(|e| (e.s, e.j_f64())).collect();
-        let truth: Vec<(f64, f64)> = est.iter().map(|e| (e.s, at as f64)).collect();
-        let chart = LinePlot::new(
-            format!(
-                "j(s), {} locator, {}, true j = {at}",
-                method.name(),
-                scene.precision.label()
-            ),
-            "s",
-            "j(s)",
-        )
-        .log_x(true)
-        .line(Line::new("j(s)", pts))
-        .line(Line::new("true j", truth).dashed());
-        if let Ok(svg) = chart.to_svg_string() {
-            out.plots.push(CasePlot {
-                name: "js".into(),
-                svg,
-            });
+        if let Some(plot) = js_plot(scene, &model, &data, method, at)? {
+            out.plots.push(plot);
         }
     }
     Ok(out)
+}
+
+/// The plot of the estimates `j(s)` against the true position `at`.
+fn js_plot<T: RealScalar>(
+    scene: &Scene,
+    model: &Model<T>,
+    data: &LaplaceData<T>,
+    method: Method,
+    at: usize,
+) -> Result<Option<CasePlot>> {
+    let est = curve(model, data, method)?;
+    let pts: Vec<(f64, f64)> = est.iter().map(|e| (e.s, e.j_f64())).collect();
+    let truth: Vec<(f64, f64)> = est.iter().map(|e| (e.s, at as f64)).collect();
+    let chart = LinePlot::new(
+        format!(
+            "j(s), {} locator, {}, true j = {at}",
+            method.name(),
+            scene.precision.label()
+        ),
+        "s",
+        "j(s)",
+    )
+    .log_x(true)
+    .line(Line::new("j(s)", pts))
+    .line(Line::new("true j", truth).dashed());
+    Ok(chart.to_svg_string().ok().map(|svg| CasePlot {
+        name: "js".into(),
+        svg,
+    }))
 }
 
 #[cfg(test)]

@@ -20,7 +20,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::case::{CaseOutput, CasePlot, KindScene};
+use super::case::{num, CaseOutput, CasePlot, KindScene};
 use crate::control::verify::{verify, Input, Perturbation, Run, Target, VerifyOptions};
 use crate::control::{Scheme, Suppression};
 use crate::error::{check_f64, Error, Result};
@@ -344,11 +344,6 @@ pub fn run(scene: &Scene, seed: u64) -> Result<CaseOutput> {
     let run = verify(&sup, scene.scheme()?, &scene.input(seed), &scene.options()?)?;
     let t_verify = start.elapsed().as_secs_f64();
     let m = &run.metrics;
-    let num = |x: f64| {
-        serde_json::Number::from_f64(x)
-            .map(serde_json::Value::Number)
-            .unwrap_or(serde_json::Value::Null)
-    };
     let mut out = CaseOutput::default();
     out.metrics.insert("masses".into(), (scene.n + 1).into());
     out.metrics.insert("rel_x_end".into(), num(m.rel_x_end));
