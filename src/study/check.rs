@@ -552,31 +552,26 @@ pub fn check_fit_scene(text: &str) -> Vec<Problem> {
         Err(p) => return p,
     };
     let locate = Locator::new(text);
-    let mut problems: Vec<Problem> = Vec::new();
-    for e in Kind::Fit.validate_all(&value) {
-        let (path, message) = plain_message(&e, Some(&value), Kind::Fit.schema());
-        problems.push(Problem {
-            line: locate.line(&path),
-            path,
-            message,
-        });
-    }
-    if problems.is_empty() {
+    let mut errors = Kind::Fit.validate_all(&value);
+    if errors.is_empty() {
         let scene = crate::detect::scene::FitScene::from_toml(text);
         let err = match scene {
             Err(e) => Some(e),
             Ok(s) => s.truth().err().or_else(|| s.unknowns().err()),
         };
-        if let Some(e) = err {
-            let (path, message) = plain_message(&e, Some(&value), Kind::Fit.schema());
-            problems.push(Problem {
+        errors.extend(err);
+    }
+    errors
+        .iter()
+        .map(|e| {
+            let (path, message) = plain_message(e, Some(&value), Kind::Fit.schema());
+            Problem {
                 line: locate.line(&path),
                 path,
                 message,
-            });
-        }
-    }
-    problems
+            }
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -756,10 +756,7 @@ pub fn fit_profile_with(
     let jac = space.problem(&l).jacobian(&path.theta)?;
     let order = depth_order(&space.elems);
     let visible = visible_prefix(&jac, &space.elems, &path.theta, &order, np, opts.change);
-    let mut visible_set = vec![false; nf];
-    for &i in &order[..visible] {
-        visible_set[i] = true;
-    }
+    let visible_set: Vec<bool> = (0..nf).map(|i| order[..visible].contains(&i)).collect();
     let bounds = bounds_of(&space, opts.bound);
     let mut fin = final_fit(&space, &l, &path.theta, &visible_set, &bounds, opts, misfit)?;
     let p = visible + np;
@@ -788,19 +785,9 @@ pub fn fit_profile_with(
         .fold(None, |a: Option<f64>, d| Some(a.map_or(d, |x| x.max(d))));
     let any_bound = elements.iter().any(|e| e.at_bound);
     let (status, mut message) = verdict(fin.converged, any_bound, visible);
-    let first_hidden = order.get(visible).map(|&i| &space.elems[i]);
-    message.push_str(&visibility_note(
-        visible,
-        nf,
-        opts.change,
-        visible_depth,
-        first_hidden,
-    ));
-    if !fits_data {
-        message.push_str(&format!(
-            "; the residual is not noise (p = {fit_p_value:.2e})"
-        ));
-    }
+    let note = visibility_note(&space.elems, &order, visible, opts.change, visible_depth);
+    message.push_str(&note);
+    message.push_str(&noise_note(fits_data, fit_p_value));
     Ok(ProfileReport {
         mode: opts.mode,
         elements,
@@ -1084,16 +1071,26 @@ fn verdict(converged: bool, any_bound: bool, visible: usize) -> (Status, String)
     }
 }
 
-/// How many of the `nf` values are visible, to which depth, and the first
-/// hidden one, for the message.
+/// The note of a residual that is not noise (none when `fits_data`).
+fn noise_note(fits_data: bool, fit_p_value: f64) -> String {
+    if fits_data {
+        String::new()
+    } else {
+        format!("; the residual is not noise (p = {fit_p_value:.2e})")
+    }
+}
+
+/// How many of the values are visible (the first `visible` in `order`), to
+/// which depth, and the first hidden one, for the message.
 fn visibility_note(
+    elems: &[Elem],
+    order: &[usize],
     visible: usize,
-    nf: usize,
     change: f64,
     visible_depth: Option<f64>,
-    first_hidden: Option<&Elem>,
 ) -> String {
-    match first_hidden {
+    let nf = elems.len();
+    match order.get(visible).map(|&i| &elems[i]) {
         Some(e) if visible < nf => format!(
             "; {} of {} values visible (a {}% change at 2 SE), up to depth {}; from {} {} on the data cannot see such a change",
             visible,

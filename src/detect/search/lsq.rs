@@ -280,10 +280,8 @@ fn iterate<P: NormalEquations + ?Sized>(
     mut chi2: f64,
 ) -> Result<LmReport> {
     let cheap = problem.pieces_are_cheap();
-    let mut iterations = 1;
-    let mut evaluations = 1;
-    let mut mu = opts.mu0;
-    let mut converged = false;
+    let (mut iterations, mut evaluations) = (1, 1);
+    let (mut mu, mut converged) = (opts.mu0, false);
     while iterations <= opts.max_iter {
         if chi2 == 0.0 {
             converged = true;
@@ -305,16 +303,9 @@ fn iterate<P: NormalEquations + ?Sized>(
             }
             continue;
         }
-        // the decrease the Gauss-Newton model predicts for the step: below
-        // `rtol chi^2` (undamped beyond the start, so that the step is not
-        // merely shortened) the step would end the fit anyway; stop before
-        // evaluating it
-        if opts.predicted_stop && mu <= opts.mu0 {
-            let pred = predicted_decrease(act, w.g, w.h, b);
-            if pred.is_finite() && pred >= 0.0 && pred < opts.rtol * chi2 {
-                converged = true;
-                break;
-            }
+        if predicted_stop(opts, (mu, chi2), act, w.g, w.h, b) {
+            converged = true;
+            break;
         }
         let (moved_abs, moved) = trial_point(theta, bounds, act, b, w.trial);
         if moved_abs < opts.xtol_abs {
@@ -359,6 +350,27 @@ fn iterate<P: NormalEquations + ?Sized>(
         evaluations,
         converged,
     })
+}
+
+/// Whether the step `delta` would end the fit anyway (with
+/// [`LmOptions::predicted_stop`]): the decrease the Gauss-Newton model
+/// predicts for it below `rtol chi^2` (undamped beyond the start, so that
+/// the step is not merely shortened); the fit then stops before evaluating
+/// it.
+#[inline]
+fn predicted_stop(
+    opts: &LmOptions,
+    (mu, chi2): (f64, f64),
+    act: &[usize],
+    g: &[f64],
+    h: &[f64],
+    delta: &[f64],
+) -> bool {
+    if !(opts.predicted_stop && mu <= opts.mu0) {
+        return false;
+    }
+    let pred = predicted_decrease(act, g, h, delta);
+    pred.is_finite() && pred >= 0.0 && pred < opts.rtol * chi2
 }
 
 /// The active set into `act`: the free variables, and those at a bound
