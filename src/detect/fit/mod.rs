@@ -75,6 +75,7 @@ pub mod paper;
 pub mod profile;
 pub mod report;
 pub mod select;
+pub mod setup;
 pub mod spectral;
 pub mod visibility;
 
