@@ -68,6 +68,7 @@ mod engine;
 pub mod general;
 pub mod greedy;
 pub mod identify;
+pub mod judge;
 pub mod model;
 pub mod noise;
 pub mod options;
