@@ -175,23 +175,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
             ),
         ));
     }
-    // the data at the rule's nodes, with the data's own errors
-    let (s, values, errors): (Vec<Complex64>, Vec<Complex64>, Vec<f64>) = match scene.misfit.kind {
-        MisfitKind::Bromwich => {
-            let s = scene.laplace_nodes(&rule.nodes);
-            let sm = data.sample(&s)?;
-            (s, sm.values, sm.sigma)
-        }
-        _ => {
-            // sampled in real arithmetic, as the paper's residual always was
-            let sm = data.sample(&rule.nodes)?;
-            (
-                scene.laplace_nodes(&rule.nodes),
-                sm.values.iter().map(|&v| Complex64::new(v, 0.0)).collect(),
-                sm.sigma,
-            )
-        }
-    };
+    let (s, values, errors) = at_nodes(scene, data, &rule.nodes)?;
     // the quadrature weights as inverse variances: the chi-square is the residual
     let pseudo: Vec<f64> = rule.weights.iter().map(|w| 1.0 / w.sqrt()).collect();
     let floor: f64 = rule
@@ -229,14 +213,6 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
         rule.len()
     };
     let scale = (floor / terms.max(1) as f64).sqrt();
-    let kind = match scene.misfit.kind {
-        MisfitKind::RealAxis => format!("real-axis [0, {}]", scene.misfit.s_max),
-        MisfitKind::Bromwich => format!(
-            "bromwich sigma={} omega in [0, {}]",
-            scene.misfit.sigma, scene.misfit.omega_max
-        ),
-        other => other.name().into(),
-    };
     Ok(SceneReport {
         method: r.method.clone(),
         defects: r.defects.iter().map(|d| d.defect()).collect(),
@@ -249,7 +225,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
         wall_time_s: r.wall_time_s,
         setup_time_s: setup,
         trace: r.trace.clone().unwrap_or_default(),
-        misfit: format!("{kind}, {}", rule.name),
+        misfit: format!("{}, {}", misfit_kind(scene), rule.name),
         nodes: rule.len(),
         floor,
         status: verdict.status,
@@ -260,6 +236,44 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
         chain_params: Vec::new(),
         identifiability: None,
     })
+}
+
+/// The scene's data at the rule's nodes: the Laplace variables, the values
+/// and the data's own errors (sampled in real arithmetic on the real axis,
+/// as the paper's residual always was).
+#[allow(clippy::type_complexity)]
+fn at_nodes(
+    scene: &FitScene,
+    data: &Data,
+    nodes: &[f64],
+) -> Result<(Vec<Complex64>, Vec<Complex64>, Vec<f64>)> {
+    Ok(match scene.misfit.kind {
+        MisfitKind::Bromwich => {
+            let s = scene.laplace_nodes(nodes);
+            let sm = data.sample(&s)?;
+            (s, sm.values, sm.sigma)
+        }
+        _ => {
+            let sm = data.sample(nodes)?;
+            (
+                scene.laplace_nodes(nodes),
+                sm.values.iter().map(|&v| Complex64::new(v, 0.0)).collect(),
+                sm.sigma,
+            )
+        }
+    })
+}
+
+/// The residual's kind with its range, for the report.
+fn misfit_kind(scene: &FitScene) -> String {
+    match scene.misfit.kind {
+        MisfitKind::RealAxis => format!("real-axis [0, {}]", scene.misfit.s_max),
+        MisfitKind::Bromwich => format!(
+            "bromwich sigma={} omega in [0, {}]",
+            scene.misfit.sigma, scene.misfit.omega_max
+        ),
+        other => other.name().into(),
+    }
 }
 
 /// The scene JSON's runners-up: each alternative's fields, and its
