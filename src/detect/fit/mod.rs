@@ -63,6 +63,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+mod assemble;
 pub mod chainfit;
 mod engine;
 pub mod general;
