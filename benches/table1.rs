@@ -32,14 +32,16 @@ use springmass::detect::scene::FitScene;
 use springmass::detect::search::nelder_mead::{polish, Positions};
 use springmass::detect::search::pso::Finish;
 use springmass::detect::search::MisfitObjective;
-use springmass::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Tracked};
+use springmass::detect::search::{
+    minimize, Candidate, FitMethod, Objective, SearchOptions, Tracked,
+};
 use springmass::detect::unknowns::{DefectUnknown, MassUnknowns};
 use springmass::scenes;
 use std::time::Instant;
 
 struct Variant {
     name: &'static str,
-    method: Method,
+    method: FitMethod,
     tweak: fn(&mut SearchOptions),
 }
 
@@ -47,12 +49,12 @@ fn variants() -> Vec<Variant> {
     vec![
         Variant {
             name: "ga",
-            method: Method::Genetic,
+            method: FitMethod::Ga,
             tweak: |_| {},
         },
         Variant {
             name: "ga-no-polish",
-            method: Method::Genetic,
+            method: FitMethod::Ga,
             tweak: |o| {
                 o.genetic.polish = false;
                 o.final_polish = false;
@@ -60,12 +62,12 @@ fn variants() -> Vec<Variant> {
         },
         Variant {
             name: "nelder-mead",
-            method: Method::NelderMead,
+            method: FitMethod::NelderMead,
             tweak: |_| {},
         },
         Variant {
             name: "nm-relax-round",
-            method: Method::NelderMead,
+            method: FitMethod::NelderMead,
             tweak: |o| {
                 o.nelder_mead.positions = Positions::RelaxRound;
                 o.final_polish = false;
@@ -73,12 +75,12 @@ fn variants() -> Vec<Variant> {
         },
         Variant {
             name: "pso",
-            method: Method::ParticleSwarm,
+            method: FitMethod::Pso,
             tweak: |_| {},
         },
         Variant {
             name: "pso-no-finish",
-            method: Method::ParticleSwarm,
+            method: FitMethod::Pso,
             tweak: |o| {
                 o.pso.finish = Finish::None;
                 o.final_polish = false;

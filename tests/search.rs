@@ -7,7 +7,7 @@ use proptest::prelude::*;
 use springmass::detect::data::exact::Data;
 use springmass::detect::fit::paper::MisfitObjective;
 use springmass::detect::misfit::{Misfit, MisfitSpec};
-use springmass::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
+use springmass::detect::search::{minimize, Candidate, FitMethod, Objective, SearchOptions, Space};
 use springmass::detect::unknowns::{DefectUnknown, MassUnknowns};
 use springmass::forward::response;
 use springmass::{scenes, Chain, Defect, Error};
@@ -187,7 +187,7 @@ fn exact_objective_matches_forward_model() {
 fn every_method_recovers_table1_systems_with_exact_data() {
     for sys in [1, 3, 4] {
         let (obj, truth) = table1(sys);
-        for method in Method::ALL {
+        for method in FitMethod::stochastic_all() {
             for seed in 0..2 {
                 let opts = SearchOptions {
                     max_evals: 30_000,
@@ -210,7 +210,7 @@ fn every_method_recovers_table1_systems_with_exact_data() {
 #[test]
 fn same_seed_same_result_different_seed_differs() {
     let (obj, _) = table1(2);
-    for method in Method::ALL {
+    for method in FitMethod::stochastic_all() {
         let opts = |seed| SearchOptions {
             max_evals: 3000,
             seed,
@@ -243,12 +243,12 @@ fn parallel_swarm_is_independent_of_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| minimize(Method::ParticleSwarm, &obj, &opts).unwrap())
+            .install(|| minimize(FitMethod::Pso, &obj, &opts).unwrap())
     };
     let one = run(1);
     assert_eq!(one, run(3));
     opts.pso.parallel = false;
-    assert_eq!(one, minimize(Method::ParticleSwarm, &obj, &opts).unwrap());
+    assert_eq!(one, minimize(FitMethod::Pso, &obj, &opts).unwrap());
 }
 
 #[test]
@@ -266,19 +266,19 @@ fn parallel_genetic_is_independent_of_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| minimize(Method::Genetic, &obj, &opts).unwrap())
+            .install(|| minimize(FitMethod::Ga, &obj, &opts).unwrap())
     };
     let one = run(1);
     assert_eq!(one, run(2));
     assert_eq!(one, run(4));
     opts.genetic.parallel = false;
-    assert_eq!(one, minimize(Method::Genetic, &obj, &opts).unwrap());
+    assert_eq!(one, minimize(FitMethod::Ga, &obj, &opts).unwrap());
 }
 
 #[test]
 fn evaluations_are_counted_and_budget_is_kept() {
     let (obj, _) = table1(3);
-    for method in Method::ALL {
+    for method in FitMethod::stochastic_all() {
         for budget in [1, 50, 700, 2500] {
             let audit = Audit::new(&obj);
             let opts = SearchOptions {
@@ -312,7 +312,7 @@ fn evaluations_are_counted_and_budget_is_kept() {
 fn candidates_stay_in_space_and_pairs_stay_together() {
     let syn = Synthetic::new();
     syn.0.validate().unwrap();
-    for method in Method::ALL {
+    for method in FitMethod::stochastic_all() {
         for seed in 0..3 {
             let audit = Audit::new(&syn);
             let opts = SearchOptions {
@@ -364,7 +364,7 @@ fn single_defect_and_three_defects() {
         positions: vec![6],
         values: vec![0.4],
     };
-    for method in Method::ALL {
+    for method in FitMethod::stochastic_all() {
         let r = minimize(
             method,
             &obj,
@@ -390,7 +390,7 @@ fn single_defect_and_three_defects() {
         positions: vec![1, 3, 4],
         values: vec![2.0, 0.5, 3.0],
     };
-    for method in Method::ALL {
+    for method in FitMethod::stochastic_all() {
         let r = minimize(
             method,
             &obj,
@@ -413,7 +413,7 @@ fn single_defect_and_three_defects() {
 #[test]
 fn target_cost_stops_early() {
     let syn = Synthetic::new();
-    for method in Method::ALL {
+    for method in FitMethod::stochastic_all() {
         let opts = SearchOptions {
             max_evals: 100_000,
             target_cost: 1e-2,
@@ -443,7 +443,7 @@ impl Objective for Nasty {
 #[test]
 fn non_finite_costs_never_reach_the_optimizers() {
     let nasty = Nasty(Space::masses(10, 1, (0.1, 10.0)));
-    for method in Method::ALL {
+    for method in FitMethod::stochastic_all() {
         let r = minimize(
             method,
             &nasty,
@@ -463,7 +463,7 @@ fn non_finite_costs_never_reach_the_optimizers() {
             "{method:?}: {:?}",
             r.best
         );
-        if method != Method::NelderMead {
+        if method != FitMethod::NelderMead {
             assert_eq!(r.best.positions, vec![2], "{method:?}");
         }
     }
@@ -481,44 +481,44 @@ fn bad_input_gives_typed_errors() {
         ..Default::default()
     };
     assert_eq!(
-        field(minimize(Method::Genetic, &obj, &o).unwrap_err()),
+        field(minimize(FitMethod::Ga, &obj, &o).unwrap_err()),
         "max_evals"
     );
     let mut o = SearchOptions::default();
     o.genetic.population = 2;
     assert_eq!(
-        field(minimize(Method::Genetic, &obj, &o).unwrap_err()),
+        field(minimize(FitMethod::Ga, &obj, &o).unwrap_err()),
         "genetic.population"
     );
     let mut o = SearchOptions::default();
     o.pso.particles = 1;
     assert_eq!(
-        field(minimize(Method::ParticleSwarm, &obj, &o).unwrap_err()),
+        field(minimize(FitMethod::Pso, &obj, &o).unwrap_err()),
         "pso.particles"
     );
     let mut o = SearchOptions::default();
     o.nelder_mead.step = 0.0;
     assert_eq!(
-        field(minimize(Method::NelderMead, &obj, &o).unwrap_err()),
+        field(minimize(FitMethod::NelderMead, &obj, &o).unwrap_err()),
         "nelder_mead.step"
     );
     // a space with more defects than free positions
     let mut s = Synthetic::new();
     s.0.n_positions = 11;
     assert_eq!(
-        field(minimize(Method::NelderMead, &s, &SearchOptions::default()).unwrap_err()),
+        field(minimize(FitMethod::NelderMead, &s, &SearchOptions::default()).unwrap_err()),
         "space.n_positions"
     );
     let mut s = Synthetic::new();
     s.0.bounds[2] = (1.0, -1.0);
     assert_eq!(
-        field(minimize(Method::ParticleSwarm, &s, &SearchOptions::default()).unwrap_err()),
+        field(minimize(FitMethod::Pso, &s, &SearchOptions::default()).unwrap_err()),
         "space.bounds[2]"
     );
-    assert!("simplex".parse::<Method>().is_err());
-    assert_eq!("pso".parse::<Method>().unwrap(), Method::ParticleSwarm);
+    assert!("simplex".parse::<FitMethod>().is_err());
+    assert_eq!("pso".parse::<FitMethod>().unwrap(), FitMethod::Pso);
     assert_eq!(
-        serde_json::to_string(&Method::NelderMead).unwrap(),
+        serde_json::to_string(&FitMethod::NelderMead).unwrap(),
         "\"nelder-mead\""
     );
 }
@@ -606,7 +606,7 @@ fn positions_only_and_values_only_spaces() {
         log_scale: vec![false; 3],
         pairing: vec![None; 3],
     });
-    for method in Method::ALL {
+    for method in FitMethod::stochastic_all() {
         let opts = SearchOptions {
             max_evals: 5000,
             ..Default::default()

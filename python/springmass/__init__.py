@@ -83,6 +83,7 @@ __all__ = [
     "read_csv",
     "spectral",
     "SpectralResult",
+    "searches",
 ]
 
 
@@ -540,10 +541,11 @@ def fit(
         Standard deviation of the samples' noise, or ``"auto"`` to estimate it.
     misfit : {"time", "bromwich", "real-axis"}, optional
         The data misfit (default ``"time"``, the time-domain chi-square).
-    method : {"enumerate", "greedy", "relax", "ga", "nelder-mead", "pso"}, optional
-        The search over positions (default ``"enumerate"``, or ``"greedy"``
-        when enumeration would pass 200 000 position sets); ``"relax"``
-        seeds it from the whole-profile inversion's support.
+    method : str, optional
+        The search over positions, a name of :func:`searches` (default
+        ``"enumerate"``, or ``"greedy"`` when enumeration would pass 200 000
+        position sets):
+@SEARCHES@
     seed : int, default 0
         Seed of the stochastic searches (same seed, same answer).
     gamma : float, default 1.0
@@ -553,7 +555,7 @@ def fit(
     criterion : {"bic", "aic", "chi2", "chi2:ALPHA"}, default "bic"
         How ``defects="auto"`` chooses the number.
     max_evals : int, default 20000
-        Evaluation budget of ``ga``, ``nelder-mead`` and ``pso``.
+        Evaluation budget of the stochastic searches (@STOCHASTIC@).
     k, mass : float, default 1.0
         Uniform stiffness and mass, in the data's units (N/m and kg for SI
         data; the report's natural frequencies are then in rad/s).
@@ -630,6 +632,46 @@ def fit(
 
 
 # ---------------------------------------------------------------- forward side
+
+
+def searches() -> List[Dict[str, Any]]:
+    """The searches over defect positions, from the library's registry.
+
+    Parameters
+    ----------
+    None
+
+    Returns
+    -------
+    list of dict
+        One dict per search, in the order of ``springmass fit --help``:
+        ``name`` (what ``fit(method=...)`` and a scene's ``search.method``
+        take), ``aliases``, ``help`` (one line), ``kinds`` (``"every"``,
+        ``"mass-or-spring"`` or ``"mass-only"``), ``general_scene`` (accepted
+        by a scene's general fit), ``stochastic`` (seeded, with an
+        evaluation budget) and ``optimizer`` (its module, or None).
+
+    Examples
+    --------
+    >>> import springmass
+    >>> [s["name"] for s in springmass.searches()]
+    ['enumerate', 'greedy', 'relax', 'ga', 'nelder-mead', 'pso']
+    >>> [s["name"] for s in springmass.searches() if s["stochastic"]]
+    ['ga', 'nelder-mead', 'pso']
+    """
+    return [dict(s) for s in _core.searches()]
+
+
+def _search_docs() -> None:
+    """Fill :func:`fit`'s docstring with the registry's names and help."""
+    table = searches()
+    lines = "\n".join(f'        ``"{s["name"]}"``: {s["help"]}.' for s in table)
+    stochastic = ", ".join(f"``{s['name']}``" for s in table if s["stochastic"])
+    if fit.__doc__:
+        fit.__doc__ = fit.__doc__.replace("@SEARCHES@", lines).replace("@STOCHASTIC@", stochastic)
+
+
+_search_docs()
 
 
 def simulate(

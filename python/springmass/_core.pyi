@@ -142,3 +142,6 @@ def fit_profile(
     penalty: Optional[float] = ...,
 ) -> Dict[str, Any]:
     """{"report": JSON text of the profile report, "summary": str}."""
+
+def searches() -> List[Dict[str, Any]]:
+    """[{"name", "aliases", "help", "kinds", "general_scene", "stochastic", "optimizer"}] (the search registry)."""

@@ -673,6 +673,35 @@ fn spectral<'py>(
     Ok(out)
 }
 
+/// The search registry (`springmass::detect::search::SEARCHES`): one dict
+/// per search with its name, aliases, help, the defect kinds it places,
+/// whether the scene's general fit accepts it and whether it is stochastic.
+#[pyfunction]
+fn searches(py: Python<'_>) -> PyResult<Vec<Bound<'_, PyDict>>> {
+    use springmass::detect::search::registry::Kinds;
+    springmass::detect::search::SEARCHES
+        .iter()
+        .map(|s| {
+            let d = PyDict::new(py);
+            d.set_item("name", s.name)?;
+            d.set_item("aliases", s.aliases.to_vec())?;
+            d.set_item("help", s.help)?;
+            d.set_item(
+                "kinds",
+                match s.kinds {
+                    Kinds::Every => "every",
+                    Kinds::MassOrSpring => "mass-or-spring",
+                    Kinds::MassOnly => "mass-only",
+                },
+            )?;
+            d.set_item("general_scene", s.general_scene)?;
+            d.set_item("stochastic", s.stochastic())?;
+            d.set_item("optimizer", s.optimizer.map(|o| o.module))?;
+            Ok(d)
+        })
+        .collect()
+}
+
 /// The native module.
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -690,5 +719,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read_csv, m)?)?;
     m.add_function(wrap_pyfunction!(spectral, m)?)?;
     m.add_function(wrap_pyfunction!(fit_profile, m)?)?;
+    m.add_function(wrap_pyfunction!(searches, m)?)?;
     Ok(())
 }

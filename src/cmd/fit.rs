@@ -14,7 +14,7 @@ use std::path::PathBuf;
 #[command(
     after_help = "Data-first: springmass fit --data x1.csv --n 37 [--d 0.05 | --fit d,gamma] \
 [--defects auto|K] [--kinds mass|spring|damper|ground|any] [--noise auto|SIGMA] [--misfit time|bromwich|real-axis] \
-[--method enumerate|greedy|relax|ga|nelder-mead|pso] [--left fixed|free] [--right fixed|free] \
+[--method NAME] [--left fixed|free] [--right fixed|free] \
 [--observe-kind displacement|velocity|acceleration] [--force-column f | --force force.csv] \
 [--plot fit.svg] [--out-csv fit.csv] [--json]\n\
 Scene file: springmass fit --scene configs/scenes/table1-system3.toml (its [chain] defects are the truth that synthesises the data)."
@@ -64,7 +64,7 @@ pub struct Args {
     /// Criterion of --defects auto: bic, aic, chi2 or chi2:ALPHA [default: bic].
     #[arg(long, requires = "data")]
     pub criterion: Option<String>,
-    /// Evaluation budget of ga, nelder-mead and pso [default: 20000].
+    /// Evaluation budget of the stochastic searches [default: 20000].
     #[arg(long)]
     pub max_evals: Option<usize>,
     /// Left end (mass 1's side): fixed (a wall spring) or free [default: fixed].
@@ -112,8 +112,8 @@ pub struct Args {
     /// The fit scene (TOML with [chain], [data], [unknowns], [misfit], [search]).
     #[arg(long)]
     pub scene: Option<PathBuf>,
-    /// enumerate | greedy | relax | ga | nelder-mead | pso (greedy: one defect at a time, then moves, for long chains; relax: every mass or spring free, its support refitted).
-    #[arg(long)]
+    /// The search over positions (the names of `springmass::detect::search::SEARCHES`).
+    #[arg(long, long_help = springmass::detect::search::registry::cli_help())]
     pub method: Option<String>,
     /// Seed of stochastic methods.
     #[arg(long)]
@@ -573,7 +573,7 @@ fn print_text(scene: &FitScene, r: &SceneReport) {
             println!(
                 "  {:<48} r = {:.6e}  gap = {:.3e}",
                 fmt_defects(&alt.defects, general),
-                alt.residual,
+                alt.chi2,
                 alt.gap
             );
         }

@@ -39,7 +39,7 @@
 //! s_max = 300
 //!
 //! [search]           # optional; see SearchSpec
-//! method = "enumerate"   # enumerate | ga | nelder-mead | pso
+//! method = "enumerate"   # a name of detect::search::SEARCHES (ga, nelder-mead, pso, ...)
 //! seed = 0
 //!
 //! [profile]          # optional; see ProfileSpec: fit every mass or spring
@@ -166,7 +166,7 @@ impl DataSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SearchSpec {
-    /// `enumerate` (default), `ga`, `nelder-mead` or `pso`.
+    /// A search of [`crate::detect::search::SEARCHES`] (default `enumerate`).
     #[serde(default)]
     pub method: FitMethod,
     /// Seed of stochastic methods (default 0).

@@ -3,15 +3,10 @@
 //! ([`KFit`]), and the report built from the chosen one.
 
 use super::chainfit::{default_bounds, fit_chain};
-use super::general::{
-    self, fit_general, identify_general, laplace_obs, GeneralOptions, Hypothesis, Setup,
-};
+use super::general::{self, fit_general, laplace_obs, GeneralOptions, Hypothesis, Setup};
 use super::model::Model;
 use super::options::FitOptions;
-use super::report::{
-    Alternative, DefectEstimate, FitReport, KRow, ModeEstimate, ParamEstimate, Predicted, Status,
-};
-use super::{identify, noise, select};
+use super::report::KRow;
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::observations::Observations;
@@ -27,7 +22,6 @@ use crate::detect::unknowns::{
     DefectKind, KindBounds, KindChoice, MassUnknown, MassUnknowns, Slot, Unknowns,
 };
 use crate::error::{Error, Result};
-use std::time::Instant;
 
 /// Stop the `auto` loop when two more defects in a row have not lowered the
 /// time-domain residual by more than noise would (a BIC step of `2 ln N`
@@ -72,7 +66,7 @@ pub(super) struct KFit {
     /// `sqrt(rss / (n_data - params))`.
     pub(super) sigma_hat: f64,
     /// The misfit's own chi-square and dof at the sigma of the fit.
-    chi2: f64,
+    pub(super) chi2: f64,
     /// The noise level the fit was made at.
     pub(super) sigma_fit: f64,
     pub(super) dof: usize,
@@ -112,6 +106,42 @@ impl KFit {
             self.chi2
         }
     }
+}
+
+/// What a search found for one number of defects, before it is measured
+/// against the data ([`KFit`]).
+struct Found {
+    ranked: Vec<Hypothesis>,
+    evaluations: usize,
+    /// Position (and kind) sets fitted.
+    hypotheses: usize,
+    method_name: String,
+    /// Every position set was ranked (false: the Woodbury kernel's beam search).
+    exhaustive: bool,
+    budget_exhausted: bool,
+    trace: Option<Vec<(usize, f64)>>,
+}
+
+impl Found {
+    fn new(ranked: Vec<Hypothesis>, evaluations: usize, hypotheses: usize, method: &str) -> Found {
+        Found {
+            ranked,
+            evaluations,
+            hypotheses,
+            method_name: method.to_string(),
+            exhaustive: true,
+            budget_exhausted: false,
+            trace: None,
+        }
+    }
+}
+
+/// The observations and options every search of [`Engine::search`] fits on.
+struct Inputs<'a> {
+    coarse: &'a LaplaceObs,
+    fine: Option<&'a TimeMisfit>,
+    setup: &'a Setup,
+    gopts: &'a GeneralOptions,
 }
 
 /// Largest non-uniform chain whose natural modes the report lists (the
@@ -241,13 +271,11 @@ impl Engine<'_> {
 
     pub(super) fn fit_k(&self, k: usize, sigma: f64) -> Result<KFit> {
         let (coarse, fine, misfit_name, setup) = self.prepared(sigma)?;
-        let mut budget_exhausted = false;
-        let mut method_name = self.opts.method.name().to_string();
-        let mut hypotheses = 1;
-        let mut exhaustive = true;
-        let mut trace = None;
-        let (ranked, evaluations) = match self.unknowns(k)? {
-            None => self.fit_uniform(&coarse, fine.as_ref())?,
+        let found = match self.unknowns(k)? {
+            None => {
+                let (ranked, evaluations) = self.fit_uniform(&coarse, fine.as_ref())?;
+                Found::new(ranked, evaluations, 1, self.opts.method.name())
+            }
             Some(unknowns) => {
                 let gopts = GeneralOptions {
                     parallel: self.opts.parallel,
@@ -256,94 +284,152 @@ impl Engine<'_> {
                 };
                 let mut setup = setup;
                 setup.shortlist = setup.shortlist.max(self.opts.alternatives + 1);
-                let kernel = self.woodbury(&unknowns)?;
-                if let (Some((misfit, mass)), FitMethod::Enumerate) = (&kernel, self.opts.method) {
-                    // mass defects on Laplace values: the paper's Woodbury
-                    // kernel ranks every position set; the best are refitted
-                    method_name = "enumerate (Woodbury kernel)".into();
-                    let (sets, screened, all, spent) = self.woodbury_sets(misfit, mass)?;
-                    hypotheses = screened;
-                    exhaustive = all;
-                    let (r, e) = self.refit_from_kernel(
-                        &unknowns,
-                        &sets,
-                        misfit,
-                        mass,
-                        sigma,
-                        &coarse,
-                        fine.as_ref(),
-                        &setup,
-                        &gopts,
-                    )?;
-                    (r, e + spent)
-                } else if self.opts.method == FitMethod::Enumerate || k == 0 {
-                    method_name = "enumerate".into();
-                    let g = fit_general(
-                        self.model.chain(),
-                        &unknowns,
-                        &coarse,
-                        fine.as_ref(),
-                        &setup,
-                        &gopts,
-                    )?;
-                    hypotheses = g.hypotheses;
-                    (g.ranked, g.evaluations)
-                } else if self.opts.method == FitMethod::Relax {
-                    // the continuous relaxation's support seeds the discrete
-                    // fit: the f positions farthest from uniform, refitted
-                    // with their neighbours (each moved by +-1, +-2)
-                    method_name =
-                        "relax (the profile's support, refitted with its neighbours)".into();
-                    let support = self.support(&unknowns)?;
-                    let taken: Vec<usize> = unknowns.slots().iter().filter_map(|s| s.at).collect();
-                    let free = unknowns.slots().iter().filter(|s| s.at.is_none()).count();
-                    let start: Vec<usize> = support
-                        .into_iter()
-                        .filter(|p| !taken.contains(p))
-                        .take(free)
-                        .collect();
-                    if start.len() < free {
-                        return Err(Error::invalid(
-                            "method",
-                            "relax",
-                            format!("{free} free positions in the profile's support"),
-                        ));
-                    }
-                    let sets = neighbour_sets(&unknowns, &start);
-                    hypotheses = sets.len();
-                    self.refit_sets(&unknowns, &sets, &coarse, fine.as_ref(), &setup, &gopts)?
-                } else if self.opts.method == FitMethod::Greedy {
-                    // greedy search with moves (fit::greedy)
-                    let g = super::greedy::fit_greedy(
-                        self.model.chain(),
-                        &unknowns,
-                        &coarse,
-                        fine.as_ref(),
-                        &setup,
-                        &super::greedy::GreedyOptions {
-                            parallel: self.opts.parallel,
-                            ..Default::default()
-                        },
-                    )?;
-                    hypotheses = g.hypotheses;
-                    (g.ranked, g.evaluations + g.scored)
-                } else {
-                    let res = self.stochastic(&unknowns, kernel.as_ref(), &coarse)?;
-                    budget_exhausted = res.evaluations >= self.opts.max_evals;
-                    if self.given.as_ref().is_some_and(|g| g.trace) {
-                        trace = Some(res.trace.clone());
-                    }
-                    // refit the best set and its neighbours (each position moved by
-                    // +-1, +-2) like enumeration
-                    let sets = neighbour_sets(&unknowns, &res.best.positions);
-                    hypotheses = sets.len();
-                    let (r, e) =
-                        self.refit_sets(&unknowns, &sets, &coarse, fine.as_ref(), &setup, &gopts)?;
-                    (r, e + res.evaluations)
-                }
+                let inputs = Inputs {
+                    coarse: &coarse,
+                    fine: fine.as_ref(),
+                    setup: &setup,
+                    gopts: &gopts,
+                };
+                self.search(&unknowns, k, sigma, &inputs)?
             }
         };
-        let best = ranked.first().ok_or_else(|| Error::Numerical {
+        self.measured(k, sigma, found, &coarse, fine.as_ref(), misfit_name)
+    }
+
+    /// Run the options' search for the unknowns of `k` defects.
+    fn search(&self, unknowns: &Unknowns, k: usize, sigma: f64, x: &Inputs<'_>) -> Result<Found> {
+        let kernel = self.woodbury(unknowns)?;
+        match (&kernel, self.opts.method) {
+            (Some((misfit, mass)), FitMethod::Enumerate) => {
+                self.search_kernel(unknowns, misfit, mass, sigma, x)
+            }
+            (_, FitMethod::Enumerate) => self.search_general(unknowns, x),
+            _ if k == 0 => self.search_general(unknowns, x),
+            (_, FitMethod::Relax) => self.search_relax(unknowns, x),
+            (_, FitMethod::Greedy) => self.search_greedy(unknowns, x),
+            _ => self.search_stochastic(unknowns, kernel.as_ref(), x),
+        }
+    }
+
+    /// Mass defects on Laplace values: the paper's Woodbury kernel ranks
+    /// every position set; the best are refitted.
+    fn search_kernel(
+        &self,
+        unknowns: &Unknowns,
+        misfit: &Misfit,
+        mass: &MassUnknowns,
+        sigma: f64,
+        x: &Inputs<'_>,
+    ) -> Result<Found> {
+        let (sets, screened, all, spent) = self.woodbury_sets(misfit, mass)?;
+        let (r, e) = self.refit_from_kernel(
+            unknowns, &sets, misfit, mass, sigma, x.coarse, x.fine, x.setup, x.gopts,
+        )?;
+        let mut found = Found::new(r, e + spent, screened, "enumerate (Woodbury kernel)");
+        found.exhaustive = all;
+        Ok(found)
+    }
+
+    /// Every position (and kind) set fitted by the general fit.
+    fn search_general(&self, unknowns: &Unknowns, x: &Inputs<'_>) -> Result<Found> {
+        let g = fit_general(
+            self.model.chain(),
+            unknowns,
+            x.coarse,
+            x.fine,
+            x.setup,
+            x.gopts,
+        )?;
+        Ok(Found::new(
+            g.ranked,
+            g.evaluations,
+            g.hypotheses,
+            "enumerate",
+        ))
+    }
+
+    /// The continuous relaxation's support seeds the discrete fit: the f
+    /// positions farthest from uniform, refitted with their neighbours (each
+    /// moved by +-1, +-2).
+    fn search_relax(&self, unknowns: &Unknowns, x: &Inputs<'_>) -> Result<Found> {
+        let support = self.support(unknowns)?;
+        let taken: Vec<usize> = unknowns.slots().iter().filter_map(|s| s.at).collect();
+        let free = unknowns.slots().iter().filter(|s| s.at.is_none()).count();
+        let start: Vec<usize> = support
+            .into_iter()
+            .filter(|p| !taken.contains(p))
+            .take(free)
+            .collect();
+        if start.len() < free {
+            return Err(Error::invalid(
+                "method",
+                "relax",
+                format!("{free} free positions in the profile's support"),
+            ));
+        }
+        let sets = neighbour_sets(unknowns, &start);
+        let (r, e) = self.refit_sets(unknowns, &sets, x.coarse, x.fine, x.setup, x.gopts)?;
+        Ok(Found::new(
+            r,
+            e,
+            sets.len(),
+            "relax (the profile's support, refitted with its neighbours)",
+        ))
+    }
+
+    /// The greedy search with moves (`fit::greedy`).
+    fn search_greedy(&self, unknowns: &Unknowns, x: &Inputs<'_>) -> Result<Found> {
+        let g = super::greedy::fit_greedy(
+            self.model.chain(),
+            unknowns,
+            x.coarse,
+            x.fine,
+            x.setup,
+            &super::greedy::GreedyOptions {
+                parallel: self.opts.parallel,
+                ..Default::default()
+            },
+        )?;
+        Ok(Found::new(
+            g.ranked,
+            g.evaluations + g.scored,
+            g.hypotheses,
+            self.opts.method.name(),
+        ))
+    }
+
+    /// A stochastic optimizer, then its best set and the set's neighbours
+    /// (each position moved by +-1, +-2) refitted like enumeration's.
+    fn search_stochastic(
+        &self,
+        unknowns: &Unknowns,
+        kernel: Option<&(Misfit, MassUnknowns)>,
+        x: &Inputs<'_>,
+    ) -> Result<Found> {
+        let res = self.stochastic(unknowns, kernel, x.coarse)?;
+        let sets = neighbour_sets(unknowns, &res.best.positions);
+        let (r, e) = self.refit_sets(unknowns, &sets, x.coarse, x.fine, x.setup, x.gopts)?;
+        let mut found = Found::new(r, e + res.evaluations, sets.len(), self.opts.method.name());
+        found.budget_exhausted = res.evaluations >= self.opts.max_evals;
+        if self.given.as_ref().is_some_and(|g| g.trace) {
+            found.trace = Some(res.trace);
+        }
+        Ok(found)
+    }
+
+    /// The fit of `k` defects from what the search found: its best answer's
+    /// residual in the data's own terms (the time-domain RSS for series
+    /// data), degrees of freedom and noise estimate.
+    fn measured(
+        &self,
+        k: usize,
+        sigma: f64,
+        found: Found,
+        coarse: &LaplaceObs,
+        fine: Option<&TimeMisfit>,
+        misfit_name: String,
+    ) -> Result<KFit> {
+        let best = found.ranked.first().ok_or_else(|| Error::Numerical {
             method: "fit".into(),
             reason: "no hypothesis".into(),
         })?;
@@ -355,7 +441,7 @@ impl Engine<'_> {
                 let model = TimeMisfit::new(td).model(&chain)?;
                 let r: Vec<f64> = s.x().iter().zip(&model).map(|(a, b)| a - b).collect();
                 let rss = r.iter().map(|v| v * v).sum();
-                let dof = match &fine {
+                let dof = match fine {
                     Some(_) => s.x().len().saturating_sub(params),
                     None => coarse.dof().saturating_sub(params),
                 };
@@ -370,9 +456,9 @@ impl Engine<'_> {
         let sigma_hat = (rss / (n_data.saturating_sub(params).max(1)) as f64).sqrt();
         Ok(KFit {
             k,
-            hypotheses,
-            ranked,
-            evaluations,
+            hypotheses: found.hypotheses,
+            ranked: found.ranked,
+            evaluations: found.evaluations,
             rss,
             n_data,
             params,
@@ -381,11 +467,11 @@ impl Engine<'_> {
             sigma_fit: sigma,
             dof,
             misfit_name,
-            method_name,
-            budget_exhausted,
+            method_name: found.method_name,
+            budget_exhausted: found.budget_exhausted,
             predicted,
-            exhaustive,
-            trace,
+            exhaustive: found.exhaustive,
+            trace: found.trace,
         })
     }
 
@@ -800,14 +886,8 @@ impl Engine<'_> {
         kernel: Option<&(Misfit, MassUnknowns)>,
         coarse: &LaplaceObs,
     ) -> Result<SearchResult> {
-        let method = self
-            .opts
-            .method
-            .stochastic()
-            .ok_or_else(|| Error::Numerical {
-                method: self.opts.method.name().into(),
-                reason: "enumeration is not a stochastic search".into(),
-            })?;
+        // minimize refuses a search with no optimizer behind it
+        let method = self.opts.method;
         let sopts = SearchOptions {
             max_evals: self.opts.max_evals,
             seed: self.opts.seed,
@@ -836,235 +916,6 @@ impl Engine<'_> {
             obs: coarse,
         };
         minimize(method, &obj, &sopts)
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn report(
-        &self,
-        f: &KFit,
-        sigma: f64,
-        estimated: bool,
-        rows: Vec<KRow>,
-        criterion: String,
-        evaluations: usize,
-        t0: Instant,
-    ) -> Result<FitReport> {
-        // the fit was made at f.sigma_fit: chi-squares and standard errors at the final sigma
-        let scale = sigma / f.sigma_fit;
-        let chi2_final = f.chi2 / (scale * scale);
-        let ranked: Vec<Hypothesis> = f
-            .ranked
-            .iter()
-            .map(|h| {
-                let mut h = h.clone();
-                h.chi2 /= scale * scale;
-                for se in &mut h.std_errors {
-                    *se *= scale;
-                }
-                for p in &mut h.chain {
-                    p.std_error *= scale;
-                }
-                h
-            })
-            .collect();
-        let best = &ranked[0];
-        let base = self.model.chain();
-        let ident = identify_general(&ranked, base, sigma, None).ok();
-        let bounds = KindBounds::for_chain(base);
-        let known: Vec<(usize, DefectKind)> = base
-            .defects()
-            .iter()
-            .map(|d| (d.at(), DefectKind::of(d)))
-            .collect();
-        let mut defects = Vec::with_capacity(best.defects.len());
-        for (i, d) in best.defects.iter().enumerate() {
-            let kind = DefectKind::of(d);
-            let is_known = known.contains(&(d.at(), kind));
-            let (lo, hi) = bounds.of(kind);
-            let v = d.value();
-            let tol = 1e-6 * hi.abs().max(1.0);
-            let rep = ident
-                .as_ref()
-                .and_then(|r| r.defects.iter().find(|x| x.at == d.at()));
-            defects.push(DefectEstimate {
-                kind: kind.name(),
-                at: d.at(),
-                value: v,
-                se: if is_known {
-                    0.0
-                } else {
-                    best.std_errors.get(i).copied().unwrap_or(f64::NAN)
-                },
-                at_bound: !is_known && (v <= lo + tol || v >= hi - tol),
-                known: is_known,
-                significance: rep.map_or(f64::NAN, |r| r.significance),
-                identifiable: is_known || rep.is_some_and(|r| r.identifiable),
-            });
-        }
-        let cb = default_bounds(base, self.model.fitted());
-        let params: Vec<ParamEstimate> = best
-            .chain
-            .iter()
-            .map(|p| {
-                let b = self
-                    .model
-                    .fitted()
-                    .iter()
-                    .position(|q| general::param_name(q) == p.name)
-                    .map(|i| cb[i])
-                    .unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
-                let tol = 1e-6 * b.1.abs().max(1.0);
-                ParamEstimate {
-                    name: p.name.clone(),
-                    value: p.value,
-                    se: p.std_error,
-                    at_bound: p.value <= b.0 + tol || p.value >= b.1 - tol,
-                }
-            })
-            .collect();
-        let alternatives: Vec<Alternative> = ranked[1..]
-            .iter()
-            .take(self.opts.alternatives)
-            .map(|h| Alternative {
-                defects: h.defects.clone(),
-                chi2: h.chi2,
-                gap: h.chi2 - best.chi2,
-            })
-            .collect();
-        // goodness of fit
-        let (fits_data, p) = match (&f.predicted, estimated) {
-            (Some((_, r)), true) => {
-                let (_, p) = noise::ljung_box(r, 20);
-                (p >= 0.001, p)
-            }
-            _ => {
-                let p = select::chi2_sf(chi2_final, f.dof.max(1) as f64);
-                (p >= 0.001, p)
-            }
-        };
-        let threshold = identify::DEFAULT_THRESHOLD;
-        let gap_ok = alternatives.first().is_none_or(|a| a.gap > threshold);
-        let all_ident = defects.iter().all(|d| d.identifiable);
-        let any_bound = defects.iter().any(|d| d.at_bound) || params.iter().any(|p| p.at_bound);
-        let (status, message) = if f.budget_exhausted {
-            (
-                Status::BudgetExhausted,
-                format!("the search used its whole budget of {} evaluations; raise max_evals or use enumerate", self.opts.max_evals),
-            )
-        } else if !best.converged {
-            (
-                Status::Stalled,
-                "the value fit of the best hypothesis stopped at its iteration limit without meeting its tolerance: the values may not be at the minimum".to_string(),
-            )
-        } else if any_bound {
-            (
-                Status::ValueAtBound,
-                "a fitted value ended on a bound of its range: a wrong basin, or a defect outside the range searched".to_string(),
-            )
-        } else if !all_ident || !gap_ok {
-            let why = ident
-                .as_ref()
-                .and_then(|r| {
-                    r.defects
-                        .iter()
-                        .find(|d| !d.identifiable)
-                        .map(|d| d.reason.clone())
-                })
-                .unwrap_or_else(|| {
-                    format!(
-                        "the runner-up fits within a chi-square gap of {:.3} < {threshold}",
-                        alternatives.first().map_or(0.0, |a| a.gap)
-                    )
-                });
-            (Status::NotIdentifiable, why)
-        } else if f.k == 0 {
-            (
-                Status::Converged,
-                "no defect: the uniform chain explains the data".to_string(),
-            )
-        } else {
-            (
-                Status::Converged,
-                format!(
-                    "every defect identifiable; the runner-up is worse by chi-square {}",
-                    alternatives
-                        .first()
-                        .map_or("(none)".into(), |a| format!("{:.3e}", a.gap))
-                ),
-            )
-        };
-        // the fitted chain's modes (none when the eigen solver refuses: a
-        // non-uniform chain above its size limit)
-        let modes = best
-            .to_chain(base)
-            .and_then(|c| {
-                // the dense eigen solver is O(n^3): skipped for a large
-                // non-uniform chain (it would dominate the fit)
-                if c.n() > MODES_MAX_N && !c.defects().is_empty() {
-                    return Ok(Vec::new());
-                }
-                crate::time::modal::natural_modes(&c)
-            })
-            .map(|v| {
-                v.iter()
-                    .map(|m| ModeEstimate {
-                        omega: m.omega,
-                        frequency: m.frequency,
-                        zeta: m.zeta.unwrap_or(f64::NAN),
-                    })
-                    .collect()
-            })
-            .unwrap_or_default();
-        let predicted = match (self.obs, &f.predicted) {
-            (Observations::Series(s), Some((model, r))) => Some(Predicted {
-                t: s.t().to_vec(),
-                observed: s.x().to_vec(),
-                model: model.clone(),
-                residual: r.clone(),
-            }),
-            _ => None,
-        };
-        Ok(FitReport {
-            defects,
-            k: f.k,
-            params,
-            noise_sigma: sigma,
-            noise_estimated: estimated,
-            chi2: chi2_final,
-            dof: f.dof,
-            status,
-            message,
-            resolved: status == Status::Converged && gap_ok && all_ident && fits_data,
-            fits_data,
-            fit_p_value: p,
-            alternatives,
-            k_selection: rows,
-            criterion,
-            misfit: f.misfit_name.clone(),
-            setup: format!(
-                "{}; ends {}-{}",
-                match self.obs {
-                    Observations::Series(s) => s.measurement().describe(),
-                    Observations::Laplace(l) => format!(
-                        "{} of mass {} (Laplace values)",
-                        l.sensor().kind.name(),
-                        l.sensor().at
-                    ),
-                },
-                base.left(),
-                base.right()
-            ),
-            method: f.method_name.clone(),
-            evaluations,
-            hypotheses: f.hypotheses,
-            exhaustive: f.exhaustive,
-            trace: f.trace.clone(),
-            wall_time_s: t0.elapsed().as_secs_f64(),
-            predicted,
-            identifiability: ident,
-            modes,
-            visibility: None,
-        })
     }
 }
 

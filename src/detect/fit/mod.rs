@@ -63,11 +63,13 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+mod assemble;
 pub mod chainfit;
 mod engine;
 pub mod general;
 pub mod greedy;
 pub mod identify;
+pub mod judge;
 pub mod model;
 pub mod noise;
 pub mod options;

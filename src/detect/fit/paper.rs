@@ -66,14 +66,15 @@
 //! ```
 
 use super::engine::Given;
-use super::{fit_with, DefectCount, FitOptions, FitReport, Model, NoiseSpec};
+use super::judge::{evidence_of, judge, Bar};
+use super::{fit_with, Alternative, DefectCount, FitOptions, Model, NoiseSpec, Status};
 use crate::chain::Defect;
 use crate::detect::data::exact::Data;
 use crate::detect::data::observations::{LaplaceValues, Observations};
 use crate::detect::fit::general::FittedParam;
 use crate::detect::misfit::MisfitKind;
 use crate::detect::scene::{FitScene, SceneOptions};
-use crate::detect::search::FitMethod;
+use crate::detect::search::{registry, FitMethod};
 use crate::error::{Error, Result};
 use num_complex::Complex64;
 use serde::Serialize;
@@ -84,18 +85,7 @@ use std::time::Instant;
 /// for the callers of the scene path).
 pub use crate::detect::search::MisfitObjective;
 
-/// An alternative hypothesis.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Alternative {
-    /// Its defects (values fitted).
-    pub defects: Vec<Defect>,
-    /// Its residual.
-    pub residual: f64,
-    /// `residual - best residual`.
-    pub gap: f64,
-}
-
-/// What [`fit`] found, in the scene's terms: the shared [`FitReport`]'s
+/// What [`fit`] found, in the scene's terms: the shared [`FitReport`](super::FitReport)'s
 /// answer, judged against the scene data's error floor.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct SceneReport {
@@ -111,7 +101,10 @@ pub struct SceneReport {
     /// mean error per residual term (exact when every term's weighted error
     /// `w_q sigma_q^2` is the same). The general path's are `std_errors`.
     pub error_bars: Vec<f64>,
-    /// The next best hypotheses, best first.
+    /// The next best hypotheses, best first (the data path's
+    /// [`Alternative`]; each also under its JSON name `residual`, the
+    /// scene's name of its chi-square).
+    #[serde(serialize_with = "runners_up_json")]
     pub runners_up: Vec<Alternative>,
     /// Residual evaluations of the search and the refits.
     pub evaluations: usize,
@@ -131,7 +124,13 @@ pub struct SceneReport {
     pub nodes: usize,
     /// The data's error floor on `r`.
     pub floor: f64,
-    /// Gap to the first runner-up above the floor (the answer is resolved by the data).
+    /// How the fit ended ([`crate::detect::fit::judge`], against the floor
+    /// on the mass path; the data-first fit's on the general path).
+    pub status: Status,
+    /// One line on the status.
+    pub message: String,
+    /// Gap to the first runner-up above the floor (the answer is resolved by
+    /// the data); the general path: the data-first fit's `resolved`.
     pub resolved: bool,
     /// The residual is within the data's error (`r <= 4 floor`): the
     /// hypothesis explains the data. False means a defect is missing from the
@@ -166,30 +165,17 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
     let unknowns = scene.unknowns()?;
     let mass = unknowns.to_mass()?;
     let rule = scene.misfit.rule()?;
-    if options.method.stochastic().is_some() && !mass.interchangeable() {
+    if options.method.is_stochastic() && !mass.interchangeable() {
         return Err(Error::invalid(
             "search.method",
             options.method.name(),
-            "enumerate when the defects at unknown positions differ (known, unequal masses or unequal bounds)",
+            format!(
+                "{} when the defects at unknown positions differ (known, unequal masses or unequal bounds)",
+                registry::names(|s| !s.stochastic(), "or")
+            ),
         ));
     }
-    // the data at the rule's nodes, with the data's own errors
-    let (s, values, errors): (Vec<Complex64>, Vec<Complex64>, Vec<f64>) = match scene.misfit.kind {
-        MisfitKind::Bromwich => {
-            let s = scene.laplace_nodes(&rule.nodes);
-            let sm = data.sample(&s)?;
-            (s, sm.values, sm.sigma)
-        }
-        _ => {
-            // sampled in real arithmetic, as the paper's residual always was
-            let sm = data.sample(&rule.nodes)?;
-            (
-                scene.laplace_nodes(&rule.nodes),
-                sm.values.iter().map(|&v| Complex64::new(v, 0.0)).collect(),
-                sm.sigma,
-            )
-        }
-    };
+    let (s, values, errors) = at_nodes(scene, data, &rule.nodes)?;
     // the quadrature weights as inverse variances: the chi-square is the residual
     let pseudo: Vec<f64> = rule.weights.iter().map(|w| 1.0 / w.sqrt()).collect();
     let floor: f64 = rule
@@ -220,38 +206,31 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
     let r = fit_with(&obs, &model, &opts, Some(given))?;
     // the scene's judgment: gaps and residual against the data's floor
     let residual = r.chi2;
-    let runners_up = alternatives(&r);
-    let resolved = runners_up.first().is_none_or(|a| a.gap > floor);
+    let verdict = judge(&evidence_of(&r, options.max_evals), Bar::Floor(floor));
     let terms = if scene.misfit.kind == MisfitKind::Bromwich {
         2 * rule.len()
     } else {
         rule.len()
     };
     let scale = (floor / terms.max(1) as f64).sqrt();
-    let kind = match scene.misfit.kind {
-        MisfitKind::RealAxis => format!("real-axis [0, {}]", scene.misfit.s_max),
-        MisfitKind::Bromwich => format!(
-            "bromwich sigma={} omega in [0, {}]",
-            scene.misfit.sigma, scene.misfit.omega_max
-        ),
-        other => other.name().into(),
-    };
     Ok(SceneReport {
         method: r.method.clone(),
         defects: r.defects.iter().map(|d| d.defect()).collect(),
         residual,
         error_bars: r.defects.iter().map(|d| d.se * scale).collect(),
-        runners_up,
+        runners_up: r.alternatives.clone(),
         evaluations: r.evaluations,
         sets: Some(r.hypotheses),
         exhaustive: Some(r.exhaustive),
         wall_time_s: r.wall_time_s,
         setup_time_s: setup,
         trace: r.trace.clone().unwrap_or_default(),
-        misfit: format!("{kind}, {}", rule.name),
+        misfit: format!("{}, {}", misfit_kind(scene), rule.name),
         nodes: rule.len(),
         floor,
-        resolved,
+        status: verdict.status,
+        message: verdict.message,
+        resolved: verdict.resolved,
         fits_data: residual <= 4.0 * floor,
         std_errors: Vec::new(),
         chain_params: Vec::new(),
@@ -259,16 +238,65 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
     })
 }
 
-/// The alternatives of a shared report in the scene's terms.
-fn alternatives(r: &FitReport) -> Vec<Alternative> {
-    r.alternatives
-        .iter()
-        .map(|a| Alternative {
-            defects: a.defects.clone(),
-            residual: a.chi2,
-            gap: a.gap,
-        })
-        .collect()
+/// The scene's data at the rule's nodes: the Laplace variables, the values
+/// and the data's own errors (sampled in real arithmetic on the real axis,
+/// as the paper's residual always was).
+#[allow(clippy::type_complexity)]
+fn at_nodes(
+    scene: &FitScene,
+    data: &Data,
+    nodes: &[f64],
+) -> Result<(Vec<Complex64>, Vec<Complex64>, Vec<f64>)> {
+    Ok(match scene.misfit.kind {
+        MisfitKind::Bromwich => {
+            let s = scene.laplace_nodes(nodes);
+            let sm = data.sample(&s)?;
+            (s, sm.values, sm.sigma)
+        }
+        _ => {
+            let sm = data.sample(nodes)?;
+            (
+                scene.laplace_nodes(nodes),
+                sm.values.iter().map(|&v| Complex64::new(v, 0.0)).collect(),
+                sm.sigma,
+            )
+        }
+    })
+}
+
+/// The residual's kind with its range, for the report.
+fn misfit_kind(scene: &FitScene) -> String {
+    match scene.misfit.kind {
+        MisfitKind::RealAxis => format!("real-axis [0, {}]", scene.misfit.s_max),
+        MisfitKind::Bromwich => format!(
+            "bromwich sigma={} omega in [0, {}]",
+            scene.misfit.sigma, scene.misfit.omega_max
+        ),
+        other => other.name().into(),
+    }
+}
+
+/// The scene JSON's runners-up: each alternative's fields, and its
+/// chi-square under the scene's name `residual` too.
+fn runners_up_json<S: serde::Serializer>(
+    alts: &[Alternative],
+    s: S,
+) -> std::result::Result<S::Ok, S::Error> {
+    use serde::ser::SerializeSeq;
+    #[derive(Serialize)]
+    struct Entry<'a> {
+        #[serde(flatten)]
+        alt: &'a Alternative,
+        residual: f64,
+    }
+    let mut seq = s.serialize_seq(Some(alts.len()))?;
+    for alt in alts {
+        seq.serialize_element(&Entry {
+            alt,
+            residual: alt.chi2,
+        })?;
+    }
+    seq.end()
 }
 
 /// The general path of [`fit`]: defects of any kind and chain parameters,
@@ -280,11 +308,14 @@ fn alternatives(r: &FitReport) -> Vec<Alternative> {
 /// [`crate::detect::fit::identify::DEFAULT_THRESHOLD`].
 fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<SceneReport> {
     let t0 = Instant::now();
-    if !matches!(options.method, FitMethod::Enumerate | FitMethod::Greedy) {
+    if !options.method.search().general_scene {
         return Err(Error::invalid(
             "search.method",
             options.method.name(),
-            "enumerate or greedy for defects of other kinds, chain parameters or the time misfit",
+            format!(
+                "{} for defects of other kinds, chain parameters or the time misfit",
+                registry::names(|s| s.general_scene, "or")
+            ),
         ));
     }
     let unknowns = scene.unknowns()?;
@@ -331,8 +362,10 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
         defects: r.defects.iter().map(|d| d.defect()).collect(),
         residual: r.chi2,
         error_bars: r.defects.iter().map(|d| d.se).collect(),
+        status: r.status,
+        message: r.message.clone(),
         resolved: r.resolved,
-        runners_up: alternatives(&r),
+        runners_up: r.alternatives.clone(),
         evaluations: r.evaluations,
         sets: Some(r.hypotheses),
         exhaustive: Some(r.exhaustive),

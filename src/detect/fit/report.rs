@@ -83,15 +83,34 @@ pub struct ParamEstimate {
     pub at_bound: bool,
 }
 
-/// An alternative answer and how much worse it fits.
+/// An alternative answer and how much worse it fits: the one alternative
+/// type of the data path ([`FitReport::alternatives`]) and the scene path
+/// ([`crate::detect::fit::paper::SceneReport::runners_up`]).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Alternative {
     /// Its defects (values fitted).
     pub defects: Vec<Defect>,
-    /// Its chi-square.
+    /// Its chi-square (on the scene's mass path: the paper's residual, the
+    /// chi-square with the quadrature weights as inverse variances).
     pub chi2: f64,
     /// `chi2 - best chi2` (above 9: three standard deviations worse).
     pub gap: f64,
+}
+
+impl Alternative {
+    /// An alternative of chi-square `chi2` next to a best of `best_chi2`.
+    pub fn new(defects: Vec<Defect>, chi2: f64, best_chi2: f64) -> Alternative {
+        Alternative {
+            defects,
+            chi2,
+            gap: chi2 - best_chi2,
+        }
+    }
+
+    /// Its positions, in the order of its defects.
+    pub fn positions(&self) -> Vec<usize> {
+        self.defects.iter().map(Defect::at).collect()
+    }
 }
 
 /// The evidence for one number of defects.

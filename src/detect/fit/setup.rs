@@ -21,11 +21,11 @@ use crate::chain::Chain;
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::series::TimeData;
 use crate::detect::misfit::quadrature::Rule;
+#[cfg(doc)]
+use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::MisfitKind;
 use crate::error::{Error, Result};
 use crate::time::series::{SeriesTransform, TransformOptions};
-#[cfg(doc)]
-use crate::detect::misfit::time::TimeMisfit;
 
 /// Settings of a noisy fit.
 #[derive(Clone, Debug)]

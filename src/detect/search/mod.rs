@@ -3,19 +3,21 @@
 //! The misfit knows nothing of optimizers and the optimizers know nothing of
 //! springs: an [`Objective`] exposes a mixed search [`Space`] (distinct integer
 //! positions, real values in bounds) and a cost; [`minimize`] runs one of the
-//! [`Method`]s on it, seeded, counting every cost evaluation.
+//! stochastic optimizers of the [`registry`] on it, seeded, counting every
+//! cost evaluation.
 //!
 //! | method | file | integer positions |
 //! |---|---|---|
-//! | [`Method::Genetic`] | [`genetic`] | native: mixed genome, pair-preserving crossover, neighbour/jump mutation; Lamarckian Nelder-Mead polish of the values; independent restarts |
-//! | [`Method::NelderMead`] | [`nelder_mead`] | fixed per run: discrete descent over positions (memoised fits), argmin Nelder-Mead on the values, restarts |
-//! | [`Method::ParticleSwarm`] | [`pso`] | relax-and-round (with collision repair), argmin particle swarm, then the Nelder-Mead local search; episodes |
+//! | [`FitMethod::Ga`] | [`genetic`] | native: mixed genome, pair-preserving crossover, neighbour/jump mutation; Lamarckian Nelder-Mead polish of the values; independent restarts |
+//! | [`FitMethod::NelderMead`] | [`nelder_mead`] | fixed per run: discrete descent over positions (memoised fits), argmin Nelder-Mead on the values, restarts |
+//! | [`FitMethod::Pso`] | [`pso`] | relax-and-round (with collision repair), argmin particle swarm, then the Nelder-Mead local search; episodes |
 //!
 //! Exhaustive enumeration of position sets ([`enumerate`]) needs the
 //! residual's structure (it is not a black-box optimizer), and the greedy
 //! search with moves (`detect::fit::greedy`, one layer up: it refits the
 //! general hypotheses) scores candidates with the rank-one kernel of
-//! [`rankone`]: both are [`FitMethod`]s, not [`Method`]s.
+//! [`rankone`]: both are searches of the [`registry`] with no optimizer
+//! behind them ([`minimize`] refuses them).
 //!
 //! ## What to expect (Table 1 of the paper, `cargo bench --bench table1`)
 //!
@@ -49,7 +51,7 @@
 //! trace do not depend on the thread count.
 //!
 //! ```
-//! use springmass::detect::search::{minimize, Candidate, Method, Objective, SearchOptions, Space};
+//! use springmass::detect::search::{minimize, Candidate, FitMethod, Objective, SearchOptions, Space};
 //! // A toy objective: one position in 1..=9 and one value in [0.1, 10].
 //! struct Toy(Space);
 //! impl Objective for Toy {
@@ -60,7 +62,7 @@
 //! }
 //! let toy = Toy(Space::masses(9, 1, (0.1, 10.0)));
 //! let opts = SearchOptions { max_evals: 20_000, seed: 1, ..Default::default() };
-//! let r = minimize(Method::Genetic, &toy, &opts)?;
+//! let r = minimize(FitMethod::Ga, &toy, &opts)?;
 //! assert_eq!(r.best.positions, vec![7]);
 //! assert!((r.best.values[0] - 2.0).abs() < 1e-3);
 //! # Ok::<(), springmass::Error>(())
@@ -72,19 +74,20 @@ pub mod lsq;
 pub mod nelder_mead;
 pub mod pso;
 pub mod rankone;
+pub mod registry;
 
 use crate::detect::misfit::Misfit;
 use crate::detect::unknowns::{MassUnknown, MassUnknowns};
 use crate::error::{Error, Result};
 use rand::Rng;
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
 pub use genetic::GeneticOptions;
 pub use nelder_mead::NelderMeadOptions;
 pub use pso::PsoOptions;
+pub use registry::{FitMethod, Search, SEARCHES};
 
 /// A mixed search space: `n_positions` distinct integer positions in 1..=n (not in `excluded`), unordered,
 /// and real values each within bounds. `pairing[i] = Some(p)` says value i belongs to the defect at `positions[p]`
@@ -124,121 +127,6 @@ pub trait Objective: Sync {
     fn space(&self) -> &Space;
     /// The cost of one candidate.
     fn cost(&self, c: &Candidate) -> f64;
-}
-
-/// Fitting methods.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum FitMethod {
-    /// Exhaustive enumeration of position sets with a mass fit per set.
-    #[default]
-    Enumerate,
-    /// Genetic algorithm.
-    #[serde(alias = "genetic")]
-    Ga,
-    /// Nelder-Mead.
-    NelderMead,
-    /// Particle swarm.
-    #[serde(alias = "particle-swarm")]
-    Pso,
-    /// Greedy placement with moves and restarts, candidates scored by
-    /// rank-one updates (`detect::fit::greedy`; the data-first fit only).
-    Greedy,
-    /// The continuous relaxation: every mass (or spring) free under a
-    /// sparsity penalty (the whole-profile inversion); its support, the
-    /// values farthest from uniform in standard errors, seeds the discrete
-    /// fit, which refits it and its neighbours (the data-first fit only).
-    Relax,
-}
-
-impl FitMethod {
-    /// Parse `enumerate`, `ga`, `nelder-mead`, `pso`, `greedy`, `relax` (aliases
-    /// `genetic`, `particle-swarm`, `nm`).
-    ///
-    /// # Errors
-    /// [`Error::Parse`] naming the allowed names.
-    pub fn parse(text: &str) -> Result<FitMethod> {
-        match text.trim().to_ascii_lowercase().as_str() {
-            "enumerate" | "enum" => Ok(FitMethod::Enumerate),
-            "ga" | "genetic" => Ok(FitMethod::Ga),
-            "nelder-mead" | "nm" => Ok(FitMethod::NelderMead),
-            "pso" | "particle-swarm" => Ok(FitMethod::Pso),
-            "greedy" => Ok(FitMethod::Greedy),
-            "relax" => Ok(FitMethod::Relax),
-            _ => Err(Error::parse(
-                "method",
-                text,
-                "expected enumerate, ga, nelder-mead, pso, greedy or relax",
-            )),
-        }
-    }
-
-    /// The canonical name.
-    pub fn name(self) -> &'static str {
-        match self {
-            FitMethod::Enumerate => "enumerate",
-            FitMethod::Ga => "ga",
-            FitMethod::NelderMead => "nelder-mead",
-            FitMethod::Pso => "pso",
-            FitMethod::Greedy => "greedy",
-            FitMethod::Relax => "relax",
-        }
-    }
-
-    /// The optimizer behind a stochastic method; `None` for enumeration
-    /// and the greedy search.
-    pub fn stochastic(self) -> Option<Method> {
-        match self {
-            FitMethod::Enumerate | FitMethod::Greedy | FitMethod::Relax => None,
-            FitMethod::Ga => Some(Method::Genetic),
-            FitMethod::NelderMead => Some(Method::NelderMead),
-            FitMethod::Pso => Some(Method::ParticleSwarm),
-        }
-    }
-}
-
-/// The available optimizers.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Method {
-    /// Our own mixed-integer genetic algorithm ([`genetic`]).
-    Genetic,
-    /// argmin's Nelder-Mead with positions fixed per run ([`nelder_mead`]).
-    NelderMead,
-    /// argmin's particle swarm with relax-and-round positions ([`pso`]).
-    ParticleSwarm,
-}
-
-impl Method {
-    /// All methods, in table order.
-    pub const ALL: [Method; 3] = [Method::Genetic, Method::NelderMead, Method::ParticleSwarm];
-
-    /// Short name (`ga`, `nelder-mead`, `pso`).
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Genetic => "ga",
-            Method::NelderMead => "nelder-mead",
-            Method::ParticleSwarm => "pso",
-        }
-    }
-}
-
-impl std::fmt::Display for Method {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl std::str::FromStr for Method {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Method> {
-        match s {
-            "ga" | "genetic" => Ok(Method::Genetic),
-            "nm" | "nelder-mead" => Ok(Method::NelderMead),
-            "pso" | "particle-swarm" => Ok(Method::ParticleSwarm),
-            _ => Err(Error::parse("method", s, "expected ga, nelder-mead or pso")),
-        }
-    }
 }
 
 /// Options shared by all methods, plus one block of knobs per method.
@@ -286,22 +174,19 @@ impl Default for SearchOptions {
 }
 
 impl SearchOptions {
-    /// Check the shared options and the block of `method`.
+    /// Check the shared options and the block of `method`'s optimizer.
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] naming the field.
-    pub fn validate(&self, method: Method) -> Result<()> {
+    /// [`Error::InvalidParameter`] naming the field (`method` when it is not
+    /// a stochastic optimizer).
+    pub fn validate(&self, method: FitMethod) -> Result<()> {
         if self.max_evals == 0 {
             return Err(Error::invalid("max_evals", 0, ">= 1"));
         }
         if self.target_cost.is_nan() {
             return Err(Error::invalid("target_cost", "NaN", "a number (or -inf)"));
         }
-        match method {
-            Method::Genetic => self.genetic.validate(),
-            Method::NelderMead => self.nelder_mead.validate(),
-            Method::ParticleSwarm => self.pso.validate(),
-        }
+        (optimizer_of(method)?.validate)(self)
     }
 }
 
@@ -323,15 +208,15 @@ pub struct SearchResult {
 /// # Errors
 /// An invalid space or options ([`Error::InvalidParameter`] naming the
 /// field); [`Error::Numerical`] if the underlying argmin run fails.
-pub fn minimize(method: Method, obj: &dyn Objective, opts: &SearchOptions) -> Result<SearchResult> {
+pub fn minimize(
+    method: FitMethod,
+    obj: &dyn Objective,
+    opts: &SearchOptions,
+) -> Result<SearchResult> {
     obj.space().validate()?;
     opts.validate(method)?;
     let tracked = Tracked::new(obj, opts);
-    match method {
-        Method::Genetic => genetic::run(&tracked, opts)?,
-        Method::NelderMead => nelder_mead::run(&tracked, opts)?,
-        Method::ParticleSwarm => pso::run(&tracked, opts)?,
-    }
+    (optimizer_of(method)?.run)(&tracked, opts)?;
     if opts.final_polish && obj.space().n_values() > 0 && !tracked.done() {
         if let Some((best, _)) = tracked.best() {
             let nm = NelderMeadOptions {
@@ -343,6 +228,24 @@ pub fn minimize(method: Method, obj: &dyn Objective, opts: &SearchOptions) -> Re
         }
     }
     tracked.into_result()
+}
+
+/// The optimizer behind `method`.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] (`method`) for a search that is not a
+/// stochastic optimizer.
+fn optimizer_of(method: FitMethod) -> Result<registry::Optimizer> {
+    method.optimizer().ok_or_else(|| {
+        Error::invalid(
+            "method",
+            method.name(),
+            format!(
+                "a stochastic optimizer: {}",
+                registry::names(|s| s.stochastic(), "or")
+            ),
+        )
+    })
 }
 
 impl Space {

@@ -283,7 +283,7 @@ fn episode_seed(seed: u64, e: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::detect::search::{minimize, Method, Objective, Space};
+    use crate::detect::search::{minimize, FitMethod, Objective, Space};
 
     struct Valley(Space);
     impl Objective for Valley {
@@ -306,8 +306,8 @@ mod tests {
             ..Default::default()
         };
         opts.pso.finish = Finish::None;
-        let a = minimize(Method::ParticleSwarm, &v, &opts).unwrap();
-        let b = minimize(Method::ParticleSwarm, &v, &opts).unwrap();
+        let a = minimize(FitMethod::Pso, &v, &opts).unwrap();
+        let b = minimize(FitMethod::Pso, &v, &opts).unwrap();
         assert_eq!(a, b);
         assert_eq!(a.best.positions, vec![13]);
         assert!((a.best.values[0] - 0.7).abs() < 1e-3);

@@ -23,7 +23,7 @@
 use super::case::{chain_problems, num, CaseOutput, KindScene};
 use crate::chain::Defect;
 use crate::detect::fit::paper::{fit, SceneReport};
-use crate::detect::fit::FitMethod;
+
 use crate::detect::scene::{DataSourceKind, FitScene};
 use crate::error::{check_f64, Error, Result};
 use crate::study::paths::set_path;
@@ -85,7 +85,7 @@ pub const FIELDS: &[FieldDoc] = &[
     FieldDoc::new("misfit.sigma", "float", "0.1", "Abscissa of the Bromwich line."),
     FieldDoc::new("misfit.omega_max", "float", "4", "Upper limit of omega on the Bromwich line."),
     FieldDoc::new("search", "table", "{}", "The search."),
-    FieldDoc::new("search.method", "\"enumerate\" | \"ga\" | \"nelder-mead\" | \"pso\"", "\"enumerate\"", "Exhaustive enumeration of position sets with mass fits, or a stochastic optimizer."),
+    FieldDoc::new("search.method", crate::detect::search::registry::METHOD_TYPE, "\"enumerate\"", "A search of the registry (`springmass fit --help`): exhaustive enumeration of position sets, greedy, relax, or a stochastic optimizer."),
     FieldDoc::new("search.seed", "integer", "the case's seed", "Seed of stochastic methods (in a study: derived from the case unless given)."),
     FieldDoc::new("search.max_evals", "integer", "20000", "Evaluation budget of stochastic methods."),
     FieldDoc::new("search.keep", "integer", "5", "Hypotheses reported (best and runners-up)."),
@@ -227,15 +227,15 @@ fn unknowns_problems(scene: &FitScene, out: &mut Vec<Error>) {
         if let Err(e) = scene.unknowns() {
             out.push(e);
         }
-        if !matches!(
-            scene.search.method,
-            FitMethod::Enumerate | FitMethod::Greedy
-        ) {
+        if !scene.search.method.search().general_scene {
             out.push(Error::invalid(
-                    "search.method",
-                    scene.search.method.name(),
-                    "enumerate or greedy for the general fit (non-mass kinds, chain parameters or the time misfit)",
-                ));
+                "search.method",
+                scene.search.method.name(),
+                format!(
+                    "{} for the general fit (non-mass kinds, chain parameters or the time misfit)",
+                    crate::detect::search::registry::names(|s| s.general_scene, "or")
+                ),
+            ));
         }
         if scene.misfit.kind == crate::detect::misfit::MisfitKind::Time
             && scene.data.source == crate::detect::scene::DataSourceKind::Exact
@@ -250,16 +250,15 @@ fn unknowns_problems(scene: &FitScene, out: &mut Vec<Error>) {
         match scene.unknowns().and_then(|u| u.to_mass()) {
             Err(e) => out.push(e),
             Ok(u) => {
-                if !matches!(
-                    scene.search.method,
-                    FitMethod::Enumerate | FitMethod::Greedy
-                ) && !u.interchangeable()
-                {
+                if !scene.search.method.search().general_scene && !u.interchangeable() {
                     out.push(Error::invalid(
-                            "search.method",
-                            scene.search.method.name(),
-                            "enumerate when the defects at unknown positions differ (known, unequal masses or unequal bounds)",
-                        ));
+                        "search.method",
+                        scene.search.method.name(),
+                        format!(
+                            "{} when the defects at unknown positions differ (known, unequal masses or unequal bounds)",
+                            crate::detect::search::registry::names(|s| s.general_scene, "or")
+                        ),
+                    ));
                 }
             }
         }
@@ -316,7 +315,7 @@ impl KindScene for FitScene {
             }
         }
         // [search]
-        if self.search.method.stochastic().is_some() && self.search.max_evals == 0 {
+        if self.search.method.is_stochastic() && self.search.max_evals == 0 {
             out.push(Error::invalid(
                 "search.max_evals",
                 0,

@@ -1,0 +1,242 @@
+//! The data-first fit's report, assembled from the chosen [`KFit`]: the
+//! answer's defects and chain parameters with their errors and flags, the
+//! alternatives, the goodness of fit, the judge's verdict
+//! ([`super::judge`]), the fitted chain's modes and the predicted series.
+
+use super::chainfit::default_bounds;
+use super::engine::{Engine, KFit, MODES_MAX_N};
+use super::general::{self, identify_general, Hypothesis};
+use super::judge::{judge, Bar, Evidence};
+use super::report::{
+    Alternative, DefectEstimate, FitReport, KRow, ModeEstimate, ParamEstimate, Predicted,
+};
+use super::{identify, noise, select};
+use crate::chain::Chain;
+use crate::detect::data::observations::Observations;
+use crate::detect::unknowns::{DefectKind, KindBounds};
+use crate::error::Result;
+use std::time::Instant;
+
+impl Engine<'_> {
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn report(
+        &self,
+        f: &KFit,
+        sigma: f64,
+        estimated: bool,
+        rows: Vec<KRow>,
+        criterion: String,
+        evaluations: usize,
+        t0: Instant,
+    ) -> Result<FitReport> {
+        // the fit was made at f.sigma_fit: chi-squares and standard errors at the final sigma
+        let scale = sigma / f.sigma_fit;
+        let chi2_final = f.chi2 / (scale * scale);
+        let ranked = rescaled(&f.ranked, scale);
+        let best = &ranked[0];
+        let ident = identify_general(&ranked, self.model.chain(), sigma, None).ok();
+        let defects = self.defect_estimates(best, ident.as_ref());
+        let params = self.param_estimates(best);
+        let alternatives: Vec<Alternative> = ranked[1..]
+            .iter()
+            .take(self.opts.alternatives)
+            .map(|h| Alternative::new(h.defects.clone(), h.chi2, best.chi2))
+            .collect();
+        let (fits_data, p) = goodness_of_fit(f, chi2_final, estimated);
+        let verdict = judge(
+            &Evidence {
+                k: f.k,
+                budget_exhausted: f.budget_exhausted.then_some(self.opts.max_evals),
+                converged: best.converged,
+                at_bound: defects.iter().any(|d| d.at_bound) || params.iter().any(|p| p.at_bound),
+                all_identifiable: defects.iter().all(|d| d.identifiable),
+                unidentified: ident.as_ref().and_then(|r| {
+                    r.defects
+                        .iter()
+                        .find(|d| !d.identifiable)
+                        .map(|d| d.reason.as_str())
+                }),
+                runner_up_gap: alternatives.first().map(|a| a.gap),
+                fits_data,
+            },
+            Bar::ChiSquare(identify::DEFAULT_THRESHOLD),
+        );
+        Ok(FitReport {
+            defects,
+            k: f.k,
+            params,
+            noise_sigma: sigma,
+            noise_estimated: estimated,
+            chi2: chi2_final,
+            dof: f.dof,
+            status: verdict.status,
+            message: verdict.message,
+            resolved: verdict.resolved,
+            fits_data,
+            fit_p_value: p,
+            alternatives,
+            k_selection: rows,
+            criterion,
+            misfit: f.misfit_name.clone(),
+            setup: self.setup_line(),
+            method: f.method_name.clone(),
+            evaluations,
+            hypotheses: f.hypotheses,
+            exhaustive: f.exhaustive,
+            trace: f.trace.clone(),
+            wall_time_s: t0.elapsed().as_secs_f64(),
+            predicted: self.predicted(f),
+            modes: fitted_modes(best, self.model.chain()),
+            identifiability: ident,
+            visibility: None,
+        })
+    }
+
+    /// The best answer's defects with their standard errors, bound and
+    /// identifiability flags (known defects flagged, with no error).
+    fn defect_estimates(
+        &self,
+        best: &Hypothesis,
+        ident: Option<&identify::Identifiability>,
+    ) -> Vec<DefectEstimate> {
+        let base = self.model.chain();
+        let bounds = KindBounds::for_chain(base);
+        let known: Vec<(usize, DefectKind)> = base
+            .defects()
+            .iter()
+            .map(|d| (d.at(), DefectKind::of(d)))
+            .collect();
+        let mut defects = Vec::with_capacity(best.defects.len());
+        for (i, d) in best.defects.iter().enumerate() {
+            let kind = DefectKind::of(d);
+            let is_known = known.contains(&(d.at(), kind));
+            let (lo, hi) = bounds.of(kind);
+            let v = d.value();
+            let tol = 1e-6 * hi.abs().max(1.0);
+            let rep = ident.and_then(|r| r.defects.iter().find(|x| x.at == d.at()));
+            defects.push(DefectEstimate {
+                kind: kind.name(),
+                at: d.at(),
+                value: v,
+                se: if is_known {
+                    0.0
+                } else {
+                    best.std_errors.get(i).copied().unwrap_or(f64::NAN)
+                },
+                at_bound: !is_known && (v <= lo + tol || v >= hi - tol),
+                known: is_known,
+                significance: rep.map_or(f64::NAN, |r| r.significance),
+                identifiable: is_known || rep.is_some_and(|r| r.identifiable),
+            });
+        }
+        defects
+    }
+
+    /// The best answer's fitted chain parameters, flagged on their bounds.
+    fn param_estimates(&self, best: &Hypothesis) -> Vec<ParamEstimate> {
+        let cb = default_bounds(self.model.chain(), self.model.fitted());
+        best.chain
+            .iter()
+            .map(|p| {
+                let b = self
+                    .model
+                    .fitted()
+                    .iter()
+                    .position(|q| general::param_name(q) == p.name)
+                    .map(|i| cb[i])
+                    .unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
+                let tol = 1e-6 * b.1.abs().max(1.0);
+                ParamEstimate {
+                    name: p.name.clone(),
+                    value: p.value,
+                    se: p.std_error,
+                    at_bound: p.value <= b.0 + tol || p.value >= b.1 - tol,
+                }
+            })
+            .collect()
+    }
+
+    /// The predicted series next to the observed one (series data only).
+    fn predicted(&self, f: &KFit) -> Option<Predicted> {
+        match (self.obs, &f.predicted) {
+            (Observations::Series(s), Some((model, r))) => Some(Predicted {
+                t: s.t().to_vec(),
+                observed: s.x().to_vec(),
+                model: model.clone(),
+                residual: r.clone(),
+            }),
+            _ => None,
+        }
+    }
+
+    /// What the data measured and the chain's ends.
+    fn setup_line(&self) -> String {
+        let base = self.model.chain();
+        format!(
+            "{}; ends {}-{}",
+            match self.obs {
+                Observations::Series(s) => s.measurement().describe(),
+                Observations::Laplace(l) => format!(
+                    "{} of mass {} (Laplace values)",
+                    l.sensor().kind.name(),
+                    l.sensor().at
+                ),
+            },
+            base.left(),
+            base.right()
+        )
+    }
+}
+
+/// The hypotheses with their chi-squares and standard errors at a noise
+/// level `scale` times the one they were fitted at.
+fn rescaled(ranked: &[Hypothesis], scale: f64) -> Vec<Hypothesis> {
+    ranked
+        .iter()
+        .map(|h| {
+            let mut h = h.clone();
+            h.chi2 /= scale * scale;
+            for se in &mut h.std_errors {
+                *se *= scale;
+            }
+            for p in &mut h.chain {
+                p.std_error *= scale;
+            }
+            h
+        })
+        .collect()
+}
+
+/// Whether the residual is consistent with noise, and the p-value: the
+/// Ljung-Box whiteness test of the time residual when sigma was estimated,
+/// the chi-square test otherwise.
+fn goodness_of_fit(f: &KFit, chi2_final: f64, estimated: bool) -> (bool, f64) {
+    let p = match (&f.predicted, estimated) {
+        (Some((_, r)), true) => noise::ljung_box(r, 20).1,
+        _ => select::chi2_sf(chi2_final, f.dof.max(1) as f64),
+    };
+    (p >= 0.001, p)
+}
+
+/// The fitted chain's natural modes (none when the eigen solver refuses, or
+/// for a non-uniform chain above [`MODES_MAX_N`]: the dense eigen solver is
+/// O(n^3) and would dominate the fit).
+fn fitted_modes(best: &Hypothesis, base: &Chain) -> Vec<ModeEstimate> {
+    best.to_chain(base)
+        .and_then(|c| {
+            if c.n() > MODES_MAX_N && !c.defects().is_empty() {
+                return Ok(Vec::new());
+            }
+            crate::time::modal::natural_modes(&c)
+        })
+        .map(|v| {
+            v.iter()
+                .map(|m| ModeEstimate {
+                    omega: m.omega,
+                    frequency: m.frequency,
+                    zeta: m.zeta.unwrap_or(f64::NAN),
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
