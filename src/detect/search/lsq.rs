@@ -529,6 +529,15 @@ pub fn covariance(j: &DMatrix<f64>) -> Result<DMatrix<f64>> {
     if p == 0 {
         return Ok(DMatrix::zeros(0, 0));
     }
+    if j.nrows() < p {
+        // fewer residuals than parameters: `J^T J` has rank <= rows < p
+        return Err(Error::Unresolvable {
+            reason: format!(
+                "the data do not constrain all {p} parameters: only {} residual rows (need at least {p}; use a longer or denser record, or fewer unknowns)",
+                j.nrows()
+            ),
+        });
+    }
     // column scaling for conditioning
     let scale: Vec<f64> = (0..p)
         .map(|c| {
@@ -818,5 +827,15 @@ mod tests {
         let j = DMatrix::from_row_slice(3, 2, &[1.0, 0.0, 0.0, 2.0, 0.0, 0.0]);
         let c = covariance(&j).unwrap();
         assert!((c[(0, 0)] - 1.0).abs() < 1e-14 && (c[(1, 1)] - 0.25).abs() < 1e-14);
+    }
+
+    #[test]
+    fn covariance_with_fewer_rows_than_parameters_is_an_error() {
+        // issue 32 item 6: the SVD of a 2 x 5 Jacobian has 2 singular values;
+        // indexing 5 of them panicked
+        let j = DMatrix::from_fn(2, 5, |r, c| (r + 2 * c + 1) as f64);
+        let e = covariance(&j).unwrap_err();
+        assert!(matches!(e, Error::Unresolvable { .. }), "{e}");
+        assert!(e.to_string().contains("only 2 residual rows"), "{e}");
     }
 }
