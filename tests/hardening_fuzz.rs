@@ -301,3 +301,154 @@ fn item10_long_line_is_not_echoed() {
     assert!(o.stderr.len() < 4000, "{} bytes of stderr", o.stderr.len());
     std::fs::remove_dir_all(&d).ok();
 }
+
+/// Item 7: memory refused up front with the budget named.
+#[test]
+fn item7_huge_chains_are_refused_before_allocating() {
+    let d = tmpdir("i7");
+    let rec = d.join("x1.csv");
+    record(&rec, "t,x1", 201);
+    let o = run_in(
+        &d,
+        &[
+            "fit",
+            "--data",
+            s(&rec),
+            "--n",
+            "1000000000",
+            "--defects",
+            "1",
+        ],
+        &[],
+    );
+    refused(&o, "SPRINGMASS_MEMORY_BUDGET");
+    let o = run_in(
+        &d,
+        &[
+            "fit",
+            "--data",
+            s(&rec),
+            "--n",
+            "1000000",
+            "--profile",
+            "masses",
+        ],
+        &[],
+    );
+    refused(&o, "SPRINGMASS_MEMORY_BUDGET");
+    let modes = d.join("modes.csv");
+    std::fs::write(&modes, "omega,residue\n1,0.5\n2,0.5\n").unwrap();
+    let o = run_in(
+        &d,
+        &["spectral", "--modes", s(&modes), "--n", "1000000000"],
+        &[],
+    );
+    refused(&o, "number of modes");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Item 11: silent accepts.
+#[test]
+fn item11_zero_impulse_and_negative_omega_are_refused() {
+    let d = tmpdir("i11");
+    let rec = d.join("x1.csv");
+    record(&rec, "t,x1", 201);
+    for g in ["0", "5e-324"] {
+        let o = run_in(
+            &d,
+            &["fit", "--data", s(&rec), "--n", "3", "--gamma", g],
+            &[],
+        );
+        refused(&o, "gamma");
+        assert!(!o.stdout.contains("NaN"), "{}", o.stdout);
+    }
+    let modes = d.join("modes.csv");
+    std::fs::write(&modes, "omega,residue\n-1,0.5\n2,0.5\n").unwrap();
+    let o = run_in(
+        &d,
+        &["spectral", "--modes", s(&modes), "--n", "2", "--json"],
+        &[],
+    );
+    refused(&o, "omega");
+    assert!(!o.stdout.contains("\"resolved\": true"), "{}", o.stdout);
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Item 13: messages that say what in the input causes the failure.
+#[test]
+fn item13_messages_name_the_cause_in_the_input() {
+    let d = tmpdir("i13");
+    let cases: [(&str, String, &str); 3] = [
+        (
+            "zero.csv",
+            (0..101)
+                .map(|i| format!("{},0\n", i as f64 * 0.25))
+                .collect(),
+            "every one 0",
+        ),
+        (
+            "huge.csv",
+            (0..101)
+                .map(|i| format!("{},{:e}\n", i as f64 * 0.25, 1e200 * (i as f64 * 0.3).sin()))
+                .collect(),
+            "rescale the data",
+        ),
+        (
+            "tiny.csv",
+            (0..101)
+                .map(|i| format!("{:e},{}\n", i as f64 * 1e-300, (i as f64 * 0.3).sin()))
+                .collect(),
+            "rescale the times",
+        ),
+    ];
+    for (name, rows, needle) in cases {
+        let f = d.join(name);
+        std::fs::write(&f, format!("t,x1\n{rows}")).unwrap();
+        let o = run_in(&d, &["fit", "--data", s(&f), "--n", "3"], &[]);
+        refused(&o, needle);
+        assert_eq!(o.code, 2, "{name}: {}", o.stderr);
+    }
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Item 12: a second `study` on one `--out` is refused naming the holder.
+#[cfg(unix)]
+#[test]
+fn item12_second_study_on_one_folder_is_refused() {
+    let d = tmpdir("i12");
+    let out = d.join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    // this test process stands in for a running study
+    std::fs::write(out.join(".lock"), format!("{}\n", std::process::id())).unwrap();
+    let o = run_in(
+        &d,
+        &["study", "--default", "--quiet", "--out", s(&out)],
+        &[],
+    );
+    refused(&o, &format!("process {}", std::process::id()));
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Item 10: `locate --precision` beyond what ends in seconds is refused,
+/// naming the cap (65536, the old documented maximum, ran over 300 s).
+#[test]
+fn item10_locate_precision_is_capped() {
+    let d = tmpdir("i10p");
+    let o = run_bounded(
+        &d,
+        &[
+            "locate",
+            "--n",
+            "5",
+            "--defect",
+            "mass:3:4",
+            "--large",
+            "--s",
+            "50",
+            "--precision",
+            "65536",
+        ],
+    );
+    refused(&o, "64..=4096");
+    std::fs::remove_dir_all(&d).ok();
+}

@@ -371,6 +371,41 @@ pub fn check_alloc(what: &str, bytes: f64) -> Result<()> {
     Ok(())
 }
 
+/// Working memory of a defect search on an `n`-mass chain, per mass: the
+/// greedy search keeps `O(n Q)` values for `Q` Laplace nodes (about 64 nodes
+/// of 8 bytes).
+pub const FIT_BYTES_PER_MASS: f64 = 512.0;
+/// Working memory of a whole-profile inversion per squared unknown: dense
+/// Jacobians and normal matrices of about 16 `n x n` f64 blocks (the
+/// 128 TB that `n = 10^6` asked for).
+pub const PROFILE_BYTES_PER_MASS_SQUARED: f64 = 128.0;
+
+/// Refuse a fit of an `n`-mass chain whose working memory would exceed the
+/// budget ([`check_alloc`]), before any work: `profile` for the
+/// whole-profile inversion (quadratic in `n`), else the defect search
+/// (linear in `n`). The one check the CLI and Python share.
+///
+/// ```
+/// use springmass::io::check_fit_memory;
+/// assert!(check_fit_memory(1000, false).is_ok());
+/// assert!(check_fit_memory(1_000_000_000, false).is_err());
+/// assert!(check_fit_memory(1_000_000, true).is_err());
+/// ```
+///
+/// # Errors
+/// [`Error::ResourceLimit`] naming `n` and the budget.
+pub fn check_fit_memory(n: usize, profile: bool) -> Result<()> {
+    let m = n as f64;
+    if profile {
+        check_alloc(
+            &format!("profile fit (n = {n}: dense n x n matrices)"),
+            PROFILE_BYTES_PER_MASS_SQUARED * m * m,
+        )
+    } else {
+        check_alloc(&format!("fit (n = {n})"), FIT_BYTES_PER_MASS * m)
+    }
+}
+
 /// Check a thread count: `1..=MAX_THREADS` (1024).
 ///
 /// # Errors
