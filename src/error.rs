@@ -147,7 +147,7 @@ impl Error {
     ) -> Self {
         Error::InvalidParameter {
             field: field.into(),
-            value: value.to_string(),
+            value: clip_echo(value.to_string()),
             allowed: allowed.into(),
         }
     }
@@ -160,7 +160,7 @@ impl Error {
     ) -> Self {
         Error::Parse {
             what: what.into(),
-            input: input.into(),
+            input: clip_echo(input.into()),
             reason: reason.into(),
         }
     }
@@ -172,6 +172,28 @@ impl Error {
             reason: err.to_string(),
         }
     }
+}
+
+/// Longest echoed input in an error message, in bytes.
+pub const MAX_ECHO: usize = 200;
+
+/// Cut an echoed input to [`MAX_ECHO`] bytes (at a character boundary), saying
+/// how long it was, so that a 10 MB line is not printed back whole.
+///
+/// ```
+/// let long = "x".repeat(10_000);
+/// let cut = springmass::error::clip_echo(long);
+/// assert!(cut.len() < 300 && cut.contains("10000 bytes"));
+/// ```
+pub fn clip_echo(text: String) -> String {
+    if text.len() <= MAX_ECHO {
+        return text;
+    }
+    let mut end = MAX_ECHO;
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    format!("{}... ({} bytes in all)", &text[..end], text.len())
 }
 
 /// Result alias used throughout the crate.

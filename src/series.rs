@@ -112,12 +112,9 @@ impl TimeSeries {
     pub fn names(&self) -> &[String] {
         &self.names
     }
-    /// A column by name.
+    /// A column by name (or by the header's text with its unit, `x1 [m]`).
     pub fn column(&self, name: &str) -> Option<&[f64]> {
-        self.names
-            .iter()
-            .position(|n| n == name)
-            .map(|i| self.columns[i].as_slice())
+        self.position_of(name).map(|i| self.columns[i].as_slice())
     }
     /// A column by position (0-based, excluding `t`).
     pub fn column_at(&self, i: usize) -> Option<&[f64]> {
@@ -185,137 +182,50 @@ impl TimeSeries {
     /// or is NaN/inf, and unsorted or duplicate times.
     pub fn from_csv_str(text: &str) -> Result<TimeSeries> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-        let delim = sniff_delimiter(text);
+        let text = blank_comment_lines(text);
+        let delim = sniff_delimiter(&text);
         let mut rdr = csv::ReaderBuilder::new()
             .delimiter(delim)
             .has_headers(false)
             .flexible(true)
-            .comment(Some(b'#'))
             .trim(csv::Trim::All)
             .from_reader(text.as_bytes());
         let mut records = rdr.records();
-        let header = loop {
-            match records.next() {
-                None => {
-                    return Err(Error::parse(
-                        "CSV",
-                        "",
-                        "empty file; expected a header such as t,x1",
-                    ))
-                }
-                Some(Err(e)) => return Err(csv_error(&e)),
-                Some(Ok(r)) if r.iter().all(str::is_empty) => continue,
-                Some(Ok(r)) => break r,
-            }
-        };
-        let hline = header.position().map_or(1, |p| p.line());
-        let header_text = header.iter().collect::<Vec<_>>().join(delim_str(delim));
-        // (name, unit, file column index 0-based)
-        let mut cols: Vec<(String, Option<String>, usize)> = header
-            .iter()
-            .enumerate()
-            .map(|(i, h)| {
-                let (name, unit) = split_unit(h);
-                (name, unit, i)
-            })
-            .collect();
-        while cols.last().is_some_and(|c| c.0.is_empty()) {
-            cols.pop();
-        }
-        let is_time = |n: &str| n.eq_ignore_ascii_case("t") || n.eq_ignore_ascii_case("time");
-        let first_unnamed = cols
-            .first()
-            .is_some_and(|c| c.0.is_empty() || c.0 == "Unnamed: 0" || c.0 == "index");
-        if first_unnamed && cols[1..].iter().any(|c| is_time(&c.0)) {
-            cols.remove(0);
-        }
-        if cols.len() < 2 {
-            return Err(Error::parse(
-                format!("CSV header (line {hline})"),
-                header_text,
-                "expected a time column and at least one value column, e.g. `t,x1` (delimiter `,`, `;` or tab)",
-            ));
-        }
-        let ti = cols.iter().position(|c| is_time(&c.0)).unwrap_or(0);
-        let time = cols.remove(ti);
-        for c in cols.iter_mut() {
-            if c.0.is_empty() {
-                c.0 = format!("column{}", c.2 + 1);
-            }
-        }
-        let used: Vec<(String, usize)> = std::iter::once((
-            if time.0.is_empty() {
-                "t".to_string()
-            } else {
-                time.0.clone()
-            },
-            time.2,
-        ))
-        .chain(cols.iter().map(|c| (c.0.clone(), c.2)))
-        .collect();
-        let ncol_needed = used.iter().map(|u| u.1).max().unwrap_or(0) + 1;
+        let layout = Layout::from_header(&mut records, delim)?;
         let decimal_comma = delim == b';';
         let mut t: Vec<f64> = Vec::new();
-        let mut values: Vec<Vec<f64>> = vec![Vec::new(); cols.len()];
+        let mut values: Vec<Vec<f64>> = vec![Vec::new(); layout.cols.len()];
+        let mut vals = Vec::with_capacity(layout.used.len());
         let mut row = 0usize;
         for rec in records {
             let rec = rec.map_err(|e| csv_error(&e))?;
-            if rec.iter().all(str::is_empty) {
+            if rec.iter().all(str::is_empty) && rec.len() <= 1 {
                 continue;
             }
             row += 1;
-            let line = rec.position().map_or(0, |p| p.line());
-            let raw = rec.iter().collect::<Vec<_>>().join(delim_str(delim));
-            let at = |name: &str, c: usize| {
-                format!("CSV row {row} (line {line}), column {} `{name}`", c + 1)
-            };
-            // trailing empty fields beyond the needed columns are ignored
-            let mut n_fields = rec.len();
-            while n_fields > ncol_needed && rec.get(n_fields - 1) == Some("") {
-                n_fields -= 1;
-            }
-            if n_fields < ncol_needed {
-                let (name, c) = used
-                    .iter()
-                    .find(|u| u.1 >= n_fields)
-                    .cloned()
-                    .unwrap_or_default();
-                return Err(Error::parse(
-                    at(&name, c),
-                    raw,
-                    format!(
-                        "missing field: expected {ncol_needed} fields as in the header, found {n_fields}"
-                    ),
-                ));
-            }
-            let mut vals = Vec::with_capacity(used.len());
-            for (name, c) in &used {
+            layout.check_fields(&rec, row, delim)?;
+            vals.clear();
+            for (name, c) in &layout.used {
                 let f = rec.get(*c).unwrap_or("");
-                if f.is_empty() {
-                    return Err(Error::parse(at(name, *c), raw, "empty field"));
-                }
-                let parsed = if decimal_comma && f.contains(',') && !f.contains('.') {
-                    f.replacen(',', ".", 1).parse::<f64>()
-                } else {
-                    f.parse::<f64>()
+                let err = |reason: String| {
+                    Error::parse(at_cell(&rec, row, name, *c), raw_row(&rec, delim), reason)
                 };
-                let v = parsed.map_err(|_| {
-                    Error::parse(at(name, *c), raw.clone(), format!("{f:?} is not a number"))
-                })?;
+                if f.is_empty() {
+                    return Err(err("empty field".into()));
+                }
+                let v = parse_number(f, decimal_comma)
+                    .ok_or_else(|| err(format!("{:?} is not a number", clip(f))))?;
                 if !v.is_finite() {
-                    return Err(Error::parse(
-                        at(name, *c),
-                        raw,
-                        format!("{v}: values must be finite"),
-                    ));
+                    return Err(err(format!("{v}: values must be finite")));
                 }
                 vals.push(v);
             }
             if let Some(&prev) = t.last() {
                 if vals[0] <= prev {
+                    let (name, c) = &layout.used[0];
                     return Err(Error::parse(
-                        at(&used[0].0, used[0].1),
-                        raw,
+                        at_cell(&rec, row, name, *c),
+                        raw_row(&rec, delim),
                         format!("time {} is not greater than the previous time {prev}: times must be sorted and distinct", vals[0]),
                     ));
                 }
@@ -328,10 +238,11 @@ impl TimeSeries {
         if t.is_empty() {
             return Err(Error::parse(
                 "CSV",
-                header_text,
+                layout.header_text,
                 "no data rows after the header",
             ));
         }
+        let Layout { cols, time, .. } = layout;
         let units: Vec<Option<String>> = cols.iter().map(|c| c.1.clone()).collect();
         let mut ts = TimeSeries::new(t, cols.into_iter().map(|c| c.0).zip(values).collect())?;
         ts.units = units;
@@ -373,8 +284,9 @@ impl TimeSeries {
         self.time_unit.as_deref()
     }
 
-    /// A value column by name, or else by its 1-based number among the value
-    /// columns (`1` is the first column after the time).
+    /// A value column by name (also as the header wrote it with its unit,
+    /// `x1 [m]`), or else by its 1-based number among the value columns (`1`
+    /// is the first column after the time).
     ///
     /// ```
     /// use springmass::series::TimeSeries;
@@ -388,7 +300,7 @@ impl TimeSeries {
     /// # Errors
     /// [`Error::InvalidParameter`] listing the columns present.
     pub fn select(&self, key: &str) -> Result<(&str, &[f64])> {
-        let i = match self.names.iter().position(|n| n == key) {
+        let i = match self.position_of(key) {
             Some(i) => Some(i),
             None => key
                 .trim()
@@ -409,6 +321,17 @@ impl TimeSeries {
                 ),
             )),
         }
+    }
+
+    /// The index of a value column by its name, or by the header's full text
+    /// with its unit (`x1 [m]` or `x1 (m)` for column `x1` of unit `m`).
+    fn position_of(&self, key: &str) -> Option<usize> {
+        if let Some(i) = self.names.iter().position(|n| n == key) {
+            return Some(i);
+        }
+        let (name, unit) = split_unit(key);
+        let i = self.names.iter().position(|n| *n == name)?;
+        (unit.is_some() && self.units[i] == unit).then_some(i)
     }
 
     /// CSV text with 17 significant digits (round-trips `f64`).
@@ -508,6 +431,247 @@ fn split_unit(h: &str) -> (String, Option<String>) {
     (h.to_string(), None)
 }
 
+/// The columns a CSV header declares: the time column, the value columns
+/// (name, unit, 0-based file column) and the file columns read.
+struct Layout {
+    time: (String, Option<String>, usize),
+    cols: Vec<(String, Option<String>, usize)>,
+    /// (name, file column) of the time and then each value column.
+    used: Vec<(String, usize)>,
+    /// Fields a row needs (the last column read, plus one).
+    ncol_needed: usize,
+    /// Named header fields: a non-empty field beyond them is an error.
+    named: usize,
+    header_text: String,
+}
+
+impl Layout {
+    /// Read the header record (skipping blank lines) and decide the columns.
+    fn from_header(records: &mut csv::StringRecordsIter<&[u8]>, delim: u8) -> Result<Layout> {
+        let header = loop {
+            match records.next() {
+                None => {
+                    return Err(Error::parse(
+                        "CSV",
+                        "",
+                        "empty file; expected a header such as t,x1",
+                    ))
+                }
+                Some(Err(e)) => return Err(csv_error(&e)),
+                Some(Ok(r)) if r.iter().all(str::is_empty) && r.len() <= 1 => continue,
+                Some(Ok(r)) => break r,
+            }
+        };
+        let hline = header.position().map_or(1, |p| p.line());
+        let header_text = clip(&raw_row(&header, delim)).to_string();
+        let bad_header = |reason: &str| {
+            Error::parse(
+                format!("CSV header (line {hline})"),
+                header_text.clone(),
+                reason.to_string(),
+            )
+        };
+        let mut cols: Vec<(String, Option<String>, usize)> = header
+            .iter()
+            .enumerate()
+            .map(|(i, h)| {
+                let (name, unit) = split_unit(h);
+                (name, unit, i)
+            })
+            .collect();
+        while cols.last().is_some_and(|c| c.0.is_empty()) {
+            cols.pop();
+        }
+        let named = cols.len();
+        if cols.is_empty() {
+            return Err(bad_header(
+                "the header has no column names; expected e.g. `t,x1`",
+            ));
+        }
+        if header
+            .iter()
+            .filter(|h| !h.is_empty())
+            .all(|h| parse_number(h, delim == b';').is_some())
+        {
+            return Err(bad_header(
+                "the first line holds only numbers: the file has no header; add one such as `t,x1` as its first line",
+            ));
+        }
+        let first_unnamed = cols
+            .first()
+            .is_some_and(|c| c.0.is_empty() || c.0 == "Unnamed: 0" || c.0 == "index");
+        if first_unnamed && cols[1..].iter().any(|c| is_time(&c.0)) {
+            cols.remove(0);
+        }
+        if cols.len() < 2 {
+            return Err(bad_header(
+                "expected a time column and at least one value column, e.g. `t,x1` (delimiter `,`, `;` or tab)",
+            ));
+        }
+        check_unique_names(&cols).map_err(|r| bad_header(&r))?;
+        let ti = cols.iter().position(|c| is_time(&c.0)).unwrap_or(0);
+        let time = cols.remove(ti);
+        for c in cols.iter_mut() {
+            if c.0.is_empty() {
+                c.0 = format!("column{}", c.2 + 1);
+            }
+        }
+        let time_name = if time.0.is_empty() {
+            "t".to_string()
+        } else {
+            time.0.clone()
+        };
+        let used: Vec<(String, usize)> = std::iter::once((time_name, time.2))
+            .chain(cols.iter().map(|c| (c.0.clone(), c.2)))
+            .collect();
+        let ncol_needed = used.iter().map(|u| u.1).max().unwrap_or(0) + 1;
+        Ok(Layout {
+            time,
+            cols,
+            used,
+            ncol_needed,
+            named,
+            header_text,
+        })
+    }
+
+    /// A row must have every column read and no value beyond the header's
+    /// named columns (trailing empty fields are fine).
+    fn check_fields(&self, rec: &csv::StringRecord, row: usize, delim: u8) -> Result<()> {
+        let mut n_fields = rec.len();
+        while n_fields > 0 && rec.get(n_fields - 1) == Some("") {
+            n_fields -= 1;
+        }
+        if n_fields > self.named {
+            let c = n_fields - 1;
+            return Err(Error::parse(
+                format!("CSV row {row} (line {}), column {}", line_of(rec), c + 1),
+                raw_row(rec, delim),
+                format!(
+                    "extra field {:?}: the header names {} columns, this row has {n_fields}",
+                    clip(rec.get(c).unwrap_or("")),
+                    self.named
+                ),
+            ));
+        }
+        if n_fields < self.ncol_needed {
+            let (name, c) = self
+                .used
+                .iter()
+                .find(|u| u.1 >= n_fields)
+                .cloned()
+                .unwrap_or_default();
+            return Err(Error::parse(
+                at_cell(rec, row, &name, c),
+                raw_row(rec, delim),
+                format!(
+                    "missing field: expected {} fields as in the header, found {n_fields}",
+                    self.ncol_needed
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+fn is_time(n: &str) -> bool {
+    n.eq_ignore_ascii_case("t") || n.eq_ignore_ascii_case("time")
+}
+
+/// Column names must be unique, and only one may name the time (`t`, `time`).
+fn check_unique_names(cols: &[(String, Option<String>, usize)]) -> std::result::Result<(), String> {
+    for (k, b) in cols.iter().enumerate() {
+        for a in &cols[..k] {
+            let same = !a.0.is_empty() && a.0 == b.0;
+            if same || (is_time(&a.0) && is_time(&b.0)) {
+                return Err(format!(
+                    "columns {} `{}` and {} `{}` have the same name{}: rename one so that the column to read is unambiguous",
+                    a.2 + 1,
+                    clip(&a.0),
+                    b.2 + 1,
+                    clip(&b.0),
+                    if same { "" } else { " (both name the time)" }
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn line_of(rec: &csv::StringRecord) -> u64 {
+    rec.position().map_or(0, |p| p.line())
+}
+
+fn at_cell(rec: &csv::StringRecord, row: usize, name: &str, c: usize) -> String {
+    format!(
+        "CSV row {row} (line {}), column {} `{}`",
+        line_of(rec),
+        c + 1,
+        clip(name)
+    )
+}
+
+/// The fields of a record joined again (for an error message).
+fn raw_row(rec: &csv::StringRecord, delim: u8) -> String {
+    rec.iter().collect::<Vec<_>>().join(delim_str(delim))
+}
+
+/// At most 60 characters of a field, for a message.
+fn clip(s: &str) -> &str {
+    match s.char_indices().nth(60) {
+        Some((i, _)) => &s[..i],
+        None => s,
+    }
+}
+
+/// A number, with a decimal comma when the delimiter is `;` (`0,5`).
+fn parse_number(f: &str, decimal_comma: bool) -> Option<f64> {
+    if decimal_comma && f.contains(',') && !f.contains('.') {
+        f.replacen(',', ".", 1).parse::<f64>().ok()
+    } else {
+        f.parse::<f64>().ok()
+    }
+}
+
+/// Spreadsheet error values: a cell holding one is data (and not a number),
+/// not a comment, although it starts with `#`.
+const SPREADSHEET_ERRORS: [&str; 8] = [
+    "#N/A", "#VALUE!", "#DIV/0!", "#REF!", "#NAME?", "#NUM!", "#NULL!", "#SPILL!",
+];
+
+fn is_comment_line(line: &str) -> bool {
+    let l = line.trim_start();
+    l.starts_with('#')
+        && !SPREADSHEET_ERRORS.iter().any(|e| {
+            let code = l
+                .get(..e.len())
+                .is_some_and(|head| head.eq_ignore_ascii_case(e));
+            // the whole cell: followed by a delimiter, a space or the line end
+            code && l[e.len()..]
+                .chars()
+                .next()
+                .is_none_or(|c| matches!(c, ',' | ';' | '\t' | ' ' | '\r' | '\n' | '"'))
+        })
+}
+
+/// `#` comment lines replaced by blank lines (line numbers stay), unless the
+/// `#` opens a spreadsheet error value such as `#N/A` (a data row whose time
+/// is missing must be reported, not skipped).
+fn blank_comment_lines(text: &str) -> std::borrow::Cow<'_, str> {
+    if !text.lines().any(is_comment_line) {
+        return std::borrow::Cow::Borrowed(text);
+    }
+    let mut out = String::with_capacity(text.len());
+    for line in text.split_inclusive('\n') {
+        if is_comment_line(line) {
+            out.push('\n');
+        } else {
+            out.push_str(line);
+        }
+    }
+    std::borrow::Cow::Owned(out)
+}
+
 fn csv_error(e: &csv::Error) -> Error {
     let at = e
         .position()
@@ -597,6 +761,42 @@ mod tests {
         assert_eq!(ts.select("2").unwrap().0, "b");
         assert!(ts.select("0").is_err());
         assert!(ts.select("c").unwrap_err().to_string().contains("a, b"));
+        // issue 32 item 5: the header's full text, with its unit
+        let ts = x1("t [s],x1 [m],x2 (mm)\n0,1,2\n1,3,4\n");
+        assert_eq!(ts.select("x1 [m]").unwrap().0, "x1");
+        assert_eq!(ts.select("x2 (mm)").unwrap().0, "x2");
+        assert!(ts.select("x1 [mm]").is_err());
+    }
+
+    #[test]
+    fn csv_that_would_change_data_silently_is_refused() {
+        // issue 32 item 9: each case names row/line and column
+        let cases = [
+            ("t,x1\n0,1\n19.25,1,5\n", "row 2 (line 3), column 3"),
+            ("t,x1\n0,1\n#N/A,2\n1,3\n", "row 2 (line 3), column 1 `t`"),
+            ("t,x1\n0,1\n#VALUE!,2\n", "not a number"),
+            ("0,1\n1,2\n2,3\n", "no header"),
+            (",\n0,1\n1,2\n", "no column names"),
+            ("t,t,x1\n0,1,2\n1,2,3\n", "columns 1 `t` and 2 `t`"),
+            ("time,t,x1\n0,1,2\n1,2,3\n", "both name the time"),
+            ("t,x1,x1\n0,1,2\n1,2,3\n", "columns 2 `x1` and 3 `x1`"),
+        ];
+        for (text, needle) in cases {
+            let e = TimeSeries::from_csv_str(text).unwrap_err();
+            assert!(matches!(e, Error::Parse { .. }), "{text:?}: {e}");
+            assert!(e.to_string().contains(needle), "{text:?}: {e}");
+        }
+        // comments still work, also right before and after a data row
+        let ts = x1("# a, b\nt,x1\n#c\n0,1\n#N/Ao\n#name: v\n1,2\n");
+        assert_eq!(ts.t(), [0.0, 1.0]);
+    }
+
+    #[test]
+    fn a_long_line_is_not_echoed_whole() {
+        // issue 32 item 10: a 1 MB field in an error message
+        let text = format!("t,x1\n0,{}\n", "9".repeat(1 << 20) + "z");
+        let e = TimeSeries::from_csv_str(&text).unwrap_err().to_string();
+        assert!(e.len() < 2000, "{} bytes", e.len());
     }
 
     #[test]

@@ -49,6 +49,7 @@ import json
 import math
 import numbers
 import operator
+import os
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
@@ -113,6 +114,12 @@ def _vector(name: str, v: Any) -> np.ndarray:
         raise _invalid(name, _short(v), f"a one-dimensional array of real numbers ({e})") from None
     if a.dtype.kind == "c":
         raise _invalid(name, f"an array of dtype {a.dtype}", "real numbers (no complex values)")
+    if a.dtype.kind in "mM":
+        raise _invalid(
+            name,
+            f"an array of dtype {a.dtype}",
+            "real numbers (convert datetimes to seconds first, e.g. (t - t[0]) / np.timedelta64(1, 's'))",
+        )
     if a.dtype.kind not in "biuf":
         try:
             a = a.astype(np.float64)
@@ -140,6 +147,24 @@ def _count(name: str, v: Any) -> int:
         raise _invalid(name, _short(v), "a non-negative integer") from None
     if not 0 <= i < 2**64:
         raise _invalid(name, i, "a non-negative integer below 2**64")
+    return i
+
+
+# The largest chain (springmass::chain::MAX_N).
+_MAX_N = 1_000_000_000
+
+
+def _chain_size(v: Any) -> int:
+    """A number of masses: one message for every out-of-range value (0, -3, 2**70)."""
+    allowed = f"1 <= n <= {_MAX_N}"
+    if isinstance(v, bool):
+        raise _invalid("n", _short(v), allowed)
+    try:
+        i = operator.index(v)
+    except TypeError:
+        raise _invalid("n", _short(v), allowed) from None
+    if not 1 <= i <= _MAX_N:
+        raise _invalid("n", i, allowed)
     return i
 
 
@@ -220,7 +245,7 @@ def _defect_from_json(d: Dict[str, Any]) -> Defect:
 
 def _chain(n: Any, k: Any, d: Any, gamma: Any, mass: Any, defects: Any, left: Any, right: Any) -> Dict[str, Any]:
     return {
-        "n": _count("n", n),
+        "n": _chain_size(n),
         "k": _real("k", k),
         "d": _real("d", d),
         "gamma": _real("gamma", gamma),
@@ -606,7 +631,7 @@ def fit(
     raw = _core.fit(
         tv,
         xv,
-        n=_count("n", n),
+        n=_chain_size(n),
         d=_real("d", d),
         gamma=_real("gamma", gamma),
         fit=fit_text or None,
@@ -1286,7 +1311,7 @@ def fit_profile(
     raw = _core.fit_profile(
         tv,
         xv,
-        n=_count("n", n),
+        n=_chain_size(n),
         profile=_text("profile", profile),
         d=_real("d", d),
         gamma=_real("gamma", gamma),
@@ -1426,7 +1451,16 @@ def read_csv(path: Any) -> Tuple[np.ndarray, Dict[str, np.ndarray]]:
     >>> t, cols = springmass.read_csv("x1.csv")  # doctest: +SKIP
     >>> r = springmass.fit(t, cols["x1"], n=20)  # doctest: +SKIP
     """
-    if not isinstance(path, (str, bytes)) and not hasattr(path, "__fspath__"):
+    if isinstance(path, (bytes, bytearray, memoryview)):
+        raise _invalid(
+            "path",
+            _short(bytes(path[:40])),
+            "a file path as str or os.PathLike (not bytes: decode a path with os.fsdecode, or write CSV text to a file first)",
+        )
+    if not isinstance(path, str) and not hasattr(path, "__fspath__"):
         raise _invalid("path", _short(path), "a file path (str or os.PathLike)")
+    path = os.fspath(path)
+    if isinstance(path, bytes):
+        path = os.fsdecode(path)
     raw = _core.read_csv(path)
     return raw["t"], dict(raw["columns"])

@@ -409,7 +409,23 @@ fn laplace<'py>(
         .detach(move || -> Result<_> {
             let opts = transform_options(degree, noise_sigma, &tail)?;
             let tr = SeriesTransform::new(&t, &x, &opts)?;
-            tr.eval_many(&s)
+            let rows = tr.eval_many(&s)?;
+            // as `springmass laplace`: a value or error beyond f64 is refused
+            for v in &rows {
+                let finite = [v.value.re, v.value.im, v.err, v.err_disc, v.err_trunc]
+                    .iter()
+                    .chain(v.noise_var.as_ref())
+                    .all(|x| x.is_finite());
+                if !finite {
+                    return Err(Error::Unresolvable {
+                        reason: format!(
+                            "X({}{:+}i) or its error estimate is not representable in f64 (got {} {:+}i, err {})",
+                            v.s.re, v.s.im, v.value.re, v.value.im, v.err
+                        ),
+                    });
+                }
+            }
+            Ok(rows)
         })
         .py_err()?;
     let out = PyDict::new(py);

@@ -402,6 +402,8 @@ fn run_profile(
 ) -> anyhow::Result<springmass::detect::fit::profile::ProfileReport> {
     use springmass::detect::fit::fit_profile;
     use springmass::detect::fit::profile::ProfileOptions;
+    // refuse a FIFO, device or folder as --out-csv/--plot before the fit
+    springmass::io::check_outputs(a.out_csv.iter().chain(&a.plot).map(|p| p.as_path()))?;
     let mut po = ProfileOptions::new(mode);
     po.noise = noise;
     if let Some(c) = change {
@@ -410,8 +412,8 @@ fn run_profile(
     po.lambda = penalty;
     let r = fit_profile(obs, model, &po)?;
     if let Some(out) = &a.out_csv {
-        let mut w = csv::Writer::from_path(out)
-            .with_context(|| format!("cannot write {}", out.display()))?;
+        // issue 32 item 8: built in memory, written by the atomic writer
+        let mut w = csv::Writer::from_writer(Vec::new());
         w.write_record(["kind", "at", "value", "se", "uniform", "visible", "depth"])?;
         for e in &r.elements {
             w.write_record([
@@ -424,7 +426,9 @@ fn run_profile(
                 format!("{}", e.depth),
             ])?;
         }
-        w.flush()?;
+        let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
+        springmass::io::write_atomic(out, &bytes)
+            .with_context(|| format!("cannot write {}", out.display()))?;
     }
     if let Some(svg) = &a.plot {
         let mut plot = springmass::plot::LinePlot::new(

@@ -72,7 +72,8 @@ pub struct Args {
     /// For the large-defect locators one value S also uses S/2 and S/sqrt(2).
     #[arg(long, default_value = "auto")]
     pub s: String,
-    /// Working precision in bits (64..=65536); default: f64.
+    /// Working precision in bits (64..=4096, a run of seconds; 16384 took
+    /// minutes); default: f64.
     #[arg(long, value_name = "BITS")]
     pub precision: Option<usize>,
     /// j(s) curve at STEPS values of s from S0 to S1 (the paper's Figures 11, 13, 15).
@@ -85,6 +86,10 @@ pub struct Args {
     #[arg(long)]
     pub json: bool,
 }
+
+/// Largest `--precision` (bits): the same cap as a study's locate case, so
+/// that a run ends in seconds.
+pub const MAX_CLI_BITS: usize = 4096;
 
 enum Outcome {
     Located,
@@ -100,6 +105,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         #[cfg(feature = "bigfloat")]
         Some(bits) => {
             let bits = check_bits(bits)?;
+            if bits > MAX_CLI_BITS {
+                return Err(springmass::Error::invalid(
+                    "precision",
+                    bits,
+                    format!("64..={MAX_CLI_BITS} bits (the cost grows faster than the square of the bits: 16384 took minutes, 65536 did not finish in 300 s)"),
+                )
+                .into());
+            }
             with_precision(bits, || run_in::<BigReal>(&a))?
         }
         #[cfg(not(feature = "bigfloat"))]

@@ -83,11 +83,43 @@ fn read_modes(path: &std::path::Path) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
     Ok((om, re))
 }
 
+/// The modes must be as many as the masses (so that `--n` is bounded by the
+/// file, which the input cap bounds), each frequency finite and `>= 0` (a
+/// negative omega is not a frequency; its square would pass for a positive
+/// eigenvalue), and the chain's memory within the budget.
+fn check_modes(a: &Args, omega: &[f64]) -> anyhow::Result<()> {
+    if a.n != omega.len() {
+        return Err(springmass::Error::invalid(
+            "n",
+            a.n,
+            format!(
+                "the number of modes of the spectrum in {} ({}): one mode per mass",
+                a.modes.display(),
+                omega.len()
+            ),
+        )
+        .into());
+    }
+    if let Some(i) = omega.iter().position(|w| !(w.is_finite() && *w >= 0.0)) {
+        return Err(springmass::Error::invalid(
+            format!("{} row {}: omega", a.modes.display(), i + 1),
+            omega[i],
+            "a natural frequency >= 0 rad/s, finite",
+        )
+        .into());
+    }
+    // the chain, the spectrum and the rebuilt tridiagonal matrix: about 16
+    // vectors of n values
+    springmass::io::check_alloc(&format!("spectral (n = {})", a.n), 16.0 * 8.0 * a.n as f64)?;
+    Ok(())
+}
+
 pub fn run(a: Args) -> anyhow::Result<()> {
+    let (omega, residue) = read_modes(&a.modes)?;
+    check_modes(&a, &omega)?;
     let chain = Chain::paper(a.n)?
         .with_k(a.k)?
         .with_boundaries(a.left, a.right)?;
-    let (omega, residue) = read_modes(&a.modes)?;
     let spec = Spectrum {
         lambda: omega.iter().map(|w| w * w).collect(),
         residue,

@@ -160,15 +160,7 @@ fn check_limits(a: &Args) -> anyhow::Result<()> {
             .into());
         }
     }
-    if let Ok(meta) = std::fs::metadata(&a.out_dir) {
-        if !meta.is_dir() {
-            return Err(springmass::Error::UnsafeOutput {
-                path: a.out_dir.display().to_string(),
-                reason: "--out-dir exists and is not a folder".into(),
-            }
-            .into());
-        }
-    }
+    springmass::io::check_output_dir(&a.out_dir).context("--out-dir")?;
     let samples = a.t_end / a.dt + 1.0;
     let m = a.n as f64 + 1.0;
     let runs = (a.robust_delays.len() + a.robust_gains.len() + 4) as f64;
@@ -186,7 +178,27 @@ fn check_limits(a: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-pub fn run(a: Args) -> anyhow::Result<()> {
+/// The runs `suppress` reports: the exact controls, the perturbed ones (if a
+/// delay or gain error was given), the single control f1 alone and
+/// Theorem 3.1's f without g (for the cloak's comparison figures).
+struct Runs {
+    scheme: Scheme,
+    exact_main: Run,
+    applied_main: Option<Run>,
+    single: Option<Run>,
+    f_without_g: Option<Run>,
+}
+
+impl Runs {
+    /// What the series and figures show: the perturbed run if any.
+    fn shown(&self) -> &Run {
+        self.applied_main.as_ref().unwrap_or(&self.exact_main)
+    }
+}
+
+/// Parse and check everything before any work: the chain, the perturbations,
+/// the input, the horizon, the limits and the output folder.
+fn prepare(a: &Args) -> anyhow::Result<(Suppression, Perturbation, Input, VerifyOptions)> {
     let sup = Suppression::new(a.n, a.k, a.d, a.mass, a.gamma)?;
     let perturbation = Perturbation::new(a.delay, a.gain_error, Target::All)?;
     for &tau in &a.robust_delays {
@@ -204,22 +216,30 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     };
     let opts = VerifyOptions::new(a.t_end, a.dt)?;
-    check_limits(&a)?;
-    let out = &a.out_dir;
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    check_limits(a)?;
+    Ok((sup, perturbation, input, opts))
+}
+
+/// Simulate the main scheme (exact and perturbed) and the comparison runs.
+fn simulate_runs(
+    a: &Args,
+    sup: &Suppression,
+    perturbation: &Perturbation,
+    input: &Input,
+    opts: &VerifyOptions,
+) -> anyhow::Result<Runs> {
     let n = sup.n();
-    let main_scheme = if a.single {
+    let scheme = if a.single {
         Scheme::Single
     } else {
         Scheme::Cloak
     };
-
-    let base = Baseline::new(&sup, &input, &opts)?;
-    let exact_main = springmass::control::verify::verify(&sup, main_scheme, &input, &opts)?;
+    let base = Baseline::new(sup, input, opts)?;
+    let exact_main = springmass::control::verify::verify(sup, scheme, input, opts)?;
     let applied_main = if perturbation.delay == 0.0 && perturbation.gain_error == 0.0 {
         None
     } else {
-        Some(base.run(&sup.controls(main_scheme), &perturbation)?)
+        Some(base.run(&sup.controls(scheme), perturbation)?)
     };
     // comparison runs for the cloak: f1 alone (Corollary 3.2, Figures 4/7) and
     // Theorem 3.1's f without g (a diagnostic: it does not keep mass n+1 still).
@@ -227,10 +247,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None
     } else {
         Some(springmass::control::verify::verify(
-            &sup,
+            sup,
             Scheme::Single,
-            &input,
-            &opts,
+            input,
+            opts,
         )?)
     };
     let f_without_g = if a.single {
@@ -238,10 +258,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     } else {
         Some(base.run(&[(n, Signal::F)], &Perturbation::NONE)?)
     };
-    let shown: &Run = applied_main.as_ref().unwrap_or(&exact_main);
+    Ok(Runs {
+        scheme,
+        exact_main,
+        applied_main,
+        single,
+        f_without_g,
+    })
+}
 
-    // time series
-    let t = shown.t.clone();
+/// `timeseries.csv`: input, controls, displacements of the shown run and of f1 alone.
+fn write_timeseries(out: &Path, n: usize, runs: &Runs) -> anyhow::Result<()> {
+    let shown = runs.shown();
     let mut cols: Vec<(String, Vec<f64>)> = Vec::new();
     if !shown.input.is_empty() {
         cols.push(("u".into(), shown.input.clone()));
@@ -258,14 +286,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     cols.push((format!("x{n}"), shown.x_n.clone()));
     cols.push((format!("x{}", n + 1), shown.x_end.clone()));
     cols.push((format!("y{}", n + 1), shown.y_end.clone()));
-    if let Some(s) = &single {
+    if let Some(s) = &runs.single {
         cols.push(("f1_on_n".into(), s.controls[0].values.clone()));
         cols.push(("x1_f1_alone".into(), s.x1.clone()));
         cols.push((format!("x{}_f1_alone", n + 1), s.x_end.clone()));
     }
-    TimeSeries::new(t.clone(), cols)?.write_csv(out.join("timeseries.csv"))?;
+    TimeSeries::new(shown.t.clone(), cols)?.write_csv(out.join("timeseries.csv"))?;
+    Ok(())
+}
 
-    // figures (paper's Figures 3-8 for the cloak, Figure 9 for the single control)
+/// The paper's Figures 3-8 for the cloak, Figure 9 for the single control;
+/// returns the file names written.
+fn write_figures(out: &Path, n: usize, runs: &Runs) -> anyhow::Result<Vec<String>> {
+    let shown = runs.shown();
+    let t = &shown.t;
     let tag = if shown.input.is_empty() {
         "impulse"
     } else {
@@ -276,29 +310,32 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         figures.push(name.to_string());
         out.join(name)
     };
-    match main_scheme {
+    match runs.scheme {
         Scheme::Cloak => {
             let (f, g) = (&shown.controls[0], &shown.controls[1]);
             plot_xy(
                 &fig("fig_controls.svg"),
                 &format!("Controls (n = {n}): f on mass {n}, g on mass {}", n - 1),
                 "force",
-                &t,
+                t,
                 &[("f", &f.values, false), ("g", &g.values, false)],
             )?;
-            let s = single.as_ref().expect("cloak runs the single control too");
+            let s = runs
+                .single
+                .as_ref()
+                .expect("cloak runs the single control too");
             plot_xy(
                 &fig("fig_x1_f_alone.svg"),
                 &format!("x_1 without controls and with f1 alone (n = {n}, {tag})"),
                 "x_1",
-                &t,
+                t,
                 &[("no control", &shown.y1, false), ("f1 alone", &s.x1, true)],
             )?;
             plot_xy(
                 &fig("fig_x1_cloak.svg"),
                 &format!("x_1 without controls and with f and g (n = {n}, {tag})"),
                 "x_1",
-                &t,
+                t,
                 &[
                     ("no control", &shown.y1, false),
                     ("f and g", &shown.x1, true),
@@ -308,7 +345,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 &fig("fig_x_end.svg"),
                 &format!("x_{} without and with f and g", n + 1),
                 &format!("x_{}", n + 1),
-                &t,
+                t,
                 &[
                     ("no control", &shown.y_end, false),
                     ("f and g", &shown.x_end, false),
@@ -321,7 +358,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 &fig("fig_single.svg"),
                 &format!("Single control f1 on mass {n} (n = {n}, {tag})"),
                 "",
-                &t,
+                t,
                 &[
                     ("f1", &f1.values, false),
                     ("x_1 with f1", &shown.x1, false),
@@ -332,19 +369,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             )?;
         }
     }
+    Ok(figures)
+}
 
-    // robustness
-    let rob = robustness(
-        &sup,
-        main_scheme,
-        &input,
-        &opts,
-        &a.robust_delays,
-        &a.robust_gains,
-    )?;
+/// The robustness curves: `robustness.csv` and two figures (their names are
+/// appended to `figures`).
+fn write_robustness(
+    a: &Args,
+    out: &Path,
+    (sup, input, opts): (&Suppression, &Input, &VerifyOptions),
+    scheme: Scheme,
+    figures: &mut Vec<String>,
+) -> anyhow::Result<Robustness> {
+    let n = sup.n();
+    let rob = robustness(sup, scheme, input, opts, &a.robust_delays, &a.robust_gains)?;
     robust_csv(&out.join("robustness.csv"), &rob)?;
+    figures.push("robust_delay.svg".into());
     robust_plot(
-        &fig("robust_delay.svg"),
+        &out.join("robust_delay.svg"),
         &format!(
             "Delayed controls (n = {n}): residual at mass {} and visibility at mass 1",
             n + 1
@@ -352,8 +394,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         "delay tau",
         &[("all", &rob.delay_all), ("f only", &rob.delay_first)],
     )?;
+    figures.push("robust_gain.svg".into());
     robust_plot(
-        &fig("robust_gain.svg"),
+        &out.join("robust_gain.svg"),
         &format!(
             "Gain error (n = {n}): residual at mass {} and visibility at mass 1",
             n + 1
@@ -361,38 +404,54 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         "relative gain error eps",
         &[("all", &rob.gain_all), ("f only", &rob.gain_first)],
     )?;
+    Ok(rob)
+}
 
+/// `summary.json`: the chain, the controls' modes, every run's metrics, the files.
+fn write_summary(
+    a: &Args,
+    sup: &Suppression,
+    runs: &Runs,
+    rob: &Robustness,
+    figures: &[String],
+) -> anyhow::Result<()> {
     let poles: Vec<_> = sup
-        .controls(main_scheme)
+        .controls(runs.scheme)
         .iter()
         .map(|&(at, sig)| {
-            let m = Modes::new(&sup, sig);
+            let m = Modes::new(sup, sig);
             json!({"signal": sig.name(), "on_mass": at, "modes": m.len(),
                    "slowest_decay_rate": m.slowest_decay()})
         })
         .collect();
+    let shown = runs.shown();
     let summary = json!({
-        "scheme": match main_scheme { Scheme::Cloak => "theorem_3_1_cloak", Scheme::Single => "corollary_3_2_single" },
-        "chain": {"n": n, "masses": n + 1, "k": sup.k(), "d": sup.d(), "mass": sup.mass(), "gamma": sup.gamma()},
+        "scheme": match runs.scheme { Scheme::Cloak => "theorem_3_1_cloak", Scheme::Single => "corollary_3_2_single" },
+        "chain": {"n": sup.n(), "masses": sup.n() + 1, "k": sup.k(), "d": sup.d(), "mass": sup.mass(), "gamma": sup.gamma()},
         "input": if shown.input.is_empty() { json!("impulse") } else { json!({"disturbance": a.disturbance.as_ref().map(|p| p.display().to_string())}) },
         "t_end": a.t_end, "dt": a.dt,
         "controls": poles,
-        "exact_controls": exact_main.metrics,
-        "applied_controls": applied_main.as_ref().map(|r| json!({"delay": a.delay, "gain_error": a.gain_error, "metrics": r.metrics})),
-        "single_control_f1_alone": single.as_ref().map(|r| r.metrics.clone()),
-        "theorem_f_without_g": f_without_g.as_ref().map(|r| r.metrics.clone()),
+        "exact_controls": runs.exact_main.metrics,
+        "applied_controls": runs.applied_main.as_ref().map(|r| json!({"delay": a.delay, "gain_error": a.gain_error, "metrics": r.metrics})),
+        "single_control_f1_alone": runs.single.as_ref().map(|r| r.metrics.clone()),
+        "theorem_f_without_g": runs.f_without_g.as_ref().map(|r| r.metrics.clone()),
         "robustness": rob,
         "files": {"timeseries": "timeseries.csv", "robustness": "robustness.csv", "figures": figures},
     });
     write_atomic(
-        &out.join("summary.json"),
+        &a.out_dir.join("summary.json"),
         serde_json::to_string_pretty(&summary)?.as_bytes(),
     )?;
-    let m = &exact_main.metrics;
+    Ok(())
+}
+
+/// The one-line results on stdout.
+fn print_results(n: usize, runs: &Runs, out: &Path) {
+    let m = &runs.exact_main.metrics;
     println!(
         "n = {n} ({} masses), {}: max|x_{}|/max|y_1| = {:.3e}, max|x_1 - y_1|/max|y_1| = {:.3e}, max|x_{}|/max|y_{}| = {:.3e}",
         n + 1,
-        match main_scheme { Scheme::Cloak => "f and g", Scheme::Single => "f1 alone" },
+        match runs.scheme { Scheme::Cloak => "f and g", Scheme::Single => "f1 alone" },
         n + 1,
         m.rel_x_end,
         m.rel_x1_minus_y1,
@@ -400,7 +459,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         n + 1,
         m.rel_x_end_vs_uncontrolled
     );
-    if let Some(s) = &single {
+    if let Some(s) = &runs.single {
         println!(
             "f1 alone: max|x_{}|/max|y_1| = {:.3e}, visible at mass 1: max|x_1 - y_1|/max|y_1| = {:.3e}",
             n + 1,
@@ -409,5 +468,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     println!("wrote {}", out.display());
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let (sup, perturbation, input, opts) = prepare(&a)?;
+    let out = &a.out_dir;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let n = sup.n();
+    let runs = simulate_runs(&a, &sup, &perturbation, &input, &opts)?;
+    write_timeseries(out, n, &runs)?;
+    let mut figures = write_figures(out, n, &runs)?;
+    let rob = write_robustness(&a, out, (&sup, &input, &opts), runs.scheme, &mut figures)?;
+    write_summary(&a, &sup, &runs, &rob, &figures)?;
+    print_results(n, &runs, out);
     Ok(())
 }

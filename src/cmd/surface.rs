@@ -57,6 +57,7 @@ pub const MAX_M_STEPS: usize = 100_000;
 const BYTES_PER_CELL: f64 = 8.0 + 40.0 + 200.0;
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    springmass::io::check_prefix(&a.out)?;
     let csv_path = a.out.with_extension("csv");
     let svg_path = a.out.with_extension("svg");
     check_outputs([csv_path.as_path(), svg_path.as_path()])?;

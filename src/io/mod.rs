@@ -151,6 +151,69 @@ pub fn check_outputs<'a>(paths: impl IntoIterator<Item = &'a Path>) -> Result<()
     Ok(())
 }
 
+/// Check an output file *prefix* (a command adds `.csv`, `.svg`): it must
+/// end in a file name (not `/`, `.` or `..`) and must not itself be a folder,
+/// device or other special file (`--out /dev/null` would write
+/// `/dev/null.csv`; `--out DIR/` would write `DIR.csv` beside the folder).
+///
+/// # Errors
+/// [`Error::UnsafeOutput`] naming the prefix.
+pub fn check_prefix(prefix: &Path) -> Result<()> {
+    let text = prefix.as_os_str().to_string_lossy();
+    let no_name = text.is_empty()
+        || text.ends_with('/')
+        || text.ends_with(std::path::MAIN_SEPARATOR)
+        || !matches!(
+            prefix.components().next_back(),
+            Some(std::path::Component::Normal(_))
+        );
+    if no_name {
+        return Err(unsafe_output(
+            prefix,
+            "is not a file name prefix: give one such as out/surface (the command adds .csv and .svg)",
+        ));
+    }
+    if let Ok(meta) = fs::metadata(prefix) {
+        if !meta.is_file() {
+            return Err(unsafe_output(
+                prefix,
+                format!(
+                    "is {}; --out is a file name prefix to which .csv and .svg are added, e.g. out/surface",
+                    kind_of(&meta)
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Check an output folder: not empty, not the file system root, and either
+/// new or an existing folder.
+///
+/// # Errors
+/// [`Error::UnsafeOutput`] naming the folder.
+pub fn check_output_dir(dir: &Path) -> Result<()> {
+    if dir.as_os_str().is_empty() {
+        return Err(unsafe_output(dir, "empty path"));
+    }
+    let resolved = fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
+    if resolved.parent().is_none() {
+        return Err(unsafe_output(
+            dir,
+            "is the root of the file system; give a folder of its own, e.g. out/run1",
+        ));
+    }
+    if let Ok(meta) = fs::metadata(dir) {
+        if !meta.is_dir() {
+            return Err(unsafe_output(
+                dir,
+                format!("exists and is {}, not a folder", kind_of(&meta)),
+            ));
+        }
+    }
+    Ok(())
+}
+
 static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 
 /// Write `bytes` to `path` atomically: a new temporary file in the target's
@@ -308,6 +371,41 @@ pub fn check_alloc(what: &str, bytes: f64) -> Result<()> {
     Ok(())
 }
 
+/// Working memory of a defect search on an `n`-mass chain, per mass: the
+/// greedy search keeps `O(n Q)` values for `Q` Laplace nodes (about 64 nodes
+/// of 8 bytes).
+pub const FIT_BYTES_PER_MASS: f64 = 512.0;
+/// Working memory of a whole-profile inversion per squared unknown: dense
+/// Jacobians and normal matrices of about 16 `n x n` f64 blocks (the
+/// 128 TB that `n = 10^6` asked for).
+pub const PROFILE_BYTES_PER_MASS_SQUARED: f64 = 128.0;
+
+/// Refuse a fit of an `n`-mass chain whose working memory would exceed the
+/// budget ([`check_alloc`]), before any work: `profile` for the
+/// whole-profile inversion (quadratic in `n`), else the defect search
+/// (linear in `n`). The one check the CLI and Python share.
+///
+/// ```
+/// use springmass::io::check_fit_memory;
+/// assert!(check_fit_memory(1000, false).is_ok());
+/// assert!(check_fit_memory(1_000_000_000, false).is_err());
+/// assert!(check_fit_memory(1_000_000, true).is_err());
+/// ```
+///
+/// # Errors
+/// [`Error::ResourceLimit`] naming `n` and the budget.
+pub fn check_fit_memory(n: usize, profile: bool) -> Result<()> {
+    let m = n as f64;
+    if profile {
+        check_alloc(
+            &format!("profile fit (n = {n}: dense n x n matrices)"),
+            PROFILE_BYTES_PER_MASS_SQUARED * m * m,
+        )
+    } else {
+        check_alloc(&format!("fit (n = {n})"), FIT_BYTES_PER_MASS * m)
+    }
+}
+
 /// Check a thread count: `1..=MAX_THREADS` (1024).
 ///
 /// # Errors
@@ -352,6 +450,13 @@ pub fn read_capped(path: &Path) -> Result<Vec<u8>> {
         if meta.is_dir() {
             return Err(Error::io(path, "is a directory, expected a file"));
         }
+        if blocks_on_open(&meta) {
+            // a FIFO's open() waits for a writer forever; a socket cannot be read
+            return Err(Error::io(
+                path,
+                format!("is {}, expected a regular file", kind_of(&meta)),
+            ));
+        }
         if meta.is_file() && meta.len() > cap {
             return Err(too_big(path, cap));
         }
@@ -365,6 +470,22 @@ pub fn read_capped(path: &Path) -> Result<Vec<u8>> {
         return Err(too_big(path, cap));
     }
     Ok(buf)
+}
+
+/// A FIFO, socket or block device: input that blocks or is not a data file
+/// (character devices such as `/dev/urandom` are read up to the input cap).
+fn blocks_on_open(meta: &fs::Metadata) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let ft = meta.file_type();
+        ft.is_fifo() || ft.is_socket() || ft.is_block_device()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = meta;
+        false
+    }
 }
 
 fn too_big(path: &Path, cap: u64) -> Error {
@@ -469,6 +590,28 @@ mod tests {
     }
 
     #[test]
+    fn prefixes_and_folders() {
+        // issue 32 item 8
+        let d = tmpdir("prefix");
+        assert!(check_prefix(&d.join("surf")).is_ok());
+        let dir_slash = format!("{}/", d.display());
+        assert!(check_prefix(Path::new(&dir_slash)).is_err());
+        assert!(check_prefix(&d).is_err());
+        assert!(check_prefix(Path::new("..")).is_err());
+        #[cfg(unix)]
+        assert!(check_prefix(Path::new("/dev/null"))
+            .unwrap_err()
+            .to_string()
+            .contains("character device"));
+        assert!(check_output_dir(&d.join("new")).is_ok());
+        assert!(check_output_dir(&d).is_ok());
+        assert!(check_output_dir(Path::new("/")).is_err());
+        #[cfg(unix)]
+        assert!(check_output_dir(Path::new("/dev/null")).is_err());
+        fs::remove_dir_all(&d).ok();
+    }
+
+    #[test]
     fn sizes_and_limits() {
         assert_eq!(parse_size("4G").unwrap(), 4 << 30);
         assert_eq!(parse_size("512MiB").unwrap(), 512 << 20);
@@ -494,6 +637,15 @@ mod tests {
         assert_eq!(read_to_string_capped(&p).unwrap(), "abc");
         assert!(read_capped(&d).is_err());
         assert!(read_capped(&d.join("missing")).is_err());
+        #[cfg(unix)]
+        {
+            // issue 32 item 9: a FIFO as input blocked forever in open()
+            let fifo = d.join("p.csv");
+            let st = std::process::Command::new("mkfifo").arg(&fifo).status();
+            assert!(st.unwrap().success(), "mkfifo");
+            let e = read_capped(&fifo).unwrap_err().to_string();
+            assert!(e.contains("FIFO"), "{e}");
+        }
         fs::remove_dir_all(&d).ok();
     }
 }

@@ -184,7 +184,11 @@ pub fn check_out_folder(out: &Path) -> Result<()> {
     let mut names: Vec<String> = Vec::new();
     for e in std::fs::read_dir(out).map_err(|e| Error::io(out, e))? {
         let e = e.map_err(|e| Error::io(out, e))?;
-        names.push(e.file_name().to_string_lossy().into_owned());
+        let name = e.file_name().to_string_lossy().into_owned();
+        // the lock of a run that has not written its manifest yet
+        if name != super::run::LOCK {
+            names.push(name);
+        }
     }
     if names.is_empty() {
         return Ok(());

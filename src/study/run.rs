@@ -208,6 +208,7 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
     }
     check_out_folder(out)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let _lock = FolderLock::take(out)?;
     let manifest = Manifest {
         study: study.file.study.name.clone(),
         hash: study.hash.clone(),
@@ -306,8 +307,79 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
     })
 }
 
+/// The lock file of a study folder: one run at a time per `--out`.
+pub const LOCK: &str = ".lock";
+
+/// Whether process `pid` is alive (Linux: `/proc/PID`; elsewhere every
+/// process is taken as alive, so nothing of another run is touched).
+fn pid_alive(pid: u32) -> bool {
+    if pid == std::process::id() {
+        return true;
+    }
+    if cfg!(target_os = "linux") {
+        Path::new("/proc").join(pid.to_string()).exists()
+    } else {
+        true
+    }
+}
+
+/// `out/.lock` holding this process's id while a run uses the folder;
+/// removed when dropped. A lock of a process that is gone is taken over.
+struct FolderLock {
+    path: PathBuf,
+}
+
+impl FolderLock {
+    /// # Errors
+    /// [`Error::Io`] naming the folder and the process that holds it.
+    fn take(out: &Path) -> Result<FolderLock> {
+        let path = out.join(LOCK);
+        let me = std::process::id();
+        for _ in 0..2 {
+            match OpenOptions::new().write(true).create_new(true).open(&path) {
+                Ok(mut f) => {
+                    f.write_all(format!("{me}\n").as_bytes())
+                        .map_err(|e| Error::io(&path, e))?;
+                    return Ok(FolderLock { path });
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    let text = std::fs::read_to_string(&path).unwrap_or_default();
+                    match text.trim().parse::<u32>() {
+                        Ok(pid) if pid_alive(pid) => {
+                            return Err(Error::io(
+                                out,
+                                format!(
+                                    "another study run (process {pid}) is using this folder (lock file {}); wait for it to finish or use another --out",
+                                    path.display()
+                                ),
+                            ))
+                        }
+                        // a run that died: its lock is stale
+                        _ => {
+                            let _ = std::fs::remove_file(&path);
+                        }
+                    }
+                }
+                Err(e) => return Err(Error::io(&path, e)),
+            }
+        }
+        Err(Error::io(&path, "could not take the folder's lock file"))
+    }
+}
+
+impl Drop for FolderLock {
+    fn drop(&mut self) {
+        let mine = std::fs::read_to_string(&self.path)
+            .is_ok_and(|t| t.trim() == std::process::id().to_string());
+        if mine {
+            let _ = std::fs::remove_file(&self.path);
+        }
+    }
+}
+
 /// Remove temporary files of atomic writes that an interrupted run left
-/// behind (`.<name>.tmp<pid>` next to our outputs).
+/// behind (`.<name>.tmp<pid>.<k>` next to our outputs), of processes that
+/// are gone only.
 fn remove_stale_temporaries(out: &Path) {
     let Ok(entries) = std::fs::read_dir(out) else {
         return;
@@ -322,7 +394,10 @@ fn remove_stale_temporaries(out: &Path) {
         };
         let ours = [RESULTS, STUDY_COPY, MANIFEST, "summary.csv", "report.md"].contains(&base)
             || base.ends_with(".svg");
-        if ours && !pid.is_empty() && pid.chars().all(|c| c.is_ascii_digit()) {
+        // `.tmp<pid>` (older writers) or `.tmp<pid>.<k>` (the atomic writer)
+        let pid = pid.split_once('.').map_or(pid, |(p, _)| p);
+        let dead = pid.parse::<u32>().is_ok_and(|p| !pid_alive(p));
+        if ours && dead {
             let _ = std::fs::remove_file(e.path());
         }
     }
@@ -529,6 +604,46 @@ values = [8, 30]
         }
     }
 
+    /// The id of a process that has exited.
+    fn dead_pid() -> u32 {
+        let mut c = std::process::Command::new("true").spawn().unwrap();
+        let pid = c.id();
+        c.wait().unwrap();
+        assert!(!pid_alive(pid), "pid {pid} reused");
+        pid
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_second_run_on_one_folder_is_refused_naming_the_holder() {
+        // issue 32 item 12
+        let study = Study::from_text(TEXT, "t").unwrap();
+        let d = tmp("lock");
+        // a study folder with one case done
+        let mut o = RunOptions::new(&d);
+        o.progress = false;
+        o.max_cases = Some(1);
+        run(&study, &o).unwrap();
+        o.max_cases = None;
+        // a live holder: this test's parent process stands in for another run
+        let holder = std::os::unix::process::parent_id();
+        std::fs::write(d.join(LOCK), format!("{holder}\n")).unwrap();
+        let e = run(&study, &o).unwrap_err().to_string();
+        assert!(e.contains(&format!("process {holder}")), "{e}");
+        assert!(e.contains(LOCK), "{e}");
+        // a temporary of a live process is left alone, a stale one removed
+        let live = d.join(format!(".{RESULTS}.tmp{holder}.0"));
+        std::fs::write(&live, "x").unwrap();
+        let stale = d.join(format!(".{RESULTS}.tmp{}.1", dead_pid()));
+        std::fs::write(&stale, "x").unwrap();
+        // the holder's lock gone stale: taken over, and released at the end
+        std::fs::write(d.join(LOCK), format!("{}\n", dead_pid())).unwrap();
+        let s = run(&study, &o).unwrap();
+        assert!(s.complete);
+        assert!(!d.join(LOCK).exists());
+        assert!(live.exists() && !stale.exists());
+    }
+
     #[test]
     fn resume_after_partial_run_and_torn_line_gives_same_files() {
         let study = Study::from_text(TEXT, "t").unwrap();
@@ -551,8 +666,11 @@ values = [8, 30]
             .unwrap();
         f.write_all(b"{\"id\":\"c0005\",\"key\":\"ab").unwrap();
         drop(f);
-        // and a temporary file of an interrupted atomic write
-        std::fs::write(b.join(".summary.csv.tmp123"), "x").unwrap();
+        // and temporary files of interrupted atomic writes, of a process
+        // that is gone (the older name form and the atomic writer's)
+        let dead = dead_pid();
+        std::fs::write(b.join(format!(".summary.csv.tmp{dead}")), "x").unwrap();
+        std::fs::write(b.join(format!(".{RESULTS}.tmp{dead}.3")), "x").unwrap();
         o.max_cases = None;
         o.threads = Some(1);
         let s = run(&study, &o).unwrap();

@@ -37,6 +37,42 @@ pub struct Series {
     measurement: Measurement,
 }
 
+/// Largest accepted magnitude of a recorded value: the misfit squares and
+/// sums the values, which overflows f64 (about 1.8e308) beyond this.
+pub const MAX_RECORD_VALUE: f64 = 1e150;
+/// Smallest accepted time step: the Laplace nodes scale with its inverse,
+/// which overflows f64 for steps below this.
+pub const MIN_TIME_STEP: f64 = 1e-200;
+
+/// What in a record makes the fit's arithmetic fail, said up front: an
+/// all-zero record when the noise is estimated from it (a zero noise level:
+/// the chi-square is not finite), values whose squares overflow, time steps
+/// whose inverse overflows.
+fn check_scales(t: &[f64], x: &[f64], noise_from_data: bool) -> Result<()> {
+    if noise_from_data && x.iter().all(|v| *v == 0.0) {
+        return Err(Error::invalid(
+            "x",
+            format!("{} samples, every one 0", x.len()),
+            "a record with a response (not all zero; the noise level estimated from it would be 0): check the column and the sensor",
+        ));
+    }
+    if let Some(i) = x.iter().position(|v| v.abs() > MAX_RECORD_VALUE) {
+        return Err(Error::invalid(
+            format!("x[{i}]"),
+            x[i],
+            format!("a magnitude <= {MAX_RECORD_VALUE:e} (squares overflow f64 beyond): rescale the data, e.g. to other units"),
+        ));
+    }
+    if let Some(i) = (1..t.len()).find(|&i| t[i] - t[i - 1] < MIN_TIME_STEP) {
+        return Err(Error::invalid(
+            format!("t[{i}] - t[{}]", i - 1),
+            t[i] - t[i - 1],
+            format!("a time step >= {MIN_TIME_STEP:e} (the Laplace nodes scale with 1/step and overflow f64 beyond): rescale the times"),
+        ));
+    }
+    Ok(())
+}
+
 impl Series {
     /// Times `t` (finite, `>= 0`, strictly increasing), values `x` (finite),
     /// and the noise standard deviation of the samples if known (`> 0`).
@@ -74,6 +110,7 @@ impl Series {
         if let Some(s) = sigma {
             check_f64("noise", s, s > 0.0, "> 0 and finite (or auto)")?;
         }
+        check_scales(&t, &x, sigma.is_none())?;
         Ok(Series {
             t,
             x,
@@ -361,7 +398,8 @@ mod tests {
 
     #[test]
     fn missing_column_is_named() {
-        let ts = TimeSeries::new(grid(20), vec![("x1".into(), vec![0.0; 20])]).unwrap();
+        // a record with a response (an all-zero one is refused with auto noise)
+        let ts = TimeSeries::new(grid(20), vec![("x1".into(), grid(20))]).unwrap();
         let e = Series::from_table(&ts, Some("x7"), None).unwrap_err();
         assert!(
             e.to_string().contains("column") && e.to_string().contains("x1"),

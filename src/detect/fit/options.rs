@@ -381,6 +381,15 @@ impl FitSpec {
             model = model.with_mass(m)?;
         }
         if let Some(g) = self.gamma {
+            // issue 32 item 11: a zero (or subnormal) impulse gives a zero
+            // response, which constrains nothing ("+- NaN")
+            if g == 0.0 || crate::io::check_magnitude("gamma", g).is_err() {
+                return Err(Error::invalid(
+                    "gamma",
+                    g,
+                    "a non-zero impulse of magnitude 1e-300..=1e300 (the data are the response to it)",
+                ));
+            }
             model = model.with_gamma(g)?;
         }
         if self.left.is_some() || self.right.is_some() {
@@ -433,6 +442,8 @@ impl FitSpec {
     /// # Errors
     /// As [`FitSpec::options`] and [`FitSpec::model`].
     pub fn build(&self) -> Result<(Model, FitOptions)> {
+        // issue 32 item 7: the memory of the fit, before the model is built
+        crate::io::check_fit_memory(self.n, false)?;
         let opts = self.options()?;
         Ok((self.model()?, opts))
     }

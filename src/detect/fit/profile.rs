@@ -745,6 +745,8 @@ pub fn fit_profile_with(
     defect_fit: Option<DefectFitter>,
 ) -> Result<ProfileReport> {
     opts.validate()?;
+    // issue 32 item 7: dense n x n blocks; refuse before allocating
+    crate::io::check_fit_memory(model.chain().n(), true)?;
     let t0 = Instant::now();
     let space = profile_space(obs, model, opts)?;
     let (nf, np) = (space.elems.len(), space.params.len());
