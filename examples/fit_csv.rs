@@ -44,7 +44,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             d.kind, d.at, d.value, d.se
         );
     }
-    println!("truth: {:?}", truth.defects());
+    let truth_text: Vec<String> = truth
+        .defects()
+        .iter()
+        .map(|d| format!("{} at {}: {}", d.kind(), d.at(), d.value()))
+        .collect();
+    println!("truth: {}", truth_text.join(", "));
     println!(
         "noise sigma {:.2e} (estimated: {}), status {}",
         report.noise_sigma,

@@ -2,7 +2,8 @@
 //! `docs/noise-success.csv` (written by the command-line study that
 //! `springmass noise-study misfits` replaces), as
 //! small multiples: one panel per system, one line per misfit, success rate
-//! on [0, 1] against the noise level on a log axis.
+//! on [0, 1] with its 95% Wilson interval against the noise level on a log
+//! axis, the misfits side by side (lines at 1 would hide each other).
 //!
 //! ```sh
 //! cargo run --example noise_plot            # writes out/examples/noise-success.svg
@@ -10,6 +11,7 @@
 //! ```
 
 use springmass::plot::{Line, LinePlot};
+use springmass::study::report::wilson_interval;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -21,16 +23,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map_or("out/examples/noise-success.svg", |s| s.as_str());
     let text = std::fs::read_to_string(input).map_err(|e| format!("{input}: {e}"))?;
     // system,misfit,level,runs,successes,positions_ok
-    let mut cells: Vec<(String, String, f64, f64)> = Vec::new();
+    let mut cells: Vec<(String, String, f64, f64, (f64, f64))> = Vec::new();
     for (i, line) in text.lines().enumerate().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
         if f.len() != 6 {
             return Err(format!("{input} line {}: expected 6 fields", i + 1).into());
         }
         let (runs, ok): (f64, f64) = (f[3].parse()?, f[4].parse()?);
-        cells.push((f[0].into(), f[1].into(), f[2].parse()?, ok / runs));
+        let ci = wilson_interval(ok, runs);
+        cells.push((f[0].into(), f[1].into(), f[2].parse()?, ok / runs, ci));
     }
-    let order = |pick: fn(&(String, String, f64, f64)) -> &String| {
+    type Cell = (String, String, f64, f64, (f64, f64));
+    let order = |pick: fn(&Cell) -> &String| {
         let mut v: Vec<String> = Vec::new();
         for c in &cells {
             if !v.contains(pick(c)) {
@@ -50,18 +54,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "Positions exact and masses within 5% ({runs} seeds per point), one panel per system"
         ),
         "noise level (relative to max |x_1|)",
-        "success rate",
+        "fraction of runs recovered (bars: 95% Wilson interval)",
     )
     .log_x(true)
     .rate();
     for s in &systems {
-        for m in &misfits {
-            let pts: Vec<(f64, f64)> = cells
-                .iter()
-                .filter(|c| &c.0 == s && &c.1 == m)
-                .map(|c| (c.2, c.3))
-                .collect();
-            plot = plot.line(Line::new(m.clone(), pts).panel(s.clone()));
+        for (i, m) in misfits.iter().enumerate() {
+            // side by side: 0.03 decades apart
+            let shift = 10f64.powf(0.03 * (i as f64 - (misfits.len() as f64 - 1.0) / 2.0));
+            let of: Vec<&Cell> = cells.iter().filter(|c| &c.0 == s && &c.1 == m).collect();
+            let pts = of.iter().map(|c| (c.2 * shift, c.3)).collect();
+            let bars = of.iter().map(|c| c.4).collect();
+            plot = plot.line(Line::new(m.clone(), pts).errors(bars).panel(s.clone()));
         }
     }
     if let Some(dir) = std::path::Path::new(output).parent() {

@@ -47,9 +47,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut opts = RunOptions::new("out/examples/study");
     opts.progress = false;
     let summary = run(&study, &opts)?;
+    let report = summary
+        .report
+        .as_ref()
+        .map_or("none".to_string(), |p| p.display().to_string());
     println!(
-        "{} cases ({} run now, {} resumed, {} failed); report: {:?}",
-        summary.total, summary.ran, summary.resumed, summary.failed, summary.report
+        "{} cases ({} run now, {} resumed, {} failed); report: {report}",
+        summary.total, summary.ran, summary.resumed, summary.failed
     );
     Ok(())
 }

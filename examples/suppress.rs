@@ -20,11 +20,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         )?;
         let m = &run.metrics;
         println!(
-            "{:<7} max|x_5| / max|y_1| = {:.1e}   max|x_1 - y_1| / max|y_1| = {:.1e}   controls on masses {:?}",
+            "{:<7} max|x_5| / max|y_1| = {:.1e}   max|x_1 - y_1| / max|y_1| = {:.1e}   controls on masses {}",
             name,
             m.rel_x_end,
             m.rel_x1_minus_y1,
-            run.controls.iter().map(|c| c.at).collect::<Vec<_>>()
+            run.controls
+                .iter()
+                .map(|c| c.at.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
         );
     }
     println!("(the cloak leaves x_1 unchanged; the single control changes it)");

@@ -95,6 +95,11 @@ pub enum Error {
         /// The budget, and how to change it.
         budget: String,
     },
+
+    /// The call was stopped by [`crate::cancel::request`] (Ctrl-C in the
+    /// Python package) before it finished.
+    #[error("cancelled: the call was interrupted before it finished")]
+    Cancelled,
 }
 
 /// Process exit statuses of the `springmass` command, one per class of error
@@ -113,6 +118,8 @@ pub mod exit {
     /// The data cannot resolve the requested result (signal below the
     /// rounding or noise floor).
     pub const UNRESOLVABLE: i32 = 4;
+    /// Interrupted ([`super::Error::Cancelled`]; 128 + SIGINT, as a shell reports it).
+    pub const INTERRUPTED: i32 = 130;
 }
 
 impl Error {
@@ -136,6 +143,7 @@ impl Error {
             Error::Io { .. } | Error::UnsafeOutput { .. } => exit::IO,
             Error::Unresolvable { .. } => exit::UNRESOLVABLE,
             Error::Numerical { .. } => exit::OTHER,
+            Error::Cancelled => exit::INTERRUPTED,
         }
     }
 

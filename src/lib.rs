@@ -84,6 +84,7 @@
 //! | [`plot`] | SVG line plots and heatmaps (bundled font) |
 //! | [`error`] | one error type; every variant names the field and its range |
 
+pub mod cancel;
 pub mod chain;
 pub mod control;
 pub mod detect;

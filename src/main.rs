@@ -66,8 +66,12 @@ enum Command {
         #[arg(value_enum)]
         shell: clap_complete::Shell,
     },
-    /// Print the man page (roff): `springmass man > springmass.1; man ./springmass.1`.
-    Man,
+    /// Print a man page (roff): `springmass man > springmass.1; man ./springmass.1`;
+    /// `springmass man fit > springmass-fit.1` for a subcommand.
+    Man {
+        /// The subcommand (default: the top-level page, which lists them).
+        command: Option<String>,
+    },
 }
 
 fn run() -> anyhow::Result<()> {
@@ -89,12 +93,32 @@ fn run() -> anyhow::Result<()> {
             clap_complete::generate(shell, &mut Cli::command(), "springmass", &mut buf);
             write_stdout(&buf)
         }
-        Command::Man => {
-            let mut buf = Vec::new();
-            clap_mangen::Man::new(Cli::command()).render(&mut buf)?;
-            write_stdout(&buf)
-        }
+        Command::Man { command } => write_stdout(&man_page(command.as_deref())?),
     }
+}
+
+/// The man page of the whole tool, or of one subcommand
+/// (`springmass-fit(1)`).
+fn man_page(sub: Option<&str>) -> anyhow::Result<Vec<u8>> {
+    let top = Cli::command();
+    let cmd = match sub {
+        None => top,
+        Some(name) => {
+            let names: Vec<String> = top
+                .get_subcommands()
+                .map(|c| c.get_name().to_string())
+                .collect();
+            let found = top.find_subcommand(name).cloned().ok_or_else(|| {
+                springmass::Error::invalid("command", name, format!("one of {}", names.join(", ")))
+            })?;
+            // clap keeps names as &'static str: one small string, once per process
+            let page: &'static str = Box::leak(format!("springmass-{name}").into_boxed_str());
+            found.name(page)
+        }
+    };
+    let mut buf = Vec::new();
+    clap_mangen::Man::new(cmd).render(&mut buf)?;
+    Ok(buf)
 }
 
 /// Write bytes to stdout, reporting a failure as an I/O error (exit 3).

@@ -374,6 +374,11 @@ pub struct Line {
     /// The panel (small multiple) this curve belongs to; `None`: the chart
     /// decides.
     pub panel: Option<String>,
+    /// Error bars, `(lo, hi)` for each point (empty: none).
+    pub errors: Vec<(f64, f64)>,
+    /// A shaded band `(x, lo, hi)` in the curve's colour (empty: none), for
+    /// example the noise band around zero of a residual.
+    pub band: Vec<(f64, f64, f64)>,
 }
 
 impl Line {
@@ -385,6 +390,8 @@ impl Line {
             markers: false,
             dashed: false,
             panel: None,
+            errors: Vec::new(),
+            band: Vec::new(),
         }
     }
     /// Markers only.
@@ -403,12 +410,23 @@ impl Line {
         self.panel = Some(name.into());
         self
     }
+    /// Vertical error bars, `(lo, hi)` for each point, in data units.
+    pub fn errors(mut self, bars: Vec<(f64, f64)>) -> Line {
+        self.errors = bars;
+        self
+    }
+    /// A shaded band `(x, lo, hi)` drawn under the curve.
+    pub fn band(mut self, band: Vec<(f64, f64, f64)>) -> Line {
+        self.band = band;
+        self
+    }
 }
 
 #[cfg_attr(not(feature = "plot"), allow(dead_code))]
 /// A line chart with optional logarithmic, integer or categorical axes;
 /// with more than [`MAX_SERIES`] curves, or with [`Line::panel`] names, a
-/// grid of small multiples sharing their axes.
+/// grid of small multiples sharing their axes (or each with its own y axis,
+/// [`LinePlot::own_y`]).
 #[derive(Clone, Debug)]
 pub struct LinePlot {
     title: String,
@@ -422,6 +440,9 @@ pub struct LinePlot {
     categories: Option<Vec<String>>,
     y_range: Option<(f64, f64)>,
     size: Option<(u32, u32)>,
+    own_y: bool,
+    columns: Option<usize>,
+    panel_y_labels: Vec<String>,
 }
 
 /// One panel of a laid-out chart.
@@ -431,6 +452,10 @@ pub struct Panel {
     pub title: String,
     /// Indices of its lines in the chart.
     pub lines: Vec<usize>,
+    /// Its plotted y range (the chart's unless [`LinePlot::own_y`]).
+    pub y_range: (f64, f64),
+    /// Its y ticks (plotted coordinates).
+    pub y_ticks: Vec<f64>,
 }
 
 /// Where everything of a [`LinePlot`] goes, in plotted coordinates
@@ -439,7 +464,7 @@ pub struct Panel {
 pub struct Layout {
     /// Plotted x range.
     pub x_range: (f64, f64),
-    /// Plotted y range.
+    /// Plotted y range (of the whole chart).
     pub y_range: (f64, f64),
     /// x ticks (plotted coordinates).
     pub x_ticks: Vec<f64>,
@@ -451,6 +476,79 @@ pub struct Layout {
     pub style: Vec<usize>,
     /// Legend entries `(label, style index, markers drawn)`, no repeats.
     pub legend: Vec<(String, usize, bool)>,
+}
+
+/// The extent `(x0, x1, y0, y1)` of some points (plotted coordinates).
+type Extent = (f64, f64, f64, f64);
+
+fn extent_of(pts: &[(f64, f64)]) -> Option<Extent> {
+    if pts.is_empty() {
+        return None;
+    }
+    Some(pts.iter().fold(
+        (f64::MAX, f64::MIN, f64::MAX, f64::MIN),
+        |(a, b, c, d), &(x, y)| (a.min(x), b.max(x), c.min(y), d.max(y)),
+    ))
+}
+
+/// Ticks over `[lo, hi]` (plotted coordinates) on a log, integer or linear
+/// axis; a degenerate range is widened first.
+fn axis_ticks(lo: f64, hi: f64, log: bool, integer: bool) -> Vec<f64> {
+    if log {
+        let (a, b) = if hi > lo {
+            (lo, hi)
+        } else {
+            (lo - 0.5, hi + 0.5)
+        };
+        log_ticks(10f64.powf(a), 10f64.powf(b))
+            .into_iter()
+            .map(f64::log10)
+            .collect()
+    } else if integer {
+        let (a, b) = if hi > lo {
+            (lo, hi)
+        } else {
+            (lo - 1.0, hi + 1.0)
+        };
+        integer_ticks(a, b, 6)
+    } else {
+        let (a, b) = if hi > lo {
+            (lo, hi)
+        } else {
+            let w = 0.5 + lo.abs() * 0.1;
+            (lo - w, hi + w)
+        };
+        linear_ticks(a, b, 6)
+    }
+}
+
+/// `[lo, hi]` widened to hold the ticks `t`, plus a 4% margin.
+fn pad(lo: f64, hi: f64, t: &[f64]) -> (f64, f64) {
+    let lo = t.iter().copied().fold(lo, f64::min);
+    let hi = t.iter().copied().fold(hi, f64::max);
+    let m = if hi > lo { 0.04 * (hi - lo) } else { 0.5 };
+    (lo - m, hi + m)
+}
+
+/// Refuse a range f64 cannot subdivide into ticks (it would loop).
+fn check_extent((x0, x1, y0, y1): Extent) -> Result<()> {
+    for (name, lo, hi) in [("plot.x", x0, x1), ("plot.y", y0, y1)] {
+        if lo.abs() > 1e300 || hi.abs() > 1e300 || !(hi - lo).is_finite() {
+            return Err(Error::invalid(
+                name,
+                format!("[{lo:e}, {hi:e}]"),
+                "a data range within +-1e300",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Panels, line styles and legend entries of a chart.
+struct Grouping {
+    panels: Vec<(String, Vec<usize>)>,
+    style: Vec<usize>,
+    legend: Vec<(String, usize, bool)>,
 }
 
 impl LinePlot {
@@ -472,6 +570,9 @@ impl LinePlot {
             categories: None,
             y_range: None,
             size: None,
+            own_y: false,
+            columns: None,
+            panel_y_labels: Vec::new(),
         }
     }
     /// Add a curve.
@@ -521,92 +622,91 @@ impl LinePlot {
         self.size = Some((w, h));
         self
     }
+    /// Every panel gets its own y range and ticks (the x axis stays shared),
+    /// for panels of different quantities, such as a fit and its residual.
+    pub fn own_y(mut self, on: bool) -> LinePlot {
+        self.own_y = on;
+        self
+    }
+    /// Panels per row (default: by the number of panels).
+    pub fn columns(mut self, c: usize) -> LinePlot {
+        self.columns = Some(c.max(1));
+        self
+    }
+    /// The y-axis label of each panel in order (default: the chart's).
+    pub fn panel_y_labels(mut self, labels: Vec<String>) -> LinePlot {
+        self.panel_y_labels = labels;
+        self
+    }
 
     fn keep(&self, &(x, y): &(f64, f64)) -> bool {
         x.is_finite() && y.is_finite() && (!self.log_x || x > 0.0) && (!self.log_y || y > 0.0)
     }
 
+    fn tf(v: f64, log: bool) -> f64 {
+        if log {
+            v.log10()
+        } else {
+            v
+        }
+    }
+
     /// The kept points of line `i`, in plotted coordinates.
     fn plotted(&self, i: usize) -> Vec<(f64, f64)> {
-        let tx = |v: f64, log: bool| if log { v.log10() } else { v };
         self.lines[i]
             .points
             .iter()
             .filter(|p| self.keep(p))
-            .map(|&(x, y)| (tx(x, self.log_x), tx(y, self.log_y)))
+            .map(|&(x, y)| (Self::tf(x, self.log_x), Self::tf(y, self.log_y)))
             .collect()
     }
 
-    /// Ranges, ticks, panels and styles of the chart (what
-    /// [`LinePlot::to_svg_string`] draws).
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] when no curve has a plottable point.
-    pub fn layout(&self) -> Result<Layout> {
-        let pts: Vec<(f64, f64)> = (0..self.lines.len())
-            .flat_map(|i| self.plotted(i))
-            .collect();
-        if pts.is_empty() {
-            return Err(Error::invalid(
-                "plot.points",
-                "none",
-                "at least one finite point (positive on log axes)",
-            ));
-        }
-        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-        for &(x, y) in &pts {
-            x0 = x0.min(x);
-            x1 = x1.max(x);
-            y0 = y0.min(y);
-            y1 = y1.max(y);
-        }
-        // a range f64 cannot subdivide into ticks (|v| near the top of f64)
-        // would loop: refuse it with a typed error
-        for (name, lo, hi) in [("plot.x", x0, x1), ("plot.y", y0, y1)] {
-            if lo.abs() > 1e300 || hi.abs() > 1e300 || !(hi - lo).is_finite() {
-                return Err(Error::invalid(
-                    name,
-                    format!("[{lo:e}, {hi:e}]"),
-                    "a data range within +-1e300",
-                ));
+    /// The kept error bars of line `i`: `(x, lo, hi)` in plotted coordinates.
+    fn plotted_errors(&self, i: usize) -> Vec<(f64, f64, f64)> {
+        let l = &self.lines[i];
+        l.points
+            .iter()
+            .zip(&l.errors)
+            .filter(|(p, &(lo, hi))| self.keep(p) && self.keep(&(p.0, lo)) && self.keep(&(p.0, hi)))
+            .map(|(&(x, _), &(lo, hi))| {
+                let ty = |v| Self::tf(v, self.log_y);
+                (Self::tf(x, self.log_x), ty(lo), ty(hi))
+            })
+            .collect()
+    }
+
+    /// The kept band of line `i`: `(x, lo, hi)` in plotted coordinates.
+    fn plotted_band(&self, i: usize) -> Vec<(f64, f64, f64)> {
+        self.lines[i]
+            .band
+            .iter()
+            .filter(|&&(x, lo, hi)| self.keep(&(x, lo)) && self.keep(&(x, hi)))
+            .map(|&(x, lo, hi)| {
+                let ty = |v| Self::tf(v, self.log_y);
+                (Self::tf(x, self.log_x), ty(lo), ty(hi))
+            })
+            .collect()
+    }
+
+    /// Everything of lines `ids` that takes room: points, bars, bands.
+    fn extent(&self, ids: &[usize]) -> Option<Extent> {
+        let mut pts: Vec<(f64, f64)> = Vec::new();
+        for &i in ids {
+            pts.extend(self.plotted(i));
+            for (x, lo, hi) in self
+                .plotted_errors(i)
+                .into_iter()
+                .chain(self.plotted_band(i))
+            {
+                pts.extend([(x, lo), (x, hi)]);
             }
         }
-        // ticks over the data (or fixed) range, then a margin around it
-        let ticks = |lo: f64, hi: f64, log: bool, integer: bool| -> Vec<f64> {
-            if log {
-                let (a, b) = if hi > lo {
-                    (lo, hi)
-                } else {
-                    (lo - 0.5, hi + 0.5)
-                };
-                log_ticks(10f64.powf(a), 10f64.powf(b))
-                    .into_iter()
-                    .map(f64::log10)
-                    .collect()
-            } else if integer {
-                let (a, b) = if hi > lo {
-                    (lo, hi)
-                } else {
-                    (lo - 1.0, hi + 1.0)
-                };
-                integer_ticks(a, b, 6)
-            } else {
-                let (a, b) = if hi > lo {
-                    (lo, hi)
-                } else {
-                    let w = 0.5 + lo.abs() * 0.1;
-                    (lo - w, hi + w)
-                };
-                linear_ticks(a, b, 6)
-            }
-        };
-        let pad = |lo: f64, hi: f64, t: &[f64]| -> (f64, f64) {
-            let lo = t.iter().copied().fold(lo, f64::min);
-            let hi = t.iter().copied().fold(hi, f64::max);
-            let m = if hi > lo { 0.04 * (hi - lo) } else { 0.5 };
-            (lo - m, hi + m)
-        };
-        let (x_range, x_ticks) = match &self.categories {
+        extent_of(&pts)
+    }
+
+    /// The plotted x range and its ticks.
+    fn x_axis(&self, x0: f64, x1: f64) -> ((f64, f64), Vec<f64>) {
+        let (range, ticks) = match &self.categories {
             Some(names) => {
                 let n = names.len().max(1) as f64;
                 (
@@ -615,118 +715,166 @@ impl LinePlot {
                 )
             }
             None => {
-                let t = ticks(x0, x1, self.log_x, self.integer_x);
+                let t = axis_ticks(x0, x1, self.log_x, self.integer_x);
                 // ticks within the data only: the axis ends at the data
                 let t: Vec<f64> = if self.log_x || x1 <= x0 {
                     t
                 } else {
+                    let tol = 1e-9 * (x1 - x0);
                     t.into_iter()
-                        .filter(|&v| v >= x0 - 1e-9 * (x1 - x0) && v <= x1 + 1e-9 * (x1 - x0))
+                        .filter(|&v| v >= x0 - tol && v <= x1 + tol)
                         .collect()
                 };
                 (pad(x0, x1, &[]), t)
             }
         };
-        let (y_range, y_ticks) = match self.y_range {
-            Some((lo, hi)) => {
-                let tf = |v: f64| if self.log_y { v.log10() } else { v };
-                let (lo, hi) = (tf(lo), tf(hi));
-                let t = ticks(lo, hi, self.log_y, self.integer_y);
-                let (a, b) = (lo.min(y0), hi.max(y1));
-                (pad(a, b, &[]), t)
-            }
-            None => {
-                // loose ticks: the axis reaches the next tick beyond the data
-                let (a, b) = if self.log_y || y1 <= y0 {
-                    (y0, y1)
-                } else {
-                    let step = nice_step(y1 - y0, 6);
-                    let step = if self.integer_y { step.max(1.0) } else { step };
-                    (
-                        (y0 / step - 1e-9).floor() * step,
-                        (y1 / step + 1e-9).ceil() * step,
-                    )
-                };
-                let t = ticks(a, b, self.log_y, self.integer_y);
-                let t: Vec<f64> = t
-                    .into_iter()
-                    .filter(|&v| {
-                        let w = if y1 > y0 { y1 - y0 } else { 1.0 };
-                        v >= y0 - 0.3 * w && v <= y1 + 0.3 * w
-                    })
-                    .collect();
-                (pad(y0, y1, &t), t)
-            }
-        };
-        let x_ticks: Vec<f64> = x_ticks
+        let ticks = ticks
             .into_iter()
-            .filter(|v| *v >= x_range.0 && *v <= x_range.1)
+            .filter(|v| *v >= range.0 && *v <= range.1)
             .collect();
-        // panels and styles
-        let named = self.lines.iter().any(|l| l.panel.is_some());
-        let mut panels: Vec<Panel> = Vec::new();
-        let mut style = vec![0; self.lines.len()];
-        let mut legend: Vec<(String, usize, bool)> = Vec::new();
-        let draws_markers = |i: usize| -> bool {
-            let l = &self.lines[i];
-            l.markers || self.categories.is_some() || l.points.len() <= 25
-        };
-        if named {
-            let mut labels: Vec<String> = Vec::new();
-            for (i, l) in self.lines.iter().enumerate() {
-                let name = l.panel.clone().unwrap_or_default();
-                match panels.iter_mut().find(|p| p.title == name) {
-                    Some(p) => p.lines.push(i),
-                    None => panels.push(Panel {
-                        title: name,
-                        lines: vec![i],
-                    }),
-                }
-                let s = match labels.iter().position(|x| *x == l.label) {
-                    Some(s) => s,
-                    None => {
-                        labels.push(l.label.clone());
-                        labels.len() - 1
-                    }
-                };
-                style[i] = s;
-                if !l.label.is_empty() && !legend.iter().any(|e| e.0 == l.label) {
-                    legend.push((l.label.clone(), s, draws_markers(i)));
-                }
-            }
-        } else if self.lines.len() > MAX_SERIES {
-            for (i, l) in self.lines.iter().enumerate() {
-                // one curve per panel: colours only, always solid
-                style[i] = i % PALETTE.len();
-                panels.push(Panel {
-                    title: if l.label.is_empty() {
-                        format!("series {}", i + 1)
-                    } else {
-                        l.label.clone()
-                    },
-                    lines: vec![i],
-                });
-            }
+        (range, ticks)
+    }
+
+    /// The plotted y range over the data `[y0, y1]` and its ticks.
+    fn y_axis(&self, y0: f64, y1: f64) -> ((f64, f64), Vec<f64>) {
+        if let Some((lo, hi)) = self.y_range {
+            let (lo, hi) = (Self::tf(lo, self.log_y), Self::tf(hi, self.log_y));
+            let t = axis_ticks(lo, hi, self.log_y, self.integer_y);
+            return (pad(lo.min(y0), hi.max(y1), &[]), t);
+        }
+        // loose ticks: the axis reaches the next tick beyond the data
+        let (a, b) = if self.log_y || y1 <= y0 {
+            (y0, y1)
         } else {
-            panels.push(Panel {
-                title: String::new(),
-                lines: (0..self.lines.len()).collect(),
-            });
-            for (i, l) in self.lines.iter().enumerate() {
-                style[i] = i;
-                if !l.label.is_empty() {
-                    legend.push((l.label.clone(), i, draws_markers(i)));
-                }
+            let step = nice_step(y1 - y0, 6);
+            let step = if self.integer_y { step.max(1.0) } else { step };
+            (
+                (y0 / step - 1e-9).floor() * step,
+                (y1 / step + 1e-9).ceil() * step,
+            )
+        };
+        let w = if y1 > y0 { y1 - y0 } else { 1.0 };
+        let t: Vec<f64> = axis_ticks(a, b, self.log_y, self.integer_y)
+            .into_iter()
+            .filter(|&v| v >= y0 - 0.3 * w && v <= y1 + 0.3 * w)
+            .collect();
+        (pad(y0, y1, &t), t)
+    }
+
+    /// Whether line `i` is drawn with markers.
+    fn draws_markers(&self, i: usize) -> bool {
+        let l = &self.lines[i];
+        l.markers || self.categories.is_some() || l.points.len() <= 25
+    }
+
+    /// Panels by [`Line::panel`] name; a label keeps its style everywhere.
+    fn group_named(&self) -> Grouping {
+        let mut g = Grouping {
+            panels: Vec::new(),
+            style: vec![0; self.lines.len()],
+            legend: Vec::new(),
+        };
+        let mut labels: Vec<String> = Vec::new();
+        for (i, l) in self.lines.iter().enumerate() {
+            let name = l.panel.clone().unwrap_or_default();
+            match g.panels.iter_mut().find(|p| p.0 == name) {
+                Some(p) => p.1.push(i),
+                None => g.panels.push((name, vec![i])),
+            }
+            let s = labels
+                .iter()
+                .position(|x| *x == l.label)
+                .unwrap_or_else(|| {
+                    labels.push(l.label.clone());
+                    labels.len() - 1
+                });
+            g.style[i] = s;
+            if !l.label.is_empty() && !g.legend.iter().any(|e| e.0 == l.label) {
+                g.legend.push((l.label.clone(), s, self.draws_markers(i)));
             }
         }
+        g
+    }
+
+    /// Panels and styles: by name, one per curve beyond [`MAX_SERIES`]
+    /// (colours only, always solid, no legend), or one panel with a legend.
+    fn grouping(&self) -> Grouping {
+        if self.lines.iter().any(|l| l.panel.is_some()) {
+            return self.group_named();
+        }
+        let n = self.lines.len();
+        if n > MAX_SERIES {
+            let panels = self
+                .lines
+                .iter()
+                .enumerate()
+                .map(|(i, l)| match l.label.as_str() {
+                    "" => (format!("series {}", i + 1), vec![i]),
+                    s => (s.to_string(), vec![i]),
+                })
+                .collect();
+            let style = (0..n).map(|i| i % PALETTE.len()).collect();
+            return Grouping {
+                panels,
+                style,
+                legend: Vec::new(),
+            };
+        }
+        let legend = (0..n)
+            .filter(|&i| !self.lines[i].label.is_empty())
+            .map(|i| (self.lines[i].label.clone(), i, self.draws_markers(i)))
+            .collect();
+        Grouping {
+            panels: vec![(String::new(), (0..n).collect())],
+            style: (0..n).collect(),
+            legend,
+        }
+    }
+
+    /// Ranges, ticks, panels and styles of the chart (what
+    /// [`LinePlot::to_svg_string`] draws).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] when no curve has a plottable point.
+    pub fn layout(&self) -> Result<Layout> {
+        let all: Vec<usize> = (0..self.lines.len()).collect();
+        let has_points = all.iter().any(|&i| !self.plotted(i).is_empty());
+        let ext = self.extent(&all).filter(|_| has_points).ok_or_else(|| {
+            Error::invalid(
+                "plot.points",
+                "none",
+                "at least one finite point (positive on log axes)",
+            )
+        })?;
+        check_extent(ext)?;
+        let (x0, x1, y0, y1) = ext;
+        let (x_range, x_ticks) = self.x_axis(x0, x1);
+        let (y_range, y_ticks) = self.y_axis(y0, y1);
+        let g = self.grouping();
+        let panels = g
+            .panels
+            .into_iter()
+            .map(|(title, lines)| {
+                let (yr, yt) = match self.extent(&lines) {
+                    Some((_, _, a, b)) if self.own_y => self.y_axis(a, b),
+                    _ => (y_range, y_ticks.clone()),
+                };
+                Panel {
+                    title,
+                    lines,
+                    y_range: yr,
+                    y_ticks: yt,
+                }
+            })
+            .collect();
         Ok(Layout {
             x_range,
             y_range,
             x_ticks,
             y_ticks,
             panels,
-            style,
-            legend,
+            style: g.style,
+            legend: g.legend,
         })
     }
 
@@ -973,44 +1121,99 @@ mod render {
         .map_err(plot_err)
     }
 
-    pub(super) fn line_plot(p: &LinePlot, l: &Layout) -> Result<String> {
-        ensure_font();
-        let n = l.panels.len();
-        let cols = match n {
+    /// Panels per row and rows for `n` panels (or `columns` per row).
+    fn grid_shape(n: usize, columns: Option<usize>) -> (usize, usize) {
+        let cols = columns.unwrap_or(match n {
             0 | 1 => 1,
             2 | 3 => n,
             4 => 2,
             5 | 6 | 9 => 3,
             _ => 4,
-        };
-        let rows = n.div_ceil(cols);
-        let legend_font = ("sans-serif", 13);
+        });
+        let cols = cols.clamp(1, n.max(1));
+        (cols, n.max(1).div_ceil(cols))
+    }
+
+    const LEGEND_FONT: (&str, u32) = ("sans-serif", 13);
+
+    /// Width of the legend column from the text extents (0 without one).
+    fn legend_width(l: &Layout) -> u32 {
+        if l.legend.is_empty() {
+            return 0;
+        }
+        let mut scratch = String::new();
+        let probe = SVGBackend::with_string(&mut scratch, (10, 10)).into_drawing_area();
+        let style = LEGEND_FONT.into_text_style(&probe);
+        let text_w = l
+            .legend
+            .iter()
+            .map(|e| {
+                probe
+                    .estimate_text_size(&e.0, &style)
+                    .map(|s| s.0)
+                    .unwrap_or(8 * e.0.len() as u32)
+            })
+            .max()
+            .unwrap_or(0);
+        (text_w + 62).clamp(110, 360)
+    }
+
+    /// Tick labels of an axis: category names, log labels or plain numbers.
+    struct Labels<'a> {
+        ticks: &'a [f64],
+        log: Vec<String>,
+        is_log: bool,
+        categories: Option<&'a [String]>,
+    }
+
+    impl<'a> Labels<'a> {
+        fn new(ticks: &'a [f64], is_log: bool, categories: Option<&'a [String]>) -> Labels<'a> {
+            let log = log_tick_labels(&ticks.iter().map(|v| 10f64.powf(*v)).collect::<Vec<_>>());
+            Labels {
+                ticks,
+                log,
+                is_log,
+                categories,
+            }
+        }
+        fn at(&self, v: f64) -> String {
+            if let Some(names) = self.categories {
+                let i = v.round();
+                let hit = (v - i).abs() < 1e-6 && i >= 0.0 && (i as usize) < names.len();
+                return if hit {
+                    names[i as usize].clone()
+                } else {
+                    String::new()
+                };
+            }
+            if self.is_log {
+                nearest_label(v, self.ticks, &self.log)
+            } else {
+                tick_label_step(v, step_of(self.ticks))
+            }
+        }
+        /// Room for the longest label, in pixels.
+        fn width(&self) -> u32 {
+            let longest = self
+                .ticks
+                .iter()
+                .map(|&v| self.at(v).chars().count() as u32);
+            longest.max().unwrap_or(1) * 8 + 14
+        }
+    }
+
+    pub(super) fn line_plot(p: &LinePlot, l: &Layout) -> Result<String> {
+        ensure_font();
+        let n = l.panels.len();
+        let (cols, rows) = grid_shape(n, p.columns);
+        let legend_w = legend_width(l);
+        let (w, h) = p.size.unwrap_or(if n <= 1 {
+            (900 + legend_w.saturating_sub(150), 560)
+        } else {
+            (cols as u32 * 330 + legend_w, rows as u32 * 250 + 50)
+        });
         let mut buf = String::new();
         {
-            // legend width from the text extents
-            let mut scratch = String::new();
-            let probe = SVGBackend::with_string(&mut scratch, (10, 10)).into_drawing_area();
-            let text_w = l
-                .legend
-                .iter()
-                .map(|e| {
-                    probe
-                        .estimate_text_size(&e.0, &legend_font.into_text_style(&probe))
-                        .map(|s| s.0)
-                        .unwrap_or(8 * e.0.len() as u32)
-                })
-                .max()
-                .unwrap_or(0);
-            let legend_w = if l.legend.is_empty() {
-                0
-            } else {
-                (text_w + 62).clamp(110, 360)
-            };
-            let (w, h) = p.size.unwrap_or(if n <= 1 {
-                (900 + legend_w.saturating_sub(150), 560)
-            } else {
-                (cols as u32 * 330 + legend_w, rows as u32 * 250 + 50)
-            });
             let root = SVGBackend::with_string(&mut buf, (w, h)).into_drawing_area();
             root.fill(&WHITE).map_err(plot_err)?;
             let body = root
@@ -1019,159 +1222,204 @@ mod render {
             let (bw, _) = body.dim_in_pixel();
             let (plots, legend) = body.split_horizontally(bw.saturating_sub(legend_w));
             let cells = plots.split_evenly((rows, cols));
-            let log_labels = |t: &[f64]| -> Vec<String> {
-                log_tick_labels(&t.iter().map(|v| 10f64.powf(*v)).collect::<Vec<_>>())
-            };
-            let (xl, yl) = (log_labels(&l.x_ticks), log_labels(&l.y_ticks));
-            let fx = |v: f64| -> String {
-                if let Some(names) = &p.categories {
-                    let i = v.round();
-                    if (v - i).abs() < 1e-6 && i >= 0.0 && (i as usize) < names.len() {
-                        return names[i as usize].clone();
-                    }
-                    return String::new();
-                }
-                if p.log_x {
-                    nearest_label(v, &l.x_ticks, &xl)
-                } else {
-                    tick_label_step(v, step_of(&l.x_ticks))
-                }
-            };
-            let fy = |v: f64| -> String {
-                if p.log_y {
-                    nearest_label(v, &l.y_ticks, &yl)
-                } else {
-                    tick_label_step(v, step_of(&l.y_ticks))
-                }
-            };
+            let x_labels = Labels::new(&l.x_ticks, p.log_x, p.categories.as_deref());
             let y_label_w = l
-                .y_ticks
+                .panels
                 .iter()
-                .map(|&v| fy(v).chars().count() as u32)
+                .map(|pn| Labels::new(&pn.y_ticks, p.log_y, None).width())
                 .max()
-                .unwrap_or(1)
-                * 8
-                + 14;
+                .unwrap_or(22);
             for (pi, panel) in l.panels.iter().enumerate() {
-                let area = &cells[pi];
-                let bottom = pi + cols >= n;
-                let left = pi % cols == 0;
-                let mut b = ChartBuilder::on(area);
-                b.margin(10)
-                    .margin_right(18)
-                    .x_label_area_size(if bottom { 46 } else { 26 })
-                    .y_label_area_size(y_label_w + if left { 22 } else { 0 });
-                if !panel.title.is_empty() {
-                    b.caption(&panel.title, ("sans-serif", 15));
-                }
-                let mut chart: Chart<'_, '_> = b
-                    .build_cartesian_2d(
-                        Axis::new(l.x_range.0, l.x_range.1, l.x_ticks.clone()),
-                        Axis::new(l.y_range.0, l.y_range.1, l.y_ticks.clone()),
-                    )
-                    .map_err(plot_err)?;
-                let fxr = |v: &f64| fx(*v);
-                let fyr = |v: &f64| fy(*v);
-                let mut mesh = chart.configure_mesh();
-                mesh.label_style(("sans-serif", 13))
-                    .x_label_formatter(&fxr)
-                    .y_label_formatter(&fyr)
-                    .bold_line_style(RGBColor(225, 225, 225))
-                    .light_line_style(TRANSPARENT)
-                    .axis_desc_style(("sans-serif", 14));
-                if bottom {
-                    mesh.x_desc(p.x_label.as_str());
-                }
-                if left {
-                    mesh.y_desc(p.y_label.as_str());
-                }
-                mesh.draw().map_err(plot_err)?;
-                let m = panel.lines.len();
-                for (k, &i) in panel.lines.iter().enumerate() {
-                    let line = &p.lines[i];
-                    let (c, dash, marker) = series_style(l.style[i]);
-                    let color = rgb(c);
-                    let mut pts = p.plotted(i);
-                    if p.categories.is_some() {
-                        // side by side within a category, never joined
-                        let w = (0.6 / m as f64).min(0.12);
-                        let off = (k as f64 - (m as f64 - 1.0) / 2.0) * w;
-                        for q in &mut pts {
-                            q.0 += off;
-                        }
-                        draw_markers(&mut chart, &pts, marker, color)?;
-                        continue;
-                    }
-                    if !line.markers {
-                        let dash = if line.dashed && dash == Dash::Solid {
-                            Dash::Dashed
-                        } else {
-                            dash
-                        };
-                        draw_path(&mut chart, pts.clone(), dash, color)?;
-                    }
-                    if line.markers || line.points.len() <= 25 {
-                        draw_markers(&mut chart, &pts, marker, color)?;
-                    }
-                }
-            }
-            // the legend, outside the data: a column on the right
-            for (k, (label, s, markers)) in l.legend.iter().enumerate() {
-                let (c, dash, marker) = series_style(*s);
-                let line = p.lines.iter().find(|x| x.label == *label);
-                let only_markers = line.is_some_and(|x| x.markers) || p.categories.is_some();
-                let dash = if line.is_some_and(|x| x.dashed) && dash == Dash::Solid {
-                    Dash::Dashed
-                } else {
-                    dash
+                let at = PanelAt {
+                    bottom: pi + cols >= n,
+                    left: pi % cols == 0 || p.own_y,
+                    y_label_w,
                 };
-                let color = rgb(c);
-                let y = 40 + 24 * k as i32;
-                let (x0, x1) = (10, 42);
-                if !only_markers {
-                    let style = color.stroke_width(2);
-                    match dash {
-                        Dash::Solid => {
-                            legend.draw(&PathElement::new(vec![(x0, y), (x1, y)], style))
-                        }
-                        Dash::Dashed => legend.draw(&DashedPathElement::new(
-                            vec![(x0, y), (x1, y)],
-                            8,
-                            5,
-                            style,
-                        )),
-                        Dash::Dotted => legend.draw(&DashedPathElement::new(
-                            vec![(x0, y), (x1, y)],
-                            2,
-                            4,
-                            style,
-                        )),
-                    }
-                    .map_err(plot_err)?;
-                }
-                if *markers {
-                    let m = ((x0 + x1) / 2, y);
-                    let s = color.filled();
-                    match marker {
-                        Marker::Circle => legend.draw(&Circle::new(m, 4, s)),
-                        Marker::Square => legend
-                            .draw(&Rectangle::new([(m.0 - 3, m.1 - 3), (m.0 + 4, m.1 + 4)], s)),
-                        Marker::Triangle => legend.draw(&TriangleMarker::new(m, 5, s)),
-                        Marker::Cross => legend.draw(&Cross::new(m, 4, color.stroke_width(2))),
-                    }
-                    .map_err(plot_err)?;
-                }
-                legend
-                    .draw(&Text::new(
-                        label.clone(),
-                        (x1 + 10, y - 6),
-                        legend_font.into_font(),
-                    ))
-                    .map_err(plot_err)?;
+                let y_desc = p.panel_y_labels.get(pi).unwrap_or(&p.y_label);
+                draw_panel(&cells[pi], p, l, panel, &x_labels, y_desc, at)?;
             }
+            draw_legend(&legend, p, l)?;
             root.present().map_err(plot_err)?;
         }
         Ok(buf)
+    }
+
+    /// Where a panel sits in the grid: which axis descriptions it carries.
+    #[derive(Clone, Copy)]
+    struct PanelAt {
+        bottom: bool,
+        left: bool,
+        y_label_w: u32,
+    }
+
+    fn draw_panel(
+        area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+        p: &LinePlot,
+        l: &Layout,
+        panel: &Panel,
+        x_labels: &Labels<'_>,
+        y_desc: &str,
+        at: PanelAt,
+    ) -> Result<()> {
+        let mut b = ChartBuilder::on(area);
+        b.margin(10)
+            .margin_right(18)
+            .x_label_area_size(if at.bottom { 46 } else { 26 })
+            .y_label_area_size(at.y_label_w + if at.left { 22 } else { 0 });
+        if !panel.title.is_empty() {
+            b.caption(&panel.title, ("sans-serif", 15));
+        }
+        let mut chart: Chart<'_, '_> = b
+            .build_cartesian_2d(
+                Axis::new(l.x_range.0, l.x_range.1, l.x_ticks.clone()),
+                Axis::new(panel.y_range.0, panel.y_range.1, panel.y_ticks.clone()),
+            )
+            .map_err(plot_err)?;
+        let y_labels = Labels::new(&panel.y_ticks, p.log_y, None);
+        let fxr = |v: &f64| x_labels.at(*v);
+        let fyr = |v: &f64| y_labels.at(*v);
+        let mut mesh = chart.configure_mesh();
+        mesh.label_style(("sans-serif", 13))
+            .x_label_formatter(&fxr)
+            .y_label_formatter(&fyr)
+            .bold_line_style(RGBColor(225, 225, 225))
+            .light_line_style(TRANSPARENT)
+            .axis_desc_style(("sans-serif", 14));
+        if at.bottom {
+            mesh.x_desc(p.x_label.as_str());
+        }
+        if at.left {
+            mesh.y_desc(y_desc);
+        }
+        mesh.draw().map_err(plot_err)?;
+        for (k, &i) in panel.lines.iter().enumerate() {
+            draw_line(&mut chart, p, l, i, (k, panel.lines.len()))?;
+        }
+        Ok(())
+    }
+
+    /// Line `i`, the `k`-th of `m` in its panel: band, path, markers, bars.
+    fn draw_line(
+        chart: &mut Chart<'_, '_>,
+        p: &LinePlot,
+        l: &Layout,
+        i: usize,
+        (k, m): (usize, usize),
+    ) -> Result<()> {
+        let line = &p.lines[i];
+        let (c, dash, marker) = series_style(l.style[i]);
+        let color = rgb(c);
+        let band = p.plotted_band(i);
+        if !band.is_empty() {
+            let mut poly: Vec<(f64, f64)> = band.iter().map(|&(x, lo, _)| (x, lo)).collect();
+            poly.extend(band.iter().rev().map(|&(x, _, hi)| (x, hi)));
+            chart
+                .draw_series(std::iter::once(Polygon::new(
+                    poly,
+                    color.mix(0.18).filled(),
+                )))
+                .map_err(plot_err)?;
+        }
+        // side by side within a category, never joined
+        let off = if p.categories.is_some() {
+            let w = (0.6 / m as f64).min(0.12);
+            (k as f64 - (m as f64 - 1.0) / 2.0) * w
+        } else {
+            0.0
+        };
+        let pts: Vec<(f64, f64)> = p.plotted(i).into_iter().map(|q| (q.0 + off, q.1)).collect();
+        let bars: Vec<(f64, f64, f64)> = p
+            .plotted_errors(i)
+            .into_iter()
+            .map(|(x, lo, hi)| (x + off, lo, hi))
+            .collect();
+        if !bars.is_empty() {
+            chart
+                .draw_series(bars.iter().map(|&(x, lo, hi)| {
+                    PathElement::new(vec![(x, lo), (x, hi)], color.stroke_width(2))
+                }))
+                .map_err(plot_err)?;
+        }
+        if p.categories.is_none() && !line.markers {
+            let dash = if line.dashed && dash == Dash::Solid {
+                Dash::Dashed
+            } else {
+                dash
+            };
+            draw_path(chart, pts.clone(), dash, color)?;
+        }
+        if p.categories.is_some() || line.markers || line.points.len() <= 25 {
+            draw_markers(chart, &pts, marker, color)?;
+        }
+        Ok(())
+    }
+
+    /// The legend, outside the data: a column on the right.
+    fn draw_legend(
+        area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+        p: &LinePlot,
+        l: &Layout,
+    ) -> Result<()> {
+        for (k, (label, s, markers)) in l.legend.iter().enumerate() {
+            let (c, dash, marker) = series_style(*s);
+            let line = p.lines.iter().find(|x| x.label == *label);
+            let only_markers = line.is_some_and(|x| x.markers) || p.categories.is_some();
+            let dash = if line.is_some_and(|x| x.dashed) && dash == Dash::Solid {
+                Dash::Dashed
+            } else {
+                dash
+            };
+            let color = rgb(c);
+            let y = 40 + 24 * k as i32;
+            let (x0, x1) = (10, 42);
+            if !only_markers {
+                draw_legend_path(area, (x0, x1, y), dash, color)?;
+            }
+            if *markers {
+                draw_legend_marker(area, ((x0 + x1) / 2, y), marker, color)?;
+            }
+            area.draw(&Text::new(
+                label.clone(),
+                (x1 + 10, y - 6),
+                LEGEND_FONT.into_font(),
+            ))
+            .map_err(plot_err)?;
+        }
+        Ok(())
+    }
+
+    fn draw_legend_path(
+        area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+        (x0, x1, y): (i32, i32, i32),
+        dash: Dash,
+        color: RGBColor,
+    ) -> Result<()> {
+        let style = color.stroke_width(2);
+        let path = vec![(x0, y), (x1, y)];
+        match dash {
+            Dash::Solid => area.draw(&PathElement::new(path, style)),
+            Dash::Dashed => area.draw(&DashedPathElement::new(path, 8, 5, style)),
+            Dash::Dotted => area.draw(&DashedPathElement::new(path, 2, 4, style)),
+        }
+        .map_err(plot_err)
+    }
+
+    fn draw_legend_marker(
+        area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+        m: (i32, i32),
+        marker: Marker,
+        color: RGBColor,
+    ) -> Result<()> {
+        let s = color.filled();
+        match marker {
+            Marker::Circle => area.draw(&Circle::new(m, 4, s)),
+            Marker::Square => {
+                area.draw(&Rectangle::new([(m.0 - 3, m.1 - 3), (m.0 + 4, m.1 + 4)], s))
+            }
+            Marker::Triangle => area.draw(&TriangleMarker::new(m, 5, s)),
+            Marker::Cross => area.draw(&Cross::new(m, 4, color.stroke_width(2))),
+        }
+        .map_err(plot_err)
     }
 
     /// The spacing of evenly spaced ticks (1 for fewer than two).
@@ -1183,10 +1431,10 @@ mod render {
         }
     }
 
-    pub(super) fn heatmap(h: &Heatmap) -> Result<String> {
-        ensure_font();
-        let (nx, ny) = (h.x.len(), h.y.len());
-        let tf = |v: f64| -> Option<f64> {
+    /// The colour scale of a heatmap: `z` in plotted units (`log10 z` on a
+    /// log scale; `None` for a grey cell) and its range.
+    fn heat_scale(h: &Heatmap) -> (impl Fn(f64) -> Option<f64> + '_, f64, f64) {
+        let tf = move |v: f64| -> Option<f64> {
             if !v.is_finite() || (h.log_z && v <= 0.0) {
                 None
             } else if h.log_z {
@@ -1206,33 +1454,44 @@ mod render {
         } else {
             (lo - 0.5, hi + 0.5)
         };
-        let edges = |c: &[f64]| -> Vec<f64> {
-            let n = c.len();
-            if n == 1 {
-                return vec![c[0] - 0.5, c[0] + 0.5];
-            }
-            let mut e = Vec::with_capacity(n + 1);
-            e.push(c[0] - 0.5 * (c[1] - c[0]));
-            for i in 0..n - 1 {
-                e.push(0.5 * (c[i] + c[i + 1]));
-            }
-            e.push(c[n - 1] + 0.5 * (c[n - 1] - c[n - 2]));
-            e
-        };
-        let (ex, ey) = (edges(&h.x), edges(&h.y));
-        let xt = grid_ticks(&h.x, ex[0], ex[nx]);
-        let yt = grid_ticks(&h.y, ey[0], ey[ny]);
-        let zt: Vec<f64> = if h.log_z {
+        (tf, lo, hi)
+    }
+
+    /// Cell edges around the centres `c`.
+    fn cell_edges(c: &[f64]) -> Vec<f64> {
+        let n = c.len();
+        if n == 1 {
+            return vec![c[0] - 0.5, c[0] + 0.5];
+        }
+        let mut e = Vec::with_capacity(n + 1);
+        e.push(c[0] - 0.5 * (c[1] - c[0]));
+        for i in 0..n - 1 {
+            e.push(0.5 * (c[i] + c[i + 1]));
+        }
+        e.push(c[n - 1] + 0.5 * (c[n - 1] - c[n - 2]));
+        e
+    }
+
+    /// Ticks of the colour bar over `[lo, hi]` (plotted units).
+    fn bar_ticks(h: &Heatmap, lo: f64, hi: f64) -> Vec<f64> {
+        if h.log_z {
             log_ticks(10f64.powf(lo), 10f64.powf(hi))
                 .into_iter()
                 .map(f64::log10)
                 .collect()
         } else {
             linear_ticks(lo, hi, 6)
-        };
-        let (sx, sy, sz) = (step_of(&xt), step_of(&yt), step_of(&zt));
-        let zl = log_tick_labels(&zt.iter().map(|v| 10f64.powf(*v)).collect::<Vec<_>>());
-        let zt_plotted = zt.clone();
+        }
+    }
+
+    pub(super) fn heatmap(h: &Heatmap) -> Result<String> {
+        ensure_font();
+        let (nx, ny) = (h.x.len(), h.y.len());
+        let (tf, lo, hi) = heat_scale(h);
+        let (ex, ey) = (cell_edges(&h.x), cell_edges(&h.y));
+        let xt = grid_ticks(&h.x, ex[0], ex[nx]);
+        let yt = grid_ticks(&h.y, ey[0], ey[ny]);
+        let (sx, sy) = (step_of(&xt), step_of(&yt));
         let mut buf = String::new();
         {
             let root = SVGBackend::with_string(&mut buf, (900, 640)).into_drawing_area();
@@ -1270,40 +1529,53 @@ mod render {
                     .draw_series(std::iter::once(Cross::new(m, 8, RED.stroke_width(3))))
                     .map_err(plot_err)?;
             }
-            // colour bar, labelled in data units
-            let mut cb = ChartBuilder::on(&bar)
-                .margin_top(50)
-                .margin_bottom(57)
-                .margin_right(8)
-                .y_label_area_size(60)
-                .build_cartesian_2d(0.0..1.0, Axis::new(lo, hi, zt))
-                .map_err(plot_err)?;
-            cb.configure_mesh()
-                .disable_mesh()
-                .disable_x_axis()
-                .label_style(("sans-serif", 12))
-                .y_label_formatter(&|v: &f64| {
-                    if h.log_z {
-                        nearest_label(*v, &zt_plotted, &zl)
-                    } else {
-                        tick_label_step(*v, sz)
-                    }
-                })
-                .draw()
-                .map_err(plot_err)?;
-            let steps = 100;
-            cb.draw_series((0..steps).map(|i| {
-                let a = lo + (hi - lo) * i as f64 / steps as f64;
-                let b = lo + (hi - lo) * (i + 1) as f64 / steps as f64;
-                Rectangle::new(
-                    [(0.0, a), (1.0, b)],
-                    rgb(viridis((i as f64 + 0.5) / steps as f64)).filled(),
-                )
-            }))
-            .map_err(plot_err)?;
+            colour_bar(&bar, h, lo, hi)?;
             root.present().map_err(plot_err)?;
         }
         Ok(buf)
+    }
+
+    /// The colour bar of a heatmap over `[lo, hi]`, labelled in data units.
+    fn colour_bar(
+        area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+        h: &Heatmap,
+        lo: f64,
+        hi: f64,
+    ) -> Result<()> {
+        let zt = bar_ticks(h, lo, hi);
+        let sz = step_of(&zt);
+        let zl = log_tick_labels(&zt.iter().map(|v| 10f64.powf(*v)).collect::<Vec<_>>());
+        let mut cb = ChartBuilder::on(area)
+            .margin_top(50)
+            .margin_bottom(57)
+            .margin_right(8)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..1.0, Axis::new(lo, hi, zt.clone()))
+            .map_err(plot_err)?;
+        cb.configure_mesh()
+            .disable_mesh()
+            .disable_x_axis()
+            .label_style(("sans-serif", 12))
+            .y_label_formatter(&|v: &f64| {
+                if h.log_z {
+                    nearest_label(*v, &zt, &zl)
+                } else {
+                    tick_label_step(*v, sz)
+                }
+            })
+            .draw()
+            .map_err(plot_err)?;
+        let steps = 100;
+        cb.draw_series((0..steps).map(|i| {
+            let a = lo + (hi - lo) * i as f64 / steps as f64;
+            let b = lo + (hi - lo) * (i + 1) as f64 / steps as f64;
+            Rectangle::new(
+                [(0.0, a), (1.0, b)],
+                rgb(viridis((i as f64 + 0.5) / steps as f64)).filled(),
+            )
+        }))
+        .map_err(plot_err)?;
+        Ok(())
     }
 }
 

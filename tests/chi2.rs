@@ -2,7 +2,7 @@
 //! correlated transformed noise ([`springmass::detect::data::whiten`]), its degrees
 //! of freedom, and calibration at the true chain.
 //!
-//! The full 200-seed calibration report is `cargo test --release --test chi2
+//! The full 200-seed calibration report is `cargo test --release --test all chi2::
 //! -- --ignored --nocapture`.
 
 use springmass::detect::data::laplace::LaplaceObs;

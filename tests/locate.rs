@@ -2,7 +2,7 @@
 //! acceptance tables, the paper's numbers in extended precision, the 45-digit
 //! reference vectors, and the detection of the f64 failure of (4.17).
 //!
-//! Print the tables with `cargo test --test locate -- --nocapture`.
+//! Print the tables with `cargo test --test all locate:: -- --nocapture`.
 
 mod common;
 
@@ -203,7 +203,7 @@ fn simulated_series_data_never_wrong() {
 }
 
 /// The full table on simulated data (125 simulations, ~1 min): run with
-/// `cargo test --release --test locate -- --ignored --nocapture`.
+/// `cargo test --release --test all locate:: -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn simulated_series_full_table() {

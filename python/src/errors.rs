@@ -41,6 +41,7 @@ fn kind(e: &Error) -> &'static str {
         Error::Io { .. } => "Io",
         Error::UnsafeOutput { .. } => "UnsafeOutput",
         Error::ResourceLimit { .. } => "ResourceLimit",
+        Error::Cancelled => "Cancelled",
     }
 }
 

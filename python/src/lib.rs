@@ -71,6 +71,36 @@ fn values(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
     a.as_array().iter().copied().collect()
 }
 
+/// `job` without the GIL on a helper thread, interruptible: every 50 ms the
+/// calling thread takes the GIL and runs Python's signal handlers
+/// (`Python::check_signals`); when one raises (Ctrl-C: KeyboardInterrupt),
+/// the library is asked to stop ([`springmass::cancel`]), the job returns
+/// promptly and the handler's exception is raised.
+fn interruptible<T: Send>(py: Python<'_>, job: impl FnOnce() -> Result<T> + Send) -> PyResult<T> {
+    let (out, raised) = std::thread::scope(|scope| {
+        let worker = scope.spawn(job);
+        let mut raised = None;
+        while !worker.is_finished() {
+            py.detach(|| std::thread::sleep(std::time::Duration::from_millis(50)));
+            if raised.is_none() {
+                if let Err(e) = py.check_signals() {
+                    springmass::cancel::request();
+                    raised = Some(e);
+                }
+            }
+        }
+        let out = worker
+            .join()
+            .unwrap_or_else(|p| std::panic::resume_unwind(p));
+        (out, raised)
+    });
+    if let Some(e) = raised {
+        springmass::cancel::reset();
+        return Err(e);
+    }
+    out.py_err()
+}
+
 /// The record `(t, x)` as observations: the sensor and the measured force
 /// of `spec`, the noise level when known.
 fn series_obs(
@@ -146,14 +176,12 @@ fn fit<'py>(
     };
     let (t, x) = (values(&t), values(&x));
     let force = force.as_ref().map(values);
-    let report = py
-        .detach(move || -> Result<_> {
-            let (model, opts) = spec.build()?;
-            let obs = series_obs(&spec, t, x, force, opts.noise.known())?;
-            opts.validate(&obs, &model)?;
-            springmass::detect::fit::fit(&obs, &model, &opts)
-        })
-        .py_err()?;
+    let report = interruptible(py, move || -> Result<_> {
+        let (model, opts) = spec.build()?;
+        let obs = series_obs(&spec, t, x, force, opts.noise.known())?;
+        opts.validate(&obs, &model)?;
+        springmass::detect::fit::fit(&obs, &model, &opts)
+    })?;
     let mut json = serde_json::to_value(&report)
         .map_err(|e| NumericalError::new_err(format!("the fit report cannot be written: {e}")))?;
     if let Some(o) = json.as_object_mut() {
@@ -633,20 +661,18 @@ fn fit_profile<'py>(
     };
     let (t, x) = (values(&t), values(&x));
     let force = force.as_ref().map(values);
-    let report = py
-        .detach(move || -> Result<_> {
-            let mode = ProfileMode::parse(&profile)?;
-            let (model, opts) = spec.build()?;
-            let obs = series_obs(&spec, t, x, force, opts.noise.known())?;
-            let mut po = ProfileOptions::new(mode);
-            po.noise = opts.noise;
-            if let Some(c) = change {
-                po.change = c;
-            }
-            po.lambda = penalty;
-            springmass::detect::fit::fit_profile(&obs, &model, &po)
-        })
-        .py_err()?;
+    let report = interruptible(py, move || -> Result<_> {
+        let mode = ProfileMode::parse(&profile)?;
+        let (model, opts) = spec.build()?;
+        let obs = series_obs(&spec, t, x, force, opts.noise.known())?;
+        let mut po = ProfileOptions::new(mode);
+        po.noise = opts.noise;
+        if let Some(c) = change {
+            po.change = c;
+        }
+        po.lambda = penalty;
+        springmass::detect::fit::fit_profile(&obs, &model, &po)
+    })?;
     let json = serde_json::to_value(&report).map_err(|e| {
         NumericalError::new_err(format!("the profile report cannot be written: {e}"))
     })?;

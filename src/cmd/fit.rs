@@ -226,16 +226,50 @@ fn force_column(
 
 /// `springmass fit --data`: the data-first pipeline.
 fn run_data(a: Args) -> anyhow::Result<()> {
-    use springmass::detect::data::observations::{Observations, Series};
-    use springmass::detect::fit::{self as dfit, options::FitSpec};
-    use springmass::series::TimeSeries;
-    use springmass::Error;
+    use springmass::detect::fit as dfit;
     let path = a.data.clone().expect("checked by the caller");
-    let n = a
-        .n
-        .ok_or_else(|| Error::invalid("n", "(none)", "--n N, the number of masses of the chain"))?;
+    let n = a.n.ok_or_else(|| {
+        springmass::Error::invalid("n", "(none)", "--n N, the number of masses of the chain")
+    })?;
     // every option is parsed before the data are read or any work starts
-    let spec = FitSpec {
+    let spec = data_spec(&a, n);
+    let (model, opts) = spec.build()?;
+    let profile = profile_mode(&a)?;
+    let (obs, axes) = read_observations(&a, &path, &spec, &opts)?;
+    if let Some(mode) = profile {
+        let (c, w) = (a.profile_change, a.penalty);
+        run_profile(&a, &path, &obs, &model, mode, opts.noise, c, w)?;
+        return Ok(());
+    }
+    opts.validate(&obs, &model)?;
+    let report = with_spinner(a.json, "fitting", || dfit::fit(&obs, &model, &opts))?;
+    if let Some(p) = &report.predicted {
+        if let Some(out) = &a.out_csv {
+            springmass::series::TimeSeries::new(
+                p.t.clone(),
+                vec![
+                    ("observed".into(), p.observed.clone()),
+                    ("model".into(), p.model.clone()),
+                    ("residual".into(), p.residual.clone()),
+                ],
+            )?
+            .write_csv(out)?;
+        }
+        if let Some(svg) = &a.plot {
+            fit_plot(&path, &report, p, &axes).write_svg(svg)?;
+        }
+    }
+    if a.json {
+        println!("{}", json_report(&report)?);
+    } else {
+        print!("{}", report.summary());
+    }
+    Ok(())
+}
+
+/// The options of a data-first fit as the library takes them.
+fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
+    springmass::detect::fit::options::FitSpec {
         d: a.d,
         k: a.k,
         mass: a.mass,
@@ -254,9 +288,12 @@ fn run_data(a: Args) -> anyhow::Result<()> {
         criterion: a.criterion.clone(),
         seed: a.seed,
         max_evals: a.max_evals,
-        ..FitSpec::new(n)
-    };
-    let (model, opts) = spec.build()?;
+        ..springmass::detect::fit::options::FitSpec::new(n)
+    }
+}
+
+/// `--profile` parsed, with its options checked (before the data are read).
+fn profile_mode(a: &Args) -> anyhow::Result<Option<springmass::detect::fit::profile::ProfileMode>> {
     let profile = a
         .profile
         .as_deref()
@@ -268,9 +305,32 @@ fn run_data(a: Args) -> anyhow::Result<()> {
     if let Some(w) = a.penalty {
         springmass::error::check_f64("penalty", w, w > 0.0, "> 0 and finite")?;
     }
+    Ok(profile)
+}
+
+/// Axis labels of the data: the time and the fitted column, each with the
+/// unit its header gave (`t [s]`, `x1 [m]`).
+struct AxisNames {
+    t: String,
+    x: String,
+}
+
+/// The record of `path` as observations (the fitted column, the sensor,
+/// the measured force if any), and the names of its axes.
+fn read_observations(
+    a: &Args,
+    path: &std::path::Path,
+    spec: &springmass::detect::fit::options::FitSpec,
+    opts: &springmass::detect::fit::FitOptions,
+) -> anyhow::Result<(
+    springmass::detect::data::observations::Observations,
+    AxisNames,
+)> {
+    use springmass::detect::data::observations::{Observations, Series};
+    use springmass::series::TimeSeries;
     // the sensor is checked before the data are read; the force is data
     let sensor_only = spec.measurement(None)?;
-    let table = TimeSeries::read_csv(&path)?;
+    let table = TimeSeries::read_csv(path)?;
     // the fitted column: --column, or the first one that is not the force
     let column = match (&a.column, &a.force_column, &a.force) {
         (Some(c), _, _) => Some(c.clone()),
@@ -279,89 +339,117 @@ fn run_data(a: Args) -> anyhow::Result<()> {
     };
     let series = Series::from_table(&table, column.as_deref(), opts.noise.known())?;
     let measurement = if a.force.is_some() || a.force_column.is_some() {
-        let f = match &a.force {
-            Some(fpath) => {
-                let ft = TimeSeries::read_csv(fpath)
-                    .with_context(|| format!("force from {}", fpath.display()))?;
-                let same = ft.t().len() == table.t().len()
-                    && ft
-                        .t()
-                        .iter()
-                        .zip(table.t())
-                        .all(|(a, b)| (a - b).abs() <= 1e-9 * b.abs().max(1e-9));
-                if !same {
-                    return Err(Error::invalid(
-                        "force",
-                        fpath.display(),
-                        "a CSV with the same times as --data",
-                    )
-                    .into());
-                }
-                force_column(&ft, a.force_column.as_deref())?
-            }
-            None => force_column(&table, a.force_column.as_deref())?,
-        };
-        spec.measurement(Some(f))?
+        spec.measurement(Some(read_force(a, &table)?))?
     } else {
         sensor_only
     };
-    let obs = Observations::Series(series.with_measurement(measurement)?);
-    if let Some(mode) = profile {
-        run_profile(
-            &a,
-            &path,
-            &obs,
-            &model,
-            mode,
-            opts.noise,
-            a.profile_change,
-            a.penalty,
-        )?;
-        return Ok(());
+    let with_unit = |name: &str, unit: Option<&str>| match unit {
+        Some(u) => format!("{name} [{u}]"),
+        None => name.to_string(),
+    };
+    let x_name = column
+        .clone()
+        .or_else(|| table.names().first().cloned())
+        .unwrap_or_else(|| "x".into());
+    let axes = AxisNames {
+        t: with_unit("t", table.time_unit()),
+        x: with_unit(&x_name, table.unit(&x_name)),
+    };
+    Ok((
+        Observations::Series(series.with_measurement(measurement)?),
+        axes,
+    ))
+}
+
+/// The measured force: `--force FILE` (same times as the data) or a column
+/// of the data (`--force-column`).
+fn read_force(a: &Args, table: &springmass::series::TimeSeries) -> anyhow::Result<Vec<f64>> {
+    use springmass::series::TimeSeries;
+    let Some(fpath) = &a.force else {
+        return Ok(force_column(table, a.force_column.as_deref())?);
+    };
+    let ft =
+        TimeSeries::read_csv(fpath).with_context(|| format!("force from {}", fpath.display()))?;
+    let same = ft.t().len() == table.t().len()
+        && ft
+            .t()
+            .iter()
+            .zip(table.t())
+            .all(|(a, b)| (a - b).abs() <= 1e-9 * b.abs().max(1e-9));
+    if !same {
+        return Err(springmass::Error::invalid(
+            "force",
+            fpath.display(),
+            "a CSV with the same times as --data",
+        )
+        .into());
     }
-    opts.validate(&obs, &model)?;
-    let report = dfit::fit(&obs, &model, &opts)?;
-    if let Some(p) = &report.predicted {
-        if let Some(out) = &a.out_csv {
-            springmass::series::TimeSeries::new(
-                p.t.clone(),
-                vec![
-                    ("observed".into(), p.observed.clone()),
-                    ("model".into(), p.model.clone()),
-                    ("residual".into(), p.residual.clone()),
-                ],
-            )?
-            .write_csv(out)?;
-        }
-        if let Some(svg) = &a.plot {
-            let pts = |y: &[f64]| {
-                p.t.iter()
-                    .copied()
-                    .zip(y.iter().copied())
-                    .collect::<Vec<_>>()
-            };
-            springmass::plot::LinePlot::new(
-                format!(
-                    "fit of {} (k = {}, {})",
-                    path.display(),
-                    report.k,
-                    report.status.name()
-                ),
-                "t",
-                "x",
-            )
-            .line(springmass::plot::Line::new("observed", pts(&p.observed)))
-            .line(springmass::plot::Line::new("model", pts(&p.model)).dashed())
-            .line(springmass::plot::Line::new("residual", pts(&p.residual)))
-            .write_svg(svg)?;
-        }
+    Ok(force_column(&ft, a.force_column.as_deref())?)
+}
+
+/// `job`, with a spinner and the elapsed time on stderr while it runs when
+/// stderr is a terminal (nothing when piped, or with `quiet`: --json).
+fn with_spinner<T>(quiet: bool, what: &str, job: impl FnOnce() -> T) -> T {
+    use std::io::IsTerminal;
+    if quiet || !std::io::stderr().is_terminal() {
+        return job();
     }
-    if a.json {
-        println!("{}", json_report(&report)?);
+    let pb = indicatif::ProgressBar::new_spinner();
+    if let Ok(style) = indicatif::ProgressStyle::with_template("{spinner} {msg} ({elapsed})") {
+        pb.set_style(style);
+    }
+    pb.set_message(what.to_string());
+    pb.enable_steady_tick(std::time::Duration::from_millis(120));
+    let out = job();
+    pb.finish_and_clear();
+    out
+}
+
+/// The fit plot: the record and the model on top, the residual below on
+/// its own axis with the noise band (+-1 sigma and +-2 sigma); the title
+/// carries the fit's status and whether the model fits the data.
+fn fit_plot(
+    path: &std::path::Path,
+    r: &springmass::detect::fit::FitReport,
+    p: &springmass::detect::fit::report::Predicted,
+    axes: &AxisNames,
+) -> springmass::plot::LinePlot {
+    use springmass::plot::{Line, LinePlot};
+    let pts = |y: &[f64]| {
+        p.t.iter()
+            .copied()
+            .zip(y.iter().copied())
+            .collect::<Vec<_>>()
+    };
+    let band = |w: f64| -> Vec<(f64, f64, f64)> {
+        p.t.iter()
+            .map(|&t| (t, -w * r.noise_sigma, w * r.noise_sigma))
+            .collect()
+    };
+    let verdict = if r.fits_data {
+        format!("fits the data (p = {:.2})", r.fit_p_value)
     } else {
-        print!("{}", report.summary());
-    }
-    Ok(())
+        format!("does NOT fit the data (p = {:.1e})", r.fit_p_value)
+    };
+    let file = path
+        .file_name()
+        .unwrap_or(path.as_os_str())
+        .to_string_lossy();
+    let title = format!("fit of {file}: k = {}, {}, {verdict}", r.k, r.status.name());
+    let (top, bottom) = ("data and model", "residual (data - model)");
+    LinePlot::new(title, axes.t.clone(), axes.x.clone())
+        .line(Line::new("observed", pts(&p.observed)).panel(top))
+        .line(Line::new("model", pts(&p.model)).dashed().panel(top))
+        .line(
+            Line::new("noise +-2 sigma", Vec::new())
+                .band(band(2.0))
+                .panel(bottom),
+        )
+        .line(Line::new("residual", pts(&p.residual)).panel(bottom))
+        .own_y(true)
+        .columns(1)
+        .panel_y_labels(vec![axes.x.clone(), format!("residual {}", axes.x)])
+        .size(1000, 720)
 }
 
 /// How the truth of a scene compares with its fitted profile: the visible

@@ -347,6 +347,21 @@ fn categories(records: &[Record], column: &str) -> Option<Vec<String>> {
     Some(names)
 }
 
+/// The 95% Wilson score interval of a rate: `k` successes in `n` runs
+/// (`[0, 1]` for no runs). Unlike `p +- 1.96 sqrt(p (1 - p) / n)` it stays
+/// inside `[0, 1]` and is not empty at a rate of 0 or 1.
+pub fn wilson_interval(k: f64, n: f64) -> (f64, f64) {
+    if n <= 0.0 {
+        return (0.0, 1.0);
+    }
+    let z = 1.959_963_984_540_054;
+    let p = (k / n).clamp(0.0, 1.0);
+    let z2n = z * z / n;
+    let centre = (p + z2n / 2.0) / (1.0 + z2n);
+    let half = z * (p * (1.0 - p) / n + z2n / (4.0 * n)).sqrt() / (1.0 + z2n);
+    ((centre - half).max(0.0), (centre + half).min(1.0))
+}
+
 /// Build the chart of one plot spec: a categorical x axis (points side by
 /// side, no joining lines) when the x column is not numeric, integer ticks
 /// when every x is an integer, `[0, 1]` for a rate, small multiples beyond
@@ -362,10 +377,19 @@ pub fn plot_chart(records: &[Record], spec: &PlotSpec) -> Result<LinePlot> {
         .clone()
         .unwrap_or_else(|| format!("{} of {} against {}", spec.aggregate.name(), spec.y, spec.x));
     let cats = categories(records, &spec.x);
+    let rate = spec.aggregate == Aggregate::Rate;
+    let y_label = if rate {
+        // a reader's label, not the metric's name: `rate positions_ok` was
+        // read as a number of positions
+        let what = spec.y.replace('_', " ");
+        format!("fraction of runs with {what} (bars: 95% Wilson interval)")
+    } else {
+        format!("{} {}", spec.aggregate.name(), spec.y)
+    };
     let mut chart = LinePlot::new(
         title,
         with_unit(spec.x.clone(), &spec.x),
-        with_unit(format!("{} {}", spec.aggregate.name(), spec.y), &spec.y),
+        with_unit(y_label, &spec.y),
     )
     .log_x(spec.logx && cats.is_none())
     .log_y(spec.logy);
@@ -374,7 +398,9 @@ pub fn plot_chart(records: &[Record], spec: &PlotSpec) -> Result<LinePlot> {
     }
     let mut all_integer = true;
     let series: Vec<String> = spec.series.iter().cloned().collect();
-    for (key, recs) in group(records, &series) {
+    let groups = group(records, &series);
+    let m = groups.len();
+    for (gi, (key, recs)) in groups.into_iter().enumerate() {
         let mut xs: Vec<(f64, Vec<f64>)> = Vec::new();
         for r in recs.iter().filter(|r| r.ok()) {
             let number = match &cats {
@@ -399,17 +425,32 @@ pub fn plot_chart(records: &[Record], spec: &PlotSpec) -> Result<LinePlot> {
                 None => xs.push((x, vec![y])),
             }
         }
-        let mut pts: Vec<(f64, f64)> = xs
+        let mut rows: Vec<(f64, f64, (f64, f64))> = xs
             .into_iter()
-            .filter_map(|(x, v)| aggregate(spec.aggregate, &v).map(|y| (x, y)))
+            .filter_map(|(x, v)| {
+                let y = aggregate(spec.aggregate, &v)?;
+                let runs = v.iter().filter(|x| !x.is_nan()).count() as f64;
+                Some((x, y, wilson_interval(y * runs, runs)))
+            })
             .collect();
-        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-        all_integer &= pts.iter().all(|p| p.0.fract() == 0.0);
+        rows.sort_by(|a, b| a.0.total_cmp(&b.0));
+        all_integer &= rows.iter().all(|p| p.0.fract() == 0.0);
+        // rates of several series on a log axis, side by side (lines at 1
+        // would hide each other): 0.02 decades apart
+        let shift = if rate && m > 1 && spec.logx && cats.is_none() {
+            10f64.powf(0.02 * (gi as f64 - (m as f64 - 1.0) / 2.0))
+        } else {
+            1.0
+        };
+        let pts: Vec<(f64, f64)> = rows.iter().map(|r| (r.0 * shift, r.1)).collect();
         let label = match &spec.series {
             Some(s) => format!("{s} = {}", key.join(", ")),
             None => String::new(),
         };
-        let line = Line::new(label, pts.clone());
+        let mut line = Line::new(label, pts.clone());
+        if rate {
+            line = line.errors(rows.iter().map(|r| r.2).collect());
+        }
         chart = chart.line(if pts.len() == 1 { line.markers() } else { line });
     }
     Ok(match cats {
@@ -880,6 +921,19 @@ pub fn write(study: &Study, records: &[Record], out: &Path) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn wilson_intervals_hold_the_rate_and_stay_in_the_unit_interval() {
+        // 20 of 20: the lower end is 0.839 (textbook value), the upper 1
+        let (lo, hi) = wilson_interval(20.0, 20.0);
+        assert!((lo - 0.8389).abs() < 1e-4 && hi == 1.0, "{lo} {hi}");
+        let (lo, hi) = wilson_interval(0.0, 20.0);
+        assert!(lo == 0.0 && (hi - 0.1611).abs() < 1e-4, "{lo} {hi}");
+        // 10 of 20: symmetric around 1/2
+        let (lo, hi) = wilson_interval(10.0, 20.0);
+        assert!((lo + hi - 1.0).abs() < 1e-12 && (lo - 0.2993).abs() < 1e-4);
+        assert_eq!(wilson_interval(0.0, 0.0), (0.0, 1.0));
+    }
 
     #[test]
     fn aggregates() {

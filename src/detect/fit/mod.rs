@@ -115,7 +115,7 @@ pub fn fit_profile(
     model: &Model,
     opts: &profile::ProfileOptions,
 ) -> Result<profile::ProfileReport> {
-    profile::fit_profile_with(obs, model, opts, Some(&fit))
+    crate::cancel::checked(profile::fit_profile_with(obs, model, opts, Some(&fit)))
 }
 
 /// [`fit`] with unknowns and search details given by the caller (the scene
@@ -203,7 +203,7 @@ fn fit_every_k(
     let mut evaluations = 0;
     let mut fits: Vec<KFit> = Vec::with_capacity(ks.len());
     for &k in &ks {
-        let f = engine.fit_k(k, sigma)?;
+        let f = crate::cancel::checked(engine.fit_k(k, sigma))?;
         evaluations += f.evaluations;
         fits.push(f);
         if let DefectCount::Auto { .. } = engine.opts.defects {
@@ -218,7 +218,7 @@ fn fit_every_k(
             sigma = s_hat;
             let mut refit = Vec::with_capacity(fits.len());
             for f in &fits {
-                let g = engine.fit_k(f.k, sigma)?;
+                let g = crate::cancel::checked(engine.fit_k(f.k, sigma))?;
                 evaluations += g.evaluations;
                 refit.push(g);
             }

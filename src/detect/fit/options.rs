@@ -330,6 +330,18 @@ impl FitSpec {
         if let Some(d) = &self.defects {
             opts.defects = DefectCount::parse(d)?;
         }
+        if opts.defects
+            == (DefectCount::Auto {
+                k_max: DEFAULT_K_MAX,
+            })
+            && self.defects.as_deref().is_none_or(|d| d.trim() == "auto")
+        {
+            // the default tries at most what the chain holds (a 3-mass
+            // chain: 0..=3); an explicit `auto:K` above n stays an error
+            opts.defects = DefectCount::Auto {
+                k_max: DEFAULT_K_MAX.min(self.n),
+            };
+        }
         if let Some(k) = &self.kinds {
             opts.kinds = parse_kinds(k)?;
         }
@@ -517,6 +529,29 @@ mod tests {
             Error::Parse { what, .. } => what,
             e => panic!("unexpected {e}"),
         }
+    }
+
+    #[test]
+    fn the_default_number_of_defects_is_capped_at_n() {
+        for n in 1..=5 {
+            let opts = FitSpec::new(n).options().unwrap();
+            let want = DefectCount::Auto { k_max: n.min(4) };
+            assert_eq!(opts.defects, want, "n = {n}");
+            let spec = FitSpec {
+                defects: Some(" auto ".into()),
+                ..FitSpec::new(n)
+            };
+            assert_eq!(spec.options().unwrap().defects, want, "n = {n}, auto");
+        }
+        // an explicit k_max above n stays the user's error
+        let spec = FitSpec {
+            defects: Some("auto:4".into()),
+            ..FitSpec::new(3)
+        };
+        assert_eq!(
+            spec.options().unwrap().defects,
+            DefectCount::Auto { k_max: 4 }
+        );
     }
 
     #[test]

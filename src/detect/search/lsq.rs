@@ -75,22 +75,40 @@ pub fn central_jacobian<P: LeastSquares + ?Sized>(
 ) -> Result<DMatrix<f64>> {
     let mut cols: Vec<Vec<f64>> = Vec::with_capacity(theta.len());
     let mut th = theta.to_vec();
-    for j in 0..theta.len() {
-        let h = rel * theta[j].abs().max(1e-3);
-        th[j] = theta[j] + h;
-        let up = p.residuals(&th)?;
-        th[j] = theta[j] - h;
-        let dn = p.residuals(&th)?;
-        th[j] = theta[j];
-        cols.push(
-            up.iter()
-                .zip(&dn)
-                .map(|(a, b)| (a - b) / (2.0 * h))
-                .collect(),
-        );
+    for (j, v) in theta.iter().enumerate() {
+        let h = rel * v.abs().max(1e-3);
+        cols.push(difference_column(p, &mut th, j, h)?);
     }
     let m = cols.first().map_or(0, Vec::len);
     Ok(DMatrix::from_fn(m, theta.len(), |i, j| cols[j][i]))
+}
+
+/// Column `j` of [`central_jacobian`] at `th` with step `h`: the central
+/// difference; when one side leaves the model's domain (a value on or near
+/// a bound such as `d >= 0` or `m > 0`, where `th[j] - h` is invalid), the
+/// one-sided difference on the other side, so that the step never reaches
+/// the caller as an error about a value the user did not give.
+fn difference_column<P: LeastSquares + ?Sized>(
+    p: &P,
+    th: &mut [f64],
+    j: usize,
+    h: f64,
+) -> Result<Vec<f64>> {
+    let v = th[j];
+    th[j] = v + h;
+    let up = p.residuals(th);
+    th[j] = v - h;
+    let dn = p.residuals(th);
+    th[j] = v;
+    let diff = |a: &[f64], b: &[f64], w: f64| -> Vec<f64> {
+        a.iter().zip(b).map(|(a, b)| (a - b) / w).collect()
+    };
+    match (up, dn) {
+        (Ok(up), Ok(dn)) => Ok(diff(&up, &dn, 2.0 * h)),
+        (Ok(up), Err(_)) => Ok(diff(&up, &p.residuals(th)?, h)),
+        (Err(_), Ok(dn)) => Ok(diff(&p.residuals(th)?, &dn, h)),
+        (Err(e), Err(_)) => Err(e),
+    }
 }
 
 /// Options of [`lm_normal`] and [`levenberg_marquardt`].
@@ -283,6 +301,7 @@ fn iterate<P: NormalEquations + ?Sized>(
     let (mut iterations, mut evaluations) = (1, 1);
     let (mut mu, mut converged) = (opts.mu0, false);
     while iterations <= opts.max_iter {
+        crate::cancel::check()?;
         if chi2 == 0.0 {
             converged = true;
             break;
@@ -823,6 +842,50 @@ mod tests {
             &LmOptions::default()
         )
         .is_err());
+    }
+
+    /// `y = a t` with `a >= 0` required by the model (as `d >= 0`): a
+    /// negative `a` is an error, as a chain with a negative damping is.
+    struct NonNegative {
+        t: Vec<f64>,
+        y: Vec<f64>,
+    }
+    impl LeastSquares for NonNegative {
+        fn residuals(&self, p: &[f64]) -> Result<Vec<f64>> {
+            if p[0] < 0.0 {
+                return Err(Error::invalid("a", p[0], "a >= 0"));
+            }
+            Ok(self
+                .t
+                .iter()
+                .zip(&self.y)
+                .map(|(t, y)| p[0] * t - y)
+                .collect())
+        }
+    }
+
+    #[test]
+    fn the_difference_step_never_leaves_the_domain_at_a_bound() {
+        let t: Vec<f64> = (0..20).map(f64::from).collect();
+        // the data want a < 0: the fit ends on the bound a = 0, where the
+        // central difference would evaluate a = -1e-9
+        let y: Vec<f64> = t.iter().map(|t| -0.5 * t).collect();
+        let pr = NonNegative { t: t.clone(), y };
+        let j = central_jacobian(&pr, &[0.0], 1e-6).unwrap();
+        for (i, &ti) in t.iter().enumerate() {
+            assert!(
+                (j[(i, 0)] - ti).abs() <= 1e-6 * ti.max(1.0),
+                "{}",
+                j[(i, 0)]
+            );
+        }
+        let f = levenberg_marquardt(&pr, &[0.0], &[(0.0, 10.0)], &LmOptions::default()).unwrap();
+        assert_eq!(f.theta, vec![0.0]);
+        // inside the domain the central difference is unchanged
+        let y: Vec<f64> = t.iter().map(|t| 2.0 * t).collect();
+        let pr = NonNegative { t, y };
+        let f = levenberg_marquardt(&pr, &[1.0], &[(0.0, 10.0)], &LmOptions::default()).unwrap();
+        assert!((f.theta[0] - 2.0).abs() < 1e-10, "{:?}", f.theta);
     }
 
     /// Rosenbrock as least squares, `r = (10 (y - x^2), 1 - x)`, given by
