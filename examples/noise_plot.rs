@@ -23,7 +23,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map_or("out/examples/noise-success.svg", |s| s.as_str());
     let text = std::fs::read_to_string(input).map_err(|e| format!("{input}: {e}"))?;
     // system,misfit,level,runs,successes,positions_ok
-    let mut cells: Vec<(String, String, f64, f64, (f64, f64))> = Vec::new();
+    type Cell = (String, String, f64, f64, (f64, f64));
+    let mut cells: Vec<Cell> = Vec::new();
     for (i, line) in text.lines().enumerate().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
         if f.len() != 6 {
@@ -33,7 +34,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let ci = wilson_interval(ok, runs);
         cells.push((f[0].into(), f[1].into(), f[2].parse()?, ok / runs, ci));
     }
-    type Cell = (String, String, f64, f64, (f64, f64));
     let order = |pick: fn(&Cell) -> &String| {
         let mut v: Vec<String> = Vec::new();
         for c in &cells {

@@ -32,6 +32,8 @@ mod fit_data;
 mod forward;
 #[path = "ground.rs"]
 mod ground;
+#[path = "hardening_fuzz.rs"]
+mod hardening_fuzz;
 #[path = "inverse.rs"]
 mod inverse;
 #[cfg(feature = "bigfloat")]
