@@ -51,10 +51,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .unwrap_or("?");
     let mut plot = LinePlot::new(
         format!(
-            "Positions exact and masses within 5% ({runs} seeds per point), one panel per system"
+            "Positions exact and masses within 5% ({runs} seeds per point; bars: 95% Wilson interval)"
         ),
         "noise level (relative to max |x_1|)",
-        "fraction of runs recovered (bars: 95% Wilson interval)",
+        "fraction recovered",
     )
     .log_x(true)
     .rate();

@@ -440,11 +440,7 @@ fn laplace<'py>(
             let rows = tr.eval_many(&s)?;
             // as `springmass laplace`: a value or error beyond f64 is refused
             for v in &rows {
-                let finite = [v.value.re, v.value.im, v.err, v.err_disc, v.err_trunc]
-                    .iter()
-                    .chain(v.noise_var.as_ref())
-                    .all(|x| x.is_finite());
-                if !finite {
+                if !v.is_finite() {
                     return Err(Error::Unresolvable {
                         reason: format!(
                             "X({}{:+}i) or its error estimate is not representable in f64 (got {} {:+}i, err {})",

@@ -87,11 +87,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut rows = Vec::with_capacity(a.s.len());
     for (text, &s) in a.s.iter().zip(&s_values) {
         let v = tr.eval(s).with_context(|| format!("at s = {text}"))?;
-        let finite = [v.value.re, v.value.im, v.err, v.err_disc, v.err_trunc]
-            .iter()
-            .chain(v.noise_var.as_ref())
-            .all(|x| x.is_finite());
-        if !finite {
+        if !v.is_finite() {
             return Err(Error::Unresolvable {
                 reason: format!(
                     "X({text}) or its error estimate is not representable in f64 (got {} {:+}i, err {})",

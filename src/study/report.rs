@@ -372,17 +372,21 @@ pub fn wilson_interval(k: f64, n: f64) -> (f64, f64) {
 /// not a number.
 pub fn plot_chart(records: &[Record], spec: &PlotSpec) -> Result<LinePlot> {
     let records = &of_part(records, spec.part.as_deref())[..];
-    let title = spec
+    let rate = spec.aggregate == Aggregate::Rate;
+    let mut title = spec
         .title
         .clone()
         .unwrap_or_else(|| format!("{} of {} against {}", spec.aggregate.name(), spec.y, spec.x));
+    if rate {
+        // in the title, not the y label: a label longer than a panel's
+        // height runs into the next row's
+        title.push_str(" (bars: 95% Wilson interval)");
+    }
     let cats = categories(records, &spec.x);
-    let rate = spec.aggregate == Aggregate::Rate;
     let y_label = if rate {
         // a reader's label, not the metric's name: `rate positions_ok` was
         // read as a number of positions
-        let what = spec.y.replace('_', " ");
-        format!("fraction of runs with {what} (bars: 95% Wilson interval)")
+        format!("fraction with {}", spec.y.replace('_', " "))
     } else {
         format!("{} {}", spec.aggregate.name(), spec.y)
     };

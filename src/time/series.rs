@@ -157,6 +157,23 @@ pub struct LaplaceValue {
     pub noise_var: Option<f64>,
 }
 
+impl LaplaceValue {
+    /// Whether the value and every error estimate are finite (representable
+    /// in f64).
+    pub fn is_finite(&self) -> bool {
+        [
+            self.value.re,
+            self.value.im,
+            self.err,
+            self.err_disc,
+            self.err_trunc,
+        ]
+        .iter()
+        .chain(self.noise_var.as_ref())
+        .all(|x| x.is_finite())
+    }
+}
+
 /// Exponential envelope of the end of the record: `|x(t)| <= amp e^{-rate (t - t_end)}`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Envelope {
