@@ -15,6 +15,8 @@ pub const RESULTS: &str = "results.jsonl";
 pub const STUDY_COPY: &str = "study.toml";
 /// The manifest.
 pub const MANIFEST: &str = "manifest.json";
+/// The lock file of a study folder: one run at a time per `--out`.
+pub const LOCK: &str = ".lock";
 
 /// The record of one finished case: one line of `results.jsonl`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -186,7 +188,7 @@ pub fn check_out_folder(out: &Path) -> Result<()> {
         let e = e.map_err(|e| Error::io(out, e))?;
         let name = e.file_name().to_string_lossy().into_owned();
         // the lock of a run that has not written its manifest yet
-        if name != super::run::LOCK {
+        if name != LOCK {
             names.push(name);
         }
     }

@@ -307,8 +307,9 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
     })
 }
 
-/// The lock file of a study folder: one run at a time per `--out`.
-pub const LOCK: &str = ".lock";
+/// The lock file of a study folder (defined with the folder's other file
+/// names).
+pub use super::records::LOCK;
 
 /// Whether process `pid` is alive (Linux: `/proc/PID`; elsewhere every
 /// process is taken as alive, so nothing of another run is touched).
