@@ -89,6 +89,7 @@ pub struct Args {
 
 /// Largest `--precision` (bits): the same cap as a study's locate case, so
 /// that a run ends in seconds.
+#[cfg(feature = "bigfloat")]
 pub const MAX_CLI_BITS: usize = 4096;
 
 enum Outcome {

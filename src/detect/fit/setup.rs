@@ -61,13 +61,13 @@ pub struct Setup {
     /// With the time misfit, the shortlist's sets refitted in the time
     /// domain: the best two on the Laplace line and every set whose Laplace
     /// chi-square is within `time_slack` of the best (default 25; see
-    /// [`fit_general`]); `f64::INFINITY`: every set of the shortlist. The
+    /// [`fit_general`](crate::detect::fit::general::fit_general)); `f64::INFINITY`: every set of the shortlist. The
     /// sets left out are not ranked: the runner-up is the best refitted
     /// set, and when it is more than the slack behind, a set left out may
     /// be closer (never within the slack).
     pub time_slack: f64,
     /// Fit the screen's and the coarse pass's sets on the rational form of
-    /// their Laplace model ([`SetTables`], default true) where it applies;
+    /// their Laplace model ([`SetTables`](crate::detect::misfit::laplace_sets::SetTables), default true) where it applies;
     /// `false`: a transfer sweep per node and evaluation.
     pub rational_sets: bool,
     /// Time-domain Jacobian exact where it applies
