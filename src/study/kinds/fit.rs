@@ -228,13 +228,9 @@ fn unknowns_problems(scene: &FitScene, out: &mut Vec<Error>) {
             out.push(e);
         }
         if !scene.search.method.search().general_scene {
-            out.push(Error::invalid(
-                "search.method",
-                scene.search.method.name(),
-                format!(
-                    "{} for the general fit (non-mass kinds, chain parameters or the time misfit)",
-                    crate::detect::search::registry::names(|s| s.general_scene, "or")
-                ),
+            out.push(method_problem(
+                scene,
+                "for the general fit (non-mass kinds, chain parameters or the time misfit)",
             ));
         }
         if scene.misfit.kind == crate::detect::misfit::MisfitKind::Time
@@ -251,18 +247,27 @@ fn unknowns_problems(scene: &FitScene, out: &mut Vec<Error>) {
             Err(e) => out.push(e),
             Ok(u) => {
                 if !scene.search.method.search().general_scene && !u.interchangeable() {
-                    out.push(Error::invalid(
-                        "search.method",
-                        scene.search.method.name(),
-                        format!(
-                            "{} when the defects at unknown positions differ (known, unequal masses or unequal bounds)",
-                            crate::detect::search::registry::names(|s| s.general_scene, "or")
-                        ),
+                    out.push(method_problem(
+                        scene,
+                        "when the defects at unknown positions differ (known, unequal masses or unequal bounds)",
                     ));
                 }
             }
         }
     }
+}
+
+/// `search.method` refused: the searches the general fit takes are allowed
+/// `when`.
+fn method_problem(scene: &FitScene, when: &str) -> Error {
+    Error::invalid(
+        "search.method",
+        scene.search.method.name(),
+        format!(
+            "{} {when}",
+            crate::detect::search::registry::names(|s| s.general_scene, "or")
+        ),
+    )
 }
 
 /// The problems of `[data]`.
