@@ -3,6 +3,7 @@
 //! hypotheses.
 
 use crate::chain::{Chain, Defect};
+use crate::detect::search::lsq::LmFit;
 use crate::detect::unknowns::{DefectKind, KindPositions};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
@@ -54,6 +55,41 @@ impl Hypothesis {
             chain,
             chi2,
             converged: true,
+        }
+    }
+
+    /// The hypothesis of a Levenberg-Marquardt fit `lm` over `params` whose
+    /// chain is `fitted`, with `n_defects` defects: each fitted defect's
+    /// standard error (0 for one not among `params`), the other parameters
+    /// as fitted chain parameters named by `name`; `converged` as the fit's.
+    pub(crate) fn from_fit(
+        params: &[Param],
+        lm: &LmFit,
+        fitted: &Chain,
+        n_defects: usize,
+        name: impl Fn(&Param) -> String,
+    ) -> Hypothesis {
+        let se = lm
+            .std_errors()
+            .unwrap_or_else(|_| vec![f64::NAN; params.len()]);
+        let mut std_errors = vec![0.0; n_defects];
+        let mut chain = Vec::new();
+        for (j, p) in params.iter().enumerate() {
+            match p {
+                Param::Defect(i) => std_errors[*i] = se[j],
+                _ => chain.push(FittedParam {
+                    name: name(p),
+                    value: lm.theta[j],
+                    std_error: se[j],
+                }),
+            }
+        }
+        Hypothesis {
+            defects: fitted.defects().to_vec(),
+            std_errors,
+            chain,
+            chi2: lm.chi2,
+            converged: lm.converged,
         }
     }
 

@@ -618,13 +618,7 @@ mod tests {
 
     #[test]
     fn system1_with_noise_every_misfit() {
-        let truth = Chain::paper(5)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 2, m: 3.0 },
-                Defect::Mass { at: 4, m: 0.5 },
-            ])
-            .unwrap();
+        let truth = crate::scenes::paper_with(5, "mass:2:3.0 mass:4:0.5").unwrap();
         let data =
             TimeData::simulate(&truth, 200.0, 0.2, NoiseLevel::RelativeMax(1e-3), 3).unwrap();
         let setup = Setup::new().unwrap();

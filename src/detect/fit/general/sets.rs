@@ -3,7 +3,7 @@
 //! Laplace model where it applies (else the chain), and the fit to
 //! convergence from two starts.
 
-use super::{FittedParam, Hypothesis};
+use super::Hypothesis;
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::fit::chainfit::ChainProblem;
@@ -311,30 +311,9 @@ pub(super) fn fit_pairs(
     }
     let problem = ChainProblem::new(&chain, &params, obs)?;
     let lm = levenberg_marquardt(&problem, &theta0, &bounds, &tol.options(max_iter))?;
-    let se = lm
-        .std_errors()
-        .unwrap_or_else(|_| vec![f64::NAN; params.len()]);
     let fitted = problem.chain(&lm.theta)?;
-    let mut std_errors = vec![0.0; pairs.len()];
-    let mut fitted_chain = Vec::new();
-    for (j, p) in params.iter().enumerate() {
-        match p {
-            Param::Defect(i) => std_errors[*i] = se[j],
-            _ => fitted_chain.push(FittedParam {
-                name: p.name(&fitted),
-                value: lm.theta[j],
-                std_error: se[j],
-            }),
-        }
-    }
     Ok(Fitted {
-        hyp: Hypothesis {
-            defects: fitted.defects().to_vec(),
-            std_errors,
-            chain: fitted_chain,
-            chi2: lm.chi2,
-            converged: lm.converged,
-        },
+        hyp: Hypothesis::from_fit(&params, &lm, &fitted, pairs.len(), |p| p.name(&fitted)),
         evaluations: lm.evaluations,
         m: lm.m,
     })
