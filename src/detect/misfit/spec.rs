@@ -196,55 +196,32 @@ impl MisfitSpec {
                 ));
             }
         }
-        match self.kind {
-            MisfitKind::RealAxis => {
-                if !(self.s_max.is_finite() && self.s_max > 0.0) {
-                    return Err(Error::invalid("misfit.s_max", self.s_max, "> 0 and finite"));
-                }
-                match self.rule.unwrap_or(RuleKind::GlLog) {
-                    RuleKind::GlLog => Rule::gauss_legendre_log(
-                        0.0,
-                        self.s_max,
-                        self.panels.unwrap_or(10),
-                        per,
-                        self.first.unwrap_or(0.05),
-                    ),
-                    RuleKind::GlUniform => Rule::gauss_legendre_uniform(
-                        0.0,
-                        self.s_max,
-                        self.panels.unwrap_or(40),
-                        per,
-                    ),
-                }
-            }
+        // the integration variable runs over [0, end]; each kind has its own
+        // default rule
+        let (field, end, default_rule) = match self.kind {
+            MisfitKind::RealAxis => ("misfit.s_max", self.s_max, RuleKind::GlLog),
             MisfitKind::Bromwich => {
                 if !(self.sigma.is_finite() && self.sigma > 0.0) {
                     return Err(Error::invalid("misfit.sigma", self.sigma, "> 0 and finite"));
                 }
-                if !(self.omega_max.is_finite() && self.omega_max > 0.0) {
-                    return Err(Error::invalid(
-                        "misfit.omega_max",
-                        self.omega_max,
-                        "> 0 and finite",
-                    ));
-                }
-                match self.rule.unwrap_or(RuleKind::GlUniform) {
-                    RuleKind::GlUniform => Rule::gauss_legendre_uniform(
-                        0.0,
-                        self.omega_max,
-                        self.panels.unwrap_or(40),
-                        per,
-                    ),
-                    RuleKind::GlLog => Rule::gauss_legendre_log(
-                        0.0,
-                        self.omega_max,
-                        self.panels.unwrap_or(10),
-                        per,
-                        self.first.unwrap_or(0.05),
-                    ),
-                }
+                ("misfit.omega_max", self.omega_max, RuleKind::GlUniform)
             }
-            MisfitKind::Time => Err(time_has_no_rule()),
+            MisfitKind::Time => return Err(time_has_no_rule()),
+        };
+        if !(end.is_finite() && end > 0.0) {
+            return Err(Error::invalid(field, end, "> 0 and finite"));
+        }
+        match self.rule.unwrap_or(default_rule) {
+            RuleKind::GlLog => Rule::gauss_legendre_log(
+                0.0,
+                end,
+                self.panels.unwrap_or(10),
+                per,
+                self.first.unwrap_or(0.05),
+            ),
+            RuleKind::GlUniform => {
+                Rule::gauss_legendre_uniform(0.0, end, self.panels.unwrap_or(40), per)
+            }
         }
     }
 }

@@ -580,15 +580,20 @@ mod tests {
         }
     }
 
+    /// A GA of default options on [`space`] with seed `seed`.
+    fn genetic(seed: u64) -> Genetic {
+        Genetic::new(
+            space(),
+            GeneticOptions::default(),
+            NelderMeadOptions::default(),
+            seed,
+        )
+    }
+
     #[test]
     fn crossover_keeps_each_value_with_its_position() {
         let s = space();
-        let mut ga = Genetic::new(
-            s.clone(),
-            GeneticOptions::default(),
-            NelderMeadOptions::default(),
-            5,
-        );
+        let mut ga = genetic(5);
         let mut rng = ChaCha8Rng::seed_from_u64(9);
         for _ in 0..500 {
             let a = s.random_candidate(&mut rng);
@@ -613,12 +618,7 @@ mod tests {
     #[test]
     fn mutation_and_crossover_stay_in_space() {
         let s = space();
-        let mut ga = Genetic::new(
-            s.clone(),
-            GeneticOptions::default(),
-            NelderMeadOptions::default(),
-            1,
-        );
+        let mut ga = genetic(1);
         let mut rng = ChaCha8Rng::seed_from_u64(2);
         let mut moved = 0;
         for _ in 0..2000 {

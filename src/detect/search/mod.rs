@@ -756,50 +756,30 @@ mod tests {
         // group 1 lacks the second value
         let e = space().validate().unwrap_err();
         assert!(e.to_string().contains("space.pairing"), "{e}");
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.n_positions = 6;
-        assert!(s
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .contains("space.n_positions"));
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.bounds[1] = (2.0, 2.0);
-        assert!(s
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .contains("space.bounds[1]"));
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.bounds = vec![(0.0, 1.0); 2];
-        assert!(s.validate().unwrap_err().to_string().contains("log scale"));
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.bounds[0] = (f64::NAN, 1.0);
-        assert!(s.validate().is_err());
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.pairing[1] = Some(2);
-        assert!(s
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .contains("space.pairing[1]"));
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.log_scale.pop();
-        assert!(s
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .contains("space.log_scale"));
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.excluded = vec![6];
-        assert!(s
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .contains("space.excluded[0]"));
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.excluded = vec![1, 2, 3, 4];
-        assert!(s.validate().is_err());
+        // each spoiled field of a valid space, and the words of its error
+        type Spoil = fn(&mut Space);
+        let spoiled: [(Spoil, &str); 8] = [
+            (|s| s.n_positions = 6, "space.n_positions"),
+            (|s| s.bounds[1] = (2.0, 2.0), "space.bounds[1]"),
+            (|s| s.bounds = vec![(0.0, 1.0); 2], "log scale"),
+            (|s| s.bounds[0] = (f64::NAN, 1.0), ""),
+            (|s| s.pairing[1] = Some(2), "space.pairing[1]"),
+            (
+                |s| {
+                    s.log_scale.pop();
+                },
+                "space.log_scale",
+            ),
+            (|s| s.excluded = vec![6], "space.excluded[0]"),
+            (|s| s.excluded = vec![1, 2, 3, 4], ""),
+        ];
+        for (i, (spoil, words)) in spoiled.iter().enumerate() {
+            let mut s = Space::masses(5, 2, (0.1, 20.0));
+            s.validate().unwrap();
+            spoil(&mut s);
+            let e = s.validate().unwrap_err().to_string();
+            assert!(e.contains(words), "case {i}: {e}");
+        }
     }
 
     #[test]
