@@ -111,42 +111,24 @@ pub enum RuleKind {
 /// Bromwich line from the record
 /// ([`crate::detect::fit::general::Setup::for_record`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct MisfitSpec {
     /// `real-axis`, `bromwich` or `time`.
-    #[serde(default)]
     pub kind: MisfitKind,
     /// `gl-log` or `gl-uniform` (default by kind).
-    #[serde(default)]
     pub rule: Option<RuleKind>,
     /// Number of panels (default 10 real axis, 40 Bromwich).
-    #[serde(default)]
     pub panels: Option<usize>,
     /// Gauss points per panel (default 8).
-    #[serde(default)]
     pub per_panel: Option<usize>,
     /// End of the first log-graded panel (default 0.05).
-    #[serde(default)]
     pub first: Option<f64>,
     /// Upper limit of the real-axis integral (default 300).
-    #[serde(default = "default_s_max")]
     pub s_max: f64,
     /// Abscissa of the Bromwich line (default 0.1).
-    #[serde(default = "default_sigma")]
     pub sigma: f64,
     /// Upper limit of `omega` on the Bromwich line (default 4).
-    #[serde(default = "default_omega_max")]
     pub omega_max: f64,
-}
-
-fn default_s_max() -> f64 {
-    300.0
-}
-fn default_sigma() -> f64 {
-    0.1
-}
-fn default_omega_max() -> f64 {
-    4.0
 }
 
 impl Default for MisfitSpec {
@@ -157,9 +139,9 @@ impl Default for MisfitSpec {
             panels: None,
             per_panel: None,
             first: None,
-            s_max: default_s_max(),
-            sigma: default_sigma(),
-            omega_max: default_omega_max(),
+            s_max: 300.0,
+            sigma: 0.1,
+            omega_max: 4.0,
         }
     }
 }
