@@ -8,7 +8,7 @@
 //! driver on the normal equations ([`crate::detect::search::lsq::lm_normal`],
 //! with its active set), from the masses of the linearised fit when every
 //! mass of the set is free and the set is folded (one or two defects on
-//! the real axis: [`SetTable::linearized`], exact for noiseless data of the
+//! the real axis: [`SetTable::linearized`](crate::detect::misfit::SetTable::linearized), exact for noiseless data of the
 //! set's own model), else from the best point of a small grid of starts
 //! (`starts` per unknown mass, log-spaced, default 2). The Jacobian is
 //! analytic: `dX_1/dm_l = -gamma s^2 z_l^2` with
