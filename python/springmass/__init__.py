@@ -366,7 +366,8 @@ class FitResult:
         Final chi-square and its degrees of freedom.
     status : str
         ``"converged"``, ``"budget-exhausted"``, ``"stalled"``,
-        ``"value-at-bound"`` or ``"not-identifiable"``.
+        ``"model-mismatch"`` (the residual is not noise: the model does not
+        explain the record), ``"value-at-bound"`` or ``"not-identifiable"``.
     message : str
         One line on the status.
     resolved : bool

@@ -12,8 +12,10 @@
 //! error floor on the paper's residual.
 //!
 //! The status is the first that applies of: budget exhausted, stalled,
-//! value at bound, not identifiable (a defect flagged, or the runner-up
-//! within the bar), converged. `resolved` is, on the data path, converged
+//! model mismatch (on the data path: the residual is not noise, so no
+//! answer of this model explains the data), value at bound, not
+//! identifiable (a defect flagged, or the runner-up within the bar),
+//! converged. `resolved` is, on the data path, converged
 //! with the runner-up above the bar, every defect identifiable and the
 //! residual consistent with noise; on the scene path's floor, the
 //! runner-up above the floor (the scene's rule since its first version).
@@ -124,6 +126,12 @@ fn status(e: &Evidence<'_>, gap_ok: bool, threshold: f64, floor: bool) -> (Statu
             "the value fit of the best hypothesis stopped at its iteration limit without meeting its tolerance: the values may not be at the minimum".to_string(),
         );
     }
+    if !floor && !e.fits_data {
+        return (
+            Status::ModelMismatch,
+            "the best answer does not explain the data: its residual is not noise (see fits_data and its p-value); the chain, damping or noise model, or the record (an offset, a drift, a late trigger), differs from the data's".to_string(),
+        );
+    }
     if e.at_bound {
         return (
             Status::ValueAtBound,
@@ -232,13 +240,21 @@ mod tests {
             (v.status, v.message.as_str()),
             (Status::NotIdentifiable, "too close")
         );
-        // not consistent with noise: converged but never resolved
+        // not consistent with noise: a model mismatch, never resolved, and
+        // before a value on a bound (often its consequence)
         let misfit = Evidence {
             fits_data: false,
             ..ok.clone()
         };
-        let v = judge(&misfit, Bar::ChiSquare(9.0));
-        assert_eq!((v.status, v.resolved), (Status::Converged, false));
+        let v = judge(
+            &Evidence {
+                at_bound: true,
+                ..misfit.clone()
+            },
+            Bar::ChiSquare(9.0),
+        );
+        assert_eq!((v.status, v.resolved), (Status::ModelMismatch, false));
+        assert!(v.message.contains("not noise"), "{}", v.message);
         // the scene's floor: resolved is the gap alone
         let v = judge(&misfit, Bar::Floor(1.0));
         assert_eq!((v.status, v.resolved), (Status::Converged, true));

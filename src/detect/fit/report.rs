@@ -23,6 +23,11 @@ pub enum Status {
     /// The data cannot tell the answer from an alternative, or a defect from
     /// no defect, at this noise level.
     NotIdentifiable,
+    /// The best answer does not explain the data: its residual is not noise
+    /// (`fits_data` false). The chain, damping or noise model (or the
+    /// record: an offset, a drift, a late trigger) differs from the data's;
+    /// the positions and values are the best of a wrong model.
+    ModelMismatch,
 }
 
 impl Status {
@@ -34,6 +39,7 @@ impl Status {
             Status::Stalled => "stalled",
             Status::ValueAtBound => "value-at-bound",
             Status::NotIdentifiable => "not-identifiable",
+            Status::ModelMismatch => "model-mismatch",
         }
     }
 }
