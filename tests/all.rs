@@ -43,6 +43,8 @@ mod locate;
 mod long_chains;
 #[path = "long_search.rs"]
 mod long_search;
+#[path = "mismatch.rs"]
+mod mismatch;
 #[path = "noise.rs"]
 mod noise;
 #[path = "observables.rs"]
