@@ -268,32 +268,11 @@ impl<T: Scalar> Green<T> {
         (T::one() + self.lambda.scale(-(h as f64)).exp()).scale(0.5)
     }
 
-    /// `L_a`: `sinh(a lambda)` (fixed) or `cosh((a - 1/2) lambda)` (free).
-    fn left_point(&self, a: usize) -> Factor<T> {
-        match (self.left, self.stat) {
-            (Boundary::Fixed, true) => Factor {
-                half_exp: 0,
-                mant: T::from_f64(a as f64),
-            },
-            (Boundary::Fixed, false) => Factor {
-                half_exp: 2 * a,
-                mant: self.half_one_minus_q2p(a),
-            },
-            (Boundary::Free, true) => Factor {
-                half_exp: 0,
-                mant: T::one(),
-            },
-            (Boundary::Free, false) => Factor {
-                half_exp: 2 * a - 1,
-                mant: self.half_one_plus_q(2 * a - 1),
-            },
-        }
-    }
-
-    /// `R_b`: `sinh(p lambda)` (fixed) or `cosh((p - 1/2) lambda)` (free), `p = n + 1 - b`.
-    fn right_point(&self, b: usize) -> Factor<T> {
-        let p = self.n + 1 - b;
-        match (self.right, self.stat) {
+    /// The factor of an end `p` masses in: `sinh(p lambda)` at a fixed end,
+    /// `cosh((p - 1/2) lambda)` at a free one.
+    #[inline]
+    fn end_point(&self, end: Boundary, p: usize) -> Factor<T> {
+        match (end, self.stat) {
             (Boundary::Fixed, true) => Factor {
                 half_exp: 0,
                 mant: T::from_f64(p as f64),
@@ -311,6 +290,18 @@ impl<T: Scalar> Green<T> {
                 mant: self.half_one_plus_q(2 * p - 1),
             },
         }
+    }
+
+    /// `L_a`: `sinh(a lambda)` (fixed) or `cosh((a - 1/2) lambda)` (free).
+    #[inline]
+    fn left_point(&self, a: usize) -> Factor<T> {
+        self.end_point(self.left, a)
+    }
+
+    /// `R_b`: `sinh(p lambda)` (fixed) or `cosh((p - 1/2) lambda)` (free), `p = n + 1 - b`.
+    #[inline]
+    fn right_point(&self, b: usize) -> Factor<T> {
+        self.end_point(self.right, self.n + 1 - b)
     }
 
     /// `L_i - L_{i+1}`: fixed `-e^{(i+1) lambda} (1 + q^{2i+1}) (1 - q) / 2`,

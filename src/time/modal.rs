@@ -166,6 +166,25 @@ fn sinc_t(w2: f64, t: f64) -> f64 {
 }
 
 impl Term {
+    /// The term as `scale Re(r e^{p t})`, `(p, r, scale)`: scale 2 for a
+    /// pole pair and an oscillating [`Term::Osc`], 1 for a real pole; `None`
+    /// for an `Osc` with `w2 <= 0`, which has no such form.
+    #[inline]
+    fn exponential(&self) -> Option<(Complex64, Complex64, f64)> {
+        match *self {
+            Term::Pair { p, r } => Some((p, r, 2.0)),
+            Term::Osc { c, e, a, w2 } if w2 > 0.0 => {
+                let b = w2.sqrt();
+                Some((
+                    Complex64::new(-a, b),
+                    Complex64::new(0.5 * e, -0.5 * c / b),
+                    2.0,
+                ))
+            }
+            Term::Real { p, r } => Some((Complex64::new(p, 0.0), Complex64::new(r, 0.0), 1.0)),
+            Term::Osc { .. } => None,
+        }
+    }
     /// Value at `t >= 0`.
     pub fn eval(&self, t: f64) -> f64 {
         match *self {
@@ -450,19 +469,7 @@ impl ModalResponse {
         let mut terms = self.terms.iter().peekable();
         while let Some(term) = terms.next() {
             // the term as 2 Re(r e^{p t}) (pair) or r e^{p t} (real)
-            let stepped = match *term {
-                Term::Pair { p, r } => Some((p, r, 2.0)),
-                Term::Osc { c, e, a, w2 } if w2 > 0.0 => {
-                    let b = w2.sqrt();
-                    Some((
-                        Complex64::new(-a, b),
-                        Complex64::new(0.5 * e, -0.5 * c / b),
-                        2.0,
-                    ))
-                }
-                Term::Real { p, r } => Some((Complex64::new(p, 0.0), Complex64::new(r, 0.0), 1.0)),
-                Term::Osc { .. } => None,
-            };
+            let stepped = term.exponential();
             match stepped {
                 Some((pl, rl, sl)) => {
                     p[len] = pl;
@@ -1682,21 +1689,7 @@ mod tests {
             ] {
                 let mut slow = vec![0.0; ts.len()];
                 for term in r.terms() {
-                    let one = match *term {
-                        Term::Pair { p, r } => Some((p, r, 2.0)),
-                        Term::Osc { c, e, a, w2 } if w2 > 0.0 => {
-                            let b = w2.sqrt();
-                            Some((
-                                Complex64::new(-a, b),
-                                Complex64::new(0.5 * e, -0.5 * c / b),
-                                2.0,
-                            ))
-                        }
-                        Term::Real { p, r } => {
-                            Some((Complex64::new(p, 0.0), Complex64::new(r, 0.0), 1.0))
-                        }
-                        Term::Osc { .. } => None,
-                    };
+                    let one = term.exponential();
                     match one {
                         Some((p, rr, sc)) => step_terms(&mut slow, &ts, dt, &[p], &[rr], &[sc]),
                         None => {
