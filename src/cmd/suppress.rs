@@ -384,26 +384,32 @@ fn write_robustness(
     let n = sup.n();
     let rob = robustness(sup, scheme, input, opts, &a.robust_delays, &a.robust_gains)?;
     robust_csv(&out.join("robustness.csv"), &rob)?;
-    figures.push("robust_delay.svg".into());
-    robust_plot(
-        &out.join("robust_delay.svg"),
-        &format!(
-            "Delayed controls (n = {n}): residual at mass {} and visibility at mass 1",
-            n + 1
+    let plots = [
+        (
+            "robust_delay.svg",
+            "Delayed controls",
+            "delay tau",
+            [&rob.delay_all, &rob.delay_first],
         ),
-        "delay tau",
-        &[("all", &rob.delay_all), ("f only", &rob.delay_first)],
-    )?;
-    figures.push("robust_gain.svg".into());
-    robust_plot(
-        &out.join("robust_gain.svg"),
-        &format!(
-            "Gain error (n = {n}): residual at mass {} and visibility at mass 1",
-            n + 1
+        (
+            "robust_gain.svg",
+            "Gain error",
+            "relative gain error eps",
+            [&rob.gain_all, &rob.gain_first],
         ),
-        "relative gain error eps",
-        &[("all", &rob.gain_all), ("f only", &rob.gain_first)],
-    )?;
+    ];
+    for (file, what, x_label, [all, first]) in plots {
+        figures.push(file.into());
+        robust_plot(
+            &out.join(file),
+            &format!(
+                "{what} (n = {n}): residual at mass {} and visibility at mass 1",
+                n + 1
+            ),
+            x_label,
+            &[("all", all), ("f only", first)],
+        )?;
+    }
     Ok(rob)
 }
 
