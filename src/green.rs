@@ -480,16 +480,7 @@ mod tests {
         d: f64,
         s: Complex64,
     ) -> nalgebra::DMatrix<Complex64> {
-        let diag = s * s * mass + s * d + 2.0 * k;
-        let mut m = nalgebra::DMatrix::<Complex64>::zeros(n, n);
-        for i in 0..n {
-            m[(i, i)] = diag;
-            if i + 1 < n {
-                m[(i, i + 1)] = Complex64::new(-k, 0.0);
-                m[(i + 1, i)] = Complex64::new(-k, 0.0);
-            }
-        }
-        m.lu().try_inverse().unwrap()
+        dense_matrix(n, k, mass, d, s).lu().try_inverse().unwrap()
     }
 
     fn rel(a: Complex64, b: Complex64) -> f64 {
@@ -629,6 +620,7 @@ mod tests {
         assert!(g.is_singular() && !g.entry(1, 1).is_finite());
     }
 
+    /// The dynamic stiffness matrix of the uniform chain (fixed ends), dense.
     fn dense_matrix(
         n: usize,
         k: f64,

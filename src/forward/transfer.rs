@@ -678,33 +678,29 @@ mod tests {
         ];
         for c in &chains {
             for s in [0.0, 1e-7, 0.3, 7.0, 1e4] {
-                let r = tridiag::solve_all(c, s).unwrap();
-                let t = Transfer::new(c);
-                for o in 1..=c.n() {
-                    let x = t.eval(&s, o);
-                    assert!(
-                        (x - r[o - 1]).abs() <= 1e-13 * r[o - 1].abs() + 1e-300,
-                        "{c:?} s={s} o={o}: {x} vs {}",
-                        r[o - 1]
-                    );
-                }
+                matches_tridiagonal_at(c, s, 1e-13);
             }
             for s in [
                 Complex64::new(0.5, 2.0),
                 Complex64::new(0.01, 1.1),
                 Complex64::new(3.0, -80.0),
             ] {
-                let r = tridiag::solve_all(c, s).unwrap();
-                let t = Transfer::new(c);
-                for o in 1..=c.n() {
-                    let x = t.eval(&s, o);
-                    assert!(
-                        (x - r[o - 1]).norm() <= 1e-11 * r[o - 1].norm() + 1e-300,
-                        "{c:?} s={s} o={o}: {x} vs {}",
-                        r[o - 1]
-                    );
-                }
+                matches_tridiagonal_at(c, s, 1e-11);
             }
+        }
+    }
+
+    /// `Transfer::eval` at every mass of `c` against the tridiagonal solve
+    /// at `s`, within `rel` relative (plus 1e-300).
+    fn matches_tridiagonal_at<T: Scalar + std::fmt::Display>(c: &Chain, s: T, rel: f64) {
+        let r = tridiag::solve_all(c, s.clone()).unwrap();
+        let t = Transfer::new(c);
+        for (o, ro) in (1..=c.n()).zip(&r) {
+            let x = t.eval(&s, o);
+            assert!(
+                (x.clone() - ro.clone()).magnitude() <= rel * ro.magnitude() + 1e-300,
+                "{c:?} s={s} o={o}: {x} vs {ro}"
+            );
         }
     }
 }
