@@ -15,6 +15,15 @@
 //! All with `k = 1`, `d = 0.1`, `gamma = 1`, unit masses elsewhere (the
 //! conventions of `shared/reference/`).
 //!
+//! Test and bench fixtures (not from the paper), built by functions:
+//!
+//! | function | chain | use |
+//! |---|---|---|
+//! | [`mixed`]`(n)` | paper, `gamma = 1.3`; mass `(2, 3)`, spring `((n+1)/2, 0.6)`, damper `((n+1)/2+1, 0.3)`, wall spring `(n, 1.4)`, mass `(n-1, 0.5)` | a defect of every kind, a wall spring among them, and gamma (Jacobians, sensitivities) |
+//! | [`three_kinds`]`(n, [jm, jk, jd])` | paper; mass `(jm, 2)`, spring `(jk, 0.6)`, damper `(jd, 0.4)` | one defect of each kind (forward models, searches over every kind) |
+//! | [`frame6`], [`shear_frame`] | shear frames seen from the roof | spring profiles |
+//! | [`profile_chain`] | every mass differs ([`mass_profile`]) | mass profiles |
+//!
 //! ```
 //! use springmass::scenes;
 //! let s3 = scenes::table1(3)?;
@@ -83,6 +92,60 @@ pub fn truth(name: &str) -> Result<Vec<(usize, f64)>> {
     spec(&up)
         .map(|(_, d)| d.to_vec())
         .ok_or_else(|| Error::invalid("scene", name, all_names()))
+}
+
+/// A paper chain of `n >= 5` masses with a defect of every kind, a wall
+/// spring among them, and `gamma = 1.3`: mass `(2, 3.0)`, spring
+/// `((n+1)/2, 0.6)`, damper `((n+1)/2 + 1, 0.3)`, the right wall spring
+/// `(n, 1.4)` and mass `(n-1, 0.5)`, in that order (the order of
+/// [`Chain::defects`]).
+///
+/// ```
+/// use springmass::{scenes, chain::Defect};
+/// let c = scenes::mixed(7)?;
+/// assert_eq!(c.gamma(), 1.3);
+/// assert_eq!(c.defects()[3], Defect::Spring { at: 7, k: 1.4 });
+/// # Ok::<(), springmass::Error>(())
+/// ```
+///
+/// # Errors
+/// `n < 5` (the five defects need room) or `n` out of range.
+pub fn mixed(n: usize) -> Result<Chain> {
+    if n < 5 {
+        return Err(Error::invalid("n", n, "n >= 5"));
+    }
+    let mid = n.div_ceil(2);
+    Chain::paper(n)?.with_gamma(1.3)?.with_defects([
+        Defect::Mass { at: 2, m: 3.0 },
+        Defect::Spring { at: mid, k: 0.6 },
+        Defect::Damper {
+            at: mid + 1,
+            d: 0.3,
+        },
+        Defect::Spring { at: n, k: 1.4 },
+        Defect::Mass { at: n - 1, m: 0.5 },
+    ])
+}
+
+/// A paper chain of `n` masses with one defect of each kind at `at =
+/// [mass, spring, damper]`: mass `m = 2.0`, spring `k = 0.6`, damper
+/// `d = 0.4`, in that order.
+///
+/// ```
+/// use springmass::{scenes, chain::Defect};
+/// let c = scenes::three_kinds(9, [3, 5, 7])?;
+/// assert_eq!(c.defects()[2], Defect::Damper { at: 7, d: 0.4 });
+/// # Ok::<(), springmass::Error>(())
+/// ```
+///
+/// # Errors
+/// `n` out of range or a position outside the chain.
+pub fn three_kinds(n: usize, at: [usize; 3]) -> Result<Chain> {
+    Chain::paper(n)?.with_defects([
+        Defect::Mass { at: at[0], m: 2.0 },
+        Defect::Spring { at: at[1], k: 0.6 },
+        Defect::Damper { at: at[2], d: 0.4 },
+    ])
 }
 
 /// A shear frame of `storeys` floors seen from its roof: mass 1 is the roof
@@ -218,5 +281,16 @@ mod tests {
             table1(4).unwrap().defects()[1],
             Defect::Mass { at: 15, m: 15.0 }
         );
+    }
+
+    #[test]
+    fn fixtures_build() {
+        assert!(mixed(4).is_err());
+        for n in [5, 6, 7, 12, 40] {
+            let c = mixed(n).unwrap();
+            assert_eq!((c.n(), c.defects().len(), c.gamma()), (n, 5, 1.3));
+        }
+        assert!(three_kinds(4, [1, 2, 5]).is_err());
+        assert_eq!(three_kinds(6, [1, 3, 5]).unwrap().defects().len(), 3);
     }
 }

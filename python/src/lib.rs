@@ -509,6 +509,15 @@ fn locate<'py>(
             x: self::values(&x),
         },
         (None, None, Some(v)) => {
+            if let Some(sigma) = noise_sigma {
+                // the Laplace values carry their own errors (`err`): a noise
+                // level given beside them would be ignored without a word
+                return Err(errors::to_py(Error::invalid(
+                    "noise_sigma",
+                    sigma,
+                    "None with Laplace values (give their errors as err); a noise level applies to a series (t, x)",
+                )));
+            }
             let v = self::values(&v);
             let e = match &err {
                 Some(e) => self::values(e),

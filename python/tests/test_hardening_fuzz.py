@@ -87,3 +87,17 @@ def test_item13_all_zero_record_is_named() -> None:
     t, _ = _record()
     with pytest.raises(ValueError, match="every one 0"):
         springmass.fit(t, np.zeros_like(t), n=3)
+
+
+def test_noise_sigma_beside_laplace_values_is_refused() -> None:
+    s = [0.5, 1.0, 2.0]
+    values = springmass.response(s, n=3, defects=["mass:2:2"])
+    for sigma in (-1.0, float("nan"), 0.01):
+        with pytest.raises(ValueError, match="noise_sigma"):
+            springmass.locate(n=3, s=s, values=values, noise_sigma=sigma)
+
+
+def test_huge_known_damping_fails_at_once() -> None:
+    t, x = _record(40)
+    with pytest.raises(springmass.NumericalError, match="beyond f64"):
+        springmass.fit(t, x, n=3, defects=1, d=1e300)

@@ -803,15 +803,9 @@ mod tests {
 
     #[test]
     fn any_kind_with_a_known_defect_and_fitted_damping() {
-        let truth = Chain::paper(15)
+        let truth = crate::scenes::three_kinds(15, [2, 6, 11])
             .unwrap()
             .with_d(0.12)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 2, m: 2.0 },
-                Defect::Spring { at: 6, k: 0.5 },
-                Defect::Damper { at: 11, d: 0.8 },
-            ])
             .unwrap();
         let s = nodes(60, 0.05, 4.0);
         let obs = LaplaceObs::exact(&truth, s, vec![1.0; 60]).unwrap();
@@ -915,15 +909,9 @@ mod tests {
 
     #[test]
     fn time_stage_any_kind_with_a_known_defect() {
-        let truth = Chain::paper(24)
+        let truth = crate::scenes::three_kinds(24, [3, 9, 17])
             .unwrap()
             .with_d(0.02)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 3, m: 2.0 },
-                Defect::Spring { at: 9, k: 0.5 },
-                Defect::Damper { at: 17, d: 0.4 },
-            ])
             .unwrap();
         let (coarse, fine) = record(&truth, 100.0, 2);
         let u = Unknowns::new(

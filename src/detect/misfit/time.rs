@@ -271,18 +271,7 @@ mod tests {
     fn analytic_jacobian_matches_central_differences() {
         use crate::detect::search::lsq::{central_jacobian, LeastSquares};
         // defects of every kind, a wall spring among them, and gamma
-        let truth = Chain::paper(7)
-            .unwrap()
-            .with_gamma(1.3)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 2, m: 3.0 },
-                Defect::Spring { at: 4, k: 0.6 },
-                Defect::Damper { at: 5, d: 0.3 },
-                Defect::Spring { at: 7, k: 1.4 },
-                Defect::Mass { at: 6, m: 0.5 },
-            ])
-            .unwrap();
+        let truth = crate::scenes::mixed(7).unwrap();
         let data =
             TimeData::simulate(&truth, 120.0, 0.1, NoiseLevel::RelativeMax(1e-3), 4).unwrap();
         let misfit = TimeMisfit::new(data);

@@ -731,17 +731,11 @@ mod tests {
     fn sensitivities_match_the_modal_derivative() {
         // every kind, a wall spring, a known defect of each kind on the chain
         let n = 12;
-        let c = Chain::paper(n)
+        let c = crate::scenes::three_kinds(n, [5, 8, 10])
             .unwrap()
             .with_d(0.05)
             .unwrap()
             .with_gamma(1.7)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 5, m: 2.0 },
-                Defect::Spring { at: 8, k: 0.7 },
-                Defect::Damper { at: 10, d: 0.3 },
-            ])
             .unwrap();
         let t: Vec<f64> = (0..1201).map(|i| 0.1 * i as f64).collect();
         let y = vec![0.0; t.len()];

@@ -1008,14 +1008,7 @@ mod tests {
     }
 
     fn chain() -> Chain {
-        Chain::paper(9)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 3, m: 2.0 },
-                Defect::Spring { at: 5, k: 0.6 },
-                Defect::Damper { at: 7, d: 0.4 },
-            ])
-            .unwrap()
+        crate::scenes::three_kinds(9, [3, 5, 7]).unwrap()
     }
 
     #[test]
