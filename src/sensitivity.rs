@@ -675,17 +675,11 @@ mod tests {
         use crate::chain::Boundary::*;
         use crate::forward::observe;
         for (l, r) in [(Free, Fixed), (Fixed, Free), (Free, Free)] {
-            let c = Chain::paper(6)
+            let c = crate::scenes::three_kinds(6, [1, 3, 5])
                 .unwrap()
                 .with_boundaries(l, r)
                 .unwrap()
                 .with_gamma(1.3)
-                .unwrap()
-                .with_defects([
-                    Defect::Mass { at: 1, m: 2.0 },
-                    Defect::Spring { at: 3, k: 0.6 },
-                    Defect::Damper { at: 5, d: 0.4 },
-                ])
                 .unwrap();
             let params = Param::all(&c);
             for obs in [
