@@ -472,17 +472,6 @@ mod tests {
     use super::*;
     use num_complex::Complex64;
 
-    /// Dense inverse of the uniform chain by nalgebra LU (complex).
-    fn dense_inverse(
-        n: usize,
-        k: f64,
-        mass: f64,
-        d: f64,
-        s: Complex64,
-    ) -> nalgebra::DMatrix<Complex64> {
-        dense_matrix(n, k, mass, d, s).lu().try_inverse().unwrap()
-    }
-
     fn rel(a: Complex64, b: Complex64) -> f64 {
         (a - b).norm() / b.norm().max(1e-300)
     }
@@ -501,7 +490,7 @@ mod tests {
         for &n in &[1usize, 2, 3, 7, 20] {
             for &(k, mass, d) in &[(1.0, 1.0, 0.1), (2.5, 0.3, 0.0), (0.7, 4.0, 3.0)] {
                 for &s in &ss {
-                    let inv = dense_inverse(n, k, mass, d, s);
+                    let inv = dense_matrix(n, k, mass, d, s).lu().try_inverse().unwrap();
                     let g = Green::new(n, k, mass, d, s);
                     let gr = (s.im == 0.0).then(|| Green::new(n, k, mass, d, s.re));
                     for i in 1..=n {
