@@ -4,6 +4,7 @@
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
+use springmass::detect::fit::identify::Identifiability;
 use springmass::detect::fit::paper::{fit, SceneReport};
 use springmass::detect::fit::FitMethod;
 use springmass::detect::scene::FitScene;
@@ -603,13 +604,11 @@ fn fmt_defects(d: &[springmass::Defect], kinds: bool) -> String {
         .join(", ")
 }
 
-/// The scene's report: the answer and its error bars first, then the
-/// truth it is scored against, how it was found and how far to trust it.
-fn print_text(scene: &FitScene, r: &SceneReport) {
-    let general = !r.std_errors.is_empty();
+/// The answer with its error bars: the general fit's standard errors, or on
+/// the mass path the fit's errors scaled to the data's floor; the fitted
+/// chain parameters.
+fn print_answer(r: &SceneReport, general: bool) {
     println!("found      {}", fmt_defects(&r.defects, general));
-    // the answer with its error bars: the general fit's standard errors, or
-    // on the mass path the fit's errors scaled to the data's floor
     let bars = if general {
         &r.std_errors
     } else {
@@ -633,6 +632,43 @@ fn print_text(scene: &FitScene, r: &SceneReport) {
             p.name, p.value, p.std_error
         );
     }
+}
+
+/// How far each defect of the answer stands from its rivals.
+fn print_identifiability(id: &Identifiability) {
+    println!(
+        "identifiability (noise level {:.3e}; gap threshold {})",
+        id.sigma, id.threshold
+    );
+    if let (Some(g), Some(s)) = (id.runner_up_gap, id.sigma_indistinguishable) {
+        println!(
+            "  runner-up chi2 gap {g:.4e}: indistinguishable from the answer at noise {s:.3e} ({:.1}x the data's)",
+            if id.sigma > 0.0 { s / id.sigma } else { f64::INFINITY }
+        );
+    }
+    for d in &id.defects {
+        println!(
+            "  at {:>3}: {:.1} SE from the uniform value; {}{}",
+            d.at,
+            d.significance,
+            match (d.nearest_rival, d.position_gap) {
+                (Some(p), Some(g)) => format!("nearest rival position {p} (chi2 gap {g:.3e})"),
+                _ => "no listed alternative moves it".to_string(),
+            },
+            if d.identifiable {
+                String::from("  identifiable")
+            } else {
+                format!("  NOT identifiable: {}", d.reason)
+            }
+        );
+    }
+}
+
+/// The scene's report: the answer and its error bars first, then the
+/// truth it is scored against, how it was found and how far to trust it.
+fn print_text(scene: &FitScene, r: &SceneReport) {
+    let general = !r.std_errors.is_empty();
+    print_answer(r, general);
     let truth: Vec<springmass::Defect> = scene.chain.defects.clone();
     if !truth.is_empty() {
         println!("truth      {}", fmt_defects(&truth, general));
@@ -671,32 +707,7 @@ fn print_text(scene: &FitScene, r: &SceneReport) {
         }
     }
     if let Some(id) = &r.identifiability {
-        println!(
-            "identifiability (noise level {:.3e}; gap threshold {})",
-            id.sigma, id.threshold
-        );
-        if let (Some(g), Some(s)) = (id.runner_up_gap, id.sigma_indistinguishable) {
-            println!(
-                "  runner-up chi2 gap {g:.4e}: indistinguishable from the answer at noise {s:.3e} ({:.1}x the data's)",
-                if id.sigma > 0.0 { s / id.sigma } else { f64::INFINITY }
-            );
-        }
-        for d in &id.defects {
-            println!(
-                "  at {:>3}: {:.1} SE from the uniform value; {}{}",
-                d.at,
-                d.significance,
-                match (d.nearest_rival, d.position_gap) {
-                    (Some(p), Some(g)) => format!("nearest rival position {p} (chi2 gap {g:.3e})"),
-                    _ => "no listed alternative moves it".to_string(),
-                },
-                if d.identifiable {
-                    String::from("  identifiable")
-                } else {
-                    format!("  NOT identifiable: {}", d.reason)
-                }
-            );
-        }
+        print_identifiability(id);
     }
     let sets = r
         .sets
