@@ -27,7 +27,7 @@
 
 use super::kinds::CaseOutput;
 #[cfg(not(feature = "cli"))]
-use super::progress::progress_bar;
+use super::progress::{progress_bar, ProgressBar};
 pub use super::records::{
     check_out_folder, load_records, write_records, Counts, Manifest, Record, CASES, MANIFEST,
     RESULTS, STUDY_COPY,
