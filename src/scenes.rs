@@ -21,6 +21,7 @@
 //! |---|---|---|
 //! | [`mixed`]`(n)` | paper, `gamma = 1.3`; mass `(2, 3)`, spring `((n+1)/2, 0.6)`, damper `((n+1)/2+1, 0.3)`, wall spring `(n, 1.4)`, mass `(n-1, 0.5)` | a defect of every kind, a wall spring among them, and gamma (Jacobians, sensitivities) |
 //! | [`three_kinds`]`(n, [jm, jk, jd])` | paper; mass `(jm, 2)`, spring `(jk, 0.6)`, damper `(jd, 0.4)` | one defect of each kind (forward models, searches over every kind) |
+//! | [`paper_with`]`(n, "mass:3:2 spring:6:0.5")` | paper; the listed defects ([`defects`]) | any hand-made scene of a test, as one line of data |
 //! | [`frame6`], [`shear_frame`] | shear frames seen from the roof | spring profiles |
 //! | [`profile_chain`] | every mass differs ([`mass_profile`]) | mass profiles |
 //!
@@ -146,6 +147,30 @@ pub fn three_kinds(n: usize, at: [usize; 3]) -> Result<Chain> {
         Defect::Spring { at: at[1], k: 0.6 },
         Defect::Damper { at: at[2], d: 0.4 },
     ])
+}
+
+/// Defects in the CLI form `kind:at:value` ([`Defect::parse`]), separated
+/// by white space, in order: the compact way for tests to write a list.
+///
+/// ```
+/// use springmass::{scenes, chain::Defect};
+/// let d = scenes::defects("mass:3:2.5 damper:7:0.4")?;
+/// assert_eq!(d, vec![Defect::Mass { at: 3, m: 2.5 }, Defect::Damper { at: 7, d: 0.4 }]);
+/// # Ok::<(), springmass::Error>(())
+/// ```
+///
+/// # Errors
+/// [`Error::Parse`] for an entry not of that form.
+pub fn defects(list: &str) -> Result<Vec<Defect>> {
+    list.split_whitespace().map(Defect::parse).collect()
+}
+
+/// The paper's chain of `n` masses with the [`defects`] of `list`.
+///
+/// # Errors
+/// `n` out of range, a bad entry or a defect outside the chain.
+pub fn paper_with(n: usize, list: &str) -> Result<Chain> {
+    Chain::paper(n)?.with_defects(defects(list)?)
 }
 
 /// A shear frame of `storeys` floors seen from its roof: mass 1 is the roof
@@ -292,5 +317,11 @@ mod tests {
         }
         assert!(three_kinds(4, [1, 2, 5]).is_err());
         assert_eq!(three_kinds(6, [1, 3, 5]).unwrap().defects().len(), 3);
+        assert_eq!(
+            paper_with(9, "mass:3:2 spring:5:0.6 damper:7:0.4").unwrap(),
+            three_kinds(9, [3, 5, 7]).unwrap()
+        );
+        assert!(defects("mass:3").is_err() && paper_with(4, "mass:5:2").is_err());
+        assert!(defects("").unwrap().is_empty());
     }
 }

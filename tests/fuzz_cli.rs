@@ -1,6 +1,9 @@
 //! Command-line fuzz test: the built `springmass` binary over seeded, mutated
 //! command lines of every subcommand (and mutated scene and study files).
 //!
+//! One case in eight is a mutated data file (CSV) read by `laplace` or fitted
+//! by `fit`; one in eight of the rest a mutated scene or study file.
+//!
 //! Checks, for every case:
 //! * no panic (exit status 101 or `panicked` on stderr);
 //! * no hang (a per-case timeout, `SPRINGMASS_FUZZ_TIMEOUT` seconds, default 60);
@@ -9,7 +12,9 @@
 //!   after each case they must still be what they were;
 //! * never exit 0 on input that is invalid by construction (a non-number for a
 //!   number, an unknown option, a FIFO, socket or folder as an output file, a
-//!   folder, a missing, empty or binary file, or `/dev/urandom` as an input).
+//!   folder, a missing, empty or binary file, or `/dev/urandom` as an input;
+//!   in a data file a cell that is not a number, a field too many or too few,
+//!   a repeated column name, no header or no samples).
 //!
 //! Scale with `SPRINGMASS_FUZZ_CASES` (default 10000), `SPRINGMASS_FUZZ_JOBS`
 //! (parallel cases, default 4), `SPRINGMASS_FUZZ_SEED` (default 17); leave
@@ -105,6 +110,7 @@ struct Files {
     link_file: PathBuf,
     link_target: PathBuf,
     series: PathBuf,
+    series_text: String,
     scene: PathBuf,
     study: PathBuf,
     empty: PathBuf,
@@ -167,7 +173,7 @@ fn setup(root: &Path, worker: usize, study_text: &str) -> Files {
         let tt = i as f64 * 0.1;
         csv.push_str(&format!("{tt},{}\n", (-0.3 * tt).exp() * (1.3 * tt).sin()));
     }
-    std::fs::write(&series, csv).unwrap();
+    std::fs::write(&series, &csv).unwrap();
     let scene = dir.join("scene.toml");
     std::fs::write(&scene, SCENE).unwrap();
     let study = dir.join("study.toml");
@@ -191,6 +197,7 @@ fn setup(root: &Path, worker: usize, study_text: &str) -> Files {
         link_file,
         link_target,
         series,
+        series_text: csv,
         scene,
         study,
         empty,
@@ -604,6 +611,97 @@ fn mutate_toml(rng: &mut ChaCha8Rng, text: &str) -> String {
     lines.join("\n") + "\n"
 }
 
+/// A mutated copy of the record's CSV text and whether it is invalid by
+/// construction (a cell that is not a number, a row with a field too many or
+/// too few, a repeated column name, no header, nothing but a header).
+fn mutate_csv(rng: &mut ChaCha8Rng, text: &str) -> (Vec<u8>, bool) {
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let row = rng.random_range(1..lines.len());
+    let join = |lines: &[String]| (lines.join("\n") + "\n").into_bytes();
+    match rng.random_range(0..10) {
+        0 => {
+            let t = lines[row].split(',').next().unwrap_or("0").to_string();
+            let bad = [
+                "abc", "1.2.3", "--1", "0x1g", "#N/A", "1e", "+", "nan", "inf",
+            ];
+            lines[row] = format!("{t},{}", bad[rng.random_range(0..bad.len())]);
+            (join(&lines), true)
+        }
+        1 => {
+            // (a trailing empty field is allowed: spreadsheets write one)
+            lines[row].push_str([",5", ",x", ",1,2"][rng.random_range(0..3)]);
+            (join(&lines), true)
+        }
+        2 => {
+            lines[0] = ["t,t", "x1,x1"][rng.random_range(0..2)].to_string();
+            (join(&lines), true)
+        }
+        3 => (join(&lines[1..]), true),
+        4 => {
+            lines[row] = lines[row].split(',').next().unwrap_or("").to_string();
+            (join(&lines), true)
+        }
+        5 => {
+            // a few bytes flipped anywhere: valid or not
+            let mut b = join(&lines);
+            for _ in 0..rng.random_range(1..5) {
+                let i = rng.random_range(0..b.len());
+                b[i] = rng.random_range(0..=255u8);
+            }
+            (b, false)
+        }
+        6 => {
+            let t = lines[row].split(',').next().unwrap_or("0").to_string();
+            let v = ["1e308", "-1e308", "5e-324", "0", "1e-310", "-0"];
+            lines[row] = format!("{t},{}", v[rng.random_range(0..v.len())]);
+            (join(&lines), false)
+        }
+        7 => {
+            let i = rng.random_range(1..lines.len());
+            if rng.random_range(0..2) == 0 {
+                let l = lines[i].clone();
+                lines.insert(i, l);
+            } else {
+                lines.remove(i);
+            }
+            (join(&lines), false)
+        }
+        8 => {
+            let text = String::from_utf8(join(&lines)).unwrap();
+            let forms = [
+                text.replace('\n', "\r\n"),
+                format!("\u{feff}{text}"),
+                text.replace(',', ";"),
+                text.replacen("t,x1", "t [s],x1 [m]", 1),
+                text.replace(',', "\t"),
+            ];
+            (
+                forms[rng.random_range(0..forms.len())].clone().into_bytes(),
+                false,
+            )
+        }
+        _ => {
+            let forms = ["t,x1\n", ",\n", "\n\n", "t,x1\n0\n"];
+            (
+                forms[rng.random_range(0..forms.len())].as_bytes().to_vec(),
+                true,
+            )
+        }
+    }
+}
+
+/// The command that reads a mutated data file: `laplace` (cheap) or a small
+/// `fit` (one defect on three masses).
+fn data_file_args(rng: &mut ChaCha8Rng, path: &Path) -> Vec<String> {
+    let p = path.display().to_string();
+    let words: Vec<&str> = if rng.random_range(0..2) == 0 {
+        vec!["laplace", "--series", &p, "--s", "0.5,1+2i", "--json"]
+    } else {
+        vec!["fit", "--data", &p, "--n", "3", "--defects", "1", "--json"]
+    };
+    words.into_iter().map(str::to_string).collect()
+}
+
 struct Outcome {
     code: Option<i32>,
     stderr: String,
@@ -714,6 +812,17 @@ fn fuzz_command_lines() {
                 let skip_config = skip.split(',').any(|w| w == "config");
                 let mut mutated: Option<String> = None;
                 let (args, invalid, owner) = if rng.random_range(0..8) == 0 {
+                    // a mutated data file, read by `laplace` or fitted by `fit`
+                    let path = fl.dir.join(format!("m{idx}.csv"));
+                    let (bytes, invalid) = mutate_csv(&mut rng, &fl.series_text);
+                    std::fs::write(&path, &bytes).unwrap();
+                    mutated = Some(String::from_utf8_lossy(&bytes).into_owned());
+                    (
+                        data_file_args(&mut rng, &path),
+                        invalid,
+                        "src/series.rs (data file)",
+                    )
+                } else if rng.random_range(0..7) == 0 {
                     let (base, path, args, owner): (&str, PathBuf, Vec<String>, &str) =
                         match rng.random_range(skip_config as u32..3) {
                             0 => {
@@ -813,6 +922,7 @@ fn fuzz_command_lines() {
                     return Some(wk);
                 }
                 let _ = std::fs::remove_file(fl.dir.join(format!("m{idx}.toml")));
+                let _ = std::fs::remove_file(fl.dir.join(format!("m{idx}.csv")));
             }
             None
         }));

@@ -452,3 +452,28 @@ fn item10_locate_precision_is_capped() {
     refused(&o, "64..=4096");
     std::fs::remove_dir_all(&d).ok();
 }
+
+/// Found by the Python API fuzz: a known damping of 1e300 sent the modal
+/// time response's SVD (near-double poles) into an endless iteration on
+/// non-finite values; it must fail at once with a numerical error.
+#[test]
+fn huge_known_damping_fails_instead_of_hanging() {
+    let d = tmpdir("hugedamping");
+    let data = d.join("x.csv");
+    record(&data, "t,x1", 40);
+    let o = run_bounded(
+        &d,
+        &[
+            "fit",
+            "--data",
+            s(&data),
+            "--n",
+            "3",
+            "--defects",
+            "1",
+            "--d",
+            "1e300",
+        ],
+    );
+    refused(&o, "beyond f64");
+}

@@ -515,16 +515,21 @@ fn single<T: RealScalar>(method: Method, n: usize, e: &Estimate<T>) -> Result<Lo
             raw_j: None,
             used: vec![e.s],
         }),
-        _ => Err(Error::Unresolvable {
-            reason: format!(
-                "{} locator at s = {}: {} (relative defect signal {:.2e}, error floor {:.2e})",
-                method.name(),
-                e.s,
-                e.status.name(),
-                e.signal,
-                e.floor
-            ),
-        }),
+        _ => Err(unresolved(method, e)),
+    }
+}
+
+/// An estimate that is not a location: its status, signal and floor in words.
+fn unresolved<T: RealScalar>(method: Method, e: &Estimate<T>) -> Error {
+    Error::Unresolvable {
+        reason: format!(
+            "{} locator at s = {}: {} (relative defect signal {:.2e}, error floor {:.2e})",
+            method.name(),
+            e.s,
+            e.status.name(),
+            e.signal,
+            e.floor
+        ),
     }
 }
 
@@ -547,16 +552,7 @@ fn extrapolate<T: RealScalar>(
 ) -> Result<Location<T>> {
     let get = |e: &Estimate<T>| match (&e.j, e.status) {
         (Some(j), Status::Ok) => Ok(j.clone()),
-        _ => Err(Error::Unresolvable {
-            reason: format!(
-                "{} locator at s = {}: {} (relative signal {:.2e}, floor {:.2e})",
-                method.name(),
-                e.s,
-                e.status.name(),
-                e.signal,
-                e.floor
-            ),
-        }),
+        _ => Err(unresolved(method, e)),
     };
     let (ja, jb, jc) = (get(a)?, get(b)?, get(c)?);
     let (ia, ib, ic) = (1.0 / a.lambda, 1.0 / b.lambda, 1.0 / c.lambda);

@@ -100,49 +100,37 @@ pub enum DataSourceKind {
 
 /// The `[data]` table.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct DataSpec {
     /// `exact` (default), `simulated` or `series`.
-    #[serde(default)]
     pub source: DataSourceKind,
     /// Path of the CSV series (for `series`).
-    #[serde(default)]
     pub path: Option<PathBuf>,
     /// Column of the CSV series (default `x1`).
-    #[serde(default)]
     pub column: Option<String>,
     /// `exact`: relative Laplace-domain noise; `simulated`: absolute noise
     /// on the samples; `series`: the samples' known noise (default 0).
-    #[serde(default)]
     pub noise: f64,
     /// Noise seed (default 0).
-    #[serde(default)]
     pub seed: u64,
     /// `simulated`: end of the record (default 300).
-    #[serde(default)]
     pub t_end: Option<f64>,
     /// `simulated`: sampling step (default 0.05).
-    #[serde(default)]
     pub dt: Option<f64>,
     /// `simulated` and `series`: `noise` is relative to the largest `|x_1|` of
     /// the record (default false: absolute).
-    #[serde(default)]
     pub relative: bool,
     /// `simulated` and `series`: the observed mass (default 1).
-    #[serde(default)]
     pub observe: Option<usize>,
     /// `simulated` and `series`: `displacement` (default), `velocity` or
     /// `acceleration`.
-    #[serde(default)]
     pub observe_kind: Option<Observable>,
     /// `simulated`: a hammer's half-sine blow of this width (unit impulse,
     /// times `gamma`) on mass 1 instead of the ideal impulse; the record
     /// keeps the force's samples and the fit uses them.
-    #[serde(default)]
     pub hammer_width: Option<f64>,
     /// `series`: the CSV column of the measured force on mass 1 (a hammer
     /// test); the fit uses it instead of the ideal impulse.
-    #[serde(default)]
     pub force_column: Option<String>,
 }
 
@@ -280,16 +268,13 @@ pub struct FitScene {
 /// The `[profile]` table: every mass (spring, both) of the chain fitted
 /// instead of a few defects (`detect::fit::profile`), on the scene's data.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct ProfileSpec {
     /// `none` (default), `masses`, `springs` or `both`.
-    #[serde(default)]
     pub mode: Option<String>,
     /// The relative change the visibility is stated for (default 0.1).
-    #[serde(default)]
     pub change: Option<f64>,
     /// A fixed penalty weight instead of the continuation (default none).
-    #[serde(default)]
     pub penalty: Option<f64>,
 }
 

@@ -298,76 +298,54 @@ impl MassUnknowns {
 /// of the four chain parameters: `x_1(t)` is unchanged when every mass,
 /// damper, spring and `gamma` are scaled together.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct UnknownsSpec {
     /// Number of defects (default: the number of defects of the true chain).
-    #[serde(default)]
     pub k: Option<usize>,
     /// Default bounds of unknown masses (default `[0.1, 100]`).
-    #[serde(default = "default_bounds")]
     pub mass_bounds: [f64; 2],
     /// Per-defect information (default none: all free).
-    #[serde(default)]
     pub defects: Vec<DefectUnknownSpec>,
     /// Kind of the defects: `mass` (default), `spring`, `damper`, `ground`
     /// (a spring from a mass to the ground) or `any` (mass, spring or damper).
-    #[serde(default)]
     pub kind: KindChoice,
     /// Uniform chain parameters fitted alongside: `d`, `gamma`, `k`, `mass`
     /// (default none).
-    #[serde(default)]
     pub chain: Vec<String>,
     /// Default bounds of unknown springs (default `[0.01, 100]`, `lo > 0`).
-    #[serde(default = "default_spring_bounds")]
     pub spring_bounds: [f64; 2],
     /// Default bounds of unknown dampers (default `[0, 100]`, `lo >= 0`).
-    #[serde(default = "default_damper_bounds")]
     pub damper_bounds: [f64; 2],
     /// Starting values of fitted chain parameters, e.g. `{ d = 0.2 }`
     /// (default: the `[chain]` values).
-    #[serde(default)]
     pub chain_start: std::collections::BTreeMap<String, f64>,
 }
 
 /// One `[[unknowns.defects]]` entry.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct DefectUnknownSpec {
     /// Known position.
-    #[serde(default)]
     pub at: Option<usize>,
     /// Known mass.
-    #[serde(default)]
     pub m: Option<f64>,
     /// Bounds of the unknown value (default `mass_bounds`, `spring_bounds`
     /// or `damper_bounds` by kind).
-    #[serde(default)]
     pub bounds: Option<[f64; 2]>,
     /// Kind of this defect (default: the table's `kind`).
-    #[serde(default)]
     pub kind: Option<KindChoice>,
-}
-
-fn default_bounds() -> [f64; 2] {
-    [0.1, 100.0]
-}
-fn default_spring_bounds() -> [f64; 2] {
-    [0.01, 100.0]
-}
-fn default_damper_bounds() -> [f64; 2] {
-    [0.0, 100.0]
 }
 
 impl Default for UnknownsSpec {
     fn default() -> Self {
         UnknownsSpec {
             k: None,
-            mass_bounds: default_bounds(),
+            mass_bounds: [0.1, 100.0],
             defects: Vec::new(),
             kind: KindChoice::Mass,
             chain: Vec::new(),
-            spring_bounds: default_spring_bounds(),
-            damper_bounds: default_damper_bounds(),
+            spring_bounds: [0.01, 100.0],
+            damper_bounds: [0.0, 100.0],
             chain_start: Default::default(),
         }
     }
@@ -869,22 +847,7 @@ impl Unknowns {
         for i in 0..slots.len() {
             check_slot(n, &slots, i)?;
         }
-        for (i, p) in chain.iter().enumerate() {
-            if matches!(p, Param::Defect(_)) || chain[..i].contains(p) {
-                return Err(Error::invalid(
-                    "unknowns.chain",
-                    format!("{p:?}"),
-                    "distinct names among d, gamma, k, mass",
-                ));
-            }
-        }
-        if chain.len() == 4 {
-            return Err(Error::invalid(
-                "unknowns.chain",
-                "d, gamma, k, mass",
-                "at most three: x_1(t) is unchanged when every mass, damper, spring and gamma are scaled together",
-            ));
-        }
+        check_chain_params("unknowns.chain", &chain)?;
         Ok(Unknowns {
             n,
             slots,
@@ -1081,6 +1044,29 @@ pub(crate) fn gen_sets(
         gen_sets(allowed, p, comb, i + 1, cur, out);
         cur.pop();
     }
+}
+
+/// Chain parameters to fit (field `field`): distinct, none a defect, at
+/// most three of the four (`x_1(t)` is unchanged when every mass, damper,
+/// spring and gamma are scaled together).
+pub(crate) fn check_chain_params(field: &str, params: &[Param]) -> Result<()> {
+    for (i, p) in params.iter().enumerate() {
+        if matches!(p, Param::Defect(_)) || params[..i].contains(p) {
+            return Err(Error::invalid(
+                field,
+                format!("{p:?}"),
+                "distinct names among d, gamma, k, mass",
+            ));
+        }
+    }
+    if params.len() == 4 {
+        return Err(Error::invalid(
+            field,
+            "d, gamma, k, mass",
+            "at most three: x_1(t) is unchanged when every mass, damper, spring and gamma are scaled together",
+        ));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

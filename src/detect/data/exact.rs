@@ -110,18 +110,13 @@ impl Data {
     /// Lengths that differ or are zero, a value or node that is not finite,
     /// an error that is not positive (field `values`).
     pub fn at_nodes(s: Vec<Complex64>, values: Vec<Complex64>, sigma: Vec<f64>) -> Result<Data> {
-        if s.is_empty() || values.len() != s.len() || sigma.len() != s.len() {
-            return Err(Error::invalid(
-                "values",
-                format!(
-                    "{} nodes, {} values, {} errors",
-                    s.len(),
-                    values.len(),
-                    sigma.len()
-                ),
-                "as many values and errors as nodes, at least one",
-            ));
-        }
+        super::check_lengths(
+            "values",
+            s.len(),
+            values.len(),
+            (sigma.len(), "errors"),
+            "as many values and errors as nodes, at least one",
+        )?;
         let finite = |z: &Complex64| z.re.is_finite() && z.im.is_finite();
         if !(s.iter().all(finite)
             && values.iter().all(finite)

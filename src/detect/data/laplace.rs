@@ -102,18 +102,13 @@ impl LaplaceObs {
     /// Lengths differ or are zero; a node with `Re s < 0` or non-finite; a
     /// weight negative or non-finite.
     pub fn new(s: Vec<Complex64>, values: Vec<Complex64>, weights: Vec<f64>) -> Result<LaplaceObs> {
-        if s.is_empty() || s.len() != values.len() || s.len() != weights.len() {
-            return Err(Error::invalid(
-                "s",
-                format!(
-                    "{} nodes, {} values, {} weights",
-                    s.len(),
-                    values.len(),
-                    weights.len()
-                ),
-                "equal lengths, at least one node",
-            ));
-        }
+        super::check_lengths(
+            "s",
+            s.len(),
+            values.len(),
+            (weights.len(), "weights"),
+            "equal lengths, at least one node",
+        )?;
         for (i, z) in s.iter().enumerate() {
             crate::forward::check_s(z)
                 .map_err(|_| Error::invalid(format!("s[{i}]"), z, "finite, Re s >= 0"))?;
@@ -680,20 +675,13 @@ impl crate::detect::model::MeasurementModel for LaplaceObs {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::chain::Defect;
 
     /// The residuals and Jacobian through the memo of the last sweep agree
     /// with the per-call path (the model node by node, nalgebra's `W r` and
     /// `W J`, the general gradient), whichever of the two is asked first.
     #[test]
     fn memo_of_the_sweep_matches_the_per_call_path() {
-        let truth = Chain::paper(12)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 3, m: 2.5 },
-                Defect::Mass { at: 9, m: 0.6 },
-            ])
-            .unwrap();
+        let truth = crate::scenes::paper_with(12, "mass:3:2.5 mass:9:0.6").unwrap();
         let s: Vec<Complex64> = (0..9)
             .map(|q| Complex64::new(0.05, 0.4 * q as f64))
             .chain([Complex64::new(0.3, 0.0)])

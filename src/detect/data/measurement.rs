@@ -327,17 +327,11 @@ pub fn scale_gradient(g: Gradient<Complex64>, c: Complex64) -> Gradient<Complex6
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::chain::{Boundary, Defect};
+    use crate::chain::Boundary;
     use crate::time::simulate::simulate;
 
     fn chain() -> Chain {
-        Chain::paper(5)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 2, m: 2.0 },
-                Defect::Spring { at: 4, k: 0.6 },
-            ])
-            .unwrap()
+        crate::scenes::paper_with(5, "mass:2:2.0 spring:4:0.6").unwrap()
     }
 
     #[test]

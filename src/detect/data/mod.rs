@@ -15,3 +15,24 @@ pub mod measurement;
 pub mod observations;
 pub mod series;
 pub mod whiten;
+
+/// Laplace values at nodes: `nodes` nodes, `values` values and as many of a
+/// third array (`third = (its length, its name)`), at least one node; else
+/// [`crate::Error::InvalidParameter`] on `field` with the lengths and
+/// `allowed`.
+pub(crate) fn check_lengths(
+    field: &str,
+    nodes: usize,
+    values: usize,
+    third: (usize, &str),
+    allowed: &str,
+) -> crate::Result<()> {
+    if nodes == 0 || values != nodes || third.0 != nodes {
+        return Err(crate::Error::invalid(
+            field,
+            format!("{nodes} nodes, {values} values, {} {}", third.0, third.1),
+            allowed,
+        ));
+    }
+    Ok(())
+}

@@ -198,39 +198,29 @@ pub fn fit_chain(
 mod tests {
     use super::*;
     use crate::detect::data::laplace::LaplaceObs;
-    use crate::Defect;
+
     use num_complex::Complex64;
 
     #[test]
     fn laplace_fit_recovers_all_chain_parameters_exactly() {
-        let truth = Chain::paper(8)
+        let truth = crate::scenes::paper_with(8, "mass:2:3.0 spring:5:0.4")
             .unwrap()
             .with_k(1.3)
             .unwrap()
             .with_gamma(0.8)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 2, m: 3.0 },
-                Defect::Spring { at: 5, k: 0.4 },
-            ])
             .unwrap();
         let s: Vec<Complex64> = (0..60)
             .map(|i| Complex64::new(0.1, 0.05 * i as f64))
             .collect();
         let w = vec![1e6; s.len()];
         let obs = LaplaceObs::exact(&truth, s, w).unwrap();
-        let start = Chain::paper(8)
+        let start = crate::scenes::paper_with(8, "mass:2:2.0 spring:5:0.6")
             .unwrap()
             .with_d(0.15)
             .unwrap()
             .with_k(1.1)
             .unwrap()
             .with_gamma(1.0)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 2, m: 2.0 },
-                Defect::Spring { at: 5, k: 0.6 },
-            ])
             .unwrap();
         let params = Param::all(&start);
         // mass (uniform) is fixed: drop it (it and gamma, k are otherwise near-degenerate)
@@ -249,13 +239,7 @@ mod tests {
 
     #[test]
     fn whitened_with_a_scaled_identity_equals_diagonal_weights() {
-        let truth = Chain::paper(6)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 2, m: 3.0 },
-                Defect::Mass { at: 5, m: 0.5 },
-            ])
-            .unwrap();
+        let truth = crate::scenes::paper_with(6, "mass:2:3.0 mass:5:0.5").unwrap();
         let s = vec![
             Complex64::new(0.5, 0.0),
             Complex64::new(0.1, 0.7),
@@ -267,13 +251,7 @@ mod tests {
         let w = DMatrix::<f64>::identity(6, 6) * 2.0;
         let wh = LaplaceObs::whitened(s.clone(), data.values().to_vec(), w).unwrap();
         assert_eq!((diag.dof(), wh.dof()), (6, 6));
-        let guess = Chain::paper(6)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 2, m: 2.5 },
-                Defect::Mass { at: 5, m: 0.7 },
-            ])
-            .unwrap();
+        let guess = crate::scenes::paper_with(6, "mass:2:2.5 mass:5:0.7").unwrap();
         let (a, b) = (diag.chi2(&guess).unwrap(), wh.chi2(&guess).unwrap());
         assert!((a - b).abs() <= 1e-12 * a, "{a} vs {b}");
         let p = Param::defects(&guess);

@@ -1005,13 +1005,7 @@ mod tests {
     /// and without errors on the values, at two noise levels.
     #[test]
     fn kernel_hypotheses_match_the_full_refit() {
-        let truth = Chain::paper(5)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 2, m: 3.0 },
-                Defect::Mass { at: 4, m: 0.5 },
-            ])
-            .unwrap();
+        let truth = crate::scenes::paper_with(5, "mass:2:3.0 mass:4:0.5").unwrap();
         let s: Vec<Complex64> = (1..=40)
             .map(|i| Complex64::new(0.1, 0.05 * i as f64))
             .collect();

@@ -74,7 +74,7 @@
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::fit::chainfit::{default_bounds, ChainProblem};
-use crate::detect::fit::general::{param_name, FittedParam, Hypothesis, Setup};
+use crate::detect::fit::general::{param_name, Hypothesis, Setup};
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::model::MeasurementModel;
 use crate::detect::search::lsq::{levenberg_marquardt, LmFit, LmOptions};
@@ -724,24 +724,15 @@ struct ValuesProblem {
 
 /// The [`Fit`] of `pairs` from a converged values problem over `params`.
 fn fit_of(pairs: KindPositions, params: &[Param], lm: &LmFit, fitted: Chain) -> Fit {
-    let se = lm
-        .std_errors()
-        .unwrap_or_else(|_| vec![f64::NAN; params.len()]);
-    let mut std_errors = vec![0.0; pairs.len()];
-    let mut chain_params = Vec::new();
-    for (j, p) in params.iter().enumerate() {
-        match p {
-            Param::Defect(i) => std_errors[*i] = se[j],
-            _ => chain_params.push(FittedParam {
-                name: param_name(p).to_string(),
-                value: lm.theta[j],
-                std_error: se[j],
-            }),
-        }
-    }
+    let hyp = Hypothesis::from_fit(params, lm, &fitted, pairs.len(), |p| {
+        param_name(p).to_string()
+    });
     Fit {
         pairs,
-        hyp: Hypothesis::from_parts(fitted.defects().to_vec(), std_errors, chain_params, lm.chi2),
+        hyp: Hypothesis {
+            converged: true,
+            ..hyp
+        },
         chain: fitted,
         m: lm.m,
     }
@@ -750,7 +741,7 @@ fn fit_of(pairs: KindPositions, params: &[Param], lm: &LmFit, fitted: Chain) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::chain::Defect;
+
     use crate::detect::unknowns::Slot;
     use num_complex::Complex64;
 
@@ -762,14 +753,7 @@ mod tests {
 
     #[test]
     fn recovers_three_masses_thread_independent() {
-        let truth = Chain::paper(30)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 4, m: 0.4 },
-                Defect::Mass { at: 13, m: 3.0 },
-                Defect::Mass { at: 25, m: 1.8 },
-            ])
-            .unwrap();
+        let truth = crate::scenes::paper_with(30, "mass:4:0.4 mass:13:3.0 mass:25:1.8").unwrap();
         let s = nodes(60, 0.05, 4.0);
         let obs = LaplaceObs::exact(&truth, s, vec![1.0; 60]).unwrap();
         let u = Unknowns::free(30, &[KindChoice::Mass; 3], &[]).unwrap();
@@ -856,14 +840,9 @@ mod tests {
 
     #[test]
     fn time_stage_finds_masses_alike_with_threads_and_memo() {
-        let truth = Chain::paper(40)
+        let truth = crate::scenes::paper_with(40, "mass:7:2.5 mass:31:0.6")
             .unwrap()
             .with_d(0.02)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 7, m: 2.5 },
-                Defect::Mass { at: 31, m: 0.6 },
-            ])
             .unwrap();
         let (coarse, fine) = record(&truth, 120.0, 1);
         let u = Unknowns::free(40, &[KindChoice::Mass; 2], &[]).unwrap();

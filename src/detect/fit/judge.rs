@@ -233,22 +233,14 @@ mod tests {
             (Status::NotIdentifiable, "too close")
         );
         // not consistent with noise: converged but never resolved
-        let v = judge(
-            &Evidence {
-                fits_data: false,
-                ..ok.clone()
-            },
-            Bar::ChiSquare(9.0),
-        );
+        let misfit = Evidence {
+            fits_data: false,
+            ..ok.clone()
+        };
+        let v = judge(&misfit, Bar::ChiSquare(9.0));
         assert_eq!((v.status, v.resolved), (Status::Converged, false));
         // the scene's floor: resolved is the gap alone
-        let v = judge(
-            &Evidence {
-                fits_data: false,
-                ..ok.clone()
-            },
-            Bar::Floor(1.0),
-        );
+        let v = judge(&misfit, Bar::Floor(1.0));
         assert_eq!((v.status, v.resolved), (Status::Converged, true));
         let v = judge(&ok, Bar::Floor(30.0));
         assert_eq!((v.status, v.resolved), (Status::NotIdentifiable, false));

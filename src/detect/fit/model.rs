@@ -93,22 +93,7 @@ impl Model {
     /// # Errors
     /// A defect parameter, a repeat, or all four (field `fit`).
     pub fn fitting(mut self, params: &[Param]) -> Result<Model> {
-        for (i, p) in params.iter().enumerate() {
-            if matches!(p, Param::Defect(_)) || params[..i].contains(p) {
-                return Err(Error::invalid(
-                    "fit",
-                    format!("{p:?}"),
-                    "distinct names among d, gamma, k, mass",
-                ));
-            }
-        }
-        if params.len() == 4 {
-            return Err(Error::invalid(
-                "fit",
-                "d, gamma, k, mass",
-                "at most three: scaling every mass, spring, damper and gamma together leaves x_1(t) unchanged",
-            ));
-        }
+        crate::detect::unknowns::check_chain_params("fit", params)?;
         self.fit = params.to_vec();
         Ok(self)
     }

@@ -623,52 +623,19 @@ mod tests {
 
     #[test]
     fn equals_the_general_path_for_every_kind() {
-        let truth = Chain::paper(9)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 3, m: 2.5 },
-                Defect::Spring { at: 6, k: 0.6 },
-            ])
-            .unwrap();
+        let truth = crate::scenes::paper_with(9, "mass:3:2.5 spring:6:0.6").unwrap();
         let base = truth.uniform();
         let sets = vec![
             vec![Defect::Mass { at: 1, m: 3.0 }],
             vec![Defect::Mass { at: 9, m: 0.4 }],
-            vec![
-                Defect::Mass { at: 3, m: 2.0 },
-                Defect::Mass { at: 7, m: 0.5 },
-            ],
-            vec![
-                Defect::Mass { at: 7, m: 2.0 },
-                Defect::Mass { at: 3, m: 0.5 },
-            ],
-            vec![
-                Defect::Spring { at: 0, k: 1.7 },
-                Defect::Mass { at: 5, m: 4.0 },
-            ],
-            vec![
-                Defect::Spring { at: 9, k: 0.2 },
-                Defect::Spring { at: 4, k: 3.0 },
-            ],
-            vec![
-                Defect::Damper { at: 2, d: 0.9 },
-                Defect::Spring { at: 2, k: 1.3 },
-            ],
-            vec![
-                Defect::Ground { at: 8, g: 0.3 },
-                Defect::Mass { at: 1, m: 0.2 },
-            ],
-            vec![
-                Defect::Mass { at: 2, m: 5.0 },
-                Defect::Spring { at: 5, k: 0.5 },
-                Defect::Damper { at: 9, d: 1.0 },
-            ],
-            vec![
-                Defect::Mass { at: 2, m: 5.0 },
-                Defect::Mass { at: 4, m: 0.3 },
-                Defect::Spring { at: 6, k: 2.0 },
-                Defect::Ground { at: 9, g: 0.7 },
-            ],
+            crate::scenes::defects("mass:3:2.0 mass:7:0.5").unwrap(),
+            crate::scenes::defects("mass:7:2.0 mass:3:0.5").unwrap(),
+            crate::scenes::defects("spring:0:1.7 mass:5:4.0").unwrap(),
+            crate::scenes::defects("spring:9:0.2 spring:4:3.0").unwrap(),
+            crate::scenes::defects("damper:2:0.9 spring:2:1.3").unwrap(),
+            crate::scenes::defects("ground:8:0.3 mass:1:0.2").unwrap(),
+            crate::scenes::defects("mass:2:5.0 spring:5:0.5 damper:9:1.0").unwrap(),
+            crate::scenes::defects("mass:2:5.0 mass:4:0.3 spring:6:2.0 ground:9:0.7").unwrap(),
         ];
         for whitened in [true, false] {
             let obs = observations(&truth, whitened);
@@ -715,14 +682,8 @@ mod tests {
             .unwrap();
         let sets2 = vec![
             vec![Defect::Mass { at: 4, m: 2.5 }],
-            vec![
-                Defect::Mass { at: 1, m: 0.5 },
-                Defect::Spring { at: 1, k: 1.0 },
-            ],
-            vec![
-                Defect::Damper { at: 7, d: 2.0 },
-                Defect::Mass { at: 4, m: 3.0 },
-            ],
+            crate::scenes::defects("mass:1:0.5 spring:1:1.0").unwrap(),
+            crate::scenes::defects("damper:7:2.0 mass:4:3.0").unwrap(),
         ];
         check(&truth2, &other, &sets2, &obs2);
     }
@@ -749,13 +710,7 @@ mod tests {
 
     #[test]
     fn held_values_and_refusals() {
-        let truth = Chain::paper(6)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 2, m: 2.0 },
-                Defect::Mass { at: 5, m: 3.0 },
-            ])
-            .unwrap();
+        let truth = crate::scenes::paper_with(6, "mass:2:2.0 mass:5:3.0").unwrap();
         let base = truth.uniform();
         let obs = observations(&truth, true);
         let defs = [

@@ -384,6 +384,25 @@ mod tests {
             .unwrap()
     }
 
+    /// `sum_q w_q |X_1(s_q) - X_1*(s_q)|^2` of `model` against `truth` by the
+    /// forward model, on the rule of `mis`, the node `s_q = at(x_q)`.
+    fn direct<T: Num + crate::scalar::Scalar>(
+        mis: &Misfit,
+        model: &Chain,
+        truth: &Chain,
+        at: impl Fn(f64) -> T,
+    ) -> f64 {
+        let rule = mis.rule();
+        rule.nodes
+            .iter()
+            .zip(&rule.weights)
+            .map(|(&x, &w)| {
+                let s = at(x);
+                w * (response(model, s, 1).unwrap() - response(truth, s, 1).unwrap()).norm2()
+            })
+            .sum()
+    }
+
     #[test]
     fn kernels_agree_with_forward_model() {
         // residual against data = 0 gives sum w X^2: compare with the forward model
@@ -399,16 +418,7 @@ mod tests {
             vec![(3, 2.0), (7, 5.0), (12, 0.2)],
         ] {
             let model = chain_with(12, &defs);
-            let direct: f64 = mis
-                .rule()
-                .nodes
-                .iter()
-                .zip(&mis.rule().weights)
-                .map(|(&s, &w)| {
-                    let e = response(&model, s, 1).unwrap() - response(&truth, s, 1).unwrap();
-                    w * e * e
-                })
-                .sum();
+            let direct = direct(&mis, &model, &truth, |s| s);
             let pos: Vec<usize> = defs.iter().map(|d| d.0).collect();
             let dm: Vec<f64> = defs.iter().map(|d| d.1 - 1.0).collect();
             let set = mis.set(&pos);
@@ -446,10 +456,7 @@ mod tests {
             .and_then(|c| c.with_d(0.7))
             .and_then(|c| c.with_gamma(-1.7))
             .unwrap()
-            .with_defects([
-                Defect::Mass { at: 1, m: 3.0 },
-                Defect::Mass { at: 6, m: 0.4 },
-            ])
+            .with_defects(crate::scenes::defects("mass:1:3.0 mass:6:0.4").unwrap())
             .unwrap();
         let mut compared = 0;
         for (truth, spec) in [
@@ -649,16 +656,7 @@ mod tests {
         };
         let mis = Misfit::new(&truth.uniform(), &Data::exact(&truth), &spec).unwrap();
         let model = chain_with(8, &[(3, 3.0), (6, 0.5)]);
-        let direct: f64 = mis
-            .rule()
-            .nodes
-            .iter()
-            .zip(&mis.rule().weights)
-            .map(|(&om, &w)| {
-                let s = Complex64::new(0.1, om);
-                w * (response(&model, s, 1).unwrap() - response(&truth, s, 1).unwrap()).norm_sqr()
-            })
-            .sum();
+        let direct = direct(&mis, &model, &truth, |om| Complex64::new(0.1, om));
         let r = mis.residual(&[(3, 3.0), (6, 0.5)]);
         assert!((r - direct).abs() <= 1e-12 * direct);
         assert!(mis.residual(&[(2, 3.0), (6, 0.5)]) < 1e-25);

@@ -578,7 +578,7 @@ pub(super) enum Body {
     Complex(Gathered<Complex64>),
 }
 
-/// The Green's entries of one position set at every node of a [`Misfit`]:
+/// The Green's entries of one position set at every node of a [`Misfit`](super::Misfit):
 /// evaluating the residual for given masses costs only the `k x k` solves
 /// (one or two defects on the real axis: one ratio of bilinear forms per node).
 #[derive(Clone, Debug)]

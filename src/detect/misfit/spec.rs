@@ -111,42 +111,24 @@ pub enum RuleKind {
 /// Bromwich line from the record
 /// ([`crate::detect::fit::general::Setup::for_record`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct MisfitSpec {
     /// `real-axis`, `bromwich` or `time`.
-    #[serde(default)]
     pub kind: MisfitKind,
     /// `gl-log` or `gl-uniform` (default by kind).
-    #[serde(default)]
     pub rule: Option<RuleKind>,
     /// Number of panels (default 10 real axis, 40 Bromwich).
-    #[serde(default)]
     pub panels: Option<usize>,
     /// Gauss points per panel (default 8).
-    #[serde(default)]
     pub per_panel: Option<usize>,
     /// End of the first log-graded panel (default 0.05).
-    #[serde(default)]
     pub first: Option<f64>,
     /// Upper limit of the real-axis integral (default 300).
-    #[serde(default = "default_s_max")]
     pub s_max: f64,
     /// Abscissa of the Bromwich line (default 0.1).
-    #[serde(default = "default_sigma")]
     pub sigma: f64,
     /// Upper limit of `omega` on the Bromwich line (default 4).
-    #[serde(default = "default_omega_max")]
     pub omega_max: f64,
-}
-
-fn default_s_max() -> f64 {
-    300.0
-}
-fn default_sigma() -> f64 {
-    0.1
-}
-fn default_omega_max() -> f64 {
-    4.0
 }
 
 impl Default for MisfitSpec {
@@ -157,9 +139,9 @@ impl Default for MisfitSpec {
             panels: None,
             per_panel: None,
             first: None,
-            s_max: default_s_max(),
-            sigma: default_sigma(),
-            omega_max: default_omega_max(),
+            s_max: 300.0,
+            sigma: 0.1,
+            omega_max: 4.0,
         }
     }
 }
@@ -196,55 +178,32 @@ impl MisfitSpec {
                 ));
             }
         }
-        match self.kind {
-            MisfitKind::RealAxis => {
-                if !(self.s_max.is_finite() && self.s_max > 0.0) {
-                    return Err(Error::invalid("misfit.s_max", self.s_max, "> 0 and finite"));
-                }
-                match self.rule.unwrap_or(RuleKind::GlLog) {
-                    RuleKind::GlLog => Rule::gauss_legendre_log(
-                        0.0,
-                        self.s_max,
-                        self.panels.unwrap_or(10),
-                        per,
-                        self.first.unwrap_or(0.05),
-                    ),
-                    RuleKind::GlUniform => Rule::gauss_legendre_uniform(
-                        0.0,
-                        self.s_max,
-                        self.panels.unwrap_or(40),
-                        per,
-                    ),
-                }
-            }
+        // the integration variable runs over [0, end]; each kind has its own
+        // default rule
+        let (field, end, default_rule) = match self.kind {
+            MisfitKind::RealAxis => ("misfit.s_max", self.s_max, RuleKind::GlLog),
             MisfitKind::Bromwich => {
                 if !(self.sigma.is_finite() && self.sigma > 0.0) {
                     return Err(Error::invalid("misfit.sigma", self.sigma, "> 0 and finite"));
                 }
-                if !(self.omega_max.is_finite() && self.omega_max > 0.0) {
-                    return Err(Error::invalid(
-                        "misfit.omega_max",
-                        self.omega_max,
-                        "> 0 and finite",
-                    ));
-                }
-                match self.rule.unwrap_or(RuleKind::GlUniform) {
-                    RuleKind::GlUniform => Rule::gauss_legendre_uniform(
-                        0.0,
-                        self.omega_max,
-                        self.panels.unwrap_or(40),
-                        per,
-                    ),
-                    RuleKind::GlLog => Rule::gauss_legendre_log(
-                        0.0,
-                        self.omega_max,
-                        self.panels.unwrap_or(10),
-                        per,
-                        self.first.unwrap_or(0.05),
-                    ),
-                }
+                ("misfit.omega_max", self.omega_max, RuleKind::GlUniform)
             }
-            MisfitKind::Time => Err(time_has_no_rule()),
+            MisfitKind::Time => return Err(time_has_no_rule()),
+        };
+        if !(end.is_finite() && end > 0.0) {
+            return Err(Error::invalid(field, end, "> 0 and finite"));
+        }
+        match self.rule.unwrap_or(default_rule) {
+            RuleKind::GlLog => Rule::gauss_legendre_log(
+                0.0,
+                end,
+                self.panels.unwrap_or(10),
+                per,
+                self.first.unwrap_or(0.05),
+            ),
+            RuleKind::GlUniform => {
+                Rule::gauss_legendre_uniform(0.0, end, self.panels.unwrap_or(40), per)
+            }
         }
     }
 }

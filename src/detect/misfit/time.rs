@@ -244,17 +244,10 @@ impl crate::detect::model::MeasurementModel for TimeMisfit {
 mod tests {
     use super::*;
     use crate::noise::NoiseLevel;
-    use crate::Defect;
 
     #[test]
     fn chi2_is_a_chi_square_at_the_truth() {
-        let truth = Chain::paper(10)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 3, m: 3.0 },
-                Defect::Mass { at: 7, m: 2.0 },
-            ])
-            .unwrap();
+        let truth = crate::scenes::paper_with(10, "mass:3:3.0 mass:7:2.0").unwrap();
         let mut sum = 0.0;
         let reps = 20;
         for seed in 0..reps {

@@ -696,19 +696,14 @@ impl Screen {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::chain::Defect;
+
     use crate::time::modal::Modes;
 
     #[test]
     fn simulation_matches_the_modal_sum() {
-        let c = Chain::paper(15)
+        let c = crate::scenes::paper_with(15, "mass:4:2.5 spring:9:0.4")
             .unwrap()
             .with_d(0.03)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 4, m: 2.5 },
-                Defect::Spring { at: 9, k: 0.4 },
-            ])
             .unwrap();
         let t: Vec<f64> = (0..801).map(|i| 0.25 * i as f64).collect();
         let g = TimeGrid::new(&t, &c).unwrap();
@@ -742,21 +737,13 @@ mod tests {
         let screen = Screen::new(&t, &y, &c).unwrap();
         let modes = Modes::new(&c).unwrap();
         let cands: Vec<Candidate> = [
-            (DefectKind::Mass, 1),
-            (DefectKind::Mass, 2),
-            (DefectKind::Mass, 3),
-            (DefectKind::Mass, 5),
-            (DefectKind::Mass, 12),
-            (DefectKind::Damper, 1),
-            (DefectKind::Damper, 7),
-            (DefectKind::Damper, 10),
-            (DefectKind::Spring, 0),
-            (DefectKind::Spring, 1),
-            (DefectKind::Spring, 4),
-            (DefectKind::Spring, 8),
-            (DefectKind::Spring, 12),
+            (DefectKind::Mass, &[1, 2, 3, 5, 12][..]),
+            (DefectKind::Damper, &[1, 7, 10]),
+            (DefectKind::Spring, &[0, 1, 4, 8, 12]),
         ]
-        .to_vec();
+        .into_iter()
+        .flat_map(|(kind, at)| at.iter().map(move |&p| (kind, p)))
+        .collect();
         for parallel in [false, true] {
             let (x1, gs) = screen
                 .each(&c, &cands, parallel, |_, g| g.to_vec())

@@ -570,25 +570,24 @@ mod tests {
     use super::*;
 
     fn space() -> Space {
-        Space {
-            n: 12,
-            n_positions: 2,
-            excluded: vec![6],
-            bounds: vec![(0.1, 20.0), (0.1, 20.0), (-1.0, 1.0)],
-            log_scale: vec![true, true, false],
-            pairing: vec![Some(0), Some(1), None],
-        }
+        use crate::detect::search::TestValue::*;
+        crate::detect::search::test_space(12, 6, &[Mass(0), Mass(1), Global])
+    }
+
+    /// A GA of default options on [`space`] with seed `seed`.
+    fn genetic(seed: u64) -> Genetic {
+        Genetic::new(
+            space(),
+            GeneticOptions::default(),
+            NelderMeadOptions::default(),
+            seed,
+        )
     }
 
     #[test]
     fn crossover_keeps_each_value_with_its_position() {
         let s = space();
-        let mut ga = Genetic::new(
-            s.clone(),
-            GeneticOptions::default(),
-            NelderMeadOptions::default(),
-            5,
-        );
+        let mut ga = genetic(5);
         let mut rng = ChaCha8Rng::seed_from_u64(9);
         for _ in 0..500 {
             let a = s.random_candidate(&mut rng);
@@ -613,12 +612,7 @@ mod tests {
     #[test]
     fn mutation_and_crossover_stay_in_space() {
         let s = space();
-        let mut ga = Genetic::new(
-            s.clone(),
-            GeneticOptions::default(),
-            NelderMeadOptions::default(),
-            1,
-        );
+        let mut ga = genetic(1);
         let mut rng = ChaCha8Rng::seed_from_u64(2);
         let mut moved = 0;
         for _ in 0..2000 {
@@ -637,32 +631,14 @@ mod tests {
     #[test]
     fn options_validate() {
         GeneticOptions::default().validate().unwrap();
-        let bad = [
-            GeneticOptions {
-                population: 3,
-                ..Default::default()
-            },
-            GeneticOptions {
-                elites: 40,
-                ..Default::default()
-            },
-            GeneticOptions {
-                crossover_rate: 1.5,
-                ..Default::default()
-            },
-            GeneticOptions {
-                sigma_range: (0.0, 0.1),
-                ..Default::default()
-            },
-            GeneticOptions {
-                patience: 0,
-                ..Default::default()
-            },
-            GeneticOptions {
-                stall_rel: 1.0,
-                ..Default::default()
-            },
-        ];
+        let bad = crate::detect::search::spoiled::<GeneticOptions>(&[
+            |o| o.population = 3,
+            |o| o.elites = 40,
+            |o| o.crossover_rate = 1.5,
+            |o| o.sigma_range = (0.0, 0.1),
+            |o| o.patience = 0,
+            |o| o.stall_rel = 1.0,
+        ]);
         for o in bad {
             assert!(
                 matches!(o.validate(), Err(Error::InvalidParameter { .. })),

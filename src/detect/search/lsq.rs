@@ -761,6 +761,20 @@ mod tests {
         t: Vec<f64>,
         y: Vec<f64>,
     }
+
+    impl Exp {
+        /// The fit from `(1, 0.1)` with the amplitude in `[0.1, a_max]`, the
+        /// rate in `[0, 5]`.
+        fn fit(&self, a_max: f64) -> LmFit {
+            levenberg_marquardt(
+                self,
+                &[1.0, 0.1],
+                &[(0.1, a_max), (0.0, 5.0)],
+                &LmOptions::default(),
+            )
+            .unwrap()
+        }
+    }
     impl LeastSquares for Exp {
         fn residuals(&self, p: &[f64]) -> Result<Vec<f64>> {
             Ok(self
@@ -779,13 +793,7 @@ mod tests {
             t: vec![0.5],
             y: vec![1.0],
         };
-        let f = levenberg_marquardt(
-            &pr,
-            &[1.0, 0.1],
-            &[(0.1, 10.0), (0.0, 5.0)],
-            &LmOptions::default(),
-        )
-        .unwrap();
+        let f = pr.fit(10.0);
         assert_eq!((f.jacobian.nrows(), f.jacobian.ncols()), (1, 2));
         assert_eq!(f.dof(), 0);
         for e in [f.covariance().unwrap_err(), f.std_errors().unwrap_err()] {
@@ -806,26 +814,14 @@ mod tests {
         let t: Vec<f64> = (0..50).map(|i| i as f64 * 0.1).collect();
         let y: Vec<f64> = t.iter().map(|t| 2.0 * (-0.7 * t).exp()).collect();
         let pr = Exp { t, y };
-        let f = levenberg_marquardt(
-            &pr,
-            &[1.0, 0.1],
-            &[(0.1, 10.0), (0.0, 5.0)],
-            &LmOptions::default(),
-        )
-        .unwrap();
+        let f = pr.fit(10.0);
         assert!(
             (f.theta[0] - 2.0).abs() < 1e-8 && (f.theta[1] - 0.7).abs() < 1e-8,
             "{:?}",
             f.theta
         );
         assert!(f.chi2 < 1e-12);
-        let g = levenberg_marquardt(
-            &pr,
-            &[1.0, 0.1],
-            &[(0.1, 1.5), (0.0, 5.0)],
-            &LmOptions::default(),
-        )
-        .unwrap();
+        let g = pr.fit(1.5);
         assert_eq!(g.theta[0], 1.5);
         assert_eq!(g.at_bound, vec![0]);
         assert!(levenberg_marquardt(

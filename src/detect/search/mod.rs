@@ -722,100 +722,99 @@ impl Objective for MisfitObjective<'_> {
     }
 }
 
+/// A value of a test space ([`test_space`]): a mass-like value of a
+/// position group (`(0.1, 20)`, log-scaled), a factor-like one (`(0.5, 2)`),
+/// or a global value (`(-1, 1)`, no position).
+#[cfg(test)]
+#[derive(Clone, Copy)]
+pub(crate) enum TestValue {
+    Mass(usize),
+    Factor(usize),
+    Global,
+}
+
+/// A space of two positions on `n` masses, `excluded` excluded, with
+/// `values` in order (the spaces of the search tests).
+#[cfg(test)]
+pub(crate) fn test_space(n: usize, excluded: usize, values: &[TestValue]) -> Space {
+    let rows: Vec<((f64, f64), bool, Option<usize>)> = values
+        .iter()
+        .map(|v| match *v {
+            TestValue::Mass(g) => ((0.1, 20.0), true, Some(g)),
+            TestValue::Factor(g) => ((0.5, 2.0), false, Some(g)),
+            TestValue::Global => ((-1.0, 1.0), false, None),
+        })
+        .collect();
+    Space {
+        n,
+        n_positions: 2,
+        excluded: vec![excluded],
+        bounds: rows.iter().map(|r| r.0).collect(),
+        log_scale: rows.iter().map(|r| r.1).collect(),
+        pairing: rows.iter().map(|r| r.2).collect(),
+    }
+}
+
+/// Default options, each spoiled by one of `spoils` (the cases of a
+/// validation test).
+#[cfg(test)]
+pub(crate) fn spoiled<T: Default>(spoils: &[fn(&mut T)]) -> Vec<T> {
+    spoils
+        .iter()
+        .map(|spoil| {
+            let mut o = T::default();
+            spoil(&mut o);
+            o
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
+    use super::TestValue::*;
     use super::*;
     use rand::SeedableRng;
 
     fn space() -> Space {
-        Space {
-            n: 10,
-            n_positions: 2,
-            excluded: vec![4],
-            bounds: vec![(0.1, 20.0), (0.5, 2.0), (0.1, 20.0), (-1.0, 1.0)],
-            log_scale: vec![true, false, true, false],
-            pairing: vec![Some(0), Some(0), Some(1), None],
-        }
+        test_space(10, 4, &[Mass(0), Factor(0), Mass(1), Global])
     }
 
     #[test]
     fn validate_accepts_and_rejects() {
-        let ok = Space {
-            bounds: vec![
-                (0.1, 20.0),
-                (0.5, 2.0),
-                (0.1, 20.0),
-                (0.5, 2.0),
-                (-1.0, 1.0),
-            ],
-            log_scale: vec![true, false, true, false, false],
-            pairing: vec![Some(0), Some(0), Some(1), Some(1), None],
-            ..space()
-        };
+        let ok = test_space(10, 4, &[Mass(0), Factor(0), Mass(1), Factor(1), Global]);
         ok.validate().unwrap();
         // group 1 lacks the second value
         let e = space().validate().unwrap_err();
         assert!(e.to_string().contains("space.pairing"), "{e}");
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.n_positions = 6;
-        assert!(s
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .contains("space.n_positions"));
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.bounds[1] = (2.0, 2.0);
-        assert!(s
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .contains("space.bounds[1]"));
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.bounds = vec![(0.0, 1.0); 2];
-        assert!(s.validate().unwrap_err().to_string().contains("log scale"));
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.bounds[0] = (f64::NAN, 1.0);
-        assert!(s.validate().is_err());
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.pairing[1] = Some(2);
-        assert!(s
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .contains("space.pairing[1]"));
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.log_scale.pop();
-        assert!(s
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .contains("space.log_scale"));
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.excluded = vec![6];
-        assert!(s
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .contains("space.excluded[0]"));
-        let mut s = Space::masses(5, 2, (0.1, 20.0));
-        s.excluded = vec![1, 2, 3, 4];
-        assert!(s.validate().is_err());
+        // each spoiled field of a valid space, and the words of its error
+        type Spoil = fn(&mut Space);
+        let spoiled: [(Spoil, &str); 8] = [
+            (|s| s.n_positions = 6, "space.n_positions"),
+            (|s| s.bounds[1] = (2.0, 2.0), "space.bounds[1]"),
+            (|s| s.bounds = vec![(0.0, 1.0); 2], "log scale"),
+            (|s| s.bounds[0] = (f64::NAN, 1.0), ""),
+            (|s| s.pairing[1] = Some(2), "space.pairing[1]"),
+            (
+                |s| {
+                    s.log_scale.pop();
+                },
+                "space.log_scale",
+            ),
+            (|s| s.excluded = vec![6], "space.excluded[0]"),
+            (|s| s.excluded = vec![1, 2, 3, 4], ""),
+        ];
+        for (i, (spoil, words)) in spoiled.iter().enumerate() {
+            let mut s = Space::masses(5, 2, (0.1, 20.0));
+            s.validate().unwrap();
+            spoil(&mut s);
+            let e = s.validate().unwrap_err().to_string();
+            assert!(e.contains(words), "case {i}: {e}");
+        }
     }
 
     #[test]
     fn canonicalize_keeps_pairs() {
-        let s = Space {
-            bounds: vec![
-                (0.1, 20.0),
-                (0.1, 20.0),
-                (0.5, 2.0),
-                (0.5, 2.0),
-                (-1.0, 1.0),
-            ],
-            log_scale: vec![true, true, false, false, false],
-            pairing: vec![Some(0), Some(1), Some(0), Some(1), None],
-            ..space()
-        };
+        let s = test_space(10, 4, &[Mass(0), Mass(1), Factor(0), Factor(1), Global]);
         s.validate().unwrap();
         let c = Candidate {
             positions: vec![9, 2],

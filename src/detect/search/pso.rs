@@ -323,24 +323,12 @@ mod tests {
     #[test]
     fn options_validate() {
         PsoOptions::default().validate().unwrap();
-        for o in [
-            PsoOptions {
-                particles: 1,
-                ..Default::default()
-            },
-            PsoOptions {
-                inertia: -1.0,
-                ..Default::default()
-            },
-            PsoOptions {
-                swarm_share: 0.0,
-                ..Default::default()
-            },
-            PsoOptions {
-                patience: 0,
-                ..Default::default()
-            },
-        ] {
+        for o in crate::detect::search::spoiled::<PsoOptions>(&[
+            |o| o.particles = 1,
+            |o| o.inertia = -1.0,
+            |o| o.swarm_share = 0.0,
+            |o| o.patience = 0,
+        ]) {
             assert!(o.validate().is_err(), "{o:?}");
         }
     }

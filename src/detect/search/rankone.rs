@@ -1123,13 +1123,12 @@ mod tests {
         let sp = SetProblem::new(&base, &defs, &target).unwrap();
         let chain = base
             .clone()
-            .with_defects([
-                Defect::Mass { at: 1, m: 2.5 },
-                Defect::Damper { at: 1, d: 0.5 },
-                Defect::Spring { at: 4, k: 0.7 },
-                Defect::Damper { at: 9, d: 0.3 },
-                Defect::Mass { at: 9, m: 0.6 },
-            ])
+            .with_defects(
+                crate::scenes::defects(
+                    "mass:1:2.5 damper:1:0.5 spring:4:0.7 damper:9:0.3 mass:9:0.6",
+                )
+                .unwrap(),
+            )
             .unwrap();
         let direct = obs.residuals(&chain).unwrap();
         let mine = sp.residuals(&theta).unwrap();
