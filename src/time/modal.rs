@@ -1615,16 +1615,9 @@ mod tests {
     #[test]
     fn uniform_grid_recurrence_matches_term_by_term_evaluation() {
         use crate::chain::Boundary;
-        use crate::Defect;
         let chains = [
             Chain::paper(20).unwrap(),
-            Chain::paper(8)
-                .unwrap()
-                .with_defects([
-                    Defect::Mass { at: 3, m: 5.0 },
-                    Defect::Damper { at: 6, d: 3.0 },
-                ])
-                .unwrap(),
+            crate::scenes::paper_with(8, "mass:3:5 damper:6:3").unwrap(),
             Chain::paper(6)
                 .unwrap()
                 .with_d(0.0)
@@ -1839,14 +1832,7 @@ mod tests {
                 .unwrap()
                 .with_defect(Defect::Mass { at: 3, m: 4.0 })
                 .unwrap(),
-            Chain::paper(12)
-                .unwrap()
-                .with_defects([
-                    Defect::Spring { at: 0, k: 3.0 },
-                    Defect::Damper { at: 7, d: 2.5 },
-                    Defect::Mass { at: 4, m: 0.3 },
-                ])
-                .unwrap(),
+            crate::scenes::paper_with(12, "spring:0:3 damper:7:2.5 mass:4:0.3").unwrap(),
             Chain::new(8)
                 .unwrap()
                 .with_defect(Defect::Spring { at: 4, k: 0.2 })
