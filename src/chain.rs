@@ -947,15 +947,8 @@ mod tests {
 
     #[test]
     fn profiles() {
-        let c = Chain::paper(4)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 4, m: 2.0 },
-                Defect::Spring { at: 0, k: 3.0 },
-                Defect::Spring { at: 4, k: 5.0 },
-                Defect::Damper { at: 1, d: 0.7 },
-            ])
-            .unwrap();
+        let c =
+            crate::scenes::paper_with(4, "mass:4:2 spring:0:3 spring:4:5 damper:1:0.7").unwrap();
         assert_eq!(c.masses(), vec![1.0, 1.0, 1.0, 2.0]);
         assert_eq!(c.springs(), vec![3.0, 1.0, 1.0, 1.0, 5.0]);
         assert_eq!(c.dampers(), vec![0.7, 0.1, 0.1, 0.1]);
@@ -1009,15 +1002,9 @@ mod tests {
 
     #[test]
     fn units_scale_every_parameter() {
-        let c = Chain::paper(3)
+        let c = crate::scenes::paper_with(3, "mass:2:2 spring:3:0.5 damper:1:0.3")
             .unwrap()
             .with_boundaries(Boundary::Free, Boundary::Fixed)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 2, m: 2.0 },
-                Defect::Spring { at: 3, k: 0.5 },
-                Defect::Damper { at: 1, d: 0.3 },
-            ])
             .unwrap();
         let si = c.to_si(&Units::new(10.0, 100.0, 1000.0).unwrap()).unwrap();
         assert_eq!(si.masses(), vec![10.0, 20.0, 10.0]);

@@ -268,32 +268,11 @@ impl<T: Scalar> Green<T> {
         (T::one() + self.lambda.scale(-(h as f64)).exp()).scale(0.5)
     }
 
-    /// `L_a`: `sinh(a lambda)` (fixed) or `cosh((a - 1/2) lambda)` (free).
-    fn left_point(&self, a: usize) -> Factor<T> {
-        match (self.left, self.stat) {
-            (Boundary::Fixed, true) => Factor {
-                half_exp: 0,
-                mant: T::from_f64(a as f64),
-            },
-            (Boundary::Fixed, false) => Factor {
-                half_exp: 2 * a,
-                mant: self.half_one_minus_q2p(a),
-            },
-            (Boundary::Free, true) => Factor {
-                half_exp: 0,
-                mant: T::one(),
-            },
-            (Boundary::Free, false) => Factor {
-                half_exp: 2 * a - 1,
-                mant: self.half_one_plus_q(2 * a - 1),
-            },
-        }
-    }
-
-    /// `R_b`: `sinh(p lambda)` (fixed) or `cosh((p - 1/2) lambda)` (free), `p = n + 1 - b`.
-    fn right_point(&self, b: usize) -> Factor<T> {
-        let p = self.n + 1 - b;
-        match (self.right, self.stat) {
+    /// The factor of an end `p` masses in: `sinh(p lambda)` at a fixed end,
+    /// `cosh((p - 1/2) lambda)` at a free one.
+    #[inline]
+    fn end_point(&self, end: Boundary, p: usize) -> Factor<T> {
+        match (end, self.stat) {
             (Boundary::Fixed, true) => Factor {
                 half_exp: 0,
                 mant: T::from_f64(p as f64),
@@ -311,6 +290,18 @@ impl<T: Scalar> Green<T> {
                 mant: self.half_one_plus_q(2 * p - 1),
             },
         }
+    }
+
+    /// `L_a`: `sinh(a lambda)` (fixed) or `cosh((a - 1/2) lambda)` (free).
+    #[inline]
+    fn left_point(&self, a: usize) -> Factor<T> {
+        self.end_point(self.left, a)
+    }
+
+    /// `R_b`: `sinh(p lambda)` (fixed) or `cosh((p - 1/2) lambda)` (free), `p = n + 1 - b`.
+    #[inline]
+    fn right_point(&self, b: usize) -> Factor<T> {
+        self.end_point(self.right, self.n + 1 - b)
     }
 
     /// `L_i - L_{i+1}`: fixed `-e^{(i+1) lambda} (1 + q^{2i+1}) (1 - q) / 2`,
@@ -481,26 +472,6 @@ mod tests {
     use super::*;
     use num_complex::Complex64;
 
-    /// Dense inverse of the uniform chain by nalgebra LU (complex).
-    fn dense_inverse(
-        n: usize,
-        k: f64,
-        mass: f64,
-        d: f64,
-        s: Complex64,
-    ) -> nalgebra::DMatrix<Complex64> {
-        let diag = s * s * mass + s * d + 2.0 * k;
-        let mut m = nalgebra::DMatrix::<Complex64>::zeros(n, n);
-        for i in 0..n {
-            m[(i, i)] = diag;
-            if i + 1 < n {
-                m[(i, i + 1)] = Complex64::new(-k, 0.0);
-                m[(i + 1, i)] = Complex64::new(-k, 0.0);
-            }
-        }
-        m.lu().try_inverse().unwrap()
-    }
-
     fn rel(a: Complex64, b: Complex64) -> f64 {
         (a - b).norm() / b.norm().max(1e-300)
     }
@@ -519,7 +490,7 @@ mod tests {
         for &n in &[1usize, 2, 3, 7, 20] {
             for &(k, mass, d) in &[(1.0, 1.0, 0.1), (2.5, 0.3, 0.0), (0.7, 4.0, 3.0)] {
                 for &s in &ss {
-                    let inv = dense_inverse(n, k, mass, d, s);
+                    let inv = dense_matrix(n, k, mass, d, s).lu().try_inverse().unwrap();
                     let g = Green::new(n, k, mass, d, s);
                     let gr = (s.im == 0.0).then(|| Green::new(n, k, mass, d, s.re));
                     for i in 1..=n {
@@ -638,6 +609,7 @@ mod tests {
         assert!(g.is_singular() && !g.entry(1, 1).is_finite());
     }
 
+    /// The dynamic stiffness matrix of the uniform chain (fixed ends), dense.
     fn dense_matrix(
         n: usize,
         k: f64,

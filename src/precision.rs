@@ -241,6 +241,34 @@ mod big {
             let _ = r.0.set_precision(p, RM);
             r
         }
+
+        /// A function `f` with `f(0) = 0` whose `direct` form cancels for
+        /// small `x` (`exp(x) - 1`, `ln(1 + x)`): for `|x| < 1/2` `direct` is
+        /// taken with `-log2|x|` guard bits so that the cancellation loses
+        /// nothing; below `2^-(p+8)` the two-term `series` is exact to the
+        /// working precision.
+        fn near_zero(
+            &self,
+            series: impl FnOnce(BigReal) -> BigReal,
+            direct: impl Fn() -> BigReal,
+        ) -> BigReal {
+            let p = precision();
+            match self.exponent() {
+                None => {
+                    if self.0.is_zero() {
+                        self.clone()
+                    } else {
+                        direct()
+                    }
+                }
+                Some(e) if e < -(p as i32) - 8 => series(self.clone()),
+                Some(e) if e < 0 => {
+                    let guard = (-e) as usize + 16;
+                    BigReal::with_guard(guard, direct)
+                }
+                Some(_) => direct(),
+            }
+        }
     }
 
     /// Cut an astro-float decimal rendering (`1.2345e-3` style) to `digits`
@@ -389,25 +417,10 @@ mod big {
         /// `-log2|x|` guard bits so that the subtraction loses nothing; below
         /// `2^-(p+8)` the series `x + x^2/2` is exact to the working precision.
         fn expm1(&self) -> Self {
-            let p = precision();
-            match self.exponent() {
-                None => {
-                    if self.0.is_zero() {
-                        self.clone()
-                    } else {
-                        self.exp() - BigReal::one()
-                    }
-                }
-                Some(e) if e < -(p as i32) - 8 => {
-                    let x = self.clone();
-                    x.clone() + (x.clone() * x).scale(0.5)
-                }
-                Some(e) if e < 0 => {
-                    let guard = (-e) as usize + 16;
-                    BigReal::with_guard(guard, || self.exp() - BigReal::one())
-                }
-                Some(_) => self.exp() - BigReal::one(),
-            }
+            self.near_zero(
+                |x| x.clone() + (x.clone() * x).scale(0.5),
+                || self.exp() - BigReal::one(),
+            )
         }
         /// Principal `asinh`, with guard bits for small arguments.
         fn asinh(&self) -> Self {
@@ -447,25 +460,10 @@ mod big {
         /// `ln(1 + x)`: for `|x| < 1/2` the sum `1 + x` is formed with
         /// `-log2|x|` guard bits (exactly, when `x` carries the working precision).
         fn ln_1p(&self) -> Self {
-            let p = precision();
-            match self.exponent() {
-                None => {
-                    if self.0.is_zero() {
-                        self.clone()
-                    } else {
-                        (BigReal::one() + self.clone()).ln()
-                    }
-                }
-                Some(e) if e < -(p as i32) - 8 => {
-                    let x = self.clone();
-                    x.clone() - (x.clone() * x).scale(0.5)
-                }
-                Some(e) if e < 0 => {
-                    let guard = (-e) as usize + 16;
-                    BigReal::with_guard(guard, || (BigReal::one() + self.clone()).ln())
-                }
-                Some(_) => (BigReal::one() + self.clone()).ln(),
-            }
+            self.near_zero(
+                |x| x.clone() - (x.clone() * x).scale(0.5),
+                || (BigReal::one() + self.clone()).ln(),
+            )
         }
         fn acosh(&self) -> Self {
             let p = precision();

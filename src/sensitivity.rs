@@ -545,17 +545,12 @@ pub fn defect_gradient_from<T: Scalar>(
 mod tests {
     use super::*;
     use crate::forward::{response, tridiag};
+    use crate::scenes;
     use num_complex::Complex64;
 
     fn chains() -> Vec<Chain> {
         vec![
-            Chain::paper(5)
-                .unwrap()
-                .with_defects([
-                    Defect::Mass { at: 2, m: 3.0 },
-                    Defect::Mass { at: 4, m: 0.5 },
-                ])
-                .unwrap(),
+            scenes::paper_with(5, "mass:2:3 mass:4:0.5").unwrap(),
             Chain::new(9)
                 .unwrap()
                 .with_d(0.3)
@@ -566,15 +561,12 @@ mod tests {
                 .unwrap()
                 .with_gamma(1.7)
                 .unwrap()
-                .with_defects([
-                    Defect::Mass { at: 1, m: 4.0 },
-                    Defect::Spring { at: 0, k: 0.5 },
-                    Defect::Spring { at: 4, k: 3.0 },
-                    Defect::Damper { at: 5, d: 0.05 },
-                    Defect::Mass { at: 9, m: 0.2 },
-                    Defect::Spring { at: 9, k: 1.5 },
-                    Defect::Damper { at: 1, d: 0.9 },
-                ])
+                .with_defects(
+                    scenes::defects(
+                        "mass:1:4 spring:0:0.5 spring:4:3 damper:5:0.05 mass:9:0.2 spring:9:1.5 damper:1:0.9",
+                    )
+                    .unwrap(),
+                )
                 .unwrap(),
             Chain::paper(1).unwrap(),
             Chain::paper(2)
@@ -675,17 +667,11 @@ mod tests {
         use crate::chain::Boundary::*;
         use crate::forward::observe;
         for (l, r) in [(Free, Fixed), (Fixed, Free), (Free, Free)] {
-            let c = Chain::paper(6)
+            let c = crate::scenes::three_kinds(6, [1, 3, 5])
                 .unwrap()
                 .with_boundaries(l, r)
                 .unwrap()
                 .with_gamma(1.3)
-                .unwrap()
-                .with_defects([
-                    Defect::Mass { at: 1, m: 2.0 },
-                    Defect::Spring { at: 3, k: 0.6 },
-                    Defect::Damper { at: 5, d: 0.4 },
-                ])
                 .unwrap();
             let params = Param::all(&c);
             for obs in [

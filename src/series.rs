@@ -781,11 +781,7 @@ mod tests {
             ("time,t,x1\n0,1,2\n1,2,3\n", "both name the time"),
             ("t,x1,x1\n0,1,2\n1,2,3\n", "columns 2 `x1` and 3 `x1`"),
         ];
-        for (text, needle) in cases {
-            let e = TimeSeries::from_csv_str(text).unwrap_err();
-            assert!(matches!(e, Error::Parse { .. }), "{text:?}: {e}");
-            assert!(e.to_string().contains(needle), "{text:?}: {e}");
-        }
+        assert_parse_errors(&cases);
         // comments still work, also right before and after a data row
         let ts = x1("# a, b\nt,x1\n#c\n0,1\n#N/Ao\n#name: v\n1,2\n");
         assert_eq!(ts.t(), [0.0, 1.0]);
@@ -797,6 +793,15 @@ mod tests {
         let text = format!("t,x1\n0,{}\n", "9".repeat(1 << 20) + "z");
         let e = TimeSeries::from_csv_str(&text).unwrap_err().to_string();
         assert!(e.len() < 2000, "{} bytes", e.len());
+    }
+
+    /// Every text is refused with a parse error whose message holds its needle.
+    fn assert_parse_errors(cases: &[(&str, &str)]) {
+        for &(text, needle) in cases {
+            let e = TimeSeries::from_csv_str(text).unwrap_err();
+            assert!(matches!(e, Error::Parse { .. }), "{text:?}: {e}");
+            assert!(e.to_string().contains(needle), "{text:?}: {e}");
+        }
     }
 
     #[test]
@@ -811,11 +816,7 @@ mod tests {
             ("t,x1\n", "no data rows"),
             ("# only a comment\n", "empty"),
         ];
-        for (text, needle) in cases {
-            let e = TimeSeries::from_csv_str(text).unwrap_err();
-            assert!(matches!(e, Error::Parse { .. }), "{text:?}: {e}");
-            assert!(e.to_string().contains(needle), "{text:?}: {e}");
-        }
+        assert_parse_errors(&cases);
     }
 
     #[test]

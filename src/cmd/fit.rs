@@ -4,6 +4,7 @@
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
+use springmass::detect::fit::identify::Identifiability;
 use springmass::detect::fit::paper::{fit, SceneReport};
 use springmass::detect::fit::FitMethod;
 use springmass::detect::scene::FitScene;
@@ -500,78 +501,10 @@ fn run_profile(
     po.lambda = penalty;
     let r = fit_profile(obs, model, &po)?;
     if let Some(out) = &a.out_csv {
-        // issue 32 item 8: built in memory, written by the atomic writer
-        let mut w = csv::Writer::from_writer(Vec::new());
-        w.write_record(["kind", "at", "value", "se", "uniform", "visible", "depth"])?;
-        for e in &r.elements {
-            w.write_record([
-                e.kind.to_string(),
-                e.at.to_string(),
-                format!("{:.10e}", e.value),
-                format!("{:.4e}", e.se),
-                format!("{}", e.uniform),
-                e.visible.to_string(),
-                format!("{}", e.depth),
-            ])?;
-        }
-        let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
-        springmass::io::write_atomic(out, &bytes)
-            .with_context(|| format!("cannot write {}", out.display()))?;
+        write_profile_csv(out, &r)?;
     }
     if let Some(svg) = &a.plot {
-        let mut plot = springmass::plot::LinePlot::new(
-            format!(
-                "profile of {} from {} ({} of {} visible)",
-                mode.name(),
-                path.display(),
-                r.visible_count(),
-                r.elements.len()
-            ),
-            "position",
-            "value",
-        );
-        for kind in ["mass", "spring"] {
-            let of: Vec<_> = r.elements.iter().filter(|e| e.kind == kind).collect();
-            if of.is_empty() {
-                continue;
-            }
-            let pts = |f: &dyn Fn(&&springmass::detect::fit::profile::ElementEstimate) -> f64| {
-                of.iter()
-                    .filter(|e| e.visible)
-                    .map(|e| (e.at as f64, f(e)))
-                    .collect::<Vec<_>>()
-            };
-            plot = plot
-                .line(
-                    springmass::plot::Line::new(format!("{kind} (visible)"), pts(&|e| e.value))
-                        .markers(),
-                )
-                .line(
-                    springmass::plot::Line::new(
-                        format!("{kind} +2 SE"),
-                        pts(&|e| e.value + 2.0 * e.se),
-                    )
-                    .dashed(),
-                )
-                .line(
-                    springmass::plot::Line::new(
-                        format!("{kind} -2 SE"),
-                        pts(&|e| e.value - 2.0 * e.se),
-                    )
-                    .dashed(),
-                );
-            let hidden: Vec<(f64, f64)> = of
-                .iter()
-                .filter(|e| !e.visible)
-                .map(|e| (e.at as f64, e.value))
-                .collect();
-            if !hidden.is_empty() {
-                plot = plot.line(
-                    springmass::plot::Line::new(format!("{kind} (not visible)"), hidden).markers(),
-                );
-            }
-        }
-        plot.write_svg(svg)?;
+        plot_profile(svg, &r, mode, path)?;
     }
     if a.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
@@ -579,6 +512,96 @@ fn run_profile(
         print!("{}", r.summary());
     }
     Ok(r)
+}
+
+/// The profile's elements as CSV (kind, at, value, se, uniform, visible,
+/// depth) to `out`.
+fn write_profile_csv(
+    out: &std::path::Path,
+    r: &springmass::detect::fit::profile::ProfileReport,
+) -> anyhow::Result<()> {
+    // issue 32 item 8: built in memory, written by the atomic writer
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record(["kind", "at", "value", "se", "uniform", "visible", "depth"])?;
+    for e in &r.elements {
+        w.write_record([
+            e.kind.to_string(),
+            e.at.to_string(),
+            format!("{:.10e}", e.value),
+            format!("{:.4e}", e.se),
+            format!("{}", e.uniform),
+            e.visible.to_string(),
+            format!("{}", e.depth),
+        ])?;
+    }
+    let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
+    springmass::io::write_atomic(out, &bytes)
+        .with_context(|| format!("cannot write {}", out.display()))?;
+    Ok(())
+}
+
+/// The profile against position: visible values with their 2 SE band, and
+/// the values the data cannot see.
+fn plot_profile(
+    svg: &std::path::Path,
+    r: &springmass::detect::fit::profile::ProfileReport,
+    mode: springmass::detect::fit::profile::ProfileMode,
+    path: &std::path::Path,
+) -> anyhow::Result<()> {
+    let mut plot = springmass::plot::LinePlot::new(
+        format!(
+            "profile of {} from {} ({} of {} visible)",
+            mode.name(),
+            path.display(),
+            r.visible_count(),
+            r.elements.len()
+        ),
+        "position",
+        "value",
+    );
+    for kind in ["mass", "spring"] {
+        let of: Vec<_> = r.elements.iter().filter(|e| e.kind == kind).collect();
+        if of.is_empty() {
+            continue;
+        }
+        let pts = |f: &dyn Fn(&&springmass::detect::fit::profile::ElementEstimate) -> f64| {
+            of.iter()
+                .filter(|e| e.visible)
+                .map(|e| (e.at as f64, f(e)))
+                .collect::<Vec<_>>()
+        };
+        plot = plot
+            .line(
+                springmass::plot::Line::new(format!("{kind} (visible)"), pts(&|e| e.value))
+                    .markers(),
+            )
+            .line(
+                springmass::plot::Line::new(
+                    format!("{kind} +2 SE"),
+                    pts(&|e| e.value + 2.0 * e.se),
+                )
+                .dashed(),
+            )
+            .line(
+                springmass::plot::Line::new(
+                    format!("{kind} -2 SE"),
+                    pts(&|e| e.value - 2.0 * e.se),
+                )
+                .dashed(),
+            );
+        let hidden: Vec<(f64, f64)> = of
+            .iter()
+            .filter(|e| !e.visible)
+            .map(|e| (e.at as f64, e.value))
+            .collect();
+        if !hidden.is_empty() {
+            plot = plot.line(
+                springmass::plot::Line::new(format!("{kind} (not visible)"), hidden).markers(),
+            );
+        }
+    }
+    plot.write_svg(svg)?;
+    Ok(())
 }
 
 /// The JSON form of a data-first report: the answer first, the predicted
@@ -603,13 +626,11 @@ fn fmt_defects(d: &[springmass::Defect], kinds: bool) -> String {
         .join(", ")
 }
 
-/// The scene's report: the answer and its error bars first, then the
-/// truth it is scored against, how it was found and how far to trust it.
-fn print_text(scene: &FitScene, r: &SceneReport) {
-    let general = !r.std_errors.is_empty();
+/// The answer with its error bars: the general fit's standard errors, or on
+/// the mass path the fit's errors scaled to the data's floor; the fitted
+/// chain parameters.
+fn print_answer(r: &SceneReport, general: bool) {
     println!("found      {}", fmt_defects(&r.defects, general));
-    // the answer with its error bars: the general fit's standard errors, or
-    // on the mass path the fit's errors scaled to the data's floor
     let bars = if general {
         &r.std_errors
     } else {
@@ -633,6 +654,43 @@ fn print_text(scene: &FitScene, r: &SceneReport) {
             p.name, p.value, p.std_error
         );
     }
+}
+
+/// How far each defect of the answer stands from its rivals.
+fn print_identifiability(id: &Identifiability) {
+    println!(
+        "identifiability (noise level {:.3e}; gap threshold {})",
+        id.sigma, id.threshold
+    );
+    if let (Some(g), Some(s)) = (id.runner_up_gap, id.sigma_indistinguishable) {
+        println!(
+            "  runner-up chi2 gap {g:.4e}: indistinguishable from the answer at noise {s:.3e} ({:.1}x the data's)",
+            if id.sigma > 0.0 { s / id.sigma } else { f64::INFINITY }
+        );
+    }
+    for d in &id.defects {
+        println!(
+            "  at {:>3}: {:.1} SE from the uniform value; {}{}",
+            d.at,
+            d.significance,
+            match (d.nearest_rival, d.position_gap) {
+                (Some(p), Some(g)) => format!("nearest rival position {p} (chi2 gap {g:.3e})"),
+                _ => "no listed alternative moves it".to_string(),
+            },
+            if d.identifiable {
+                String::from("  identifiable")
+            } else {
+                format!("  NOT identifiable: {}", d.reason)
+            }
+        );
+    }
+}
+
+/// The scene's report: the answer and its error bars first, then the
+/// truth it is scored against, how it was found and how far to trust it.
+fn print_text(scene: &FitScene, r: &SceneReport) {
+    let general = !r.std_errors.is_empty();
+    print_answer(r, general);
     let truth: Vec<springmass::Defect> = scene.chain.defects.clone();
     if !truth.is_empty() {
         println!("truth      {}", fmt_defects(&truth, general));
@@ -671,32 +729,7 @@ fn print_text(scene: &FitScene, r: &SceneReport) {
         }
     }
     if let Some(id) = &r.identifiability {
-        println!(
-            "identifiability (noise level {:.3e}; gap threshold {})",
-            id.sigma, id.threshold
-        );
-        if let (Some(g), Some(s)) = (id.runner_up_gap, id.sigma_indistinguishable) {
-            println!(
-                "  runner-up chi2 gap {g:.4e}: indistinguishable from the answer at noise {s:.3e} ({:.1}x the data's)",
-                if id.sigma > 0.0 { s / id.sigma } else { f64::INFINITY }
-            );
-        }
-        for d in &id.defects {
-            println!(
-                "  at {:>3}: {:.1} SE from the uniform value; {}{}",
-                d.at,
-                d.significance,
-                match (d.nearest_rival, d.position_gap) {
-                    (Some(p), Some(g)) => format!("nearest rival position {p} (chi2 gap {g:.3e})"),
-                    _ => "no listed alternative moves it".to_string(),
-                },
-                if d.identifiable {
-                    String::from("  identifiable")
-                } else {
-                    format!("  NOT identifiable: {}", d.reason)
-                }
-            );
-        }
+        print_identifiability(id);
     }
     let sets = r
         .sets

@@ -5,7 +5,9 @@ use anyhow::Context;
 use clap::Args as ClapArgs;
 use springmass::scalar::parse_complex;
 use springmass::series::TimeSeries;
-use springmass::time::series::{SeriesTransform, Tail, TransformOptions, DEFAULT_DEGREE};
+use springmass::time::series::{
+    LaplaceValue, SeriesTransform, Tail, TransformOptions, DEFAULT_DEGREE,
+};
 use springmass::Error;
 use std::path::PathBuf;
 
@@ -99,75 +101,92 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         rows.push(v);
     }
     if a.json {
-        let points: Vec<serde_json::Value> = rows
-            .iter()
-            .map(|v| {
-                let mut p = serde_json::json!({
-                    "s": [v.s.re, v.s.im],
-                    "x": [v.value.re, v.value.im],
-                    "err": v.err,
-                });
-                if let Some(var) = v.noise_var {
-                    p["noise_std"] = serde_json::json!(var.sqrt());
-                }
-                p
-            })
-            .collect();
-        println!("{}", serde_json::json!({ "points": points }));
+        print_json(&rows);
     } else {
-        let t = ts.t();
-        println!(
-            "# {}: column {column}, {} samples on [{}, {}], degree {}",
-            a.series.display(),
-            t.len(),
-            t[0],
-            t[t.len() - 1],
-            tr.degree()
-        );
-        if let Some(fit) = tr.mode_fit() {
-            println!(
-                "# tail after t = {}: {} decaying modes fitted (relative residual {:.1e}), transform added",
-                fit.t_end,
-                fit.poles.len(),
-                fit.residual
-            );
-        }
-        if let Some(env) = tr.envelope() {
-            println!(
-                "# tail after t = {}: |x| <= {:.3e} exp(-{:.3e} (t - {}))  (bound, no correction)",
-                env.t_end, env.amp, env.rate, env.t_end
-            );
-        }
-        println!(
-            "{:>24} {:>24} {:>24} {:>24} {:>10} {:>10} {:>10}{}",
-            "Re s",
-            "Im s",
-            "Re X",
-            "Im X",
-            "err",
-            "disc",
-            "trunc",
-            if a.noise_sigma.is_some() {
-                format!(" {:>10}", "noise_std")
-            } else {
-                String::new()
-            }
-        );
-        for v in rows {
-            println!(
-                "{:>24.16e} {:>24.16e} {:>24.16e} {:>24.16e} {:>10.3e} {:>10.3e} {:>10.3e}{}",
-                v.s.re,
-                v.s.im,
-                v.value.re,
-                v.value.im,
-                v.err,
-                v.err_disc,
-                v.err_trunc,
-                v.noise_var
-                    .map(|var| format!(" {:>10.3e}", var.sqrt()))
-                    .unwrap_or_default()
-            );
-        }
+        print_text(&a, &ts, &column, &tr, rows);
     }
     Ok(())
+}
+
+/// The values as JSON: `{"points": [{"s", "x", "err"[, "noise_std"]}, ...]}`.
+fn print_json(rows: &[LaplaceValue]) {
+    let points: Vec<serde_json::Value> = rows
+        .iter()
+        .map(|v| {
+            let mut p = serde_json::json!({
+                "s": [v.s.re, v.s.im],
+                "x": [v.value.re, v.value.im],
+                "err": v.err,
+            });
+            if let Some(var) = v.noise_var {
+                p["noise_std"] = serde_json::json!(var.sqrt());
+            }
+            p
+        })
+        .collect();
+    println!("{}", serde_json::json!({ "points": points }));
+}
+
+/// The values as a table under `#` lines on the series, the interpolant and
+/// the tail.
+fn print_text(
+    a: &Args,
+    ts: &TimeSeries,
+    column: &str,
+    tr: &SeriesTransform,
+    rows: Vec<LaplaceValue>,
+) {
+    let t = ts.t();
+    println!(
+        "# {}: column {column}, {} samples on [{}, {}], degree {}",
+        a.series.display(),
+        t.len(),
+        t[0],
+        t[t.len() - 1],
+        tr.degree()
+    );
+    if let Some(fit) = tr.mode_fit() {
+        println!(
+            "# tail after t = {}: {} decaying modes fitted (relative residual {:.1e}), transform added",
+            fit.t_end,
+            fit.poles.len(),
+            fit.residual
+        );
+    }
+    if let Some(env) = tr.envelope() {
+        println!(
+            "# tail after t = {}: |x| <= {:.3e} exp(-{:.3e} (t - {}))  (bound, no correction)",
+            env.t_end, env.amp, env.rate, env.t_end
+        );
+    }
+    println!(
+        "{:>24} {:>24} {:>24} {:>24} {:>10} {:>10} {:>10}{}",
+        "Re s",
+        "Im s",
+        "Re X",
+        "Im X",
+        "err",
+        "disc",
+        "trunc",
+        if a.noise_sigma.is_some() {
+            format!(" {:>10}", "noise_std")
+        } else {
+            String::new()
+        }
+    );
+    for v in rows {
+        println!(
+            "{:>24.16e} {:>24.16e} {:>24.16e} {:>24.16e} {:>10.3e} {:>10.3e} {:>10.3e}{}",
+            v.s.re,
+            v.s.im,
+            v.value.re,
+            v.value.im,
+            v.err,
+            v.err_disc,
+            v.err_trunc,
+            v.noise_var
+                .map(|var| format!(" {:>10.3e}", var.sqrt()))
+                .unwrap_or_default()
+        );
+    }
 }

@@ -5,7 +5,7 @@ use clap::Args as ClapArgs;
 use springmass::chain::{Boundary, Units};
 use springmass::forward::{Forward, Observable};
 use springmass::scalar::parse_complex;
-use springmass::time::modal::natural_modes;
+use springmass::time::modal::{natural_modes, NaturalMode};
 use springmass::{Chain, Complex64};
 
 /// Arguments of `springmass response`.
@@ -131,6 +131,75 @@ fn eval(
     })
 }
 
+/// [`eval`], and where it meets a singular value with `gamma != 1`: a pole,
+/// or `X = gamma * G` overflowing f64, told apart with `gamma = 1`.
+fn eval_explained(
+    chain: &Chain,
+    fwd: &Forward,
+    s: Complex64,
+    observe: usize,
+    kind: Observable,
+    force: bool,
+) -> anyhow::Result<Complex64> {
+    Ok(match eval(fwd, s, observe, kind, force) {
+        Err(springmass::Error::Singular { s: at }) if chain.gamma() != 1.0 => {
+            // a pole, or X = gamma * G overflowing f64: decide with gamma = 1
+            let unit = chain.clone().with_gamma(1.0)?;
+            match eval(&Forward::new(&unit), s, observe, kind, force) {
+                Ok(g) => {
+                    return Err(springmass::Error::Unresolvable {
+                        reason: format!(
+                            "X_{}({at}) = gamma * ({} {:+}i) with gamma = {} overflows f64",
+                            observe,
+                            g.re,
+                            g.im,
+                            chain.gamma()
+                        ),
+                    }
+                    .into())
+                }
+                Err(_) => return Err(springmass::Error::Singular { s: at }.into()),
+            }
+        }
+        other => other?,
+    })
+}
+
+/// The values as JSON: `{"points": [{"s", "x"}, ...]}`, with the observable
+/// and excitation when not the default, the ends when not both fixed, and the
+/// modes when asked for.
+fn print_json(
+    chain: &Chain,
+    rows: &[(Complex64, Complex64)],
+    kind: Observable,
+    force: bool,
+    modes: Option<&[NaturalMode]>,
+) {
+    let points: Vec<serde_json::Value> = rows
+        .iter()
+        .map(|(s, x)| serde_json::json!({"s": [s.re, s.im], "x": [x.re, x.im]}))
+        .collect();
+    let mut out = serde_json::json!({ "points": points });
+    if kind != Observable::Displacement || force {
+        out["observe_kind"] = kind.name().into();
+        out["excitation"] = if force { "force" } else { "impulse" }.into();
+    }
+    if !chain.is_fixed_fixed() {
+        out["left"] = chain.left().name().into();
+        out["right"] = chain.right().name().into();
+    }
+    if let Some(m) = modes {
+        out["modes"] = m
+            .iter()
+            .map(
+                |m| serde_json::json!({"omega": m.omega, "frequency": m.frequency, "zeta": m.zeta}),
+            )
+            .collect::<Vec<_>>()
+            .into();
+    }
+    println!("{out}");
+}
+
 pub fn run(a: Args) -> anyhow::Result<()> {
     let chain = a.setup.apply(a.chain.chain()?)?;
     let kind: Observable = a.observe_kind.parse()?;
@@ -146,28 +215,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .map(|t| parse_complex(t))
             .collect::<Result<Vec<_>, _>>()?;
     for s in s_values {
-        let x = match eval(&fwd, s, a.observe, kind, force) {
-            Err(springmass::Error::Singular { s: at }) if chain.gamma() != 1.0 => {
-                // a pole, or X = gamma * G overflowing f64: decide with gamma = 1
-                let unit = chain.clone().with_gamma(1.0)?;
-                match eval(&Forward::new(&unit), s, a.observe, kind, force) {
-                    Ok(g) => {
-                        return Err(springmass::Error::Unresolvable {
-                            reason: format!(
-                                "X_{}({at}) = gamma * ({} {:+}i) with gamma = {} overflows f64",
-                                a.observe,
-                                g.re,
-                                g.im,
-                                chain.gamma()
-                            ),
-                        }
-                        .into())
-                    }
-                    Err(_) => return Err(springmass::Error::Singular { s: at }.into()),
-                }
-            }
-            other => other?,
-        };
+        let x = eval_explained(&chain, &fwd, s, a.observe, kind, force)?;
         rows.push((s, x));
     }
     let modes = if a.modes {
@@ -176,27 +224,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None
     };
     if a.json {
-        let points: Vec<serde_json::Value> = rows
-            .iter()
-            .map(|(s, x)| serde_json::json!({"s": [s.re, s.im], "x": [x.re, x.im]}))
-            .collect();
-        let mut out = serde_json::json!({ "points": points });
-        if kind != Observable::Displacement || force {
-            out["observe_kind"] = kind.name().into();
-            out["excitation"] = if force { "force" } else { "impulse" }.into();
-        }
-        if !chain.is_fixed_fixed() {
-            out["left"] = chain.left().name().into();
-            out["right"] = chain.right().name().into();
-        }
-        if let Some(m) = &modes {
-            out["modes"] = m
-                .iter()
-                .map(|m| serde_json::json!({"omega": m.omega, "frequency": m.frequency, "zeta": m.zeta}))
-                .collect::<Vec<_>>()
-                .into();
-        }
-        println!("{out}");
+        print_json(&chain, &rows, kind, force, modes.as_deref());
     } else {
         println!(
             "# chain: n = {}, k = {}, d = {}, gamma = {}, mass = {}, defects = [{}]",

@@ -13,7 +13,8 @@ use springmass::noise::{add_noise, NoiseLevel};
 use springmass::plot::{Line, LinePlot};
 use springmass::series::TimeSeries;
 use springmass::time::simulate::{simulate_forced, Forcing, Method, SimOptions};
-use std::path::PathBuf;
+use springmass::Chain;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `springmass simulate`.
 #[derive(ClapArgs, Debug)]
@@ -119,6 +120,75 @@ fn check_memory(n: usize, a: &Args, method: Method) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Refuse a noise level `text` that put samples beyond 1e300 in magnitude
+/// (meaningless, and they hang the plot's axes).
+fn check_noisy(series: &TimeSeries, text: &str) -> springmass::Result<()> {
+    for (c, name) in series.names().iter().enumerate() {
+        let col = series.column_at(c).unwrap_or_default();
+        if let Some(i) = col
+            .iter()
+            .position(|v| v.abs() > springmass::io::MAX_MAGNITUDE)
+        {
+            return Err(springmass::Error::invalid(
+                "--noise",
+                text,
+                format!(
+                    "a level that keeps the samples within 1e300 in magnitude ({name}[{i}] = {:e})",
+                    col[i]
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Draw every column of `series` against t, titled with the chain, its
+/// defects, the forcing, the noise and free ends.
+fn plot_series(
+    chain: &Chain,
+    series: &TimeSeries,
+    forcing: &Forcing,
+    a: &Args,
+    kind: Observable,
+    path: &Path,
+) -> springmass::Result<()> {
+    let defects = chain
+        .defects()
+        .iter()
+        .map(|d| d.to_string())
+        .collect::<Vec<_>>()
+        .join(", ");
+    let mut title = format!("n = {}, d = {}", chain.n(), chain.d());
+    if !defects.is_empty() {
+        title.push_str(&format!(", defects: {defects}"));
+    }
+    if !forcing.is_empty() {
+        title.push_str(", forced");
+    }
+    if let Some(text) = &a.noise {
+        title.push_str(&format!(", noise {text}"));
+    }
+    if !chain.is_fixed_fixed() {
+        title.push_str(&format!(", ends {}-{}", chain.left(), chain.right()));
+    }
+    let mut plot = LinePlot::new(title, "t", kind.name());
+    for name in series.names() {
+        let col = series.column(name).unwrap_or_default();
+        let pts = series
+            .t()
+            .iter()
+            .copied()
+            .zip(col.iter().copied())
+            .collect();
+        plot = plot.line(Line::new(
+            name.replacen(kind.prefix(), &format!("{}_", kind.prefix()), 1),
+            pts,
+        ));
+    }
+    plot.write_svg(path)?;
+    Ok(())
+}
+
 pub fn run(a: Args) -> anyhow::Result<()> {
     let chain = a.setup.apply(a.chain.chain()?)?;
     let kind: Observable = a.observe_kind.parse()?;
@@ -146,63 +216,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         None => traj.to_series()?,
     };
     if let Some(text) = &a.noise {
-        // samples beyond 1e300 are meaningless (and hang the plot's axes)
-        for (c, name) in series.names().iter().enumerate() {
-            let col = series.column_at(c).unwrap_or_default();
-            if let Some(i) = col
-                .iter()
-                .position(|v| v.abs() > springmass::io::MAX_MAGNITUDE)
-            {
-                return Err(springmass::Error::invalid(
-                    "--noise",
-                    text,
-                    format!(
-                        "a level that keeps the samples within 1e300 in magnitude ({name}[{i}] = {:e})",
-                        col[i]
-                    ),
-                )
-                .into());
-            }
-        }
+        check_noisy(&series, text)?;
     }
     if let Some(path) = &a.out {
         series.write_csv(path)?;
     }
     if let Some(path) = &a.plot {
-        let defects = chain
-            .defects()
-            .iter()
-            .map(|d| d.to_string())
-            .collect::<Vec<_>>()
-            .join(", ");
-        let mut title = format!("n = {}, d = {}", chain.n(), chain.d());
-        if !defects.is_empty() {
-            title.push_str(&format!(", defects: {defects}"));
-        }
-        if !forcing.is_empty() {
-            title.push_str(", forced");
-        }
-        if let Some(text) = &a.noise {
-            title.push_str(&format!(", noise {text}"));
-        }
-        if !chain.is_fixed_fixed() {
-            title.push_str(&format!(", ends {}-{}", chain.left(), chain.right()));
-        }
-        let mut plot = LinePlot::new(title, "t", kind.name());
-        for name in series.names() {
-            let col = series.column(name).unwrap_or_default();
-            let pts = series
-                .t()
-                .iter()
-                .copied()
-                .zip(col.iter().copied())
-                .collect();
-            plot = plot.line(Line::new(
-                name.replacen(kind.prefix(), &format!("{}_", kind.prefix()), 1),
-                pts,
-            ));
-        }
-        plot.write_svg(path)?;
+        plot_series(&chain, &series, &forcing, &a, kind, path)?;
     }
     if a.out.is_none() && a.plot.is_none() {
         print!("{}", series.to_csv_string());

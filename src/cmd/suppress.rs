@@ -75,12 +75,15 @@ fn pts(t: &[f64], v: &[f64]) -> Vec<(f64, f64)> {
     t.iter().copied().zip(v.iter().copied()).collect()
 }
 
+/// A curve of [`plot_xy`]: label, values, dashed.
+type Curve<'a> = (&'a str, &'a [f64], bool);
+
 fn plot_xy(
     path: &Path,
     title: &str,
     ylabel: &str,
     t: &[f64],
-    lines: &[(&str, &[f64], bool)],
+    lines: &[Curve],
 ) -> anyhow::Result<()> {
     let mut p = LinePlot::new(title, "t", ylabel);
     for (label, v, dashed) in lines {
@@ -313,44 +316,47 @@ fn write_figures(out: &Path, n: usize, runs: &Runs) -> anyhow::Result<Vec<String
     match runs.scheme {
         Scheme::Cloak => {
             let (f, g) = (&shown.controls[0], &shown.controls[1]);
-            plot_xy(
-                &fig("fig_controls.svg"),
-                &format!("Controls (n = {n}): f on mass {n}, g on mass {}", n - 1),
-                "force",
-                t,
-                &[("f", &f.values, false), ("g", &g.values, false)],
-            )?;
             let s = runs
                 .single
                 .as_ref()
                 .expect("cloak runs the single control too");
-            plot_xy(
-                &fig("fig_x1_f_alone.svg"),
-                &format!("x_1 without controls and with f1 alone (n = {n}, {tag})"),
-                "x_1",
-                t,
-                &[("no control", &shown.y1, false), ("f1 alone", &s.x1, true)],
-            )?;
-            plot_xy(
-                &fig("fig_x1_cloak.svg"),
-                &format!("x_1 without controls and with f and g (n = {n}, {tag})"),
-                "x_1",
-                t,
-                &[
-                    ("no control", &shown.y1, false),
-                    ("f and g", &shown.x1, true),
-                ],
-            )?;
-            plot_xy(
-                &fig("fig_x_end.svg"),
-                &format!("x_{} without and with f and g", n + 1),
-                &format!("x_{}", n + 1),
-                t,
-                &[
-                    ("no control", &shown.y_end, false),
-                    ("f and g", &shown.x_end, false),
-                ],
-            )?;
+            let x_end = format!("x_{}", n + 1);
+            // (file, title, y label, the two curves)
+            let plots: [(&str, String, &str, [Curve; 2]); 4] = [
+                (
+                    "fig_controls.svg",
+                    format!("Controls (n = {n}): f on mass {n}, g on mass {}", n - 1),
+                    "force",
+                    [("f", &f.values, false), ("g", &g.values, false)],
+                ),
+                (
+                    "fig_x1_f_alone.svg",
+                    format!("x_1 without controls and with f1 alone (n = {n}, {tag})"),
+                    "x_1",
+                    [("no control", &shown.y1, false), ("f1 alone", &s.x1, true)],
+                ),
+                (
+                    "fig_x1_cloak.svg",
+                    format!("x_1 without controls and with f and g (n = {n}, {tag})"),
+                    "x_1",
+                    [
+                        ("no control", &shown.y1, false),
+                        ("f and g", &shown.x1, true),
+                    ],
+                ),
+                (
+                    "fig_x_end.svg",
+                    format!("x_{} without and with f and g", n + 1),
+                    &x_end,
+                    [
+                        ("no control", &shown.y_end, false),
+                        ("f and g", &shown.x_end, false),
+                    ],
+                ),
+            ];
+            for (file, title, ylabel, lines) in &plots {
+                plot_xy(&fig(file), title, ylabel, t, lines)?;
+            }
         }
         Scheme::Single => {
             let f1 = &shown.controls[0];
@@ -384,26 +390,32 @@ fn write_robustness(
     let n = sup.n();
     let rob = robustness(sup, scheme, input, opts, &a.robust_delays, &a.robust_gains)?;
     robust_csv(&out.join("robustness.csv"), &rob)?;
-    figures.push("robust_delay.svg".into());
-    robust_plot(
-        &out.join("robust_delay.svg"),
-        &format!(
-            "Delayed controls (n = {n}): residual at mass {} and visibility at mass 1",
-            n + 1
+    let plots = [
+        (
+            "robust_delay.svg",
+            "Delayed controls",
+            "delay tau",
+            [&rob.delay_all, &rob.delay_first],
         ),
-        "delay tau",
-        &[("all", &rob.delay_all), ("f only", &rob.delay_first)],
-    )?;
-    figures.push("robust_gain.svg".into());
-    robust_plot(
-        &out.join("robust_gain.svg"),
-        &format!(
-            "Gain error (n = {n}): residual at mass {} and visibility at mass 1",
-            n + 1
+        (
+            "robust_gain.svg",
+            "Gain error",
+            "relative gain error eps",
+            [&rob.gain_all, &rob.gain_first],
         ),
-        "relative gain error eps",
-        &[("all", &rob.gain_all), ("f only", &rob.gain_first)],
-    )?;
+    ];
+    for (file, what, x_label, [all, first]) in plots {
+        figures.push(file.into());
+        robust_plot(
+            &out.join(file),
+            &format!(
+                "{what} (n = {n}): residual at mass {} and visibility at mass 1",
+                n + 1
+            ),
+            x_label,
+            &[("all", all), ("f only", first)],
+        )?;
+    }
     Ok(rob)
 }
 

@@ -594,6 +594,7 @@ impl<T: Scalar> Powers<T> for SweepTable<T> {
 mod tests {
     use super::*;
     use crate::forward::tridiag;
+    use crate::scenes;
     use crate::Defect;
     use num_complex::Complex64;
 
@@ -602,15 +603,7 @@ mod tests {
         use crate::chain::Boundary;
         let mut chains = vec![
             Chain::paper(1).unwrap(),
-            Chain::paper(300)
-                .unwrap()
-                .with_defects([
-                    Defect::Mass { at: 1, m: 1e3 },
-                    Defect::Mass { at: 150, m: 1e-3 },
-                    Defect::Spring { at: 299, k: 3.0 },
-                    Defect::Damper { at: 77, d: 2.0 },
-                ])
-                .unwrap(),
+            scenes::paper_with(300, "mass:1:1e3 mass:150:1e-3 spring:299:3 damper:77:2").unwrap(),
             Chain::paper(20)
                 .unwrap()
                 .with_d(0.0)
@@ -660,17 +653,11 @@ mod tests {
         let chains = [
             Chain::paper(1).unwrap(),
             Chain::paper(7).unwrap(),
-            Chain::paper(9)
-                .unwrap()
-                .with_defects([
-                    Defect::Mass { at: 1, m: 1e6 },
-                    Defect::Spring { at: 0, k: 0.2 },
-                    Defect::Spring { at: 4, k: 3.0 },
-                    Defect::Damper { at: 5, d: 0.0 },
-                    Defect::Mass { at: 9, m: 1e-3 },
-                    Defect::Spring { at: 9, k: 50.0 },
-                ])
-                .unwrap(),
+            scenes::paper_with(
+                9,
+                "mass:1:1e6 spring:0:0.2 spring:4:3 damper:5:0 mass:9:1e-3 spring:9:50",
+            )
+            .unwrap(),
             Chain::new(2)
                 .unwrap()
                 .with_defect(Defect::Mass { at: 1, m: 1e6 })
@@ -678,33 +665,29 @@ mod tests {
         ];
         for c in &chains {
             for s in [0.0, 1e-7, 0.3, 7.0, 1e4] {
-                let r = tridiag::solve_all(c, s).unwrap();
-                let t = Transfer::new(c);
-                for o in 1..=c.n() {
-                    let x = t.eval(&s, o);
-                    assert!(
-                        (x - r[o - 1]).abs() <= 1e-13 * r[o - 1].abs() + 1e-300,
-                        "{c:?} s={s} o={o}: {x} vs {}",
-                        r[o - 1]
-                    );
-                }
+                matches_tridiagonal_at(c, s, 1e-13);
             }
             for s in [
                 Complex64::new(0.5, 2.0),
                 Complex64::new(0.01, 1.1),
                 Complex64::new(3.0, -80.0),
             ] {
-                let r = tridiag::solve_all(c, s).unwrap();
-                let t = Transfer::new(c);
-                for o in 1..=c.n() {
-                    let x = t.eval(&s, o);
-                    assert!(
-                        (x - r[o - 1]).norm() <= 1e-11 * r[o - 1].norm() + 1e-300,
-                        "{c:?} s={s} o={o}: {x} vs {}",
-                        r[o - 1]
-                    );
-                }
+                matches_tridiagonal_at(c, s, 1e-11);
             }
+        }
+    }
+
+    /// `Transfer::eval` at every mass of `c` against the tridiagonal solve
+    /// at `s`, within `rel` relative (plus 1e-300).
+    fn matches_tridiagonal_at<T: Scalar + std::fmt::Display>(c: &Chain, s: T, rel: f64) {
+        let r = tridiag::solve_all(c, s.clone()).unwrap();
+        let t = Transfer::new(c);
+        for (o, ro) in (1..=c.n()).zip(&r) {
+            let x = t.eval(&s, o);
+            assert!(
+                (x.clone() - ro.clone()).magnitude() <= rel * ro.magnitude() + 1e-300,
+                "{c:?} s={s} o={o}: {x} vs {ro}"
+            );
         }
     }
 }

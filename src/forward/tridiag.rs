@@ -143,7 +143,7 @@ pub fn solve<T: Scalar>(chain: &Chain, s: T, observe: usize) -> Result<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::chain::Defect;
+    use crate::scenes;
     use num_complex::Complex64;
 
     fn dense(chain: &Chain, s: Complex64) -> Vec<Complex64> {
@@ -165,16 +165,11 @@ mod tests {
 
     #[test]
     fn matches_dense_lu() {
-        let chain = Chain::paper(12)
-            .unwrap()
-            .with_defects([
-                Defect::Mass { at: 1, m: 1e3 },
-                Defect::Spring { at: 0, k: 0.3 },
-                Defect::Spring { at: 12, k: 7.0 },
-                Defect::Damper { at: 5, d: 2.0 },
-                Defect::Mass { at: 12, m: 1e-3 },
-            ])
-            .unwrap();
+        let chain = scenes::paper_with(
+            12,
+            "mass:1:1e3 spring:0:0.3 spring:12:7 damper:5:2 mass:12:1e-3",
+        )
+        .unwrap();
         for s in [
             Complex64::new(0.3, 0.0),
             Complex64::new(0.0, 1.3),

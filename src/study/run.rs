@@ -27,7 +27,7 @@
 
 use super::kinds::CaseOutput;
 #[cfg(not(feature = "cli"))]
-use super::progress::progress_bar;
+use super::progress::{progress_bar, ProgressBar};
 pub use super::records::{
     check_out_folder, load_records, write_records, Counts, Manifest, Record, CASES, MANIFEST,
     RESULTS, STUDY_COPY,
@@ -241,6 +241,45 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
     }
     let resumed = done.len();
     let pb = progress_bar(opts.progress, todo.len() as u64, resumed);
+    let ran = execute_all(study, &todo, out, opts.threads, &pb);
+    pb.finish_and_clear();
+    ran?;
+    let records = read_records(out, study)?;
+    let complete = selected.iter().all(|c| records.contains_key(&c.id));
+    let counts = Counts::of(records.values());
+    let mut report = None;
+    if complete {
+        let sorted: Vec<Record> = records.into_values().collect();
+        write_records(out, &sorted)?;
+        if opts.shard.is_none() {
+            super::report::write(study, &sorted, out)?;
+            report = Some(out.join(super::report::REPORT));
+        }
+    }
+    Ok(RunSummary {
+        total: study.cases.len(),
+        selected: selected.len(),
+        resumed,
+        ran: todo.len(),
+        failed: counts.failed,
+        skipped: counts.skipped,
+        complete,
+        report,
+    })
+}
+
+/// Run the cases `todo` (on a pool of `threads`, or the current one) and
+/// append their records to the results file, one line each as it finishes.
+///
+/// # Errors
+/// The first record that cannot be written, or a pool that cannot be built.
+fn execute_all(
+    study: &Study,
+    todo: &[&Case],
+    out: &Path,
+    threads: Option<usize>,
+    pb: &ProgressBar,
+) -> Result<()> {
     let writer = Mutex::new(Appender::open(&out.join(RESULTS))?);
     let failure: Mutex<Option<Error>> = Mutex::new(None);
     let work = || {
@@ -267,7 +306,7 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
             pb.inc(1);
         })
     };
-    match opts.threads {
+    match threads {
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build()
@@ -275,7 +314,6 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
             .install(work),
         None => work(),
     }
-    pb.finish_and_clear();
     writer
         .into_inner()
         .unwrap_or_else(|p| p.into_inner())
@@ -283,28 +321,7 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunSummary> {
     if let Some(e) = failure.into_inner().unwrap_or_else(|p| p.into_inner()) {
         return Err(e);
     }
-    let records = read_records(out, study)?;
-    let complete = selected.iter().all(|c| records.contains_key(&c.id));
-    let counts = Counts::of(records.values());
-    let mut report = None;
-    if complete {
-        let sorted: Vec<Record> = records.into_values().collect();
-        write_records(out, &sorted)?;
-        if opts.shard.is_none() {
-            super::report::write(study, &sorted, out)?;
-            report = Some(out.join(super::report::REPORT));
-        }
-    }
-    Ok(RunSummary {
-        total: study.cases.len(),
-        selected: selected.len(),
-        resumed,
-        ran: todo.len(),
-        failed: counts.failed,
-        skipped: counts.skipped,
-        complete,
-        report,
-    })
+    Ok(())
 }
 
 /// The lock file of a study folder (defined with the folder's other file

@@ -225,27 +225,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<MergeSummary> {
     let mut sources: BTreeMap<String, PathBuf> = BTreeMap::new();
     let mut read_count = 0;
     for d in dirs {
-        let other = read(&d.join(STUDY_COPY))?;
-        if other != text {
-            return Err(Error::invalid(
-                d.display().to_string(),
-                "a folder of another study",
-                format!(
-                    "folders of one study (its study.toml differs from {})",
-                    first.display()
-                ),
-            ));
-        }
-        let mtext = read(&d.join(MANIFEST))?;
-        let m: Manifest = serde_json::from_str(&mtext)
-            .map_err(|e| Error::parse(d.join(MANIFEST).display().to_string(), "", e.to_string()))?;
-        if m.hash != study.hash {
-            return Err(Error::invalid(
-                d.join(MANIFEST).display().to_string(),
-                &m.hash,
-                format!("hash {} of its study.toml", study.hash),
-            ));
-        }
+        check_folder(d, first, &text, &study)?;
         let (records, _) = load_records(&d.join(run::RESULTS))?;
         for r in records {
             if !all.contains_key(&r.id) {
@@ -267,6 +247,63 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<MergeSummary> {
             all.entry(r.id.clone()).or_insert(r);
         }
     }
+    check_complete(&study, &all)?;
+    let manifest = Manifest {
+        study: study.file.study.name.clone(),
+        hash: study.hash.clone(),
+        cases: study.cases.len(),
+        shard: None,
+    };
+    check_merge_out(out, &manifest)?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let mtext = serde_json::to_string_pretty(&manifest).unwrap_or_default() + "\n";
+    crate::series::write_atomic(&out.join(MANIFEST), mtext.as_bytes())?;
+    crate::series::write_atomic(&out.join(STUDY_COPY), text.as_bytes())?;
+    for (f, src) in &sources {
+        let bytes = std::fs::read(src).map_err(|e| Error::io(src, e))?;
+        crate::series::write_atomic(&out.join(f), &bytes)?;
+    }
+    let records: Vec<Record> = all.into_values().collect();
+    run::write_records(out, &records)?;
+    super::report::write(&study, &records, out)?;
+    Ok(MergeSummary {
+        total: study.cases.len(),
+        read: read_count,
+        failed: Counts::of(&records).failed,
+        skipped: Counts::of(&records).skipped,
+        report: out.join(super::report::REPORT),
+    })
+}
+
+/// Refuse a folder of another study: its `study.toml` differs from the first
+/// folder's `text`, or its manifest's hash from the study's.
+fn check_folder(d: &Path, first: &Path, text: &str, study: &Study) -> Result<()> {
+    let other = read(&d.join(STUDY_COPY))?;
+    if other != text {
+        return Err(Error::invalid(
+            d.display().to_string(),
+            "a folder of another study",
+            format!(
+                "folders of one study (its study.toml differs from {})",
+                first.display()
+            ),
+        ));
+    }
+    let mtext = read(&d.join(MANIFEST))?;
+    let m: Manifest = serde_json::from_str(&mtext)
+        .map_err(|e| Error::parse(d.join(MANIFEST).display().to_string(), "", e.to_string()))?;
+    if m.hash != study.hash {
+        return Err(Error::invalid(
+            d.join(MANIFEST).display().to_string(),
+            &m.hash,
+            format!("hash {} of its study.toml", study.hash),
+        ));
+    }
+    Ok(())
+}
+
+/// Refuse a merge that misses cases, naming how many and the first few.
+fn check_complete(study: &Study, all: &BTreeMap<String, Record>) -> Result<()> {
     let missing: Vec<&str> = study
         .cases
         .iter()
@@ -291,20 +328,19 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<MergeSummary> {
             "every case finished: run the missing shards (or resume them) first",
         ));
     }
-    let manifest = Manifest {
-        study: study.file.study.name.clone(),
-        hash: study.hash.clone(),
-        cases: study.cases.len(),
-        shard: None,
-    };
-    // never over results of another study (or of a shard, or not ours)
+    Ok(())
+}
+
+/// Never over results of another study (or of a shard, or not ours): `out`
+/// is new, empty, or holds this `manifest`.
+fn check_merge_out(out: &Path, manifest: &Manifest) -> Result<()> {
     run::check_out_folder(out)?;
     let mpath = out.join(MANIFEST);
     if mpath.is_file() {
         let old: Option<Manifest> = std::fs::read_to_string(&mpath)
             .ok()
             .and_then(|t| serde_json::from_str(&t).ok());
-        if old.as_ref() != Some(&manifest) {
+        if old.as_ref() != Some(manifest) {
             return Err(Error::invalid(
                 "out",
                 out.display(),
@@ -312,24 +348,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<MergeSummary> {
             ));
         }
     }
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let mtext = serde_json::to_string_pretty(&manifest).unwrap_or_default() + "\n";
-    crate::series::write_atomic(&out.join(MANIFEST), mtext.as_bytes())?;
-    crate::series::write_atomic(&out.join(STUDY_COPY), text.as_bytes())?;
-    for (f, src) in &sources {
-        let bytes = std::fs::read(src).map_err(|e| Error::io(src, e))?;
-        crate::series::write_atomic(&out.join(f), &bytes)?;
-    }
-    let records: Vec<Record> = all.into_values().collect();
-    run::write_records(out, &records)?;
-    super::report::write(&study, &records, out)?;
-    Ok(MergeSummary {
-        total: study.cases.len(),
-        read: read_count,
-        failed: Counts::of(&records).failed,
-        skipped: Counts::of(&records).skipped,
-        report: out.join(super::report::REPORT),
-    })
+    Ok(())
 }
 
 fn read(p: &Path) -> Result<String> {

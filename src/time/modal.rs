@@ -166,6 +166,25 @@ fn sinc_t(w2: f64, t: f64) -> f64 {
 }
 
 impl Term {
+    /// The term as `scale Re(r e^{p t})`, `(p, r, scale)`: scale 2 for a
+    /// pole pair and an oscillating [`Term::Osc`], 1 for a real pole; `None`
+    /// for an `Osc` with `w2 <= 0`, which has no such form.
+    #[inline]
+    fn exponential(&self) -> Option<(Complex64, Complex64, f64)> {
+        match *self {
+            Term::Pair { p, r } => Some((p, r, 2.0)),
+            Term::Osc { c, e, a, w2 } if w2 > 0.0 => {
+                let b = w2.sqrt();
+                Some((
+                    Complex64::new(-a, b),
+                    Complex64::new(0.5 * e, -0.5 * c / b),
+                    2.0,
+                ))
+            }
+            Term::Real { p, r } => Some((Complex64::new(p, 0.0), Complex64::new(r, 0.0), 1.0)),
+            Term::Osc { .. } => None,
+        }
+    }
     /// Value at `t >= 0`.
     pub fn eval(&self, t: f64) -> f64 {
         match *self {
@@ -450,19 +469,7 @@ impl ModalResponse {
         let mut terms = self.terms.iter().peekable();
         while let Some(term) = terms.next() {
             // the term as 2 Re(r e^{p t}) (pair) or r e^{p t} (real)
-            let stepped = match *term {
-                Term::Pair { p, r } => Some((p, r, 2.0)),
-                Term::Osc { c, e, a, w2 } if w2 > 0.0 => {
-                    let b = w2.sqrt();
-                    Some((
-                        Complex64::new(-a, b),
-                        Complex64::new(0.5 * e, -0.5 * c / b),
-                        2.0,
-                    ))
-                }
-                Term::Real { p, r } => Some((Complex64::new(p, 0.0), Complex64::new(r, 0.0), 1.0)),
-                Term::Osc { .. } => None,
-            };
+            let stepped = term.exponential();
             match stepped {
                 Some((pl, rl, sl)) => {
                     p[len] = pl;
@@ -1608,16 +1615,9 @@ mod tests {
     #[test]
     fn uniform_grid_recurrence_matches_term_by_term_evaluation() {
         use crate::chain::Boundary;
-        use crate::Defect;
         let chains = [
             Chain::paper(20).unwrap(),
-            Chain::paper(8)
-                .unwrap()
-                .with_defects([
-                    Defect::Mass { at: 3, m: 5.0 },
-                    Defect::Damper { at: 6, d: 3.0 },
-                ])
-                .unwrap(),
+            crate::scenes::paper_with(8, "mass:3:5 damper:6:3").unwrap(),
             Chain::paper(6)
                 .unwrap()
                 .with_d(0.0)
@@ -1695,21 +1695,7 @@ mod tests {
             ] {
                 let mut slow = vec![0.0; ts.len()];
                 for term in r.terms() {
-                    let one = match *term {
-                        Term::Pair { p, r } => Some((p, r, 2.0)),
-                        Term::Osc { c, e, a, w2 } if w2 > 0.0 => {
-                            let b = w2.sqrt();
-                            Some((
-                                Complex64::new(-a, b),
-                                Complex64::new(0.5 * e, -0.5 * c / b),
-                                2.0,
-                            ))
-                        }
-                        Term::Real { p, r } => {
-                            Some((Complex64::new(p, 0.0), Complex64::new(r, 0.0), 1.0))
-                        }
-                        Term::Osc { .. } => None,
-                    };
+                    let one = term.exponential();
                     match one {
                         Some((p, rr, sc)) => step_terms(&mut slow, &ts, dt, &[p], &[rr], &[sc]),
                         None => {
@@ -1846,14 +1832,7 @@ mod tests {
                 .unwrap()
                 .with_defect(Defect::Mass { at: 3, m: 4.0 })
                 .unwrap(),
-            Chain::paper(12)
-                .unwrap()
-                .with_defects([
-                    Defect::Spring { at: 0, k: 3.0 },
-                    Defect::Damper { at: 7, d: 2.5 },
-                    Defect::Mass { at: 4, m: 0.3 },
-                ])
-                .unwrap(),
+            crate::scenes::paper_with(12, "spring:0:3 damper:7:2.5 mass:4:0.3").unwrap(),
             Chain::new(8)
                 .unwrap()
                 .with_defect(Defect::Spring { at: 4, k: 0.2 })
