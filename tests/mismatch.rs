@@ -37,17 +37,22 @@ fn noise(len: usize, sd: f64, rho: f64, seed: u64) -> Vec<f64> {
         .collect()
 }
 
-fn fit_defaults(t: &[f64], x: &[f64]) -> FitReport {
-    let obs = Observations::Series(Series::new(t.to_vec(), x.to_vec(), None).unwrap());
+/// System 2's record with noise of 1% of its peak (AR(1) coefficient
+/// `rho`) and `extra(t, peak)` added, fitted with the defaults (k, sigma
+/// unknown).
+fn fit_defaults(rho: f64, seed: u64, extra: impl Fn(f64, f64) -> f64) -> FitReport {
+    let (t, x, peak) = clean();
+    let e = noise(x.len(), 0.01 * peak, rho, seed);
+    let y: Vec<f64> = (0..x.len())
+        .map(|i| x[i] + e[i] + extra(t[i], peak))
+        .collect();
+    let obs = Observations::Series(Series::new(t, y, None).unwrap());
     fit(&obs, &Model::new(10).unwrap(), &FitOptions::default()).unwrap()
 }
 
 #[test]
 fn white_noise_record_converges_and_fits() {
-    let (t, x, peak) = clean();
-    let e = noise(x.len(), 0.01 * peak, 0.0, 3);
-    let y: Vec<f64> = x.iter().zip(&e).map(|(a, b)| a + b).collect();
-    let r = fit_defaults(&t, &y);
+    let r = fit_defaults(0.0, 3, |_, _| 0.0);
     assert!(r.fits_data, "{}", r.summary());
     assert_eq!(r.status, Status::Converged, "{}", r.summary());
     let at: Vec<usize> = r.defects.iter().map(|d| d.at).collect();
@@ -56,16 +61,8 @@ fn white_noise_record_converges_and_fits() {
 
 #[test]
 fn offset_and_drift_are_a_model_mismatch() {
-    let (t, x, peak) = clean();
-    let e = noise(x.len(), 0.01 * peak, 0.0, 3);
-    let t_end = t[t.len() - 1];
-    let y: Vec<f64> = x
-        .iter()
-        .zip(&e)
-        .zip(&t)
-        .map(|((a, b), ti)| a + b + 0.02 * peak * (1.0 + ti / t_end))
-        .collect();
-    let r = fit_defaults(&t, &y);
+    // 2% of the peak at t = 0, growing linearly to 4% at t = 150
+    let r = fit_defaults(0.0, 3, |t, peak| 0.02 * peak * (1.0 + t / 150.0));
     assert!(!r.fits_data, "{}", r.summary());
     assert_eq!(r.status, Status::ModelMismatch, "{}", r.summary());
     assert!(!r.resolved);
@@ -74,10 +71,7 @@ fn offset_and_drift_are_a_model_mismatch() {
 
 #[test]
 fn strongly_coloured_noise_is_a_model_mismatch() {
-    let (t, x, peak) = clean();
-    let e = noise(x.len(), 0.01 * peak, 0.99, 5);
-    let y: Vec<f64> = x.iter().zip(&e).map(|(a, b)| a + b).collect();
-    let r = fit_defaults(&t, &y);
+    let r = fit_defaults(0.99, 5, |_, _| 0.0);
     assert_eq!(r.status, Status::ModelMismatch, "{}", r.summary());
     assert!(!r.resolved);
 }
