@@ -307,11 +307,20 @@ fn draw_legend(
         let color = rgb(c);
         let y = 40 + 24 * k as i32;
         let (x0, x1) = (10, 42);
-        if !only_markers {
-            draw_legend_path(area, (x0, x1, y), dash, color)?;
-        }
-        if *markers {
-            draw_legend_marker(area, ((x0 + x1) / 2, y), marker, color)?;
+        if line.is_some_and(|x| x.points.is_empty() && !x.band.is_empty()) {
+            // a band alone: its swatch, as shaded in the panel
+            area.draw(&Rectangle::new(
+                [(x0, y - 6), (x1, y + 6)],
+                color.mix(0.18).filled(),
+            ))
+            .map_err(plot_err)?;
+        } else {
+            if !only_markers {
+                draw_legend_path(area, (x0, x1, y), dash, color)?;
+            }
+            if *markers {
+                draw_legend_marker(area, ((x0 + x1) / 2, y), marker, color)?;
+            }
         }
         area.draw(&Text::new(
             label.clone(),
