@@ -75,3 +75,16 @@ fn strongly_coloured_noise_is_a_model_mismatch() {
     assert_eq!(r.status, Status::ModelMismatch, "{}", r.summary());
     assert!(!r.resolved);
 }
+
+/// A record exact to its printed digits (no noise added): the residual is
+/// the rounding of the numbers, not noise, and not a mismatch either.
+#[test]
+fn exact_record_is_not_a_model_mismatch() {
+    let (t, x, _) = clean();
+    let obs = Observations::Series(Series::new(t, x, None).unwrap());
+    let r = fit(&obs, &Model::new(10).unwrap(), &FitOptions::default()).unwrap();
+    assert!(r.fits_data, "{}", r.summary());
+    assert_ne!(r.status, Status::ModelMismatch, "{}", r.summary());
+    let at: Vec<usize> = r.defects.iter().map(|d| d.at).collect();
+    assert!(at.contains(&3) && at.contains(&7), "{}", r.summary());
+}

@@ -207,15 +207,30 @@ fn rescaled(ranked: &[Hypothesis], scale: f64) -> Vec<Hypothesis> {
         .collect()
 }
 
+/// Relative residual below which a record counts as exact to its printed
+/// digits: no sensor resolves 1e-8 of its range (a 24-bit converter
+/// resolves 6e-8), so a smaller residual is the rounding of the file's
+/// numbers, which is not random and which no whiteness test can judge.
+pub(super) const EXACT_RECORD_RESIDUAL: f64 = 1e-8;
+
 /// Whether the residual is consistent with noise, and the p-value: the
 /// Ljung-Box whiteness test of the time residual when sigma was estimated,
-/// the chi-square test otherwise.
+/// the chi-square test otherwise. An estimated residual below
+/// [`EXACT_RECORD_RESIDUAL`] of the record's peak fits (an exact record: the
+/// residual is its rounding), with the test's p-value still reported.
 fn goodness_of_fit(f: &KFit, chi2_final: f64, estimated: bool) -> (bool, f64) {
-    let p = match (&f.predicted, estimated) {
-        (Some((_, r)), true) => noise::ljung_box(r, 20).1,
-        _ => select::chi2_sf(chi2_final, f.dof.max(1) as f64),
-    };
-    (p >= 0.001, p)
+    match (&f.predicted, estimated) {
+        (Some((model, r)), true) => {
+            let p = noise::ljung_box(r, 20).1;
+            let peak = model.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            let rms = (r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64).sqrt();
+            (p >= 0.001 || rms <= EXACT_RECORD_RESIDUAL * peak, p)
+        }
+        _ => {
+            let p = select::chi2_sf(chi2_final, f.dof.max(1) as f64);
+            (p >= 0.001, p)
+        }
+    }
 }
 
 /// The fitted chain's natural modes (none when the eigen solver refuses, or
