@@ -66,6 +66,43 @@ pub fn solve_in_place<T: Scalar>(a: &mut [T], b: &mut [T], k: usize) -> bool {
     true
 }
 
+/// Iterations allowed to an SVD (a few per singular value suffice).
+pub const SVD_MAX_ITERATIONS: usize = 10_000;
+
+/// The SVD of `m` (nalgebra's `svd`, at its tolerance), or `None` when an
+/// entry is not finite or it has not converged within
+/// [`SVD_MAX_ITERATIONS`]: nalgebra's `svd` iterates without a cap and never
+/// ends on non-finite entries.
+///
+/// ```
+/// use nalgebra::DMatrix;
+/// use springmass::linalg::svd_checked;
+/// let svd = svd_checked(DMatrix::from_row_slice(2, 2, &[3.0, 0.0, 0.0, 2.0]), false, false).unwrap();
+/// assert_eq!(svd.singular_values.as_slice(), &[3.0, 2.0]);
+/// assert!(svd_checked(DMatrix::from_row_slice(1, 1, &[f64::NAN]), true, true).is_none());
+/// ```
+pub fn svd_checked<T>(
+    m: nalgebra::DMatrix<T>,
+    compute_u: bool,
+    compute_v: bool,
+) -> Option<nalgebra::linalg::SVD<T, nalgebra::Dyn, nalgebra::Dyn>>
+where
+    T: nalgebra::ComplexField<RealField = f64>,
+{
+    if !m.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    // nalgebra's own tolerance (`svd` uses 5 machine epsilons): the same
+    // answer as `svd` wherever that ends
+    nalgebra::linalg::SVD::try_new(
+        m,
+        compute_u,
+        compute_v,
+        5.0 * f64::EPSILON,
+        SVD_MAX_ITERATIONS,
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

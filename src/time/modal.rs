@@ -1222,9 +1222,6 @@ fn cluster_points(clusters: &[(f64, f64)], others: &[Term]) -> Vec<Complex64> {
     pts
 }
 
-/// Iterations allowed to an SVD (a few per singular value suffice).
-const SVD_MAX_ITERATIONS: usize = 10_000;
-
 /// The second-order terms `(e (s + a) + c) / ((s + a)^2 + w2)` of the
 /// near-double pole pairs, fitted (jointly, least squares) so that the modal
 /// sum equals the exact `amp [K(s)^-1]_{ij}` (an O(n) tridiagonal solve) at
@@ -1265,17 +1262,18 @@ fn fit_clusters(
         method: "near-double poles".into(),
         reason,
     };
-    if !(mat.iter().all(|v| v.is_finite()) && rhs.iter().all(|v| v.is_finite())) {
-        return Err(numerical(
+    let beyond = || {
+        numerical(
             "the response at the poles' points is beyond f64 (a damping or stiffness \
              too large for the time step's scale?)"
                 .into(),
-        ));
+        )
+    };
+    if !rhs.iter().all(|v| v.is_finite()) {
+        return Err(beyond());
     }
-    // nalgebra's `svd` iterates without a cap; a matrix it cannot reduce
-    // must fail, not hang
-    let sol = nalgebra::SVD::try_new(mat, true, true, f64::EPSILON, SVD_MAX_ITERATIONS)
-        .ok_or_else(|| numerical(format!("no SVD within {SVD_MAX_ITERATIONS} iterations")))?
+    let sol = crate::linalg::svd_checked(mat, true, true)
+        .ok_or_else(beyond)?
         .solve(&rhs, 1e-15)
         .map_err(|e| numerical(e.to_string()))?;
     Ok(clusters

@@ -1392,7 +1392,7 @@ impl ModeFit {
         }
         let pp = l / 3;
         let hank = DMatrix::from_fn(l - pp, pp + 1, |i, j| y[i + j]);
-        let svd = hank.svd(false, true);
+        let svd = crate::linalg::svd_checked(hank, false, true)?;
         let sv = &svd.singular_values;
         let smax = sv.iter().cloned().fold(0.0, f64::max);
         let r = sv.iter().filter(|&&v| v > 1e-11 * smax).count().min(pp - 1);
@@ -1413,7 +1413,9 @@ impl ModeFit {
         // amplitudes: y_k = Σ c_i z_i^k
         let vand = DMatrix::from_fn(l, r, |k, i| z[i].powu(k as u32));
         let yc = nalgebra::DVector::from_iterator(l, y.iter().map(|&v| Complex64::new(v, 0.0)));
-        let c = vand.svd(true, true).solve(&yc, 0.0).ok()?;
+        let c = crate::linalg::svd_checked(vand, true, true)?
+            .solve(&yc, 0.0)
+            .ok()?;
         let poles: Vec<Complex64> = z.iter().map(|zi| zi.ln() / big_h).collect();
         let t0 = t[idx[0]];
         // residual on every sample of the window

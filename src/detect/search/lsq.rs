@@ -661,7 +661,11 @@ pub fn covariance(j: &DMatrix<f64>) -> Result<DMatrix<f64>> {
         })
         .collect();
     let js = DMatrix::from_fn(j.nrows(), p, |r, c| j[(r, c)] * scale[c]);
-    let svd = js.svd(false, true);
+    // not finite (or no SVD): the data constrain nothing measurable, as a NaN
+    // singular value said before the SVD was checked
+    let svd = crate::linalg::svd_checked(js, false, true).ok_or_else(|| Error::Unresolvable {
+        reason: format!("the Jacobian of the {p} parameters is not finite"),
+    })?;
     let smax = svd.singular_values.max();
     let smin = svd.singular_values.min();
     if smin.is_nan() || smin <= 1e-13 * smax {
