@@ -70,6 +70,7 @@
 //! | [`time`] | simulation ([`time::simulate`]), exact ([`time::modal`]) and numerical ([`time::inverse`]) inverse Laplace transforms, transform of sampled series ([`time::series`]) |
 //! | [`noise`] | seeded additive white Gaussian noise (synthetic data) |
 //! | [`series`] | sampled time series, CSV in (pandas, loggers) and out |
+//! | [`units`] | units in a record's header (`t [ms]`, `x1 [mm]`, `a1 [g]`) converted to SI and checked against the observable |
 //! | [`io`] | safe atomic writes (never a device, FIFO or directory), size-capped reads, memory budget and limits |
 //! | [`control`] | vibration suppression (Theorem 3.1, Corollary 3.2): Laplace, exact time domain, verification |
 //! | [`detect::data`] | the inverse side starts here: observations (a series or Laplace values), their noise model, whitening |
@@ -102,6 +103,7 @@ pub mod sensitivity;
 pub mod series;
 pub mod study;
 pub mod time;
+pub mod units;
 
 pub use chain::{Chain, ChainSpec, Defect};
 pub use error::{Error, Result};

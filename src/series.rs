@@ -279,6 +279,14 @@ impl TimeSeries {
         self.units.get(i)?.as_deref()
     }
 
+    /// Set the units of the value columns (one per column, in order) and
+    /// of the time column ([`crate::units::record_in_si`]).
+    pub(crate) fn set_units(&mut self, units: Vec<Option<String>>, time_unit: Option<String>) {
+        debug_assert_eq!(units.len(), self.names.len());
+        self.units = units;
+        self.time_unit = time_unit;
+    }
+
     /// The unit of the time column, if its header gave one (`time [s]`).
     pub fn time_unit(&self) -> Option<&str> {
         self.time_unit.as_deref()

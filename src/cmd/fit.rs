@@ -68,6 +68,12 @@ pub struct Args {
     /// Evaluation budget of the stochastic searches [default: 20000].
     #[arg(long)]
     pub max_evals: Option<usize>,
+    /// When the blow came, on the record's time axis: auto (detected from a
+    /// quiet pre-trigger segment or a late clock, then fitted with its
+    /// standard error) or a time [default: auto; a record that starts with
+    /// the blow is fitted as it is].
+    #[arg(long, requires = "data", allow_hyphen_values = true)]
+    pub trigger: Option<String>,
     /// Left end (mass 1's side): fixed (a wall spring) or free [default: fixed].
     #[arg(long, requires = "data")]
     pub left: Option<String>,
@@ -289,6 +295,7 @@ fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
         criterion: a.criterion.clone(),
         seed: a.seed,
         max_evals: a.max_evals,
+        trigger: a.trigger.clone(),
         ..springmass::detect::fit::options::FitSpec::new(n)
     }
 }
@@ -338,6 +345,17 @@ fn read_observations(
         (None, Some(fc), None) => table.names().iter().find(|c| *c != fc).cloned(),
         _ => None,
     };
+    // units in the header converted to SI (or refused when they contradict
+    // the observable)
+    let fitted = column
+        .clone()
+        .or_else(|| table.names().first().cloned())
+        .unwrap_or_default();
+    let (table, notes) =
+        springmass::units::record_in_si(&table, &fitted, sensor_only.sensor().kind)?;
+    for note in &notes {
+        eprintln!("note: {note}");
+    }
     let series = Series::from_table(&table, column.as_deref(), opts.noise.known())?;
     let measurement = if a.force.is_some() || a.force_column.is_some() {
         spec.measurement(Some(read_force(a, &table)?))?

@@ -7,6 +7,7 @@
 //! | [`series`] | a sampled series with its white-noise level ([`series::TimeData`]) |
 //! | [`laplace`] | Laplace-domain values at nodes, weighted or whitened ([`laplace::LaplaceObs`]) |
 //! | [`exact`] | values of `X_1` at any node for the mass-only Woodbury kernel ([`exact::Data`]) |
+//! | [`trigger`] | when the blow came: the impulse's time on the record's axis, detected, and the record re-timed to it |
 //! | [`whiten`] | whitening of the correlated Laplace-domain noise of a transformed series |
 
 pub mod exact;
@@ -14,6 +15,7 @@ pub mod laplace;
 pub mod measurement;
 pub mod observations;
 pub mod series;
+pub mod trigger;
 pub mod whiten;
 
 /// Laplace values at nodes: `nodes` nodes, `values` values and as many of a

@@ -35,6 +35,10 @@ pub struct Series {
     x: Vec<f64>,
     sigma: Option<f64>,
     measurement: Measurement,
+    /// Where `t = 0` of [`Series::t`] lies on the user's time axis (0 unless
+    /// the record was re-based, [`Series::on_axis`], or re-timed to its
+    /// blow, [`Series::shifted`]).
+    origin: f64,
 }
 
 /// Largest accepted magnitude of a recorded value: the misfit squares and
@@ -101,7 +105,7 @@ impl Series {
             return Err(Error::invalid(
                 "t[0]",
                 t[0],
-                ">= 0 (time since the impulse)",
+                ">= 0 (time since the impulse; a record with a pre-trigger segment at negative times is read by Series::on_axis, and the fit finds the blow with trigger auto)",
             ));
         }
         for (i, v) in x.iter().enumerate() {
@@ -116,7 +120,43 @@ impl Series {
             x,
             sigma,
             measurement: Measurement::paper(),
+            origin: 0.0,
         })
+    }
+
+    /// A record on the user's own time axis, which may start before `0` (a
+    /// pre-trigger segment at negative times): re-based to start at `0`,
+    /// the offset kept as [`Series::origin`]. Otherwise as [`Series::new`].
+    ///
+    /// ```
+    /// use springmass::detect::data::observations::Series;
+    /// let t: Vec<f64> = (0..20).map(|i| -1.0 + 0.1 * i as f64).collect();
+    /// let s = Series::on_axis(t, (0..20).map(|i| i as f64).collect(), None)?;
+    /// assert_eq!((s.t()[0], s.origin()), (0.0, -1.0));
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    ///
+    /// # Errors
+    /// As [`Series::new`].
+    pub fn on_axis(t: Vec<f64>, x: Vec<f64>, sigma: Option<f64>) -> Result<Series> {
+        let first = t.first().copied().unwrap_or(0.0);
+        if first >= 0.0 || first.is_nan() {
+            return Series::new(t, x, sigma);
+        }
+        let rebased = t.iter().map(|v| v - first).collect();
+        let mut s = Series::new(rebased, x, sigma)?;
+        s.origin = first;
+        Ok(s)
+    }
+
+    /// Where `t = 0` of this record lies on the user's time axis: a time on
+    /// the user's axis is `t + origin`.
+    pub fn origin(&self) -> f64 {
+        self.origin
+    }
+
+    pub(crate) fn set_origin(&mut self, origin: f64) {
+        self.origin = origin;
     }
 
     /// Column `column` of a CSV file (time column `t`); `column = None` takes
@@ -152,7 +192,7 @@ impl Series {
                 Error::invalid("column", "(none)", "a file with at least one value column")
             })?,
         };
-        Series::new(ts.t().to_vec(), x.to_vec(), sigma)
+        Series::on_axis(ts.t().to_vec(), x.to_vec(), sigma)
     }
 
     /// The times.

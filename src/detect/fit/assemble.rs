@@ -87,6 +87,7 @@ impl Engine<'_> {
             wall_time_s: t0.elapsed().as_secs_f64(),
             predicted: self.predicted(f),
             modes: fitted_modes(best, self.model.chain()),
+            trigger: None,
             identifiability: ident,
             visibility: None,
         })

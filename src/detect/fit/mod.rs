@@ -79,11 +79,12 @@ pub mod report;
 pub mod select;
 pub mod setup;
 pub mod spectral;
+pub mod trigger;
 pub mod visibility;
 
 pub use crate::detect::search::FitMethod;
 pub use model::{parse_params, Model};
-pub use options::{DefectCount, FitOptions, NoiseSpec, DEFAULT_K_MAX};
+pub use options::{DefectCount, FitOptions, NoiseSpec, TriggerSpec, DEFAULT_K_MAX};
 pub use report::{
     Alternative, DefectEstimate, FitReport, KRow, ModeEstimate, ParamEstimate, Predicted, Status,
 };
@@ -127,6 +128,27 @@ fn fit_with(
     given: Option<engine::Given>,
 ) -> Result<FitReport> {
     opts.validate(obs, model)?;
+    // the scene path's records are the model's own, started by the blow
+    let retime = match given {
+        None => trigger::plan(obs, model, opts.trigger)?,
+        Some(_) => None,
+    };
+    match (retime, obs) {
+        (Some(t0), Observations::Series(rec)) => {
+            let auto = opts.trigger == options::TriggerSpec::Auto;
+            trigger::fit_retimed(rec, model, t0, auto, |o| fit_record(o, model, opts, None))
+        }
+        _ => fit_record(obs, model, opts, given),
+    }
+}
+
+/// [`fit_with`] on a record that starts with the blow (or Laplace values).
+fn fit_record(
+    obs: &Observations,
+    model: &Model,
+    opts: &FitOptions,
+    given: Option<engine::Given>,
+) -> Result<FitReport> {
     let scene = given.is_some();
     let t0 = Instant::now();
     let engine = Engine {

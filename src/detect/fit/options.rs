@@ -20,6 +20,7 @@
 //! | `criterion` | `bic`, `aic`, `chi2`, `chi2:ALPHA` | [`Criterion::parse`] |
 //! | `fit` | comma-separated subset of `d,gamma,k,mass` | [`parse_params`] |
 //! | `known` | `kind:at:value` each | [`Defect::parse`] |
+//! | `trigger` | `auto` or the blow's time on the record's axis | [`TriggerSpec::parse`] |
 //!
 //! ```
 //! use springmass::detect::fit::options::FitSpec;
@@ -42,6 +43,7 @@ use super::select::Criterion;
 use crate::chain::{Boundary, Defect};
 use crate::detect::data::measurement::{Measurement, Sensor};
 use crate::detect::data::observations::Observations;
+pub use crate::detect::data::trigger::TriggerSpec;
 use crate::detect::misfit::MisfitKind;
 use crate::detect::search::FitMethod;
 use crate::detect::unknowns::{DefectKind, KindChoice};
@@ -156,6 +158,9 @@ pub struct FitOptions {
     pub parallel: bool,
     /// Largest number of hypotheses enumerated (default 200 000).
     pub max_sets: usize,
+    /// The blow's time on a record's axis (default detected,
+    /// [`crate::detect::data::trigger`]).
+    pub trigger: TriggerSpec,
 }
 
 impl Default for FitOptions {
@@ -175,6 +180,7 @@ impl Default for FitOptions {
             alternatives: 5,
             parallel: true,
             max_sets: 200_000,
+            trigger: TriggerSpec::Auto,
         }
     }
 }
@@ -309,6 +315,8 @@ pub struct FitSpec {
     pub seed: Option<u64>,
     /// Evaluation budget of the stochastic searches [default 20 000].
     pub max_evals: Option<usize>,
+    /// `auto` or the time of the blow on the record's axis [default auto].
+    pub trigger: Option<String>,
 }
 
 impl FitSpec {
@@ -371,6 +379,9 @@ impl FitSpec {
         }
         if let Some(m) = self.max_evals {
             opts.max_evals = m;
+        }
+        if let Some(t) = &self.trigger {
+            opts.trigger = TriggerSpec::parse(t)?;
         }
         Ok(opts)
     }

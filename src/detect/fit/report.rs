@@ -221,6 +221,11 @@ pub struct FitReport {
     /// empty for a non-uniform chain of more than 400 masses (the dense
     /// eigen solver is O(n^3)).
     pub modes: Vec<ModeEstimate>,
+    /// The blow's time on the record's axis, when the record was re-timed
+    /// to it ([`crate::detect::fit::trigger`]; absent for a record that
+    /// starts with the blow, and for Laplace values).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trigger: Option<crate::detect::fit::trigger::TriggerEstimate>,
 }
 
 /// One natural mode of the fitted chain
@@ -286,6 +291,20 @@ impl FitReport {
             if self.fits_data { "yes" } else { "NO" },
             self.fit_p_value
         ));
+        if let Some(t) = &self.trigger {
+            out.push_str(&format!(
+                "blow at t = {} +- {} on the record's axis ({}; {} samples before it left out{})\n",
+                fmt_g(t.time),
+                fmt_g(t.se),
+                if t.detected { "detected" } else { "given" },
+                t.dropped,
+                if t.refits > 0 {
+                    ", refitted at the refined time"
+                } else {
+                    ""
+                },
+            ));
+        }
         if let Some(v) = &self.visibility {
             out.push_str(&format!("visibility: {}\n", v.line()));
         }
