@@ -65,3 +65,5 @@ mod study_safety;
 mod suppress;
 #[path = "time_series.rs"]
 mod time_series;
+#[path = "trigger.rs"]
+mod trigger;

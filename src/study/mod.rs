@@ -15,6 +15,7 @@
 //! | [`check`] | `config check`: every problem in one pass; study file or fit scene |
 //! | [`sweep`] | crossing the axes into cases with stable ids and derived seeds |
 //! | [`kinds`] | what one case does (`forward`, ...) |
+//! | [`realistic`] | records as they come off a real test (damping models, coloured noise, offset, drift, a late blow), generated independently of the fit's model |
 //! | [`records`] | `results.jsonl` records, the manifest, safe output folders |
 //! | [`run`] | the parallel, resumable runner |
 //! | [`report`] | `summary.csv`, `report.md`, SVG plots |
@@ -34,6 +35,7 @@ pub mod kinds;
 pub mod paths;
 #[cfg(not(feature = "cli"))]
 mod progress;
+pub mod realistic;
 pub mod records;
 pub mod report;
 pub mod run;

@@ -270,8 +270,10 @@ impl FitOptions {
 }
 
 /// The options of a data-first fit as a front end receives them (see the
-/// module docs); `None` or empty means the default.
-#[derive(Clone, Debug, Default, PartialEq)]
+/// module docs); `None` or empty means the default. Read from TOML by the
+/// study kinds with the same names (unknown names refused).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct FitSpec {
     /// Number of masses.
     pub n: usize,

@@ -8,11 +8,13 @@
 //!   `t = 0` when none is detected. A record that starts at the blow on an
 //!   axis starting at 0 is not re-timed at all: the fit is the paper's, to
 //!   the last digit.
-//! * **Refinement** (`auto` only): the chi-square of the fitted chain
-//!   against the record, as a function of the blow's time, minimised within
-//!   half a step of the detected time (golden section, the samples fixed);
-//!   the record is refitted once at the refined time when it moved by more
-//!   than 5% of a step.
+//! * **Refinement** (`auto` only): the blow's time and the fitted values
+//!   (defects and chain parameters) fitted jointly by bounded
+//!   Levenberg-Marquardt from the fit at the detected time, the time within
+//!   a step of it (a defect near the sensor can stand in for a time error:
+//!   fitting both lets the data choose); the record is then refitted (the
+//!   number and places of the defects chosen again) at the refined time
+//!   when it moved by more than its standard error (or 5% of a step).
 //! * **Standard error**: `sigma^2 (J^T J)^{-1}` of the time and every fitted
 //!   defect value and chain parameter, `J` by central differences, so that
 //!   the time's correlation with the impulse and the first masses is in it.
@@ -85,8 +87,8 @@ pub(super) fn fit_retimed(
     if refine && small {
         let chain = fitted_chain(&report, model)?;
         let step = step_near(rec.t(), t0);
-        let better = refined(rec, &chain, t0, step, report.noise_sigma)?;
-        if (better - t0).abs() > 0.05 * step {
+        let (better, se) = refined(rec, &chain, model, t0, step, report.noise_sigma)?;
+        if (better - t0).abs() > se.min(0.05 * step) {
             let (again, d) = rec.shifted(better)?;
             report = run(&Observations::Series(again))?;
             (time, dropped, refits) = (better, d, 1);
@@ -170,43 +172,80 @@ impl<'a> Record<'a> {
     }
 }
 
-/// The blow's time within half a `step` of `t0` that fits `chain` best
-/// (golden section on the samples after `t0 + step / 2`).
-fn refined(rec: &Series, chain: &Chain, t0: f64, step: f64, sigma: f64) -> Result<f64> {
-    let r = Record::after(rec, t0 + 0.5 * step, sigma);
-    let u = r.response(chain)?;
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut a, mut b) = (t0 - 0.5 * step, t0 + 0.5 * step);
-    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (r.chi2(&u, c), r.chi2(&u, d));
-    while b - a > 1e-6 * step {
+/// The fitted values and the blow's time as one least-squares problem on
+/// the samples after `from` (those before the blow model 0).
+struct Joint<'a> {
+    record: Record<'a>,
+    chain: &'a Chain,
+    params: &'a [Param],
+}
+
+impl crate::detect::search::lsq::LeastSquares for Joint<'_> {
+    fn residuals(&self, theta: &[f64]) -> Result<Vec<f64>> {
         crate::cancel::check()?;
-        if fc < fd {
-            (b, d, fd) = (d, c, fc);
-            c = b - g * (b - a);
-            fc = r.chi2(&u, c);
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + g * (b - a);
-            fd = r.chi2(&u, d);
+        let mut c = self.chain.clone();
+        for (p, v) in self.params.iter().zip(&theta[1..]) {
+            c = p.set(&c, *v)?;
         }
+        Ok(self.record.residuals(&self.record.response(&c)?, theta[0]))
     }
-    let best = 0.5 * (a + b);
-    // never worse than where it started
-    Ok(if r.chi2(&u, best) <= r.chi2(&u, t0) {
-        best
-    } else {
-        t0
-    })
+}
+
+/// The parameters fitted with the blow's time: the defects found and the
+/// fitted chain parameters of `chain` (the model's known defects first).
+fn fitted_params(chain: &Chain, model: &Model) -> Vec<Param> {
+    let known = model.chain().defects().len();
+    let mut params: Vec<Param> = (known..chain.defects().len()).map(Param::Defect).collect();
+    params.extend_from_slice(model.fitted());
+    params
+}
+
+/// The blow's time within a `step` of `t0`, fitted jointly with `chain`'s
+/// fitted values by bounded Levenberg-Marquardt (the values within a
+/// factor 100 of the fit's; the samples from a step and a half before `t0`,
+/// so that the set does not change with the time). Returns the time and
+/// its standard error.
+fn refined(
+    rec: &Series,
+    chain: &Chain,
+    model: &Model,
+    t0: f64,
+    step: f64,
+    sigma: f64,
+) -> Result<(f64, f64)> {
+    use crate::detect::search::lsq::{levenberg_marquardt, LmOptions};
+    let params = fitted_params(chain, model);
+    let joint = Joint {
+        record: Record::after(rec, t0 - 1.5 * step, sigma),
+        chain,
+        params: &params,
+    };
+    let mut theta = vec![t0];
+    let mut bounds = vec![(t0 - step, t0 + step)];
+    for p in &params {
+        let v = p.get(chain)?;
+        theta.push(v);
+        bounds.push(if v > 0.0 {
+            (v / 100.0, v * 100.0)
+        } else {
+            (0.0, 1.0)
+        });
+    }
+    let opts = LmOptions {
+        max_iter: 30,
+        rtol: 1e-8,
+        ..LmOptions::default()
+    };
+    let fit = levenberg_marquardt(&joint, &theta, &bounds, &opts)?;
+    let se = fit.std_errors().map_or(f64::INFINITY, |e| e[0]);
+    Ok((fit.theta[0], se))
 }
 
 /// Standard error of the blow's time jointly with the fitted values (see
 /// the module docs); NaN when the information matrix is singular.
 fn standard_error(rec: &Series, report: &FitReport, model: &Model, time: f64) -> Result<f64> {
     let chain = fitted_chain(report, model)?;
-    let known = model.chain().defects().len();
-    let mut params: Vec<Param> = (known..chain.defects().len()).map(Param::Defect).collect();
-    params.extend_from_slice(model.fitted());
+    let params = fitted_params(&chain, model);
     let r = Record::after(rec, time, report.noise_sigma);
     let h_t = 1e-4 * step_near(rec.t(), time);
     let mut cols: Vec<Vec<f64>> = Vec::with_capacity(params.len() + 1);

@@ -11,6 +11,7 @@ pub mod fit;
 pub mod forward;
 pub mod locate;
 pub mod noise;
+pub mod realism;
 pub mod suppress;
 
 use crate::error::{Error, Result};
@@ -37,6 +38,9 @@ pub enum Kind {
     /// The data-first fit of a noisy record of a reference system, scored
     /// against its truth (the noise study).
     Noise,
+    /// The data-first fit of a record with a real test's deviations,
+    /// generated independently of the fit's model.
+    Realism,
 }
 
 /// Every kind, in documentation order.
@@ -46,6 +50,7 @@ pub const ALL: &[Kind] = &[
     Kind::Fit,
     Kind::Locate,
     Kind::Noise,
+    Kind::Realism,
 ];
 
 impl Kind {
@@ -57,6 +62,7 @@ impl Kind {
             Kind::Fit => "fit",
             Kind::Noise => "noise",
             Kind::Locate => "locate",
+            Kind::Realism => "realism",
         }
     }
 
@@ -84,6 +90,7 @@ impl Kind {
             Kind::Fit => fit::SUMMARY,
             Kind::Noise => noise::SUMMARY,
             Kind::Locate => locate::SUMMARY,
+            Kind::Realism => realism::SUMMARY,
         }
     }
 
@@ -95,6 +102,7 @@ impl Kind {
             Kind::Fit => fit::FIELDS,
             Kind::Noise => noise::FIELDS,
             Kind::Locate => locate::FIELDS,
+            Kind::Realism => realism::FIELDS,
         }
     }
 
@@ -106,6 +114,7 @@ impl Kind {
             Kind::Fit => fit::METRICS,
             Kind::Noise => noise::METRICS,
             Kind::Locate => locate::METRICS,
+            Kind::Realism => realism::METRICS,
         }
     }
 
@@ -121,6 +130,7 @@ impl Kind {
             Kind::Fit => fit::scene(scene).map(|_| ()),
             Kind::Noise => noise::Scene::from_value(scene).map(|_| ()),
             Kind::Locate => locate::Scene::from_value(scene).map(|_| ()),
+            Kind::Realism => realism::Scene::from_value(scene).map(|_| ()),
         }
     }
 
@@ -134,6 +144,7 @@ impl Kind {
             Kind::Fit => crate::detect::scene::FitScene::all_problems(scene),
             Kind::Noise => noise::Scene::all_problems(scene),
             Kind::Locate => locate::Scene::all_problems(scene),
+            Kind::Realism => realism::Scene::all_problems(scene),
         }
     }
 
@@ -149,6 +160,7 @@ impl Kind {
             Kind::Fit => fit::run(scene, seed),
             Kind::Noise => noise::run(&noise::Scene::from_value(scene)?, seed),
             Kind::Locate => locate::run(&locate::Scene::from_value(scene)?, seed),
+            Kind::Realism => realism::run(&realism::Scene::from_value(scene)?, seed),
         }
     }
 }
