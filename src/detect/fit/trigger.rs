@@ -166,10 +166,6 @@ impl<'a> Record<'a> {
             })
             .collect()
     }
-
-    fn chi2(&self, u: &ModalResponse, time: f64) -> f64 {
-        self.residuals(u, time).iter().map(|r| r * r).sum()
-    }
 }
 
 /// The fitted values and the blow's time as one least-squares problem on
