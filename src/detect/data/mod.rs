@@ -7,11 +7,15 @@
 //! | [`series`] | a sampled series with its white-noise level ([`series::TimeData`]) |
 //! | [`laplace`] | Laplace-domain values at nodes, weighted or whitened ([`laplace::LaplaceObs`]) |
 //! | [`exact`] | values of `X_1` at any node for the mass-only Woodbury kernel ([`exact::Data`]) |
+//! | [`noise_model`] | the record's noise model: white or AR(p), its prediction-error whitening, Burg's estimate and the order by BIC |
+//! | [`nuisance`] | the sensor's offset and drift, profiled out by projection |
 //! | [`whiten`] | whitening of the correlated Laplace-domain noise of a transformed series |
 
 pub mod exact;
 pub mod laplace;
 pub mod measurement;
+pub mod noise_model;
+pub mod nuisance;
 pub mod observations;
 pub mod series;
 pub mod whiten;
