@@ -53,7 +53,7 @@ enum Command {
     /// Laplace transform X(s) of a sampled series (CSV), with error estimates.
     Laplace(cmd::laplace::Args),
     /// Fit defects to a measured series (--data; noise and number of defects estimated) or a scene (--scene).
-    Fit(cmd::fit::Args),
+    Fit(Box<cmd::fit::Args>),
     /// Residual surfaces r(j, m) and r(j1, j2) (the paper's Figures 16 and 17), CSV + SVG.
     Surface(cmd::surface::Args),
     /// The shipped noise studies (data-first defaults, per misfit, defect kinds) on the study engine.
@@ -84,7 +84,7 @@ fn run() -> anyhow::Result<()> {
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Suppress(a) => cmd::suppress::run(a),
         Command::Laplace(a) => cmd::laplace::run(a),
-        Command::Fit(a) => cmd::fit::run(a),
+        Command::Fit(a) => cmd::fit::run(*a),
         Command::Surface(a) => cmd::surface::run(a),
         Command::NoiseStudy(a) => cmd::noise::run(a),
         Command::Spectral(a) => cmd::spectral::run(a),

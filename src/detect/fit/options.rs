@@ -20,6 +20,8 @@
 //! | `criterion` | `bic`, `aic`, `chi2`, `chi2:ALPHA` | [`Criterion::parse`] |
 //! | `fit` | comma-separated subset of `d,gamma,k,mass` | [`parse_params`] |
 //! | `known` | `kind:at:value` each | [`Defect::parse`] |
+//! | `noise_model` | `auto`, `white`, `ar`, `ar:P` | [`NoiseModelChoice::parse`](super::record::NoiseModelChoice::parse) |
+//! | `nuisance` | `auto`, `none`, `offset`, `offset+drift` | [`NuisanceChoice::parse`](super::record::NuisanceChoice::parse) |
 //!
 //! ```
 //! use springmass::detect::fit::options::FitSpec;
@@ -156,6 +158,12 @@ pub struct FitOptions {
     pub parallel: bool,
     /// Largest number of hypotheses enumerated (default 200 000).
     pub max_sets: usize,
+    /// The record's noise model (default auto: white unless the white
+    /// fit's residual fails the whiteness test and AR wins by the criterion;
+    /// [`super::record`]).
+    pub noise_model: super::record::NoiseModelChoice,
+    /// The sensor's offset and drift (default auto, as `noise_model`).
+    pub nuisance: super::record::NuisanceChoice,
 }
 
 impl Default for FitOptions {
@@ -175,6 +183,8 @@ impl Default for FitOptions {
             alternatives: 5,
             parallel: true,
             max_sets: 200_000,
+            noise_model: Default::default(),
+            nuisance: Default::default(),
         }
     }
 }
@@ -253,11 +263,34 @@ impl FitOptions {
                 "real-axis or bromwich for Laplace values (the time misfit needs a sampled series)",
             ));
         }
+        self.validate_record(obs)?;
         if self.max_evals == 0 {
             return Err(Error::invalid("max_evals", 0, ">= 1"));
         }
         if self.max_sets == 0 {
             return Err(Error::invalid("max_sets", 0, ">= 1"));
+        }
+        Ok(())
+    }
+}
+
+impl FitOptions {
+    /// A record model asked for (an AR noise model, an offset or a drift)
+    /// needs the time misfit of a sampled series.
+    fn validate_record(&self, obs: &Observations) -> Result<()> {
+        use super::record::{forced, NoiseModelChoice};
+        let time = matches!(obs, Observations::Series(_))
+            && self.misfit.is_none_or(|m| m == MisfitKind::Time);
+        if forced(self.noise_model, self.nuisance) && !time {
+            let (field, value) = match self.noise_model {
+                NoiseModelChoice::Ar(_) => ("noise_model", "ar"),
+                _ => ("nuisance", "offset or drift"),
+            };
+            return Err(Error::invalid(
+                field,
+                value,
+                "white / none unless the misfit is the time misfit of a sampled series",
+            ));
         }
         Ok(())
     }
@@ -309,6 +342,10 @@ pub struct FitSpec {
     pub seed: Option<u64>,
     /// Evaluation budget of the stochastic searches [default 20 000].
     pub max_evals: Option<usize>,
+    /// The record's noise model: `auto`, `white`, `ar`, `ar:P` [default auto].
+    pub noise_model: Option<String>,
+    /// The sensor's nuisances: `auto`, `none`, `offset`, `offset+drift` [default auto].
+    pub nuisance: Option<String>,
 }
 
 impl FitSpec {
@@ -371,6 +408,12 @@ impl FitSpec {
         }
         if let Some(m) = self.max_evals {
             opts.max_evals = m;
+        }
+        if let Some(m) = &self.noise_model {
+            opts.noise_model = super::record::NoiseModelChoice::parse(m)?;
+        }
+        if let Some(m) = &self.nuisance {
+            opts.nuisance = super::record::NuisanceChoice::parse(m)?;
         }
         Ok(opts)
     }
