@@ -179,6 +179,37 @@ fn spring_defect_under_ar_noise() {
     check(&truth, 1e-3, Deviation::Ar(0.9), 4, Some("spring"));
 }
 
+/// A white-noise record keeps the white model, no nuisance, and the
+/// answer of the paper's record model.
+#[test]
+fn white_noise_record_keeps_the_white_answer() {
+    use springmass::detect::data::nuisance::Nuisance;
+    use springmass::detect::fit::record::{NoiseModelChoice, NuisanceChoice};
+    let truth = scenes::paper_with(10, "mass:3:3 mass:7:2").unwrap();
+    let obs = record(&truth, 1e-2, Deviation::Ar(0.0), 5);
+    let r = defaults(&obs, 10, None);
+    assert_eq!(r.noise_model.as_ref().map(|m| m.kind), Some("white"));
+    assert!(r.nuisance.is_empty() && r.fits_data, "{}", r.summary());
+    assert!(right(&r, &truth).1, "{}", r.summary());
+    let (model, opts) = springmass::detect::fit::options::FitSpec::new(10)
+        .build()
+        .unwrap();
+    let paper = FitOptions {
+        noise_model: NoiseModelChoice::White,
+        nuisance: NuisanceChoice::Fixed(Nuisance::None),
+        ..opts
+    };
+    let p = fit(&obs, &model, &paper).unwrap();
+    assert_eq!(p.found().len(), r.found().len());
+    for (a, b) in p.defects.iter().zip(&r.defects) {
+        assert_eq!(a.at, b.at);
+        assert!((a.value - b.value).abs() <= 1e-12 * b.value.abs());
+        assert!((a.se - b.se).abs() <= 1e-12 * b.se.abs());
+    }
+    assert!((p.chi2 - r.chi2).abs() <= 1e-12 * r.chi2);
+    assert_eq!(p.status, r.status);
+}
+
 /// The grid: 0.1% and 1% noise, AR(0.9), AR(0.99) and offset+drift, seeds
 /// 0..N; prints the counts and fails on any dishonest status.
 #[test]

@@ -44,19 +44,23 @@ impl Engine<'_> {
             .collect();
         let (fits_data, p) = goodness_of_fit(f, chi2_final, estimated);
         let hint = (!fits_data).then(|| self.mismatch_hint(f)).flatten();
+        let k_margin = self.k_margin(&rows, f.k, &criterion);
         let verdict = judge(
             &Evidence {
                 k: f.k,
                 budget_exhausted: f.budget_exhausted.then_some(self.opts.max_evals),
                 converged: best.converged,
                 at_bound: defects.iter().any(|d| d.at_bound) || params.iter().any(|p| p.at_bound),
-                all_identifiable: defects.iter().all(|d| d.identifiable),
-                unidentified: ident.as_ref().and_then(|r| {
-                    r.defects
-                        .iter()
-                        .find(|d| !d.identifiable)
-                        .map(|d| d.reason.as_str())
-                }),
+                all_identifiable: defects.iter().all(|d| d.identifiable) && k_margin.is_none(),
+                unidentified: ident
+                    .as_ref()
+                    .and_then(|r| {
+                        r.defects
+                            .iter()
+                            .find(|d| !d.identifiable)
+                            .map(|d| d.reason.as_str())
+                    })
+                    .or(k_margin.as_deref()),
                 runner_up_gap: alternatives.first().map(|a| a.gap),
                 fits_data,
                 mismatch_hint: hint.as_deref(),

@@ -5,12 +5,18 @@
 use super::engine::{Engine, KFit};
 use super::general::Hypothesis;
 use super::record::{self, NoiseModelReport, NuisanceEstimate};
+use super::report::KRow;
 use crate::detect::data::nuisance::Nuisance;
 use crate::detect::data::observations::Observations;
 use crate::detect::misfit::MisfitKind;
 use crate::error::Result;
 use crate::sensitivity::Param;
 use nalgebra::DMatrix;
+
+/// The criterion margin below which, under a coloured noise model, a
+/// neighbouring number of defects is as good as the chosen one (6: "strong"
+/// evidence on Kass and Raftery's scale of `2 ln B`).
+pub const K_MARGIN: f64 = 6.0;
 
 /// A chi-square (2 dof) of a trend in the residual above which a mismatch
 /// message suggests an offset and drift (p about 4e-6).
@@ -94,6 +100,28 @@ impl Engine<'_> {
                     .map_or(f64::NAN, |c| c[(offset + i, offset + i)].max(0.0).sqrt()),
             })
             .collect())
+    }
+
+    /// Under a coloured noise model, why the number of defects is not
+    /// resolved: a fit with one defect more or less within [`K_MARGIN`] of
+    /// the chosen one by the criterion (strongly coloured noise can leave a
+    /// deep defect at the edge of what the data show). `None` with white
+    /// noise (where each defect's identifiability decides, as before), a
+    /// given number of defects, or a clear margin.
+    pub(super) fn k_margin(&self, rows: &[KRow], k: usize, criterion: &str) -> Option<String> {
+        if self.record.noise.is_white() || !matches!(criterion, "bic" | "aic") {
+            return None;
+        }
+        let chosen = rows.iter().find(|r| r.k == k)?.criterion;
+        let near = rows
+            .iter()
+            .filter(|r| r.k + 1 == k || r.k == k + 1)
+            .find(|r| (r.criterion - chosen).abs() < K_MARGIN)?;
+        Some(format!(
+            "the number of defects is not resolved under the coloured noise: k = {} is within a {criterion} margin of {:.2} < {K_MARGIN} of k = {k}",
+            near.k,
+            (near.criterion - chosen).abs()
+        ))
     }
 
     /// What a residual that is not noise suggests: a trend (offset, drift),
