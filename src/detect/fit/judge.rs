@@ -272,4 +272,23 @@ mod tests {
         assert_eq!((v.status, v.resolved), (Status::Converged, true));
         assert!(v.message.starts_with("no defect"));
     }
+
+    #[test]
+    fn a_mismatch_says_what_the_residual_suggests() {
+        let e = Evidence {
+            k: 1,
+            fits_data: false,
+            runner_up_gap: Some(20.0),
+            mismatch_hint: Some("a trend (a sensor offset or drift): try --nuisance offset+drift"),
+            ..Evidence::default()
+        };
+        let v = judge(&e, Bar::ChiSquare(9.0));
+        assert_eq!((v.status, v.resolved), (Status::ModelMismatch, false));
+        assert!(
+            v.message
+                .ends_with("the residual shows a trend (a sensor offset or drift): try --nuisance offset+drift"),
+            "{}",
+            v.message
+        );
+    }
 }

@@ -133,16 +133,14 @@ impl Engine<'_> {
         };
         let mut hints = Vec::new();
         if self.record.nuisance != Nuisance::OffsetDrift && trend_chi2(r, s.t()) > TREND_CHI2 {
-            hints.push(
-                "a trend in the residual (a sensor offset or drift): try --nuisance offset+drift",
-            );
+            hints.push("a trend (a sensor offset or drift): try --nuisance offset+drift");
         }
         let p = record::whiteness_p(f.whitened.as_deref().unwrap_or(r));
         if p < 0.001 {
             hints.push(if self.record.noise.is_white() {
-                "a coloured residual: try --noise-model ar"
+                "colour (correlated noise): try --noise-model ar"
             } else {
-                "a coloured residual that the fitted AR noise model does not whiten: a missing defect, another damping model, or noise beyond AR(8)"
+                "colour that the fitted AR noise model does not whiten (a missing defect, another damping model, or noise beyond AR(8))"
             });
         }
         if early_misfit(r) {
