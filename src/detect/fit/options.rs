@@ -638,6 +638,48 @@ mod tests {
     }
 
     #[test]
+    fn record_model_fields() {
+        use super::super::record::{NoiseModelChoice, NuisanceChoice};
+        use crate::detect::data::nuisance::Nuisance;
+        let spec = FitSpec {
+            noise_model: Some("ar:2".into()),
+            nuisance: Some("offset+drift".into()),
+            ..FitSpec::new(5)
+        };
+        let opts = spec.options().unwrap();
+        assert_eq!(opts.noise_model, NoiseModelChoice::Ar(Some(2)));
+        assert_eq!(opts.nuisance, NuisanceChoice::Fixed(Nuisance::OffsetDrift));
+        let bad = |spec: FitSpec| field(spec.build().unwrap_err());
+        assert_eq!(
+            bad(FitSpec {
+                noise_model: Some("pink".into()),
+                ..FitSpec::new(5)
+            }),
+            "noise_model"
+        );
+        assert_eq!(
+            bad(FitSpec {
+                nuisance: Some("tilt".into()),
+                ..FitSpec::new(5)
+            }),
+            "nuisance"
+        );
+        // an AR model or a nuisance needs the time misfit of a series
+        let t: Vec<f64> = (0..32).map(|i| i as f64).collect();
+        let obs = Observations::Series(
+            crate::detect::data::observations::Series::new(t.clone(), t, None).unwrap(),
+        );
+        let model = Model::new(5).unwrap();
+        let with = |misfit: Option<MisfitKind>| FitOptions {
+            misfit,
+            ..opts.clone()
+        };
+        assert!(with(None).validate(&obs, &model).is_ok());
+        let e = with(Some(MisfitKind::Bromwich)).validate(&obs, &model);
+        assert_eq!(field(e.unwrap_err()), "noise_model");
+    }
+
+    #[test]
     fn bad_fields_are_named() {
         let bad = |spec: FitSpec| field(spec.build().unwrap_err());
         let base = || FitSpec::new(5);

@@ -293,7 +293,10 @@ pub fn select_record(
     let mut best: Option<(f64, RecordChoice)> = None;
     for set in nuisance.sets() {
         let detrended = detrend(r, t, set);
-        for p in noise.orders() {
+        // orders the record supports (a tenth of its samples), the white
+        // model always
+        let supported = noise.orders().filter(|&p| p == 0 || 10 * p <= r.len());
+        for p in supported {
             let fit = burg(&detrended, p)?;
             let var = fit.innovation_var.max(f64::MIN_POSITIVE);
             let bic = n * var.ln() + (p + set.count()) as f64 * n.ln();
@@ -302,9 +305,12 @@ pub fn select_record(
             }
         }
     }
-    best.map(|(_, c)| c).ok_or_else(|| Error::Numerical {
-        method: "select_record".into(),
-        reason: "no record model".into(),
+    best.map(|(_, c)| c).ok_or_else(|| {
+        Error::invalid(
+            "noise_model",
+            format!("{noise:?}"),
+            format!("an AR order of at most a tenth of the {} samples", r.len()),
+        )
     })
 }
 
@@ -470,5 +476,23 @@ mod tests {
         // forced AR: at least order 1
         let c = select_record(&w, &t, NoiseModelChoice::Ar(None), NuisanceChoice::Auto).unwrap();
         assert_eq!(c.noise.order(), 1);
+        // a short record: only the orders it supports (16 samples: AR(1))
+        let c = select_record(
+            &w[..16],
+            &t[..16],
+            NoiseModelChoice::Ar(None),
+            NuisanceChoice::Auto,
+        )
+        .unwrap();
+        assert!(c.noise.order() <= 1);
+        let e = select_record(
+            &w[..16],
+            &t[..16],
+            NoiseModelChoice::Ar(Some(5)),
+            NuisanceChoice::Auto,
+        );
+        assert!(
+            matches!(e, Err(Error::InvalidParameter { ref field, .. }) if field == "noise_model")
+        );
     }
 }
