@@ -31,6 +31,10 @@ pub const MAX_REFITS: usize = 3;
 /// The AR coefficients have converged when none moves by more than this.
 pub const PHI_TOL: f64 = 0.01;
 
+/// The Laplace screen's shortlist is this many times longer under a
+/// coloured noise model.
+pub const SHORTLIST_FACTOR: usize = 2;
+
 /// Ljung-Box lags of the whiteness tests.
 pub const LB_LAGS: usize = 20;
 
@@ -222,7 +226,7 @@ impl RecordModel {
     pub fn widen(&self, setup: &mut Setup) {
         if !self.noise.is_white() {
             setup.time_slack = f64::INFINITY;
-            setup.shortlist *= 2;
+            setup.shortlist *= SHORTLIST_FACTOR;
         }
     }
 
