@@ -11,8 +11,8 @@
 //! both choices `auto` it keeps that fit when its residual passes the
 //! whiteness test (Ljung-Box, [`super::noise::ljung_box`]), so a white
 //! record costs what it did. Otherwise it refits with the chosen record
-//! model, re-estimates the AR coefficients from the new best fit's residual
-//! (the order kept) and refits until they move by less than
+//! model, re-chooses the AR order and coefficients from the new best fit's
+//! residual and refits until the order stays and no coefficient moves by more than
 //! [`PHI_TOL`] (at most [`MAX_REFITS`] refits; the report says how many).
 
 use super::noise::ljung_box;
@@ -335,20 +335,27 @@ pub fn detrend(r: &[f64], t: &[f64], nuisance: Nuisance) -> Vec<f64> {
     }
 }
 
-/// The AR coefficients of residual `r` (nuisances already removed) at the
-/// order of `current`, and whether they moved by less than [`PHI_TOL`].
+/// The criterion's noise model for residual `r` at times `t` (nuisances
+/// already removed), its innovation variance, and whether it is `current`
+/// again: the same order, no coefficient moved by more than [`PHI_TOL`].
 ///
 /// # Errors
-/// As [`burg`].
-pub fn reestimate(r: &[f64], current: &NoiseModel) -> Result<(NoiseModel, f64, bool)> {
-    let fit = burg(r, current.order())?;
-    let moved = fit
-        .coefficients
+/// As [`select_record`].
+pub fn reestimate(
+    r: &[f64],
+    t: &[f64],
+    current: &NoiseModel,
+    choice: NoiseModelChoice,
+) -> Result<(NoiseModel, f64, bool)> {
+    let c = select_record(r, t, choice, NuisanceChoice::Fixed(Nuisance::None))?;
+    let moved = c
+        .noise
+        .coefficients()
         .iter()
         .zip(current.coefficients())
         .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-    let var = fit.innovation_var;
-    Ok((NoiseModel::ar(fit.coefficients)?, var, moved < PHI_TOL))
+    let same = c.noise.order() == current.order() && moved < PHI_TOL;
+    Ok((c.noise, c.innovation_var, same))
 }
 
 /// The Ljung-Box p-value of a whitened residual.

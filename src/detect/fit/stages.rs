@@ -10,6 +10,7 @@ use super::report::KRow;
 use super::{choose_k, first_sigma, fit_every_k, misfit_of, Model};
 use super::{FitOptions, NoiseSpec};
 use crate::chain::Chain;
+use crate::detect::data::nuisance::Nuisance;
 use crate::detect::data::observations::{Observations, Series};
 use crate::detect::misfit::MisfitKind;
 use crate::detect::unknowns::DefectKind;
@@ -161,17 +162,20 @@ pub(super) fn fit_stages<'a>(
     } else {
         sigma0
     };
-    refine(series, stage, &mut rec, &mut sigma, estimated)
+    refine(series, stage, &mut rec, &mut sigma, estimated, noise_choice)
 }
 
-/// The refits with the record model `rec` until its AR coefficients stop
-/// moving (at most [`MAX_REFITS`]).
+/// The refits with the record model `rec` until the criterion's AR order
+/// and coefficients from the latest residual stop changing (at most
+/// [`MAX_REFITS`]); a re-chosen white model without nuisances keeps the
+/// latest fit.
 fn refine<'a>(
     series: &Series,
     mut stage: Stage<'a>,
     rec: &mut RecordModel,
     sigma: &mut f64,
     estimated: bool,
+    choice: record::NoiseModelChoice,
 ) -> Result<Stage<'a>> {
     let (obs, model, opts) = (stage.engine.obs, stage.engine.model, stage.engine.opts);
     let mut evaluations = stage.evaluations;
@@ -183,9 +187,9 @@ fn refine<'a>(
         let mut done = rec.noise.is_white();
         if !done {
             if let Some(r) = stage.residual() {
-                let (noise, var, still) = record::reestimate(r, &rec.noise)?;
-                done = still;
-                if !still {
+                let (noise, var, still) = record::reestimate(r, series.t(), &rec.noise, choice)?;
+                done = still || (noise.is_white() && rec.nuisance == Nuisance::None);
+                if !done {
                     rec.noise = noise;
                     if estimated {
                         *sigma = var.sqrt().max(f64::MIN_POSITIVE);
