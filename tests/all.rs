@@ -51,6 +51,8 @@ mod noise;
 mod observables;
 #[path = "real_setups.rs"]
 mod real_setups;
+#[path = "realistic_noise.rs"]
+mod realistic_noise;
 #[path = "search.rs"]
 mod search;
 #[path = "simulate.rs"]

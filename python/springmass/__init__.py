@@ -392,6 +392,15 @@ class FitResult:
         How deep the data see a 10% mass change (``depth`` in masses from
         the observed one, ``se`` of a change at each mass, ``hidden``: fitted
         defects beyond that depth); mass defects only.
+    noise_model : dict or None
+        The record's noise model: ``kind`` (``"white"`` or ``"ar"``), ``p``,
+        ``coefficients``, ``innovation_sigma``, ``iterations`` (refits under
+        it), ``converged``.
+    whiteness_p : float or None
+        Ljung-Box p-value of the residual whitened by the noise model.
+    nuisance : list of dict
+        The sensor's fitted ``offset`` (and ``drift``): ``name``, ``value``,
+        ``se``; empty when none were fitted.
     t, observed, predicted, residual : ndarray
         The data and the best fit's model on the same times.
     summary : str
@@ -420,6 +429,9 @@ class FitResult:
     wall_time_s: float
     identifiability: Optional[Dict[str, Any]]
     visibility: Optional[Dict[str, Any]]
+    noise_model: Optional[Dict[str, Any]]
+    whiteness_p: Optional[float]
+    nuisance: List[Dict[str, Any]]
     t: np.ndarray
     observed: np.ndarray
     predicted: np.ndarray
@@ -498,6 +510,9 @@ class FitResult:
             wall_time_s=float(r["wall_time_s"]),
             identifiability=r.get("identifiability"),
             visibility=r.get("visibility"),
+            noise_model=r.get("noise_model"),
+            whiteness_p=None if r.get("whiteness_p") is None else _nan(r["whiteness_p"]),
+            nuisance=list(r.get("nuisance", [])),
             t=raw.get("t", empty),
             observed=raw.get("observed", empty),
             predicted=raw.get("model", empty),
@@ -531,6 +546,8 @@ def fit(
     observe: int = 1,
     observe_kind: str = "displacement",
     force: Any = None,
+    noise_model: str = "auto",
+    nuisance: str = "auto",
 ) -> FitResult:
     """Fit defects to a measured series of mass 1's displacement.
 
@@ -594,6 +611,15 @@ def fit(
     force : array_like, shape (N,), optional
         A measured force on mass 1 at the times ``t`` (a hammer test; ``t``
         then uniform from 0), used instead of the ideal impulse.
+    noise_model : {"auto", "white", "ar", "ar:P"}, default "auto"
+        The record's noise model: ``"auto"`` keeps white noise unless the
+        white fit's residual fails the Ljung-Box test and an AR(p) model
+        (p <= 8) wins by BIC; ``"ar"`` chooses p by BIC, ``"ar:P"`` fixes it.
+        Standard errors are those of the fitted noise model.
+    nuisance : {"auto", "none", "offset", "offset+drift"}, default "auto"
+        A constant offset (and a linear drift) of the sensor, profiled out of
+        the fit; ``"auto"`` fits them when the white fit's residual is not
+        white and BIC wants them (reported with standard errors).
 
     Returns
     -------
@@ -653,6 +679,8 @@ def fit(
         observe=_count("observe", observe),
         observe_kind=_text("observe_kind", observe_kind),
         force=None if force is None else _vector("force", force),
+        noise_model=_text("noise_model", noise_model),
+        nuisance=_text("nuisance", nuisance),
     )
     return FitResult._from_core(raw)
 

@@ -49,6 +49,8 @@ def fit(
     observe: Optional[int] = None,
     observe_kind: Optional[str] = None,
     force: Optional[npt.NDArray[np.float64]] = None,
+    noise_model: Optional[str] = None,
+    nuisance: Optional[str] = None,
 ) -> Dict[str, Any]:
     """The data-first fit: {"report": JSON text, "summary": str, "t", "observed", "model", "residual": ndarray}."""
 

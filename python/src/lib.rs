@@ -124,7 +124,7 @@ fn series_obs(
 #[pyo3(signature = (t, x, *, n, d=None, gamma=None, fit=None, known=Vec::new(), defects=None,
     kinds=None, slot_kinds=Vec::new(), noise=None, misfit=None, method=None, criterion=None,
     seed=None, max_evals=None, k=None, mass=None, left=None, right=None, observe=None,
-    observe_kind=None, force=None, trigger=None))]
+    observe_kind=None, force=None, trigger=None, noise_model=None, nuisance=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit<'py>(
     py: Python<'py>,
@@ -152,6 +152,8 @@ fn fit<'py>(
     observe_kind: Option<String>,
     force: Option<PyReadonlyArray1<'py, f64>>,
     trigger: Option<String>,
+    noise_model: Option<String>,
+    nuisance: Option<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let spec = FitSpec {
         d,
@@ -174,6 +176,8 @@ fn fit<'py>(
         seed,
         max_evals,
         trigger,
+        noise_model,
+        nuisance,
         ..FitSpec::new(n)
     };
     let (t, x) = (values(&t), values(&x));

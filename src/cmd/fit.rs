@@ -74,6 +74,16 @@ pub struct Args {
     /// the blow is fitted as it is].
     #[arg(long, requires = "data", allow_hyphen_values = true)]
     pub trigger: Option<String>,
+    /// Noise model of the record (time misfit): auto (white unless the white
+    /// fit's residual fails the Ljung-Box test and AR(p), p <= 8, wins by BIC),
+    /// white, ar (order by BIC) or ar:P [default: auto].
+    #[arg(long, requires = "data")]
+    pub noise_model: Option<String>,
+    /// Sensor offset and linear drift, profiled out of the time misfit: auto
+    /// (fitted when the white fit's residual is not white and BIC wants them),
+    /// none, offset or offset+drift [default: auto].
+    #[arg(long, requires = "data")]
+    pub nuisance: Option<String>,
     /// Left end (mass 1's side): fixed (a wall spring) or free [default: fixed].
     #[arg(long, requires = "data")]
     pub left: Option<String>,
@@ -296,6 +306,8 @@ fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
         seed: a.seed,
         max_evals: a.max_evals,
         trigger: a.trigger.clone(),
+        noise_model: a.noise_model.clone(),
+        nuisance: a.nuisance.clone(),
         ..springmass::detect::fit::options::FitSpec::new(n)
     }
 }

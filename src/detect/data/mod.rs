@@ -8,11 +8,15 @@
 //! | [`laplace`] | Laplace-domain values at nodes, weighted or whitened ([`laplace::LaplaceObs`]) |
 //! | [`exact`] | values of `X_1` at any node for the mass-only Woodbury kernel ([`exact::Data`]) |
 //! | [`trigger`] | when the blow came: the impulse's time on the record's axis, detected, and the record re-timed to it |
+//! | [`noise_model`] | the record's noise model: white or AR(p), its prediction-error whitening, Burg's estimate and the order by BIC |
+//! | [`nuisance`] | the sensor's offset and drift, profiled out by projection |
 //! | [`whiten`] | whitening of the correlated Laplace-domain noise of a transformed series |
 
 pub mod exact;
 pub mod laplace;
 pub mod measurement;
+pub mod noise_model;
+pub mod nuisance;
 pub mod observations;
 pub mod series;
 pub mod trigger;

@@ -43,21 +43,27 @@ impl Engine<'_> {
             .map(|h| Alternative::new(h.defects.clone(), h.chi2, best.chi2))
             .collect();
         let (fits_data, p) = goodness_of_fit(f, chi2_final, estimated);
+        let hint = (!fits_data).then(|| self.mismatch_hint(f)).flatten();
+        let k_margin = self.k_margin(&rows, f.k, &criterion);
         let verdict = judge(
             &Evidence {
                 k: f.k,
                 budget_exhausted: f.budget_exhausted.then_some(self.opts.max_evals),
                 converged: best.converged,
                 at_bound: defects.iter().any(|d| d.at_bound) || params.iter().any(|p| p.at_bound),
-                all_identifiable: defects.iter().all(|d| d.identifiable),
-                unidentified: ident.as_ref().and_then(|r| {
-                    r.defects
-                        .iter()
-                        .find(|d| !d.identifiable)
-                        .map(|d| d.reason.as_str())
-                }),
+                all_identifiable: defects.iter().all(|d| d.identifiable) && k_margin.is_none(),
+                unidentified: ident
+                    .as_ref()
+                    .and_then(|r| {
+                        r.defects
+                            .iter()
+                            .find(|d| !d.identifiable)
+                            .map(|d| d.reason.as_str())
+                    })
+                    .or(k_margin.as_deref()),
                 runner_up_gap: alternatives.first().map(|a| a.gap),
                 fits_data,
+                mismatch_hint: hint.as_deref(),
             },
             Bar::ChiSquare(identify::DEFAULT_THRESHOLD),
         );
@@ -90,6 +96,9 @@ impl Engine<'_> {
             trigger: None,
             identifiability: ident,
             visibility: None,
+            noise_model: self.noise_model_report(sigma),
+            whiteness_p: self.whiteness_p(f),
+            nuisance: self.nuisance_estimates(best, sigma).unwrap_or_default(),
         })
     }
 
@@ -222,7 +231,8 @@ pub(super) const EXACT_RECORD_RESIDUAL: f64 = 1e-8;
 fn goodness_of_fit(f: &KFit, chi2_final: f64, estimated: bool) -> (bool, f64) {
     match (&f.predicted, estimated) {
         (Some((model, r)), true) => {
-            let p = noise::ljung_box(r, 20).1;
+            // under a record model: the whitened residual's whiteness
+            let p = noise::ljung_box(f.whitened.as_deref().unwrap_or(r), 20).1;
             let peak = model.iter().fold(0.0f64, |a, v| a.max(v.abs()));
             let rms = (r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64).sqrt();
             (p >= 0.001 || rms <= EXACT_RECORD_RESIDUAL * peak, p)
@@ -232,6 +242,12 @@ fn goodness_of_fit(f: &KFit, chi2_final: f64, estimated: bool) -> (bool, f64) {
             (p >= 0.001, p)
         }
     }
+}
+
+/// [`goodness_of_fit`] of `f` at the final noise level `sigma`.
+pub(super) fn fits_data(f: &KFit, sigma: f64, estimated: bool) -> bool {
+    let scale = sigma / f.sigma_fit;
+    goodness_of_fit(f, f.chi2 / (scale * scale), estimated).0
 }
 
 /// The fitted chain's natural modes (none when the eigen solver refuses, or

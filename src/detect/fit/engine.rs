@@ -74,6 +74,9 @@ pub(super) struct KFit {
     pub(super) method_name: String,
     pub(super) budget_exhausted: bool,
     pub(super) predicted: Option<(Vec<f64>, Vec<f64>)>,
+    /// The residual whitened by the record model (`None`: white noise, no
+    /// nuisance, where it is `predicted`'s residual).
+    pub(super) whitened: Option<Vec<f64>>,
     /// Every position set was ranked (false: the Woodbury kernel's beam search).
     pub(super) exhaustive: bool,
     /// The stochastic search's trace, when asked for.
@@ -161,6 +164,8 @@ pub(super) struct Engine<'a> {
     /// The `relax` method's support: the profile's positions, farthest
     /// from uniform first (computed once per fit).
     pub(super) support: std::sync::Mutex<Option<Vec<usize>>>,
+    /// The record's noise model and nuisances (time misfit of a series).
+    pub(super) record: super::record::RecordModel,
 }
 
 /// The coarse (Laplace) and fine (time) observations, the misfit's name and
@@ -224,32 +229,23 @@ impl Engine<'_> {
     fn prepare(&self, sigma: f64) -> Result<Prepared> {
         match self.obs {
             Observations::Series(s) => {
-                let setup = Setup::for_record(s.t().last().copied(), self.model.chain())?;
+                let mut setup = Setup::for_record(s.t().last().copied(), self.model.chain())?;
                 let td = s.time_data(sigma)?;
                 // the time misfit refines a shortlist of the Bromwich line's
                 let coarse_kind = match self.misfit {
                     MisfitKind::Time => MisfitKind::Bromwich,
                     laplace => laplace,
                 };
-                let coarse = laplace_obs(&td, coarse_kind, &setup)?;
-                let name = match self.misfit {
-                    MisfitKind::Time => format!(
-                        "time (chi-square of {} samples; shortlist from the whitened Bromwich line, sigma_B = {})",
-                        td.len(),
-                        setup.bromwich_sigma
-                    ),
-                    MisfitKind::Bromwich => format!(
-                        "bromwich (whitened chi-square, sigma_B = {}, {} dof)",
-                        setup.bromwich_sigma,
-                        coarse.dof()
-                    ),
-                    laplace => format!(
-                        "{} (whitened chi-square, {} dof)",
-                        laplace.name(),
-                        coarse.dof()
-                    ),
+                let coarse = match self.record.screen_data(&td)? {
+                    Some(screen) => laplace_obs(&screen, coarse_kind, &setup)?,
+                    None => laplace_obs(&td, coarse_kind, &setup)?,
                 };
-                let fine = (self.misfit == MisfitKind::Time).then(|| TimeMisfit::new(td));
+                self.record.widen(&mut setup);
+                let name = self.misfit_name(&td, &coarse, &setup);
+                let fine = match self.misfit {
+                    MisfitKind::Time => Some(self.record.misfit(td)?),
+                    _ => None,
+                };
                 Ok((coarse, fine, name, setup))
             }
             Observations::Laplace(l) => {
@@ -266,6 +262,33 @@ impl Engine<'_> {
                     Setup::for_record(None, self.model.chain())?,
                 ))
             }
+        }
+    }
+
+    /// The misfit's line in the report.
+    fn misfit_name(
+        &self,
+        td: &crate::detect::data::series::TimeData,
+        coarse: &LaplaceObs,
+        setup: &Setup,
+    ) -> String {
+        match self.misfit {
+            MisfitKind::Time => format!(
+                "time (chi-square of {} samples{}; shortlist from the whitened Bromwich line, sigma_B = {})",
+                td.len(),
+                self.record.describe(),
+                setup.bromwich_sigma
+            ),
+            MisfitKind::Bromwich => format!(
+                "bromwich (whitened chi-square, sigma_B = {}, {} dof)",
+                setup.bromwich_sigma,
+                coarse.dof()
+            ),
+            laplace => format!(
+                "{} (whitened chi-square, {} dof)",
+                laplace.name(),
+                coarse.dof()
+            ),
         }
     }
 
@@ -434,23 +457,26 @@ impl Engine<'_> {
             reason: "no hypothesis".into(),
         })?;
         let params = 2 * k + self.model.fitted().len();
-        let (rss, n_data, predicted, chi2, dof) = match self.obs {
+        let (rss, n_data, predicted, chi2, dof, whitened) = match self.obs {
             Observations::Series(s) => {
                 let chain = best.to_chain(self.model.chain())?;
-                let td = s.time_data(sigma)?;
-                let model = TimeMisfit::new(td).model(&chain)?;
-                let r: Vec<f64> = s.x().iter().zip(&model).map(|(a, b)| a - b).collect();
-                let rss = r.iter().map(|v| v * v).sum();
+                let tm = self.record.misfit(s.time_data(sigma)?)?;
+                let (model, r, whitened) = self.record.measured(&tm, &chain, s.x())?;
+                let rss = match &whitened {
+                    Some(w) => w.iter().map(|v| v * v).sum(),
+                    None => r.iter().map(|v| v * v).sum(),
+                };
+                let n = s.x().len() - self.record.lost();
                 let dof = match fine {
-                    Some(_) => s.x().len().saturating_sub(params),
+                    Some(_) => n.saturating_sub(params),
                     None => coarse.dof().saturating_sub(params),
                 };
-                (rss, s.x().len(), Some((model, r)), best.chi2, dof)
+                (rss, n, Some((model, r)), best.chi2, dof, whitened)
             }
             Observations::Laplace(l) => {
                 let rss = best.chi2 * sigma * sigma;
                 let m = crate::time::series::stacked_rows(l.s()).len();
-                (rss, m, None, best.chi2, m.saturating_sub(params))
+                (rss, m, None, best.chi2, m.saturating_sub(params), None)
             }
         };
         let sigma_hat = (rss / (n_data.saturating_sub(params).max(1)) as f64).sqrt();
@@ -470,6 +496,7 @@ impl Engine<'_> {
             method_name: found.method_name,
             budget_exhausted: found.budget_exhausted,
             predicted,
+            whitened,
             exhaustive: found.exhaustive,
             trace: found.trace,
         })
@@ -1037,6 +1064,7 @@ mod tests {
                     prepared: std::sync::Mutex::new(None),
                     given: None,
                     support: std::sync::Mutex::new(None),
+                    record: Default::default(),
                 };
                 let fast = engine.fit_k(2, sigma).unwrap();
                 let (coarse, fine, _, mut setup) = engine.prepared(sigma).unwrap();

@@ -53,6 +53,9 @@ pub struct Evidence<'a> {
     pub runner_up_gap: Option<f64>,
     /// The residual is consistent with the data's errors.
     pub fits_data: bool,
+    /// What a residual that is not noise suggests (a trend, colour, an
+    /// early misfit), for the model-mismatch message.
+    pub mismatch_hint: Option<&'a str>,
 }
 
 impl Default for Evidence<'_> {
@@ -67,6 +70,7 @@ impl Default for Evidence<'_> {
             unidentified: None,
             runner_up_gap: None,
             fits_data: true,
+            mismatch_hint: None,
         }
     }
 }
@@ -127,10 +131,11 @@ fn status(e: &Evidence<'_>, gap_ok: bool, threshold: f64, floor: bool) -> (Statu
         );
     }
     if !floor && !e.fits_data {
-        return (
-            Status::ModelMismatch,
-            "the best answer does not explain the data: its residual is not noise (see fits_data and its p-value); the chain, damping or noise model, or the record (an offset, a drift, a late trigger), differs from the data's".to_string(),
-        );
+        let mut message = "the best answer does not explain the data: its residual is not noise (see fits_data and its p-value); the chain, damping or noise model, or the record (an offset, a drift, a late trigger), differs from the data's".to_string();
+        if let Some(h) = e.mismatch_hint {
+            message.push_str(&format!("; the residual shows {h}"));
+        }
+        return (Status::ModelMismatch, message);
     }
     if e.at_bound {
         return (
@@ -183,6 +188,7 @@ pub fn evidence_of(r: &FitReport, max_evals: usize) -> Evidence<'static> {
         unidentified: None,
         runner_up_gap: r.alternatives.first().map(|a| a.gap),
         fits_data: r.fits_data,
+        mismatch_hint: None,
     }
 }
 
@@ -265,5 +271,24 @@ mod tests {
         let v = judge(&Evidence::default(), Bar::ChiSquare(9.0));
         assert_eq!((v.status, v.resolved), (Status::Converged, true));
         assert!(v.message.starts_with("no defect"));
+    }
+
+    #[test]
+    fn a_mismatch_says_what_the_residual_suggests() {
+        let e = Evidence {
+            k: 1,
+            fits_data: false,
+            runner_up_gap: Some(20.0),
+            mismatch_hint: Some("a trend (a sensor offset or drift): try --nuisance offset+drift"),
+            ..Evidence::default()
+        };
+        let v = judge(&e, Bar::ChiSquare(9.0));
+        assert_eq!((v.status, v.resolved), (Status::ModelMismatch, false));
+        assert!(
+            v.message
+                .ends_with("the residual shows a trend (a sensor offset or drift): try --nuisance offset+drift"),
+            "{}",
+            v.message
+        );
     }
 }

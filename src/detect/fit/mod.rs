@@ -75,10 +75,13 @@ pub mod noise;
 pub mod options;
 pub mod paper;
 pub mod profile;
+pub mod record;
+mod record_report;
 pub mod report;
 pub mod select;
 pub mod setup;
 pub mod spectral;
+mod stages;
 pub mod trigger;
 pub mod visibility;
 
@@ -151,31 +154,21 @@ fn fit_record(
 ) -> Result<FitReport> {
     let scene = given.is_some();
     let t0 = Instant::now();
-    let engine = Engine {
-        obs,
-        model,
-        opts,
-        misfit: misfit_of(obs, opts),
-        prepared: std::sync::Mutex::new(None),
-        given,
-        support: std::sync::Mutex::new(None),
-    };
-    let (sigma, estimated) = first_sigma(obs, opts);
-    let (fits, sigma, evaluations) = fit_every_k(&engine, sigma, estimated)?;
-    let (chosen, rows, criterion_name) = choose_k(&fits, sigma, estimated, opts.criterion)?;
+    let stage = stages::fit_stages(obs, model, opts, given)?;
+    let (engine, sigma, estimated) = (&stage.engine, stage.sigma, stage.estimated);
     let mut report = engine.report(
-        &fits[chosen],
+        stage.best(),
         sigma,
         estimated,
-        rows,
-        criterion_name,
-        evaluations,
+        stage.rows.clone(),
+        stage.criterion.clone(),
+        stage.evaluations,
         t0,
     )?;
     // how deep the data see (mass defects of a user's data; not the
     // scene path, whose data are the model's own)
     if !scene && report.defects.iter().all(|d| d.kind == "mass") {
-        add_visibility(&mut report, &engine, sigma)?;
+        add_visibility(&mut report, engine, sigma)?;
     }
     Ok(report)
 }

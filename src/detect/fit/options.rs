@@ -21,6 +21,8 @@
 //! | `fit` | comma-separated subset of `d,gamma,k,mass` | [`parse_params`] |
 //! | `known` | `kind:at:value` each | [`Defect::parse`] |
 //! | `trigger` | `auto` or the blow's time on the record's axis | [`TriggerSpec::parse`] |
+//! | `noise_model` | `auto`, `white`, `ar`, `ar:P` | [`NoiseModelChoice::parse`](super::record::NoiseModelChoice::parse) |
+//! | `nuisance` | `auto`, `none`, `offset`, `offset+drift` | [`NuisanceChoice::parse`](super::record::NuisanceChoice::parse) |
 //!
 //! ```
 //! use springmass::detect::fit::options::FitSpec;
@@ -161,6 +163,12 @@ pub struct FitOptions {
     /// The blow's time on a record's axis (default detected,
     /// [`crate::detect::data::trigger`]).
     pub trigger: TriggerSpec,
+    /// The record's noise model (default auto: white unless the white
+    /// fit's residual fails the whiteness test and AR wins by the criterion;
+    /// [`super::record`]).
+    pub noise_model: super::record::NoiseModelChoice,
+    /// The sensor's offset and drift (default auto, as `noise_model`).
+    pub nuisance: super::record::NuisanceChoice,
 }
 
 impl Default for FitOptions {
@@ -181,6 +189,8 @@ impl Default for FitOptions {
             parallel: true,
             max_sets: 200_000,
             trigger: TriggerSpec::Auto,
+            noise_model: Default::default(),
+            nuisance: Default::default(),
         }
     }
 }
@@ -259,11 +269,34 @@ impl FitOptions {
                 "real-axis or bromwich for Laplace values (the time misfit needs a sampled series)",
             ));
         }
+        self.validate_record(obs)?;
         if self.max_evals == 0 {
             return Err(Error::invalid("max_evals", 0, ">= 1"));
         }
         if self.max_sets == 0 {
             return Err(Error::invalid("max_sets", 0, ">= 1"));
+        }
+        Ok(())
+    }
+}
+
+impl FitOptions {
+    /// A record model asked for (an AR noise model, an offset or a drift)
+    /// needs the time misfit of a sampled series.
+    fn validate_record(&self, obs: &Observations) -> Result<()> {
+        use super::record::{forced, NoiseModelChoice};
+        let time = matches!(obs, Observations::Series(_))
+            && self.misfit.is_none_or(|m| m == MisfitKind::Time);
+        if forced(self.noise_model, self.nuisance) && !time {
+            let (field, value) = match self.noise_model {
+                NoiseModelChoice::Ar(_) => ("noise_model", "ar"),
+                _ => ("nuisance", "offset or drift"),
+            };
+            return Err(Error::invalid(
+                field,
+                value,
+                "white / none unless the misfit is the time misfit of a sampled series",
+            ));
         }
         Ok(())
     }
@@ -319,6 +352,10 @@ pub struct FitSpec {
     pub max_evals: Option<usize>,
     /// `auto` or the time of the blow on the record's axis [default auto].
     pub trigger: Option<String>,
+    /// The record's noise model: `auto`, `white`, `ar`, `ar:P` [default auto].
+    pub noise_model: Option<String>,
+    /// The sensor's nuisances: `auto`, `none`, `offset`, `offset+drift` [default auto].
+    pub nuisance: Option<String>,
 }
 
 impl FitSpec {
@@ -384,6 +421,12 @@ impl FitSpec {
         }
         if let Some(t) = &self.trigger {
             opts.trigger = TriggerSpec::parse(t)?;
+        }
+        if let Some(m) = &self.noise_model {
+            opts.noise_model = super::record::NoiseModelChoice::parse(m)?;
+        }
+        if let Some(m) = &self.nuisance {
+            opts.nuisance = super::record::NuisanceChoice::parse(m)?;
         }
         Ok(opts)
     }
@@ -605,6 +648,48 @@ mod tests {
         assert_eq!(opts.misfit, Some(MisfitKind::Bromwich));
         assert_eq!(opts.criterion, Criterion::ChiSquare { alpha: 0.05 });
         assert_eq!((opts.seed, opts.max_evals), (9, 77));
+    }
+
+    #[test]
+    fn record_model_fields() {
+        use super::super::record::{NoiseModelChoice, NuisanceChoice};
+        use crate::detect::data::nuisance::Nuisance;
+        let spec = FitSpec {
+            noise_model: Some("ar:2".into()),
+            nuisance: Some("offset+drift".into()),
+            ..FitSpec::new(5)
+        };
+        let opts = spec.options().unwrap();
+        assert_eq!(opts.noise_model, NoiseModelChoice::Ar(Some(2)));
+        assert_eq!(opts.nuisance, NuisanceChoice::Fixed(Nuisance::OffsetDrift));
+        let bad = |spec: FitSpec| field(spec.build().unwrap_err());
+        assert_eq!(
+            bad(FitSpec {
+                noise_model: Some("pink".into()),
+                ..FitSpec::new(5)
+            }),
+            "noise_model"
+        );
+        assert_eq!(
+            bad(FitSpec {
+                nuisance: Some("tilt".into()),
+                ..FitSpec::new(5)
+            }),
+            "nuisance"
+        );
+        // an AR model or a nuisance needs the time misfit of a series
+        let t: Vec<f64> = (0..32).map(|i| i as f64).collect();
+        let obs = Observations::Series(
+            crate::detect::data::observations::Series::new(t.clone(), t, None).unwrap(),
+        );
+        let model = Model::new(5).unwrap();
+        let with = |misfit: Option<MisfitKind>| FitOptions {
+            misfit,
+            ..opts.clone()
+        };
+        assert!(with(None).validate(&obs, &model).is_ok());
+        let e = with(Some(MisfitKind::Bromwich)).validate(&obs, &model);
+        assert_eq!(field(e.unwrap_err()), "noise_model");
     }
 
     #[test]

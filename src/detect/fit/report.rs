@@ -226,6 +226,19 @@ pub struct FitReport {
     /// starts with the blow, and for Laplace values).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub trigger: Option<crate::detect::fit::trigger::TriggerEstimate>,
+    /// The record's noise model (a series fitted by the time misfit):
+    /// `white`, or `ar` with its order, coefficients, innovation sigma and
+    /// refits ([`crate::detect::fit::record`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise_model: Option<crate::detect::fit::record::NoiseModelReport>,
+    /// Ljung-Box p-value of the residual whitened by the noise model
+    /// (series data).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub whiteness_p: Option<f64>,
+    /// The sensor's fitted offset and drift with standard errors (empty:
+    /// none fitted).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub nuisance: Vec<crate::detect::fit::record::NuisanceEstimate>,
 }
 
 /// One natural mode of the fitted chain
@@ -308,6 +321,7 @@ impl FitReport {
         if let Some(v) = &self.visibility {
             out.push_str(&format!("visibility: {}\n", v.line()));
         }
+        self.record_lines(&mut out);
         if self.k_selection.len() > 1 {
             out.push_str(&format!("number of defects by {}:\n", self.criterion));
             for r in &self.k_selection {
@@ -352,6 +366,28 @@ impl FitReport {
             self.setup, self.misfit, self.method, self.evaluations, self.wall_time_s
         ));
         out
+    }
+}
+
+impl FitReport {
+    /// The noise model, the whitened residual's whiteness and the
+    /// nuisances (when not the paper's white record).
+    fn record_lines(&self, out: &mut String) {
+        if let Some(m) = self.noise_model.as_ref().filter(|m| m.p > 0) {
+            out.push_str(&format!(
+                "noise model: {}; whitened residual Ljung-Box p = {:.3}\n",
+                m.line(),
+                self.whiteness_p.unwrap_or(f64::NAN)
+            ));
+        }
+        for n in &self.nuisance {
+            out.push_str(&format!(
+                "sensor {}: {} +- {}\n",
+                n.name,
+                fmt_g(n.value),
+                fmt_g(n.se)
+            ));
+        }
     }
 }
 

@@ -27,6 +27,8 @@
 //! ```
 
 use crate::chain::Chain;
+use crate::detect::data::noise_model::NoiseModel;
+use crate::detect::data::nuisance::{Nuisance, Projector};
 use crate::detect::data::series::TimeData;
 use crate::detect::misfit::time_screen::{simulate, TimeGrid};
 use crate::error::{Error, Result};
@@ -79,6 +81,11 @@ pub struct TimeMisfit {
     data: TimeData,
     inv_sigma: f64,
     analytic: bool,
+    /// The noise model (white: the paper's); `sigma` is then its innovation sd.
+    noise: NoiseModel,
+    /// The sensor's nuisances, profiled out.
+    nuisance: Nuisance,
+    projector: Option<Projector>,
 }
 
 impl TimeMisfit {
@@ -89,7 +96,112 @@ impl TimeMisfit {
             data,
             inv_sigma,
             analytic: true,
+            noise: NoiseModel::White,
+            nuisance: Nuisance::None,
+            projector: None,
         }
+    }
+
+    /// The same misfit under a noise model and with sensor nuisances
+    /// profiled out: residuals `P W (x - y) / sigma` and Jacobian
+    /// `P W J / sigma` ([`crate::detect::data::noise_model`],
+    /// [`crate::detect::data::nuisance`]), `sigma` the data's level read as
+    /// the innovation standard deviation; `N - p - nuisances` degrees of
+    /// freedom.
+    ///
+    /// # Errors
+    /// As [`Projector::new`].
+    pub fn with_record_model(
+        mut self,
+        noise: NoiseModel,
+        nuisance: Nuisance,
+    ) -> Result<TimeMisfit> {
+        self.projector = Projector::new(nuisance, self.data.t(), &noise)?;
+        self.noise = noise;
+        self.nuisance = nuisance;
+        Ok(self)
+    }
+
+    /// The noise model.
+    pub fn noise_model(&self) -> &NoiseModel {
+        &self.noise
+    }
+
+    /// The nuisances profiled out.
+    pub fn nuisance(&self) -> Nuisance {
+        self.nuisance
+    }
+
+    /// Whether the residuals are the paper's `(x - y) / sigma` as they are.
+    fn plain(&self) -> bool {
+        self.noise.is_white() && self.projector.is_none()
+    }
+
+    /// `P W r` of a residual in the record's units (no division by sigma):
+    /// `r` itself for white noise without nuisances.
+    pub fn whiten(&self, r: &[f64]) -> Vec<f64> {
+        let w = self.noise.filter(r);
+        match &self.projector {
+            Some(p) => p.project(&w),
+            None => w,
+        }
+    }
+
+    /// `P W m` of every column of `m` (rows = samples).
+    fn whiten_columns(&self, m: DMatrix<f64>) -> DMatrix<f64> {
+        if self.plain() {
+            return m;
+        }
+        let w = self.noise.filter_columns(&m);
+        match &self.projector {
+            Some(p) => p.project_columns(&w),
+            None => w,
+        }
+    }
+
+    /// The nuisances that fit best at `chain` (`offset`, `drift`; empty
+    /// without nuisances), in the record's units.
+    ///
+    /// # Errors
+    /// As [`TimeMisfit::model`].
+    pub fn nuisance_values(&self, chain: &Chain) -> Result<Vec<f64>> {
+        let Some(p) = &self.projector else {
+            return Ok(Vec::new());
+        };
+        let r: Vec<f64> = self
+            .model(chain)?
+            .iter()
+            .zip(self.data.y())
+            .map(|(a, b)| a - b)
+            .collect();
+        Ok(p.coefficients(&self.noise.filter(&r)))
+    }
+
+    /// The nuisance columns `[1, t]` (as many as nuisances; rows = samples),
+    /// whitened by the noise model but not projected, divided by sigma: the
+    /// nuisances' block of the full Jacobian `[J, B]`.
+    pub fn nuisance_jacobian(&self) -> DMatrix<f64> {
+        self.noise
+            .filter_columns(&self.nuisance.columns(self.data.t()))
+            * self.inv_sigma
+    }
+
+    /// The defect and chain-parameter block of the full Jacobian `[J, B]`:
+    /// `W J / sigma`, not projected (`None` as [`TimeMisfit::jacobian`]).
+    ///
+    /// # Errors
+    /// As [`TimeMisfit::jacobian`].
+    pub fn unprojected_jacobian(
+        &self,
+        chain: &Chain,
+        params: &[Param],
+    ) -> Result<Option<DMatrix<f64>>> {
+        let plain = TimeMisfit {
+            projector: None,
+            nuisance: Nuisance::None,
+            ..self.clone()
+        };
+        plain.jacobian(chain, params)
     }
 
     /// With `false`, [`TimeMisfit::jacobian`] always answers `None` (the
@@ -165,7 +277,7 @@ impl TimeMisfit {
                 *o = v * self.inv_sigma;
             }
         }
-        Ok(Some(out))
+        Ok(Some(self.whiten_columns(out)))
     }
 
     /// The data.
@@ -204,16 +316,23 @@ impl TimeMisfit {
         m.time_model(chain, self.data.t())
     }
 
-    /// Whitened residuals `(x_1(t_i) - y_i) / sigma`.
+    /// Whitened residuals `(x_1(t_i) - y_i) / sigma` (with a noise model
+    /// or nuisances: `P W (x - y) / sigma`, see
+    /// [`TimeMisfit::with_record_model`]).
     ///
     /// # Errors
     /// As [`TimeMisfit::model`].
     pub fn residuals(&self, chain: &Chain) -> Result<Vec<f64>> {
         let x = self.model(chain)?;
-        Ok(x.iter()
+        let r: Vec<f64> = x
+            .iter()
             .zip(self.data.y())
             .map(|(a, b)| (a - b) * self.inv_sigma)
-            .collect())
+            .collect();
+        if self.plain() {
+            return Ok(r);
+        }
+        Ok(self.whiten(&r))
     }
 
     /// `chi^2 = sum (x_1(t_i) - y_i)^2 / sigma^2`.
@@ -230,7 +349,10 @@ impl crate::detect::model::MeasurementModel for TimeMisfit {
         "time"
     }
     fn dof(&self) -> usize {
-        self.data.t().len()
+        self.data
+            .t()
+            .len()
+            .saturating_sub(self.noise.order() + self.nuisance.count())
     }
     fn residuals(&self, chain: &Chain) -> Result<Vec<f64>> {
         TimeMisfit::residuals(self, chain)
@@ -293,6 +415,66 @@ mod tests {
         assert!(off.jacobian(&truth, &params).unwrap().is_none());
         assert!(misfit.jacobian(&truth, &[Param::D]).unwrap().is_none());
         assert!(misfit.jacobian(&truth, &[Param::Defect(9)]).is_err());
+    }
+
+    #[test]
+    fn whitened_and_profiled_jacobian_matches_central_differences() {
+        use crate::detect::data::{noise_model::NoiseModel, nuisance::Nuisance};
+        use crate::detect::model::MeasurementModel;
+        use crate::detect::search::lsq::{central_jacobian, LeastSquares};
+        let truth = crate::scenes::paper_with(8, "mass:3:3.0 spring:6:0.5").unwrap();
+        let data =
+            TimeData::simulate(&truth, 100.0, 0.25, NoiseLevel::RelativeMax(1e-3), 2).unwrap();
+        let misfit = TimeMisfit::new(data)
+            .with_record_model(
+                NoiseModel::ar(vec![1.1, -0.3]).unwrap(),
+                Nuisance::OffsetDrift,
+            )
+            .unwrap();
+        assert_eq!(MeasurementModel::dof(&misfit), 401 - 2 - 2);
+        let mut params = Param::defects(&truth);
+        params.push(Param::Gamma);
+        struct P<'a>(&'a TimeMisfit, &'a Chain, &'a [Param]);
+        impl LeastSquares for P<'_> {
+            fn residuals(&self, theta: &[f64]) -> Result<Vec<f64>> {
+                let mut c = self.1.clone();
+                for (p, v) in self.2.iter().zip(theta) {
+                    c = p.set(&c, *v)?;
+                }
+                self.0.residuals(&c)
+            }
+        }
+        let theta: Vec<f64> = params.iter().map(|p| p.get(&truth).unwrap()).collect();
+        let fd = central_jacobian(&P(&misfit, &truth, &params), &theta, 1e-5).unwrap();
+        let exact = misfit.jacobian(&truth, &params).unwrap().unwrap();
+        // the projection keeps the rows (rank N - p - 2)
+        assert_eq!(exact.nrows(), 399);
+        for (c, p) in params.iter().enumerate() {
+            let err = (exact.column(c) - fd.column(c)).norm() / fd.column(c).norm();
+            assert!(err < 1e-7, "{p:?}: relative error {err:.2e}");
+        }
+        // an offset and a drift added to the record are found, and leave
+        // the residual unchanged
+        let plain = misfit.residuals(&truth).unwrap();
+        let y: Vec<f64> = misfit
+            .data()
+            .t()
+            .iter()
+            .zip(misfit.data().y())
+            .map(|(t, y)| y + 0.02 + 1e-4 * t)
+            .collect();
+        let shifted = TimeData::new(misfit.data().t().to_vec(), y, misfit.data().sigma()).unwrap();
+        let m2 = TimeMisfit::new(shifted)
+            .with_record_model(
+                NoiseModel::ar(vec![1.1, -0.3]).unwrap(),
+                Nuisance::OffsetDrift,
+            )
+            .unwrap();
+        let r2 = m2.residuals(&truth).unwrap();
+        assert!(plain.iter().zip(&r2).all(|(a, b)| (a - b).abs() < 1e-8));
+        let c = m2.nuisance_values(&truth).unwrap();
+        let c0 = misfit.nuisance_values(&truth).unwrap();
+        assert!((c[0] - c0[0] - 0.02).abs() < 1e-12 && (c[1] - c0[1] - 1e-4).abs() < 1e-14);
     }
 
     #[test]

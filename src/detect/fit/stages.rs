@@ -1,0 +1,218 @@
+//! The fit's stages over record models ([`super::record`]): the white fit,
+//! then, when its residual is not white (or a record model is asked for),
+//! the refits with the criterion's noise model and nuisances until the AR
+//! coefficients stop moving.
+
+use super::assemble::fits_data;
+use super::engine::{Engine, Given, KFit};
+use super::record::{self, RecordModel, MAX_REFITS};
+use super::report::KRow;
+use super::{choose_k, first_sigma, fit_every_k, misfit_of, Model};
+use super::{FitOptions, NoiseSpec};
+use crate::chain::Chain;
+use crate::detect::data::nuisance::Nuisance;
+use crate::detect::data::observations::{Observations, Series};
+use crate::detect::misfit::MisfitKind;
+use crate::detect::unknowns::DefectKind;
+use crate::error::Result;
+
+/// One stage: the engine it ran on, its fits of every k, the final noise
+/// level, the evaluations, and the criterion's choice of k.
+pub(super) struct Stage<'a> {
+    pub(super) engine: Engine<'a>,
+    pub(super) fits: Vec<KFit>,
+    pub(super) sigma: f64,
+    pub(super) estimated: bool,
+    pub(super) evaluations: usize,
+    pub(super) chosen: usize,
+    pub(super) rows: Vec<KRow>,
+    pub(super) criterion: String,
+}
+
+impl Stage<'_> {
+    /// The chosen fit.
+    pub(super) fn best(&self) -> &KFit {
+        &self.fits[self.chosen]
+    }
+
+    /// The chosen fit's residual `x - model` (nuisances removed).
+    fn residual(&self) -> Option<&[f64]> {
+        self.best().predicted.as_ref().map(|(_, r)| r.as_slice())
+    }
+
+    /// The chosen fit's best chain.
+    fn chain(&self) -> Result<Chain> {
+        self.best().ranked[0].to_chain(self.engine.model.chain())
+    }
+}
+
+/// Fit with the record model `record` from noise level `sigma`.
+#[allow(clippy::too_many_arguments)]
+fn run<'a>(
+    obs: &'a Observations,
+    model: &'a Model,
+    opts: &'a FitOptions,
+    given: Option<Given>,
+    record: RecordModel,
+    sigma: f64,
+    estimated: bool,
+) -> Result<Stage<'a>> {
+    let engine = Engine {
+        obs,
+        model,
+        opts,
+        misfit: misfit_of(obs, opts),
+        prepared: std::sync::Mutex::new(None),
+        given,
+        support: std::sync::Mutex::new(None),
+        record,
+    };
+    let (fits, sigma, evaluations) = fit_every_k(&engine, sigma, estimated)?;
+    let (chosen, rows, criterion) = choose_k(&fits, sigma, estimated, opts.criterion)?;
+    let chosen = without_null_defects(&fits, chosen, model.chain());
+    Ok(Stage {
+        engine,
+        fits,
+        sigma,
+        estimated,
+        evaluations,
+        chosen,
+        rows,
+        criterion,
+    })
+}
+
+/// The criterion's choice, stepped down while the chosen fit holds a free
+/// defect whose value equals the uniform value within its standard error
+/// or `1e-9` relative (on an exact record the chi-square keeps falling with
+/// rounding, and such a "defect" is none).
+fn without_null_defects(fits: &[KFit], mut chosen: usize, base: &Chain) -> usize {
+    let known = base.defects().len();
+    let null = |f: &KFit| {
+        let h = &f.ranked[0];
+        h.defects.iter().zip(&h.std_errors).any(|(d, se)| {
+            let u = DefectKind::of(d).uniform(base);
+            let free = !base.defects().contains(d);
+            let gap = (d.value() - u).abs();
+            free && (gap <= 1e-9 * u.abs() || gap <= *se)
+        })
+    };
+    while fits[chosen].k > 0 && fits[chosen].ranked[0].defects.len() > known && null(&fits[chosen])
+    {
+        match fits.iter().position(|f| f.k + 1 == fits[chosen].k) {
+            Some(i) => chosen = i,
+            None => break,
+        }
+    }
+    chosen
+}
+
+/// Every stage of a fit (see the module docs); the last is the answer, its
+/// evaluations those of all stages.
+///
+/// # Errors
+/// As [`fit_every_k`], [`record::select_record`] and the record model's misfit.
+pub(super) fn fit_stages<'a>(
+    obs: &'a Observations,
+    model: &'a Model,
+    opts: &'a FitOptions,
+    given: Option<Given>,
+) -> Result<Stage<'a>> {
+    let (sigma0, estimated) = first_sigma(obs, opts);
+    let scene = given.is_some();
+    let mut stage = run(
+        obs,
+        model,
+        opts,
+        given,
+        RecordModel::default(),
+        sigma0,
+        estimated,
+    )?;
+    stage.engine.record.converged = true;
+    let Observations::Series(series) = obs else {
+        return Ok(stage);
+    };
+    // a known sigma is of white noise: AR only when asked for
+    let noise_choice = match (opts.noise, opts.noise_model) {
+        (NoiseSpec::Sigma(_), record::NoiseModelChoice::Auto) => record::NoiseModelChoice::White,
+        (_, c) => c,
+    };
+    let applies = !scene
+        && misfit_of(obs, opts) == MisfitKind::Time
+        && record::open(noise_choice, opts.nuisance);
+    let forced = record::forced(noise_choice, opts.nuisance);
+    if !applies || (!forced && fits_data(stage.best(), stage.sigma, estimated)) {
+        return Ok(stage);
+    }
+    let Some(r) = stage.residual() else {
+        return Ok(stage);
+    };
+    let choice = record::select_record(r, series.t(), noise_choice, opts.nuisance)?;
+    let mut rec = RecordModel {
+        noise: choice.noise,
+        nuisance: choice.nuisance,
+        ..RecordModel::default()
+    };
+    if rec.is_plain() {
+        return Ok(stage);
+    }
+    let mut sigma = if estimated {
+        choice.innovation_var.sqrt().max(f64::MIN_POSITIVE)
+    } else {
+        sigma0
+    };
+    refine(series, stage, &mut rec, &mut sigma, estimated, noise_choice)
+}
+
+/// The refits with the record model `rec` until the criterion's AR order
+/// and coefficients from the latest residual stop changing (at most
+/// [`MAX_REFITS`]); a re-chosen white model without nuisances keeps the
+/// latest fit.
+fn refine<'a>(
+    series: &Series,
+    mut stage: Stage<'a>,
+    rec: &mut RecordModel,
+    sigma: &mut f64,
+    estimated: bool,
+    choice: record::NoiseModelChoice,
+) -> Result<Stage<'a>> {
+    let (obs, model, opts) = (stage.engine.obs, stage.engine.model, stage.engine.opts);
+    let mut evaluations = stage.evaluations;
+    loop {
+        rec.screen = screen_estimate(series, rec, &stage.chain()?, *sigma)?;
+        rec.iterations += 1;
+        stage = run(obs, model, opts, None, rec.clone(), *sigma, estimated)?;
+        evaluations += stage.evaluations;
+        let mut done = rec.noise.is_white();
+        if !done {
+            if let Some(r) = stage.residual() {
+                let (noise, var, still) = record::reestimate(r, series.t(), &rec.noise, choice)?;
+                done = still || (noise.is_white() && rec.nuisance == Nuisance::None);
+                if !done {
+                    rec.noise = noise;
+                    if estimated {
+                        *sigma = var.sqrt().max(f64::MIN_POSITIVE);
+                    }
+                }
+            }
+        }
+        if done || rec.iterations >= MAX_REFITS {
+            stage.engine.record.iterations = rec.iterations;
+            stage.engine.record.converged = done;
+            stage.evaluations = evaluations;
+            return Ok(stage);
+        }
+    }
+}
+
+/// The nuisances at `chain` under `rec` (empty without nuisances): what the
+/// Laplace screen's record is corrected by.
+fn screen_estimate(
+    series: &Series,
+    rec: &RecordModel,
+    chain: &Chain,
+    sigma: f64,
+) -> Result<Vec<f64>> {
+    rec.misfit(series.time_data(sigma)?)?.nuisance_values(chain)
+}
