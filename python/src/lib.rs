@@ -61,6 +61,7 @@ impl ChainArgs {
                 .collect::<Result<_>>()?,
             left: end("left", &self.left)?,
             right: end("right", &self.right)?,
+            damping: Default::default(),
         }
         .build()
     }

@@ -58,6 +58,7 @@ impl ChainArgs {
                 defects: vec![],
                 left: Default::default(),
                 right: Default::default(),
+                damping: Default::default(),
             },
         };
         if let Some(n) = self.n {

@@ -179,7 +179,11 @@ impl<'a> SetTables<'a> {
                     a[l * k + m] = v;
                     a[m * k + l] = v;
                 }
-                pw[l] = self.powers[sites[l].power as usize * nq + q];
+                pw[l] = if sites[l].is_monomial() {
+                    self.powers[sites[l].power as usize * nq + q]
+                } else {
+                    sites[l].poly_at(&self.obs.nodes()[q])
+                };
             }
             self.subset_minors(q, &a[..k * k], &pw[..k], &data, &mut num, &mut den);
         }
