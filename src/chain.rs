@@ -98,7 +98,12 @@ impl std::str::FromStr for Boundary {
 /// # Ok::<(), springmass::Error>(())
 /// ```
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "model", rename_all = "lowercase", deny_unknown_fields)]
+#[serde(
+    tag = "model",
+    rename_all = "lowercase",
+    deny_unknown_fields,
+    try_from = "DampingRepr"
+)]
 pub enum Damping {
     /// Dampers from each mass to the ground (the chain's `d`).
     #[default]
@@ -115,6 +120,38 @@ pub enum Damping {
         /// Stiffness-proportional coefficient, `>= 0` (time).
         b: f64,
     },
+}
+
+/// A damping model as scene files write it: the table
+/// `{ model = "rayleigh", a = 0.01, b = 0.02 }` or the text
+/// `"rayleigh:0.01:0.02"` ([`Damping::parse_spec`], every parameter given).
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum DampingRepr {
+    Text(String),
+    Table(DampingTable),
+}
+
+#[derive(Deserialize)]
+#[serde(tag = "model", rename_all = "lowercase", deny_unknown_fields)]
+enum DampingTable {
+    Grounded,
+    Between { c: f64 },
+    Rayleigh { a: f64, b: f64 },
+}
+
+impl TryFrom<DampingRepr> for Damping {
+    type Error = Error;
+    fn try_from(r: DampingRepr) -> Result<Damping> {
+        let d = match r {
+            DampingRepr::Text(t) => Damping::parse_complete(&t)?,
+            DampingRepr::Table(DampingTable::Grounded) => Damping::Grounded,
+            DampingRepr::Table(DampingTable::Between { c }) => Damping::Between { c },
+            DampingRepr::Table(DampingTable::Rayleigh { a, b }) => Damping::Rayleigh { a, b },
+        };
+        d.check()?;
+        Ok(d)
+    }
 }
 
 impl Damping {
@@ -186,6 +223,77 @@ impl Damping {
         };
         out.check()?;
         Ok(out)
+    }
+
+    /// Parse `MODEL[:P1[:P2]]`: `grounded`, `between[:c]`,
+    /// `rayleigh[:a:b]`. Returns the model (missing parameters 0) and the
+    /// names of the parameters not given.
+    ///
+    /// # Errors
+    /// An unknown model or a parameter that is not a number (field
+    /// `damping`); too many parameters (field `damping`); a negative or
+    /// non-finite one (`damping.c`, `damping.a`, `damping.b`).
+    ///
+    /// ```
+    /// use springmass::chain::Damping;
+    /// let (d, missing) = Damping::parse_spec("rayleigh:0.01")?;
+    /// assert_eq!(d, Damping::Rayleigh { a: 0.01, b: 0.0 });
+    /// assert_eq!(missing, vec!["b"]);
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    pub fn parse_spec(text: &str) -> Result<(Damping, Vec<&'static str>)> {
+        let mut parts = text.split(':').map(str::trim);
+        let model: Damping = parts.next().unwrap_or("").parse()?;
+        let values: Vec<f64> = parts
+            .map(|p| {
+                p.parse::<f64>().map_err(|_| {
+                    Error::parse(
+                        "damping",
+                        text,
+                        "MODEL[:P1[:P2]], e.g. between:0.05 or rayleigh:0.01:0.02, with numbers",
+                    )
+                })
+            })
+            .collect::<Result<_>>()?;
+        let names: Vec<&'static str> = model.params().iter().map(|p| p.0).collect();
+        if values.len() > names.len() {
+            return Err(Error::invalid(
+                "damping",
+                text,
+                format!(
+                    "at most {} parameter(s) for the {} model ({})",
+                    names.len(),
+                    model.name(),
+                    if names.is_empty() {
+                        "none: its damping is the chain's d".to_string()
+                    } else {
+                        names.join(", ")
+                    }
+                ),
+            ));
+        }
+        let out = model.with_params(&values);
+        out.check()?;
+        Ok((out, names[values.len()..].to_vec()))
+    }
+
+    /// [`Damping::parse_spec`] with every parameter given.
+    ///
+    /// # Errors
+    /// As [`Damping::parse_spec`]; a parameter missing (field `damping`).
+    pub fn parse_complete(text: &str) -> Result<Damping> {
+        let (d, missing) = Damping::parse_spec(text)?;
+        if let Some(p) = missing.first() {
+            return Err(Error::invalid(
+                "damping",
+                text,
+                format!(
+                    "the {} model needs its parameter {p} (e.g. between:0.05, rayleigh:0.01:0.02), or fit it with --fit d",
+                    d.name()
+                ),
+            ));
+        }
+        Ok(d)
     }
 
     /// Every parameter finite and `>= 0`.

@@ -89,6 +89,7 @@ impl Engine<'_> {
             modes: fitted_modes(best, self.model.chain()),
             identifiability: ident,
             visibility: None,
+            damping: None,
         })
     }
 

@@ -309,6 +309,12 @@ pub struct FitSpec {
     pub seed: Option<u64>,
     /// Evaluation budget of the stochastic searches [default 20 000].
     pub max_evals: Option<usize>,
+    /// Damping model `MODEL[:P1[:P2]]`: `grounded` (the chain's `d`),
+    /// `between[:c]`, `rayleigh[:a:b]`; parameters not given are fitted
+    /// with `fit = d` (an error otherwise). Default: grounded, or with
+    /// `fit = d` every model, the criterion choosing
+    /// ([`crate::detect::fit::damping`]).
+    pub damping: Option<String>,
 }
 
 impl FitSpec {
@@ -419,6 +425,10 @@ impl FitSpec {
         if let Some(f) = &self.fit {
             model = model.fitting(&parse_params(f)?)?;
         }
+        model = match &self.damping {
+            Some(text) => model.with_damping_spec(text, self.d)?,
+            None => model.choosing_damping(),
+        };
         Ok(model)
     }
 

@@ -221,6 +221,10 @@ pub struct FitReport {
     /// empty for a non-uniform chain of more than 400 masses (the dense
     /// eigen solver is O(n^3)).
     pub modes: Vec<ModeEstimate>,
+    /// The damping model with its parameters and standard errors (absent
+    /// for the grounded model chosen by the user, the paper's).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub damping: Option<crate::detect::fit::damping::DampingEstimate>,
 }
 
 /// One natural mode of the fitted chain
@@ -288,6 +292,9 @@ impl FitReport {
         ));
         if let Some(v) = &self.visibility {
             out.push_str(&format!("visibility: {}\n", v.line()));
+        }
+        if let Some(d) = &self.damping {
+            out.push_str(&format!("{}\n", d.line()));
         }
         if self.k_selection.len() > 1 {
             out.push_str(&format!("number of defects by {}:\n", self.criterion));
