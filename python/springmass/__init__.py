@@ -243,11 +243,15 @@ def _defect_from_json(d: Dict[str, Any]) -> Defect:
     return Defect(d["kind"], int(d["at"]), float(value))
 
 
-def _chain(n: Any, k: Any, d: Any, gamma: Any, mass: Any, defects: Any, left: Any, right: Any) -> Dict[str, Any]:
+def _chain(
+    n: Any, k: Any, d: Any, gamma: Any, mass: Any, defects: Any, left: Any, right: Any, damping: Any = None
+) -> Dict[str, Any]:
     return {
         "n": _chain_size(n),
         "k": _real("k", k),
-        "d": _real("d", d),
+        # None: 0.1 (grounded), 0 with another damping model
+        "d": None if d is None else _real("d", d),
+        "damping": None if damping is None else _text("damping", damping),
         "gamma": _real("gamma", gamma),
         "mass": _real("mass", mass),
         "defects": _defects("defects", defects),
@@ -392,6 +396,11 @@ class FitResult:
         How deep the data see a 10% mass change (``depth`` in masses from
         the observed one, ``se`` of a change at each mass, ``hidden``: fitted
         defects beyond that depth); mass defects only.
+    damping : dict or None
+        The damping model and its parameters with standard errors, e.g.
+        ``{"model": "rayleigh", "a": ..., "b": ..., "se": {"a": ..., "b": ...},
+        "fitted": True, "candidates": [...]}`` (``None`` for the default
+        grounded model not fitted).
     t, observed, predicted, residual : ndarray
         The data and the best fit's model on the same times.
     summary : str
@@ -420,6 +429,7 @@ class FitResult:
     wall_time_s: float
     identifiability: Optional[Dict[str, Any]]
     visibility: Optional[Dict[str, Any]]
+    damping: Optional[Dict[str, Any]]
     t: np.ndarray
     observed: np.ndarray
     predicted: np.ndarray
@@ -498,6 +508,7 @@ class FitResult:
             wall_time_s=float(r["wall_time_s"]),
             identifiability=r.get("identifiability"),
             visibility=r.get("visibility"),
+            damping=r.get("damping"),
             t=raw.get("t", empty),
             observed=raw.get("observed", empty),
             predicted=raw.get("model", empty),
@@ -512,7 +523,7 @@ def fit(
     x: Any,
     *,
     n: int,
-    d: float = 0.1,
+    d: Optional[float] = None,
     fit: Union[str, Sequence[str]] = (),
     defects: Union[str, int] = "auto",
     kinds: Union[str, Sequence[str]] = "mass",
@@ -531,6 +542,7 @@ def fit(
     observe: int = 1,
     observe_kind: str = "displacement",
     force: Any = None,
+    damping: Optional[str] = None,
 ) -> FitResult:
     """Fit defects to a measured series of mass 1's displacement.
 
@@ -552,7 +564,9 @@ def fit(
     n : int
         Number of masses.
     d : float, default 0.1
-        Damping per mass (known, or the starting value with ``fit=("d",)``).
+        Damping per mass (known, or the starting value with ``fit=("d",)``);
+        with ``damping="between"`` or ``"rayleigh"`` an extra grounded
+        damping (default 0).
     fit : str or sequence of str, default ()
         Chain parameters fitted too: any of ``"d"``, ``"gamma"``, ``"k"``,
         ``"mass"`` (at most three), or a comma-separated string.
@@ -594,6 +608,12 @@ def fit(
     force : array_like, shape (N,), optional
         A measured force on mass 1 at the times ``t`` (a hammer test; ``t``
         then uniform from 0), used instead of the ideal impulse.
+    damping : str, optional
+        The damping model ``"MODEL[:P1[:P2]]"``: ``"grounded"`` (``d`` on
+        every mass), ``"between:C"`` (a damper ``C`` parallel to every
+        spring), ``"rayleigh:A:B"`` (``C = A M + B K``); parameters not given
+        are fitted with ``fit=("d",)``. Default: grounded, or with
+        ``fit=("d",)`` every model, the BIC choosing (``FitResult.damping``).
 
     Returns
     -------
@@ -633,7 +653,7 @@ def fit(
         tv,
         xv,
         n=_chain_size(n),
-        d=_real("d", d),
+        d=None if d is None else _real("d", d),
         gamma=_real("gamma", gamma),
         fit=fit_text or None,
         known=_defects("known", known),
@@ -653,6 +673,7 @@ def fit(
         observe=_count("observe", observe),
         observe_kind=_text("observe_kind", observe_kind),
         force=None if force is None else _vector("force", force),
+        damping=None if damping is None else _text("damping", damping),
     )
     return FitResult._from_core(raw)
 
@@ -705,7 +726,7 @@ def simulate(
     *,
     t: Any,
     defects: Sequence[DefectLike] = (),
-    d: float = 0.1,
+    d: Optional[float] = None,
     k: float = 1.0,
     gamma: float = 1.0,
     mass: float = 1.0,
@@ -716,6 +737,7 @@ def simulate(
     method: str = "auto",
     left: str = "fixed",
     right: str = "fixed",
+    damping: Optional[str] = None,
 ) -> np.ndarray:
     """Simulate a chain hit by the impulse ``gamma delta(t)`` on mass 1.
 
@@ -732,7 +754,12 @@ def simulate(
     defects : sequence of Defect, (kind, at, value) or "kind:at:value", default ()
         The chain's defects, e.g. ``[("mass", 8, 5.0), ("spring", 3, 0.5)]``.
     d, k, gamma, mass : float
-        Uniform damping (0.1), stiffness (1), impulse (1) and mass (1).
+        Uniform damping (0.1; 0 with another ``damping`` model: then an
+        extra grounded damping), stiffness (1), impulse (1) and mass (1).
+    damping : str, optional
+        The damping model ``"grounded"`` (default), ``"between:C"`` (a
+        damper ``C`` parallel to every spring) or ``"rayleigh:A:B"``
+        (``C = A M + B K``).
     observe : int or sequence of int, default 1
         Observed mass(es), 1-based.
     observe_kind : {"displacement", "velocity", "acceleration"}
@@ -773,7 +800,7 @@ def simulate(
     else:
         noise_text = "abs:" + repr(_real("noise", noise))
     out = _core.simulate(
-        _chain(n, k, d, gamma, mass, defects, left, right),
+        _chain(n, k, d, gamma, mass, defects, left, right, damping),
         _vector("t", t),
         observe=obs,
         observe_kind=_text("observe_kind", observe_kind),
@@ -789,7 +816,7 @@ def response(
     *,
     n: int,
     defects: Sequence[DefectLike] = (),
-    d: float = 0.1,
+    d: Optional[float] = None,
     k: float = 1.0,
     gamma: float = 1.0,
     mass: float = 1.0,
@@ -797,6 +824,7 @@ def response(
     observe_kind: str = "displacement",
     left: str = "fixed",
     right: str = "fixed",
+    damping: Optional[str] = None,
 ) -> Any:
     """The Laplace-domain response ``X_observe(s)`` of a chain.
 
@@ -812,7 +840,10 @@ def response(
     defects : sequence of Defect, (kind, at, value) or "kind:at:value", default ()
         The chain's defects.
     d, k, gamma, mass : float
-        Uniform damping (0.1), stiffness (1), impulse (1) and mass (1).
+        Uniform damping (0.1; 0 with another ``damping`` model), stiffness
+        (1), impulse (1) and mass (1).
+    damping : str, optional
+        The damping model, as for :func:`simulate`.
     observe : int, default 1
         Observed mass (1-based).
     observe_kind : {"displacement", "velocity", "acceleration"}
@@ -841,7 +872,7 @@ def response(
         raise _invalid("s", _short(s), "real or complex numbers")
     out = fn(
         a,
-        _chain(n, k, d, gamma, mass, defects, left, right),
+        _chain(n, k, d, gamma, mass, defects, left, right, damping),
         observe=_count("observe", observe),
         observe_kind=_text("observe_kind", observe_kind),
     )

@@ -20,8 +20,9 @@ class UnresolvableError(ValueError):
 class NumericalError(RuntimeError):
     """A numerical method could not reach the requested accuracy."""
 
-# {"n": int, "k": float, "d": float, "gamma": float, "mass": float,
-#  "defects": list of "kind:at:value", "left": str, "right": str}
+# {"n": int, "k": float, "d": float or None, "gamma": float, "mass": float,
+#  "defects": list of "kind:at:value", "left": str, "right": str,
+#  "damping": "MODEL[:P1[:P2]]" or None}
 ChainDict = Dict[str, Any]
 
 def fit(
@@ -49,6 +50,7 @@ def fit(
     observe: Optional[int] = None,
     observe_kind: Optional[str] = None,
     force: Optional[npt.NDArray[np.float64]] = None,
+    damping: Optional[str] = None,
 ) -> Dict[str, Any]:
     """The data-first fit: {"report": JSON text, "summary": str, "t", "observed", "model", "residual": ndarray}."""
 

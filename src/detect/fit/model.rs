@@ -152,13 +152,20 @@ impl Model {
                 "damping",
                 text,
                 format!(
-                    "the {} model needs its parameter {}: give it ({}) or fit it (--fit d)",
+                    "the {} model needs {} {}: give {} ({}) or fit {} (--fit d)",
                     damping.name(),
+                    if missing.len() > 1 {
+                        "its parameters"
+                    } else {
+                        "its parameter"
+                    },
                     missing.join(" and "),
+                    if missing.len() > 1 { "them" } else { "it" },
                     match damping {
                         Damping::Between { .. } => "between:C",
                         _ => "rayleigh:A:B",
-                    }
+                    },
+                    if missing.len() > 1 { "them" } else { "it" },
                 ),
             ));
         }
