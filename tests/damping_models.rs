@@ -79,7 +79,7 @@ fn check(
     seed: u64,
     damping: Option<&str>,
 ) {
-    let grid = if n > 10 { (0.5, 401) } else { (0.25, 481) };
+    let grid = if n > 10 { (0.5, 401) } else { (0.5, 241) };
     let obs = record(n, masses, model, grid, level, seed);
     let spec = FitSpec {
         fit: Some("d".into()),

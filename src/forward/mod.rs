@@ -72,6 +72,11 @@ use crate::scalar::Scalar;
 /// Largest `n` for which a singular closed form falls back to the O(n) solver.
 const FALLBACK_MAX_N: usize = 10_000_000;
 
+/// Chains of a damping model the transfer sweep does not take are solved
+/// by the O(n) solver up to this many masses (cheaper than the Green's
+/// function's transcendentals there), by Woodbury above.
+const GENERAL_SOLVE_MAX_N: usize = 64;
+
 /// Largest `|s|` accepted (beyond it `mass s^2` leaves the f64 range for any
 /// physical mass; the spec asks for `|s| <= 1e4`).
 pub const MAX_ABS_S: f64 = 1e100;
@@ -355,6 +360,9 @@ impl Forward {
         check_s(&s)?;
         self.chain.check_observe(observe)?;
         if self.general {
+            if self.chain.n() <= GENERAL_SOLVE_MAX_N {
+                return tridiag::solve(&self.chain, s, observe);
+            }
             return self.eval_woodbury(s, observe);
         }
         let x = self.transfer.eval(&s, observe);
@@ -397,6 +405,35 @@ impl Forward {
         self.transfer
             .eval_sites_into(s, table, sites, self.chain.gamma(), work);
         work.out().iter().all(|v| v.is_finite())
+    }
+
+    /// `X` at every mass of `sites` (1-based), as [`Forward::eval`] each:
+    /// for a damping model the transfer sweep does not take, one Green's
+    /// function for all of them.
+    ///
+    /// # Errors
+    /// As [`Forward::eval`].
+    pub fn eval_many<T: Scalar>(&self, s: T, sites: &[usize]) -> Result<Vec<T>> {
+        if !self.general {
+            return sites.iter().map(|&i| self.eval(s.clone(), i)).collect();
+        }
+        check_s(&s)?;
+        if self.chain.n() <= GENERAL_SOLVE_MAX_N {
+            for &i in sites {
+                self.chain.check_observe(i)?;
+            }
+            let x = tridiag::solve_all(&self.chain, s)?;
+            return Ok(sites.iter().map(|&i| x[i - 1].clone()).collect());
+        }
+        let g = self.green(s.clone());
+        sites
+            .iter()
+            .map(|&i| {
+                self.chain.check_observe(i)?;
+                let x = self.eval_with(&g, &s, i);
+                self.finish(x, s.clone(), i)
+            })
+            .collect()
     }
 
     /// `X_observe(s)` by Woodbury on the closed-form Green's function (checked).
