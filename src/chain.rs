@@ -21,6 +21,9 @@
 use crate::error::{check_f64, Error, Result};
 use serde::{Deserialize, Serialize};
 
+#[cfg(test)]
+pub(crate) mod dense_ref;
+
 /// How one end of the chain is held.
 ///
 /// `Fixed` (the default, the paper's setup): a wall spring `k_0` (left) or
@@ -74,6 +77,267 @@ impl std::str::FromStr for Boundary {
     }
 }
 
+/// How the chain dissipates energy: where its dampers sit.
+///
+/// | model | `C` in `M x'' + C x' + K x = f` | uniform parameters |
+/// |---|---|---|
+/// | `grounded` (the paper's, default) | `diag(d_i)`: a damper from every mass to the ground | `d` |
+/// | `between` | `diag(d_i) + Lap(c_j)`: a damper `c_j` parallel to every spring (the wall springs included), as between the storeys of a building | `c` (and `d`, usually 0) |
+/// | `rayleigh` | `a M + b K` (`M`, `K` with the defects) plus `diag(d_i)` | `a`, `b` (and `d`, usually 0) |
+///
+/// A damper defect (`damper:at:value`) changes one damper of the model: the
+/// grounded damper of mass `at` (`grounded`, `rayleigh`: an added damper to
+/// the ground there) or the damper parallel to spring `at` (`between`,
+/// `0..=n`). In `rayleigh` a mass defect changes its damping by `a dm` and a
+/// spring (or ground spring) defect by `b dk` ([`Chain::site`]).
+///
+/// ```
+/// use springmass::chain::Damping;
+/// assert_eq!("rayleigh".parse::<Damping>()?.name(), "rayleigh");
+/// assert_eq!(Damping::default(), Damping::Grounded);
+/// # Ok::<(), springmass::Error>(())
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(
+    tag = "model",
+    rename_all = "lowercase",
+    deny_unknown_fields,
+    try_from = "DampingRepr"
+)]
+pub enum Damping {
+    /// Dampers from each mass to the ground (the chain's `d`).
+    #[default]
+    Grounded,
+    /// Dampers `c` parallel to the springs.
+    Between {
+        /// Damping of every spring's damper, `>= 0`.
+        c: f64,
+    },
+    /// `C = a M + b K`.
+    Rayleigh {
+        /// Mass-proportional coefficient, `>= 0` (1/time).
+        a: f64,
+        /// Stiffness-proportional coefficient, `>= 0` (time).
+        b: f64,
+    },
+}
+
+/// A damping model as scene files write it: the table
+/// `{ model = "rayleigh", a = 0.01, b = 0.02 }` or the text
+/// `"rayleigh:0.01:0.02"` ([`Damping::parse_spec`], every parameter given).
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum DampingRepr {
+    Text(String),
+    Table(DampingTable),
+}
+
+#[derive(Deserialize)]
+#[serde(tag = "model", rename_all = "lowercase", deny_unknown_fields)]
+enum DampingTable {
+    Grounded,
+    Between { c: f64 },
+    Rayleigh { a: f64, b: f64 },
+}
+
+impl TryFrom<DampingRepr> for Damping {
+    type Error = Error;
+    fn try_from(r: DampingRepr) -> Result<Damping> {
+        let d = match r {
+            DampingRepr::Text(t) => Damping::parse_complete(&t)?,
+            DampingRepr::Table(DampingTable::Grounded) => Damping::Grounded,
+            DampingRepr::Table(DampingTable::Between { c }) => Damping::Between { c },
+            DampingRepr::Table(DampingTable::Rayleigh { a, b }) => Damping::Rayleigh { a, b },
+        };
+        d.check()?;
+        Ok(d)
+    }
+}
+
+impl Damping {
+    /// Every model's name.
+    pub const MODELS: [&'static str; 3] = ["grounded", "between", "rayleigh"];
+
+    /// `grounded`, `between` or `rayleigh`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Damping::Grounded => "grounded",
+            Damping::Between { .. } => "between",
+            Damping::Rayleigh { .. } => "rayleigh",
+        }
+    }
+
+    /// The paper's model.
+    pub fn is_grounded(&self) -> bool {
+        *self == Damping::Grounded
+    }
+
+    /// The model's own parameters `(name, value)` (none for `grounded`,
+    /// whose parameter is the chain's `d`).
+    pub fn params(&self) -> Vec<(&'static str, f64)> {
+        match *self {
+            Damping::Grounded => vec![],
+            Damping::Between { c } => vec![("c", c)],
+            Damping::Rayleigh { a, b } => vec![("a", a), ("b", b)],
+        }
+    }
+
+    /// The same model with its parameters `values` (in the order of
+    /// [`Damping::params`]; missing values keep the current ones).
+    pub fn with_params(self, values: &[f64]) -> Damping {
+        let v = |i: usize, old: f64| values.get(i).copied().unwrap_or(old);
+        match self {
+            Damping::Grounded => Damping::Grounded,
+            Damping::Between { c } => Damping::Between { c: v(0, c) },
+            Damping::Rayleigh { a, b } => Damping::Rayleigh {
+                a: v(0, a),
+                b: v(1, b),
+            },
+        }
+    }
+
+    /// The model `name` with parameters `c`, `a`, `b` where it needs them.
+    ///
+    /// # Errors
+    /// An unknown name (field `damping`); a parameter the model needs that
+    /// is `None` (field `damping`, naming the parameter); a negative or
+    /// non-finite value (field `damping.c`, `damping.a`, `damping.b`).
+    pub fn build(name: &str, c: Option<f64>, a: Option<f64>, b: Option<f64>) -> Result<Damping> {
+        let need = |v: Option<f64>, p: &str| {
+            v.ok_or_else(|| {
+                Error::invalid(
+                    "damping",
+                    name,
+                    format!("the {name} model needs its parameter {p} (give it, or fit it with --fit d)"),
+                )
+            })
+        };
+        let model: Damping = name.parse()?;
+        let out = match model {
+            Damping::Grounded => Damping::Grounded,
+            Damping::Between { .. } => Damping::Between { c: need(c, "c")? },
+            Damping::Rayleigh { .. } => Damping::Rayleigh {
+                a: need(a, "a")?,
+                b: need(b, "b")?,
+            },
+        };
+        out.check()?;
+        Ok(out)
+    }
+
+    /// Parse `MODEL[:P1[:P2]]`: `grounded`, `between[:c]`,
+    /// `rayleigh[:a:b]`. Returns the model (missing parameters 0) and the
+    /// names of the parameters not given.
+    ///
+    /// # Errors
+    /// An unknown model or a parameter that is not a number (field
+    /// `damping`); too many parameters (field `damping`); a negative or
+    /// non-finite one (`damping.c`, `damping.a`, `damping.b`).
+    ///
+    /// ```
+    /// use springmass::chain::Damping;
+    /// let (d, missing) = Damping::parse_spec("rayleigh:0.01")?;
+    /// assert_eq!(d, Damping::Rayleigh { a: 0.01, b: 0.0 });
+    /// assert_eq!(missing, vec!["b"]);
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    pub fn parse_spec(text: &str) -> Result<(Damping, Vec<&'static str>)> {
+        let mut parts = text.split(':').map(str::trim);
+        let model: Damping = parts.next().unwrap_or("").parse()?;
+        let values: Vec<f64> = parts
+            .map(|p| {
+                p.parse::<f64>().map_err(|_| {
+                    Error::parse(
+                        "damping",
+                        text,
+                        "MODEL[:P1[:P2]], e.g. between:0.05 or rayleigh:0.01:0.02, with numbers",
+                    )
+                })
+            })
+            .collect::<Result<_>>()?;
+        let names: Vec<&'static str> = model.params().iter().map(|p| p.0).collect();
+        if values.len() > names.len() {
+            return Err(Error::invalid(
+                "damping",
+                text,
+                format!(
+                    "at most {} parameter(s) for the {} model ({})",
+                    names.len(),
+                    model.name(),
+                    if names.is_empty() {
+                        "none: its damping is the chain's d".to_string()
+                    } else {
+                        names.join(", ")
+                    }
+                ),
+            ));
+        }
+        let out = model.with_params(&values);
+        out.check()?;
+        Ok((out, names[values.len()..].to_vec()))
+    }
+
+    /// [`Damping::parse_spec`] with every parameter given.
+    ///
+    /// # Errors
+    /// As [`Damping::parse_spec`]; a parameter missing (field `damping`).
+    pub fn parse_complete(text: &str) -> Result<Damping> {
+        let (d, missing) = Damping::parse_spec(text)?;
+        if let Some(p) = missing.first() {
+            return Err(Error::invalid(
+                "damping",
+                text,
+                format!(
+                    "the {} model needs its parameter {p} (e.g. between:0.05, rayleigh:0.01:0.02), or fit it with --fit d",
+                    d.name()
+                ),
+            ));
+        }
+        Ok(d)
+    }
+
+    /// Every parameter finite and `>= 0`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `damping.<parameter>` and the range.
+    pub fn check(&self) -> Result<()> {
+        for (p, v) in self.params() {
+            check_f64(&format!("damping.{p}"), v, v >= 0.0, ">= 0 and finite")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::fmt::Display for Damping {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())?;
+        for (i, (p, v)) in self.params().iter().enumerate() {
+            write!(f, "{}{p} = {v}", if i == 0 { " (" } else { ", " })?;
+        }
+        if !self.params().is_empty() {
+            f.write_str(")")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::str::FromStr for Damping {
+    type Err = Error;
+    /// The model by name, its parameters zero (see [`Damping::build`]).
+    fn from_str(s: &str) -> Result<Damping> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "grounded" | "ground" => Ok(Damping::Grounded),
+            "between" | "interstorey" | "spring-parallel" => Ok(Damping::Between { c: 0.0 }),
+            "rayleigh" => Ok(Damping::Rayleigh { a: 0.0, b: 0.0 }),
+            _ => Err(Error::invalid(
+                "damping",
+                s,
+                "grounded, between or rayleigh",
+            )),
+        }
+    }
+}
+
 /// Largest chain length accepted (the closed-form model is O(1) in `n`; the
 /// O(n) reference solver and the simulator are not).
 pub const MAX_N: usize = 1_000_000_000;
@@ -113,14 +377,46 @@ impl Probe {
 }
 
 /// Where a defect enters the equations of motion `(M s^2 + D s + K) x = f`:
-/// the rank-one update `u (value - uniform) s^power u^T` with `u = probe`
-/// (`power` 2: a mass, 1: a damper, 0: a stiffness).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+/// the rank-one update `u (value - uniform) p(s) u^T` with `u = probe` and
+/// the polynomial `p(s) = poly[0] + poly[1] s + poly[2] s^2`. `power` is
+/// the kind's own power of `s` (2: a mass, 1: a damper, 0: a stiffness), and
+/// `p(s) = s^power` in the grounded model; a damping model adds terms (a
+/// Rayleigh mass defect has `p(s) = s^2 + a s`, see [`Chain::site`]).
+/// Every kernel reads `p(s)` through [`Site::poly_at`] or `poly`.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Site {
     /// The vector `u`.
     pub probe: Probe,
-    /// The power of `s` that multiplies the change of value.
+    /// The kind's power of `s` (which coefficient array the value sits in).
     pub power: u32,
+    /// The coefficients of `p(s)`, lowest power first.
+    pub poly: [f64; 3],
+}
+
+impl Site {
+    /// The site of the grounded model: `p(s) = s^power`.
+    pub fn monomial(probe: Probe, power: u32) -> Site {
+        let mut poly = [0.0; 3];
+        poly[power.min(2) as usize] = 1.0;
+        Site { probe, power, poly }
+    }
+
+    /// `p(s)` is `s^power` alone (the grounded model's form).
+    pub fn is_monomial(&self) -> bool {
+        *self == Site::monomial(self.probe, self.power)
+    }
+
+    /// `p(s)`.
+    pub fn poly_at<T: crate::scalar::Scalar>(&self, s: &T) -> T {
+        let mut out = T::from_f64(self.poly[0]);
+        if self.poly[1] != 0.0 {
+            out = out + s.scale(self.poly[1]);
+        }
+        if self.poly[2] != 0.0 {
+            out = out + (s.clone() * s.clone()).scale(self.poly[2]);
+        }
+        out
+    }
 }
 
 /// The coefficient arrays of a chain's equations of motion
@@ -137,6 +433,9 @@ pub struct Coefficients {
     pub g: Vec<f64>,
     /// `n + 1` springs, `k[i]` between mass `i` and `i + 1` (`0` at a free end).
     pub k: Vec<f64>,
+    /// `n + 1` dampers parallel to the springs, `c[i]` beside `k[i]` (zero
+    /// in the grounded model and at a free end): `D = diag(d) + Lap(c)`.
+    pub c: Vec<f64>,
 }
 
 /// One place where the chain differs from the uniform chain.
@@ -197,6 +496,18 @@ impl Coefficients {
             .map(|i| self.g[i] + self.k[i] + self.k[i + 1])
             .collect()
     }
+
+    /// The diagonal of `D`: `d_i + c_{i-1} + c_i` (0-based).
+    pub fn d_diag(&self) -> Vec<f64> {
+        (0..self.m.len())
+            .map(|i| self.d[i] + self.c[i] + self.c[i + 1])
+            .collect()
+    }
+
+    /// Any spring-parallel damper (`D` not diagonal).
+    pub fn has_spring_dampers(&self) -> bool {
+        self.c.iter().any(|&c| c != 0.0)
+    }
 }
 
 impl Defect {
@@ -246,29 +557,17 @@ impl Defect {
         }
     }
 
-    /// Where the defect enters the equations of motion: its probe `u` and
-    /// the power of `s` in `c(s)` (the table above). Every kernel that is
-    /// not specific to one kind (the Woodbury forward model, the
-    /// sensitivities, the Jacobians, the greedy search's rank-one scores,
-    /// the matrices of [`Chain::coefficients`]) reads a defect through this.
+    /// Where the defect enters the equations of motion of the grounded
+    /// model: its probe `u` and the power of `s` in `c(s)` (the table
+    /// above). A chain with another damping model moves or extends it: read
+    /// a defect of a chain through [`Chain::site`], which every kernel that
+    /// is not specific to one kind does.
     pub fn site(&self) -> Site {
         match *self {
-            Defect::Mass { at, .. } => Site {
-                probe: Probe::Point(at),
-                power: 2,
-            },
-            Defect::Damper { at, .. } => Site {
-                probe: Probe::Point(at),
-                power: 1,
-            },
-            Defect::Spring { at, .. } => Site {
-                probe: Probe::Diff(at),
-                power: 0,
-            },
-            Defect::Ground { at, .. } => Site {
-                probe: Probe::Point(at),
-                power: 0,
-            },
+            Defect::Mass { at, .. } => Site::monomial(Probe::Point(at), 2),
+            Defect::Damper { at, .. } => Site::monomial(Probe::Point(at), 1),
+            Defect::Spring { at, .. } => Site::monomial(Probe::Diff(at), 0),
+            Defect::Ground { at, .. } => Site::monomial(Probe::Point(at), 0),
         }
     }
 
@@ -278,7 +577,10 @@ impl Defect {
         match self {
             Defect::Mass { .. } => chain.mass(),
             Defect::Spring { .. } => chain.k(),
-            Defect::Damper { .. } => chain.d(),
+            Defect::Damper { .. } => match chain.damping() {
+                Damping::Between { c } => c,
+                _ => chain.d(),
+            },
             Defect::Ground { .. } => 0.0,
         }
     }
@@ -391,6 +693,9 @@ pub struct Chain {
     /// Right end (default fixed).
     #[serde(default)]
     right: Boundary,
+    /// Damping model (default grounded: the chain's `d`).
+    #[serde(default, skip_serializing_if = "Damping::is_grounded")]
+    damping: Damping,
 }
 
 impl Chain {
@@ -411,6 +716,7 @@ impl Chain {
             defects: Vec::new(),
             left: Boundary::Fixed,
             right: Boundary::Fixed,
+            damping: Damping::Grounded,
         })
     }
 
@@ -461,11 +767,50 @@ impl Chain {
         self.left = left;
         self.right = right;
         for (idx, d) in self.defects.iter().enumerate() {
-            if let Probe::Diff(at) = d.site().probe {
+            if let Probe::Diff(at) = self.site(d).probe {
                 self.check_spring_at(idx, at)?;
             }
         }
         Ok(self)
+    }
+
+    /// The damping model (see [`Damping`]); the chain's `d` stays a
+    /// grounded damper on every mass in every model.
+    ///
+    /// # Errors
+    /// A negative or non-finite parameter (`damping.c`, `damping.a`,
+    /// `damping.b`); a damper defect whose position the model does not have
+    /// (`defects[i].at`: spring indices `0..=n` in `between`).
+    pub fn with_damping(mut self, damping: Damping) -> Result<Chain> {
+        damping.check()?;
+        self.damping = damping;
+        let defects = std::mem::take(&mut self.defects);
+        self.with_defects(defects)
+    }
+
+    /// The damping model.
+    pub fn damping(&self) -> Damping {
+        self.damping
+    }
+
+    /// Where `defect` enters this chain's equations of motion: the
+    /// grounded site ([`Defect::site`]) moved or extended by the damping
+    /// model. `between`: a damper defect sits on spring `at`
+    /// (`u = e_at - e_at+1`). `rayleigh`: a mass defect has
+    /// `p(s) = s^2 + a s`, a spring or ground spring defect `1 + b s`.
+    pub fn site(&self, defect: &Defect) -> Site {
+        let mut site = defect.site();
+        match (self.damping, defect) {
+            (Damping::Between { .. }, Defect::Damper { at, .. }) => {
+                site.probe = Probe::Diff(*at);
+            }
+            (Damping::Rayleigh { a, .. }, Defect::Mass { .. }) => site.poly[1] = a,
+            (Damping::Rayleigh { b, .. }, Defect::Spring { .. } | Defect::Ground { .. }) => {
+                site.poly[1] = b
+            }
+            _ => {}
+        }
+        site
     }
 
     /// Left end (mass 1's side).
@@ -489,6 +834,23 @@ impl Chain {
                 "boundaries",
                 format!("left = {:?}, right = {:?}", self.left, self.right),
                 format!("fixed at both ends for {what}"),
+            ))
+        }
+    }
+    /// Refuse a chain whose damping model is not grounded where a kernel
+    /// is derived for grounded dampers only (the mass-only Woodbury
+    /// kernel, the greedy search's rank-one scores, the sparse screen).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `damping` and `what`.
+    pub fn require_grounded(&self, what: &str) -> Result<()> {
+        if self.damping.is_grounded() {
+            Ok(())
+        } else {
+            Err(Error::invalid(
+                "damping",
+                self.damping.name(),
+                format!("grounded for {what}"),
             ))
         }
     }
@@ -554,7 +916,7 @@ impl Chain {
         // a valid defect at a mass is checked without formatting the field
         // names (the fits rebuild chains at every evaluation)
         let (name, ok, range) = defect.value_rule();
-        let site = defect.site();
+        let site = self.site(&defect);
         let plain = matches!(site.probe, Probe::Point(at) if (1..=n).contains(&at))
             && ok
             && defect.value().is_finite();
@@ -640,7 +1002,7 @@ impl Chain {
     fn point_values(&self, power: u32, uniform: f64) -> Vec<f64> {
         let mut v = vec![uniform; self.n];
         for d in &self.defects {
-            let site = d.site();
+            let site = self.site(d);
             if let (Probe::Point(at), true) = (site.probe, site.power == power) {
                 v[at - 1] = d.value();
             }
@@ -658,14 +1020,7 @@ impl Chain {
     pub fn mass_at(&self, i: usize) -> f64 {
         self.defects
             .iter()
-            .find_map(|d| {
-                (d.site()
-                    == Site {
-                        probe: Probe::Point(i),
-                        power: 2,
-                    })
-                .then(|| d.value())
-            })
+            .find_map(|d| (d.site() == Site::monomial(Probe::Point(i), 2)).then(|| d.value()))
             .unwrap_or(self.mass)
     }
 
@@ -688,9 +1043,57 @@ impl Chain {
         v
     }
 
-    /// All `n` damping coefficients (0-based vector).
+    /// All `n` dampers to the ground (0-based vector): the chain's `d`
+    /// and the damper defects at masses; in the Rayleigh model also
+    /// `a m_i + b g_i`, the part of `a M + b K` on the diagonal beside the
+    /// springs (so that `D = diag(dampers) + Lap(spring_dampers)`).
     pub fn dampers(&self) -> Vec<f64> {
-        self.point_values(1, self.d)
+        let mut d = self.point_values(1, self.d);
+        if let Damping::Rayleigh { a, b } = self.damping {
+            let (m, g) = (self.masses(), self.grounds());
+            for i in 0..self.n {
+                d[i] += a * m[i] + b * g[i];
+            }
+        }
+        d
+    }
+
+    /// All `n + 1` dampers parallel to the springs (0-based like
+    /// [`Chain::springs`]; zero at a free end and in the grounded model):
+    /// `c` and the damper defects (`between`), `b k_i` (`rayleigh`).
+    pub fn spring_dampers(&self) -> Vec<f64> {
+        let mut v = match self.damping {
+            Damping::Grounded => return vec![0.0; self.n + 1],
+            Damping::Between { c } => {
+                let mut v = vec![c; self.n + 1];
+                for d in &self.defects {
+                    if let (Defect::Damper { at, d }, Probe::Diff(_)) = (d, self.site(d).probe) {
+                        v[*at] = *d;
+                    }
+                }
+                v
+            }
+            Damping::Rayleigh { b, .. } => self.springs().iter().map(|k| b * k).collect(),
+        };
+        if self.left.is_free() {
+            v[0] = 0.0;
+        }
+        if self.right.is_free() {
+            v[self.n] = 0.0;
+        }
+        v
+    }
+
+    /// The uniform part's damping as `(diagonal per mass, parallel to every
+    /// spring)`: `(d, 0)` grounded, `(d, c)` between, `(d + a mass, b k)`
+    /// Rayleigh. The uniform dynamic stiffness is
+    /// `(mass s^2 + d_u s) I + (k + c_u s) Lap`.
+    pub fn uniform_damping(&self) -> (f64, f64) {
+        match self.damping {
+            Damping::Grounded => (self.d, 0.0),
+            Damping::Between { c } => (self.d, c),
+            Damping::Rayleigh { a, b } => (self.d + a * self.mass, b * self.k),
+        }
     }
 
     /// All `n` ground stiffnesses: the stiffness that holds mass `i` to the
@@ -701,13 +1104,15 @@ impl Chain {
 
     /// The coefficients of the equations of motion, the one place the
     /// matrices are assembled from the defects' [`Site`]s: `M = diag(m)`,
-    /// `D = diag(d)`, `K = diag(g) + ` the springs' Laplacian.
+    /// `D = diag(d) + ` the spring-parallel dampers' Laplacian,
+    /// `K = diag(g) + ` the springs' Laplacian.
     pub fn coefficients(&self) -> Coefficients {
         Coefficients {
             m: self.masses(),
             d: self.dampers(),
             g: self.grounds(),
             k: self.springs(),
+            c: self.spring_dampers(),
         }
     }
 
@@ -824,6 +1229,14 @@ impl Chain {
             .with_mass(self.mass * ms)?
             .with_gamma(self.gamma)?
             .with_boundaries(self.left, self.right)?
+            .with_damping(match self.damping {
+                Damping::Grounded => Damping::Grounded,
+                Damping::Between { c } => Damping::Between { c: c * ds },
+                Damping::Rayleigh { a, b } => Damping::Rayleigh {
+                    a: a * ds / ms,
+                    b: b * ds / ks,
+                },
+            })?
             .with_defects(defects)
     }
 }
@@ -868,6 +1281,10 @@ pub struct ChainSpec {
     /// Right end, `fixed` or `free` (default fixed).
     #[serde(default)]
     pub right: Boundary,
+    /// Damping model, e.g. `damping = { model = "rayleigh", a = 0.01, b = 0.05 }`
+    /// (default grounded, the chain's `d`).
+    #[serde(default, skip_serializing_if = "Damping::is_grounded")]
+    pub damping: Damping,
 }
 
 fn one() -> f64 {
@@ -886,6 +1303,7 @@ impl ChainSpec {
             .with_gamma(self.gamma)?
             .with_mass(self.mass)?
             .with_boundaries(self.left, self.right)?
+            .with_damping(self.damping)?
             .with_defects(self.defects.iter().copied())
     }
 }
@@ -901,6 +1319,7 @@ impl From<&Chain> for ChainSpec {
             defects: c.defects.clone(),
             left: c.left,
             right: c.right,
+            damping: c.damping,
         }
     }
 }
@@ -1013,6 +1432,93 @@ mod tests {
         assert_eq!(si.left(), Boundary::Free);
         assert_eq!(c.to_si(&Units::default()).unwrap(), c);
         assert!(Units::new(0.0, 1.0, 1.0).is_err());
+    }
+
+    #[test]
+    fn damping_models_validate_and_roundtrip() {
+        let c = Chain::paper(5).unwrap();
+        for (bad, field) in [
+            (Damping::Between { c: -0.1 }, "damping.c"),
+            (
+                Damping::Rayleigh {
+                    a: 0.1,
+                    b: f64::NAN,
+                },
+                "damping.b",
+            ),
+            (Damping::Rayleigh { a: -1.0, b: 0.0 }, "damping.a"),
+        ] {
+            match c.clone().with_damping(bad) {
+                Err(Error::InvalidParameter {
+                    field: f, allowed, ..
+                }) => {
+                    assert_eq!(f, field);
+                    assert!(allowed.contains(">= 0"));
+                }
+                other => panic!("{bad:?} gave {other:?}"),
+            }
+        }
+        // a model that needs a parameter not given: typed, naming `damping`
+        match Damping::build("rayleigh", None, Some(0.1), None) {
+            Err(Error::InvalidParameter { field, allowed, .. }) => {
+                assert_eq!(field, "damping");
+                assert!(allowed.contains("parameter b"), "{allowed}");
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(matches!(
+            Damping::build("viscous", None, None, None),
+            Err(Error::InvalidParameter { field, .. }) if field == "damping"
+        ));
+        assert_eq!(
+            Damping::build("between", Some(0.2), None, None).unwrap(),
+            Damping::Between { c: 0.2 }
+        );
+        // between: a damper defect sits on a spring, 0..=n
+        let b = c.clone().with_damping(Damping::Between { c: 0.1 }).unwrap();
+        let b = b.with_defect(Defect::Damper { at: 0, d: 0.5 }).unwrap();
+        assert_eq!(b.spring_dampers(), vec![0.5, 0.1, 0.1, 0.1, 0.1, 0.1]);
+        assert_eq!(b.dampers(), vec![0.1; 5]);
+        assert!(b
+            .clone()
+            .with_defect(Defect::Damper { at: 6, d: 0.5 })
+            .is_err());
+        // the same defect is refused at mass 0 in the grounded model
+        assert!(c
+            .clone()
+            .with_defect(Defect::Damper { at: 0, d: 0.5 })
+            .is_err());
+        // rayleigh: a mass defect's site is s^2 + a s
+        let r = c
+            .with_d(0.0)
+            .unwrap()
+            .with_damping(Damping::Rayleigh { a: 0.2, b: 0.3 })
+            .unwrap()
+            .with_defect(Defect::Mass { at: 2, m: 3.0 })
+            .unwrap();
+        assert_eq!(r.site(&r.defects()[0]).poly, [0.0, 0.2, 1.0]);
+        assert!((r.dampers()[1] - 0.6).abs() < 1e-15);
+        assert_eq!(r.spring_dampers()[0], 0.3);
+        // serde: the model in JSON and TOML; grounded chains print as before
+        let json = serde_json::to_string(&r).unwrap();
+        assert!(
+            json.contains(r#""damping":{"model":"rayleigh","a":0.2,"b":0.3}"#),
+            "{json}"
+        );
+        assert_eq!(serde_json::from_str::<Chain>(&json).unwrap(), r);
+        assert!(!serde_json::to_string(&Chain::paper(3).unwrap())
+            .unwrap()
+            .contains("damping"));
+        let spec: ChainSpec =
+            toml::from_str("n = 4\nd = 0\ndamping = { model = \"between\", c = 0.05 }").unwrap();
+        assert_eq!(
+            spec.build().unwrap().damping(),
+            Damping::Between { c: 0.05 }
+        );
+        assert!(toml::from_str::<ChainSpec>("n = 4\ndamping = { model = \"between\" }").is_err());
+        // SI: c in N s/m, a = C/M, b = C/K
+        let si = r.to_si(&Units::new(10.0, 100.0, 1000.0).unwrap()).unwrap();
+        assert_eq!(si.damping(), Damping::Rayleigh { a: 20.0, b: 3.0 });
     }
 
     #[test]

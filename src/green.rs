@@ -164,15 +164,55 @@ impl<T: Scalar> Green<T> {
     /// # Ok::<(), springmass::Error>(())
     /// ```
     pub fn of_chain(chain: &Chain, s: T) -> Green<T> {
+        let (d_u, c_u) = chain.uniform_damping();
+        if c_u != 0.0 {
+            return Self::with_spring_dampers(
+                chain.n(),
+                chain.k(),
+                chain.mass(),
+                (d_u, c_u),
+                s,
+                chain.left(),
+                chain.right(),
+            );
+        }
         Self::with_ends(
             chain.n(),
             chain.k(),
             chain.mass(),
-            chain.d(),
+            d_u,
             s,
             chain.left(),
             chain.right(),
         )
+    }
+
+    /// Green's function of the uniform chain whose every spring `k` has a
+    /// damper `c` beside it and every mass a damper `d` to the ground,
+    /// `(dc.0, dc.1) = (d, c)`: the dynamic stiffness is
+    /// `(mass s^2 + d s) I + (k + c s) Lap`, so `G` is the `k = 1` Green's
+    /// function at `cosh(lambda) = 1 + (mass s^2 + d s) / (2 (k + c s))`
+    /// divided by `k + c s` (the Rayleigh chain's uniform part has the same
+    /// form, [`Chain::uniform_damping`]). `lambda` is taken with
+    /// `Re lambda >= 0` (`G` is even in `lambda`). Unchecked, as [`Green::new`].
+    pub fn with_spring_dampers(
+        n: usize,
+        k: f64,
+        mass: f64,
+        dc: (f64, f64),
+        s: T,
+        left: Boundary,
+        right: Boundary,
+    ) -> Green<T> {
+        let kappa = T::from_f64(k) + s.scale(dc.1);
+        let inner = (s.scale(mass) + T::from_f64(dc.0)) / kappa.clone();
+        let mut lambda = (s.sqrt() * inner.sqrt()).scale(0.5).asinh().scale(2.0);
+        if lambda.re_f64() < 0.0 {
+            lambda = -lambda;
+        }
+        let mut g = Self::from_lambda_ends(n, 1.0, lambda, left, right);
+        g.den = g.den * kappa;
+        g
     }
 
     /// Green's function for a given `lambda` (`Re lambda >= 0`), both ends fixed.
@@ -655,6 +695,47 @@ mod tests {
                 }
                 let gc = Green::new(n, 1.0, 1e-3, 0.0, Complex64::new(s, 100.0));
                 assert!(Scalar::is_finite(&gc.entry(1, n)));
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod damping_tests {
+    use super::*;
+    use crate::chain::{dense_ref, Damping};
+    use num_complex::Complex64;
+
+    #[test]
+    fn spring_dampers_match_the_dense_inverse() {
+        for chain in dense_ref::model_chains() {
+            if chain.damping() == Damping::Grounded {
+                continue;
+            }
+            let u = chain.uniform();
+            let d = dense_ref::assemble(&u);
+            let n = u.n();
+            for s in [
+                Complex64::new(0.4, 0.0),
+                Complex64::new(0.1, 2.0),
+                Complex64::new(3.0, 30.0),
+            ] {
+                let a = nalgebra::DMatrix::from_fn(n, n, |i, j| {
+                    s * s * d.m[(i, j)] + s * d.c[(i, j)] + Complex64::new(d.k[(i, j)], 0.0)
+                });
+                let inv = a.try_inverse().unwrap();
+                let g = Green::of_chain(&u, s);
+                let scale = inv.iter().map(|z| z.norm()).fold(0.0, f64::max);
+                for i in 1..=n {
+                    for j in 1..=n {
+                        let e = (g.entry(i, j) - inv[(i - 1, j - 1)]).norm();
+                        assert!(e <= 1e-12 * scale, "{} s={s} ({i},{j})", chain.damping());
+                    }
+                }
+                let sp = (g.bilinear(Probe::Diff(3), Probe::Diff(3))
+                    - (inv[(2, 2)] - inv[(2, 3)] - inv[(3, 2)] + inv[(3, 3)]))
+                    .norm();
+                assert!(sp <= 1e-12 * scale);
             }
         }
     }

@@ -46,7 +46,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::chain::{Chain, Defect, Probe, Site};
+use crate::chain::{Chain, Damping, Defect, Probe, Site};
 use crate::error::{Error, Result};
 use crate::forward::{check_s, Forward, Observable};
 use crate::scalar::Scalar;
@@ -64,6 +64,13 @@ pub enum Param {
     Mass,
     /// Impulse scale `gamma`.
     Gamma,
+    /// `c` of the `between` damping model (every spring's damper without a
+    /// damper defect).
+    C,
+    /// `a` of the `rayleigh` damping model (`C = a M + b K`).
+    A,
+    /// `b` of the `rayleigh` damping model.
+    B,
 }
 
 impl Param {
@@ -72,6 +79,35 @@ impl Param {
         let mut v: Vec<Param> = (0..chain.defects().len()).map(Param::Defect).collect();
         v.extend([Param::D, Param::K, Param::Mass, Param::Gamma]);
         v
+    }
+
+    /// The parameters of `chain`'s damping model (none for `grounded`).
+    pub fn damping(chain: &Chain) -> Vec<Param> {
+        match chain.damping() {
+            Damping::Grounded => vec![],
+            Damping::Between { .. } => vec![Param::C],
+            Damping::Rayleigh { .. } => vec![Param::A, Param::B],
+        }
+    }
+
+    /// The index of a damping parameter in [`Damping::params`] of
+    /// `chain`'s model; `None` for another parameter or model.
+    fn damping_index(&self, chain: &Chain) -> Option<usize> {
+        match (*self, chain.damping()) {
+            (Param::C, Damping::Between { .. }) | (Param::A, Damping::Rayleigh { .. }) => Some(0),
+            (Param::B, Damping::Rayleigh { .. }) => Some(1),
+            _ => None,
+        }
+    }
+
+    /// `c`, `a`, `b` (the damping parameters), else `None`.
+    pub fn damping_name(&self) -> Option<&'static str> {
+        match self {
+            Param::C => Some("c"),
+            Param::A => Some("a"),
+            Param::B => Some("b"),
+            _ => None,
+        }
     }
 
     /// The defect parameters of `chain`, in order.
@@ -90,6 +126,9 @@ impl Param {
             Param::K => "k".into(),
             Param::Mass => "mass".into(),
             Param::Gamma => "gamma".into(),
+            Param::C => "c".into(),
+            Param::A => "a".into(),
+            Param::B => "b".into(),
         }
     }
 
@@ -104,6 +143,19 @@ impl Param {
             Param::K => chain.k(),
             Param::Mass => chain.mass(),
             Param::Gamma => chain.gamma(),
+            Param::C | Param::A | Param::B => {
+                let i = self.damping_index(chain).ok_or_else(|| {
+                    Error::invalid(
+                        "param",
+                        self.name(chain),
+                        format!(
+                            "a parameter of the {} damping model",
+                            chain.damping().name()
+                        ),
+                    )
+                })?;
+                chain.damping().params()[i].1
+            }
         })
     }
 
@@ -126,6 +178,7 @@ impl Param {
         let mut defects = chain.defects().to_vec();
         let (mut d, mut k, mut mass, mut gamma) =
             (chain.d(), chain.k(), chain.mass(), chain.gamma());
+        let mut damping = chain.damping();
         match *self {
             Param::Defect(i) => {
                 let old = *self.defect(chain, i)?;
@@ -135,6 +188,13 @@ impl Param {
             Param::K => k = value,
             Param::Mass => mass = value,
             Param::Gamma => gamma = value,
+            Param::C | Param::A | Param::B => {
+                self.get(chain)?;
+                let i = self.damping_index(chain).unwrap_or(0);
+                let mut v: Vec<f64> = damping.params().iter().map(|p| p.1).collect();
+                v[i] = value;
+                damping = damping.with_params(&v);
+            }
         }
         Chain::new(chain.n())?
             .with_d(d)?
@@ -142,6 +202,7 @@ impl Param {
             .with_mass(mass)?
             .with_gamma(gamma)?
             .with_boundaries(chain.left(), chain.right())?
+            .with_damping(damping)?
             .with_defects(defects)
     }
 }
@@ -176,6 +237,10 @@ pub fn green_column<T: Scalar>(chain: &Chain, s: T, o: usize) -> Result<Vec<T>> 
     let kap = chain.springs();
     let dmp = chain.dampers();
     let gnd = chain.grounds();
+    let cd = chain.spring_dampers();
+    if cd.iter().any(|&c| c != 0.0) {
+        return green_column_general(chain, s, o);
+    }
     let s2 = s.clone() * s.clone();
     let local: Vec<T> = (0..n)
         .map(|i| s2.scale(m[i]) + s.scale(dmp[i]) + T::from_f64(gnd[i]))
@@ -221,6 +286,31 @@ pub fn green_column<T: Scalar>(chain: &Chain, s: T, o: usize) -> Result<Vec<T>> 
             s: format!("{}", s.to_c64()),
         })
     }
+}
+
+/// [`green_column`] with spring-parallel dampers (`kappa_i = k_i + c_i s`):
+/// the O(n) solver of the transposed column (`G` is symmetric).
+fn green_column_general<T: Scalar>(chain: &Chain, s: T, o: usize) -> Result<Vec<T>> {
+    // G e_o = K^{-1} e_o: the impulse on mass o of the mirrored chain is not
+    // at hand, so solve with a unit impulse on mass 1 when o = 1 and by the
+    // symmetric identity G e_o = (row o of G) otherwise: one solve per mass
+    // would be O(n^2); instead eliminate the general system directly.
+    let c = chain.coefficients();
+    let n = chain.n();
+    let s2 = s.clone() * s.clone();
+    let dd = c.d_diag();
+    let kd = c.k_diag();
+    let diag: Vec<T> = (0..n)
+        .map(|i| s2.scale(c.m[i]) + s.scale(dd[i]) + T::from_f64(kd[i]))
+        .collect();
+    let off: Vec<T> = (1..n)
+        .map(|i| -(T::from_f64(c.k[i]) + s.scale(c.c[i])))
+        .collect();
+    let mut b = vec![T::zero(); n];
+    b[o - 1] = T::one();
+    crate::forward::tridiag::solve_general(diag, off, b).ok_or_else(|| Error::Singular {
+        s: format!("{}", s.to_c64()),
+    })
 }
 
 /// `X_o(s)` and its derivatives with respect to `params`, by reciprocity
@@ -275,6 +365,8 @@ struct DefectSites {
     mass: Vec<bool>,
     damp: Vec<bool>,
     spring: Vec<bool>,
+    /// spring-parallel dampers taken by a damper defect (`between`)
+    spring_damp: Vec<bool>,
 }
 
 impl DefectSites {
@@ -284,12 +376,14 @@ impl DefectSites {
             mass: vec![false; n + 1],
             damp: vec![false; n + 1],
             spring: vec![false; n + 1],
+            spring_damp: vec![false; n + 1],
         };
-        for site in chain.defects().iter().map(|d| d.site()) {
+        for site in chain.defects().iter().map(|d| chain.site(d)) {
             match (site.probe, site.power) {
                 (Probe::Point(at), 2) => out.mass[at] = true,
                 (Probe::Point(at), 1) => out.damp[at] = true,
                 (Probe::Diff(at), 0) => out.spring[at] = true,
+                (Probe::Diff(at), 1) => out.spring_damp[at] = true,
                 _ => {}
             }
         }
@@ -324,37 +418,80 @@ impl<T: Scalar> Forms<'_, T> {
         let s2 = s.clone() * s.clone();
         let b = match *p {
             Param::Defect(i) => {
-                let site = p.defect(chain, i)?.site();
+                let site = chain.site(p.defect(chain, i)?);
                 let u = match site.probe {
                     Probe::Point(at) => self.point(at),
                     Probe::Diff(at) => self.spring(at),
                 };
-                let s_pow = match site.power {
-                    0 => T::one(),
-                    1 => s.clone(),
-                    _ => s2,
+                let s_pow = if site.is_monomial() {
+                    match site.power {
+                        0 => T::one(),
+                        1 => s.clone(),
+                        _ => s2,
+                    }
+                } else {
+                    site.poly_at(s)
                 };
                 s_pow * u
             }
-            Param::Mass => s2 * self.points(&sites.mass),
+            Param::Mass => match chain.damping() {
+                Damping::Rayleigh { a, .. } => (s2 + s.scale(a)) * self.points(&sites.mass),
+                _ => s2 * self.points(&sites.mass),
+            },
             Param::D => s.clone() * self.points(&sites.damp),
-            Param::K => {
-                // the springs that exist (a free end has no wall spring)
-                let (lo, hi) = chain.spring_range();
-                let mut acc = T::zero();
-                for (j, _) in sites
-                    .spring
-                    .iter()
-                    .enumerate()
-                    .filter(|(j, d)| !**d && *j >= lo && *j <= hi)
-                {
-                    acc = acc + self.spring(j);
+            Param::K => match chain.damping() {
+                Damping::Rayleigh { b, .. } => {
+                    (T::one() + s.scale(b)) * self.springs(chain, &sites.spring)
                 }
-                acc
-            }
+                _ => self.springs(chain, &sites.spring),
+            },
             Param::Gamma => return Ok(None),
+            Param::C | Param::A | Param::B => {
+                p.get(chain)?;
+                match p {
+                    Param::C => s.clone() * self.springs(chain, &sites.spring_damp),
+                    Param::A => {
+                        let m = chain.masses();
+                        s.clone() * self.weighted_points(&m)
+                    }
+                    _ => {
+                        // b: d(b K)/db = K, springs and ground springs
+                        let k = chain.springs();
+                        let (lo, hi) = chain.spring_range();
+                        let mut acc = self.weighted_points(&chain.grounds());
+                        for (j, &kj) in k.iter().enumerate().take(hi + 1).skip(lo) {
+                            acc = acc + self.spring(j).scale(kj);
+                        }
+                        s.clone() * acc
+                    }
+                }
+            }
         };
         Ok(Some(b))
+    }
+
+    /// The sum of the spring forms of the springs that exist (a free end
+    /// has no wall spring) and are not `taken`.
+    fn springs(&self, chain: &Chain, taken: &[bool]) -> T {
+        let (lo, hi) = chain.spring_range();
+        let mut acc = T::zero();
+        for (j, _) in taken
+            .iter()
+            .enumerate()
+            .filter(|(j, d)| !**d && *j >= lo && *j <= hi)
+        {
+            acc = acc + self.spring(j);
+        }
+        acc
+    }
+
+    /// `sum_i w_i` (point form of mass `i`), `w` 0-based.
+    fn weighted_points(&self, w: &[f64]) -> T {
+        let mut acc = T::zero();
+        for (i, &wi) in w.iter().enumerate().filter(|(_, w)| **w != 0.0) {
+            acc = acc + self.point(i + 1).scale(wi);
+        }
+        acc
     }
 
     /// The sum of the point forms of the masses not taken by a defect.
@@ -369,10 +506,7 @@ impl<T: Scalar> Forms<'_, T> {
 
 /// Does `param` change the mass of mass 1?
 fn moves_m1(chain: &Chain, param: &Param) -> bool {
-    let m1 = Site {
-        probe: Probe::Point(1),
-        power: 2,
-    };
+    let m1 = Site::monomial(Probe::Point(1), 2);
     let defect_at_1 = chain.defects().iter().any(|d| d.site() == m1);
     match *param {
         Param::Mass => !defect_at_1,
@@ -496,6 +630,19 @@ pub fn defect_gradient<T: Scalar>(chain: &Chain, s: T) -> Result<Gradient<T>> {
 pub fn defect_gradient_with<T: Scalar>(fwd: &Forward, s: T) -> Result<Gradient<T>> {
     let chain = fwd.chain();
     let n = chain.n();
+    if !chain.damping().is_grounded() {
+        // one Green's function for every site
+        let mut sites: Vec<usize> = vec![1];
+        for d in chain.defects() {
+            sites.extend(chain.site(d).probe.entries(n).map(|(i, _)| i));
+        }
+        sites.sort_unstable();
+        sites.dedup();
+        let x = fwd.eval_many(s.clone(), &sites)?;
+        return defect_gradient_from(chain, &s, |i: usize| -> Result<T> {
+            Ok(sites.binary_search(&i).map_or(T::zero(), |j| x[j].clone()))
+        });
+    }
     let value = fwd.eval(s.clone(), 1)?;
     defect_gradient_from(chain, &s, |i: usize| -> Result<T> {
         if i == 0 || i > n {
@@ -527,14 +674,18 @@ pub fn defect_gradient_from<T: Scalar>(
     let inv = if gamma == 0.0 { 0.0 } else { 1.0 / gamma };
     let mut grad = Vec::with_capacity(chain.defects().len());
     for d in chain.defects() {
-        let site = d.site();
+        let site = chain.site(d);
         let u = match site.probe {
             Probe::Point(at) => x(at)?,
             Probe::Diff(at) => x(at)? - x(at + 1)?,
         };
         let mut b = u.clone() * u;
-        for _ in 0..site.power {
-            b = s.clone() * b;
+        if site.is_monomial() {
+            for _ in 0..site.power {
+                b = s.clone() * b;
+            }
+        } else {
+            b = site.poly_at(s) * b;
         }
         grad.push(-b.scale(inv));
     }
@@ -720,5 +871,50 @@ mod tests {
         assert!(Param::Defect(99).get(&c).is_err());
         assert!(gradient(&c, -1.0, 1, &[Param::D]).is_err());
         assert!(green_column(&c, 1.0, 0).is_err());
+    }
+}
+
+#[cfg(test)]
+mod damping_tests {
+    use super::*;
+    use crate::chain::dense_ref;
+    use num_complex::Complex64;
+
+    #[test]
+    fn every_damping_parameter_matches_a_dense_difference() {
+        for chain in dense_ref::model_chains() {
+            let mut params = Param::all(&chain);
+            params.extend(Param::damping(&chain));
+            for s in [Complex64::new(0.7, 0.0), Complex64::new(0.3, 1.1)] {
+                for o in [1, 5] {
+                    let g = gradient(&chain, s, o, &params).unwrap();
+                    let x = |c: &Chain| dense_ref::solve(c, s, o);
+                    assert!((g.value - x(&chain)).norm() <= 1e-12 * g.value.norm());
+                    for (p, d) in params.iter().zip(&g.grad) {
+                        let v = p.get(&chain).unwrap();
+                        let h = 1e-6 * v.abs().max(1e-2);
+                        let at = |v: f64| x(&p.set(&chain, v).unwrap());
+                        let fd = if v - h < 0.0 {
+                            // a parameter at its bound 0: one-sided, second order
+                            (at(v + h) * 4.0 - at(v) * 3.0 - at(v + 2.0 * h)) / (2.0 * h)
+                        } else {
+                            (at(v + h) - at(v - h)) / (2.0 * h)
+                        };
+                        assert!(
+                            (fd - d).norm() <= 1e-6 * (fd.norm() + g.value.norm() * 1e-3),
+                            "{} {} s={s} o={o}: {d} vs {fd}",
+                            chain.damping(),
+                            p.name(&chain)
+                        );
+                    }
+                    if o == 1 {
+                        let dg = defect_gradient(&chain, s).unwrap();
+                        for (a, b) in dg.grad.iter().zip(&g.grad) {
+                            assert!((a - b).norm() <= 1e-9 * b.norm().max(1e-9));
+                        }
+                    }
+                }
+            }
+        }
     }
 }

@@ -22,6 +22,8 @@ mod cli;
 mod cli_fit;
 #[path = "cli_hardening.rs"]
 mod cli_hardening;
+#[path = "damping_models.rs"]
+mod damping_models;
 #[path = "first_use.rs"]
 mod first_use;
 #[path = "fit.rs"]

@@ -174,6 +174,15 @@ def _text(name: str, v: Any) -> str:
     return v
 
 
+def _trigger(v: Any) -> str:
+    """``"auto"`` or a time, as the core's text form."""
+    if isinstance(v, str):
+        return v
+    if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool):
+        return repr(float(v))
+    raise _invalid("trigger", _short(v), '"auto" or a time (a finite number)')
+
+
 # ---------------------------------------------------------------- defects
 
 
@@ -243,11 +252,15 @@ def _defect_from_json(d: Dict[str, Any]) -> Defect:
     return Defect(d["kind"], int(d["at"]), float(value))
 
 
-def _chain(n: Any, k: Any, d: Any, gamma: Any, mass: Any, defects: Any, left: Any, right: Any) -> Dict[str, Any]:
+def _chain(
+    n: Any, k: Any, d: Any, gamma: Any, mass: Any, defects: Any, left: Any, right: Any, damping: Any = None
+) -> Dict[str, Any]:
     return {
         "n": _chain_size(n),
         "k": _real("k", k),
-        "d": _real("d", d),
+        # None: 0.1 (grounded), 0 with another damping model
+        "d": None if d is None else _real("d", d),
+        "damping": None if damping is None else _text("damping", damping),
         "gamma": _real("gamma", gamma),
         "mass": _real("mass", mass),
         "defects": _defects("defects", defects),
@@ -401,6 +414,15 @@ class FitResult:
     nuisance : list of dict
         The sensor's fitted ``offset`` (and ``drift``): ``name``, ``value``,
         ``se``; empty when none were fitted.
+    trigger : dict or None
+        The blow's time on the record's axis when the record was re-timed to
+        it: ``time``, ``se``, ``dropped`` (samples before it), ``detected``,
+        ``refits``; ``None`` for a record that starts with its blow.
+    damping : dict or None
+        The damping model and its parameters with standard errors, e.g.
+        ``{"model": "rayleigh", "a": ..., "b": ..., "se": {"a": ..., "b": ...},
+        "fitted": True, "candidates": [...]}`` (``None`` for the default
+        grounded model not fitted).
     t, observed, predicted, residual : ndarray
         The data and the best fit's model on the same times.
     summary : str
@@ -432,6 +454,8 @@ class FitResult:
     noise_model: Optional[Dict[str, Any]]
     whiteness_p: Optional[float]
     nuisance: List[Dict[str, Any]]
+    damping: Optional[Dict[str, Any]]
+    trigger: Optional[Dict[str, Any]]
     t: np.ndarray
     observed: np.ndarray
     predicted: np.ndarray
@@ -513,6 +537,8 @@ class FitResult:
             noise_model=r.get("noise_model"),
             whiteness_p=None if r.get("whiteness_p") is None else _nan(r["whiteness_p"]),
             nuisance=list(r.get("nuisance", [])),
+            damping=r.get("damping"),
+            trigger=r.get("trigger"),
             t=raw.get("t", empty),
             observed=raw.get("observed", empty),
             predicted=raw.get("model", empty),
@@ -527,7 +553,7 @@ def fit(
     x: Any,
     *,
     n: int,
-    d: float = 0.1,
+    d: Optional[float] = None,
     fit: Union[str, Sequence[str]] = (),
     defects: Union[str, int] = "auto",
     kinds: Union[str, Sequence[str]] = "mass",
@@ -548,6 +574,8 @@ def fit(
     force: Any = None,
     noise_model: str = "auto",
     nuisance: str = "auto",
+    damping: Optional[str] = None,
+    trigger: Any = "auto",
 ) -> FitResult:
     """Fit defects to a measured series of mass 1's displacement.
 
@@ -569,7 +597,9 @@ def fit(
     n : int
         Number of masses.
     d : float, default 0.1
-        Damping per mass (known, or the starting value with ``fit=("d",)``).
+        Damping per mass (known, or the starting value with ``fit=("d",)``);
+        with ``damping="between"`` or ``"rayleigh"`` an extra grounded
+        damping (default 0).
     fit : str or sequence of str, default ()
         Chain parameters fitted too: any of ``"d"``, ``"gamma"``, ``"k"``,
         ``"mass"`` (at most three), or a comma-separated string.
@@ -620,6 +650,17 @@ def fit(
         A constant offset (and a linear drift) of the sensor, profiled out of
         the fit; ``"auto"`` fits them when the white fit's residual is not
         white and BIC wants them (reported with standard errors).
+    damping : str, optional
+        The damping model ``"MODEL[:P1[:P2]]"``: ``"grounded"`` (``d`` on
+        every mass), ``"between:C"`` (a damper ``C`` parallel to every
+        spring), ``"rayleigh:A:B"`` (``C = A M + B K``); parameters not given
+        are fitted with ``fit=("d",)``. Default: grounded, or with
+        ``fit=("d",)`` every model, the BIC choosing (``FitResult.damping``).
+    trigger : "auto" or float, default "auto"
+        When the blow came on the record's time axis: ``"auto"`` detects a
+        quiet pre-trigger segment or a clock that does not start at the blow
+        (``t`` may start below 0) and fits the time with its standard error
+        (``FitResult.trigger``); a number gives it.
 
     Returns
     -------
@@ -659,7 +700,7 @@ def fit(
         tv,
         xv,
         n=_chain_size(n),
-        d=_real("d", d),
+        d=None if d is None else _real("d", d),
         gamma=_real("gamma", gamma),
         fit=fit_text or None,
         known=_defects("known", known),
@@ -681,6 +722,8 @@ def fit(
         force=None if force is None else _vector("force", force),
         noise_model=_text("noise_model", noise_model),
         nuisance=_text("nuisance", nuisance),
+        damping=None if damping is None else _text("damping", damping),
+        trigger=_trigger(trigger),
     )
     return FitResult._from_core(raw)
 
@@ -733,7 +776,7 @@ def simulate(
     *,
     t: Any,
     defects: Sequence[DefectLike] = (),
-    d: float = 0.1,
+    d: Optional[float] = None,
     k: float = 1.0,
     gamma: float = 1.0,
     mass: float = 1.0,
@@ -744,6 +787,7 @@ def simulate(
     method: str = "auto",
     left: str = "fixed",
     right: str = "fixed",
+    damping: Optional[str] = None,
 ) -> np.ndarray:
     """Simulate a chain hit by the impulse ``gamma delta(t)`` on mass 1.
 
@@ -760,7 +804,12 @@ def simulate(
     defects : sequence of Defect, (kind, at, value) or "kind:at:value", default ()
         The chain's defects, e.g. ``[("mass", 8, 5.0), ("spring", 3, 0.5)]``.
     d, k, gamma, mass : float
-        Uniform damping (0.1), stiffness (1), impulse (1) and mass (1).
+        Uniform damping (0.1; 0 with another ``damping`` model: then an
+        extra grounded damping), stiffness (1), impulse (1) and mass (1).
+    damping : str, optional
+        The damping model ``"grounded"`` (default), ``"between:C"`` (a
+        damper ``C`` parallel to every spring) or ``"rayleigh:A:B"``
+        (``C = A M + B K``).
     observe : int or sequence of int, default 1
         Observed mass(es), 1-based.
     observe_kind : {"displacement", "velocity", "acceleration"}
@@ -801,7 +850,7 @@ def simulate(
     else:
         noise_text = "abs:" + repr(_real("noise", noise))
     out = _core.simulate(
-        _chain(n, k, d, gamma, mass, defects, left, right),
+        _chain(n, k, d, gamma, mass, defects, left, right, damping),
         _vector("t", t),
         observe=obs,
         observe_kind=_text("observe_kind", observe_kind),
@@ -817,7 +866,7 @@ def response(
     *,
     n: int,
     defects: Sequence[DefectLike] = (),
-    d: float = 0.1,
+    d: Optional[float] = None,
     k: float = 1.0,
     gamma: float = 1.0,
     mass: float = 1.0,
@@ -825,6 +874,7 @@ def response(
     observe_kind: str = "displacement",
     left: str = "fixed",
     right: str = "fixed",
+    damping: Optional[str] = None,
 ) -> Any:
     """The Laplace-domain response ``X_observe(s)`` of a chain.
 
@@ -840,7 +890,10 @@ def response(
     defects : sequence of Defect, (kind, at, value) or "kind:at:value", default ()
         The chain's defects.
     d, k, gamma, mass : float
-        Uniform damping (0.1), stiffness (1), impulse (1) and mass (1).
+        Uniform damping (0.1; 0 with another ``damping`` model), stiffness
+        (1), impulse (1) and mass (1).
+    damping : str, optional
+        The damping model, as for :func:`simulate`.
     observe : int, default 1
         Observed mass (1-based).
     observe_kind : {"displacement", "velocity", "acceleration"}
@@ -869,7 +922,7 @@ def response(
         raise _invalid("s", _short(s), "real or complex numbers")
     out = fn(
         a,
-        _chain(n, k, d, gamma, mass, defects, left, right),
+        _chain(n, k, d, gamma, mass, defects, left, right, damping),
         observe=_count("observe", observe),
         observe_kind=_text("observe_kind", observe_kind),
     )

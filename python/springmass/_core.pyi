@@ -20,8 +20,9 @@ class UnresolvableError(ValueError):
 class NumericalError(RuntimeError):
     """A numerical method could not reach the requested accuracy."""
 
-# {"n": int, "k": float, "d": float, "gamma": float, "mass": float,
-#  "defects": list of "kind:at:value", "left": str, "right": str}
+# {"n": int, "k": float, "d": float or None, "gamma": float, "mass": float,
+#  "defects": list of "kind:at:value", "left": str, "right": str,
+#  "damping": "MODEL[:P1[:P2]]" or None}
 ChainDict = Dict[str, Any]
 
 def fit(
@@ -51,6 +52,8 @@ def fit(
     force: Optional[npt.NDArray[np.float64]] = None,
     noise_model: Optional[str] = None,
     nuisance: Optional[str] = None,
+    damping: Optional[str] = None,
+    trigger: Optional[str] = None,
 ) -> Dict[str, Any]:
     """The data-first fit: {"report": JSON text, "summary": str, "t", "observed", "model", "residual": ndarray}."""
 

@@ -33,12 +33,15 @@ use springmass::{Chain, Defect, Error, Result};
 struct ChainArgs {
     n: usize,
     k: f64,
-    d: f64,
+    /// `None`: 0.1 for the grounded model, 0 with another
+    d: Option<f64>,
     gamma: f64,
     mass: f64,
     defects: Vec<String>,
     left: String,
     right: String,
+    /// `MODEL[:P1[:P2]]` ([`springmass::chain::Damping::parse_complete`])
+    damping: Option<String>,
 }
 
 impl ChainArgs {
@@ -48,10 +51,17 @@ impl ChainArgs {
             text.parse::<Boundary>()
                 .map_err(|_| Error::invalid(field, text, "fixed or free"))
         };
+        let damping = match &self.damping {
+            Some(t) => springmass::chain::Damping::parse_complete(t)?,
+            None => Default::default(),
+        };
+        let d = self
+            .d
+            .unwrap_or(if damping.is_grounded() { 0.1 } else { 0.0 });
         ChainSpec {
             n: self.n,
             k: self.k,
-            d: self.d,
+            d,
             gamma: self.gamma,
             mass: self.mass,
             defects: self
@@ -61,6 +71,7 @@ impl ChainArgs {
                 .collect::<Result<_>>()?,
             left: end("left", &self.left)?,
             right: end("right", &self.right)?,
+            damping,
         }
         .build()
     }
@@ -124,7 +135,7 @@ fn series_obs(
 #[pyo3(signature = (t, x, *, n, d=None, gamma=None, fit=None, known=Vec::new(), defects=None,
     kinds=None, slot_kinds=Vec::new(), noise=None, misfit=None, method=None, criterion=None,
     seed=None, max_evals=None, k=None, mass=None, left=None, right=None, observe=None,
-    observe_kind=None, force=None, trigger=None, noise_model=None, nuisance=None))]
+    observe_kind=None, force=None, trigger=None, noise_model=None, nuisance=None, damping=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit<'py>(
     py: Python<'py>,
@@ -154,6 +165,7 @@ fn fit<'py>(
     trigger: Option<String>,
     noise_model: Option<String>,
     nuisance: Option<String>,
+    damping: Option<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let spec = FitSpec {
         d,
@@ -178,6 +190,7 @@ fn fit<'py>(
         trigger,
         noise_model,
         nuisance,
+        damping,
         ..FitSpec::new(n)
     };
     let (t, x) = (values(&t), values(&x));

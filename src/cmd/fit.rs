@@ -141,6 +141,13 @@ pub struct Args {
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Damping model: grounded (a damper from every mass to the ground, the
+    /// paper's), between[:C] (dampers parallel to the springs, as between
+    /// storeys), rayleigh[:A:B] (C = A M + B K). Parameters not given are
+    /// fitted with --fit d. Default: grounded; with --fit d every model is
+    /// fitted and BIC chooses. --d is then the extra grounded damping (default 0).
+    #[arg(long, requires = "data", value_name = "MODEL[:P1[:P2]]")]
+    pub damping: Option<String>,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -308,6 +315,7 @@ fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
         trigger: a.trigger.clone(),
         noise_model: a.noise_model.clone(),
         nuisance: a.nuisance.clone(),
+        damping: a.damping.clone(),
         ..springmass::detect::fit::options::FitSpec::new(n)
     }
 }

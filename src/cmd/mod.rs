@@ -42,6 +42,11 @@ pub struct ChainArgs {
     /// TOML scene file with a `[chain]` table (n, k, d, gamma, mass, defects).
     #[arg(long)]
     pub scene: Option<PathBuf>,
+    /// Damping model: grounded (the paper's: d on every mass), between:C
+    /// (a damper C parallel to every spring), rayleigh:A:B (C = A M + B K).
+    /// With between or rayleigh, --d is an extra grounded damping [default 0].
+    #[arg(long, value_name = "MODEL[:P1[:P2]]")]
+    pub damping: Option<String>,
 }
 
 impl ChainArgs {
@@ -58,6 +63,7 @@ impl ChainArgs {
                 defects: vec![],
                 left: Default::default(),
                 right: Default::default(),
+                damping: Default::default(),
             },
         };
         if let Some(n) = self.n {
@@ -77,6 +83,12 @@ impl ChainArgs {
         }
         for t in &self.defects {
             spec.defects.push(Defect::parse(t)?);
+        }
+        if let Some(text) = &self.damping {
+            spec.damping = springmass::chain::Damping::parse_complete(text)?;
+            if !spec.damping.is_grounded() && self.d.is_none() {
+                spec.d = 0.0;
+            }
         }
         Ok(spec.build()?)
     }

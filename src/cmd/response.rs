@@ -243,6 +243,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         if !chain.is_fixed_fixed() {
             println!("# ends: left {}, right {}", chain.left(), chain.right());
         }
+        if !chain.damping().is_grounded() {
+            println!("# damping: {}", chain.damping());
+        }
         if a.modes {
             for line in modes_text(&chain, a.setup.has_units())? {
                 println!("{line}");

@@ -159,6 +159,9 @@ fn plot_series(
         .collect::<Vec<_>>()
         .join(", ");
     let mut title = format!("n = {}, d = {}", chain.n(), chain.d());
+    if !chain.damping().is_grounded() {
+        title.push_str(&format!(", damping {}", chain.damping()));
+    }
     if !defects.is_empty() {
         title.push_str(&format!(", defects: {defects}"));
     }

@@ -148,6 +148,7 @@ impl Suppression {
                 "n >= 2 (the chain has n+1 masses; g acts on mass n-1 >= 1)",
             ));
         }
+        chain.require_grounded("the suppression laws (derived for grounded dampers)")?;
         if !chain.is_fixed_fixed() {
             return Err(Error::invalid(
                 "boundaries",

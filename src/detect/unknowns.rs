@@ -560,6 +560,12 @@ impl DefectKind {
         self.defect(at, 0.0).site()
     }
 
+    /// Where a defect of this kind at `at` enters `chain`'s equations of
+    /// motion, its damping model included ([`Chain::site`]).
+    pub fn site_in(self, chain: &Chain, at: usize) -> Site {
+        chain.site(&self.defect(at, 0.0))
+    }
+
     /// The defect of this kind at `at` with `value` (unchecked).
     pub fn defect(self, at: usize, value: f64) -> Defect {
         match self {

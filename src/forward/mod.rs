@@ -72,6 +72,11 @@ use crate::scalar::Scalar;
 /// Largest `n` for which a singular closed form falls back to the O(n) solver.
 const FALLBACK_MAX_N: usize = 10_000_000;
 
+/// Chains of a damping model the transfer sweep does not take are solved
+/// by the O(n) solver up to this many masses (cheaper than the Green's
+/// function's transcendentals there), by Woodbury above.
+const GENERAL_SOLVE_MAX_N: usize = 64;
+
 /// Largest `|s|` accepted (beyond it `mass s^2` leaves the f64 range for any
 /// physical mass; the spec asks for `|s| <= 1e4`).
 pub const MAX_ABS_S: f64 = 1e100;
@@ -203,9 +208,10 @@ impl std::str::FromStr for Observable {
 pub fn updates(chain: &Chain) -> Vec<Update> {
     let mut out: Vec<Update> = Vec::with_capacity(chain.defects().len());
     for d in chain.defects() {
-        let site = d.site();
-        let mut c = [0.0; 3]; // [dk, dd, dm]: the change times s^0, s^1, s^2
-        c[site.power as usize] = d.value() - d.uniform_value(chain);
+        let site = chain.site(d);
+        // [dk, dd, dm]: the change times s^0, s^1, s^2
+        let delta = d.value() - d.uniform_value(chain);
+        let c = site.poly.map(|p| if p == 0.0 { 0.0 } else { delta * p });
         let (probe, [dk, dd, dm]) = (site.probe, c);
         if let Some(u) = out.iter_mut().find(|u| u.probe == probe) {
             u.dm += dm;
@@ -240,6 +246,10 @@ pub struct Forward {
     chain: Chain,
     updates: Vec<Update>,
     transfer: Transfer,
+    /// A damping model the transfer sweep does not take (spring-parallel
+    /// dampers, Rayleigh): every value by Woodbury on the generalised
+    /// Green's function, the O(n) solver where that is not finite.
+    general: bool,
 }
 
 impl Forward {
@@ -249,6 +259,7 @@ impl Forward {
             chain: chain.clone(),
             updates: updates(chain),
             transfer: Transfer::new(chain),
+            general: !chain.damping().is_grounded(),
         }
     }
 
@@ -299,7 +310,12 @@ impl Forward {
     pub fn transfer_function<T: Scalar>(&self, s: T, at: usize, obs: Observable) -> Result<T> {
         check_s(&s)?;
         self.chain.check_observe(at)?;
-        let x = self.transfer.eval_parts(&s, at, 1.0).0;
+        let x = if self.general {
+            let unit = Forward::new(&self.chain.clone().with_gamma(1.0)?);
+            unit.eval_with(&unit.green(s.clone()), &s, at)
+        } else {
+            self.transfer.eval_parts(&s, at, 1.0).0
+        };
         let x = self.finish_unit(x, s.clone(), at)?;
         Ok(Observable::from_displacement(obs, x, &s, at, 0.0, 1.0))
     }
@@ -320,8 +336,13 @@ impl Forward {
     fn observe_scaled<T: Scalar>(&self, s: T, at: usize, obs: Observable, gamma: f64) -> Result<T> {
         check_s(&s)?;
         self.chain.check_observe(at)?;
-        let (x, z1) = self.transfer.eval_parts(&s, at, gamma);
         let m1 = self.chain.mass_at(1);
+        if self.general {
+            let x = woodbury(&self.green(s.clone()), &s, &self.updates, gamma, at);
+            let x = self.finish_gamma(x, s.clone(), at, gamma)?;
+            return Ok(obs.from_displacement(x, &s, at, gamma, m1));
+        }
+        let (x, z1) = self.transfer.eval_parts(&s, at, gamma);
         if obs == Observable::Acceleration && at == 1 && x.is_finite() && z1.is_finite() {
             // s^2 X_1 - gamma/m_1 = -Z_1 X_1 / m_1
             return Ok(-(z1 * x).scale(1.0 / m1));
@@ -338,6 +359,12 @@ impl Forward {
     pub fn eval<T: Scalar>(&self, s: T, observe: usize) -> Result<T> {
         check_s(&s)?;
         self.chain.check_observe(observe)?;
+        if self.general {
+            if self.chain.n() <= GENERAL_SOLVE_MAX_N {
+                return tridiag::solve(&self.chain, s, observe);
+            }
+            return self.eval_woodbury(s, observe);
+        }
         let x = self.transfer.eval(&s, observe);
         self.finish(x, s, observe)
     }
@@ -353,7 +380,7 @@ impl Forward {
         table: &transfer::SweepTable<T>,
         sites: &[usize],
     ) -> Option<Vec<T>> {
-        if !self.transfer.fits(table) {
+        if self.general || !self.transfer.fits(table) {
             return None;
         }
         let (x, _) = self
@@ -372,12 +399,41 @@ impl Forward {
         sites: &[usize],
         work: &mut transfer::SweepWork<T>,
     ) -> bool {
-        if !self.transfer.fits(table) {
+        if self.general || !self.transfer.fits(table) {
             return false;
         }
         self.transfer
             .eval_sites_into(s, table, sites, self.chain.gamma(), work);
         work.out().iter().all(|v| v.is_finite())
+    }
+
+    /// `X` at every mass of `sites` (1-based), as [`Forward::eval`] each:
+    /// for a damping model the transfer sweep does not take, one Green's
+    /// function for all of them.
+    ///
+    /// # Errors
+    /// As [`Forward::eval`].
+    pub fn eval_many<T: Scalar>(&self, s: T, sites: &[usize]) -> Result<Vec<T>> {
+        if !self.general {
+            return sites.iter().map(|&i| self.eval(s.clone(), i)).collect();
+        }
+        check_s(&s)?;
+        if self.chain.n() <= GENERAL_SOLVE_MAX_N {
+            for &i in sites {
+                self.chain.check_observe(i)?;
+            }
+            let x = tridiag::solve_all(&self.chain, s)?;
+            return Ok(sites.iter().map(|&i| x[i - 1].clone()).collect());
+        }
+        let g = self.green(s.clone());
+        sites
+            .iter()
+            .map(|&i| {
+                self.chain.check_observe(i)?;
+                let x = self.eval_with(&g, &s, i);
+                self.finish(x, s.clone(), i)
+            })
+            .collect()
     }
 
     /// `X_observe(s)` by Woodbury on the closed-form Green's function (checked).
@@ -389,6 +445,14 @@ impl Forward {
         let g = self.green(s.clone());
         let x = self.eval_with(&g, &s, observe);
         self.finish(x, s, observe)
+    }
+
+    /// [`Forward::finish`] for an impulse `gamma` other than the chain's.
+    fn finish_gamma<T: Scalar>(&self, x: T, s: T, observe: usize, gamma: f64) -> Result<T> {
+        if gamma == self.chain.gamma() || x.is_finite() {
+            return self.finish(x, s, observe);
+        }
+        Forward::new(&self.chain.clone().with_gamma(gamma)?).finish(x, s, observe)
     }
 
     fn finish<T: Scalar>(&self, x: T, s: T, observe: usize) -> Result<T> {
@@ -580,5 +644,46 @@ mod tests {
             matches!(response(&c, 1.0, 4), Err(Error::InvalidParameter { field, .. }) if field == "observe")
         );
         assert!(response(&c, 1.0, 0).is_err());
+    }
+}
+
+#[cfg(test)]
+mod damping_tests {
+    use super::*;
+    use crate::chain::dense_ref;
+    use num_complex::Complex64;
+
+    #[test]
+    fn every_damping_model_matches_the_dense_solve() {
+        for chain in dense_ref::model_chains() {
+            let fwd = Forward::new(&chain);
+            for s in [
+                Complex64::new(0.3, 0.0),
+                Complex64::new(0.2, 1.3),
+                Complex64::new(1.0, 9.0),
+            ] {
+                for o in 1..=chain.n() {
+                    let want = dense_ref::solve(&chain, s, o);
+                    let tol = 1e-11 * dense_ref::solve(&chain, s, 1).norm().max(want.norm());
+                    for got in [fwd.eval(s, o).unwrap(), fwd.eval_woodbury(s, o).unwrap()] {
+                        assert!(
+                            (got - want).norm() <= tol,
+                            "{} s={s} o={o}",
+                            chain.damping()
+                        );
+                    }
+                    let v = fwd.observe(s, o, Observable::Velocity).unwrap();
+                    assert!((v - s * want).norm() <= tol * s.norm());
+                    let h = fwd
+                        .transfer_function(s, o, Observable::Displacement)
+                        .unwrap();
+                    assert!((h * chain.gamma() - want).norm() <= tol);
+                }
+                let a = fwd.observe(s, 1, Observable::Acceleration).unwrap();
+                let want =
+                    s * s * dense_ref::solve(&chain, s, 1) - chain.gamma() / chain.mass_at(1);
+                assert!((a - want).norm() <= 1e-10 * want.norm().max(1.0));
+            }
+        }
     }
 }

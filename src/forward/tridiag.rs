@@ -38,27 +38,36 @@ pub fn solve_all<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
     }
     let n = chain.n();
     let c = chain.coefficients();
-    let (m, k, d, kd) = (&c.m, &c.k, &c.d, c.k_diag());
+    let (m, d, kd) = (&c.m, c.d_diag(), c.k_diag());
     let s2 = s.clone() * s.clone();
-    // diagonal, super/sub diagonal (symmetric: dl = du = -k_i, i = 1..n-1)
-    let mut diag: Vec<T> = (0..n)
+    // diagonal, super/sub diagonal (symmetric: dl = du = -kappa_i, i = 1..n-1)
+    let diag: Vec<T> = (0..n)
         .map(|i| s2.scale(m[i]) + s.scale(d[i]) + T::from_f64(kd[i]))
         .collect();
-    let mut dl: Vec<T> = (0..n.saturating_sub(1))
-        .map(|i| T::from_f64(-k[i + 1]))
+    let dl: Vec<T> = (0..n.saturating_sub(1))
+        .map(|i| -kappa(&c, i + 1, &s))
         .collect();
-    let mut du = dl.clone();
-    let mut du2: Vec<T> = vec![T::zero(); n.saturating_sub(2)];
     let mut b: Vec<T> = vec![T::zero(); n];
     b[0] = T::from_f64(chain.gamma());
-    let singular = || Error::Singular {
+    solve_general(diag, dl, b).ok_or_else(|| Error::Singular {
         s: format!("{}", s.to_c64()),
-    };
+    })
+}
+
+/// Solve the symmetric tridiagonal system with diagonal `diag` and
+/// off-diagonal `off` (`n - 1`) for the right side `b`, by Gaussian
+/// elimination with partial pivoting (LAPACK `gtsv`); `None` when it is
+/// singular or a value is not finite.
+pub fn solve_general<T: Scalar>(mut diag: Vec<T>, off: Vec<T>, mut b: Vec<T>) -> Option<Vec<T>> {
+    let n = diag.len();
+    let mut dl = off;
+    let mut du = dl.clone();
+    let mut du2: Vec<T> = vec![T::zero(); n.saturating_sub(2)];
     for i in 0..n.saturating_sub(1) {
         if diag[i].magnitude() >= dl[i].magnitude() {
             // no interchange
             if diag[i].is_zero() {
-                return Err(singular());
+                return None;
             }
             let fact = dl[i].clone() / diag[i].clone();
             diag[i + 1] = diag[i + 1].clone() - fact.clone() * du[i].clone();
@@ -86,7 +95,7 @@ pub fn solve_all<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
         }
     }
     if diag[n - 1].is_zero() {
-        return Err(singular());
+        return None;
     }
     // back substitution: U has diag, du, du2
     let mut x = vec![T::zero(); n];
@@ -99,10 +108,7 @@ pub fn solve_all<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
             (b[i].clone() - du[i].clone() * x[i + 1].clone() - du2[i].clone() * x[i + 2].clone())
                 / diag[i].clone();
     }
-    if x.iter().any(|v| !v.is_finite()) {
-        return Err(singular());
-    }
-    Ok(x)
+    x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
 /// Real `s`: excess-stiffness elimination (see the module docs).
@@ -113,17 +119,28 @@ fn solve_all_real<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
     let s2 = s.clone() * s.clone();
     // e[i] = E_{i+1} (0-based), dd[i] = D_{i+1} = E + kappa_{i}
     let mut e = vec![T::zero(); n];
-    let mut tail = T::from_f64(k[n]); // kappa_n * (E_{n+1}/D_{n+1}) with the wall ratio 1
+    let mut tail = kappa(&c, n, &s); // kappa_n * (E_{n+1}/D_{n+1}) with the wall ratio 1
     for i in (0..n).rev() {
         e[i] = s2.scale(m[i]) + s.scale(d[i]) + T::from_f64(g[i]) + tail;
-        let kap = k[i]; // spring to the left of mass i+1
-        tail = e[i].clone().scale(kap) / (e[i].clone() + T::from_f64(kap));
+        // spring (and its damper) to the left of mass i+1
+        tail = if c.c[i] == 0.0 {
+            let kap = k[i];
+            e[i].clone().scale(kap) / (e[i].clone() + T::from_f64(kap))
+        } else {
+            let kap = kappa(&c, i, &s);
+            e[i].clone() * kap.clone() / (e[i].clone() + kap)
+        };
     }
     let mut x = Vec::with_capacity(n);
-    let mut xi = T::from_f64(chain.gamma()) / (e[0].clone() + T::from_f64(k[0]));
+    let mut xi = T::from_f64(chain.gamma()) / (e[0].clone() + kappa(&c, 0, &s));
     x.push(xi.clone());
     for i in 1..n {
-        xi = xi.scale(k[i]) / (e[i].clone() + T::from_f64(k[i]));
+        xi = if c.c[i] == 0.0 {
+            xi.scale(k[i]) / (e[i].clone() + T::from_f64(k[i]))
+        } else {
+            let kap = kappa(&c, i, &s);
+            xi * kap.clone() / (e[i].clone() + kap)
+        };
         x.push(xi.clone());
     }
     if x.iter().any(|v| !v.is_finite()) {
@@ -132,6 +149,15 @@ fn solve_all_real<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
         });
     }
     Ok(x)
+}
+
+/// `kappa_i(s) = k_i + c_i s`, spring `i` and the damper beside it.
+fn kappa<T: Scalar>(c: &crate::chain::Coefficients, i: usize, s: &T) -> T {
+    if c.c[i] == 0.0 {
+        T::from_f64(c.k[i])
+    } else {
+        T::from_f64(c.k[i]) + s.scale(c.c[i])
+    }
 }
 
 /// `X_observe(s)` by the O(n) solver (1-based `observe`).
@@ -198,5 +224,41 @@ mod tests {
         let c = Chain::new(1).unwrap();
         let r = solve(&c, Complex64::new(0.0, 2f64.sqrt()), 1);
         assert!(r.is_err() || r.unwrap().norm() > 1e14);
+    }
+}
+
+#[cfg(test)]
+mod damping_tests {
+    use super::*;
+    use crate::chain::dense_ref;
+    use num_complex::Complex64;
+
+    #[test]
+    fn every_damping_model_matches_the_dense_solve() {
+        for chain in dense_ref::model_chains() {
+            for s in [
+                Complex64::new(0.3, 0.0),
+                Complex64::new(2.5, 0.0),
+                Complex64::new(0.2, 1.3),
+                Complex64::new(0.05, 4.0),
+            ] {
+                let x = solve_all(&chain, s).unwrap();
+                let scale = x.iter().map(|z| z.norm()).fold(0.0, f64::max);
+                for (i, xi) in x.iter().enumerate() {
+                    let want = dense_ref::solve(&chain, s, i + 1);
+                    assert!(
+                        (xi - want).norm() <= 1e-12 * scale,
+                        "{} s={s} i={i}",
+                        chain.damping()
+                    );
+                }
+                if s.im == 0.0 {
+                    let xr = solve_all(&chain, s.re).unwrap();
+                    for (a, b) in xr.iter().zip(&x) {
+                        assert!((a - b.re).abs() <= 1e-12 * scale);
+                    }
+                }
+            }
+        }
     }
 }

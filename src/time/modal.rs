@@ -512,9 +512,12 @@ impl ModalResponse {
 
 #[derive(Clone, Debug)]
 enum Inner {
-    /// alpha = d_i / m_i; q: None for the closed form, else column k = mode k
+    /// alpha = d_i / m_i (beside beta g_i), beta = c_j / k_j (mode k's
+    /// damping alpha + beta omega_k^2); q: None for the closed form, else
+    /// column k = mode k
     Prop {
         alpha: f64,
+        beta: f64,
         omega2: Vec<f64>,
         q: Option<DMatrix<f64>>,
     },
@@ -529,6 +532,8 @@ enum Inner {
         k: Vec<f64>,
         d: Vec<f64>,
         g: Vec<f64>,
+        /// spring-parallel dampers
+        c: Vec<f64>,
     },
 }
 
@@ -551,7 +556,7 @@ impl Modes {
     /// A chain too large for the path it needs ([`MAX_N_SYMMETRIC`],
     /// [`MAX_N_QUADRATIC`]), or an eigenvalue solver that does not converge.
     pub fn new(chain: &Chain) -> Result<Modes> {
-        if proportional_alpha(chain).is_some() {
+        if proportional_damping(chain).is_some() {
             Modes::proportional(chain)
         } else {
             Modes::quadratic(chain)
@@ -565,11 +570,11 @@ impl Modes {
     /// non-uniform chain.
     pub fn proportional(chain: &Chain) -> Result<Modes> {
         let n = chain.n();
-        let alpha = proportional_alpha(chain).ok_or_else(|| {
+        let (alpha, beta) = proportional_damping(chain).ok_or_else(|| {
             Error::invalid(
                 "chain",
-                "damping not proportional to mass",
-                "d_i / m_i equal for all masses (use the quadratic path)",
+                "damping not proportional",
+                "C = alpha M + beta K (use the quadratic path)",
             )
         })?;
         let masses = chain.masses();
@@ -594,6 +599,7 @@ impl Modes {
                 path: ModalPath::ClosedForm,
                 inner: Inner::Prop {
                     alpha,
+                    beta,
                     omega2,
                     q: None,
                 },
@@ -612,6 +618,7 @@ impl Modes {
             path: ModalPath::Proportional,
             inner: Inner::Prop {
                 alpha,
+                beta,
                 omega2: eig.eigenvalues.iter().copied().collect(),
                 q: Some(eig.eigenvectors),
             },
@@ -638,11 +645,13 @@ impl Modes {
         let k = chain.springs();
         let d = chain.dampers();
         let g = chain.grounds();
+        let c = chain.spring_dampers();
         let qep = Qep {
             m: &m,
             k: &k,
             d: &d,
             g: &g,
+            c: &c,
         };
         let ev = schur_poles(chain, &qep)?;
         // near-double pole pairs: one second-order term each, fitted per
@@ -677,6 +686,7 @@ impl Modes {
                 k,
                 d,
                 g,
+                c,
             },
         })
     }
@@ -704,11 +714,20 @@ impl Modes {
         let mut terms = Vec::new();
         let mut pole_err = 0.0;
         match &self.inner {
-            Inner::Prop { alpha, omega2, q } => {
+            Inner::Prop {
+                alpha,
+                beta,
+                omega2,
+                q,
+            } => {
                 let n = self.n;
                 let scale = amp / (self.masses[i0] * self.masses[j0]).sqrt();
-                let a = 0.5 * alpha;
                 for (kk, &w) in omega2.iter().enumerate() {
+                    let a = if *beta == 0.0 {
+                        0.5 * alpha
+                    } else {
+                        0.5 * (alpha + beta * w.max(0.0))
+                    };
                     let (qi, qj) = match q {
                         Some(q) => (q[(i0, kk)], q[(j0, kk)]),
                         None => (
@@ -736,6 +755,7 @@ impl Modes {
                 k,
                 d,
                 g,
+                c,
             } => {
                 for (((p, v), nu), cond) in poles.iter().zip(vecs).zip(norms).zip(conds) {
                     let r = v[i0] * v[j0] * amp / nu;
@@ -753,6 +773,7 @@ impl Modes {
                         k,
                         d,
                         g,
+                        c,
                     };
                     terms.extend(fit_clusters(&qep, clusters, &terms, i0, j0, amp)?);
                 }
@@ -818,6 +839,28 @@ impl Modes {
         u: &[(usize, f64)],
         power: u32,
     ) -> Result<Option<DoublePoleSum>> {
+        if power > 2 {
+            return Err(Error::invalid("power", power, "0, 1 or 2"));
+        }
+        let mut poly = [0.0; 3];
+        poly[power as usize] = 1.0;
+        self.value_derivative_poly(i, j, amp, u, poly)
+    }
+
+    /// [`Modes::value_derivative`] for `dK(s)/dtheta = p(s) u u^T` with the
+    /// polynomial `p(s) = poly[0] + poly[1] s + poly[2] s^2` (a defect's
+    /// [`crate::chain::Site`] in a damping model that adds terms).
+    ///
+    /// # Errors
+    /// As [`Modes::value_derivative`].
+    pub fn value_derivative_poly(
+        &self,
+        i: usize,
+        j: usize,
+        amp: f64,
+        u: &[(usize, f64)],
+        poly: [f64; 3],
+    ) -> Result<Option<DoublePoleSum>> {
         for (field, v) in [("observe", i), ("excite", j)] {
             if v < 1 || v > self.n {
                 return Err(Error::invalid(
@@ -829,9 +872,6 @@ impl Modes {
         }
         if let Some(&(at, _)) = u.iter().find(|(at, _)| *at < 1 || *at > self.n) {
             return Err(Error::invalid("u", at, format!("masses in 1..={}", self.n)));
-        }
-        if power > 2 {
-            return Err(Error::invalid("power", power, "0, 1 or 2"));
         }
         let Inner::Quad {
             poles,
@@ -871,12 +911,8 @@ impl Modes {
                     hb += bl * inv;
                 }
             }
-            let f = p.powu(power);
-            let df = if power == 0 {
-                Complex64::new(0.0, 0.0)
-            } else {
-                p.powu(power - 1) * power as f64
-            };
+            let f = p * p * poly[2] + p * poly[1] + poly[0];
+            let df = p * (2.0 * poly[2]) + poly[1];
             let ab = a * b;
             terms.push(DoubleTerm {
                 p,
@@ -1009,18 +1045,21 @@ impl DoublePoleSum {
 /// The Schur iteration does not converge, or the poles are not `2n` in
 /// conjugate pairs.
 fn schur_poles(chain: &Chain, qep: &Qep) -> Result<Vec<Complex64>> {
-    let (m, k, d, g) = (qep.m, qep.k, qep.d, qep.g);
+    let (m, k, d, g, cd) = (qep.m, qep.k, qep.d, qep.g, qep.c);
     let n = m.len();
     let n2 = 2 * n;
     let mut l = DMatrix::zeros(n2, n2);
     for i in 0..n {
         l[(i, n + i)] = 1.0;
         l[(n + i, i)] = -(g[i] + k[i] + k[i + 1]) / m[i];
-        l[(n + i, n + i)] = -d[i] / m[i];
+        l[(n + i, n + i)] = -(d[i] + cd[i] + cd[i + 1]) / m[i];
         if i + 1 < n {
-            let c = k[i + 1] / (m[i] * m[i + 1]).sqrt();
+            let root = (m[i] * m[i + 1]).sqrt();
+            let c = k[i + 1] / root;
             l[(n + i, i + 1)] = c;
             l[(n + i + 1, i)] = c;
+            l[(n + i, n + i + 1)] = cd[i + 1] / root;
+            l[(n + i + 1, n + i)] = cd[i + 1] / root;
         }
     }
     let fail = |reason: String| Error::Numerical {
@@ -1127,7 +1166,8 @@ fn simple_modes(chain: &Chain, qep: &Qep, ev: &[Complex64], used: &[bool]) -> Si
         }
         let nu: Complex64 = (0..n)
             .map(|i| (p * (2.0 * m[i]) + d[i]) * v[i] * v[i])
-            .sum();
+            .sum::<Complex64>()
+            + qep.spring_form(&v, qep.c);
         poles.push(p);
         vecs.push(v);
         norms.push(nu);
@@ -1356,19 +1396,27 @@ pub fn natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
     let dampers = chain.dampers();
     let springs = chain.springs();
     let grounds = chain.grounds();
+    let cdamp = chain.spring_dampers();
     let ends = (chain.left(), chain.right());
     let (lo, hi) = chain.spring_range();
+    let (d_u, c_u) = chain.uniform_damping();
     let uniform = masses.iter().all(|&m| m == chain.mass())
         && grounds.iter().all(|&g| g == 0.0)
-        && (lo..=hi).all(|j| springs[j] == chain.k())
-        && dampers.iter().all(|&d| d == chain.d());
-    // (omega^2, sum_i (d_i/m_i) q_i^2)
+        && (lo..=hi).all(|j| springs[j] == chain.k() && cdamp[j] == c_u)
+        && dampers.iter().all(|&d| d == d_u);
+    // (omega^2, sum_i (d_i/m_i) q_i^2 + the spring dampers' form)
     let mut raw: Vec<(f64, f64)> = if uniform {
-        let (k, m, alpha) = (chain.k(), chain.mass(), chain.d() / chain.mass());
+        let (k, m, alpha) = (chain.k(), chain.mass(), d_u / chain.mass());
         (1..=n)
             .map(|j| {
                 let s = (0.5 * closed_theta(ends, n, j)).sin();
-                (4.0 * k / m * s * s, alpha)
+                let w2 = 4.0 * k / m * s * s;
+                let damp = if c_u == 0.0 {
+                    alpha
+                } else {
+                    alpha + c_u / k * w2
+                };
+                (w2, damp)
             })
             .collect()
     } else {
@@ -1382,7 +1430,19 @@ pub fn natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
             .map(|c| {
                 let q = eig.eigenvectors.column(c);
                 let damp: f64 = (0..n).map(|i| dampers[i] / masses[i] * q[i] * q[i]).sum();
-                (eig.eigenvalues[c], damp)
+                // sum_j c_j (x_j - x_{j+1})^2 with x = M^{-1/2} q
+                let x = |i: usize| {
+                    if i == 0 || i > n {
+                        0.0
+                    } else {
+                        q[i - 1] / masses[i - 1].sqrt()
+                    }
+                };
+                let between: f64 = (0..=n)
+                    .filter(|&j| cdamp[j] != 0.0)
+                    .map(|j| cdamp[j] * (x(j) - x(j + 1)).powi(2))
+                    .sum();
+                (eig.eigenvalues[c], damp + between)
             })
             .collect()
     };
@@ -1400,6 +1460,30 @@ pub fn natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
             }
         })
         .collect())
+}
+
+/// `Some((alpha, beta))` when `C = alpha M + beta K`: `beta = c_j / k_j`
+/// for every spring that exists and `d_i = alpha m_i + beta g_i` for every
+/// mass (to 4 ulps); `beta = 0` without spring-parallel dampers (then as
+/// [`proportional_alpha`]).
+pub fn proportional_damping(chain: &Chain) -> Option<(f64, f64)> {
+    let c = chain.coefficients();
+    if !c.has_spring_dampers() {
+        return proportional_alpha(chain).map(|a| (a, 0.0));
+    }
+    let (lo, hi) = chain.spring_range();
+    let beta = c.c[lo] / c.k[lo];
+    let close = |x: f64, y: f64| (x - y).abs() <= 8.0 * f64::EPSILON * x.abs().max(y.abs());
+    if !(lo..=hi).all(|j| close(c.c[j], beta * c.k[j])) {
+        return None;
+    }
+    let alpha = (c.d[0] - beta * c.g[0]) / c.m[0];
+    (0..c.m.len())
+        .all(|i| {
+            let r = c.d[i] - beta * c.g[i] - alpha * c.m[i];
+            r.abs() <= 8.0 * f64::EPSILON * c.d[i].abs().max(alpha * c.m[i])
+        })
+        .then_some((alpha, beta))
 }
 
 /// `Some(alpha)` when `d_i / m_i = alpha` for every mass (to 4 ulps).
@@ -1420,6 +1504,8 @@ struct Qep<'a> {
     d: &'a [f64],
     /// Ground stiffness per mass.
     g: &'a [f64],
+    /// Dampers parallel to the springs (`n + 1`, beside `k`).
+    c: &'a [f64],
 }
 
 impl Qep<'_> {
@@ -1427,15 +1513,37 @@ impl Qep<'_> {
         self.m.len()
     }
 
+    /// `v^T Lap(w) v = sum_j w_j (v_j - v_{j+1})^2` (`v_0 = v_{n+1} = 0`;
+    /// unconjugated), for spring-parallel coefficients `w` (`n + 1`).
+    fn spring_form(&self, v: &[Complex64], w: &[f64]) -> Complex64 {
+        let n = self.n();
+        let at = |i: usize| {
+            if i == 0 || i > n {
+                Complex64::new(0.0, 0.0)
+            } else {
+                v[i - 1]
+            }
+        };
+        (0..=n)
+            .filter(|&j| w[j] != 0.0)
+            .map(|j| (at(j) - at(j + 1)) * (at(j) - at(j + 1)) * w[j])
+            .sum()
+    }
+
     /// Solve `K(p) w = b` (pivoted; zero pivots are nudged, as inverse
     /// iteration wants a large solution there).
     fn solve(&self, p: Complex64, b: &[Complex64]) -> Vec<Complex64> {
         let n = self.n();
+        let cd = self.c;
         let mut dg: Vec<Complex64> = (0..n)
-            .map(|i| p * p * self.m[i] + p * self.d[i] + (self.g[i] + self.k[i] + self.k[i + 1]))
+            .map(|i| {
+                p * p * self.m[i]
+                    + p * (self.d[i] + cd[i] + cd[i + 1])
+                    + (self.g[i] + self.k[i] + self.k[i + 1])
+            })
             .collect();
         let mut dl: Vec<Complex64> = (0..n.saturating_sub(1))
-            .map(|i| Complex64::new(-self.k[i + 1], 0.0))
+            .map(|i| -(p * cd[i + 1]) - self.k[i + 1])
             .collect();
         let mut du = dl.clone();
         let mut x = b.to_vec();
@@ -1491,9 +1599,15 @@ impl Qep<'_> {
         let (mut log, mut sign) = (0.0_f64, 1.0_f64);
         let mut prev = 0.0_f64;
         for i in 0..n {
-            let mut r = self.m[i] * s * s + self.d[i] * s + self.g[i] + self.k[i] + self.k[i + 1];
+            let cd = self.c;
+            let mut r = self.m[i] * s * s
+                + (self.d[i] + cd[i] + cd[i + 1]) * s
+                + self.g[i]
+                + self.k[i]
+                + self.k[i + 1];
             if i > 0 {
-                r -= self.k[i] * self.k[i] / prev;
+                let kap = self.k[i] + cd[i] * s;
+                r -= kap * kap / prev;
             }
             if r == 0.0 {
                 r = f64::EPSILON * (self.k[i] + self.k[i + 1]);
@@ -1575,6 +1689,9 @@ impl Qep<'_> {
                 if i + 1 < n {
                     c -= v[i] * v[i + 1] * (2.0 * self.k[i + 1]);
                 }
+            }
+            if self.c.iter().any(|&x| x != 0.0) {
+                b += self.spring_form(&v, self.c);
             }
             let disc = (b * b - a * c * 4.0).sqrt();
             let qq = if (b.conj() * disc).re >= 0.0 {
@@ -2038,6 +2155,110 @@ mod scan_near_critical {
                 "d = {d}: {e:e} {:?}",
                 r.terms()
             );
+        }
+    }
+}
+
+#[cfg(test)]
+mod damping_tests {
+    use super::*;
+    use crate::chain::{dense_ref, Damping};
+
+    fn check(chain: &Chain) {
+        let (dt, samples) = (0.25, 400);
+        let ts: Vec<f64> = (0..samples).map(|i| i as f64 * dt).collect();
+        for o in [1, chain.n()] {
+            let want = dense_ref::impulse(chain, o, dt, samples);
+            let got = ModalResponse::impulse(chain, o).unwrap().eval_many(&ts);
+            let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+                assert!(
+                    (g - w).abs() <= 1e-10 * scale,
+                    "{} o={o} t={}: {g} vs {w}",
+                    chain.damping(),
+                    ts[i]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn every_damping_model_matches_the_matrix_exponential() {
+        for chain in dense_ref::model_chains() {
+            check(&chain);
+        }
+        // Rayleigh without damper defects is proportional: the symmetric path
+        let r = crate::scenes::paper_with(9, "mass:3:2 spring:6:0.5 ground:2:0.3")
+            .unwrap()
+            .with_d(0.0)
+            .unwrap()
+            .with_damping(Damping::Rayleigh { a: 0.02, b: 0.04 })
+            .unwrap();
+        assert_eq!(Modes::new(&r).unwrap().path(), ModalPath::Proportional);
+        check(&r);
+        let u = Chain::paper(7)
+            .unwrap()
+            .with_d(0.0)
+            .unwrap()
+            .with_damping(Damping::Between { c: 0.1 })
+            .unwrap();
+        assert_eq!(Modes::new(&u).unwrap().path(), ModalPath::ClosedForm);
+        check(&u);
+        // a spring defect under between-storey damping is not proportional
+        let q = u
+            .with_defect(crate::Defect::Spring { at: 3, k: 2.0 })
+            .unwrap();
+        assert_eq!(Modes::new(&q).unwrap().path(), ModalPath::Quadratic);
+        check(&q);
+    }
+
+    #[test]
+    fn value_derivative_poly_matches_a_difference() {
+        for chain in dense_ref::model_chains().into_iter().skip(1).take(2) {
+            let modes = Modes::new(&chain).unwrap();
+            let n = chain.n();
+            for (i, d) in chain.defects().iter().enumerate() {
+                let site = chain.site(d);
+                let u: Vec<(usize, f64)> = site.probe.entries(n).collect();
+                let Some(der) = modes
+                    .value_derivative_poly(1, 1, 1.0, &u, site.poly)
+                    .unwrap()
+                else {
+                    continue;
+                };
+                let p = crate::sensitivity::Param::Defect(i);
+                let v = d.value();
+                let h = 1e-6 * v.max(0.1);
+                let x = |v: f64| {
+                    ModalResponse::impulse(&p.set(&chain, v).unwrap(), 1)
+                        .unwrap()
+                        .eval(6.0)
+                };
+                let fd = (x(v + h) - x(v - h)) / (2.0 * h);
+                assert!((der.eval(6.0) - fd).abs() < 1e-6, "{} {d}", chain.damping());
+            }
+        }
+    }
+
+    #[test]
+    fn natural_modes_damping_ratios_of_rayleigh() {
+        let (a, b) = (0.02, 0.04);
+        let r = Chain::paper(6)
+            .unwrap()
+            .with_d(0.0)
+            .unwrap()
+            .with_damping(Damping::Rayleigh { a, b })
+            .unwrap();
+        for m in natural_modes(&r).unwrap() {
+            let want = a / (2.0 * m.omega) + b * m.omega / 2.0;
+            assert!((m.zeta.unwrap() - want).abs() < 1e-12);
+        }
+        let s = r
+            .with_defect(crate::Defect::Mass { at: 2, m: 3.0 })
+            .unwrap();
+        for m in natural_modes(&s).unwrap() {
+            let want = a / (2.0 * m.omega) + b * m.omega / 2.0;
+            assert!((m.zeta.unwrap() - want).abs() < 1e-12);
         }
     }
 }

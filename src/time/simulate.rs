@@ -584,6 +584,11 @@ struct System<'a> {
     inv_m: Vec<f64>,
     /// per mass: [k_i, -(k_i + k_{i+1} + g_i), k_{i+1}, -d_i] / m_i
     rows: Vec<[f64; 4]>,
+    /// the rows of `M^-1 D`'s off-diagonal (spring-parallel dampers):
+    /// `[left, right]` per mass; empty without them
+    vrows: Vec<[f64; 2]>,
+    /// spring-parallel dampers (`n + 1`)
+    c: Vec<f64>,
     k: Vec<f64>,
     /// Ground stiffness per mass.
     g: Vec<f64>,
@@ -618,7 +623,16 @@ impl<'a> System<'a> {
         let springs = chain.springs();
         let dampers = chain.dampers();
         let grounds = chain.grounds();
+        let c = chain.spring_dampers();
+        let general = c.iter().any(|&v| v != 0.0);
         System {
+            vrows: if general {
+                (0..chain.n())
+                    .map(|i| [c[i] / m[i], c[i + 1] / m[i]])
+                    .collect()
+            } else {
+                Vec::new()
+            },
             n: chain.n(),
             v0: chain.gamma() / m[0],
             inv_m: m.iter().map(|v| 1.0 / v).collect(),
@@ -629,10 +643,11 @@ impl<'a> System<'a> {
                         k[i] / m[i],
                         -(k[i] + k[i + 1] + grounds[i]) / m[i],
                         k[i + 1] / m[i],
-                        -d[i] / m[i],
+                        -(d[i] + c[i] + c[i + 1]) / m[i],
                     ]
                 })
                 .collect(),
+            c: c.clone(),
             m,
             k: springs.clone(),
             g: grounds.clone(),
@@ -723,11 +738,22 @@ impl<'a> System<'a> {
             let [lo, dg, up, dd] = *ri;
             *o = alpha * (lo * w[0] + dg * w[1] + up * w[2] + dd * vi);
         }
+        // spring-parallel dampers: the off-diagonal of M^-1 D
+        for (i, [cl, cr]) in self.vrows.iter().enumerate() {
+            let vl = if i > 0 { v[i - 1] } else { 0.0 };
+            let vr = if i + 1 < n { v[i + 1] } else { 0.0 };
+            ov[i] += alpha * (cl * vl + cr * vr);
+        }
     }
 
     fn norm_a(&self) -> f64 {
         (0..self.n)
-            .map(|i| (2.0 * (self.k[i] + self.k[i + 1]) + self.g[i] + self.d[i]) / self.m[i])
+            .map(|i| {
+                (2.0 * (self.k[i] + self.k[i + 1] + self.c[i] + self.c[i + 1])
+                    + self.g[i]
+                    + self.d[i])
+                    / self.m[i]
+            })
             .fold(1.0, f64::max)
     }
 
@@ -737,12 +763,14 @@ impl<'a> System<'a> {
         for i in 0..n {
             a[(i, n + i)] = 1.0;
             a[(n + i, i)] = -(self.k[i] + self.k[i + 1] + self.g[i]) / self.m[i];
-            a[(n + i, n + i)] = -self.d[i] / self.m[i];
+            a[(n + i, n + i)] = self.rows[i][3];
             if i > 0 {
                 a[(n + i, i - 1)] = self.k[i] / self.m[i];
+                a[(n + i, n + i - 1)] = self.c[i] / self.m[i];
             }
             if i + 1 < n {
                 a[(n + i, i + 1)] = self.k[i + 1] / self.m[i];
+                a[(n + i, n + i + 1)] = self.c[i + 1] / self.m[i];
             }
         }
         a
@@ -917,9 +945,47 @@ impl<'a> System<'a> {
                     } else {
                         0.0
                     };
-                    lo * xl + dg * y[r] + up * xr + dd * y[n + r] + f * self.inv_m[r]
+                    let between = match self.vrows.get(r) {
+                        Some([cl, cr]) => {
+                            let vl = if r > 0 { y[n + r - 1] } else { 0.0 };
+                            let vr = if r + 1 < n { y[n + r + 1] } else { 0.0 };
+                            cl * vl + cr * vr
+                        }
+                        None => 0.0,
+                    };
+                    lo * xl + dg * y[r] + up * xr + dd * y[n + r] + f * self.inv_m[r] + between
                 }
             };
+        }
+    }
+}
+
+#[cfg(test)]
+mod damping_tests {
+    use super::*;
+    use crate::chain::dense_ref;
+
+    #[test]
+    fn steppers_match_the_matrix_exponential_in_every_model() {
+        let (dt, samples) = (0.2, 301);
+        for chain in dense_ref::model_chains() {
+            for method in [Method::Expm, Method::Rk] {
+                let opts = SimOptions::new(dt * (samples - 1) as f64, dt)
+                    .with_observe(vec![1, 6])
+                    .with_method(method);
+                let run = simulate(&chain, &opts).unwrap();
+                for o in [1, 6] {
+                    let want = dense_ref::impulse(&chain, o, dt, samples);
+                    let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                    for (g, w) in run.x(o).unwrap().iter().zip(&want) {
+                        assert!(
+                            (g - w).abs() <= 1e-10 * scale,
+                            "{} {method}",
+                            chain.damping()
+                        );
+                    }
+                }
+            }
         }
     }
 }

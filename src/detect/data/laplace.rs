@@ -405,7 +405,7 @@ impl LaplaceObs {
         let n = chain.n();
         let mut sites = vec![1];
         for d in chain.defects() {
-            sites.extend(d.site().probe.entries(n).map(|(i, _)| i));
+            sites.extend(chain.site(d).probe.entries(n).map(|(i, _)| i));
         }
         sites.sort_unstable();
         sites.dedup();

@@ -99,6 +99,7 @@ impl Engine<'_> {
             noise_model: self.noise_model_report(sigma),
             whiteness_p: self.whiteness_p(f),
             nuisance: self.nuisance_estimates(best, sigma).unwrap_or_default(),
+            damping: None,
         })
     }
 

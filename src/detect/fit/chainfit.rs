@@ -148,6 +148,9 @@ pub fn default_bounds(chain: &Chain, params: &[Param]) -> Vec<(f64, f64)> {
         .iter()
         .map(|p| {
             let v = p.get(chain).unwrap_or(1.0);
+            if let Some(b) = crate::detect::fit::damping::bounds(chain, *p) {
+                return b;
+            }
             match p {
                 Param::D => (0.0, 100.0 * v.max(0.01)),
                 Param::Gamma => (-100.0 * v.abs().max(1e-300), 100.0 * v.abs().max(1e-300)),

@@ -65,6 +65,7 @@
 
 mod assemble;
 pub mod chainfit;
+pub mod damping;
 mod engine;
 pub mod general;
 pub mod greedy;
@@ -125,6 +126,26 @@ pub fn fit_profile(
 /// [`fit`] with unknowns and search details given by the caller (the scene
 /// path, [`paper::fit`]); the same pipeline.
 fn fit_with(
+    obs: &Observations,
+    model: &Model,
+    opts: &FitOptions,
+    given: Option<engine::Given>,
+) -> Result<FitReport> {
+    // the damping model: chosen among every model, or reported when not
+    // the paper's ([`damping`])
+    if model.chooses_damping() && given.is_none() {
+        return damping::fit_choosing(model, |m| fit_with(obs, m, opts, None));
+    }
+    if !model.chain().damping().is_grounded() {
+        let mut r = fit_with_model(obs, model, opts, given)?;
+        r.damping = Some(damping::DampingEstimate::of(&r, model));
+        return Ok(r);
+    }
+    fit_with_model(obs, model, opts, given)
+}
+
+/// [`fit_with`] for the model's damping model.
+fn fit_with_model(
     obs: &Observations,
     model: &Model,
     opts: &FitOptions,

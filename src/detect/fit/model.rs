@@ -1,7 +1,7 @@
 //! What a data-first fit knows of the chain ([`Model`]): its uniform
 //! parameters, ends and known defects, and which uniform parameters to fit.
 
-use crate::chain::{Boundary, Chain, Defect};
+use crate::chain::{Boundary, Chain, Damping, Defect};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 
@@ -10,6 +10,12 @@ use crate::sensitivity::Param;
 pub struct Model {
     chain: Chain,
     fit: Vec<Param>,
+    /// The chain parameters asked for (`D` standing for the damping model's
+    /// parameters), before [`Model::fitted`]'s expansion.
+    asked: Vec<Param>,
+    /// Fit every damping model and let the criterion choose (`--fit d`
+    /// without `--damping`: [`crate::detect::fit::damping`]).
+    choose_damping: bool,
 }
 
 impl Model {
@@ -22,6 +28,8 @@ impl Model {
         Ok(Model {
             chain: Chain::paper(n)?,
             fit: Vec::new(),
+            asked: Vec::new(),
+            choose_damping: false,
         })
     }
 
@@ -30,6 +38,8 @@ impl Model {
         Model {
             chain: chain.clone(),
             fit: Vec::new(),
+            asked: Vec::new(),
+            choose_damping: false,
         }
     }
 
@@ -94,8 +104,118 @@ impl Model {
     /// A defect parameter, a repeat, or all four (field `fit`).
     pub fn fitting(mut self, params: &[Param]) -> Result<Model> {
         crate::detect::unknowns::check_chain_params("fit", params)?;
-        self.fit = params.to_vec();
+        self.asked = params.to_vec();
+        self.fit = self.expanded();
         Ok(self)
+    }
+
+    /// The parameters asked for with `D` standing for the damping model's
+    /// own (`c` of `between`, `a` and `b` of `rayleigh`).
+    fn expanded(&self) -> Vec<Param> {
+        let own = Param::damping(&self.chain);
+        let mut out = Vec::with_capacity(self.asked.len() + 1);
+        for &p in &self.asked {
+            if p == Param::D && !own.is_empty() {
+                out.extend(own.iter().copied());
+            } else {
+                out.push(p);
+            }
+        }
+        out
+    }
+
+    /// The damping model (see [`Damping`]); with `D` fitted its parameters
+    /// are fitted instead of the grounded `d`, from these values.
+    ///
+    /// # Errors
+    /// As [`Chain::with_damping`].
+    pub fn with_damping(mut self, damping: Damping) -> Result<Model> {
+        self.chain = self.chain.with_damping(damping)?;
+        self.fit = self.expanded();
+        Ok(self)
+    }
+
+    /// The damping model from the text `MODEL[:P1[:P2]]`
+    /// ([`Damping::parse_spec`]), after [`Model::fitting`]: a parameter not
+    /// given starts from a value scaled from the chain when `d` is fitted
+    /// ([`crate::detect::fit::damping::start`]), else it is an error. The
+    /// grounded `d` of a `between` or `rayleigh` model is `d_extra` (0 when
+    /// not given).
+    ///
+    /// # Errors
+    /// As [`Damping::parse_spec`]; a parameter the model needs that is
+    /// neither given nor fitted (field `damping`, naming it).
+    pub fn with_damping_spec(self, text: &str, d_extra: Option<f64>) -> Result<Model> {
+        let (damping, missing) = Damping::parse_spec(text)?;
+        if !missing.is_empty() && !self.asked.contains(&Param::D) {
+            return Err(Error::invalid(
+                "damping",
+                text,
+                format!(
+                    "the {} model needs {} {}: give {} ({}) or fit {} (--fit d)",
+                    damping.name(),
+                    if missing.len() > 1 {
+                        "its parameters"
+                    } else {
+                        "its parameter"
+                    },
+                    missing.join(" and "),
+                    if missing.len() > 1 { "them" } else { "it" },
+                    match damping {
+                        Damping::Between { .. } => "between:C",
+                        _ => "rayleigh:A:B",
+                    },
+                    if missing.len() > 1 { "them" } else { "it" },
+                ),
+            ));
+        }
+        if damping.is_grounded() {
+            return Ok(self);
+        }
+        let start = crate::detect::fit::damping::start(&self.chain, damping.name())?;
+        let given = damping.params();
+        let values: Vec<f64> = start
+            .params()
+            .iter()
+            .zip(given.iter().map(Some).chain(std::iter::repeat(None)))
+            .map(|(s, g)| match g {
+                Some(g) if !missing.contains(&g.0) => g.1,
+                _ => s.1,
+            })
+            .collect();
+        let d = d_extra.unwrap_or(0.0);
+        let mut m = self.with_d(d)?;
+        m = m.with_damping(start.with_params(&values))?;
+        Ok(m)
+    }
+
+    /// Fit every damping model (grounded, between, Rayleigh) and report
+    /// the one the criterion prefers ([`crate::detect::fit::damping`]);
+    /// meaningful with `D` fitted.
+    pub fn choosing_damping(mut self) -> Model {
+        self.choose_damping = self.asked.contains(&Param::D);
+        self
+    }
+
+    /// Whether the fit chooses the damping model.
+    pub fn chooses_damping(&self) -> bool {
+        self.choose_damping
+    }
+
+    /// The same model with the damping model `name` at starting values
+    /// scaled from the chain, fitted in place of `d` (one candidate of
+    /// [`Model::chooses_damping`]; `grounded` is the model itself).
+    ///
+    /// # Errors
+    /// An unknown name (field `damping`).
+    pub fn candidate(&self, name: &str) -> Result<Model> {
+        let mut m = self.clone();
+        m.choose_damping = false;
+        if name == "grounded" {
+            return Ok(m);
+        }
+        let start = crate::detect::fit::damping::start(&self.chain, name)?;
+        m.with_d(0.0)?.with_damping(start)
     }
 
     /// The chain (uniform parameters and known defects).

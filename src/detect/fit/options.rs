@@ -356,6 +356,12 @@ pub struct FitSpec {
     pub noise_model: Option<String>,
     /// The sensor's nuisances: `auto`, `none`, `offset`, `offset+drift` [default auto].
     pub nuisance: Option<String>,
+    /// Damping model `MODEL[:P1[:P2]]`: `grounded` (the chain's `d`),
+    /// `between[:c]`, `rayleigh[:a:b]`; parameters not given are fitted
+    /// with `fit = d` (an error otherwise). Default: grounded, or with
+    /// `fit = d` every model, the criterion choosing
+    /// ([`crate::detect::fit::damping`]).
+    pub damping: Option<String>,
 }
 
 impl FitSpec {
@@ -475,6 +481,10 @@ impl FitSpec {
         if let Some(f) = &self.fit {
             model = model.fitting(&parse_params(f)?)?;
         }
+        model = match &self.damping {
+            Some(text) => model.with_damping_spec(text, self.d)?,
+            None => model.choosing_damping(),
+        };
         Ok(model)
     }
 

@@ -239,6 +239,10 @@ pub struct FitReport {
     /// none fitted).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub nuisance: Vec<crate::detect::fit::record::NuisanceEstimate>,
+    /// The damping model with its parameters and standard errors (absent
+    /// for the grounded model chosen by the user, the paper's).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub damping: Option<crate::detect::fit::damping::DampingEstimate>,
 }
 
 /// One natural mode of the fitted chain
@@ -322,6 +326,9 @@ impl FitReport {
             out.push_str(&format!("visibility: {}\n", v.line()));
         }
         self.record_lines(&mut out);
+        if let Some(d) = &self.damping {
+            out.push_str(&format!("{}\n", d.line()));
+        }
         if self.k_selection.len() > 1 {
             out.push_str(&format!("number of defects by {}:\n", self.criterion));
             for r in &self.k_selection {

@@ -179,7 +179,11 @@ impl<'a> SetTables<'a> {
                     a[l * k + m] = v;
                     a[m * k + l] = v;
                 }
-                pw[l] = self.powers[sites[l].power as usize * nq + q];
+                pw[l] = if sites[l].is_monomial() {
+                    self.powers[sites[l].power as usize * nq + q]
+                } else {
+                    sites[l].poly_at(&self.obs.nodes()[q])
+                };
             }
             self.subset_minors(q, &a[..k * k], &pw[..k], &data, &mut num, &mut den);
         }
@@ -572,7 +576,7 @@ mod tests {
     fn check(truth: &Chain, base: &Chain, sets: &[Vec<Defect>], obs: &LaplaceObs) {
         // with the table of every pair and with pairs formed per set
         for uses in [0, usize::MAX] {
-            let probes = sets.iter().flatten().map(|d| d.site().probe);
+            let probes = sets.iter().flatten().map(|d| base.site(d).probe);
             let tables = SetTables::new(obs, base, probes, uses).expect("applies");
             assert_eq!(tables.pairs.is_some(), uses > 0);
             check_sets(truth, base, sets, obs, &tables);
@@ -587,7 +591,7 @@ mod tests {
         tables: &SetTables<'_>,
     ) {
         for defects in sets {
-            let sites: Vec<Site> = defects.iter().map(|d| d.site()).collect();
+            let sites: Vec<Site> = defects.iter().map(|d| base.site(d)).collect();
             let uniform: Vec<f64> = defects.iter().map(|d| d.uniform_value(base)).collect();
             let fixed = vec![None; defects.len()];
             let model = tables.set(&sites, &uniform, &fixed).expect("a model");
@@ -686,6 +690,35 @@ mod tests {
             crate::scenes::defects("damper:7:2.0 mass:4:3.0").unwrap(),
         ];
         check(&truth2, &other, &sets2, &obs2);
+    }
+
+    #[test]
+    fn equals_the_general_path_in_every_damping_model() {
+        use crate::chain::Damping;
+        for damping in [
+            Damping::Between { c: 0.08 },
+            Damping::Rayleigh { a: 0.03, b: 0.05 },
+        ] {
+            let base = Chain::paper(8)
+                .unwrap()
+                .with_d(0.0)
+                .unwrap()
+                .with_damping(damping)
+                .unwrap();
+            let truth = base
+                .clone()
+                .with_defects(crate::scenes::defects("mass:3:2.5 spring:6:0.6").unwrap())
+                .unwrap();
+            let sets = vec![
+                crate::scenes::defects("mass:3:2.0 mass:7:0.5").unwrap(),
+                crate::scenes::defects("spring:0:1.7 mass:5:4.0").unwrap(),
+                crate::scenes::defects("damper:2:0.3 spring:2:1.3").unwrap(),
+                crate::scenes::defects("ground:8:0.3 mass:1:0.2").unwrap(),
+            ];
+            for whitened in [true, false] {
+                check(&truth, &base, &sets, &observations(&truth, whitened));
+            }
+        }
     }
 
     #[test]

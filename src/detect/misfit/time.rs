@@ -53,6 +53,7 @@ thread_local! {
 fn simulated(chain: &Chain) -> bool {
     chain.n() >= STEP_MIN_N
         && chain.gamma() != 0.0
+        && chain.damping().is_grounded()
         && !LAST_MODES.with(|c| c.borrow().as_ref().is_some_and(|(k, _)| k == chain))
 }
 
@@ -262,10 +263,9 @@ impl TimeMisfit {
                             format!("an index below {}", chain.defects().len()),
                         )
                     })?;
-                    let site = d.site();
-                    let (u, power): (Vec<(usize, f64)>, u32) =
-                        (site.probe.entries(n).collect(), site.power);
-                    match modes.value_derivative(1, 1, gamma, &u, power)? {
+                    let site = chain.site(d);
+                    let u: Vec<(usize, f64)> = site.probe.entries(n).collect();
+                    match modes.value_derivative_poly(1, 1, gamma, &u, site.poly)? {
                         Some(d) => d.eval_many(t),
                         None => return Ok(None),
                     }

@@ -173,8 +173,11 @@ const THETA: f64 = 1.5;
 /// (1-based, increasing) at every internal step.
 ///
 /// # Errors
-/// A mass out of range (field `masses`); a non-finite state (field `chain`).
+/// A mass out of range (field `masses`); a non-finite state (field `chain`);
+/// a damping model other than grounded (field `damping`: the stepping and
+/// the sensitivities above assume diagonal `D`).
 pub fn simulate(chain: &Chain, grid: &TimeGrid, masses: &[usize]) -> Result<Run> {
+    require_grounded(chain)?;
     let n = chain.n();
     let steps = grid.steps();
     let mut slot = vec![None; n];
@@ -422,12 +425,28 @@ pub struct Screen {
     fft: Fft,
 }
 
+/// The screen's kernels take the grounded model only.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming `damping`.
+fn require_grounded(chain: &Chain) -> Result<()> {
+    if chain.damping().is_grounded() {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        "damping",
+        chain.damping().name(),
+        "grounded for the sparse time stepping and candidate screen (the modal path takes every model)",
+    ))
+}
+
 impl Screen {
     /// The screen of the record `(t, y)` for chains like `chain` (its
     /// frequencies set the internal grid); `None` when the record's times
-    /// are not a uniform grid from a multiple of its step ([`TimeGrid::new`]).
+    /// are not a uniform grid from a multiple of its step ([`TimeGrid::new`])
+    /// or the chain's damping model is not grounded.
     pub fn new(t: &[f64], y: &[f64], chain: &Chain) -> Option<Screen> {
-        if t.len() != y.len() {
+        if t.len() != y.len() || !chain.damping().is_grounded() {
             return None;
         }
         let grid = TimeGrid::new(t, chain)?;

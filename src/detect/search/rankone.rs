@@ -309,6 +309,7 @@ impl Sweep {
     /// # Errors
     /// [`Error::Singular`] at a node where the chain has a pole.
     pub fn new(chain: &Chain, s: &[C], kinds: &[DefectKind]) -> Result<Sweep> {
+        chain.require_grounded("the greedy search's rank-one scores")?;
         let profile = Profile::of_chain(chain);
         let (lo, hi) = chain.spring_range();
         let positions: Vec<Vec<usize>> = kinds
@@ -857,6 +858,7 @@ impl<'a> SetProblem<'a> {
     /// A position outside the kind's range (field `defects[i].at`); free
     /// indices that are not `0..p` (field `defects`).
     pub fn new(chain: &Chain, defects: &[SetDefect], target: &'a Target) -> Result<SetProblem<'a>> {
+        chain.require_grounded("the greedy search's rank-one set problems")?;
         let (probes, col, p) = probe_columns(chain, defects)?;
         let ncol = probes.len();
         let e1 = probes

@@ -529,6 +529,9 @@ fn measure<T: Scalar>(
     min_t: f64,
     make: impl Fn(f64) -> T,
 ) -> Result<Measured> {
+    chain.require_grounded(
+        "the transfer sweep's timing (its closed form is the grounded model's)",
+    )?;
     let pts: Vec<T> = ts.iter().map(|&t| make(t)).collect();
     for s in &pts {
         crate::forward::check_s(s)?;

@@ -173,6 +173,9 @@ pub fn param_name(p: &Param) -> &'static str {
         Param::K => "k",
         Param::Mass => "mass",
         Param::Defect(_) => "defect",
+        Param::C => "c",
+        Param::A => "a",
+        Param::B => "b",
     }
 }
 
@@ -182,7 +185,14 @@ pub(super) fn chain_param(name: &str) -> Result<Param> {
         "gamma" => Ok(Param::Gamma),
         "k" => Ok(Param::K),
         "mass" => Ok(Param::Mass),
-        _ => Err(Error::invalid("param", name, "d, gamma, k or mass")),
+        "c" => Ok(Param::C),
+        "a" => Ok(Param::A),
+        "b" => Ok(Param::B),
+        _ => Err(Error::invalid(
+            "param",
+            name,
+            "d, gamma, k, mass, c, a or b",
+        )),
     }
 }
 

@@ -463,7 +463,7 @@ fn coarse_pass<'h>(
     // parameters are held here): per-node Green's data shared by every set
     let probes = hyps
         .iter()
-        .flat_map(|h| h.iter().map(|&(kind, at)| kind.site(at).probe));
+        .flat_map(|h| h.iter().map(|&(kind, at)| kind.site_in(current, at).probe));
     let pair_uses = hyps
         .iter()
         .map(|h| h.len() * h.len().saturating_sub(1) / 2)

@@ -145,7 +145,7 @@ pub(super) fn fit_pairs_fast(
     let mut theta0 = Vec::new();
     let mut bounds = Vec::new();
     for (i, (&(kind, at), &v)) in pairs.iter().zip(values).enumerate() {
-        sites.push(kind.site(at));
+        sites.push(kind.site_in(base, at));
         uniform.push(kind.uniform(base));
         fixed.push(slots[i].known);
         if slots[i].known.is_none() {
