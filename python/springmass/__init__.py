@@ -576,6 +576,7 @@ def fit(
     nuisance: str = "auto",
     damping: Optional[str] = None,
     trigger: Any = "auto",
+    force_window: str = "auto",
 ) -> FitResult:
     """Fit defects to a measured series of mass 1's displacement.
 
@@ -661,6 +662,10 @@ def fit(
         quiet pre-trigger segment or a clock that does not start at the blow
         (``t`` may start below 0) and fits the time with its standard error
         (``FitResult.trigger``); a number gives it.
+    force_window : str, default "auto"
+        With ``force``: ``"auto"`` keeps the detected pulse and sets the
+        sensor's noise elsewhere to zero (a modal test's force window),
+        ``"none"`` keeps every sample, ``"T0:T1"`` the samples in that range.
 
     Returns
     -------
@@ -724,6 +729,7 @@ def fit(
         nuisance=_text("nuisance", nuisance),
         damping=None if damping is None else _text("damping", damping),
         trigger=_trigger(trigger),
+        force_window=_text("force_window", force_window),
     )
     return FitResult._from_core(raw)
 

@@ -54,6 +54,7 @@ def fit(
     nuisance: Optional[str] = None,
     damping: Optional[str] = None,
     trigger: Optional[str] = None,
+    force_window: Optional[str] = None,
 ) -> Dict[str, Any]:
     """The data-first fit: {"report": JSON text, "summary": str, "t", "observed", "model", "residual": ndarray}."""
 

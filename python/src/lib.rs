@@ -121,7 +121,7 @@ fn series_obs(
     force: Option<Vec<f64>>,
     sigma: Option<f64>,
 ) -> Result<Observations> {
-    let measurement = spec.measurement(force)?;
+    let measurement = spec.measurement_at(&t, force)?;
     Ok(Observations::Series(
         Series::on_axis(t, x, sigma)?.with_measurement(measurement)?,
     ))
@@ -135,7 +135,7 @@ fn series_obs(
 #[pyo3(signature = (t, x, *, n, d=None, gamma=None, fit=None, known=Vec::new(), defects=None,
     kinds=None, slot_kinds=Vec::new(), noise=None, misfit=None, method=None, criterion=None,
     seed=None, max_evals=None, k=None, mass=None, left=None, right=None, observe=None,
-    observe_kind=None, force=None, trigger=None, noise_model=None, nuisance=None, damping=None))]
+    observe_kind=None, force=None, trigger=None, noise_model=None, nuisance=None, damping=None, force_window=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit<'py>(
     py: Python<'py>,
@@ -166,6 +166,7 @@ fn fit<'py>(
     noise_model: Option<String>,
     nuisance: Option<String>,
     damping: Option<String>,
+    force_window: Option<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let spec = FitSpec {
         d,
@@ -191,6 +192,7 @@ fn fit<'py>(
         noise_model,
         nuisance,
         damping,
+        force_window,
         ..FitSpec::new(n)
     };
     let (t, x) = (values(&t), values(&x));

@@ -74,6 +74,11 @@ pub struct Args {
     /// the blow is fitted as it is].
     #[arg(long, requires = "data", allow_hyphen_values = true)]
     pub trigger: Option<String>,
+    /// The window of a measured force (--force-column, --force): auto (the
+    /// detected pulse; the sensor's noise elsewhere set to zero, as a modal
+    /// test does), none, or T0:T1 on the record's axis [default: auto].
+    #[arg(long, allow_hyphen_values = true)]
+    pub force_window: Option<String>,
     /// Noise model of the record (time misfit): auto (white unless the white
     /// fit's residual fails the Ljung-Box test and AR(p), p <= 8, wins by BIC),
     /// white, ar (order by BIC) or ar:P [default: auto].
@@ -313,6 +318,7 @@ fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
         seed: a.seed,
         max_evals: a.max_evals,
         trigger: a.trigger.clone(),
+        force_window: a.force_window.clone(),
         noise_model: a.noise_model.clone(),
         nuisance: a.nuisance.clone(),
         damping: a.damping.clone(),
@@ -378,7 +384,7 @@ fn read_observations(
     }
     let series = Series::from_table(&table, column.as_deref(), opts.noise.known())?;
     let measurement = if a.force.is_some() || a.force_column.is_some() {
-        spec.measurement(Some(read_force(a, &table)?))?
+        spec.measurement_at(table.t(), Some(read_force(a, &table)?))?
     } else {
         sensor_only
     };

@@ -92,6 +92,8 @@ pub struct Measurement {
     sensor: Sensor,
     /// Force on mass 1 at the record's times; `None`: the impulse.
     force: Option<Vec<f64>>,
+    /// The time range the force was windowed to, if it was.
+    window: Option<(f64, f64)>,
 }
 
 impl Measurement {
@@ -100,6 +102,7 @@ impl Measurement {
         Measurement {
             sensor: Sensor { at, kind },
             force: None,
+            window: None,
         }
     }
 
@@ -142,6 +145,18 @@ impl Measurement {
         Ok(self)
     }
 
+    /// Note the time range the force was windowed to
+    /// ([`crate::detect::data::force_window`]; shown by [`Measurement::describe`]).
+    pub fn with_force_window(mut self, window: Option<(f64, f64)>) -> Measurement {
+        self.window = window;
+        self
+    }
+
+    /// The time range the force was windowed to, if it was.
+    pub fn force_window(&self) -> Option<(f64, f64)> {
+        self.window
+    }
+
     /// The sensor.
     pub fn sensor(&self) -> Sensor {
         self.sensor
@@ -163,10 +178,11 @@ impl Measurement {
             "{} of mass {}, {}",
             self.sensor.kind.name(),
             self.sensor.at,
-            if self.force.is_some() {
-                "measured force on mass 1"
-            } else {
-                "impulse on mass 1"
+            match (&self.force, self.window) {
+                (Some(_), Some((a, b))) =>
+                    format!("measured force on mass 1, windowed to {a}..{b}"),
+                (Some(_), None) => "measured force on mass 1".to_string(),
+                (None, _) => "impulse on mass 1".to_string(),
             }
         )
     }

@@ -6,6 +6,7 @@
 //! | [`observations`] | the data-first entry: a sampled series (`t`, `x`, optional noise sigma) or Laplace values with errors |
 //! | [`series`] | a sampled series with its white-noise level ([`series::TimeData`]) |
 //! | [`laplace`] | Laplace-domain values at nodes, weighted or whitened ([`laplace::LaplaceObs`]) |
+//! | [`force_window`] | the force window of modal testing: a measured force zeroed outside its pulse |
 //! | [`exact`] | values of `X_1` at any node for the mass-only Woodbury kernel ([`exact::Data`]) |
 //! | [`trigger`] | when the blow came: the impulse's time on the record's axis, detected, and the record re-timed to it |
 //! | [`noise_model`] | the record's noise model: white or AR(p), its prediction-error whitening, Burg's estimate and the order by BIC |
@@ -13,6 +14,7 @@
 //! | [`whiten`] | whitening of the correlated Laplace-domain noise of a transformed series |
 
 pub mod exact;
+pub mod force_window;
 pub mod laplace;
 pub mod measurement;
 pub mod noise_model;

@@ -21,6 +21,7 @@
 //! | `fit` | comma-separated subset of `d,gamma,k,mass` | [`parse_params`] |
 //! | `known` | `kind:at:value` each | [`Defect::parse`] |
 //! | `trigger` | `auto` or the blow's time on the record's axis | [`TriggerSpec::parse`] |
+//! | `force_window` | `auto`, `none` or `T0:T1` | [`ForceWindow::parse`] |
 //! | `noise_model` | `auto`, `white`, `ar`, `ar:P` | [`NoiseModelChoice::parse`](super::record::NoiseModelChoice::parse) |
 //! | `nuisance` | `auto`, `none`, `offset`, `offset+drift` | [`NuisanceChoice::parse`](super::record::NuisanceChoice::parse) |
 //!
@@ -43,6 +44,7 @@
 use super::model::{parse_params, Model};
 use super::select::Criterion;
 use crate::chain::{Boundary, Defect};
+pub use crate::detect::data::force_window::ForceWindow;
 use crate::detect::data::measurement::{Measurement, Sensor};
 use crate::detect::data::observations::Observations;
 pub use crate::detect::data::trigger::TriggerSpec;
@@ -352,6 +354,9 @@ pub struct FitSpec {
     pub max_evals: Option<usize>,
     /// `auto` or the time of the blow on the record's axis [default auto].
     pub trigger: Option<String>,
+    /// The window of a measured force: `auto` (the detected pulse), `none`,
+    /// or `T0:T1` [default auto].
+    pub force_window: Option<String>,
     /// The record's noise model: `auto`, `white`, `ar`, `ar:P` [default auto].
     pub noise_model: Option<String>,
     /// The sensor's nuisances: `auto`, `none`, `offset`, `offset+drift` [default auto].
@@ -428,6 +433,7 @@ impl FitSpec {
         if let Some(t) = &self.trigger {
             opts.trigger = TriggerSpec::parse(t)?;
         }
+        self.force_window()?;
         if let Some(m) = &self.noise_model {
             opts.noise_model = super::record::NoiseModelChoice::parse(m)?;
         }
@@ -435,6 +441,30 @@ impl FitSpec {
             opts.nuisance = super::record::NuisanceChoice::parse(m)?;
         }
         Ok(opts)
+    }
+
+    /// The window of a measured force ([`ForceWindow::parse`]).
+    ///
+    /// # Errors
+    /// As [`ForceWindow::parse`] (field `force_window`).
+    pub fn force_window(&self) -> Result<ForceWindow> {
+        self.force_window
+            .as_deref()
+            .map_or(Ok(ForceWindow::Auto), ForceWindow::parse)
+    }
+
+    /// The measurement with the force `f` at the record's times `t`
+    /// windowed ([`crate::detect::data::force_window`]); as
+    /// [`FitSpec::measurement`] without a force.
+    ///
+    /// # Errors
+    /// As [`FitSpec::measurement`] and [`crate::detect::data::force_window::apply`].
+    pub fn measurement_at(&self, t: &[f64], force: Option<Vec<f64>>) -> Result<Measurement> {
+        let Some(f) = force else {
+            return self.measurement(None);
+        };
+        let (g, window) = crate::detect::data::force_window::apply(t, &f, self.force_window()?)?;
+        Ok(self.measurement(Some(g))?.with_force_window(window))
     }
 
     /// What is known of the chain.
