@@ -45,7 +45,14 @@ pub fn solve_all<T: Scalar>(chain: &Chain, s: T) -> Result<Vec<T>> {
         .map(|i| s2.scale(m[i]) + s.scale(d[i]) + T::from_f64(kd[i]))
         .collect();
     let dl: Vec<T> = (0..n.saturating_sub(1))
-        .map(|i| -kappa(&c, i + 1, &s))
+        .map(|i| {
+            // -k_i exactly as before the spring-parallel dampers (no -0 imaginary part)
+            if c.c[i + 1] == 0.0 {
+                T::from_f64(-c.k[i + 1])
+            } else {
+                -kappa(&c, i + 1, &s)
+            }
+        })
         .collect();
     let mut b: Vec<T> = vec![T::zero(); n];
     b[0] = T::from_f64(chain.gamma());
