@@ -12,7 +12,7 @@
 //! ```
 //! use springmass::detect::data::{noise_model::NoiseModel, nuisance::{Nuisance, Projector}};
 //! let t: Vec<f64> = (0..50).map(|i| 0.1 * i as f64).collect();
-//! let p = Projector::new(Nuisance::OffsetDrift, &t, &NoiseModel::White).unwrap();
+//! let p = Projector::new(Nuisance::OffsetDrift, &t, &NoiseModel::White).unwrap().expect("two columns");
 //! // a residual that is a pure offset and drift is projected to zero
 //! let r: Vec<f64> = t.iter().map(|t| 2.0 - 0.5 * t).collect();
 //! assert!(p.project(&r).iter().all(|v| v.abs() < 1e-12));
