@@ -50,10 +50,10 @@ def fit(
     observe: Optional[int] = None,
     observe_kind: Optional[str] = None,
     force: Optional[npt.NDArray[np.float64]] = None,
+    trigger: Optional[str] = None,
     noise_model: Optional[str] = None,
     nuisance: Optional[str] = None,
     damping: Optional[str] = None,
-    trigger: Optional[str] = None,
     force_window: Optional[str] = None,
 ) -> Dict[str, Any]:
     """The data-first fit: {"report": JSON text, "summary": str, "t", "observed", "model", "residual": ndarray}."""

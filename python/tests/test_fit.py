@@ -187,3 +187,22 @@ def test_real_setup_shear_frame_from_the_roof_accelerometer():
         springmass.fit(t, a, n=5, left="loose")
     with pytest.raises(ValueError, match="observe"):
         springmass.fit(t, a, n=5, observe=9)
+
+
+def test_a_record_with_a_pre_trigger_segment_gets_its_blow_time():
+    # the logger started 5 time units before the blow: 25 samples at rest,
+    # on an axis from -5 (the blow at 0 of that axis)
+    t = np.linspace(0.0, 100.0, 501)
+    x = springmass.simulate(5, defects=[("mass", 2, 3.0)], t=t, noise="rel:1e-3", seed=4)
+    t_axis = np.concatenate([np.linspace(-5.0, -0.2, 25), t])
+    x_axis = np.concatenate([np.zeros(25) + 1e-4 * np.sin(np.arange(25.0)), x])
+    r = springmass.fit(t_axis, x_axis, n=5, defects=1)
+    assert [(e.kind, e.at) for e in r.defects] == [("mass", 2)], r.summary
+    assert r.trigger is not None and r.trigger["detected"]
+    assert abs(r.trigger["time"]) < 4 * r.trigger["se"] + 1e-3, r.trigger
+    given = springmass.fit(t_axis, x_axis, n=5, defects=1, trigger=0.0)
+    assert not given.trigger["detected"]
+    with pytest.raises(ValueError, match="trigger"):
+        springmass.fit(t_axis, x_axis, n=5, defects=1, trigger=[1])
+    with pytest.raises(ValueError, match="force_window"):
+        springmass.fit(t, x, n=5, force=np.ones_like(t), force_window="soon")

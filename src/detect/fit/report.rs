@@ -290,12 +290,7 @@ impl FitReport {
             ));
         }
         for p in &self.params {
-            out.push_str(&format!(
-                "{} = {} +- {}\n",
-                p.name,
-                fmt_g(p.value),
-                fmt_g(p.se)
-            ));
+            out.push_str(&value_line(&p.name, " =", p.value, p.se));
         }
         out.push_str(&format!(
             "status: {} - {}\nnoise sigma {} ({}), chi2 {} on {} dof, fits the data: {} (p = {:.3})\n",
@@ -388,11 +383,11 @@ impl FitReport {
             ));
         }
         for n in &self.nuisance {
-            out.push_str(&format!(
-                "sensor {}: {} +- {}\n",
-                n.name,
-                fmt_g(n.value),
-                fmt_g(n.se)
+            out.push_str(&value_line(
+                &format!("sensor {}", n.name),
+                ":",
+                n.value,
+                n.se,
             ));
         }
     }
@@ -410,4 +405,9 @@ fn fmt_g(v: f64) -> String {
     } else {
         format!("{v:.3e}")
     }
+}
+
+/// `name`, `sep`, ` value +- se` and a newline (`d = 0.1 +- 0.002`).
+fn value_line(name: &str, sep: &str, value: f64, se: f64) -> String {
+    format!("{name}{sep} {} +- {}\n", fmt_g(value), fmt_g(se))
 }

@@ -382,16 +382,10 @@ mod tests {
         assert!((mean - 201.0).abs() < 20.0, "mean chi2 {mean}");
     }
 
-    #[test]
-    fn analytic_jacobian_matches_central_differences() {
+    /// Central differences (relative step 1e-5) of `misfit`'s residuals
+    /// with respect to `params` at `truth`.
+    fn differenced(misfit: &TimeMisfit, truth: &Chain, params: &[Param]) -> DMatrix<f64> {
         use crate::detect::search::lsq::{central_jacobian, LeastSquares};
-        // defects of every kind, a wall spring among them, and gamma
-        let truth = crate::scenes::mixed(7).unwrap();
-        let data =
-            TimeData::simulate(&truth, 120.0, 0.1, NoiseLevel::RelativeMax(1e-3), 4).unwrap();
-        let misfit = TimeMisfit::new(data);
-        let mut params = Param::defects(&truth);
-        params.push(Param::Gamma);
         struct P<'a>(&'a TimeMisfit, &'a Chain, &'a [Param]);
         impl LeastSquares for P<'_> {
             fn residuals(&self, theta: &[f64]) -> Result<Vec<f64>> {
@@ -402,8 +396,20 @@ mod tests {
                 self.0.residuals(&c)
             }
         }
-        let theta: Vec<f64> = params.iter().map(|p| p.get(&truth).unwrap()).collect();
-        let fd = central_jacobian(&P(&misfit, &truth, &params), &theta, 1e-5).unwrap();
+        let theta: Vec<f64> = params.iter().map(|p| p.get(truth).unwrap()).collect();
+        central_jacobian(&P(misfit, truth, params), &theta, 1e-5).unwrap()
+    }
+
+    #[test]
+    fn analytic_jacobian_matches_central_differences() {
+        // defects of every kind, a wall spring among them, and gamma
+        let truth = crate::scenes::mixed(7).unwrap();
+        let data =
+            TimeData::simulate(&truth, 120.0, 0.1, NoiseLevel::RelativeMax(1e-3), 4).unwrap();
+        let misfit = TimeMisfit::new(data);
+        let mut params = Param::defects(&truth);
+        params.push(Param::Gamma);
+        let fd = differenced(&misfit, &truth, &params);
         let exact = misfit.jacobian(&truth, &params).unwrap().unwrap();
         for (c, p) in params.iter().enumerate() {
             let (a, b) = (exact.column(c), fd.column(c));
@@ -421,7 +427,6 @@ mod tests {
     fn whitened_and_profiled_jacobian_matches_central_differences() {
         use crate::detect::data::{noise_model::NoiseModel, nuisance::Nuisance};
         use crate::detect::model::MeasurementModel;
-        use crate::detect::search::lsq::{central_jacobian, LeastSquares};
         let truth = crate::scenes::paper_with(8, "mass:3:3.0 spring:6:0.5").unwrap();
         let data =
             TimeData::simulate(&truth, 100.0, 0.25, NoiseLevel::RelativeMax(1e-3), 2).unwrap();
@@ -434,18 +439,7 @@ mod tests {
         assert_eq!(MeasurementModel::dof(&misfit), 401 - 2 - 2);
         let mut params = Param::defects(&truth);
         params.push(Param::Gamma);
-        struct P<'a>(&'a TimeMisfit, &'a Chain, &'a [Param]);
-        impl LeastSquares for P<'_> {
-            fn residuals(&self, theta: &[f64]) -> Result<Vec<f64>> {
-                let mut c = self.1.clone();
-                for (p, v) in self.2.iter().zip(theta) {
-                    c = p.set(&c, *v)?;
-                }
-                self.0.residuals(&c)
-            }
-        }
-        let theta: Vec<f64> = params.iter().map(|p| p.get(&truth).unwrap()).collect();
-        let fd = central_jacobian(&P(&misfit, &truth, &params), &theta, 1e-5).unwrap();
+        let fd = differenced(&misfit, &truth, &params);
         let exact = misfit.jacobian(&truth, &params).unwrap().unwrap();
         // the projection keeps the rows (rank N - p - 2)
         assert_eq!(exact.nrows(), 399);
