@@ -1,0 +1,264 @@
+//! The damping models of a chain ([`Damping`]).
+
+use super::*;
+
+/// How the chain dissipates energy: where its dampers sit.
+///
+/// | model | `C` in `M x'' + C x' + K x = f` | uniform parameters |
+/// |---|---|---|
+/// | `grounded` (the paper's, default) | `diag(d_i)`: a damper from every mass to the ground | `d` |
+/// | `between` | `diag(d_i) + Lap(c_j)`: a damper `c_j` parallel to every spring (the wall springs included), as between the storeys of a building | `c` (and `d`, usually 0) |
+/// | `rayleigh` | `a M + b K` (`M`, `K` with the defects) plus `diag(d_i)` | `a`, `b` (and `d`, usually 0) |
+///
+/// A damper defect (`damper:at:value`) changes one damper of the model: the
+/// grounded damper of mass `at` (`grounded`, `rayleigh`: an added damper to
+/// the ground there) or the damper parallel to spring `at` (`between`,
+/// `0..=n`). In `rayleigh` a mass defect changes its damping by `a dm` and a
+/// spring (or ground spring) defect by `b dk` ([`Chain::site`]).
+///
+/// ```
+/// use springmass::chain::Damping;
+/// assert_eq!("rayleigh".parse::<Damping>()?.name(), "rayleigh");
+/// assert_eq!(Damping::default(), Damping::Grounded);
+/// # Ok::<(), springmass::Error>(())
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(
+    tag = "model",
+    rename_all = "lowercase",
+    deny_unknown_fields,
+    try_from = "DampingRepr"
+)]
+pub enum Damping {
+    /// Dampers from each mass to the ground (the chain's `d`).
+    #[default]
+    Grounded,
+    /// Dampers `c` parallel to the springs.
+    Between {
+        /// Damping of every spring's damper, `>= 0`.
+        c: f64,
+    },
+    /// `C = a M + b K`.
+    Rayleigh {
+        /// Mass-proportional coefficient, `>= 0` (1/time).
+        a: f64,
+        /// Stiffness-proportional coefficient, `>= 0` (time).
+        b: f64,
+    },
+}
+
+/// A damping model as scene files write it: the table
+/// `{ model = "rayleigh", a = 0.01, b = 0.02 }` or the text
+/// `"rayleigh:0.01:0.02"` ([`Damping::parse_spec`], every parameter given).
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum DampingRepr {
+    Text(String),
+    Table(DampingTable),
+}
+
+#[derive(Deserialize)]
+#[serde(tag = "model", rename_all = "lowercase", deny_unknown_fields)]
+enum DampingTable {
+    Grounded,
+    Between { c: f64 },
+    Rayleigh { a: f64, b: f64 },
+}
+
+impl TryFrom<DampingRepr> for Damping {
+    type Error = Error;
+    fn try_from(r: DampingRepr) -> Result<Damping> {
+        let d = match r {
+            DampingRepr::Text(t) => Damping::parse_complete(&t)?,
+            DampingRepr::Table(DampingTable::Grounded) => Damping::Grounded,
+            DampingRepr::Table(DampingTable::Between { c }) => Damping::Between { c },
+            DampingRepr::Table(DampingTable::Rayleigh { a, b }) => Damping::Rayleigh { a, b },
+        };
+        d.check()?;
+        Ok(d)
+    }
+}
+
+impl Damping {
+    /// Every model's name.
+    pub const MODELS: [&'static str; 3] = ["grounded", "between", "rayleigh"];
+
+    /// `grounded`, `between` or `rayleigh`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Damping::Grounded => "grounded",
+            Damping::Between { .. } => "between",
+            Damping::Rayleigh { .. } => "rayleigh",
+        }
+    }
+
+    /// The paper's model.
+    pub fn is_grounded(&self) -> bool {
+        *self == Damping::Grounded
+    }
+
+    /// The model's own parameters `(name, value)` (none for `grounded`,
+    /// whose parameter is the chain's `d`).
+    pub fn params(&self) -> Vec<(&'static str, f64)> {
+        match *self {
+            Damping::Grounded => vec![],
+            Damping::Between { c } => vec![("c", c)],
+            Damping::Rayleigh { a, b } => vec![("a", a), ("b", b)],
+        }
+    }
+
+    /// The same model with its parameters `values` (in the order of
+    /// [`Damping::params`]; missing values keep the current ones).
+    pub fn with_params(self, values: &[f64]) -> Damping {
+        let v = |i: usize, old: f64| values.get(i).copied().unwrap_or(old);
+        match self {
+            Damping::Grounded => Damping::Grounded,
+            Damping::Between { c } => Damping::Between { c: v(0, c) },
+            Damping::Rayleigh { a, b } => Damping::Rayleigh {
+                a: v(0, a),
+                b: v(1, b),
+            },
+        }
+    }
+
+    /// The model `name` with parameters `c`, `a`, `b` where it needs them.
+    ///
+    /// # Errors
+    /// An unknown name (field `damping`); a parameter the model needs that
+    /// is `None` (field `damping`, naming the parameter); a negative or
+    /// non-finite value (field `damping.c`, `damping.a`, `damping.b`).
+    pub fn build(name: &str, c: Option<f64>, a: Option<f64>, b: Option<f64>) -> Result<Damping> {
+        let need = |v: Option<f64>, p: &str| {
+            v.ok_or_else(|| {
+                Error::invalid(
+                    "damping",
+                    name,
+                    format!("the {name} model needs its parameter {p} (give it, or fit it with --fit d)"),
+                )
+            })
+        };
+        let model: Damping = name.parse()?;
+        let out = match model {
+            Damping::Grounded => Damping::Grounded,
+            Damping::Between { .. } => Damping::Between { c: need(c, "c")? },
+            Damping::Rayleigh { .. } => Damping::Rayleigh {
+                a: need(a, "a")?,
+                b: need(b, "b")?,
+            },
+        };
+        out.check()?;
+        Ok(out)
+    }
+
+    /// Parse `MODEL[:P1[:P2]]`: `grounded`, `between[:c]`,
+    /// `rayleigh[:a:b]`. Returns the model (missing parameters 0) and the
+    /// names of the parameters not given.
+    ///
+    /// # Errors
+    /// An unknown model or a parameter that is not a number (field
+    /// `damping`); too many parameters (field `damping`); a negative or
+    /// non-finite one (`damping.c`, `damping.a`, `damping.b`).
+    ///
+    /// ```
+    /// use springmass::chain::Damping;
+    /// let (d, missing) = Damping::parse_spec("rayleigh:0.01")?;
+    /// assert_eq!(d, Damping::Rayleigh { a: 0.01, b: 0.0 });
+    /// assert_eq!(missing, vec!["b"]);
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    pub fn parse_spec(text: &str) -> Result<(Damping, Vec<&'static str>)> {
+        let mut parts = text.split(':').map(str::trim);
+        let model: Damping = parts.next().unwrap_or("").parse()?;
+        let values: Vec<f64> = parts
+            .map(|p| {
+                p.parse::<f64>().map_err(|_| {
+                    Error::parse(
+                        "damping",
+                        text,
+                        "MODEL[:P1[:P2]], e.g. between:0.05 or rayleigh:0.01:0.02, with numbers",
+                    )
+                })
+            })
+            .collect::<Result<_>>()?;
+        let names: Vec<&'static str> = model.params().iter().map(|p| p.0).collect();
+        if values.len() > names.len() {
+            return Err(Error::invalid(
+                "damping",
+                text,
+                format!(
+                    "at most {} parameter(s) for the {} model ({})",
+                    names.len(),
+                    model.name(),
+                    if names.is_empty() {
+                        "none: its damping is the chain's d".to_string()
+                    } else {
+                        names.join(", ")
+                    }
+                ),
+            ));
+        }
+        let out = model.with_params(&values);
+        out.check()?;
+        Ok((out, names[values.len()..].to_vec()))
+    }
+
+    /// [`Damping::parse_spec`] with every parameter given.
+    ///
+    /// # Errors
+    /// As [`Damping::parse_spec`]; a parameter missing (field `damping`).
+    pub fn parse_complete(text: &str) -> Result<Damping> {
+        let (d, missing) = Damping::parse_spec(text)?;
+        if let Some(p) = missing.first() {
+            return Err(Error::invalid(
+                "damping",
+                text,
+                format!(
+                    "the {} model needs its parameter {p} (e.g. between:0.05, rayleigh:0.01:0.02), or fit it with --fit d",
+                    d.name()
+                ),
+            ));
+        }
+        Ok(d)
+    }
+
+    /// Every parameter finite and `>= 0`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `damping.<parameter>` and the range.
+    pub fn check(&self) -> Result<()> {
+        for (p, v) in self.params() {
+            check_f64(&format!("damping.{p}"), v, v >= 0.0, ">= 0 and finite")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::fmt::Display for Damping {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())?;
+        for (i, (p, v)) in self.params().iter().enumerate() {
+            write!(f, "{}{p} = {v}", if i == 0 { " (" } else { ", " })?;
+        }
+        if !self.params().is_empty() {
+            f.write_str(")")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::str::FromStr for Damping {
+    type Err = Error;
+    /// The model by name, its parameters zero (see [`Damping::build`]).
+    fn from_str(s: &str) -> Result<Damping> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "grounded" | "ground" => Ok(Damping::Grounded),
+            "between" | "interstorey" | "spring-parallel" => Ok(Damping::Between { c: 0.0 }),
+            "rayleigh" => Ok(Damping::Rayleigh { a: 0.0, b: 0.0 }),
+            _ => Err(Error::invalid(
+                "damping",
+                s,
+                "grounded, between or rayleigh",
+            )),
+        }
+    }
+}
