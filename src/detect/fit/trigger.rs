@@ -3,7 +3,7 @@
 //! with the fitted chain and the record refitted when it moved, and its
 //! standard error from the joint Jacobian of the time and the fitted values.
 //!
-//! * **Plan** ([`plan`]): with `trigger = At(t)` the record is re-timed to
+//! * **Plan**: with `trigger = At(t)` the record is re-timed to
 //!   `t`; with `auto` (the default) to the detected blow, or to the user's
 //!   `t = 0` when none is detected. A record that starts at the blow on an
 //!   axis starting at 0 is not re-timed at all: the fit is the paper's, to
