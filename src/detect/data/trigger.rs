@@ -228,7 +228,8 @@ impl Window<'_> {
 }
 
 /// The minimiser of [`Window::chi2`] on `[lo, hi]`: the best of a grid of
-/// 24 points, then golden-section search in its bracket.
+/// 24 points, then golden-section search ([`crate::linalg::golden`]) in its
+/// bracket.
 fn golden(w: &Window<'_>, lo: f64, hi: f64) -> f64 {
     const GRID: usize = 24;
     let h = (hi - lo) / GRID as f64;
@@ -237,25 +238,8 @@ fn golden(w: &Window<'_>, lo: f64, hi: f64) -> f64 {
         .map(|i| (i, w.chi2(at(i))))
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .map_or(0, |p| p.0);
-    let (mut a, mut b) = (at(i.saturating_sub(1)), at((i + 1).min(GRID)));
-    let r = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut c, mut d) = (b - r * (b - a), a + r * (b - a));
-    let (mut fc, mut fd) = (w.chi2(c), w.chi2(d));
-    for _ in 0..60 {
-        if (b - a).abs() <= 1e-9 * h.abs().max(f64::MIN_POSITIVE) {
-            break;
-        }
-        if fc < fd {
-            (b, d, fd) = (d, c, fc);
-            c = b - r * (b - a);
-            fc = w.chi2(c);
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + r * (b - a);
-            fd = w.chi2(d);
-        }
-    }
-    0.5 * (a + b)
+    let (a, b) = (at(i.saturating_sub(1)), at((i + 1).min(GRID)));
+    crate::linalg::golden(|t| w.chi2(t), a, b, 60).0
 }
 
 #[cfg(test)]

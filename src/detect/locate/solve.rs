@@ -121,35 +121,7 @@ pub fn near<T: RealScalar>(
     roots(g, lo, hi, k, tol).into_iter().next()
 }
 
-/// Minimise a unimodal `f` on `[a, b]` by golden-section search; returns `(x, f(x))`.
-pub fn golden(mut f: impl FnMut(f64) -> f64, a: f64, b: f64, iters: usize) -> (f64, f64) {
-    let r = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut a, mut b) = (a, b);
-    let mut c = b - r * (b - a);
-    let mut d = a + r * (b - a);
-    let mut fc = f(c);
-    let mut fd = f(d);
-    for _ in 0..iters {
-        if fc < fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - r * (b - a);
-            fc = f(c);
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + r * (b - a);
-            fd = f(d);
-        }
-    }
-    if fc < fd {
-        (c, fc)
-    } else {
-        (d, fd)
-    }
-}
+pub use crate::linalg::golden;
 
 #[cfg(all(test, feature = "bigfloat"))]
 mod tests {

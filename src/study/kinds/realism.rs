@@ -22,7 +22,7 @@
 //! ```
 
 use super::case::{CaseOutput, KindScene};
-use crate::chain::{Chain, Defect};
+use crate::chain::{Chain, Units};
 use crate::detect::data::observations::{Observations, Series};
 use crate::detect::fit::options::FitSpec;
 use crate::detect::fit::{fit, FitReport, Status};
@@ -126,21 +126,9 @@ impl Scene {
     pub fn truth(&self) -> Result<Chain> {
         let unit = super::noise::truth(&self.system)?;
         let c = (self.mass * self.k).sqrt();
-        let scaled = unit.defects().iter().map(|d| match *d {
-            Defect::Mass { at, m } => Defect::Mass {
-                at,
-                m: m * self.mass,
-            },
-            Defect::Spring { at, k } => Defect::Spring { at, k: k * self.k },
-            Defect::Damper { at, d } => Defect::Damper { at, d: d * c },
-            Defect::Ground { at, g } => Defect::Ground { at, g: g * self.k },
-        });
-        Chain::new(unit.n())?
-            .with_mass(self.mass)?
-            .with_k(self.k)?
-            .with_d(unit.d() * c)?
-            .with_gamma(unit.gamma() * c)?
-            .with_defects(scaled)
+        let gamma = unit.gamma() * c;
+        unit.to_si(&Units::new(self.mass, self.k, c)?)?
+            .with_gamma(gamma)
     }
 
     /// What the user tells the fit: the options, with n, mass, k and the
