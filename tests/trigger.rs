@@ -111,17 +111,7 @@ fn the_cli_converts_units_and_finds_the_blow() {
         text.push_str(&format!("{},{}\n", ti * 1e3, xi * 1e3));
     }
     std::fs::write(&path, text).unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_springmass"))
-        .args([
-            "fit",
-            "--data",
-            path.to_str().unwrap(),
-            "--n",
-            "20",
-            "--json",
-        ])
-        .output()
-        .unwrap();
+    let out = fit_cli(&path, &["--json"]);
     assert!(
         out.status.success(),
         "{}",
@@ -141,21 +131,26 @@ fn the_cli_converts_units_and_finds_the_blow() {
     assert!(err.contains("converted"), "{err}");
     // a unit that contradicts the observable: refused, nothing written
     let plot = dir.join("never.svg");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_springmass"))
-        .args([
-            "fit",
-            "--data",
-            path.to_str().unwrap(),
-            "--n",
-            "20",
+    let out = fit_cli(
+        &path,
+        &[
             "--observe-kind",
             "acceleration",
-        ])
-        .args(["--plot", plot.to_str().unwrap()])
-        .output()
-        .unwrap();
+            "--plot",
+            plot.to_str().unwrap(),
+        ],
+    );
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("x1"));
     assert!(!plot.exists());
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `springmass fit --data PATH --n 20 EXTRA...`.
+fn fit_cli(path: &std::path::Path, extra: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_springmass"))
+        .args(["fit", "--data", path.to_str().unwrap(), "--n", "20"])
+        .args(extra)
+        .output()
+        .unwrap()
 }
