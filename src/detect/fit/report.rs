@@ -267,6 +267,36 @@ impl FitReport {
             .collect()
     }
 
+    /// The evidence for each number of defects and the best alternatives.
+    fn evidence_lines(&self, out: &mut String) {
+        if self.k_selection.len() > 1 {
+            out.push_str(&format!("number of defects by {}:\n", self.criterion));
+            for r in &self.k_selection {
+                out.push_str(&format!(
+                    "  k = {}: chi2 {}, {} {}{}\n",
+                    r.k,
+                    fmt_g(r.chi2),
+                    self.criterion,
+                    fmt_g(r.criterion),
+                    if r.k == self.k { "  <- chosen" } else { "" }
+                ));
+            }
+        }
+        for (i, a) in self.alternatives.iter().take(3).enumerate() {
+            let d: Vec<String> = a
+                .defects
+                .iter()
+                .map(|d| format!("{}@{}", d.kind(), d.at()))
+                .collect();
+            out.push_str(&format!(
+                "alternative {}: {} (chi2 gap {})\n",
+                i + 1,
+                d.join(", "),
+                fmt_g(a.gap)
+            ));
+        }
+    }
+
     /// Human summary: the answer and its error bars first.
     pub fn summary(&self) -> String {
         let mut out = String::new();
@@ -304,18 +334,7 @@ impl FitReport {
             self.fit_p_value
         ));
         if let Some(t) = &self.trigger {
-            out.push_str(&format!(
-                "blow at t = {} +- {} on the record's axis ({}; {} samples before it left out{})\n",
-                fmt_g(t.time),
-                fmt_g(t.se),
-                if t.detected { "detected" } else { "given" },
-                t.dropped,
-                if t.refits > 0 {
-                    ", refitted at the refined time"
-                } else {
-                    ""
-                },
-            ));
+            out.push_str(&format!("{}\n", t.line()));
         }
         if let Some(v) = &self.visibility {
             out.push_str(&format!("visibility: {}\n", v.line()));
@@ -324,32 +343,7 @@ impl FitReport {
         if let Some(d) = &self.damping {
             out.push_str(&format!("{}\n", d.line()));
         }
-        if self.k_selection.len() > 1 {
-            out.push_str(&format!("number of defects by {}:\n", self.criterion));
-            for r in &self.k_selection {
-                out.push_str(&format!(
-                    "  k = {}: chi2 {}, {} {}{}\n",
-                    r.k,
-                    fmt_g(r.chi2),
-                    self.criterion,
-                    fmt_g(r.criterion),
-                    if r.k == self.k { "  <- chosen" } else { "" }
-                ));
-            }
-        }
-        for (i, a) in self.alternatives.iter().take(3).enumerate() {
-            let d: Vec<String> = a
-                .defects
-                .iter()
-                .map(|d| format!("{}@{}", d.kind(), d.at()))
-                .collect();
-            out.push_str(&format!(
-                "alternative {}: {} (chi2 gap {})\n",
-                i + 1,
-                d.join(", "),
-                fmt_g(a.gap)
-            ));
-        }
+        self.evidence_lines(&mut out);
         if !self.modes.is_empty() {
             let shown: Vec<String> = self
                 .modes
@@ -394,7 +388,7 @@ impl FitReport {
 }
 
 /// Four significant digits.
-fn fmt_g(v: f64) -> String {
+pub(crate) fn fmt_g(v: f64) -> String {
     if v == 0.0 || !v.is_finite() {
         return format!("{v}");
     }

@@ -26,6 +26,7 @@
 use crate::chain::Chain;
 use crate::detect::data::observations::{Observations, Series};
 use crate::detect::data::trigger::{detect_onset, TriggerSpec};
+use crate::detect::fit::report::fmt_g;
 use crate::detect::fit::{FitReport, Model};
 use crate::error::Result;
 use crate::sensitivity::Param;
@@ -49,6 +50,25 @@ pub struct TriggerEstimate {
     pub detected: bool,
     /// Refits at a refined time (0 or 1).
     pub refits: usize,
+}
+
+impl TriggerEstimate {
+    /// One line for the report: `blow at t = 10.07 +- 2e-4 on the record's
+    /// axis (detected; 51 samples before it left out)`.
+    pub fn line(&self) -> String {
+        format!(
+            "blow at t = {} +- {} on the record's axis ({}; {} samples before it left out{})",
+            fmt_g(self.time),
+            fmt_g(self.se),
+            if self.detected { "detected" } else { "given" },
+            self.dropped,
+            if self.refits > 0 {
+                ", refitted at the refined time"
+            } else {
+                ""
+            },
+        )
+    }
 }
 
 /// The time (on `obs`'s own re-based axis, [`Series::t`]) to re-time the
