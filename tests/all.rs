@@ -47,6 +47,8 @@ mod long_chains;
 mod long_search;
 #[path = "mismatch.rs"]
 mod mismatch;
+#[path = "modal_update.rs"]
+mod modal_update;
 #[path = "noise.rs"]
 mod noise;
 #[path = "observables.rs"]

@@ -84,6 +84,7 @@ __all__ = [
     "read_csv",
     "spectral",
     "SpectralResult",
+    "update_from_modes",
     "searches",
 ]
 
@@ -1501,6 +1502,103 @@ def spectral(
         raise _invalid("residue", f"{re.size} values", f"one per omega ({om.size})")
     raw = _core.spectral(om, re, k=_real("k", k), left=_text("left", left), right=_text("right", right))
     return SpectralResult(masses=np.asarray(raw["masses"]), consistency=float(raw["consistency"]))
+
+
+def _modes_csv(modes: Any) -> str:
+    """The CSV text of ``modes``: a path, or a sequence of dicts."""
+    if isinstance(modes, (str, os.PathLike)):
+        path = os.fspath(modes)
+        if not os.path.isfile(path):
+            raise _invalid("modes", path, "a regular CSV file, or a list of dicts (one per mode)")
+        with open(path, encoding="utf-8-sig") as fh:
+            return fh.read()
+    if not isinstance(modes, (list, tuple)) or not modes:
+        raise _invalid("modes", type(modes).__name__, "a path, or a non-empty list of dicts (one per mode)")
+    masses = sorted({int(j) for m in modes for j in dict(m.get("phi", {}))})
+    cols = ["frequency", "frequency_se", "damping"] + [f"phi_{j}" for j in masses]
+    rows = []
+    for i, m in enumerate(modes):
+        if not isinstance(m, dict) or "frequency" not in m:
+            raise _invalid(f"modes[{i + 1}]", m, 'a dict with "frequency" (Hz) and optional "phi": {mass: value}')
+        phi = {int(j): v for j, v in dict(m.get("phi", {})).items()}
+        cells = [m.get("frequency"), m.get("frequency_se"), m.get("damping")] + [phi.get(j) for j in masses]
+        rows.append(",".join("" if v is None else repr(float(v)) for v in cells))
+    return ",".join(cols) + "\n" + "\n".join(rows) + "\n"
+
+
+def update_from_modes(
+    modes: Any,
+    *,
+    n: int,
+    mass: float = 1.0,
+    k: float = 1.0,
+    d: float = 0.0,
+    left: str = "fixed",
+    right: str = "fixed",
+    profile: str = "springs",
+    hold_out: Sequence[int] = (),
+    starts: int = 20,
+    seed: int = 1,
+) -> Dict[str, Any]:
+    """Update the storey springs (or masses) of a nominal chain from measured modes.
+
+    The same as ``springmass fit --modes FILE``: the chain's modes are paired
+    with the measured ones by MAC, frequencies and shapes (any scaling) are
+    compared, every element is a factor of its nominal value with a standard
+    error, and the factors the modes do not determine are said so.
+
+    Parameters
+    ----------
+    modes : path or list of dict
+        A CSV file (columns ``frequency`` in Hz, ``frequency_se``,
+        ``damping``, ``phi_J``, ``phi_J_se``), or one dict per mode:
+        ``{"frequency": 0.88, "phi": {1: -0.38, 2: -0.72}}``.
+    n : int
+        Number of masses (floors).
+    mass, k, d : float
+        The nominal uniform mass, storey stiffness and grounded damping.
+    left, right : str
+        ``"fixed"`` or ``"free"`` ends (a shear frame: ``right="free"``).
+    profile : str
+        ``"springs"``, ``"masses"`` or ``"both"``.
+    hold_out : sequence of int
+        Modes (1-based, increasing frequency) kept out of the fit, predicted only.
+    starts, seed : int
+        Seeded random starts beside the nominal one.
+
+    Returns
+    -------
+    dict
+        The report as ``springmass fit --modes FILE --json`` prints it
+        (``status``, ``factors``, ``modes``, ...) and ``summary``, its text.
+
+    Examples
+    --------
+    >>> import springmass
+    >>> # the first mode of a uniform two-storey frame (k = m = 1), exact
+    >>> r = springmass.update_from_modes(
+    ...     [{"frequency": 0.09836316430834659, "phi": {1: 0.6180339887498949, 2: 1.0}}],
+    ...     n=2, right="free")
+    >>> [round(f["factor"], 6) for f in r["factors"]]
+    [1.0, 1.0]
+    """
+    text = _modes_csv(modes)
+    raw = _core.fit_modes(
+        text,
+        n=_chain_size(n),
+        mass=_real("mass", mass),
+        k=_real("k", k),
+        d=_real("d", d),
+        left=_text("left", left),
+        right=_text("right", right),
+        profile=_text("profile", profile),
+        hold_out=[_count("hold_out", j) for j in hold_out],
+        starts=_count("starts", starts),
+        seed=_count("seed", seed),
+    )
+    out = json.loads(raw["report"])
+    out["summary"] = raw["summary"]
+    return out
 
 
 # ---------------------------------------------------------------- files

@@ -127,6 +127,22 @@ def spectral(
 ) -> Dict[str, Any]:
     """{"masses": ndarray, "consistency": float}."""
 
+def fit_modes(
+    modes: str,
+    *,
+    n: int,
+    mass: float,
+    k: float,
+    d: float,
+    left: str,
+    right: str,
+    profile: str,
+    hold_out: List[int],
+    starts: int,
+    seed: int,
+) -> Dict[str, Any]:
+    """{"report": JSON text, "summary": text}."""
+
 def fit_profile(
     t: npt.NDArray[np.float64],
     x: npt.NDArray[np.float64],

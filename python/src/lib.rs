@@ -741,6 +741,56 @@ fn spectral<'py>(
     Ok(out)
 }
 
+/// Structural model updating from measured modes
+/// (`springmass::detect::fit::modal_update`): `modes` is the CSV text of
+/// `springmass fit --modes FILE`. Returns the report as the CLI's JSON and
+/// its text summary.
+#[pyfunction]
+#[pyo3(signature = (modes, *, n, mass, k, d, left, right, profile, hold_out, starts, seed))]
+#[allow(clippy::too_many_arguments)]
+fn fit_modes<'py>(
+    py: Python<'py>,
+    modes: String,
+    n: usize,
+    mass: f64,
+    k: f64,
+    d: f64,
+    left: String,
+    right: String,
+    profile: String,
+    hold_out: Vec<usize>,
+    starts: usize,
+    seed: u64,
+) -> PyResult<Bound<'py, PyDict>> {
+    use springmass::detect::fit::modal_update::{update_from_modes, ModalUpdateOptions};
+    let spec = FitSpec {
+        d: Some(d),
+        k: Some(k),
+        mass: Some(mass),
+        left: Some(left),
+        right: Some(right),
+        ..FitSpec::new(n)
+    };
+    let report = interruptible(py, move || -> Result<_> {
+        let data = springmass::detect::data::modes::MeasuredModes::from_csv_str(&modes)?;
+        let opts = ModalUpdateOptions {
+            mode: springmass::detect::fit::profile::ProfileMode::parse(&profile)?,
+            hold_out,
+            starts,
+            seed,
+            ..Default::default()
+        };
+        update_from_modes(spec.model()?.chain(), data, &opts)
+    })?;
+    let json = serde_json::to_value(&report).map_err(|e| {
+        NumericalError::new_err(format!("the modal update report cannot be written: {e}"))
+    })?;
+    let out = PyDict::new(py);
+    out.set_item("report", json.to_string())?;
+    out.set_item("summary", report.summary())?;
+    Ok(out)
+}
+
 /// The search registry (`springmass::detect::search::SEARCHES`): one dict
 /// per search with its name, aliases, help, the defect kinds it places,
 /// whether the scene's general fit accepts it and whether it is stochastic.
@@ -787,6 +837,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read_csv, m)?)?;
     m.add_function(wrap_pyfunction!(spectral, m)?)?;
     m.add_function(wrap_pyfunction!(fit_profile, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_modes, m)?)?;
     m.add_function(wrap_pyfunction!(searches, m)?)?;
     Ok(())
 }

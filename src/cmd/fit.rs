@@ -12,6 +12,7 @@ use std::path::PathBuf;
 
 /// Arguments of `springmass fit`.
 #[derive(ClapArgs, Debug)]
+#[command(group = clap::ArgGroup::new("input").args(["data", "modes"]).multiple(false))]
 #[command(
     after_help = "Data-first: springmass fit --data x1.csv --n 37 [--d 0.05 | --fit d,gamma] \
 [--defects auto|K] [--kinds mass|spring|damper|ground|any] [--noise auto|SIGMA] [--misfit time|bromwich|real-axis] \
@@ -24,20 +25,36 @@ pub struct Args {
     /// A measured series: CSV with a time column `t` and one or more value columns.
     #[arg(long, conflicts_with = "scene")]
     pub data: Option<PathBuf>,
+    /// Measured modes instead of a series: CSV, one row per mode, columns
+    /// frequency (Hz), optional frequency_se, damping, phi_J (shape at mass
+    /// J) and phi_J_se; the storey springs (or masses, --profile) are updated
+    /// as factors of the nominal chain (--n, --mass, --k, --left, --right).
+    #[arg(long, conflicts_with_all = ["scene", "column", "gamma", "fit", "known", "defects", "kinds",
+        "noise", "misfit", "criterion", "max_evals", "trigger", "force_window", "noise_model",
+        "nuisance", "observe", "observe_kind", "force_column", "force", "plot", "out_csv",
+        "profile_change", "penalty", "method", "trace"])]
+    pub modes: Option<PathBuf>,
+    /// Modes of --modes (1-based, increasing frequency) kept out of the fit
+    /// and only predicted, e.g. 3,4.
+    #[arg(long, requires = "modes", value_name = "J,...")]
+    pub hold_out: Option<String>,
+    /// Random starts of the modal update beside the nominal one [default: 20].
+    #[arg(long, requires = "modes")]
+    pub starts: Option<usize>,
     /// The column of --data to fit [default: the first after t].
     #[arg(long, requires = "data")]
     pub column: Option<String>,
-    /// Number of masses of the chain (--data).
-    #[arg(long, requires = "data")]
+    /// Number of masses of the chain (--data, --modes).
+    #[arg(long, requires = "input")]
     pub n: Option<usize>,
     /// Uniform damping (known, or the starting value with --fit d) [default: 0.1].
-    #[arg(long, requires = "data", allow_negative_numbers = true)]
+    #[arg(long, requires = "input", allow_negative_numbers = true)]
     pub d: Option<f64>,
     /// Uniform stiffness, in the data's units (N/m for SI data) [default: 1].
-    #[arg(long, requires = "data", allow_negative_numbers = true)]
+    #[arg(long, requires = "input", allow_negative_numbers = true)]
     pub k: Option<f64>,
     /// Uniform mass, in the data's units (kg for SI data) [default: 1].
-    #[arg(long, requires = "data", allow_negative_numbers = true)]
+    #[arg(long, requires = "input", allow_negative_numbers = true)]
     pub mass: Option<f64>,
     /// Impulse on mass 1 [default: 1].
     #[arg(long, requires = "data", allow_negative_numbers = true)]
@@ -90,10 +107,10 @@ pub struct Args {
     #[arg(long, requires = "data")]
     pub nuisance: Option<String>,
     /// Left end (mass 1's side): fixed (a wall spring) or free [default: fixed].
-    #[arg(long, requires = "data")]
+    #[arg(long, requires = "input")]
     pub left: Option<String>,
     /// Right end (mass n's side): fixed or free [default: fixed].
-    #[arg(long, requires = "data")]
+    #[arg(long, requires = "input")]
     pub right: Option<String>,
     /// The observed mass (1-based) [default: 1].
     #[arg(long, requires = "data")]
@@ -151,11 +168,14 @@ pub struct Args {
     /// storeys), rayleigh[:A:B] (C = A M + B K). Parameters not given are
     /// fitted with --fit d. Default: grounded; with --fit d every model is
     /// fitted and BIC chooses. --d is then the extra grounded damping (default 0).
-    #[arg(long, requires = "data", value_name = "MODEL[:P1[:P2]]")]
+    #[arg(long, requires = "input", value_name = "MODEL[:P1[:P2]]")]
     pub damping: Option<String>,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    if a.modes.is_some() {
+        return super::fit_modes::run(&a);
+    }
     if a.data.is_some() {
         return run_data(a);
     }

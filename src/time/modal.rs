@@ -1374,6 +1374,54 @@ pub struct NaturalMode {
     pub zeta: Option<f64>,
 }
 
+/// The undamped modes of a chain: `K phi_j = omega_j^2 M phi_j`, in
+/// increasing frequency, each shape scaled to `phi_j^T M phi_j = 1`
+/// ([`undamped_modes`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct UndampedModes {
+    /// `omega_j` (rad per unit of time), increasing; 0 for a rigid-body mode.
+    pub omega: Vec<f64>,
+    /// Column `j` is `phi_j`, row `i` mass `i + 1`.
+    pub shapes: DMatrix<f64>,
+}
+
+/// Natural frequencies and mass-normalised mode shapes of `chain` (the
+/// dense symmetric eigenproblem of `M^{-1/2} K M^{-1/2}`, any masses, springs
+/// and ends; damping is not part of it).
+///
+/// # Errors
+/// `n >` [`MAX_N_SYMMETRIC`]; a failed eigen solver.
+///
+/// ```
+/// use springmass::{Chain, time::modal::undamped_modes};
+/// let m = undamped_modes(&Chain::new(4)?)?;
+/// let w1 = 2.0 * (std::f64::consts::PI / 10.0).sin();   // 2 sin(pi / (2 (n+1)))
+/// assert!((m.omega[0] - w1).abs() < 1e-14);
+/// let phi = m.shapes.column(0);
+/// assert!((phi.dot(&phi) - 1.0).abs() < 1e-14);         // unit masses
+/// # Ok::<(), springmass::Error>(())
+/// ```
+pub fn undamped_modes(chain: &Chain) -> Result<UndampedModes> {
+    let masses = chain.masses();
+    let eig = symmetric_eigen(
+        &masses,
+        &chain.springs(),
+        &chain.grounds(),
+        "the mode shapes of a chain",
+    )?;
+    let n = masses.len();
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
+    let omega = order
+        .iter()
+        .map(|&c| eig.eigenvalues[c].max(0.0).sqrt())
+        .collect();
+    let shapes = DMatrix::from_fn(n, n, |i, j| {
+        eig.eigenvectors[(i, order[j])] / masses[i].sqrt()
+    });
+    Ok(UndampedModes { omega, shapes })
+}
+
 /// Natural frequencies and damping ratios of `chain`, in increasing
 /// frequency: the undamped eigenproblem `K phi = omega^2 M phi` (closed form
 /// for a uniform chain with any ends, [`MAX_N_SYMMETRIC`] masses otherwise).

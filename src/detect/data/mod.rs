@@ -6,6 +6,7 @@
 //! | [`observations`] | the data-first entry: a sampled series (`t`, `x`, optional noise sigma) or Laplace values with errors |
 //! | [`series`] | a sampled series with its white-noise level ([`series::TimeData`]) |
 //! | [`laplace`] | Laplace-domain values at nodes, weighted or whitened ([`laplace::LaplaceObs`]) |
+//! | [`modes`] | measured modes (frequencies, damping ratios, mode shapes at a few masses) from an experimental modal analysis |
 //! | [`force_window`] | the force window of modal testing: a measured force zeroed outside its pulse |
 //! | [`exact`] | values of `X_1` at any node for the mass-only Woodbury kernel ([`exact::Data`]) |
 //! | [`trigger`] | when the blow came: the impulse's time on the record's axis, detected, and the record re-timed to it |
@@ -17,6 +18,7 @@ pub mod exact;
 pub mod force_window;
 pub mod laplace;
 pub mod measurement;
+pub mod modes;
 pub mod noise_model;
 pub mod nuisance;
 pub mod observations;

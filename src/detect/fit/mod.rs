@@ -71,6 +71,7 @@ pub mod general;
 pub mod greedy;
 pub mod identify;
 pub mod judge;
+pub mod modal_update;
 pub mod model;
 pub mod noise;
 pub mod options;

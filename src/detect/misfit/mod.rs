@@ -41,6 +41,7 @@
 //! ```
 
 pub mod laplace_sets;
+pub mod modal;
 pub mod quadrature;
 mod set;
 mod spec;

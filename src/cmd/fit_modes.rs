@@ -1,0 +1,68 @@
+//! `springmass fit --modes FILE`: structural model updating from measured
+//! modes (`springmass::detect::fit::modal_update`).
+
+use super::fit::Args;
+use anyhow::Context;
+use springmass::detect::data::modes::MeasuredModes;
+use springmass::detect::fit::modal_update::{update_from_modes, ModalUpdateOptions};
+use springmass::detect::fit::profile::ProfileMode;
+
+/// Read the modes, build the nominal chain, update it, print the report.
+pub fn run(a: &Args) -> anyhow::Result<()> {
+    let path = a.modes.clone().expect("checked by the caller");
+    let n = a.n.ok_or_else(|| {
+        springmass::Error::invalid(
+            "n",
+            "(none)",
+            "--n N, the number of masses (floors) of the chain",
+        )
+    })?;
+    let mut opts = ModalUpdateOptions::default();
+    if let Some(p) = &a.profile {
+        opts.mode = ProfileMode::parse(p)?;
+    }
+    if let Some(s) = a.seed {
+        opts.seed = s;
+    }
+    if let Some(s) = a.starts {
+        opts.starts = s;
+    }
+    if let Some(h) = &a.hold_out {
+        opts.hold_out = parse_list(h)?;
+    }
+    opts.check()?;
+    let spec = springmass::detect::fit::options::FitSpec {
+        d: Some(a.d.unwrap_or(0.0)),
+        k: a.k,
+        mass: a.mass,
+        left: a.left.clone(),
+        right: a.right.clone(),
+        damping: a.damping.clone(),
+        ..springmass::detect::fit::options::FitSpec::new(n)
+    };
+    let nominal = spec.model()?.chain().clone();
+    let modes = MeasuredModes::read_csv(&path)?;
+    let report = update_from_modes(&nominal, modes, &opts)
+        .with_context(|| format!("updating the chain from {}", path.display()))?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", report.summary());
+    }
+    Ok(())
+}
+
+/// `3,4` -> `[3, 4]`.
+fn parse_list(text: &str) -> springmass::Result<Vec<usize>> {
+    text.split(',')
+        .map(|p| {
+            p.trim().parse::<usize>().map_err(|_| {
+                springmass::Error::invalid(
+                    "hold_out",
+                    text,
+                    "mode numbers separated by commas, e.g. 3,4",
+                )
+            })
+        })
+        .collect()
+}

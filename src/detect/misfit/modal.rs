@@ -1,0 +1,351 @@
+//! Modal misfit: a chain against measured modes (the modal-property
+//! difference of structural model updating), one [`MeasurementModel`].
+//!
+//! The chain's undamped modes ([`undamped_modes`]) are paired with the
+//! measured ones by the modal assurance criterion over the measured masses,
+//! `MAC(a, b) = (a.b)^2 / ((a.a)(b.b))`, with forced one-to-one matching (the
+//! pair of highest MAC first; a mode measured at fewer than two masses takes
+//! the nearest free frequency). Each pair gives
+//!
+//! * a frequency residual `(f_j - f_meas) / se_f`, `f_j = omega_j / (2 pi)`
+//!   (Hz when the chain is in SI units);
+//! * shape residuals `(c a_i - b_i) / se_i` at the measured masses, with the
+//!   model's shape `a` scaled by the weighted least-squares factor `c` onto
+//!   the measured `b` (any scaling of the data; one degree of freedom per
+//!   mode goes to `c`).
+//!
+//! Standard errors come from the table (`frequency_se`, `phi_J_se`) or from
+//! [`ModalWeights`] (default 1% of the frequency and 5% of the mode's
+//! largest measured component); a fit without given errors scales its
+//! standard errors by its residual.
+//!
+//! ```
+//! use springmass::{Chain, chain::Boundary, time::modal::undamped_modes};
+//! use springmass::detect::data::modes::{MeasuredMode, MeasuredModes, ShapeEntry};
+//! use springmass::detect::misfit::modal::{ModalMisfit, ModalWeights};
+//! use springmass::detect::model::MeasurementModel;
+//! let chain = Chain::new(3)?.with_boundaries(Boundary::Fixed, Boundary::Free)?;
+//! let m = undamped_modes(&chain)?;
+//! let mode = |j: usize| MeasuredMode {
+//!     frequency: m.omega[j] / std::f64::consts::TAU, frequency_se: None, damping: None,
+//!     shape: (0..3).map(|i| ShapeEntry { mass: i + 1, value: 2.0 * m.shapes[(i, j)], se: None }).collect() };
+//! let data = MeasuredModes::new(vec![mode(0), mode(1)])?;
+//! let misfit = ModalMisfit::new(data, 3, ModalWeights::default())?;
+//! assert!(misfit.chi2(&chain)? < 1e-20);                  // the truth fits exactly
+//! assert_eq!(misfit.dof(), 2 + 2 * (3 - 1));               // one scale per shape
+//! # Ok::<(), springmass::Error>(())
+//! ```
+
+use crate::chain::Chain;
+use crate::detect::data::modes::{MeasuredMode, MeasuredModes};
+use crate::detect::model::MeasurementModel;
+use crate::error::{Error, Result};
+use crate::sensitivity::Param;
+use crate::time::modal::{undamped_modes, UndampedModes};
+use nalgebra::DMatrix;
+use std::f64::consts::TAU;
+
+/// Standard errors assumed where the table gives none.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModalWeights {
+    /// A frequency's standard error relative to it (default 0.01).
+    pub frequency_rel: f64,
+    /// A shape component's standard error relative to the mode's largest
+    /// measured component (default 0.05).
+    pub shape_rel: f64,
+}
+
+impl Default for ModalWeights {
+    fn default() -> ModalWeights {
+        ModalWeights {
+            frequency_rel: 0.01,
+            shape_rel: 0.05,
+        }
+    }
+}
+
+impl ModalWeights {
+    /// # Errors
+    /// A value not in `(0, 1]` (fields `frequency_rel`, `shape_rel`).
+    pub fn check(&self) -> Result<()> {
+        for (f, v) in [
+            ("frequency_rel", self.frequency_rel),
+            ("shape_rel", self.shape_rel),
+        ] {
+            if !(v > 0.0 && v <= 1.0) {
+                return Err(Error::invalid(f, v, "a relative standard error in (0, 1]"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One measured mode with its standard errors resolved.
+#[derive(Clone, Debug)]
+struct Target {
+    frequency: f64,
+    frequency_se: f64,
+    /// `(0-based mass, value, se)`.
+    shape: Vec<(usize, f64, f64)>,
+}
+
+impl Target {
+    fn new(m: &MeasuredMode, w: &ModalWeights) -> Target {
+        let top = m.shape.iter().map(|e| e.value.abs()).fold(0.0, f64::max);
+        let shape_se = w.shape_rel * if top > 0.0 { top } else { 1.0 };
+        Target {
+            frequency: m.frequency,
+            frequency_se: m.frequency_se.unwrap_or(w.frequency_rel * m.frequency),
+            shape: m
+                .shape
+                .iter()
+                .map(|e| (e.mass - 1, e.value, e.se.unwrap_or(shape_se)))
+                .collect(),
+        }
+    }
+
+    /// Whether the shape can be compared (two components or more).
+    fn has_shape(&self) -> bool {
+        self.shape.len() >= 2
+    }
+
+    /// The model shape `j` at the measured masses.
+    fn model_shape(&self, modes: &UndampedModes, j: usize) -> Vec<f64> {
+        self.shape
+            .iter()
+            .map(|&(i, ..)| modes.shapes[(i, j)])
+            .collect()
+    }
+
+    /// MAC between model mode `j` and this mode, over the measured masses.
+    fn mac(&self, modes: &UndampedModes, j: usize) -> f64 {
+        let a = self.model_shape(modes, j);
+        let b: Vec<f64> = self.shape.iter().map(|e| e.1).collect();
+        mac(&a, &b)
+    }
+}
+
+/// `(a.b)^2 / ((a.a)(b.b))`, 0 for a zero vector.
+pub fn mac(a: &[f64], b: &[f64]) -> f64 {
+    let dot = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>();
+    let den = dot(a, a) * dot(b, b);
+    if den > 0.0 {
+        dot(a, b).powi(2) / den
+    } else {
+        0.0
+    }
+}
+
+/// Measured modes as a [`MeasurementModel`] (see the module docs).
+#[derive(Clone, Debug)]
+pub struct ModalMisfit {
+    targets: Vec<Target>,
+    n: usize,
+    given_errors: bool,
+}
+
+impl ModalMisfit {
+    /// The misfit of `data` against `n`-mass chains.
+    ///
+    /// # Errors
+    /// A shape at a mass beyond `n` (field `modes.phi_J`); more modes than
+    /// the chain has (field `modes`); bad `weights`.
+    pub fn new(data: MeasuredModes, n: usize, weights: ModalWeights) -> Result<ModalMisfit> {
+        weights.check()?;
+        data.check_chain(n)?;
+        if data.len() > n {
+            return Err(Error::invalid(
+                "modes",
+                format!("{} modes", data.len()),
+                format!("at most n = {n} (an n-mass chain has n modes)"),
+            ));
+        }
+        let given_errors = data
+            .modes()
+            .iter()
+            .all(|m| m.frequency_se.is_some() && m.shape.iter().all(|e| e.se.is_some()));
+        Ok(ModalMisfit {
+            targets: data
+                .modes()
+                .iter()
+                .map(|m| Target::new(m, &weights))
+                .collect(),
+            n,
+            given_errors,
+        })
+    }
+
+    /// Whether every standard error came from the table (then `chi^2` is a
+    /// goodness-of-fit test; otherwise the weights are assumed).
+    pub fn errors_given(&self) -> bool {
+        self.given_errors
+    }
+
+    /// The model mode paired with each measured mode (0-based indices into
+    /// `modes`), by MAC with forced one-to-one matching.
+    pub fn pairing(&self, modes: &UndampedModes) -> Vec<usize> {
+        let nm = modes.omega.len();
+        let mut pair: Vec<Option<usize>> = vec![None; self.targets.len()];
+        let mut taken = vec![false; nm];
+        let mut cands: Vec<(f64, usize, usize)> = Vec::new();
+        for (t, target) in self
+            .targets
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| t.has_shape())
+        {
+            cands.extend((0..nm).map(|j| (target.mac(modes, j), t, j)));
+        }
+        cands.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        for (_, t, j) in cands {
+            if pair[t].is_none() && !taken[j] {
+                pair[t] = Some(j);
+                taken[j] = true;
+            }
+        }
+        for (t, target) in self.targets.iter().enumerate() {
+            if pair[t].is_none() {
+                let f = |j: usize| (modes.omega[j] / TAU - target.frequency).abs();
+                let j = (0..nm)
+                    .filter(|&j| !taken[j])
+                    .min_by(|&a, &b| f(a).total_cmp(&f(b)))
+                    .expect("no more measured modes than model modes");
+                pair[t] = Some(j);
+                taken[j] = true;
+            }
+        }
+        pair.into_iter()
+            .map(|p| p.expect("every mode paired"))
+            .collect()
+    }
+
+    /// The chain's undamped modes.
+    ///
+    /// # Errors
+    /// A chain of another size than the data's (field `n`); the eigen
+    /// solver's errors.
+    pub fn modes_of(&self, chain: &Chain) -> Result<UndampedModes> {
+        if chain.n() != self.n {
+            return Err(Error::invalid(
+                "n",
+                chain.n(),
+                format!("the data's n = {}", self.n),
+            ));
+        }
+        undamped_modes(chain)
+    }
+}
+
+/// The weighted scale `c` taking `a` onto `b` and the residuals `(c a - b)/se`.
+fn shape_residuals(a: &[f64], target: &Target, out: &mut Vec<f64>) {
+    let (mut num, mut den) = (0.0, 0.0);
+    for (ai, &(_, b, se)) in a.iter().zip(&target.shape) {
+        let w = 1.0 / (se * se);
+        num += w * ai * b;
+        den += w * ai * ai;
+    }
+    let c = if den > 0.0 { num / den } else { 0.0 };
+    out.extend(
+        a.iter()
+            .zip(&target.shape)
+            .map(|(ai, &(_, b, se))| (c * ai - b) / se),
+    );
+}
+
+impl MeasurementModel for ModalMisfit {
+    fn name(&self) -> &'static str {
+        "modal"
+    }
+
+    fn dof(&self) -> usize {
+        self.targets
+            .iter()
+            .map(|t| 1 + if t.has_shape() { t.shape.len() - 1 } else { 0 })
+            .sum()
+    }
+
+    fn residuals(&self, chain: &Chain) -> Result<Vec<f64>> {
+        let modes = self.modes_of(chain)?;
+        let pair = self.pairing(&modes);
+        let mut r = Vec::with_capacity(self.dof() + self.targets.len());
+        for (target, &j) in self.targets.iter().zip(&pair) {
+            r.push((modes.omega[j] / TAU - target.frequency) / target.frequency_se);
+            if target.has_shape() {
+                shape_residuals(&target.model_shape(&modes, j), target, &mut r);
+            }
+        }
+        Ok(r)
+    }
+
+    fn jacobian(&self, _chain: &Chain, _params: &[Param]) -> Result<Option<DMatrix<f64>>> {
+        Ok(None)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::chain::{Boundary, Defect};
+    use crate::detect::data::modes::ShapeEntry;
+
+    fn measured(chain: &Chain, which: &[usize], at: &[usize]) -> MeasuredModes {
+        let m = undamped_modes(chain).unwrap();
+        let modes = which
+            .iter()
+            .map(|&j| MeasuredMode {
+                frequency: m.omega[j] / TAU,
+                frequency_se: None,
+                damping: None,
+                shape: at
+                    .iter()
+                    .map(|&i| ShapeEntry {
+                        mass: i,
+                        value: -3.0 * m.shapes[(i - 1, j)],
+                        se: None,
+                    })
+                    .collect(),
+            })
+            .collect();
+        MeasuredModes::new(modes).unwrap()
+    }
+
+    #[test]
+    fn pairing_follows_shapes_not_order() {
+        let chain = Chain::new(6).unwrap();
+        let data = measured(&chain, &[1, 4], &[1, 2, 3, 4, 5, 6]);
+        let misfit = ModalMisfit::new(data, 6, ModalWeights::default()).unwrap();
+        let modes = undamped_modes(&chain).unwrap();
+        assert_eq!(misfit.pairing(&modes), vec![1, 4]);
+        assert!(misfit.chi2(&chain).unwrap() < 1e-20);
+    }
+
+    #[test]
+    fn a_changed_spring_is_seen() {
+        let truth = Chain::new(5)
+            .unwrap()
+            .with_boundaries(Boundary::Fixed, Boundary::Free)
+            .unwrap()
+            .with_defect(Defect::Spring { at: 2, k: 0.6 })
+            .unwrap();
+        let data = measured(&truth, &[0, 1], &[1, 3, 5]);
+        let misfit = ModalMisfit::new(data, 5, ModalWeights::default()).unwrap();
+        let nominal = truth.uniform();
+        assert!(misfit.chi2(&truth).unwrap() < 1e-20);
+        assert!(misfit.chi2(&nominal).unwrap() > 10.0);
+        assert_eq!(misfit.residuals(&truth).unwrap().len(), 2 + 2 * 3);
+    }
+
+    #[test]
+    fn bad_sizes_are_refused() {
+        let chain = Chain::new(3).unwrap();
+        let data = measured(&chain, &[0, 1, 2], &[1, 3]);
+        assert!(ModalMisfit::new(data.clone(), 2, ModalWeights::default()).is_err());
+        let m = ModalMisfit::new(data, 3, ModalWeights::default()).unwrap();
+        assert!(m.chi2(&Chain::new(4).unwrap()).is_err());
+        let w = ModalWeights {
+            frequency_rel: 0.0,
+            shape_rel: 0.05,
+        };
+        assert!(w.check().is_err());
+    }
+}
