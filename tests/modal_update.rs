@@ -235,16 +235,28 @@ fn eighteen_storeys_from_few_modes_say_what_they_do_not_determine() {
     let floors = [3, 6, 9, 12, 15, 18];
     let mut within = 0;
     let mut determined = 0;
-    for seed in 0..4 {
-        let data = synthetic(&truth, 3, &floors, seed);
+    let (mut combos, mut combos_within) = (0, 0);
+    for (count, seed) in [(2, 0), (2, 1), (2, 2), (3, 3), (3, 4), (3, 5)] {
+        let data = synthetic(&truth, count, &floors, seed);
         let opts = ModalUpdateOptions {
             starts: 4,
             seed,
             ..Default::default()
         };
         let r = update_from_modes(&nominal, data, &opts).unwrap();
-        // 3 frequencies + 3 x 5 shape data for 18 factors: not all determined
+        // 2 or 3 frequencies + 5 shape data each for 18 factors: not all determined
         assert!(r.prior_width.is_some(), "a prior is needed");
+        // the combinations they do determine hold the truth
+        let factors: Vec<f64> = r
+            .factors
+            .iter()
+            .map(|f| truth.springs()[f.at] / 3.0e8)
+            .collect();
+        for c in &r.combinations {
+            combos += 1;
+            let t: f64 = c.weights.iter().zip(&factors).map(|(w, f)| w * f).sum();
+            combos_within += usize::from((c.estimate - t).abs() <= 3.0 * c.se);
+        }
         assert_ne!(r.status, "converged", "{}", r.message);
         assert!(!r.resolved);
         for f in r.factors.iter().filter(|f| f.determined) {
@@ -256,6 +268,15 @@ fn eighteen_storeys_from_few_modes_say_what_they_do_not_determine() {
             assert!(f.se.is_none() && !f.at_bound, "{f:?}");
         }
     }
+    eprintln!("18 storeys, 6 records: {determined} factors determined ({within} within 3 SE), {combos} combinations ({combos_within} within 3 SE)");
+    assert!(
+        combos >= 6,
+        "the modes determine combinations of storeys ({combos})"
+    );
+    assert!(
+        combos_within as f64 >= 0.9 * combos as f64,
+        "{combos_within} of {combos} combinations within 3 SE"
+    );
     assert!(
         within as f64 >= 0.9 * determined as f64,
         "{within} of {determined} within 3 SE"

@@ -69,6 +69,7 @@ pub mod damping;
 mod engine;
 pub mod general;
 pub mod greedy;
+pub mod identifiable;
 pub mod identify;
 pub mod judge;
 pub mod modal_update;

@@ -27,6 +27,7 @@
 
 use crate::chain::{Chain, Defect};
 use crate::detect::data::modes::{MeasuredMode, MeasuredModes};
+use crate::detect::fit::identifiable::{determined_combinations, Combination};
 use crate::detect::fit::profile::ProfileMode;
 use crate::detect::fit::select::chi2_sf;
 use crate::detect::misfit::modal::{mac, ModalMisfit, ModalWeights};
@@ -153,6 +154,10 @@ pub struct ModalUpdateReport {
     pub errors_given: bool,
     /// Width of the prior on the factors, when one was needed.
     pub prior_width: Option<f64>,
+    /// The combinations of factors the modes determine (a 10% change at
+    /// two standard errors), when they do not determine every factor: the
+    /// weights follow the order of `factors`.
+    pub combinations: Vec<Combination>,
     /// Every mode of the updated chain.
     pub modes: Vec<PredictedMode>,
     /// Starts run.
@@ -194,6 +199,21 @@ impl ModalUpdateReport {
                 f.kind, f.at, f.nominal, f.value, f.factor
             );
         }
+        if !self.combinations.is_empty() {
+            let _ = writeln!(
+                out,
+                "combinations of factors the modes determine (weights . factors):"
+            );
+        }
+        for c in &self.combinations {
+            let _ = writeln!(
+                out,
+                "  {:.4} +- {:.4}: {}",
+                c.estimate,
+                c.se,
+                self.terms(&c.weights)
+            );
+        }
         let _ = writeln!(
             out,
             "modes of the updated chain (Hz when the chain is in SI units):"
@@ -215,6 +235,28 @@ impl ModalUpdateReport {
             out.push('\n');
         }
         out
+    }
+}
+
+impl ModalUpdateReport {
+    /// The largest weights of a combination as `+0.62 spring 3 ...`.
+    fn terms(&self, weights: &[f64]) -> String {
+        let mut idx: Vec<usize> = (0..weights.len())
+            .filter(|&i| weights[i].abs() >= 0.1)
+            .collect();
+        idx.sort_by(|&a, &b| weights[b].abs().total_cmp(&weights[a].abs()));
+        let shown: Vec<String> = idx
+            .iter()
+            .take(6)
+            .map(|&i| {
+                format!(
+                    "{:+.2} {} {}",
+                    weights[i], self.factors[i].kind, self.factors[i].at
+                )
+            })
+            .collect();
+        let more = if idx.len() > 6 { " ..." } else { "" };
+        format!("{}{more}", shown.join(" "))
     }
 }
 
@@ -320,6 +362,10 @@ pub fn update_from_modes(
         misfit.errors_given(),
         opts,
     );
+    let combinations = match problem.prior {
+        Some(_) => combinations(&best, &misfit, &chain, chi2, misfit.errors_given())?,
+        None => Vec::new(),
+    };
     let predicted = predict(&chain, &misfit, &fitted, &held)?;
     Ok(judge(ModalUpdateReport {
         status: String::new(),
@@ -331,6 +377,7 @@ pub fn update_from_modes(
         p_value: None,
         errors_given: misfit.errors_given(),
         prior_width: problem.prior,
+        combinations,
         modes: predicted,
         starts: opts.starts + 1,
         evaluations,
@@ -416,6 +463,37 @@ fn regularised(
     }
     let (fit, w) = last.expect("a non-empty ladder");
     Ok((fit, w, evaluations))
+}
+
+/// Standard error below which a combination counts as determined: a 10%
+/// change shows at two standard errors (the profile's visibility rule).
+const COMBINATION_SE: f64 = 0.05;
+
+/// The combinations of factors the data alone determine (the data rows of
+/// the fit's Jacobian, without the prior's).
+fn combinations(
+    fit: &LmFit,
+    misfit: &ModalMisfit,
+    chain: &Chain,
+    chi2: f64,
+    given: bool,
+) -> Result<Vec<Combination>> {
+    let r = misfit.residuals(chain)?;
+    let j = fit.jacobian.rows(0, r.len()).into_owned();
+    let p = fit.theta.len();
+    let dof = misfit.dof();
+    let scale = if given || dof <= p {
+        1.0
+    } else {
+        (chi2 / (dof - p) as f64).sqrt()
+    };
+    Ok(determined_combinations(
+        &j,
+        &r,
+        &fit.theta,
+        scale,
+        COMBINATION_SE,
+    ))
 }
 
 /// Factor estimates with standard errors and the determined flags.
