@@ -38,6 +38,8 @@ mod ground;
 mod hardening_fuzz;
 #[path = "inverse.rs"]
 mod inverse;
+#[path = "k_auto.rs"]
+mod k_auto;
 #[cfg(feature = "bigfloat")]
 #[path = "locate.rs"]
 mod locate;

@@ -88,7 +88,7 @@ mod sets;
 pub use super::setup::{laplace_obs, Setup};
 use hypothesis::rank;
 pub use hypothesis::{param_name, FittedParam, Hypothesis};
-pub(crate) use sets::fit_placed_from;
+pub(crate) use sets::{fit_pairs_from, fit_placed_from};
 use sets::{better, fit_pairs, fit_pairs_coarse, fit_pairs_fast, starts, Fitted, Tol};
 
 /// Which of the shortlist's Laplace fits `fits` (in shortlist order) are
