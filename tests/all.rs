@@ -69,6 +69,8 @@ mod study;
 mod study_safety;
 #[path = "suppress.rs"]
 mod suppress;
+#[path = "threads.rs"]
+mod threads;
 #[path = "time_series.rs"]
 mod time_series;
 #[path = "trigger.rs"]

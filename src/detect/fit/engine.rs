@@ -14,6 +14,7 @@ use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::{Misfit, MisfitKind};
 use crate::detect::model::MeasurementModel;
 use crate::detect::search::enumerate::{enumerate, fit_slots_from, EnumerateOptions};
+use crate::detect::search::parallel::MIN_SETS;
 use crate::detect::search::FitMethod;
 use crate::detect::search::{
     minimize, Candidate, MisfitObjective, Objective, SearchOptions, SearchResult, Space,
@@ -300,8 +301,10 @@ impl Engine<'_> {
                 Found::new(ranked, evaluations, 1, self.opts.method.name())
             }
             Some(unknowns) => {
+                // a small fit runs on one thread (search::parallel)
+                let large = set_count(&unknowns) >= MIN_SETS as f64;
                 let gopts = GeneralOptions {
-                    parallel: self.opts.parallel,
+                    parallel: self.opts.parallel && large,
                     max_sets: self.opts.max_sets,
                     ..GeneralOptions::default()
                 };
@@ -1016,6 +1019,19 @@ struct KernelSet {
     defects: Vec<(usize, f64)>,
     /// The kernel's chi-square at these masses.
     chi2: f64,
+}
+
+/// How many position (and kind) sets the unknowns hold, about: the
+/// placements of their free slots on the positions not already taken,
+/// times the kinds each may take (the work of one enumeration, which
+/// decides whether it is shared among threads).
+fn set_count(unknowns: &Unknowns) -> f64 {
+    let slots = unknowns.slots();
+    let free: Vec<&Slot> = slots.iter().filter(|s| s.at.is_none()).collect();
+    let open = unknowns.n().saturating_sub(slots.len() - free.len()) as f64;
+    let kinds: f64 = free.iter().map(|s| s.kind.kinds().len() as f64).product();
+    let places = (0..free.len()).fold(1.0, |c, i| c * (open - i as f64) / (i + 1) as f64);
+    places.max(0.0) * kinds
 }
 
 /// How many of the next fit's best answers propose the new defect of
