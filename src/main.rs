@@ -84,7 +84,16 @@ fn run() -> anyhow::Result<()> {
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Suppress(a) => cmd::suppress::run(a),
         Command::Laplace(a) => cmd::laplace::run(a),
-        Command::Fit(a) => cmd::fit::run(*a),
+        Command::Fit(a) => match a.threads {
+            Some(n) => {
+                springmass::study::run::check_threads(n)?;
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(n)
+                    .build()?
+                    .install(|| cmd::fit::run(*a))
+            }
+            None => cmd::fit::run(*a),
+        },
         Command::Surface(a) => cmd::surface::run(a),
         Command::NoiseStudy(a) => cmd::noise::run(a),
         Command::Spectral(a) => cmd::spectral::run(a),

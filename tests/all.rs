@@ -38,6 +38,8 @@ mod ground;
 mod hardening_fuzz;
 #[path = "inverse.rs"]
 mod inverse;
+#[path = "k_auto.rs"]
+mod k_auto;
 #[cfg(feature = "bigfloat")]
 #[path = "locate.rs"]
 mod locate;
@@ -69,6 +71,8 @@ mod study;
 mod study_safety;
 #[path = "suppress.rs"]
 mod suppress;
+#[path = "threads.rs"]
+mod threads;
 #[path = "time_series.rs"]
 mod time_series;
 #[path = "trigger.rs"]

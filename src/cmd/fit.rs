@@ -163,6 +163,9 @@ pub struct Args {
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Worker threads, 1 to 1024 [default: RAYON_NUM_THREADS, else the number of cores]. Small fits run on one; results do not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
     /// Damping model: grounded (a damper from every mass to the ground, the
     /// paper's), between[:C] (dampers parallel to the springs, as between
     /// storeys), rayleigh[:A:B] (C = A M + B K). Parameters not given are

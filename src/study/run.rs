@@ -284,7 +284,7 @@ fn execute_all(
     let failure: Mutex<Option<Error>> = Mutex::new(None);
     let work = || {
         todo.par_iter().for_each(|case| {
-            let rec = execute(study, case, out);
+            let rec = crate::detect::search::parallel::as_task(|| execute(study, case, out));
             let line = match serde_json::to_string(&rec) {
                 Ok(l) => l,
                 Err(e) => {

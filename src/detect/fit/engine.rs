@@ -14,6 +14,7 @@ use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::{Misfit, MisfitKind};
 use crate::detect::model::MeasurementModel;
 use crate::detect::search::enumerate::{enumerate, fit_slots_from, EnumerateOptions};
+use crate::detect::search::parallel::MIN_SETS;
 use crate::detect::search::FitMethod;
 use crate::detect::search::{
     minimize, Candidate, MisfitObjective, Objective, SearchOptions, SearchResult, Space,
@@ -300,8 +301,10 @@ impl Engine<'_> {
                 Found::new(ranked, evaluations, 1, self.opts.method.name())
             }
             Some(unknowns) => {
+                // a small fit runs on one thread (search::parallel)
+                let large = set_count(&unknowns) >= MIN_SETS as f64;
                 let gopts = GeneralOptions {
-                    parallel: self.opts.parallel,
+                    parallel: self.opts.parallel && large,
                     max_sets: self.opts.max_sets,
                     ..GeneralOptions::default()
                 };
@@ -317,6 +320,67 @@ impl Engine<'_> {
             }
         };
         self.measured(k, sigma, found, &coarse, fine.as_ref(), misfit_name)
+    }
+
+    /// The fit of `next.k = prev.k + 1` defects made no worse than `prev`'s:
+    /// when its best residual exceeds `prev`'s (a search that missed what
+    /// `prev` found), `prev`'s best answer is extended by one defect of
+    /// vanishing size at each new `(kind, position)` of `next`'s best
+    /// [`EXTENSIONS`] answers and refitted from there, every value and
+    /// chain parameter free ([`general::fit_pairs_from`]: its residual
+    /// cannot exceed the start's, which is `prev`'s); the best of them
+    /// joins `next`'s ranking. A fit that is not worse is returned as it is,
+    /// so the chi-square is non-increasing in `k` and the noise estimate
+    /// does not depend on how far `k` was raised.
+    ///
+    /// # Errors
+    /// As the observations' preparation and [`Self::measured`].
+    pub(super) fn monotone(&self, prev: &KFit, next: KFit, sigma: f64) -> Result<KFit> {
+        if next.k != prev.k + 1 || next.rss <= prev.rss || self.given.is_some() {
+            return Ok(next);
+        }
+        let (Some(base), Some(unknowns)) = (prev.ranked.first(), self.unknowns(next.k)?) else {
+            return Ok(next);
+        };
+        let (coarse, fine, misfit_name, _) = self.prepared(sigma)?;
+        let obs: &dyn MeasurementModel = match fine.as_ref() {
+            Some(t) => t,
+            None => &coarse,
+        };
+        let start = base.to_chain(self.model.chain())?.uniform();
+        let (mut best, mut spent, mut tried): (Option<Hypothesis>, usize, usize) = (None, 0, 0);
+        for (kind, at) in extensions(base, &next.ranked) {
+            let mut pairs = base.key();
+            pairs.push((kind, at));
+            let mut values = base.masses();
+            values.push(kind.uniform(&start));
+            tried += 1;
+            if let Ok((h, e)) =
+                general::fit_pairs_from(&start, &unknowns, &pairs, &values, obs, 100)
+            {
+                spent += e;
+                if best.as_ref().is_none_or(|b| h.chi2 < b.chi2) {
+                    best = Some(h);
+                }
+            }
+        }
+        let Some(h) = best else {
+            return Ok(next);
+        };
+        let mut ranked = next.ranked.clone();
+        ranked.push(h);
+        let (ranked, _) = self.ranked(ranked, 0)?;
+        let found = Found {
+            ranked,
+            evaluations: next.evaluations + spent,
+            hypotheses: next.hypotheses + tried,
+            method_name: next.method_name.clone(),
+            exhaustive: next.exhaustive,
+            budget_exhausted: next.budget_exhausted,
+            trace: next.trace.clone(),
+        };
+        let f = self.measured(next.k, sigma, found, &coarse, fine.as_ref(), misfit_name)?;
+        Ok(if f.rss < next.rss { f } else { next })
     }
 
     /// Run the options' search for the unknowns of `k` defects.
@@ -957,6 +1021,38 @@ struct KernelSet {
     chi2: f64,
 }
 
+/// How many position (and kind) sets the unknowns hold, about: the
+/// placements of their free slots on the positions not already taken,
+/// times the kinds each may take (the work of one enumeration, which
+/// decides whether it is shared among threads).
+fn set_count(unknowns: &Unknowns) -> f64 {
+    let slots = unknowns.slots();
+    let free: Vec<&Slot> = slots.iter().filter(|s| s.at.is_none()).collect();
+    let open = unknowns.n().saturating_sub(slots.len() - free.len()) as f64;
+    let kinds: f64 = free.iter().map(|s| s.kind.kinds().len() as f64).product();
+    let places = (0..free.len()).fold(1.0, |c, i| c * (open - i as f64) / (i + 1) as f64);
+    places.max(0.0) * kinds
+}
+
+/// How many of the next fit's best answers propose the new defect of
+/// [`Engine::monotone`]'s extensions.
+const EXTENSIONS: usize = 3;
+
+/// The `(kind, position)` pairs of the best [`EXTENSIONS`] hypotheses of
+/// `next` at positions that `base` does not hold, in order, each once.
+fn extensions(base: &Hypothesis, next: &[Hypothesis]) -> Vec<(DefectKind, usize)> {
+    let held = base.positions();
+    let mut out: Vec<(DefectKind, usize)> = Vec::new();
+    for h in next.iter().take(EXTENSIONS) {
+        for pair in h.key() {
+            if !held.contains(&pair.1) && !out.contains(&pair) {
+                out.push(pair);
+            }
+        }
+    }
+    out
+}
+
 /// The position set a stochastic search found (`positions` of the unknowns'
 /// unknown-position slots, in slot order) and its neighbours: each position
 /// moved by one or two to a place that is free (in `1..=n`, not a known position,
@@ -1025,6 +1121,64 @@ mod tests {
     use crate::detect::data::observations::LaplaceValues;
     use crate::detect::fit::DefectCount;
     use num_complex::Complex64;
+
+    /// A fit at `k + 1` worse than the fit at `k` (here a hand-made wrong
+    /// answer) is replaced by the refit from the `k` answer plus a
+    /// vanishing defect: never worse than `k`; a fit that is not worse is
+    /// kept as it is.
+    #[test]
+    fn a_worse_fit_at_k_plus_one_restarts_from_k() {
+        use crate::detect::data::observations::Series;
+        use crate::detect::data::series::TimeData;
+        use crate::noise::NoiseLevel;
+        let truth = crate::scenes::paper_with(8, "mass:3:3.0 mass:6:0.5").unwrap();
+        let rec =
+            TimeData::simulate(&truth, 100.0, 0.25, NoiseLevel::RelativeMax(1e-3), 1).unwrap();
+        let obs =
+            Observations::Series(Series::new(rec.t().to_vec(), rec.y().to_vec(), None).unwrap());
+        let model = Model::new(8).unwrap();
+        let opts = FitOptions {
+            parallel: false,
+            ..FitOptions::default()
+        };
+        let engine = Engine {
+            obs: &obs,
+            model: &model,
+            opts: &opts,
+            misfit: MisfitKind::Time,
+            prepared: std::sync::Mutex::new(None),
+            given: None,
+            support: std::sync::Mutex::new(None),
+            record: Default::default(),
+        };
+        let sigma = 1e-3 * rec.y().iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let prev = engine.fit_k(1, sigma).unwrap();
+        let good = engine.fit_k(2, sigma).unwrap();
+        assert!(good.rss <= prev.rss);
+        let (rss, sets) = (good.rss, good.hypotheses);
+        let kept = engine.monotone(&prev, good, sigma).unwrap();
+        assert_eq!((kept.rss.to_bits(), kept.hypotheses), (rss.to_bits(), sets));
+        let wrong = Hypothesis::from_parts(
+            vec![
+                Defect::Mass { at: 1, m: 1.5 },
+                Defect::Mass { at: 8, m: 0.7 },
+            ],
+            vec![0.1, 0.1],
+            Vec::new(),
+            f64::INFINITY,
+        );
+        let (coarse, fine, name, _) = engine.prepared(sigma).unwrap();
+        let found = Found::new(vec![wrong], 0, 1, "enumerate");
+        let worse = engine
+            .measured(2, sigma, found, &coarse, fine.as_ref(), name)
+            .unwrap();
+        assert!(worse.rss > prev.rss, "{} vs {}", worse.rss, prev.rss);
+        let fixed = engine.monotone(&prev, worse, sigma).unwrap();
+        assert!(fixed.rss <= prev.rss, "{} vs {}", fixed.rss, prev.rss);
+        let held = prev.ranked[0].positions();
+        assert!(fixed.ranked[0].positions().contains(&held[0]));
+        assert_eq!(fixed.ranked[0].defects.len(), 2);
+    }
 
     /// The Woodbury path's hypotheses (best two refitted from the kernel's
     /// values, the others the kernel's fits) against the full refit of the

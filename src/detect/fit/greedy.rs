@@ -84,7 +84,6 @@ use crate::detect::search::rankone::{
 use crate::detect::unknowns::{DefectKind, KindChoice, KindPositions, Unknowns};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
-use rayon::prelude::*;
 
 mod time;
 pub use time::TimeStage;
@@ -309,11 +308,7 @@ impl Greedy<'_> {
     }
 
     fn map<T: Sync, U: Send>(&self, items: &[T], f: impl Fn(&T) -> U + Sync + Send) -> Vec<U> {
-        if self.opts.parallel {
-            items.par_iter().map(f).collect()
-        } else {
-            items.iter().map(f).collect()
-        }
+        crate::detect::search::parallel::map(items, self.opts.parallel, 2, f)
     }
 
     /// The starting value of a defect of `kind` (the coarse start of the

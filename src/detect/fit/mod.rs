@@ -242,6 +242,10 @@ fn fit_every_k(
     let mut fits: Vec<KFit> = Vec::with_capacity(ks.len());
     for &k in &ks {
         let f = crate::cancel::checked(engine.fit_k(k, sigma))?;
+        let f = match fits.last() {
+            Some(prev) => engine.monotone(prev, f, sigma)?,
+            None => f,
+        };
         evaluations += f.evaluations;
         fits.push(f);
         if let DefectCount::Auto { .. } = engine.opts.defects {
@@ -257,6 +261,10 @@ fn fit_every_k(
             let mut refit = Vec::with_capacity(fits.len());
             for f in &fits {
                 let g = crate::cancel::checked(engine.fit_k(f.k, sigma))?;
+                let g = match refit.last() {
+                    Some(prev) => engine.monotone(prev, g, sigma)?,
+                    None => g,
+                };
                 evaluations += g.evaluations;
                 refit.push(g);
             }

@@ -70,6 +70,7 @@ fn run<'a>(
     let (fits, sigma, evaluations) = fit_every_k(&engine, sigma, estimated)?;
     let (chosen, rows, criterion) = choose_k(&fits, sigma, estimated, opts.criterion)?;
     let chosen = without_null_defects(&fits, chosen, model.chain());
+    let sigma = reported_sigma(obs, &fits[chosen], sigma, estimated);
     Ok(Stage {
         engine,
         fits,
@@ -80,6 +81,18 @@ fn run<'a>(
         rows,
         criterion,
     })
+}
+
+/// The noise level of the report: for a record with an estimated level,
+/// the chosen fit's own residual estimate (the same as with its `k` given,
+/// whatever the largest `k` fitted), else `sigma` (given, or for Laplace
+/// values the largest model's estimate, which their chi-square test of the
+/// chosen model is measured against).
+fn reported_sigma(obs: &Observations, chosen: &KFit, sigma: f64, estimated: bool) -> f64 {
+    match obs {
+        Observations::Series(_) if estimated => chosen.sigma_hat.max(f64::MIN_POSITIVE),
+        _ => sigma,
+    }
 }
 
 /// The criterion's choice, stepped down while the chosen fit holds a free

@@ -59,7 +59,6 @@ use crate::chain::{Chain, Probe};
 use crate::detect::unknowns::DefectKind;
 use crate::error::{Error, Result};
 use num_complex::Complex64;
-use rayon::prelude::*;
 
 /// Largest number of stored samples (masses x internal steps) of one
 /// simulation; more candidates are screened in chunks.
@@ -598,11 +597,8 @@ impl Screen {
                 let gs = self.convolve(&run, cands, pair, n, gamma)?;
                 Ok(pair.iter().zip(gs).map(|(&i, g)| f(i, &r, &g)).collect())
             };
-            let res: Vec<Result<Vec<T>>> = if parallel {
-                pairs.par_iter().map(work).collect()
-            } else {
-                pairs.iter().map(work).collect()
-            };
+            let res: Vec<Result<Vec<T>>> =
+                crate::detect::search::parallel::map(&pairs, parallel, 2, work);
             for part in res {
                 out.extend(part?);
             }

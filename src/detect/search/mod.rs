@@ -72,15 +72,19 @@ pub mod enumerate;
 pub mod genetic;
 pub mod lsq;
 pub mod nelder_mead;
+pub mod parallel;
 pub mod pso;
 pub mod rankone;
 pub mod registry;
+
+/// Candidates of a batch from which [`Counted::cost_batch`] shares it
+/// among threads (one candidate costs microseconds on the Woodbury kernel).
+pub const MIN_BATCH: usize = 64;
 
 use crate::detect::misfit::Misfit;
 use crate::detect::unknowns::{MassUnknown, MassUnknowns};
 use crate::error::{Error, Result};
 use rand::Rng;
-use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
@@ -595,16 +599,12 @@ impl<'a> Tracked<'a> {
         v
     }
 
-    /// Evaluate a batch, in parallel when `parallel`; counted and recorded in
+    /// Evaluate a batch, in parallel when `parallel` and the batch holds at
+    /// least [`MIN_BATCH`] candidates ([`parallel::map`]); counted and recorded in
     /// input order, so the outcome does not depend on the thread count.
     pub fn cost_batch(&self, cs: &[Candidate], parallel: bool) -> Vec<f64> {
-        let costs: Vec<f64> = if parallel {
-            cs.par_iter()
-                .map(|c| finite_cost(self.obj.cost(c)))
-                .collect()
-        } else {
-            cs.iter().map(|c| finite_cost(self.obj.cost(c))).collect()
-        };
+        let costs: Vec<f64> =
+            parallel::map(cs, parallel, MIN_BATCH, |c| finite_cost(self.obj.cost(c)));
         for (c, &v) in cs.iter().zip(&costs) {
             let k = self.evals.fetch_add(1, Ordering::SeqCst) + 1;
             self.record(k, c, v);

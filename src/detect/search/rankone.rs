@@ -60,7 +60,6 @@ use crate::detect::unknowns::{DefectKind, KindBounds};
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C;
-use rayon::prelude::*;
 
 /// Every mass, damper and spring of a chain, as plain arrays (no defect
 /// list: a profile with every value free is one of these).
@@ -332,9 +331,8 @@ impl Sweep {
     ) -> Result<Sweep> {
         let q = s.len();
         // per node: X_1 and the (a, b) of every probe (node-major)
-        let per_node: Vec<Option<NodeProbes>> = s
-            .par_iter()
-            .map(|&z| {
+        let per_node: Vec<Option<NodeProbes>> =
+            crate::detect::search::parallel::map(s, true, 2, |&z| {
                 let col = Column::new(&profile, z)?;
                 let x = col.g1[0] * profile.gamma;
                 let ab = kinds
@@ -343,8 +341,7 @@ impl Sweep {
                     .map(|(&k, pos)| pos.iter().map(|&at| col.probe(&profile, k, at)).collect())
                     .collect();
                 Some((x, ab))
-            })
-            .collect();
+            });
         let mut x = Vec::with_capacity(q);
         let mut nodes = Vec::with_capacity(q);
         for (qi, v) in per_node.into_iter().enumerate() {
@@ -365,11 +362,11 @@ impl Sweep {
             .map(|ki| {
                 let np = positions[ki].len();
                 let mut v = vec![(C::new(0.0, 0.0), C::new(0.0, 0.0)); np * q];
-                v.par_chunks_mut(q).enumerate().for_each(|(pi, chunk)| {
+                for (pi, chunk) in v.chunks_mut(q).enumerate() {
                     for (qi, slot) in chunk.iter_mut().enumerate() {
                         *slot = nodes[qi][ki][pi];
                     }
-                });
+                }
                 v
             })
             .collect();
@@ -509,10 +506,8 @@ fn probe_columns(chain: &Chain, defects: &[SetDefect]) -> Result<(Vec<Probe>, Ve
 fn node_tables(chain: &Chain, target: &Target, probes: &[Probe]) -> (Vec<C>, Vec<C>, Vec<C>) {
     let ncol = probes.len();
     let src = Probe::Point(1);
-    let per: Vec<(Vec<C>, Vec<C>, C)> = target
-        .nodes()
-        .par_iter()
-        .map(|&z| {
+    let per: Vec<(Vec<C>, Vec<C>, C)> =
+        crate::detect::search::parallel::map(target.nodes(), true, 2, |&z| {
             let g = crate::green::Green::of_chain(chain, z);
             let fs = g.factors(src);
             let fu: Vec<_> = probes.iter().map(|&pr| g.factors(pr)).collect();
@@ -526,8 +521,7 @@ fn node_tables(chain: &Chain, target: &Target, probes: &[Probe]) -> (Vec<C>, Vec
             }
             let rhs = fu.iter().map(|f| g.pair(f, &fs)).collect();
             (a, rhs, g.pair(&fs, &fs))
-        })
-        .collect();
+        });
     let mut a = Vec::with_capacity(per.len() * ncol * ncol);
     let mut rhs = Vec::with_capacity(per.len() * ncol);
     let mut g11 = Vec::with_capacity(per.len());
@@ -620,15 +614,7 @@ fn with_scratch<I: Sync, F>(items: &[I], parallel: bool, target: &Target, f: F) 
 where
     F: Fn(&mut Scratch, &I) -> Scored + Sync + Send,
 {
-    if parallel {
-        items
-            .par_iter()
-            .map_init(|| Scratch::new(target), f)
-            .collect()
-    } else {
-        let mut sc = Scratch::new(target);
-        items.iter().map(|j| f(&mut sc, j)).collect()
-    }
+    crate::detect::search::parallel::map_init(items, parallel, 2, || Scratch::new(target), f)
 }
 
 /// Scores best first: by chi-square, then position, then kind.

@@ -77,9 +77,9 @@ use crate::detect::fit::identify::{identify, Alternative, FittedDefect, Identifi
 use crate::detect::misfit::laplace_sets::SetTables;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::MisfitKind;
+use crate::detect::search::parallel;
 use crate::detect::unknowns::{DefectKind, KindPositions, Unknowns};
 use crate::error::{Error, Result};
-use rayon::prelude::*;
 use serde::Serialize;
 
 mod hypothesis;
@@ -88,8 +88,8 @@ mod sets;
 pub use super::setup::{laplace_obs, Setup};
 use hypothesis::rank;
 pub use hypothesis::{param_name, FittedParam, Hypothesis};
-pub(crate) use sets::fit_placed_from;
 use sets::{better, fit_pairs, fit_pairs_coarse, fit_pairs_fast, starts, Fitted, Tol};
+pub(crate) use sets::{fit_pairs_from, fit_placed_from};
 
 /// Which of the shortlist's Laplace fits `fits` (in shortlist order) are
 /// refitted in the time domain: the best and the runner-up by the Laplace
@@ -120,18 +120,14 @@ fn time_refits(fits: &[Result<Fitted>], slack: f64) -> Vec<bool> {
     go
 }
 
-/// `f` over `items`, in parallel (rayon) or not; the output keeps the order
-/// of `items`.
+/// `f` over `items`, in parallel (rayon, [`parallel::map`]: never nested)
+/// or not; the output keeps the order of `items`.
 fn map_maybe_par<T: Sync, U: Send>(
     items: &[T],
     parallel: bool,
     f: impl Fn(&T) -> U + Sync + Send,
 ) -> Vec<U> {
-    if parallel {
-        items.par_iter().map(f).collect()
-    } else {
-        items.iter().map(f).collect()
-    }
+    parallel::map(items, parallel, 2, f)
 }
 
 /// Options of [`fit_general`].
@@ -646,6 +642,7 @@ mod screen_tests {
     use super::*;
     use crate::detect::unknowns::KindChoice;
     use crate::noise::NoiseLevel;
+    use rayon::prelude::*;
 
     /// Screen then refine against the earlier path on the noise study's
     /// systems (S1-S4, C3a, C3b; its record: [0, 200], dt = 0.2) at 1e-3 and

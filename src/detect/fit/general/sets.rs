@@ -238,6 +238,45 @@ pub(crate) fn fit_placed_from(
     Ok((f.hyp, f.evaluations))
 }
 
+/// Fit the `(kind, position)` pairs `pairs` of `unknowns` (one per slot, in
+/// slot order) on any measurement model `obs`, from `values` and the chain
+/// parameters of `base`, to full tolerance: a warm start (the fit at
+/// `k + 1` defects from the fit at `k`). Levenberg-Marquardt accepts only
+/// steps that lower the chi-square, so the answer is never worse than the
+/// start.
+///
+/// # Errors
+/// A pair count other than the unknowns' slot count; as the fit.
+pub(crate) fn fit_pairs_from(
+    base: &Chain,
+    unknowns: &Unknowns,
+    pairs: &[(DefectKind, usize)],
+    values: &[f64],
+    obs: &dyn MeasurementModel,
+    max_iter: usize,
+) -> Result<(Hypothesis, usize)> {
+    if pairs.len() != unknowns.k() || values.len() != pairs.len() {
+        return Err(Error::invalid(
+            "pairs",
+            pairs.len(),
+            format!("{} pairs and values, one per slot", unknowns.k()),
+        ));
+    }
+    let chain_bounds = crate::detect::fit::chainfit::default_bounds(base, unknowns.chain());
+    let f = fit_pairs(
+        base,
+        unknowns,
+        pairs,
+        values,
+        &chain_bounds,
+        true,
+        obs,
+        max_iter,
+        Tol::Full,
+    )?;
+    Ok((f.hyp, f.evaluations))
+}
+
 /// One fitted hypothesis and what it cost.
 pub(super) struct Fitted {
     pub(super) hyp: Hypothesis,

@@ -66,9 +66,9 @@ pub use slots::{fit_slots, fit_slots_from};
 use slots::{fit_slots_inner, quick_slots, SCREEN_RTOL};
 
 use crate::detect::misfit::Misfit;
+use crate::detect::search::parallel;
 use crate::detect::unknowns::{gen_sets, MassUnknown, MassUnknowns};
 use crate::error::{Error, Result};
-use rayon::prelude::*;
 
 /// Defects `(position, mass)`.
 pub type Defects = Vec<(usize, f64)>;
@@ -420,11 +420,7 @@ fn fit_sets(
     opts: &EnumerateOptions,
 ) -> Vec<Fitted> {
     let fit_one = |set: &Vec<usize>| fit_slots(misfit, &slots_for(unknowns, set, placed), opts);
-    if opts.parallel {
-        sets.par_iter().map(fit_one).collect()
-    } else {
-        sets.iter().map(fit_one).collect()
-    }
+    parallel::map(sets, opts.parallel, parallel::MIN_SETS, fit_one)
 }
 
 /// How far [`fit_sets_best`] has fitted a set.
@@ -521,11 +517,8 @@ fn fit_sets_best(
         new
     };
     let idx: Vec<usize> = (0..sets.len()).collect();
-    let mut staged: Vec<Staged> = if opts.parallel {
-        idx.par_iter().map(|&i| first(i)).collect()
-    } else {
-        idx.iter().map(|&i| first(i)).collect()
-    };
+    let mut staged: Vec<Staged> =
+        parallel::map(&idx, opts.parallel, parallel::MIN_SETS, |&i| first(i));
     let mut upper: Vec<f64> = Vec::with_capacity(sets.len());
     loop {
         upper.clear();
@@ -540,11 +533,12 @@ fn fit_sets_best(
         if go.is_empty() {
             break;
         }
-        let done: Vec<Staged> = if opts.parallel {
-            go.par_iter().map(|&i| next(i, &staged[i])).collect()
-        } else {
-            go.iter().map(|&i| next(i, &staged[i])).collect()
-        };
+        let done: Vec<Staged> = parallel::map(
+            &go,
+            opts.parallel && sets.len() >= parallel::MIN_SETS,
+            2,
+            |&i| next(i, &staged[i]),
+        );
         for (&i, s) in go.iter().zip(done) {
             staged[i] = s;
         }
