@@ -385,7 +385,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 
 /// The delimiter of a CSV text: the most frequent of `,`, `;` and tab (outside
 /// quotes) on its first line that is neither blank nor a `#` comment.
-fn sniff_delimiter(text: &str) -> u8 {
+pub(crate) fn sniff_delimiter(text: &str) -> u8 {
     let line = text
         .lines()
         .find(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
@@ -420,7 +420,7 @@ fn delim_str(d: u8) -> &'static str {
 }
 
 /// `time [s]` -> (`time`, `s`); `x1 (m)` -> (`x1`, `m`); `x1` -> (`x1`, none).
-fn split_unit(h: &str) -> (String, Option<String>) {
+pub(crate) fn split_unit(h: &str) -> (String, Option<String>) {
     let h = h.trim();
     for (open, close) in [('[', ']'), ('(', ')')] {
         if let Some(body) = h.strip_suffix(close) {
@@ -633,7 +633,7 @@ fn clip(s: &str) -> &str {
 }
 
 /// A number, with a decimal comma when the delimiter is `;` (`0,5`).
-fn parse_number(f: &str, decimal_comma: bool) -> Option<f64> {
+pub(crate) fn parse_number(f: &str, decimal_comma: bool) -> Option<f64> {
     if decimal_comma && f.contains(',') && !f.contains('.') {
         f.replacen(',', ".", 1).parse::<f64>().ok()
     } else {
@@ -665,7 +665,7 @@ fn is_comment_line(line: &str) -> bool {
 /// `#` comment lines replaced by blank lines (line numbers stay), unless the
 /// `#` opens a spreadsheet error value such as `#N/A` (a data row whose time
 /// is missing must be reported, not skipped).
-fn blank_comment_lines(text: &str) -> std::borrow::Cow<'_, str> {
+pub(crate) fn blank_comment_lines(text: &str) -> std::borrow::Cow<'_, str> {
     if !text.lines().any(is_comment_line) {
         return std::borrow::Cow::Borrowed(text);
     }

@@ -47,15 +47,32 @@ pub struct ChainArgs {
     /// With between or rayleigh, --d is an extra grounded damping [default 0].
     #[arg(long, value_name = "MODEL[:P1[:P2]]")]
     pub damping: Option<String>,
+    /// A measured profile instead of the uniform chain: a CSV with one row
+    /// per mass, columns mass, spring (to the mass before; empty for a free
+    /// left end) and optionally damper, and a last row with only the right
+    /// wall's spring when that end is fixed. Gives n and the ends; defects
+    /// apply on top of it.
+    #[arg(long, value_name = "FILE")]
+    pub baseline: Option<PathBuf>,
 }
 
 impl ChainArgs {
     /// Build and validate the chain.
     pub fn chain(&self) -> anyhow::Result<Chain> {
+        let baseline = self
+            .baseline
+            .as_ref()
+            .map(springmass::chain::Baseline::read_csv)
+            .transpose()?;
         let mut spec = match &self.scene {
             Some(path) => read_chain_spec(path)?,
             None => ChainSpec {
-                n: self.n.context("--n is required (or give --scene FILE)")?,
+                n: match &baseline {
+                    Some(b) => b.n(),
+                    None => self
+                        .n
+                        .context("--n is required (or give --scene FILE or --baseline FILE)")?,
+                },
                 k: 1.0,
                 d: 0.1,
                 gamma: 1.0,
@@ -64,8 +81,14 @@ impl ChainArgs {
                 left: Default::default(),
                 right: Default::default(),
                 damping: Default::default(),
+                baseline: None,
             },
         };
+        if let Some(b) = baseline {
+            b.check_agrees(self.n.or(Some(spec.n)), None, None)?;
+            spec.n = b.n();
+            spec.baseline = Some(b);
+        }
         if let Some(n) = self.n {
             spec.n = n;
         }
