@@ -28,7 +28,7 @@ mod damping;
 pub(crate) mod dense_ref;
 mod spec;
 mod with_baseline;
-pub use baseline::Baseline;
+pub use baseline::{Baseline, BaselineSpec};
 pub use damping::Damping;
 pub use spec::{ChainSpec, Units};
 use std::sync::Arc;

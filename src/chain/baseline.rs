@@ -276,6 +276,42 @@ impl Baseline {
     }
 }
 
+/// A baseline as a scene, a study or the Python package gives it: the path
+/// of a table (relative to the current directory; the CLI resolves a
+/// scene's paths against the scene file's directory) or the table inline,
+/// `{ mass = [...], spring = [...] }`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum BaselineSpec {
+    /// A CSV table's path ([`Baseline::read_csv`]).
+    Path(String),
+    /// The table itself.
+    Table(Baseline),
+}
+
+impl BaselineSpec {
+    /// The profile (read from its file, or the inline table).
+    ///
+    /// # Errors
+    /// As [`Baseline::read_csv`].
+    pub fn load(&self) -> Result<Baseline> {
+        match self {
+            BaselineSpec::Path(p) => Baseline::read_csv(p),
+            BaselineSpec::Table(b) => Ok(b.clone()),
+        }
+    }
+
+    /// A relative path taken against `dir` (a scene file's directory).
+    pub fn relative_to(self, dir: &Path) -> BaselineSpec {
+        match self {
+            BaselineSpec::Path(p) if Path::new(&p).is_relative() => {
+                BaselineSpec::Path(dir.join(p).display().to_string())
+            }
+            other => other,
+        }
+    }
+}
+
 fn end_of(wall_spring: f64) -> Boundary {
     if wall_spring > 0.0 {
         Boundary::Fixed
@@ -342,6 +378,34 @@ mod tests {
         assert_eq!(b.left(), Boundary::Free);
         assert_eq!(serde_json::to_string(&b).unwrap(), json);
         assert!(serde_json::from_str::<Baseline>(r#"{"mass":[0.0],"spring":[1.0,1.0]}"#).is_err());
+    }
+
+    #[test]
+    fn scenes_give_it_inline_or_by_path() {
+        use crate::chain::ChainSpec;
+        let spec: ChainSpec =
+            toml::from_str("n = 2\nbaseline = { mass = [1.0, 2.0], spring = [0.0, 2.0, 3.0] }")
+                .unwrap();
+        let c = spec.build().unwrap();
+        assert_eq!((c.left(), c.masses()), (Boundary::Free, vec![1.0, 2.0]));
+        let spec: ChainSpec = toml::from_str("n = 3\nbaseline = \"frame.csv\"").unwrap();
+        let dir = std::env::temp_dir().join(format!("springmass-bl-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("frame.csv"), "mass,spring\n1,\n2,3\n").unwrap();
+        let moved = spec.baseline.clone().unwrap().relative_to(&dir);
+        let b = moved.load().unwrap();
+        assert_eq!(b.n(), 2);
+        // n = 3 contradicts the table's two masses
+        let spec = ChainSpec {
+            baseline: Some(moved),
+            ..spec
+        };
+        let e = spec.build().unwrap_err();
+        assert!(
+            matches!(&e, Error::InvalidParameter { field, .. } if field == "n"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]

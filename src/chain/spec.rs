@@ -159,12 +159,13 @@ pub struct ChainSpec {
     /// (default grounded, the chain's `d`).
     #[serde(default, skip_serializing_if = "Damping::is_grounded")]
     pub damping: Damping,
-    /// A measured profile inline (see [`Baseline`]):
-    /// `baseline = { mass = [2, 1, 1.5], spring = [3, 2, 2, 0] }`; `n`
-    /// must equal its number of masses and its wall springs set the ends
-    /// (default none: the uniform chain).
+    /// A measured profile (see [`Baseline`]), inline
+    /// `baseline = { mass = [2, 1, 1.5], spring = [3, 2, 2, 0] }` or the
+    /// path of a CSV table, `baseline = "frame.csv"`; `n` must equal its
+    /// number of masses and its wall springs set the ends (default none:
+    /// the uniform chain).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub baseline: Option<Baseline>,
+    pub baseline: Option<BaselineSpec>,
 }
 
 fn one() -> f64 {
@@ -185,9 +186,10 @@ impl ChainSpec {
             .with_boundaries(self.left, self.right)?
             .with_damping(self.damping)?;
         let chain = match &self.baseline {
-            Some(b) => {
+            Some(spec) => {
+                let b = spec.load()?;
                 b.check_agrees(Some(self.n), None, None)?;
-                chain.with_baseline(b.clone())?
+                chain.with_baseline(b)?
             }
             None => chain,
         };
@@ -207,7 +209,7 @@ impl From<&Chain> for ChainSpec {
             left: c.left,
             right: c.right,
             damping: c.damping,
-            baseline: c.baseline.as_deref().cloned(),
+            baseline: c.baseline.as_deref().cloned().map(BaselineSpec::Table),
         }
     }
 }

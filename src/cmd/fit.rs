@@ -335,7 +335,10 @@ fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
         noise_model: a.noise_model.clone(),
         nuisance: a.nuisance.clone(),
         damping: a.damping.clone(),
-        baseline: a.baseline.as_ref().map(|p| p.display().to_string()),
+        baseline: a
+            .baseline
+            .as_ref()
+            .map(|p| springmass::chain::BaselineSpec::Path(p.display().to_string())),
         ..springmass::detect::fit::options::FitSpec::new(n)
     }
 }

@@ -87,7 +87,7 @@ impl ChainArgs {
         if let Some(b) = baseline {
             b.check_agrees(self.n.or(Some(spec.n)), None, None)?;
             spec.n = b.n();
-            spec.baseline = Some(b);
+            spec.baseline = Some(springmass::chain::BaselineSpec::Table(b));
         }
         if let Some(n) = self.n {
             spec.n = n;
@@ -126,8 +126,11 @@ pub fn read_chain_spec(path: &std::path::Path) -> anyhow::Result<ChainSpec> {
         .get("chain")
         .with_context(|| format!("{}: no [chain] table", path.display()))?
         .clone();
-    let spec: ChainSpec = chain
+    let mut spec: ChainSpec = chain
         .try_into()
         .with_context(|| format!("{}: in [chain]", path.display()))?;
+    // a baseline's path is the scene file's neighbour
+    let dir = path.parent().unwrap_or(std::path::Path::new("."));
+    spec.baseline = spec.baseline.map(|b| b.relative_to(dir));
     Ok(spec)
 }
