@@ -21,12 +21,17 @@
 use crate::error::{check_f64, Error, Result};
 use serde::{Deserialize, Serialize};
 
+mod baseline;
+mod baseline_csv;
 mod damping;
 #[cfg(test)]
 pub(crate) mod dense_ref;
 mod spec;
+mod with_baseline;
+pub use baseline::{Baseline, BaselineSpec};
 pub use damping::Damping;
 pub use spec::{ChainSpec, Units};
+use std::sync::Arc;
 
 /// How one end of the chain is held.
 ///
@@ -314,16 +319,15 @@ impl Defect {
         }
     }
 
-    /// The value the uniform chain has where this defect sits (its
-    /// `c(s) = (value - uniform) s^power`).
-    pub fn uniform_value(&self, chain: &Chain) -> f64 {
+    /// The value the chain without defects has where this defect sits
+    /// (its `c(s) = (value - base) s^power`): the uniform value, or the
+    /// [`Baseline`]'s value at the defect's site.
+    pub fn base_value(&self, chain: &Chain) -> f64 {
+        let at = self.at();
         match self {
-            Defect::Mass { .. } => chain.mass(),
-            Defect::Spring { .. } => chain.k(),
-            Defect::Damper { .. } => match chain.damping() {
-                Damping::Between { c } => c,
-                _ => chain.d(),
-            },
+            Defect::Mass { .. } => chain.base_mass(at),
+            Defect::Spring { .. } => chain.base_spring(at),
+            Defect::Damper { .. } => chain.base_damper(at),
             Defect::Ground { .. } => 0.0,
         }
     }
@@ -439,6 +443,13 @@ pub struct Chain {
     /// Damping model (default grounded: the chain's `d`).
     #[serde(default, skip_serializing_if = "Damping::is_grounded")]
     damping: Damping,
+    /// A measured profile the defects sit on (default none: uniform).
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        with = "baseline::serde_arc"
+    )]
+    baseline: Option<Arc<Baseline>>,
 }
 
 impl Chain {
@@ -460,6 +471,7 @@ impl Chain {
             left: Boundary::Fixed,
             right: Boundary::Fixed,
             damping: Damping::Grounded,
+            baseline: None,
         })
     }
 
@@ -497,7 +509,8 @@ impl Chain {
     /// # Errors
     /// A spring defect on a wall spring that a free end removes (spring `0`
     /// with a free left end, spring `n` with a free right end), field
-    /// `defects[i].at`.
+    /// `defects[i].at`; ends other than a [`Baseline`]'s (field `left` or
+    /// `right`).
     ///
     /// ```
     /// use springmass::{Chain, chain::Boundary};
@@ -507,6 +520,9 @@ impl Chain {
     /// # Ok::<(), springmass::Error>(())
     /// ```
     pub fn with_boundaries(mut self, left: Boundary, right: Boundary) -> Result<Chain> {
+        if let Some(b) = &self.baseline {
+            b.check_agrees(None, Some(left), Some(right))?;
+        }
         self.left = left;
         self.right = right;
         for (idx, d) in self.defects.iter().enumerate() {
@@ -741,9 +757,9 @@ impl Chain {
     /// The diagonal of the matrix that multiplies `s^power` (`power` 2: the
     /// masses, 1: the dampers; 0: the stiffness that ties each mass to the
     /// ground beside its springs, zero in the uniform chain), 0-based,
-    /// `uniform` where no defect sits. O(n) memory.
-    fn point_values(&self, power: u32, uniform: f64) -> Vec<f64> {
-        let mut v = vec![uniform; self.n];
+    /// `base` where no defect sits. O(n) memory.
+    fn point_values(&self, power: u32, base: Vec<f64>) -> Vec<f64> {
+        let mut v = base;
         for d in &self.defects {
             let site = self.site(d);
             if let (Probe::Point(at), true) = (site.probe, site.power == power) {
@@ -755,22 +771,29 @@ impl Chain {
 
     /// All `n` masses (0-based vector: `masses()[i-1] = m_i`). O(n) memory.
     pub fn masses(&self) -> Vec<f64> {
-        self.point_values(2, self.mass)
+        let base = match &self.baseline {
+            Some(b) => b.masses().to_vec(),
+            None => vec![self.mass; self.n],
+        };
+        self.point_values(2, base)
     }
 
-    /// The mass of mass `i` (1-based), O(number of defects); the uniform
-    /// mass for an index out of range.
+    /// The mass of mass `i` (1-based), O(number of defects); the base
+    /// mass ([`Chain::base_mass`]) where no defect sits.
     pub fn mass_at(&self, i: usize) -> f64 {
         self.defects
             .iter()
             .find_map(|d| (d.site() == Site::monomial(Probe::Point(i), 2)).then(|| d.value()))
-            .unwrap_or(self.mass)
+            .unwrap_or_else(|| self.base_mass(i))
     }
 
     /// All `n + 1` spring constants, `springs()[i]` joining mass `i` and `i+1`
     /// (`springs()[0]` and `springs()[n]` attach to the walls; `0` at a free end).
     pub fn springs(&self) -> Vec<f64> {
-        let mut v = vec![self.k; self.n + 1];
+        let mut v = match &self.baseline {
+            Some(b) => b.springs().to_vec(),
+            None => vec![self.k; self.n + 1],
+        };
         for d in &self.defects {
             let site = d.site();
             if let (Probe::Diff(at), 0) = (site.probe, site.power) {
@@ -791,7 +814,11 @@ impl Chain {
     /// `a m_i + b g_i`, the part of `a M + b K` on the diagonal beside the
     /// springs (so that `D = diag(dampers) + Lap(spring_dampers)`).
     pub fn dampers(&self) -> Vec<f64> {
-        let mut d = self.point_values(1, self.d);
+        let base = match (&self.damping, self.baseline_dampers()) {
+            (Damping::Between { .. }, _) | (_, None) => vec![self.d; self.n],
+            (_, Some(b)) => b[..self.n].to_vec(),
+        };
+        let mut d = self.point_values(1, base);
         if let Damping::Rayleigh { a, b } = self.damping {
             let (m, g) = (self.masses(), self.grounds());
             for i in 0..self.n {
@@ -808,7 +835,10 @@ impl Chain {
         let mut v = match self.damping {
             Damping::Grounded => return vec![0.0; self.n + 1],
             Damping::Between { c } => {
-                let mut v = vec![c; self.n + 1];
+                let mut v = match self.baseline_dampers() {
+                    Some(b) => b.to_vec(),
+                    None => vec![c; self.n + 1],
+                };
                 for d in &self.defects {
                     if let (Defect::Damper { at, d }, Probe::Diff(_)) = (d, self.site(d).probe) {
                         v[*at] = *d;
@@ -842,7 +872,7 @@ impl Chain {
     /// All `n` ground stiffnesses: the stiffness that holds mass `i` to the
     /// ground besides its two springs (0-based; zero in the uniform chain).
     pub fn grounds(&self) -> Vec<f64> {
-        self.point_values(0, 0.0)
+        self.point_values(0, vec![0.0; self.n])
     }
 
     /// The coefficients of the equations of motion, the one place the

@@ -79,6 +79,9 @@
 
 use crate::chain::{Boundary, Chain};
 use crate::scalar::Scalar;
+use std::sync::Arc;
+
+mod profile;
 
 pub use crate::chain::Probe;
 
@@ -88,6 +91,19 @@ pub use crate::chain::Probe;
 struct Factor<T> {
     half_exp: usize,
     mant: T,
+    /// A binary exponent: `0` in the closed form; a nonuniform chain's
+    /// factors are `mant * 2^exp2` ([`profile`]).
+    exp2: i32,
+}
+
+impl<T> From<profile::Scaled<T>> for Factor<T> {
+    fn from(v: profile::Scaled<T>) -> Factor<T> {
+        Factor {
+            half_exp: 0,
+            mant: v.mant,
+            exp2: v.exp2,
+        }
+    }
 }
 
 /// The left and right factors of one probe at one `s`, computed once and
@@ -126,6 +142,9 @@ pub struct Green<T: Scalar> {
     den: T,
     /// `k C = e^{den_half lambda / 2} den`
     den_half: usize,
+    /// A nonuniform chain's sweeps ([`Green::of_chain`] on a chain with a
+    /// [`crate::chain::Baseline`]); `None` for the closed form.
+    profile: Option<Arc<profile::ProfileGreen<T>>>,
 }
 
 impl<T: Scalar> Green<T> {
@@ -164,6 +183,9 @@ impl<T: Scalar> Green<T> {
     /// # Ok::<(), springmass::Error>(())
     /// ```
     pub fn of_chain(chain: &Chain, s: T) -> Green<T> {
+        if chain.baseline().is_some() {
+            return Self::of_profile(chain, s);
+        }
         let (d_u, c_u) = chain.uniform_damping();
         if c_u != 0.0 {
             return Self::with_spring_dampers(
@@ -215,6 +237,20 @@ impl<T: Scalar> Green<T> {
         g
     }
 
+    /// Green's function of `chain` without its defects, from the two
+    /// recurrence sweeps of its coefficients ([`profile`]): O(n) per `s`,
+    /// O(1) per entry. [`Green::of_chain`] takes this form for a chain on
+    /// a [`crate::chain::Baseline`]; [`Green::lambda`] is zero then (a
+    /// nonuniform chain has no single `lambda`).
+    pub fn of_profile(chain: &Chain, s: T) -> Green<T> {
+        let p = profile::ProfileGreen::of_chain(chain, &s);
+        let mut g = Self::from_lambda_ends(chain.n(), 1.0, T::one(), chain.left(), chain.right());
+        g.lambda = T::zero();
+        g.den = if p.is_singular() { T::zero() } else { T::one() };
+        g.profile = Some(Arc::new(p));
+        g
+    }
+
     /// Green's function for a given `lambda` (`Re lambda >= 0`), both ends fixed.
     pub fn from_lambda(n: usize, k: f64, lambda: T) -> Green<T> {
         Self::from_lambda_ends(n, k, lambda, Boundary::Fixed, Boundary::Fixed)
@@ -258,6 +294,7 @@ impl<T: Scalar> Green<T> {
             one_m_q,
             den,
             den_half,
+            profile: None,
         }
     }
 
@@ -312,22 +349,27 @@ impl<T: Scalar> Green<T> {
     /// `cosh((p - 1/2) lambda)` at a free one.
     #[inline]
     fn end_point(&self, end: Boundary, p: usize) -> Factor<T> {
+        debug_assert!(self.profile.is_none());
         match (end, self.stat) {
             (Boundary::Fixed, true) => Factor {
                 half_exp: 0,
                 mant: T::from_f64(p as f64),
+                exp2: 0,
             },
             (Boundary::Fixed, false) => Factor {
                 half_exp: 2 * p,
                 mant: self.half_one_minus_q2p(p),
+                exp2: 0,
             },
             (Boundary::Free, true) => Factor {
                 half_exp: 0,
                 mant: T::one(),
+                exp2: 0,
             },
             (Boundary::Free, false) => Factor {
                 half_exp: 2 * p - 1,
                 mant: self.half_one_plus_q(2 * p - 1),
+                exp2: 0,
             },
         }
     }
@@ -335,39 +377,52 @@ impl<T: Scalar> Green<T> {
     /// `L_a`: `sinh(a lambda)` (fixed) or `cosh((a - 1/2) lambda)` (free).
     #[inline]
     fn left_point(&self, a: usize) -> Factor<T> {
+        if let Some(p) = &self.profile {
+            return p.left_point(a).into();
+        }
         self.end_point(self.left, a)
     }
 
     /// `R_b`: `sinh(p lambda)` (fixed) or `cosh((p - 1/2) lambda)` (free), `p = n + 1 - b`.
     #[inline]
     fn right_point(&self, b: usize) -> Factor<T> {
+        if let Some(p) = &self.profile {
+            return p.right_point(b).into();
+        }
         self.end_point(self.right, self.n + 1 - b)
     }
 
     /// `L_i - L_{i+1}`: fixed `-e^{(i+1) lambda} (1 + q^{2i+1}) (1 - q) / 2`,
     /// free `-2 sinh(i lambda) sinh(lambda/2) = -e^{(i+1/2) lambda} (1 - q^{2i}) (1 - q) / 2`.
     fn left_diff(&self, i: usize) -> Factor<T> {
+        if let Some(p) = &self.profile {
+            return p.left_diff(i).into();
+        }
         match (self.left, self.stat) {
             (Boundary::Fixed, true) => Factor {
                 half_exp: 0,
                 mant: T::from_f64(-1.0),
+                exp2: 0,
             },
             (Boundary::Fixed, false) => {
                 let m = (T::one() + self.qhalf(2 * (2 * i + 1))) * self.one_m_q.clone();
                 Factor {
                     half_exp: 2 * i + 2,
                     mant: m.scale(-0.5),
+                    exp2: 0,
                 }
             }
             (Boundary::Free, true) => Factor {
                 half_exp: 0,
                 mant: T::zero(),
+                exp2: 0,
             },
             (Boundary::Free, false) => {
                 let m = self.half_one_minus_q2p(i) * self.one_m_q.clone();
                 Factor {
                     half_exp: 2 * i + 1,
                     mant: -m,
+                    exp2: 0,
                 }
             }
         }
@@ -377,28 +432,35 @@ impl<T: Scalar> Green<T> {
     /// `e^{p lambda} (1 + q^{2p-1}) (1 - q) / 2`, free
     /// `2 sinh((p-1) lambda) sinh(lambda/2) = e^{(p - 1/2) lambda} (1 - q^{2(p-1)}) (1 - q) / 2`.
     fn right_diff(&self, j: usize) -> Factor<T> {
+        if let Some(p) = &self.profile {
+            return p.right_diff(j).into();
+        }
         let p = self.n + 1 - j;
         match (self.right, self.stat) {
             (Boundary::Fixed, true) => Factor {
                 half_exp: 0,
                 mant: T::one(),
+                exp2: 0,
             },
             (Boundary::Fixed, false) => {
                 let m = (T::one() + self.qhalf(2 * (2 * p - 1))) * self.one_m_q.clone();
                 Factor {
                     half_exp: 2 * p,
                     mant: m.scale(0.5),
+                    exp2: 0,
                 }
             }
             (Boundary::Free, true) => Factor {
                 half_exp: 0,
                 mant: T::zero(),
+                exp2: 0,
             },
             (Boundary::Free, false) => {
                 let m = self.half_one_minus_q2p(p - 1) * self.one_m_q.clone();
                 Factor {
                     half_exp: 2 * p - 1,
                     mant: m,
+                    exp2: 0,
                 }
             }
         }
@@ -426,6 +488,9 @@ impl<T: Scalar> Green<T> {
 
     #[inline]
     fn combine_ref(&self, l: &Factor<T>, r: &Factor<T>) -> T {
+        if let Some(p) = &self.profile {
+            return p.combine(&l.mant, l.exp2, &r.mant, r.exp2);
+        }
         let num = l.mant.clone() * r.mant.clone();
         if self.stat {
             return num / self.den.clone();

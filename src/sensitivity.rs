@@ -204,6 +204,7 @@ impl Param {
             .with_boundaries(chain.left(), chain.right())?
             .with_damping(damping)?
             .with_defects(defects)
+            .map(|c| c.with_baseline_from(chain))
     }
 }
 

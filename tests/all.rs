@@ -12,6 +12,8 @@
 // did as binaries of their own): three copies of the small helper module
 #![allow(clippy::duplicate_mod)]
 
+#[path = "baseline.rs"]
+mod baseline;
 #[path = "boundaries.rs"]
 mod boundaries;
 #[path = "chi2.rs"]

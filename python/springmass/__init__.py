@@ -310,9 +310,13 @@ class DefectEstimate:
     known : bool
         Given by ``known=``, not fitted.
     significance : float
-        Standard errors from "no defect", ``|value - uniform| / se``.
+        Standard errors from "no defect", ``|value - uniform| / se`` (on a
+        baseline ``|value - baseline| / se``).
     identifiable : bool
         Whether the data single out its position and value.
+    baseline : float or None
+        The baseline's value at this site (``fit(baseline=...)``); None on
+        the uniform chain.
     """
 
     kind: str
@@ -323,6 +327,7 @@ class DefectEstimate:
     known: bool
     significance: float
     identifiable: bool
+    baseline: Optional[float] = None
 
     @property
     def defect(self) -> Defect:
@@ -503,6 +508,7 @@ class FitResult:
                     known=bool(d["known"]),
                     significance=_nan(d["significance"]),
                     identifiable=bool(d["identifiable"]),
+                    baseline=None if d.get("baseline") is None else _nan(d["baseline"]),
                 )
                 for d in r["defects"]
             ],
@@ -578,6 +584,7 @@ def fit(
     damping: Optional[str] = None,
     trigger: Any = "auto",
     force_window: str = "auto",
+    baseline: Any = None,
 ) -> FitResult:
     """Fit defects to a measured series of mass 1's displacement.
 
@@ -667,6 +674,14 @@ def fit(
         With ``force``: ``"auto"`` keeps the detected pulse and sets the
         sensor's noise elsewhere to zero (a modal test's force window),
         ``"none"`` keeps every sample, ``"T0:T1"`` the samples in that range.
+    baseline : str, path or dict, optional
+        A measured profile instead of the uniform chain: the path of a CSV
+        table (rows ``mass,spring``, see ``springmass fit --baseline``) or
+        ``{"mass": [...], "spring": [...], "damper": [...]}`` (``spring``
+        has ``n + 1`` values, 0 for a free end's wall spring). Its rows give
+        ``n`` (which must agree) and the ends (``left``/``right`` left at
+        their defaults follow the table); defects are reported relative to
+        it (``DefectEstimate.baseline``).
 
     Returns
     -------
@@ -702,6 +717,12 @@ def fit(
     else:
         kinds_text, slot_kinds = None, [_text(f"kinds[{i}]", k) for i, k in enumerate(kinds)]
     noise_text = _noise_text(noise)
+    table = _baseline(baseline)
+    if table is not None and left == "fixed" and right == "fixed":
+        left_text: Optional[str] = None
+        right_text: Optional[str] = None
+    else:
+        left_text, right_text = _text("left", left), _text("right", right)
     raw = _core.fit(
         tv,
         xv,
@@ -721,8 +742,8 @@ def fit(
         max_evals=_count("max_evals", max_evals),
         k=_real("k", k),
         mass=_real("mass", mass),
-        left=_text("left", left),
-        right=_text("right", right),
+        left=left_text,
+        right=right_text,
         observe=_count("observe", observe),
         observe_kind=_text("observe_kind", observe_kind),
         force=None if force is None else _vector("force", force),
@@ -731,8 +752,28 @@ def fit(
         damping=None if damping is None else _text("damping", damping),
         trigger=_trigger(trigger),
         force_window=_text("force_window", force_window),
+        baseline=table,
     )
     return FitResult._from_core(raw)
+
+
+def _baseline(value: Any) -> Any:
+    """A baseline as the native fit takes it: a path, or a dict of lists."""
+    if value is None:
+        return None
+    if isinstance(value, (str, os.PathLike)):
+        return os.fspath(value)
+    if isinstance(value, dict):
+        unknown = set(value) - {"mass", "spring", "damper"}
+        if unknown or "mass" not in value or "spring" not in value:
+            raise ValueError(
+                f"invalid baseline = {sorted(value)}: allowed a dict with keys mass, spring and optionally damper"
+            )
+        out = {key: [float(v) for v in _vector(f"baseline.{key}", value[key])] for key in ("mass", "spring")}
+        if value.get("damper") is not None:
+            out["damper"] = [float(v) for v in _vector("baseline.damper", value["damper"])]
+        return out
+    raise TypeError(f"baseline must be a path or a dict of lists, not {type(value).__name__}")
 
 
 # ---------------------------------------------------------------- forward side

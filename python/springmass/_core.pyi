@@ -55,6 +55,7 @@ def fit(
     nuisance: Optional[str] = None,
     damping: Optional[str] = None,
     force_window: Optional[str] = None,
+    baseline: Union[str, "PathLike[str]", Dict[str, Any], None] = None,
 ) -> Dict[str, Any]:
     """The data-first fit: {"report": JSON text, "summary": str, "t", "observed", "model", "residual": ndarray}."""
 

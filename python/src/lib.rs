@@ -72,8 +72,38 @@ impl ChainArgs {
             left: end("left", &self.left)?,
             right: end("right", &self.right)?,
             damping,
+            baseline: None,
         }
         .build()
+    }
+}
+
+/// A baseline as Python gives it: a table's path, or a dict of lists
+/// `{"mass": [...], "spring": [...], "damper": [...] or None}` (`spring`
+/// has `n + 1` values, 0 for a free end's wall spring).
+#[derive(FromPyObject)]
+enum BaselineArg {
+    Path(std::path::PathBuf),
+    #[pyo3(from_item_all)]
+    Table {
+        mass: Vec<f64>,
+        spring: Vec<f64>,
+        #[pyo3(default)]
+        damper: Option<Vec<f64>>,
+    },
+}
+
+impl BaselineArg {
+    fn spec(self) -> Result<springmass::chain::BaselineSpec> {
+        use springmass::chain::{Baseline, BaselineSpec};
+        Ok(match self {
+            BaselineArg::Path(p) => BaselineSpec::Path(p.display().to_string()),
+            BaselineArg::Table {
+                mass,
+                spring,
+                damper,
+            } => BaselineSpec::Table(Baseline::new(mass, spring, damper, "")?),
+        })
     }
 }
 
@@ -135,7 +165,8 @@ fn series_obs(
 #[pyo3(signature = (t, x, *, n, d=None, gamma=None, fit=None, known=Vec::new(), defects=None,
     kinds=None, slot_kinds=Vec::new(), noise=None, misfit=None, method=None, criterion=None,
     seed=None, max_evals=None, k=None, mass=None, left=None, right=None, observe=None,
-    observe_kind=None, force=None, trigger=None, noise_model=None, nuisance=None, damping=None, force_window=None))]
+    observe_kind=None, force=None, trigger=None, noise_model=None, nuisance=None, damping=None, force_window=None,
+    baseline=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit<'py>(
     py: Python<'py>,
@@ -167,7 +198,9 @@ fn fit<'py>(
     nuisance: Option<String>,
     damping: Option<String>,
     force_window: Option<String>,
+    baseline: Option<BaselineArg>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let baseline = baseline.map(BaselineArg::spec).transpose().py_err()?;
     let spec = FitSpec {
         d,
         k,
@@ -193,6 +226,7 @@ fn fit<'py>(
         nuisance,
         damping,
         force_window,
+        baseline,
         ..FitSpec::new(n)
     };
     let (t, x) = (values(&t), values(&x));

@@ -41,6 +41,16 @@ pub fn assemble(chain: &Chain) -> Dense {
         _ => 0.0,
     };
     let mut links = vec![between_c; n + 1];
+    if let Some(b) = chain.baseline() {
+        masses = b.masses().to_vec();
+        springs = b.springs().to_vec();
+        if let Some(d) = b.dampers() {
+            match chain.damping() {
+                Damping::Between { .. } => links = d.to_vec(),
+                _ => grounded = d[..n].to_vec(),
+            }
+        }
+    }
     for d in chain.defects() {
         match *d {
             Defect::Mass { at, m } => masses[at - 1] = m,
@@ -138,6 +148,28 @@ pub fn model_chains() -> Vec<Chain> {
         );
     }
     out
+}
+
+/// Nonuniform chains on a [`super::Baseline`] (masses and springs varying
+/// by up to 30%, seeded), `n` masses, with the ends given (a free end has
+/// no wall spring) and a damper column when `dampers`.
+pub fn baseline_chain(n: usize, ends: (super::Boundary, super::Boundary), dampers: bool) -> Chain {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(n as u64 * 7 + 3);
+    let mut vary = |x: f64| x * (1.0 + 0.3 * (2.0 * rng.random::<f64>() - 1.0));
+    let mass: Vec<f64> = (0..n).map(|_| vary(1.0)).collect();
+    let mut spring: Vec<f64> = (0..=n).map(|_| vary(1.0)).collect();
+    if ends.0.is_free() {
+        spring[0] = 0.0;
+    }
+    if ends.1.is_free() {
+        spring[n] = 0.0;
+    }
+    let damper = dampers.then(|| (0..=n).map(|_| vary(0.1)).collect());
+    let b = super::Baseline::new(mass, spring, damper, "test").expect("a valid baseline");
+    Chain::paper(n)
+        .and_then(|c| c.with_baseline(b))
+        .expect("a valid chain")
 }
 
 #[cfg(test)]

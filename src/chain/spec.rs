@@ -104,7 +104,7 @@ impl Chain {
                 d.with_value(d.value() * scale)
             })
             .collect();
-        Chain::new(self.n)?
+        let chain = Chain::new(self.n)?
             .with_k(self.k * ks)?
             .with_d(self.d * ds)?
             .with_mass(self.mass * ms)?
@@ -117,8 +117,13 @@ impl Chain {
                     a: a * ds / ms,
                     b: b * ds / ks,
                 },
-            })?
-            .with_defects(defects)
+            })?;
+        match &self.baseline {
+            Some(b) => chain
+                .with_baseline(b.scaled(ms, ks, ds)?)?
+                .with_defects(defects),
+            None => chain.with_defects(defects),
+        }
     }
 }
 
@@ -154,6 +159,13 @@ pub struct ChainSpec {
     /// (default grounded, the chain's `d`).
     #[serde(default, skip_serializing_if = "Damping::is_grounded")]
     pub damping: Damping,
+    /// A measured profile (see [`Baseline`]), inline
+    /// `baseline = { mass = [2, 1, 1.5], spring = [3, 2, 2, 0] }` or the
+    /// path of a CSV table, `baseline = "frame.csv"`; `n` must equal its
+    /// number of masses and its wall springs set the ends (default none:
+    /// the uniform chain).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub baseline: Option<BaselineSpec>,
 }
 
 fn one() -> f64 {
@@ -166,14 +178,22 @@ fn paper_d() -> f64 {
 impl ChainSpec {
     /// Validate and build.
     pub fn build(&self) -> Result<Chain> {
-        Chain::new(self.n)?
+        let chain = Chain::new(self.n)?
             .with_k(self.k)?
             .with_d(self.d)?
             .with_gamma(self.gamma)?
             .with_mass(self.mass)?
             .with_boundaries(self.left, self.right)?
-            .with_damping(self.damping)?
-            .with_defects(self.defects.iter().copied())
+            .with_damping(self.damping)?;
+        let chain = match &self.baseline {
+            Some(spec) => {
+                let b = spec.load()?;
+                b.check_agrees(Some(self.n), None, None)?;
+                chain.with_baseline(b)?
+            }
+            None => chain,
+        };
+        chain.with_defects(self.defects.iter().copied())
     }
 }
 
@@ -189,6 +209,7 @@ impl From<&Chain> for ChainSpec {
             left: c.left,
             right: c.right,
             damping: c.damping,
+            baseline: c.baseline.as_deref().cloned().map(BaselineSpec::Table),
         }
     }
 }

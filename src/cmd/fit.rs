@@ -106,6 +106,13 @@ pub struct Args {
     /// none, offset or offset+drift [default: auto].
     #[arg(long, requires = "data")]
     pub nuisance: Option<String>,
+    /// A measured profile the defects sit on: a CSV with one row per mass,
+    /// columns mass, spring (to the mass before; empty for a free left
+    /// end) and optionally damper, and a last row with only the right
+    /// wall's spring when that end is fixed. Gives n and the ends (--n,
+    /// --left, --right must agree); defects are reported relative to it.
+    #[arg(long, requires = "data", value_name = "FILE")]
+    pub baseline: Option<PathBuf>,
     /// Left end (mass 1's side): fixed (a wall spring) or free [default: fixed].
     #[arg(long, requires = "input")]
     pub left: Option<String>,
@@ -280,9 +287,15 @@ fn force_column(
 fn run_data(a: Args) -> anyhow::Result<()> {
     use springmass::detect::fit as dfit;
     let path = a.data.clone().expect("checked by the caller");
-    let n = a.n.ok_or_else(|| {
-        springmass::Error::invalid("n", "(none)", "--n N, the number of masses of the chain")
-    })?;
+    let n = match (a.n, &a.baseline) {
+        (Some(n), _) => n,
+        (None, Some(b)) => springmass::chain::Baseline::read_csv(b)?.n(),
+        (None, None) => Err(springmass::Error::invalid(
+            "n",
+            "(none)",
+            "--n N, the number of masses of the chain (or --baseline FILE)",
+        ))?,
+    };
     // every option is parsed before the data are read or any work starts
     let spec = data_spec(&a, n);
     let (model, opts) = spec.build()?;
@@ -345,6 +358,10 @@ fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
         noise_model: a.noise_model.clone(),
         nuisance: a.nuisance.clone(),
         damping: a.damping.clone(),
+        baseline: a
+            .baseline
+            .as_ref()
+            .map(|p| springmass::chain::BaselineSpec::Path(p.display().to_string())),
         ..springmass::detect::fit::options::FitSpec::new(n)
     }
 }

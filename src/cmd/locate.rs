@@ -313,6 +313,7 @@ fn run_in<T: RealScalar>(a: &Args) -> anyhow::Result<Outcome> {
         a.chain.chain()?
     };
     model_of.require_fixed_ends("the explicit locators of section 4.1")?;
+    model_of.require_uniform("the explicit locators of section 4.1")?;
     let model: Model<T> = Model::from_chain(&model_of);
     let data = source(&s_values)?;
     let precision = match a.precision {

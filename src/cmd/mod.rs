@@ -48,15 +48,32 @@ pub struct ChainArgs {
     /// With between or rayleigh, --d is an extra grounded damping [default 0].
     #[arg(long, value_name = "MODEL[:P1[:P2]]")]
     pub damping: Option<String>,
+    /// A measured profile instead of the uniform chain: a CSV with one row
+    /// per mass, columns mass, spring (to the mass before; empty for a free
+    /// left end) and optionally damper, and a last row with only the right
+    /// wall's spring when that end is fixed. Gives n and the ends; defects
+    /// apply on top of it.
+    #[arg(long, value_name = "FILE")]
+    pub baseline: Option<PathBuf>,
 }
 
 impl ChainArgs {
     /// Build and validate the chain.
     pub fn chain(&self) -> anyhow::Result<Chain> {
+        let baseline = self
+            .baseline
+            .as_ref()
+            .map(springmass::chain::Baseline::read_csv)
+            .transpose()?;
         let mut spec = match &self.scene {
             Some(path) => read_chain_spec(path)?,
             None => ChainSpec {
-                n: self.n.context("--n is required (or give --scene FILE)")?,
+                n: match &baseline {
+                    Some(b) => b.n(),
+                    None => self
+                        .n
+                        .context("--n is required (or give --scene FILE or --baseline FILE)")?,
+                },
                 k: 1.0,
                 d: 0.1,
                 gamma: 1.0,
@@ -65,8 +82,14 @@ impl ChainArgs {
                 left: Default::default(),
                 right: Default::default(),
                 damping: Default::default(),
+                baseline: None,
             },
         };
+        if let Some(b) = baseline {
+            b.check_agrees(self.n.or(Some(spec.n)), None, None)?;
+            spec.n = b.n();
+            spec.baseline = Some(springmass::chain::BaselineSpec::Table(b));
+        }
         if let Some(n) = self.n {
             spec.n = n;
         }
@@ -104,8 +127,11 @@ pub fn read_chain_spec(path: &std::path::Path) -> anyhow::Result<ChainSpec> {
         .get("chain")
         .with_context(|| format!("{}: no [chain] table", path.display()))?
         .clone();
-    let spec: ChainSpec = chain
+    let mut spec: ChainSpec = chain
         .try_into()
         .with_context(|| format!("{}: in [chain]", path.display()))?;
+    // a baseline's path is the scene file's neighbour
+    let dir = path.parent().unwrap_or(std::path::Path::new("."));
+    spec.baseline = spec.baseline.map(|b| b.relative_to(dir));
     Ok(spec)
 }

@@ -604,9 +604,22 @@ impl DefectKind {
         self.defect(1, 1.0).may_vanish()
     }
 
-    /// The uniform chain's value of this kind (`mass`, `k` or `d`).
+    /// The uniform chain's value of this kind (`mass`, `k` or `d`; on a
+    /// [`crate::chain::Baseline`] the profile's mean, a scale only: a
+    /// kernel's reference value is [`DefectKind::base_at`]).
     pub fn uniform(self, chain: &Chain) -> f64 {
-        self.defect(1, 0.0).uniform_value(chain)
+        match self {
+            DefectKind::Mass => chain.mass(),
+            DefectKind::Spring => chain.k(),
+            _ => self.defect(1, 0.0).base_value(&chain.without_baseline()),
+        }
+    }
+
+    /// The value of this kind at `at` in `chain` without defects (the
+    /// uniform value, or the baseline's there): the reference a defect's
+    /// change is measured from ([`Defect::base_value`]).
+    pub fn base_at(self, chain: &Chain, at: usize) -> f64 {
+        self.defect(at, 0.0).base_value(chain)
     }
 }
 

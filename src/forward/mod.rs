@@ -210,7 +210,7 @@ pub fn updates(chain: &Chain) -> Vec<Update> {
     for d in chain.defects() {
         let site = chain.site(d);
         // [dk, dd, dm]: the change times s^0, s^1, s^2
-        let delta = d.value() - d.uniform_value(chain);
+        let delta = d.value() - d.base_value(chain);
         let c = site.poly.map(|p| if p == 0.0 { 0.0 } else { delta * p });
         let (probe, [dk, dd, dm]) = (site.probe, c);
         if let Some(u) = out.iter_mut().find(|u| u.probe == probe) {
@@ -259,7 +259,7 @@ impl Forward {
             chain: chain.clone(),
             updates: updates(chain),
             transfer: Transfer::new(chain),
-            general: !chain.damping().is_grounded(),
+            general: !chain.damping().is_grounded() || chain.baseline().is_some(),
         }
     }
 

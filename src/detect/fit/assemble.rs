@@ -100,6 +100,11 @@ impl Engine<'_> {
             whiteness_p: self.whiteness_p(f),
             nuisance: self.nuisance_estimates(best, sigma).unwrap_or_default(),
             damping: None,
+            baseline: self
+                .model
+                .chain()
+                .baseline()
+                .map(|b| b.source().to_string()),
         })
     }
 
@@ -137,6 +142,7 @@ impl Engine<'_> {
                 at_bound: !is_known && (v <= lo + tol || v >= hi - tol),
                 known: is_known,
                 significance: rep.map_or(f64::NAN, |r| r.significance),
+                baseline: base.baseline().map(|_| d.base_value(base)),
                 identifiable: is_known || rep.is_some_and(|r| r.identifiable),
             });
         }

@@ -89,6 +89,40 @@ impl Model {
         Ok(self)
     }
 
+    /// The measured profile the defects sit on ([`Chain::with_baseline`]):
+    /// its `n` and ends replace the model's.
+    ///
+    /// # Errors
+    /// As [`Chain::with_baseline`]; `k` or `mass` fitted (field `fit`: the
+    /// profile gives every mass and spring).
+    pub fn with_baseline(mut self, baseline: crate::chain::Baseline) -> Result<Model> {
+        self.chain = self.chain.with_baseline(baseline)?;
+        self.check_baseline_params()?;
+        Ok(self)
+    }
+
+    /// With a baseline, `k` and `mass` are not chain parameters.
+    fn check_baseline_params(&self) -> Result<()> {
+        match self.chain.baseline() {
+            Some(b)
+                if self
+                    .asked
+                    .iter()
+                    .any(|p| matches!(p, Param::K | Param::Mass)) =>
+            {
+                Err(crate::error::Error::invalid(
+                    "fit",
+                    "k or mass",
+                    format!(
+                        "d and gamma only with a baseline ({} gives every mass and spring)",
+                        b.source()
+                    ),
+                ))
+            }
+            _ => Ok(()),
+        }
+    }
+
     /// A known defect.
     ///
     /// # Errors
@@ -106,6 +140,7 @@ impl Model {
         crate::detect::unknowns::check_chain_params("fit", params)?;
         self.asked = params.to_vec();
         self.fit = self.expanded();
+        self.check_baseline_params()?;
         Ok(self)
     }
 

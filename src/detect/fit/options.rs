@@ -367,6 +367,11 @@ pub struct FitSpec {
     /// `fit = d` every model, the criterion choosing
     /// ([`crate::detect::fit::damping`]).
     pub damping: Option<String>,
+    /// A measured profile: the path of a baseline table (CSV, see
+    /// [`crate::chain::Baseline`]) or the table inline
+    /// (`{ mass = [...], spring = [...] }`); its rows give `n` and the
+    /// ends, and defects are reported relative to it [default none: uniform].
+    pub baseline: Option<crate::chain::BaselineSpec>,
 }
 
 impl FitSpec {
@@ -505,6 +510,9 @@ impl FitSpec {
             };
             model = model.with_ends(end("left", &self.left)?, end("right", &self.right)?)?;
         }
+        if let Some(spec) = &self.baseline {
+            model = model.with_baseline(self.read_baseline(spec)?)?;
+        }
         for k in &self.known {
             model = model.with_known(Defect::parse(k)?)?;
         }
@@ -516,6 +524,19 @@ impl FitSpec {
             None => model.choosing_damping(),
         };
         Ok(model)
+    }
+
+    /// The baseline table of `spec`, checked against `n` and the ends
+    /// given.
+    ///
+    /// # Errors
+    /// As [`crate::chain::BaselineSpec::load`] and
+    /// [`crate::chain::Baseline::check_agrees`].
+    fn read_baseline(&self, spec: &crate::chain::BaselineSpec) -> Result<crate::chain::Baseline> {
+        let b = spec.load()?;
+        let end = |v: &Option<String>| v.as_deref().and_then(|x| x.parse::<Boundary>().ok());
+        b.check_agrees(Some(self.n), end(&self.left), end(&self.right))?;
+        Ok(b)
     }
 
     /// What the record measured: the sensor (`observe`, `observe_kind`),

@@ -164,6 +164,9 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
     scene
         .truth()?
         .require_grounded("the scene path's locator model (fit a simulated record with --data)")?;
+    scene
+        .truth()?
+        .require_uniform("the scene path's locator model (fit a simulated record with --data)")?;
     let model = Model::from_chain(&scene.truth()?.uniform());
     let unknowns = scene.unknowns()?;
     let mass = unknowns.to_mass()?;
@@ -325,6 +328,9 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
     let start = scene.unknowns.start_chain(&scene.truth()?)?;
     start
         .require_grounded("the scene path's locator model (fit a simulated record with --data)")?;
+    scene
+        .truth()?
+        .require_uniform("the scene path's locator model (fit a simulated record with --data)")?;
     let mut model = Model::from_chain(&start.uniform());
     let mut kinds = Vec::new();
     for slot in unknowns.slots() {

@@ -60,8 +60,13 @@ pub struct DefectEstimate {
     pub at_bound: bool,
     /// Given by the model, not fitted.
     pub known: bool,
-    /// Standard errors from "no defect" (`|value - uniform| / se`).
+    /// Standard errors from "no defect" (`|value - uniform| / se`; on a
+    /// baseline, `|value - baseline| / se`).
     pub significance: f64,
+    /// The baseline's value at this site (what "no defect" means there);
+    /// absent on the uniform chain, whose value is the uniform one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub baseline: Option<f64>,
     /// Whether the data single it out (position and value), see
     /// [`crate::detect::fit::identify`].
     pub identifiable: bool,
@@ -243,6 +248,10 @@ pub struct FitReport {
     /// for the grounded model chosen by the user, the paper's).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub damping: Option<crate::detect::fit::damping::DampingEstimate>,
+    /// The measured profile the defects are relative to (its file, or
+    /// `inline`); absent for the uniform chain.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub baseline: Option<String>,
 }
 
 /// One natural mode of the fitted chain
@@ -303,13 +312,18 @@ impl FitReport {
         if self.k == 0 {
             out.push_str("no defect found\n");
         }
+        if let Some(b) = &self.baseline {
+            out.push_str(&format!("baseline: {b} (values relative to its profile)\n"));
+        }
         for d in &self.defects {
             out.push_str(&format!(
-                "{} at {}: {} +- {}{}{}{}\n",
+                "{} at {}: {} +- {}{}{}{}{}\n",
                 d.kind,
                 d.at,
                 fmt_g(d.value),
                 fmt_g(d.se),
+                d.baseline
+                    .map_or(String::new(), |b| format!(" (baseline {})", fmt_g(b))),
                 if d.known { " (known)" } else { "" },
                 if d.at_bound { " (AT BOUND)" } else { "" },
                 if !d.known && !d.identifiable {

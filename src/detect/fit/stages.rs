@@ -13,7 +13,6 @@ use crate::chain::Chain;
 use crate::detect::data::nuisance::Nuisance;
 use crate::detect::data::observations::{Observations, Series};
 use crate::detect::misfit::MisfitKind;
-use crate::detect::unknowns::DefectKind;
 use crate::error::Result;
 
 /// One stage: the engine it ran on, its fits of every k, the final noise
@@ -104,7 +103,7 @@ fn without_null_defects(fits: &[KFit], mut chosen: usize, base: &Chain) -> usize
     let null = |f: &KFit| {
         let h = &f.ranked[0];
         h.defects.iter().zip(&h.std_errors).any(|(d, se)| {
-            let u = DefectKind::of(d).uniform(base);
+            let u = d.base_value(base);
             let free = !base.defects().contains(d);
             let gap = (d.value() - u).abs();
             free && (gap <= 1e-9 * u.abs() || gap <= *se)

@@ -592,7 +592,7 @@ mod tests {
     ) {
         for defects in sets {
             let sites: Vec<Site> = defects.iter().map(|d| base.site(d)).collect();
-            let uniform: Vec<f64> = defects.iter().map(|d| d.uniform_value(base)).collect();
+            let uniform: Vec<f64> = defects.iter().map(|d| d.base_value(base)).collect();
             let fixed = vec![None; defects.len()];
             let model = tables.set(&sites, &uniform, &fixed).expect("a model");
             let theta: Vec<f64> = defects.iter().map(|d| d.value()).collect();

@@ -101,6 +101,9 @@ impl Misfit {
         model.require_grounded(
             "the mass-only Woodbury kernel of the paper's residual (the data-first fit takes every model)",
         )?;
+        model.require_uniform(
+            "the mass-only Woodbury kernel of the paper's residual (the data-first fit takes a baseline)",
+        )?;
         let rule = spec.rule()?;
         let chain = model.uniform();
         let (tab, sigma) = match spec.kind {
@@ -152,6 +155,7 @@ impl Misfit {
     pub fn at_nodes(model: &Chain, data: &Data) -> Result<Misfit> {
         model.require_fixed_ends("the mass-only Woodbury kernel")?;
         model.require_grounded("the mass-only Woodbury kernel")?;
+        model.require_uniform("the mass-only Woodbury kernel")?;
         let (s, values, sigma) = match data.source() {
             crate::detect::data::exact::Source::Values { s, values, sigma } => (s, values, sigma),
             _ => {

@@ -403,6 +403,7 @@ impl<T: Scalar> GreenTable<T> {
     /// # Errors
     /// A node with `Re s < 0` or not finite; a table larger than [`MAX_TABLE`].
     pub fn new(chain: &Chain, s: &[T]) -> Result<GreenTable<T>> {
+        chain.require_uniform("the tabled Green's function of the uniform chain")?;
         let n = chain.n();
         let stride = n + 2;
         if stride.saturating_mul(s.len()) > MAX_TABLE {

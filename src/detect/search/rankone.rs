@@ -309,6 +309,7 @@ impl Sweep {
     /// [`Error::Singular`] at a node where the chain has a pole.
     pub fn new(chain: &Chain, s: &[C], kinds: &[DefectKind]) -> Result<Sweep> {
         chain.require_grounded("the greedy search's rank-one scores")?;
+        chain.require_uniform("the greedy search's rank-one scores (use --method enumerate)")?;
         let profile = Profile::of_chain(chain);
         let (lo, hi) = chain.spring_range();
         let positions: Vec<Vec<usize>> = kinds
@@ -845,6 +846,9 @@ impl<'a> SetProblem<'a> {
     /// indices that are not `0..p` (field `defects`).
     pub fn new(chain: &Chain, defects: &[SetDefect], target: &'a Target) -> Result<SetProblem<'a>> {
         chain.require_grounded("the greedy search's rank-one set problems")?;
+        chain.require_uniform(
+            "the greedy search's rank-one set problems (use --method enumerate)",
+        )?;
         let (probes, col, p) = probe_columns(chain, defects)?;
         let ncol = probes.len();
         let e1 = probes

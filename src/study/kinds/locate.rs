@@ -317,6 +317,7 @@ fn run_in<T: RealScalar>(scene: &Scene, _seed: u64, bits: usize) -> Result<CaseO
     // worker thread, not a cost of this case)
     let _ = T::from_f64(2.0).ln();
     chain.require_fixed_ends("the explicit locators of section 4.1")?;
+    chain.require_uniform("the explicit locators of section 4.1")?;
     let start = Instant::now();
     let data: LaplaceData<T> = match scene.data.as_str() {
         "simulated" => LaplaceData::from_simulation(&chain, scene.t_end, scene.dt, &grid)?,

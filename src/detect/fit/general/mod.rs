@@ -557,12 +557,16 @@ pub fn identify_general(
     sigma: f64,
     threshold: Option<f64>,
 ) -> Result<Identifiability> {
-    identify_with(
-        ranked,
-        |d| DefectKind::of(d).uniform(base),
-        sigma,
-        threshold,
-    )
+    let mut r = identify_with(ranked, |d| d.base_value(base), sigma, threshold)?;
+    if base.baseline().is_some() {
+        // "no defect" is the baseline's value there, not a uniform one
+        for d in &mut r.defects {
+            d.reason = d
+                .reason
+                .replace("errors of the uniform", "errors of the baseline");
+        }
+    }
+    Ok(r)
 }
 
 fn identify_with(

@@ -146,7 +146,7 @@ pub(super) fn fit_pairs_fast(
     let mut bounds = Vec::new();
     for (i, (&(kind, at), &v)) in pairs.iter().zip(values).enumerate() {
         sites.push(kind.site_in(base, at));
-        uniform.push(kind.uniform(base));
+        uniform.push(kind.base_at(base, at));
         fixed.push(slots[i].known);
         if slots[i].known.is_none() {
             let b = unknowns.bounds(i, kind);

@@ -314,7 +314,7 @@ impl Ctx<'_, '_> {
             .iter()
             .zip(&s)
             .map(|(&(kind, at), &(rg, gg))| {
-                let v0 = kind.uniform(chain);
+                let v0 = kind.base_at(chain, at);
                 let (lo, hi) = b.of(kind);
                 if !(gg > 0.0 && gg.is_finite() && rg.is_finite()) {
                     return (0.0, kind, at, v0);
