@@ -410,3 +410,47 @@ fn cli_refuses_bad_modes_naming_the_field() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--defects"));
 }
+
+#[test]
+fn cli_updates_a_measured_baseline() {
+    let table = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/data/frame5-baseline.csv"
+    );
+    let base = springmass::chain::Baseline::read_csv(table).unwrap();
+    let nominal = Chain::new(5).unwrap().with_baseline(base).unwrap();
+    let truth = nominal
+        .clone()
+        .with_defect(Defect::Spring {
+            at: 3,
+            k: 0.8 * 1.7e6,
+        })
+        .unwrap();
+    let m = undamped_modes(&truth).unwrap();
+    let mut text = String::from("frequency [Hz],phi_1,phi_3,phi_5\n");
+    for j in 0..3 {
+        let f = m.omega[j] / TAU;
+        let (a, b, c) = (m.shapes[(0, j)], m.shapes[(2, j)], m.shapes[(4, j)]);
+        text.push_str(&format!("{f},{a},{b},{c}\n"));
+    }
+    let dir = temp_dir("baseline");
+    let modes = dir.join("modes.csv");
+    std::fs::write(&modes, text).unwrap();
+    let out = std::process::Command::new(BIN)
+        .args(["fit", "--modes"])
+        .arg(&modes)
+        .args(["--baseline", table, "--json"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["status"], "converged");
+    for f in v["factors"].as_array().unwrap() {
+        let want = if f["at"] == 3 { 0.8 } else { 1.0 };
+        assert!((f["factor"].as_f64().unwrap() - want).abs() < 1e-6, "{f}");
+    }
+}

@@ -1580,6 +1580,7 @@ def update_from_modes(
     hold_out: Sequence[int] = (),
     starts: int = 20,
     seed: int = 1,
+    baseline: Any = None,
 ) -> Dict[str, Any]:
     """Update the storey springs (or masses) of a nominal chain from measured modes.
 
@@ -1606,6 +1607,9 @@ def update_from_modes(
         Modes (1-based, increasing frequency) kept out of the fit, predicted only.
     starts, seed : int
         Seeded random starts beside the nominal one.
+    baseline : str, path or dict, optional
+        A measured or design profile as the nominal chain (as in
+        :func:`fit`); the factors multiply its values, and ``n`` must agree.
 
     Returns
     -------
@@ -1636,6 +1640,7 @@ def update_from_modes(
         hold_out=[_count("hold_out", j) for j in hold_out],
         starts=_count("starts", starts),
         seed=_count("seed", seed),
+        baseline=_baseline(baseline),
     )
     out = json.loads(raw["report"])
     out["summary"] = raw["summary"]

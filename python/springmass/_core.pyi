@@ -141,6 +141,7 @@ def fit_modes(
     hold_out: List[int],
     starts: int,
     seed: int,
+    baseline: Any = None,
 ) -> Dict[str, Any]:
     """{"report": JSON text, "summary": text}."""
 

@@ -780,7 +780,8 @@ fn spectral<'py>(
 /// `springmass fit --modes FILE`. Returns the report as the CLI's JSON and
 /// its text summary.
 #[pyfunction]
-#[pyo3(signature = (modes, *, n, mass, k, d, left, right, profile, hold_out, starts, seed))]
+#[pyo3(signature = (modes, *, n, mass, k, d, left, right, profile, hold_out, starts, seed,
+    baseline=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit_modes<'py>(
     py: Python<'py>,
@@ -795,9 +796,12 @@ fn fit_modes<'py>(
     hold_out: Vec<usize>,
     starts: usize,
     seed: u64,
+    baseline: Option<BaselineArg>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use springmass::detect::fit::modal_update::{update_from_modes, ModalUpdateOptions};
+    let baseline = baseline.map(BaselineArg::spec).transpose().py_err()?;
     let spec = FitSpec {
+        baseline,
         d: Some(d),
         k: Some(k),
         mass: Some(mass),

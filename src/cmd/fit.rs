@@ -110,8 +110,9 @@ pub struct Args {
     /// columns mass, spring (to the mass before; empty for a free left
     /// end) and optionally damper, and a last row with only the right
     /// wall's spring when that end is fixed. Gives n and the ends (--n,
-    /// --left, --right must agree); defects are reported relative to it.
-    #[arg(long, requires = "data", value_name = "FILE")]
+    /// --left, --right must agree); defects are reported relative to it
+    /// (with --modes: the nominal chain the factors multiply).
+    #[arg(long, requires = "input", value_name = "FILE")]
     pub baseline: Option<PathBuf>,
     /// Left end (mass 1's side): fixed (a wall spring) or free [default: fixed].
     #[arg(long, requires = "input")]

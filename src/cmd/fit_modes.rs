@@ -10,13 +10,15 @@ use springmass::detect::fit::profile::ProfileMode;
 /// Read the modes, build the nominal chain, update it, print the report.
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let path = a.modes.clone().expect("checked by the caller");
-    let n = a.n.ok_or_else(|| {
-        springmass::Error::invalid(
+    let n = match (a.n, &a.baseline) {
+        (Some(n), _) => n,
+        (None, Some(b)) => springmass::chain::Baseline::read_csv(b)?.n(),
+        (None, None) => Err(springmass::Error::invalid(
             "n",
             "(none)",
-            "--n N, the number of masses (floors) of the chain",
-        )
-    })?;
+            "--n N, the number of masses (floors) of the chain (or --baseline FILE)",
+        ))?,
+    };
     let mut opts = ModalUpdateOptions::default();
     if let Some(p) = &a.profile {
         opts.mode = ProfileMode::parse(p)?;
@@ -38,6 +40,10 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         left: a.left.clone(),
         right: a.right.clone(),
         damping: a.damping.clone(),
+        baseline: a
+            .baseline
+            .as_ref()
+            .map(|p| springmass::chain::BaselineSpec::Path(p.display().to_string())),
         ..springmass::detect::fit::options::FitSpec::new(n)
     };
     let nominal = spec.model()?.chain().clone();
