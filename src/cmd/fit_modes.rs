@@ -19,6 +19,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             "--n N, the number of masses (floors) of the chain (or --baseline FILE)",
         ))?,
     };
+    if a.defects.is_some() {
+        return run_locate(a, n);
+    }
     let mut opts = ModalUpdateOptions::default();
     if let Some(p) = &a.profile {
         opts.mode = ProfileMode::parse(p)?;
@@ -33,6 +36,66 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         opts.hold_out = parse_list(h)?;
     }
     opts.check()?;
+    let nominal = nominal_chain(a, n)?;
+    let modes = MeasuredModes::read_csv(&path)?;
+    let report = update_from_modes(&nominal, modes, &opts)
+        .with_context(|| format!("updating the chain from {}", path.display()))?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", report.summary());
+    }
+    Ok(())
+}
+
+/// `--defects`: which elements changed.
+fn run_locate(a: &Args, n: usize) -> anyhow::Result<()> {
+    use springmass::detect::fit::modal_locate::{locate_from_modes, ModalLocateOptions};
+    let path = a.modes.clone().expect("checked by the caller");
+    let mut opts = ModalLocateOptions::default();
+    let text = a.defects.as_deref().unwrap_or("auto");
+    (opts.k_min, opts.k_max) = parse_defects(text)?;
+    if let Some(kinds) = &a.kinds {
+        opts.kinds = match kinds.as_str() {
+            "spring" | "springs" => ProfileMode::Springs,
+            "mass" | "masses" => ProfileMode::Masses,
+            "any" | "both" => ProfileMode::Both,
+            other => Err(springmass::Error::invalid(
+                "kinds",
+                other,
+                "spring, mass or any (with --modes)",
+            ))?,
+        };
+    }
+    let nominal = nominal_chain(a, n)?;
+    let modes = MeasuredModes::read_csv(&path)?;
+    let report = locate_from_modes(&nominal, modes, &opts)
+        .with_context(|| format!("searching the modes of {}", path.display()))?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", report.summary());
+    }
+    Ok(())
+}
+
+/// `auto` (0..=2), `auto:K` (0..=K) or `K` (exactly K).
+fn parse_defects(text: &str) -> springmass::Result<(usize, usize)> {
+    let bad =
+        || springmass::Error::invalid("defects", text, "auto, auto:K or K (a number of defects)");
+    match text.split_once(':') {
+        None if text == "auto" => Ok((0, 2)),
+        Some(("auto", k)) => Ok((0, k.parse().map_err(|_| bad())?)),
+        None => {
+            let k = text.parse().map_err(|_| bad())?;
+            Ok((k, k))
+        }
+        Some(_) => Err(bad()),
+    }
+}
+
+/// The nominal chain of the flags: uniform (--mass, --k, --d) or a baseline.
+fn nominal_chain(a: &Args, n: usize) -> anyhow::Result<springmass::Chain> {
     let spec = springmass::detect::fit::options::FitSpec {
         d: Some(a.d.unwrap_or(0.0)),
         k: a.k,
@@ -46,16 +109,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             .map(|p| springmass::chain::BaselineSpec::Path(p.display().to_string())),
         ..springmass::detect::fit::options::FitSpec::new(n)
     };
-    let nominal = spec.model()?.chain().clone();
-    let modes = MeasuredModes::read_csv(&path)?;
-    let report = update_from_modes(&nominal, modes, &opts)
-        .with_context(|| format!("updating the chain from {}", path.display()))?;
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print!("{}", report.summary());
-    }
-    Ok(())
+    Ok(spec.model()?.chain().clone())
 }
 
 /// `3,4` -> `[3, 4]`.

@@ -72,6 +72,7 @@ pub mod greedy;
 pub mod identifiable;
 pub mod identify;
 pub mod judge;
+pub mod modal_locate;
 pub mod modal_update;
 pub mod model;
 pub mod noise;

@@ -261,15 +261,16 @@ impl ModalUpdateReport {
 }
 
 /// The factors' problem: misfit rows plus optional prior rows.
-struct FactorProblem<'a> {
-    nominal: &'a Chain,
-    elements: &'a [Defect],
-    misfit: &'a ModalMisfit,
-    prior: Option<f64>,
+pub(crate) struct FactorProblem<'a> {
+    pub(crate) nominal: &'a Chain,
+    pub(crate) elements: &'a [Defect],
+    pub(crate) misfit: &'a ModalMisfit,
+    pub(crate) prior: Option<f64>,
 }
 
 impl FactorProblem<'_> {
-    fn chain(&self, theta: &[f64]) -> Result<Chain> {
+    /// The nominal chain with the elements scaled by `theta`.
+    pub(crate) fn chain(&self, theta: &[f64]) -> Result<Chain> {
         let defects = self
             .elements
             .iter()
@@ -290,7 +291,7 @@ impl LeastSquares for FactorProblem<'_> {
 }
 
 /// The elements freed by `mode`, each as a defect at its nominal value.
-fn elements(nominal: &Chain, mode: ProfileMode) -> Vec<Defect> {
+pub(crate) fn elements(nominal: &Chain, mode: ProfileMode) -> Vec<Defect> {
     let mut out = Vec::new();
     if mode != ProfileMode::Springs {
         out.extend((1..=nominal.n()).map(|at| Defect::Mass {
@@ -606,11 +607,16 @@ fn frequency_gap(modes: &crate::time::modal::UndampedModes, j: usize, m: &Measur
     (modes.omega[j] / std::f64::consts::TAU / m.frequency - 1.0).abs()
 }
 
+/// Said when a chi-square test ran on assumed weights.
+pub(crate) const ASSUMED_NOTE: Option<&str> = Some(
+    " (under the assumed weights, 1% frequency and 5% shape: if the modes are less precise, give frequency_se and phi_J_se)",
+);
+
 /// Status, `resolved` and message.
 fn judge(mut r: ModalUpdateReport) -> ModalUpdateReport {
     let p = r.factors.len();
     let free = r.dof.saturating_sub(p);
-    if r.errors_given && free > 0 {
+    if free > 0 {
         r.p_value = Some(chi2_sf(r.chi2, free as f64));
     }
     let undetermined: Vec<String> = r
@@ -625,9 +631,10 @@ fn judge(mut r: ModalUpdateReport) -> ModalUpdateReport {
             "model-mismatch".into(),
             false,
             format!(
-                "the updated chain does not explain the modes (chi2 {:.3} on {free} dof, p = {:.2e}): check the pairing (MAC), the ends, or free the masses too",
+                "the updated chain does not explain the modes (chi2 {:.3} on {free} dof, p = {:.2e}): check the pairing (MAC), the ends, or free the masses too{}",
                 r.chi2,
-                r.p_value.unwrap_or(0.0)
+                r.p_value.unwrap_or(0.0),
+                ASSUMED_NOTE.filter(|_| !r.errors_given).unwrap_or("")
             ),
         )
     } else if !undetermined.is_empty() {
