@@ -258,19 +258,7 @@ impl TimeSeries {
     /// the cap); the errors of [`TimeSeries::from_csv_str`] prefixed with the file.
     pub fn read_csv(path: impl AsRef<Path>) -> Result<TimeSeries> {
         let path = path.as_ref();
-        let text = crate::io::read_to_string_capped(path)?;
-        TimeSeries::from_csv_str(&text).map_err(|e| match e {
-            Error::Parse {
-                what,
-                input,
-                reason,
-            } => Error::Parse {
-                what: format!("{}: {what}", path.display()),
-                input,
-                reason,
-            },
-            other => other,
-        })
+        crate::io::parse_file(path, TimeSeries::from_csv_str)
     }
 
     /// The unit of a value column, if its header gave one (`x1 [m]`).

@@ -317,6 +317,18 @@ fn temp_dir(tag: &str) -> std::path::PathBuf {
     d
 }
 
+/// `springmass fit --modes FILE ARGS...`: (success, stdout, stderr).
+fn fit_modes(file: &std::path::Path, args: &[&str]) -> (bool, Vec<u8>, String) {
+    let out = std::process::Command::new(BIN)
+        .args(["fit", "--modes"])
+        .arg(file)
+        .args(args)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    (out.status.success(), out.stdout, err)
+}
+
 fn smu_file(dir: &std::path::Path) -> std::path::PathBuf {
     let path = dir.join("smu.csv");
     let mut text = String::from("frequency [Hz],phi_1,phi_2,phi_3,phi_4\n");
@@ -333,10 +345,9 @@ fn smu_file(dir: &std::path::Path) -> std::path::PathBuf {
 fn cli_updates_the_smu_frame_and_lists_every_mode() {
     let dir = temp_dir("smu");
     let file = smu_file(&dir);
-    let out = std::process::Command::new(BIN)
-        .args(["fit", "--modes"])
-        .arg(&file)
-        .args([
+    let (ok, stdout, err) = fit_modes(
+        &file,
+        &[
             "--n",
             "4",
             "--mass",
@@ -345,16 +356,13 @@ fn cli_updates_the_smu_frame_and_lists_every_mode() {
             "10",
             "--right",
             "free",
-        ])
-        .args(["--hold-out", "3,4", "--json"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+            "--hold-out",
+            "3,4",
+            "--json",
+        ],
     );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&stdout).unwrap();
     assert_eq!(v["status"], "converged");
     let modes = v["modes"].as_array().unwrap();
     assert_eq!(modes.len(), 4);
@@ -382,33 +390,18 @@ fn cli_refuses_bad_modes_naming_the_field() {
     for (i, (text, want)) in cases.iter().enumerate() {
         let path = dir.join(format!("bad{i}.csv"));
         std::fs::write(&path, text).unwrap();
-        let out = std::process::Command::new(BIN)
-            .args(["fit", "--modes"])
-            .arg(&path)
-            .args(["--n", "4"])
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
+        let (ok, _, err) = fit_modes(&path, &["--n", "4"]);
         if want.is_empty() {
             // a short row is a mode measured at fewer masses: accepted
-            assert!(out.status.success(), "{err}");
+            assert!(ok, "{err}");
         } else {
-            assert!(
-                !out.status.success() && err.contains(want),
-                "{text:?}: {err}"
-            );
+            assert!(!ok && err.contains(want), "{text:?}: {err}");
         }
     }
     // flags of the series fit are refused with --modes
     let path = dir.join("bad0.csv");
-    let out = std::process::Command::new(BIN)
-        .args(["fit", "--modes"])
-        .arg(&path)
-        .args(["--n", "5", "--noise", "0.1"])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--noise"));
+    let (ok, _, err) = fit_modes(&path, &["--n", "5", "--noise", "0.1"]);
+    assert!(!ok && err.contains("--noise"), "{err}");
 }
 
 #[test]
@@ -436,18 +429,9 @@ fn cli_updates_a_measured_baseline() {
     let dir = temp_dir("baseline");
     let modes = dir.join("modes.csv");
     std::fs::write(&modes, text).unwrap();
-    let out = std::process::Command::new(BIN)
-        .args(["fit", "--modes"])
-        .arg(&modes)
-        .args(["--baseline", table, "--json"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (ok, stdout, err) = fit_modes(&modes, &["--baseline", table, "--json"]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&stdout).unwrap();
     assert_eq!(v["status"], "converged");
     for f in v["factors"].as_array().unwrap() {
         let want = if f["at"] == 3 { 0.8 } else { 1.0 };
@@ -493,10 +477,9 @@ fn cli_finds_the_changed_storey_and_says_mismatch_when_none_explains() {
     let dir = temp_dir("locate");
     let smu = smu_file(&dir);
     // every storey of the SMU frame differs from nominal: two defects cannot explain it
-    let out = std::process::Command::new(BIN)
-        .args(["fit", "--modes"])
-        .arg(&smu)
-        .args([
+    let (ok, stdout, err) = fit_modes(
+        &smu,
+        &[
             "--n",
             "4",
             "--mass",
@@ -505,16 +488,13 @@ fn cli_finds_the_changed_storey_and_says_mismatch_when_none_explains() {
             "10",
             "--right",
             "free",
-        ])
-        .args(["--defects", "auto", "--json"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+            "--defects",
+            "auto",
+            "--json",
+        ],
     );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&stdout).unwrap();
     assert_eq!(v["status"], "model-mismatch", "{}", v["message"]);
     assert_eq!(v["resolved"], false);
     // a bad --defects and --kinds are refused naming the field
@@ -522,13 +502,7 @@ fn cli_finds_the_changed_storey_and_says_mismatch_when_none_explains() {
         ("--defects", "two", "defects"),
         ("--kinds", "ground", "kinds"),
     ] {
-        let out = std::process::Command::new(BIN)
-            .args(["fit", "--modes"])
-            .arg(&smu)
-            .args(["--baseline", table, "--defects", "1", flag, value])
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && err.contains(field), "{err}");
+        let (ok, _, err) = fit_modes(&smu, &["--baseline", table, "--defects", "1", flag, value]);
+        assert!(!ok && err.contains(field), "{err}");
     }
 }

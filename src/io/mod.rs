@@ -500,6 +500,27 @@ fn too_big(path: &Path, cap: u64) -> Error {
 
 /// [`read_capped`] as UTF-8 text.
 ///
+/// Read a text file (as [`read_to_string_capped`]) and parse it with
+/// `parse`, every [`Error::Parse`] prefixed with the file's path.
+///
+/// # Errors
+/// As [`read_to_string_capped`] and `parse`.
+pub fn parse_file<T>(path: &Path, parse: impl FnOnce(&str) -> Result<T>) -> Result<T> {
+    let text = read_to_string_capped(path)?;
+    parse(&text).map_err(|e| match e {
+        Error::Parse {
+            what,
+            input,
+            reason,
+        } => Error::Parse {
+            what: format!("{}: {what}", path.display()),
+            input,
+            reason,
+        },
+        other => other,
+    })
+}
+
 /// # Errors
 /// As [`read_capped`]; [`Error::Parse`] naming the file if it is not UTF-8.
 pub fn read_to_string_capped(path: &Path) -> Result<String> {

@@ -219,19 +219,7 @@ impl MeasuredModes {
     /// [`Error::Io`] naming the file; the parse errors prefixed with it.
     pub fn read_csv(path: impl AsRef<Path>) -> Result<MeasuredModes> {
         let path = path.as_ref();
-        let text = crate::io::read_to_string_capped(path)?;
-        MeasuredModes::from_csv_str(&text).map_err(|e| match e {
-            Error::Parse {
-                what,
-                input,
-                reason,
-            } => Error::Parse {
-                what: format!("{}: {what}", path.display()),
-                input,
-                reason,
-            },
-            other => other,
-        })
+        crate::io::parse_file(path, MeasuredModes::from_csv_str)
     }
 }
 

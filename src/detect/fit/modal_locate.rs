@@ -211,11 +211,7 @@ pub fn locate_from_modes(
     let (answer, second) = &best[chosen];
     let problem = FactorProblem {
         nominal,
-        elements: &answer
-            .idx
-            .iter()
-            .map(|&i| els[i])
-            .collect::<Vec<_>>(),
+        elements: &answer.idx.iter().map(|&i| els[i]).collect::<Vec<_>>(),
         misfit: &misfit,
         prior: None,
     };
