@@ -238,7 +238,7 @@ impl<T: Scalar> Green<T> {
     }
 
     /// Green's function of `chain` without its defects, from the two
-    /// recurrence sweeps of its coefficients ([`profile`]): O(n) per `s`,
+    /// recurrence sweeps of its coefficients (module `green::profile`): O(n) per `s`,
     /// O(1) per entry. [`Green::of_chain`] takes this form for a chain on
     /// a [`crate::chain::Baseline`]; [`Green::lambda`] is zero then (a
     /// nonuniform chain has no single `lambda`).

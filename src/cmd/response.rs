@@ -246,6 +246,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         if !chain.damping().is_grounded() {
             println!("# damping: {}", chain.damping());
         }
+        if let Some(b) = chain.baseline() {
+            println!(
+                "# baseline: {} (masses and springs from it; k and mass above are its means)",
+                b.source()
+            );
+        }
         if a.modes {
             for line in modes_text(&chain, a.setup.has_units())? {
                 println!("{line}");
