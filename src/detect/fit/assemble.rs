@@ -44,7 +44,9 @@ impl Engine<'_> {
             .collect();
         let (fits_data, p) = goodness_of_fit(f, chi2_final, estimated);
         let hint = (!fits_data).then(|| self.mismatch_hint(f)).flatten();
-        let k_margin = self.k_margin(&rows, f.k, &criterion);
+        let k_margin = self
+            .k_margin(&rows, f.k, &criterion)
+            .or_else(|| self.k_at_limit(&rows, f.k));
         let verdict = judge(
             &Evidence {
                 k: f.k,
@@ -105,6 +107,22 @@ impl Engine<'_> {
                 .chain()
                 .baseline()
                 .map(|b| b.source().to_string()),
+        })
+    }
+
+    /// When the criterion chose the largest number of defects searched
+    /// (`auto:K`, with fewer than `n`): more may be there, or the chain
+    /// differs from the model everywhere (a measured baseline?).
+    fn k_at_limit(&self, rows: &[KRow], k: usize) -> Option<String> {
+        let super::options::DefectCount::Auto { k_max } = self.opts.defects else {
+            return None;
+        };
+        let searched = rows.iter().map(|r| r.k).max()?;
+        (k == k_max && searched == k_max && k_max > 0 && k_max < self.model.chain().n()).then(|| {
+            format!(
+                "the criterion chose the largest number of defects searched (k = {k_max}): the record may hold more changes (try --defects auto:{}), or the chain differs from the model everywhere (a measured profile: --baseline)",
+                k_max + 2
+            )
         })
     }
 
