@@ -1,0 +1,101 @@
+//! The defaults (k unknown, chosen by BIC; sigma estimated) against the
+//! same fit told k, as a ratio measured in one run (issue 30: the defaults
+//! should cost at most twice the k-given fit).
+//!
+//! `cargo bench --bench kauto -- --warm-up-time 1 --measurement-time 5`
+//!
+//! Records: `x_1` on `[0, 300]`, `dt = 0.05` (6001 samples), noise 1% of
+//! `max |x_1|`, seed 1, of
+//!
+//! * `s3`: Table 1 System 3 (n = 20, masses 5 at 8 and 2 at 15);
+//! * `n37`: the paper-sized n = 37 scene (masses 3 at 10 and 2 at 25).
+//!
+//! Benchmarks (this thread's CPU time, `parallel = false`):
+//! `cpu/kauto/<case>/given` (`--defects 2`) and `.../auto` (the defaults).
+//! The ratio `auto / given` of each case is printed after its group.
+//! The Python peer (`benches/scipy_peer.py`) compares the command line
+//! with scipy's least_squares and differential evolution.
+
+use criterion::{black_box, criterion_group, criterion_main, Criterion};
+use springmass::detect::data::observations::{Observations, Series};
+use springmass::detect::data::series::TimeData;
+use springmass::detect::fit::{fit, DefectCount, FitOptions, Model};
+use springmass::noise::NoiseLevel;
+use springmass::{Chain, Defect};
+use std::time::{Duration, Instant};
+
+#[path = "common/cputime.rs"]
+mod cputime;
+use cputime::CpuTime;
+
+fn record(n: usize, defects: &[(usize, f64)]) -> Observations {
+    let truth = Chain::paper(n)
+        .unwrap()
+        .with_defects(defects.iter().map(|&(at, m)| Defect::Mass { at, m }))
+        .unwrap();
+    let d = TimeData::simulate(&truth, 300.0, 0.05, NoiseLevel::RelativeMax(1e-2), 1).unwrap();
+    Observations::Series(Series::new(d.t().to_vec(), d.y().to_vec(), None).unwrap())
+}
+
+fn options(defects: DefectCount) -> FitOptions {
+    FitOptions {
+        defects,
+        parallel: false,
+        ..FitOptions::default()
+    }
+}
+
+/// Mean wall time of `runs` fits (the ratio line beside criterion's).
+fn mean_s(runs: usize, f: impl Fn()) -> f64 {
+    let t = Instant::now();
+    for _ in 0..runs {
+        f();
+    }
+    t.elapsed().as_secs_f64() / runs as f64
+}
+
+fn bench_kauto(c: &mut Criterion<CpuTime>) {
+    let cases = [
+        ("s3", 20, record(20, &[(8, 5.0), (15, 2.0)])),
+        ("n37", 37, record(37, &[(10, 3.0), (25, 2.0)])),
+    ];
+    for (name, n, obs) in &cases {
+        let model = Model::new(*n).unwrap();
+        let given = options(DefectCount::Exactly(2));
+        let auto = options(FitOptions::default().defects);
+        let a = fit(obs, &model, &auto).unwrap();
+        let g = fit(obs, &model, &given).unwrap();
+        let at = |r: &springmass::detect::fit::FitReport| -> Vec<usize> {
+            r.defects.iter().map(|d| d.at).collect()
+        };
+        assert_eq!(at(&a), at(&g), "{name}: the defaults choose k = 2");
+        let mut grp = c.benchmark_group(format!("cpu/kauto/{name}"));
+        grp.sample_size(10).measurement_time(Duration::from_secs(5));
+        grp.bench_function("given", |b| {
+            b.iter(|| fit(black_box(obs), &model, &given).unwrap())
+        });
+        grp.bench_function("auto", |b| {
+            b.iter(|| fit(black_box(obs), &model, &auto).unwrap())
+        });
+        grp.finish();
+        let tg = mean_s(3, || {
+            fit(obs, &model, &given).unwrap();
+        });
+        let ta = mean_s(3, || {
+            fit(obs, &model, &auto).unwrap();
+        });
+        println!(
+            "{name}: defaults {:.3} s, k given {:.3} s, ratio {:.1}x (wall, one thread, mean of 3)",
+            ta,
+            tg,
+            ta / tg
+        );
+    }
+}
+
+criterion_group! {
+    name = benches_kauto;
+    config = Criterion::default().with_measurement(CpuTime);
+    targets = bench_kauto
+}
+criterion_main!(benches_kauto);
