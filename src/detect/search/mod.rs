@@ -77,7 +77,7 @@ pub mod pso;
 pub mod rankone;
 pub mod registry;
 
-/// Candidates of a batch from which [`Counted::cost_batch`] shares it
+/// Candidates of a batch from which [`Tracked::cost_batch`] shares it
 /// among threads (one candidate costs microseconds on the Woodbury kernel).
 pub const MIN_BATCH: usize = 64;
 
