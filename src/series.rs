@@ -181,15 +181,7 @@ impl TimeSeries {
     /// missing header, a missing or empty field, a number that does not parse
     /// or is NaN/inf, and unsorted or duplicate times.
     pub fn from_csv_str(text: &str) -> Result<TimeSeries> {
-        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-        let text = blank_comment_lines(text);
-        let delim = sniff_delimiter(&text);
-        let mut rdr = csv::ReaderBuilder::new()
-            .delimiter(delim)
-            .has_headers(false)
-            .flexible(true)
-            .trim(csv::Trim::All)
-            .from_reader(text.as_bytes());
+        let (mut rdr, delim) = lab_csv_reader(text);
         let mut records = rdr.records();
         let layout = Layout::from_header(&mut records, delim)?;
         let decimal_comma = delim == b';';
@@ -371,9 +363,36 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     crate::io::write_atomic(path, bytes)
 }
 
+/// The bytes a [`lab_csv_reader`] reads.
+pub(crate) type LabCsv<'a> = std::io::Cursor<std::borrow::Cow<'a, [u8]>>;
+
+/// A CSV reader over `text` as a lab writes it: a byte-order mark dropped,
+/// `#` comment lines blanked (line numbers stay), the delimiter sniffed
+/// (`,`, `;` or tab), no header handling, ragged rows allowed, fields
+/// trimmed. Returns the reader and the delimiter.
+pub(crate) fn lab_csv_reader(
+    text: &str,
+) -> (csv::Reader<std::io::Cursor<std::borrow::Cow<'_, [u8]>>>, u8) {
+    use std::borrow::Cow;
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let text = blank_comment_lines(text);
+    let delim = sniff_delimiter(&text);
+    let bytes: Cow<'_, [u8]> = match text {
+        Cow::Borrowed(t) => Cow::Borrowed(t.as_bytes()),
+        Cow::Owned(t) => Cow::Owned(t.into_bytes()),
+    };
+    let rdr = csv::ReaderBuilder::new()
+        .delimiter(delim)
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(std::io::Cursor::new(bytes));
+    (rdr, delim)
+}
+
 /// The delimiter of a CSV text: the most frequent of `,`, `;` and tab (outside
 /// quotes) on its first line that is neither blank nor a `#` comment.
-pub(crate) fn sniff_delimiter(text: &str) -> u8 {
+fn sniff_delimiter(text: &str) -> u8 {
     let line = text
         .lines()
         .find(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
@@ -443,7 +462,7 @@ struct Layout {
 
 impl Layout {
     /// Read the header record (skipping blank lines) and decide the columns.
-    fn from_header(records: &mut csv::StringRecordsIter<&[u8]>, delim: u8) -> Result<Layout> {
+    fn from_header(records: &mut csv::StringRecordsIter<LabCsv<'_>>, delim: u8) -> Result<Layout> {
         let header = loop {
             match records.next() {
                 None => {
@@ -653,7 +672,7 @@ fn is_comment_line(line: &str) -> bool {
 /// `#` comment lines replaced by blank lines (line numbers stay), unless the
 /// `#` opens a spreadsheet error value such as `#N/A` (a data row whose time
 /// is missing must be reported, not skipped).
-pub(crate) fn blank_comment_lines(text: &str) -> std::borrow::Cow<'_, str> {
+fn blank_comment_lines(text: &str) -> std::borrow::Cow<'_, str> {
     if !text.lines().any(is_comment_line) {
         return std::borrow::Cow::Borrowed(text);
     }

@@ -2,7 +2,7 @@
 
 use super::Baseline;
 use crate::error::{Error, Result};
-use crate::series::{blank_comment_lines, parse_number, sniff_delimiter, split_unit};
+use crate::series::{parse_number, split_unit};
 
 /// The three columns a baseline table may have.
 const COLUMNS: [&str; 3] = ["mass", "spring", "damper"];
@@ -83,15 +83,7 @@ fn unit_scale(col: usize, unit: Option<&str>, source: &str) -> Result<f64> {
 impl Table {
     /// Read the header and every data row.
     pub(super) fn parse(text: &str, source: &str) -> Result<Table> {
-        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-        let text = blank_comment_lines(text);
-        let delim = sniff_delimiter(&text);
-        let mut rdr = csv::ReaderBuilder::new()
-            .delimiter(delim)
-            .has_headers(false)
-            .flexible(true)
-            .trim(csv::Trim::All)
-            .from_reader(text.as_bytes());
+        let (mut rdr, delim) = crate::series::lab_csv_reader(text);
         let mut records = rdr
             .records()
             .filter(|r| !matches!(r, Ok(rec) if rec.iter().all(str::is_empty)));

@@ -22,9 +22,7 @@
 //! ```
 
 use crate::error::{Error, Result};
-use crate::series::{
-    at_cell, blank_comment_lines, csv_error, parse_number, raw_row, sniff_delimiter, split_unit,
-};
+use crate::series::{at_cell, csv_error, parse_number, raw_row, split_unit};
 use serde::Serialize;
 use std::path::Path;
 
@@ -169,15 +167,7 @@ impl MeasuredModes {
     /// number, an unknown column or a missing `frequency` column;
     /// the errors of [`MeasuredModes::new`].
     pub fn from_csv_str(text: &str) -> Result<MeasuredModes> {
-        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-        let text = blank_comment_lines(text);
-        let delim = sniff_delimiter(&text);
-        let mut rdr = csv::ReaderBuilder::new()
-            .delimiter(delim)
-            .has_headers(false)
-            .flexible(true)
-            .trim(csv::Trim::All)
-            .from_reader(text.as_bytes());
+        let (mut rdr, delim) = crate::series::lab_csv_reader(text);
         let mut records = rdr.records();
         let header = loop {
             match records.next() {
