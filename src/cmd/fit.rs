@@ -290,15 +290,7 @@ fn force_column(
 fn run_data(a: Args) -> anyhow::Result<()> {
     use springmass::detect::fit as dfit;
     let path = a.data.clone().expect("checked by the caller");
-    let n = match (a.n, &a.baseline) {
-        (Some(n), _) => n,
-        (None, Some(b)) => springmass::chain::Baseline::read_csv(b)?.n(),
-        (None, None) => Err(springmass::Error::invalid(
-            "n",
-            "(none)",
-            "--n N, the number of masses of the chain (or --baseline FILE)",
-        ))?,
-    };
+    let n = chain_size(&a)?;
     // every option is parsed before the data are read or any work starts
     let spec = data_spec(&a, n);
     let (model, opts) = spec.build()?;
@@ -361,12 +353,29 @@ fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
         noise_model: a.noise_model.clone(),
         nuisance: a.nuisance.clone(),
         damping: a.damping.clone(),
-        baseline: a
-            .baseline
-            .as_ref()
-            .map(|p| springmass::chain::BaselineSpec::Path(p.display().to_string())),
+        baseline: baseline_spec(a),
         ..springmass::detect::fit::options::FitSpec::new(n)
     }
+}
+
+/// The number of masses: `--n`, or the row count of `--baseline`.
+pub(super) fn chain_size(a: &Args) -> anyhow::Result<usize> {
+    Ok(match (a.n, &a.baseline) {
+        (Some(n), _) => n,
+        (None, Some(b)) => springmass::chain::Baseline::read_csv(b)?.n(),
+        (None, None) => Err(springmass::Error::invalid(
+            "n",
+            "(none)",
+            "--n N, the number of masses of the chain (or --baseline FILE)",
+        ))?,
+    })
+}
+
+/// `--baseline FILE` as the fit options take it.
+pub(super) fn baseline_spec(a: &Args) -> Option<springmass::chain::BaselineSpec> {
+    a.baseline
+        .as_ref()
+        .map(|p| springmass::chain::BaselineSpec::Path(p.display().to_string()))
 }
 
 /// `--profile` parsed, with its options checked (before the data are read).

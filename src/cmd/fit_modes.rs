@@ -10,15 +10,7 @@ use springmass::detect::fit::profile::ProfileMode;
 /// Read the modes, build the nominal chain, update it, print the report.
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let path = a.modes.clone().expect("checked by the caller");
-    let n = match (a.n, &a.baseline) {
-        (Some(n), _) => n,
-        (None, Some(b)) => springmass::chain::Baseline::read_csv(b)?.n(),
-        (None, None) => Err(springmass::Error::invalid(
-            "n",
-            "(none)",
-            "--n N, the number of masses (floors) of the chain (or --baseline FILE)",
-        ))?,
-    };
+    let n = super::fit::chain_size(a)?;
     if a.defects.is_some() {
         return run_locate(a, n);
     }
@@ -103,10 +95,7 @@ fn nominal_chain(a: &Args, n: usize) -> anyhow::Result<springmass::Chain> {
         left: a.left.clone(),
         right: a.right.clone(),
         damping: a.damping.clone(),
-        baseline: a
-            .baseline
-            .as_ref()
-            .map(|p| springmass::chain::BaselineSpec::Path(p.display().to_string())),
+        baseline: super::fit::baseline_spec(a),
         ..springmass::detect::fit::options::FitSpec::new(n)
     };
     Ok(spec.model()?.chain().clone())

@@ -33,7 +33,9 @@
 
 use crate::chain::{Chain, Defect};
 use crate::detect::data::modes::MeasuredModes;
-use crate::detect::fit::modal_update::{elements, FactorEstimate, FactorProblem, ASSUMED_NOTE};
+use crate::detect::fit::modal_update::{
+    elements, on_bound, FactorEstimate, FactorProblem, ASSUMED_NOTE,
+};
 use crate::detect::fit::profile::ProfileMode;
 use crate::detect::fit::select::chi2_sf;
 use crate::detect::misfit::modal::{ModalMisfit, ModalWeights};
@@ -376,7 +378,7 @@ fn defect_estimates(els: &[Defect], s: &SetFit, opts: &ModalLocateOptions) -> Ve
             let d = &els[i];
             let f = s.fit.theta[c];
             let se = cov.as_ref().map(|m| m[(c, c)].max(0.0).sqrt());
-            let at_bound = f <= opts.bounds.0 * (1.0 + 1e-9) || f >= opts.bounds.1 * (1.0 - 1e-9);
+            let at_bound = on_bound(f, opts.bounds);
             FactorEstimate {
                 kind: if matches!(d, Defect::Mass { .. }) {
                     "mass"

@@ -397,13 +397,13 @@ fn every_factor_seen(fit: &LmFit, dof: usize, opts: &ModalUpdateOptions) -> bool
     dof >= p
         && fit.theta.iter().enumerate().all(|(i, &f)| {
             let se = cov[(i, i)].max(0.0).sqrt();
-            se.is_finite() && se < 0.5 * f && !on_bound(f, opts)
+            se.is_finite() && se < 0.5 * f && !on_bound(f, opts.bounds)
         })
 }
 
 /// Whether a factor stopped on a bound.
-fn on_bound(f: f64, opts: &ModalUpdateOptions) -> bool {
-    f <= opts.bounds.0 * (1.0 + 1e-9) || f >= opts.bounds.1 * (1.0 - 1e-9)
+pub(crate) fn on_bound(f: f64, bounds: (f64, f64)) -> bool {
+    f <= bounds.0 * (1.0 + 1e-9) || f >= bounds.1 * (1.0 - 1e-9)
 }
 
 /// The lowest chi-square over the nominal start and the seeded ones.
@@ -519,7 +519,7 @@ fn estimates(
         .map(|(i, d)| {
             let f = fit.theta[i];
             let se = cov.as_ref().map(|c| c[(i, i)].max(0.0).sqrt() * scale);
-            let at_bound = on_bound(f, opts);
+            let at_bound = on_bound(f, opts.bounds);
             let determined = match (se, problem.prior) {
                 (Some(s), Some(w)) => s.is_finite() && s < 0.5 * w && !at_bound,
                 (Some(s), None) => s.is_finite() && s < 0.5 * f && !at_bound,
