@@ -79,3 +79,5 @@ mod threads;
 mod time_series;
 #[path = "trigger.rs"]
 mod trigger;
+#[path = "uncertainty.rs"]
+mod uncertainty;

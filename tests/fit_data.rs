@@ -259,7 +259,7 @@ fn mass_defects_on_laplace_values_take_the_woodbury_kernel() {
     )
     .unwrap();
     assert!(r.method.contains("Woodbury"), "{}", r.method);
-    assert_eq!(r.hypotheses, 190);
+    assert_eq!(r.sets_fitted, 190);
     let at: Vec<usize> = r.defects.iter().map(|d| d.at).collect();
     assert_eq!(at, vec![8, 15], "{}", r.summary());
     for (d, m) in r.defects.iter().zip([5.0, 2.0]) {

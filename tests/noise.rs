@@ -374,7 +374,7 @@ fn kind_any_picks_the_right_kind() {
             1e-2,
             seed,
         );
-        assert_eq!(rep.hypotheses, 6 + 7 + 6);
+        assert_eq!(rep.sets_fitted, 6 + 7 + 6);
         within_se(&rep, &truth, 4.0);
         assert!(
             rep.defects.iter().all(|d| d.identifiable),

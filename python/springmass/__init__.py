@@ -317,6 +317,12 @@ class DefectEstimate:
     baseline : float or None
         The baseline's value at this site (``fit(baseline=...)``); None on
         the uniform chain.
+    interval : (float, float) or None
+        The interval at the fit's ``level`` (default 0.9): Wald where the
+        profile likelihood agrees, else the profile-likelihood interval.
+    interval_method : str or None
+        ``"wald"``, ``"profile"``, ``"profile-bounded"``, ``"unconstrained"``
+        or ``"known"``.
     """
 
     kind: str
@@ -328,6 +334,8 @@ class DefectEstimate:
     significance: float
     identifiable: bool
     baseline: Optional[float] = None
+    interval: Optional[Tuple[float, float]] = None
+    interval_method: Optional[str] = None
 
     @property
     def defect(self) -> Defect:
@@ -343,6 +351,8 @@ class ParamEstimate:
     value: float
     se: float
     at_bound: bool
+    interval: Optional[Tuple[float, float]] = None
+    interval_method: Optional[str] = None
 
 
 @dataclass(frozen=True)
@@ -401,8 +411,25 @@ class FitResult:
         The evidence for each number of defects tried.
     criterion, misfit, method : str
         How ``k`` was chosen, the misfit and the search used.
-    evaluations, hypotheses : int
+    evaluations, sets_fitted : int
         Misfit evaluations spent; position sets fitted for the chosen ``k``.
+    hypotheses : list of dict
+        The most probable hypotheses (at most 10), best first: ``defects``
+        (dicts with ``kind``, ``at`` and the value), ``k``, ``chi2``,
+        ``log_evidence`` and ``probability`` (Laplace evidence under the
+        stated prior, normalised over the hypotheses refitted).
+    k_probability : dict of int to float
+        The probability of each number of defects searched.
+    position_probability : list of dict
+        ``kind``, ``at``, ``probability``: the marginal probability of a
+        defect at each site any refitted hypothesis holds.
+    answer_probability : float
+        The probability of the reported answer.
+    pruned_bound : float
+        The largest share of probability the hypotheses not refitted could
+        hold.
+    level : float
+        The level of the intervals.
     wall_time_s : float
         Wall time of the fit in seconds.
     identifiability : dict or None
@@ -453,7 +480,7 @@ class FitResult:
     misfit: str
     method: str
     evaluations: int
-    hypotheses: int
+    sets_fitted: int
     wall_time_s: float
     identifiability: Optional[Dict[str, Any]]
     visibility: Optional[Dict[str, Any]]
@@ -462,6 +489,12 @@ class FitResult:
     nuisance: List[Dict[str, Any]]
     damping: Optional[Dict[str, Any]]
     trigger: Optional[Dict[str, Any]]
+    hypotheses: List[Dict[str, Any]]
+    k_probability: Dict[int, float]
+    position_probability: List[Dict[str, Any]]
+    answer_probability: float
+    pruned_bound: float
+    level: float
     t: np.ndarray
     observed: np.ndarray
     predicted: np.ndarray
@@ -509,12 +542,22 @@ class FitResult:
                     significance=_nan(d["significance"]),
                     identifiable=bool(d["identifiable"]),
                     baseline=None if d.get("baseline") is None else _nan(d["baseline"]),
+                    interval=_interval(d),
+                    interval_method=d.get("interval_method"),
                 )
                 for d in r["defects"]
             ],
             k=int(r["k"]),
             params=[
-                ParamEstimate(p["name"], _nan(p["value"]), _nan(p["se"]), bool(p["at_bound"])) for p in r["params"]
+                ParamEstimate(
+                    p["name"],
+                    _nan(p["value"]),
+                    _nan(p["se"]),
+                    bool(p["at_bound"]),
+                    _interval(p),
+                    p.get("interval_method"),
+                )
+                for p in r["params"]
             ],
             sigma=_nan(r["noise_sigma"]),
             sigma_estimated=bool(r["noise_estimated"]),
@@ -537,7 +580,7 @@ class FitResult:
             misfit=r["misfit"],
             method=r["method"],
             evaluations=int(r["evaluations"]),
-            hypotheses=int(r["hypotheses"]),
+            sets_fitted=int(r["sets_fitted"]),
             wall_time_s=float(r["wall_time_s"]),
             identifiability=r.get("identifiability"),
             visibility=r.get("visibility"),
@@ -546,6 +589,12 @@ class FitResult:
             nuisance=list(r.get("nuisance", [])),
             damping=r.get("damping"),
             trigger=r.get("trigger"),
+            hypotheses=list(r.get("hypotheses", [])),
+            k_probability={int(e["k"]): _nan(e["probability"]) for e in r.get("k_probability", [])},
+            position_probability=list(r.get("position_probability", [])),
+            answer_probability=_nan(r.get("answer_probability")),
+            pruned_bound=_nan(r.get("pruned_bound")),
+            level=_nan(r.get("level")),
             t=raw.get("t", empty),
             observed=raw.get("observed", empty),
             predicted=raw.get("model", empty),
@@ -585,6 +634,10 @@ def fit(
     trigger: Any = "auto",
     force_window: str = "auto",
     baseline: Any = None,
+    level: Optional[float] = None,
+    prior_k: Optional[str] = None,
+    prior_range: Optional[str] = None,
+    uncertainty: bool = True,
 ) -> FitResult:
     """Fit defects to a measured series of mass 1's displacement.
 
@@ -682,6 +735,18 @@ def fit(
         ``n`` (which must agree) and the ends (``left``/``right`` left at
         their defaults follow the table); defects are reported relative to
         it (``DefectEstimate.baseline``).
+    level : float, optional
+        Level of every fitted value's interval (default 0.9):
+        ``DefectEstimate.interval``, ``ParamEstimate.interval``.
+    prior_k : {"uniform", "site:P"}, optional
+        Prior over the number of defects for ``FitResult.hypotheses`` (their
+        probabilities): every count searched equally probable (default), or
+        every site defective with probability ``P``.
+    prior_range : "LO:HI", optional
+        Prior range of a defect's value, in multiples of the value it
+        replaces (default: the search range of its kind).
+    uncertainty : bool, default True
+        Compute the intervals and the probabilities (False: faster, without).
 
     Returns
     -------
@@ -753,8 +818,17 @@ def fit(
         trigger=_trigger(trigger),
         force_window=_text("force_window", force_window),
         baseline=table,
+        level=None if level is None else _real("level", level),
+        prior_k=None if prior_k is None else _text("prior_k", prior_k),
+        prior_range=None if prior_range is None else _text("prior_range", prior_range),
+        uncertainty=bool(uncertainty),
     )
     return FitResult._from_core(raw)
+
+
+def _interval(entry: Dict[str, Any]) -> Optional[Tuple[float, float]]:
+    iv = entry.get("interval")
+    return None if iv is None else (_nan(iv[0]), _nan(iv[1]))
 
 
 def _baseline(value: Any) -> Any:

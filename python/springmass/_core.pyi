@@ -56,6 +56,10 @@ def fit(
     damping: Optional[str] = None,
     force_window: Optional[str] = None,
     baseline: Union[str, "PathLike[str]", Dict[str, Any], None] = None,
+    level: Optional[float] = None,
+    prior_k: Optional[str] = None,
+    prior_range: Optional[str] = None,
+    uncertainty: Optional[bool] = None,
 ) -> Dict[str, Any]:
     """The data-first fit: {"report": JSON text, "summary": str, "t", "observed", "model", "residual": ndarray}."""
 

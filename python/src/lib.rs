@@ -166,7 +166,7 @@ fn series_obs(
     kinds=None, slot_kinds=Vec::new(), noise=None, misfit=None, method=None, criterion=None,
     seed=None, max_evals=None, k=None, mass=None, left=None, right=None, observe=None,
     observe_kind=None, force=None, trigger=None, noise_model=None, nuisance=None, damping=None, force_window=None,
-    baseline=None))]
+    baseline=None, level=None, prior_k=None, prior_range=None, uncertainty=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit<'py>(
     py: Python<'py>,
@@ -199,9 +199,17 @@ fn fit<'py>(
     damping: Option<String>,
     force_window: Option<String>,
     baseline: Option<BaselineArg>,
+    level: Option<f64>,
+    prior_k: Option<String>,
+    prior_range: Option<String>,
+    uncertainty: Option<bool>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let baseline = baseline.map(BaselineArg::spec).transpose().py_err()?;
     let spec = FitSpec {
+        level,
+        prior_k,
+        prior_range,
+        uncertainty,
         d,
         k,
         mass,

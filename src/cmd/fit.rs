@@ -140,6 +140,27 @@ pub struct Args {
     /// the profile, also for --scene).
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// Draw the probability of a defect at each site along the chain to
+    /// this SVG (--data).
+    #[arg(long, requires = "data", value_name = "SVG")]
+    pub plot_posterior: Option<PathBuf>,
+    /// Level of the intervals of every fitted value, 0 < LEVEL < 1
+    /// [default: 0.9].
+    #[arg(long, requires = "data")]
+    pub level: Option<f64>,
+    /// Prior over the number of defects for the hypotheses' probabilities:
+    /// uniform (every count searched equally probable, positions uniform
+    /// given it) or site:P (every site defective with probability P)
+    /// [default: uniform].
+    #[arg(long, requires = "data", value_name = "uniform|site:P")]
+    pub prior_k: Option<String>,
+    /// Prior range of a defect's value, LO:HI times the value it replaces
+    /// [default: the search range of its kind].
+    #[arg(long, requires = "data", value_name = "LO:HI")]
+    pub prior_range: Option<String>,
+    /// Leave out the intervals and the hypotheses' probabilities (faster).
+    #[arg(long, requires = "data")]
+    pub no_uncertainty: bool,
     /// Write t, observed, model, residual to this CSV (--data; with a
     /// profile, the profile's values, also for --scene).
     #[arg(long)]
@@ -302,6 +323,7 @@ fn run_data(a: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     opts.validate(&obs, &model)?;
+    springmass::io::check_outputs(a.plot_posterior.iter().map(|p| p.as_path()))?;
     let report = with_spinner(a.json, "fitting", || dfit::fit(&obs, &model, &opts))?;
     if let Some(p) = &report.predicted {
         if let Some(out) = &a.out_csv {
@@ -324,7 +346,55 @@ fn run_data(a: Args) -> anyhow::Result<()> {
     } else {
         print!("{}", report.summary());
     }
+    if let Some(svg) = &a.plot_posterior {
+        match &report.posterior {
+            Some(post) => posterior_plot(&path, post, model.n()).write_svg(svg)?,
+            None => anyhow::bail!(
+                "no probabilities over hypotheses to plot (--no-uncertainty, or they could not be computed)"
+            ),
+        }
+    }
     Ok(())
+}
+
+/// The probability of a defect at each site along the chain, one spike
+/// per site and kind.
+fn posterior_plot(
+    path: &std::path::Path,
+    post: &springmass::detect::fit::posterior::Posterior,
+    n: usize,
+) -> springmass::plot::LinePlot {
+    use springmass::plot::{Line, LinePlot};
+    let file = path
+        .file_name()
+        .unwrap_or(path.as_os_str())
+        .to_string_lossy();
+    let mut plot = LinePlot::new(
+        format!(
+            "probability of a defect at each site, {file} (answer {:.3}; not refitted: up to {:.1e})",
+            post.answer_probability, post.pruned_bound
+        ),
+        format!("position along the chain (masses 1..{n}, springs 0..{n})"),
+        "probability",
+    )
+    .y_range(0.0, 1.05)
+    .integer_x(true);
+    let mut kinds: Vec<&str> = post.position_probability.iter().map(|p| p.kind).collect();
+    kinds.dedup();
+    for kind in kinds {
+        let mut spikes = vec![(0.0, 0.0)];
+        let mut tops = Vec::new();
+        for p in post.position_probability.iter().filter(|p| p.kind == kind) {
+            let x = p.at as f64;
+            spikes.extend([(x, 0.0), (x, p.probability), (x, 0.0)]);
+            tops.push((x, p.probability));
+        }
+        spikes.push((n as f64, 0.0));
+        plot = plot
+            .line(Line::new(format!("{kind}"), spikes))
+            .line(Line::new(format!("{kind} (site)"), tops).markers());
+    }
+    plot.size(900, 420)
 }
 
 /// The options of a data-first fit as the library takes them.
@@ -354,6 +424,10 @@ fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
         nuisance: a.nuisance.clone(),
         damping: a.damping.clone(),
         baseline: baseline_spec(a),
+        level: a.level,
+        prior_k: a.prior_k.clone(),
+        prior_range: a.prior_range.clone(),
+        uncertainty: a.no_uncertainty.then_some(false),
         ..springmass::detect::fit::options::FitSpec::new(n)
     }
 }

@@ -89,7 +89,7 @@ impl Engine<'_> {
             setup: self.setup_line(),
             method: f.method_name.clone(),
             evaluations,
-            hypotheses: f.hypotheses,
+            sets_fitted: f.hypotheses,
             exhaustive: f.exhaustive,
             trace: f.trace.clone(),
             wall_time_s: t0.elapsed().as_secs_f64(),
@@ -107,6 +107,8 @@ impl Engine<'_> {
                 .chain()
                 .baseline()
                 .map(|b| b.source().to_string()),
+            level: self.opts.level,
+            posterior: None,
         })
     }
 
@@ -162,6 +164,8 @@ impl Engine<'_> {
                 significance: rep.map_or(f64::NAN, |r| r.significance),
                 baseline: base.baseline().map(|_| d.base_value(base)),
                 identifiable: is_known || rep.is_some_and(|r| r.identifiable),
+                interval: is_known.then_some([v, v]),
+                interval_method: is_known.then_some("known"),
             });
         }
         defects
@@ -186,6 +190,8 @@ impl Engine<'_> {
                     value: p.value,
                     se: p.std_error,
                     at_bound: p.value <= b.0 + tol || p.value >= b.1 - tol,
+                    interval: None,
+                    interval_method: None,
                 }
             })
             .collect()

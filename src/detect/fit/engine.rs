@@ -293,6 +293,29 @@ impl Engine<'_> {
         }
     }
 
+    /// The measurement model the fits at noise level `sigma` ranked their
+    /// hypotheses on: the time misfit of a series (with the record model),
+    /// else the Laplace values.
+    ///
+    /// # Errors
+    /// As the observations' preparation.
+    pub(super) fn measurement_at(&self, sigma: f64) -> Result<Box<dyn MeasurementModel>> {
+        let (coarse, fine, ..) = self.prepared(sigma)?;
+        Ok(match fine {
+            Some(t) => Box::new(t),
+            None => Box::new(coarse),
+        })
+    }
+
+    /// How many position (and kind) sets `k` free defects can take (1
+    /// without any).
+    ///
+    /// # Errors
+    /// As the unknowns' construction.
+    pub(super) fn space_size(&self, k: usize) -> Result<f64> {
+        Ok(self.unknowns(k)?.map_or(1.0, |u| set_count(&u)))
+    }
+
     pub(super) fn fit_k(&self, k: usize, sigma: f64) -> Result<KFit> {
         let (coarse, fine, misfit_name, setup) = self.prepared(sigma)?;
         let found = match self.unknowns(k)? {

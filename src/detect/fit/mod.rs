@@ -71,13 +71,16 @@ pub mod general;
 pub mod greedy;
 pub mod identifiable;
 pub mod identify;
+pub mod intervals;
 pub mod judge;
+mod local;
 pub mod modal_locate;
 pub mod modal_update;
 pub mod model;
 pub mod noise;
 pub mod options;
 pub mod paper;
+pub mod posterior;
 pub mod profile;
 pub mod record;
 mod record_report;
@@ -193,6 +196,9 @@ fn fit_record(
     // scene path, whose data are the model's own)
     if !scene && report.defects.iter().all(|d| d.kind == "mass") {
         add_visibility(&mut report, engine, sigma)?;
+    }
+    if opts.uncertainty {
+        add_uncertainty(&mut report, &stage)?;
     }
     Ok(report)
 }
@@ -345,6 +351,68 @@ fn add_visibility(report: &mut FitReport, engine: &Engine, sigma: f64) -> Result
         .ok();
     }
     Ok(())
+}
+
+/// The report's intervals ([`intervals`]) and the probabilities over the
+/// hypotheses ([`posterior`]).
+///
+/// # Errors
+/// Cancelled ([`crate::cancel`]); a failure of either computation
+/// leaves its part of the report out rather than losing the fit.
+fn add_uncertainty(report: &mut FitReport, stage: &stages::Stage<'_>) -> Result<()> {
+    let f = stage.best();
+    let engine = &stage.engine;
+    let Ok(data) = engine.measurement_at(f.sigma_fit) else {
+        return Ok(());
+    };
+    let ratio = stage.sigma / f.sigma_fit;
+    if let Some(h) = f.ranked.first() {
+        if let Ok(local) = local::Local::of(h, engine.model, data.as_ref()) {
+            let found = crate::cancel::checked(intervals::intervals(
+                &local,
+                data.as_ref(),
+                ratio,
+                engine.opts.level,
+            ));
+            if let Ok(ivs) = found {
+                place_intervals(report, &local, &ivs);
+            } else if let Err(e @ crate::Error::Cancelled) = found {
+                return Err(e);
+            }
+        }
+    }
+    report.posterior = crate::cancel::checked(posterior::posterior(stage, &engine.opts.prior)).ok();
+    crate::cancel::check()?;
+    Ok(())
+}
+
+/// Each interval on its defect (by kind and position) or chain parameter
+/// (by name).
+fn place_intervals(report: &mut FitReport, local: &local::Local, ivs: &[intervals::Interval]) {
+    for (p, iv) in local.params.iter().zip(ivs) {
+        match p {
+            crate::sensitivity::Param::Defect(i) => {
+                let Some(d) = local.chain.defects().get(*i) else {
+                    continue;
+                };
+                if let Some(e) = report
+                    .defects
+                    .iter_mut()
+                    .find(|e| e.at == d.at() && e.kind == d.kind() && !e.known)
+                {
+                    e.interval = Some([iv.lo, iv.hi]);
+                    e.interval_method = Some(iv.method);
+                }
+            }
+            q => {
+                let name = general::param_name(q);
+                if let Some(e) = report.params.iter_mut().find(|e| e.name == name) {
+                    e.interval = Some([iv.lo, iv.hi]);
+                    e.interval_method = Some(iv.method);
+                }
+            }
+        }
+    }
 }
 
 /// The longest chain on a baseline whose report states its visibility.

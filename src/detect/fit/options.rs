@@ -171,6 +171,14 @@ pub struct FitOptions {
     pub noise_model: super::record::NoiseModelChoice,
     /// The sensor's offset and drift (default auto, as `noise_model`).
     pub nuisance: super::record::NuisanceChoice,
+    /// The level of the intervals (default 0.9; [`super::intervals`]).
+    pub level: f64,
+    /// The prior of the probabilities over hypotheses
+    /// ([`super::posterior`]).
+    pub prior: super::posterior::Prior,
+    /// Compute the intervals and the probabilities over hypotheses
+    /// (default true).
+    pub uncertainty: bool,
 }
 
 impl Default for FitOptions {
@@ -193,6 +201,9 @@ impl Default for FitOptions {
             trigger: TriggerSpec::Auto,
             noise_model: Default::default(),
             nuisance: Default::default(),
+            level: super::intervals::DEFAULT_LEVEL,
+            prior: Default::default(),
+            uncertainty: true,
         }
     }
 }
@@ -372,6 +383,17 @@ pub struct FitSpec {
     /// (`{ mass = [...], spring = [...] }`); its rows give `n` and the
     /// ends, and defects are reported relative to it [default none: uniform].
     pub baseline: Option<crate::chain::BaselineSpec>,
+    /// The level of the intervals, `0 < level < 1` [default 0.9].
+    pub level: Option<f64>,
+    /// The prior over the number of defects: `uniform` or `site:P` (each
+    /// site defective with probability `P`) [default uniform].
+    pub prior_k: Option<String>,
+    /// The prior range of a defect's value, `LO:HI` times the value it
+    /// replaces [default the search range of its kind].
+    pub prior_range: Option<String>,
+    /// Compute the intervals and the probabilities over hypotheses
+    /// [default true].
+    pub uncertainty: Option<bool>,
 }
 
 impl FitSpec {
@@ -444,6 +466,14 @@ impl FitSpec {
         }
         if let Some(m) = &self.nuisance {
             opts.nuisance = super::record::NuisanceChoice::parse(m)?;
+        }
+        if let Some(l) = self.level {
+            opts.level = super::intervals::check_level(l)?;
+        }
+        opts.prior =
+            super::posterior::Prior::parse(self.prior_k.as_deref(), self.prior_range.as_deref())?;
+        if let Some(u) = self.uncertainty {
+            opts.uncertainty = u;
         }
         Ok(opts)
     }

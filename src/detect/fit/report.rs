@@ -70,6 +70,14 @@ pub struct DefectEstimate {
     /// Whether the data single it out (position and value), see
     /// [`crate::detect::fit::identify`].
     pub identifiable: bool,
+    /// The interval at the report's level ([`FitReport::level`]):
+    /// `[lo, hi]` ([`crate::detect::fit::intervals`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub interval: Option<[f64; 2]>,
+    /// How the interval was found: `wald`, `profile`, `profile-bounded`,
+    /// `unconstrained` or `known`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub interval_method: Option<&'static str>,
 }
 
 impl DefectEstimate {
@@ -92,6 +100,12 @@ pub struct ParamEstimate {
     pub se: f64,
     /// The value ended on a bound of its range.
     pub at_bound: bool,
+    /// The interval at the report's level, as for a defect.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub interval: Option<[f64; 2]>,
+    /// How the interval was found.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub interval_method: Option<&'static str>,
 }
 
 /// An alternative answer and how much worse it fits: the one alternative
@@ -201,7 +215,7 @@ pub struct FitReport {
     /// Misfit evaluations spent.
     pub evaluations: usize,
     /// Position (and kind) sets fitted for the chosen number of defects.
-    pub hypotheses: usize,
+    pub sets_fitted: usize,
     /// Whether every position set was ranked (false: the Woodbury kernel's
     /// beam search, for more sets than `max_sets`).
     pub exhaustive: bool,
@@ -252,6 +266,14 @@ pub struct FitReport {
     /// `inline`); absent for the uniform chain.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub baseline: Option<String>,
+    /// The level of the intervals of the defects and parameters.
+    pub level: f64,
+    /// How probable each hypothesis is (JSON: `prior`, `hypotheses`,
+    /// `k_probability`, `position_probability`, `answer_probability`,
+    /// `pruned_bound`, ...; [`crate::detect::fit::posterior`]); absent
+    /// when it could not be computed.
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub posterior: Option<crate::detect::fit::posterior::Posterior>,
 }
 
 /// One natural mode of the fitted chain
@@ -317,11 +339,12 @@ impl FitReport {
         }
         for d in &self.defects {
             out.push_str(&format!(
-                "{} at {}: {} +- {}{}{}{}{}\n",
+                "{} at {}: {} +- {}{}{}{}{}{}\n",
                 d.kind,
                 d.at,
                 fmt_g(d.value),
                 fmt_g(d.se),
+                interval_text(d.interval, d.interval_method, self.level),
                 d.baseline
                     .map_or(String::new(), |b| format!(" (baseline {})", fmt_g(b))),
                 if d.known { " (known)" } else { "" },
@@ -334,7 +357,12 @@ impl FitReport {
             ));
         }
         for p in &self.params {
-            out.push_str(&value_line(&p.name, " =", p.value, p.se));
+            let line = value_line(&p.name, " =", p.value, p.se);
+            out.push_str(&format!(
+                "{}{}\n",
+                line.trim_end(),
+                interval_text(p.interval, p.interval_method, self.level)
+            ));
         }
         out.push_str(&format!(
             "status: {} - {}\nnoise sigma {} ({}), chi2 {} on {} dof, fits the data: {} (p = {:.3})\n",
@@ -358,6 +386,9 @@ impl FitReport {
             out.push_str(&format!("{}\n", d.line()));
         }
         self.evidence_lines(&mut out);
+        if let Some(p) = &self.posterior {
+            out.push_str(&p.lines());
+        }
         if !self.modes.is_empty() {
             let shown: Vec<String> = self
                 .modes
@@ -412,6 +443,23 @@ pub(crate) fn fmt_g(v: f64) -> String {
         format!("{v:.digits$}")
     } else {
         format!("{v:.3e}")
+    }
+}
+
+/// `, 90% in [lo, hi] (profile)`, or nothing without an interval.
+fn interval_text(i: Option<[f64; 2]>, method: Option<&str>, level: f64) -> String {
+    match (i, method) {
+        (_, Some("known")) | (None, _) => String::new(),
+        (Some([lo, hi]), m) => format!(
+            ", {}% in [{}, {}]{}",
+            100.0 * level,
+            fmt_g(lo),
+            fmt_g(hi),
+            match m {
+                Some("wald") | None => String::new(),
+                Some(m) => format!(" ({m})"),
+            }
+        ),
     }
 }
 

@@ -37,7 +37,7 @@ pub const SUMMARY: &str = "Simulates a record of a reference system with a real 
 
 /// The scene fields.
 pub const FIELDS: &[FieldDoc] = &[
-    FieldDoc::new("system", "string", "required", "S1, S2, S3, S4 (Table 1), C3a, C3b (three defects), k0..k3."),
+    FieldDoc::new("system", "string", "required", "S1, S2, S3, S4 (Table 1), C3a, C3b (three defects), k0..k3, or random:N (N masses, one or two mass defects at positions and factors drawn from the case's seed: factors in 0.5..0.8 or 1.25..2)."),
     FieldDoc::new("deviation", "string", "\"none\"", "none, rayleigh, between, ar1-0.9, ar1-0.99, offset-drift, pre-trigger, late-clock."),
     FieldDoc::new("level", "float in [0, 1]", "required", "Noise standard deviation relative to the clean record's peak."),
     FieldDoc::new("t_end", "float > 0", "200", "Record length, in units of sqrt(mass / k)."),
@@ -68,6 +68,19 @@ pub const METRICS: &[(&str, &str)] = &[
         "1 when the positions are wrong and the status is converged or resolved is true",
     ),
     ("fits_data", "1 when the fit says the residual is noise"),
+    (
+        "in_interval",
+        "fitted values at true positions whose interval (at the fit's level, 0.9 unless options.level) holds the truth",
+    ),
+    ("interval_level", "the level of the intervals"),
+    (
+        "answer_p",
+        "the probability the fit gives its answer (NaN without a posterior)",
+    ),
+    (
+        "truth_p",
+        "the probability the fit gives the true positions (0 when not among its hypotheses)",
+    ),
     ("t_fit", "wall time of the fit, seconds"),
 ];
 
@@ -124,7 +137,20 @@ impl Scene {
     /// # Errors
     /// An unknown system (field `system`).
     pub fn truth(&self) -> Result<Chain> {
-        let unit = super::noise::truth(&self.system)?;
+        self.truth_for(0)
+    }
+
+    /// The truth of the case of `seed`: [`Scene::truth`], or for
+    /// `random:N` a chain of `N` masses with one or two mass defects drawn
+    /// from `seed`.
+    ///
+    /// # Errors
+    /// An unknown system (field `system`).
+    pub fn truth_for(&self, seed: u64) -> Result<Chain> {
+        let unit = match random_size(&self.system)? {
+            Some(n) => random_chain(n, seed)?,
+            None => super::noise::truth(&self.system)?,
+        };
         let c = (self.mass * self.k).sqrt();
         let gamma = unit.gamma() * c;
         unit.to_si(&Units::new(self.mass, self.k, c)?)?
@@ -150,8 +176,14 @@ impl KindScene for Scene {
 
     fn problems(&self) -> Vec<Error> {
         let mut out = Vec::new();
-        if let Err(e) = super::noise::truth(&self.system) {
-            out.push(e);
+        match random_size(&self.system) {
+            Ok(Some(_)) => {}
+            Ok(None) => {
+                if let Err(e) = super::noise::truth(&self.system) {
+                    out.push(e);
+                }
+            }
+            Err(e) => out.push(e),
         }
         if !NAMES.contains(&self.deviation.as_str()) {
             out.push(Error::invalid(
@@ -203,7 +235,7 @@ impl KindScene for Scene {
 /// # Errors
 /// As [`record`] and [`fit`].
 pub fn fit_case(s: &Scene, seed: u64) -> Result<(Chain, FitReport)> {
-    let truth = s.truth()?;
+    let truth = s.truth_for(seed)?;
     let unit = s.time_unit();
     let dev = Deviations::named(&s.deviation, unit)?;
     let (t, x) = record(&truth, &dev, s.t_end * unit, s.dt * unit, s.level, seed)?;
@@ -245,6 +277,94 @@ pub fn run(s: &Scene, seed: u64) -> Result<CaseOutput> {
         flag(!score.positions_ok && (converged || rep.resolved)),
     );
     put("fits_data", flag(rep.fits_data));
+    put("in_interval", in_interval(&rep, &truth) as f64);
+    put("interval_level", rep.level);
+    let (answer_p, truth_p) = probabilities(&rep, &truth);
+    put("answer_p", answer_p);
+    put("truth_p", truth_p);
     out.timings.insert("t_fit".into(), serde_json::json!(t_fit));
     Ok(out)
+}
+
+/// `N` of `random:N` (2..=60), or `None` for a named system.
+///
+/// # Errors
+/// A `random:` without a size in range (field `system`).
+fn random_size(system: &str) -> Result<Option<usize>> {
+    let Some(n) = system.strip_prefix("random:") else {
+        return Ok(None);
+    };
+    match n.parse::<usize>() {
+        Ok(n) if (2..=60).contains(&n) => Ok(Some(n)),
+        _ => Err(Error::invalid(
+            "system",
+            system,
+            "random:N with 2 <= N <= 60 masses",
+        )),
+    }
+}
+
+/// The paper's chain of `n` masses with one or two mass defects at
+/// positions and factors (0.5..0.8 or 1.25..2) drawn from `seed`.
+fn random_chain(n: usize, seed: u64) -> Result<Chain> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5EED_CA1B);
+    let k = if rng.random_bool(0.5) { 1 } else { 2 };
+    let mut at: Vec<usize> = Vec::new();
+    while at.len() < k.min(n) {
+        let p = rng.random_range(1..=n);
+        if !at.contains(&p) {
+            at.push(p);
+        }
+    }
+    let defects: Vec<crate::chain::Defect> = at
+        .iter()
+        .map(|&a| {
+            let m = if rng.random_bool(0.5) {
+                rng.random_range(0.5..0.8)
+            } else {
+                rng.random_range(1.25..2.0)
+            };
+            crate::chain::Defect::Mass { at: a, m }
+        })
+        .collect();
+    Chain::paper(n)?.with_defects(defects)
+}
+
+/// Fitted values at true positions whose interval holds the truth.
+fn in_interval(rep: &FitReport, truth: &Chain) -> usize {
+    rep.defects
+        .iter()
+        .filter(|d| !d.known)
+        .filter(|d| {
+            let t = truth
+                .defects()
+                .iter()
+                .find(|t| t.at() == d.at && t.kind() == d.kind);
+            match (t, d.interval) {
+                (Some(t), Some([lo, hi])) => lo <= t.value() && t.value() <= hi,
+                _ => false,
+            }
+        })
+        .count()
+}
+
+/// The probability of the fit's answer and of the truth's positions.
+fn probabilities(rep: &FitReport, truth: &Chain) -> (f64, f64) {
+    let Some(post) = &rep.posterior else {
+        return (f64::NAN, f64::NAN);
+    };
+    let key = |d: &[crate::chain::Defect]| {
+        let mut k: Vec<(&str, usize)> = d.iter().map(|d| (d.kind(), d.at())).collect();
+        k.sort_unstable();
+        k
+    };
+    let t = key(truth.defects());
+    let truth_p = post
+        .hypotheses
+        .iter()
+        .filter(|h| key(&h.defects) == t)
+        .map(|h| h.probability)
+        .sum();
+    (post.answer_probability, truth_p)
 }
