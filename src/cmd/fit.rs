@@ -391,7 +391,7 @@ fn posterior_plot(
         }
         spikes.push((n as f64, 0.0));
         plot = plot
-            .line(Line::new(format!("{kind}"), spikes))
+            .line(Line::new(kind.to_string(), spikes))
             .line(Line::new(format!("{kind} (site)"), tops).markers());
     }
     plot.size(900, 420)

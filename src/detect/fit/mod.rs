@@ -383,7 +383,42 @@ fn add_uncertainty(report: &mut FitReport, stage: &stages::Stage<'_>) -> Result<
     }
     report.posterior = crate::cancel::checked(posterior::posterior(stage, &engine.opts.prior)).ok();
     crate::cancel::check()?;
+    doubt_improbable_answer(report);
     Ok(())
+}
+
+/// Below this probability the answer is not called resolved: another
+/// hypothesis (or several together) is more probable.
+pub const ANSWER_PROBABILITY_MIN: f64 = 0.5;
+
+/// A converged answer the posterior gives less than
+/// [`ANSWER_PROBABILITY_MIN`] becomes `not-identifiable`, naming the most
+/// probable hypothesis.
+fn doubt_improbable_answer(report: &mut FitReport) {
+    let Some(post) = &report.posterior else {
+        return;
+    };
+    if post.answer_probability >= ANSWER_PROBABILITY_MIN || report.status != Status::Converged {
+        return;
+    }
+    let top = post.hypotheses.first().map_or("another".to_string(), |h| {
+        let d: Vec<String> = h
+            .defects
+            .iter()
+            .map(|d| format!("{}@{}", d.kind(), d.at()))
+            .collect();
+        if d.is_empty() {
+            "no defect".to_string()
+        } else {
+            d.join(", ")
+        }
+    });
+    report.status = Status::NotIdentifiable;
+    report.resolved = false;
+    report.message = format!(
+        "the answer has probability {:.2} only (most probable: {top}); the data cannot tell these hypotheses apart",
+        post.answer_probability
+    );
 }
 
 /// Each interval on its defect (by kind and position) or chain parameter
