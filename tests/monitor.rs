@@ -35,6 +35,8 @@ fn temp_dir(tag: &str) -> PathBuf {
 struct Run {
     records: usize,
     start: usize,
+    /// Reference records fitted for the baseline (at record 0's state).
+    refs: usize,
 }
 
 const N: &str = "4";
@@ -50,14 +52,14 @@ impl Run {
 
     /// Record `r` (simulated, 1% noise, seed `r`) with its time stamp; the
     /// file names do not sort in time order, the `# time:` lines do.
-    fn write_record(&self, dir: &Path, r: usize) -> PathBuf {
+    fn write_record(&self, dir: &Path, r: usize, seed: usize) -> PathBuf {
         let sim = dir.join("sim.csv");
         let k = format!("{}", self.k(r));
         let mut args = vec![
             "simulate", "--n", N, "--k", &k, "--d", "0.1", "--t-end", "60", "--dt", "0.1",
             "--noise", "rel:0.01",
         ];
-        let seed = format!("{}", 1000 + r);
+        let seed = format!("{seed}");
         let defect = format!("spring:{SPRING}:{}", WEAKER * self.k(r));
         args.extend(["--seed", &seed]);
         if r >= self.start {
@@ -74,40 +76,38 @@ impl Run {
     /// Generate, fit the baseline, monitor; the table's rows.
     fn monitor(&self, tag: &str) -> Vec<csv::StringRecord> {
         let dir = temp_dir(tag);
-        let base = self.write_record(&dir, 0);
-        let base_json = dir.join("base.json");
-        let out = springmass(&[
-            "fit",
-            "--data",
-            base.to_str().unwrap(),
-            "--n",
-            N,
-            "--profile",
-            "springs",
-            "--json",
-        ]);
-        std::fs::write(&base_json, out).unwrap();
-        std::fs::remove_file(&base).unwrap();
+        let mut args: Vec<String> = vec!["monitor".into(), "--n".into(), N.into()];
+        for i in 0..self.refs {
+            let base = self.write_record(&dir, 0, 500 + i);
+            let base_json = dir.join(format!("base-{i}.json"));
+            let data = base.display().to_string();
+            let fit = [
+                "fit",
+                "--data",
+                &data,
+                "--n",
+                N,
+                "--profile",
+                "springs",
+                "--json",
+            ];
+            std::fs::write(&base_json, springmass(&fit)).unwrap();
+            std::fs::remove_file(&base).unwrap();
+            args.extend(["--baseline".into(), base_json.display().to_string()]);
+        }
         let recs = dir.join("records");
         std::fs::create_dir_all(&recs).unwrap();
         for r in 1..=self.records {
-            let p = self.write_record(&dir, r);
+            let p = self.write_record(&dir, r, 1000 + r);
             std::fs::rename(&p, recs.join(p.file_name().unwrap())).unwrap();
         }
         let table = dir.join("trend.csv");
         let svg = dir.join("trend.svg");
-        springmass(&[
-            "monitor",
-            "--baseline",
-            base_json.to_str().unwrap(),
-            "--n",
-            N,
-            recs.to_str().unwrap(),
-            "--out",
-            table.to_str().unwrap(),
-            "--plot",
-            svg.to_str().unwrap(),
-        ]);
+        args.push(recs.display().to_string());
+        args.extend(["--out".into(), table.display().to_string()]);
+        args.extend(["--plot".into(), svg.display().to_string()]);
+        let args: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+        springmass(&args);
         assert!(std::fs::metadata(&svg).unwrap().len() > 1000);
         let mut rd = csv::Reader::from_path(&table).unwrap();
         let rows: Vec<_> = rd.records().map(|r| r.unwrap()).collect();
@@ -164,9 +164,11 @@ impl Run {
 
 #[test]
 fn a_weakened_spring_is_flagged_through_a_common_drift() {
+    // two reference records averaged for the baseline
     let run = Run {
         records: 24,
         start: 16,
+        refs: 2,
     };
     let rows = run.monitor("small");
     // at 0.001 per record, 15 null records: one false alarm has
@@ -182,6 +184,7 @@ fn two_hundred_records_change_at_120() {
     let run = Run {
         records: 200,
         start: 120,
+        refs: 1,
     };
     let rows = run.monitor("200");
     // 119 null records at 0.001: expected 0.12 false alarms; two or more

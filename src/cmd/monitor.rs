@@ -26,8 +26,10 @@ pub struct Args {
     pub records: Vec<PathBuf>,
     /// The baseline fit: the JSON of `springmass fit --data FILE --profile
     /// MODE --json` on the reference record (its mode is the records' too).
-    #[arg(long, value_name = "FIT.json")]
-    pub baseline: PathBuf,
+    /// Repeat it for several reference records: their weighted mean is the
+    /// baseline (smaller error bars, fewer false alarms shared by a run).
+    #[arg(long, value_name = "FIT.json", required = true)]
+    pub baseline: Vec<PathBuf>,
     /// False-alarm probability per record of the change flag.
     #[arg(long, default_value_t = 0.001)]
     pub alarm_rate: f64,
@@ -106,11 +108,7 @@ struct Row {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     let records = ordered_records(&a.records)?;
-    let text = springmass::io::read_to_string_capped(&a.baseline)
-        .with_context(|| format!("reading {}", a.baseline.display()))?;
-    let base = Snapshot::from_profile_json(&text)
-        .with_context(|| format!("in {}", a.baseline.display()))?;
-    let mode = baseline_mode(&text)?;
+    let (base, mode) = read_baselines(&a.baseline)?;
     springmass::error::check_f64(
         "alarm_rate",
         a.alarm_rate,
@@ -141,6 +139,29 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     print_summary(&rows, a.alarm_rate);
     Ok(())
+}
+
+/// The baseline: the weighted mean of the fits of `paths`, all of one
+/// profile mode.
+fn read_baselines(paths: &[PathBuf]) -> anyhow::Result<(Snapshot, ProfileMode)> {
+    let mut snaps = Vec::new();
+    let mut modes = Vec::new();
+    for p in paths {
+        let text = springmass::io::read_to_string_capped(p)
+            .with_context(|| format!("reading {}", p.display()))?;
+        snaps.push(
+            Snapshot::from_profile_json(&text).with_context(|| format!("in {}", p.display()))?,
+        );
+        modes.push(baseline_mode(&text).with_context(|| format!("in {}", p.display()))?);
+    }
+    if modes.iter().any(|m| *m != modes[0]) {
+        anyhow::bail!(springmass::Error::invalid(
+            "baseline",
+            "fits of different profile modes",
+            "every --baseline fitted with the same --profile"
+        ));
+    }
+    Ok((Snapshot::average(&snaps)?, modes[0]))
 }
 
 /// The fit options of every record, from the chain flags.
