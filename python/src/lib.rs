@@ -858,6 +858,19 @@ fn searches(py: Python<'_>) -> PyResult<Vec<Bound<'_, PyDict>>> {
         .collect()
 }
 
+/// Ask every running fit to stop (`springmass::cancel::request`: they
+/// return promptly with an error), or with `stop = false` clear the
+/// request. `fit_many` calls it on Ctrl-C: its fits run on worker threads,
+/// where Python delivers no signal.
+#[pyfunction]
+fn cancel(stop: bool) {
+    if stop {
+        springmass::cancel::request();
+    } else {
+        springmass::cancel::reset();
+    }
+}
+
 /// The native module.
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -877,5 +890,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit_profile, m)?)?;
     m.add_function(wrap_pyfunction!(fit_modes, m)?)?;
     m.add_function(wrap_pyfunction!(searches, m)?)?;
+    m.add_function(wrap_pyfunction!(cancel, m)?)?;
     Ok(())
 }
