@@ -162,6 +162,78 @@ impl Run {
     }
 }
 
+/// `springmass ARGS`: exit code and stderr.
+fn fails(args: &[&str]) -> (i32, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_springmass"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn bad_input_is_named_and_a_bad_record_is_a_row() {
+    let dir = temp_dir("bad");
+    let run = Run {
+        records: 2,
+        start: 3,
+        refs: 1,
+    };
+    let rec = run.write_record(&dir, 0, 7);
+    let base = dir.join("base.json");
+    let fit = [
+        "fit",
+        "--data",
+        rec.to_str().unwrap(),
+        "--n",
+        N,
+        "--profile",
+        "springs",
+        "--json",
+    ];
+    std::fs::write(&base, springmass(&fit)).unwrap();
+    let (b, r) = (base.to_str().unwrap(), rec.to_str().unwrap());
+    let (code, err) = fails(&["monitor", "--baseline", b, "--n", N, "--alarm-rate", "0", r]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("alarm_rate"), "{err}");
+    let (code, err) = fails(&["monitor", "--baseline", r, "--n", N, r]);
+    assert_ne!(code, 0);
+    assert!(err.contains("baseline"), "{err}");
+    let missing = dir.join("nope.csv");
+    let (code, err) = fails(&[
+        "monitor",
+        "--baseline",
+        b,
+        "--n",
+        N,
+        missing.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("records"), "{err}");
+    // a record too short for the profile: its row says failed, the run goes on
+    let short = dir.join("short.csv");
+    std::fs::write(&short, "t,x1\n0,0\n0.1,0.01\n0.2,0.02\n").unwrap();
+    let table = dir.join("t.csv");
+    let out = springmass(&[
+        "monitor",
+        "--baseline",
+        b,
+        "--n",
+        N,
+        r,
+        short.to_str().unwrap(),
+        "--out",
+        table.to_str().unwrap(),
+    ]);
+    assert!(out.contains("1 failed"), "{out}");
+    let text = std::fs::read_to_string(&table).unwrap();
+    assert!(text.contains("failed: "), "{text}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn a_weakened_spring_is_flagged_through_a_common_drift() {
     // two reference records averaged for the baseline

@@ -334,7 +334,13 @@ fn expand(a: &Path) -> anyhow::Result<Vec<PathBuf>> {
             v.sort();
             Ok(v)
         }
-        _ => Ok(vec![a.to_path_buf()]),
+        // a FIFO or device would block the time-stamp read: files only
+        _ if a.is_file() => Ok(vec![a.to_path_buf()]),
+        _ => anyhow::bail!(springmass::Error::invalid(
+            "records",
+            a.display(),
+            "existing CSV files, folders or a pattern with * or ?"
+        )),
     }
 }
 
