@@ -8,18 +8,20 @@ the second half on) are simulated by `springmass.simulate` and written as CSV
 files; each is then fitted by `springmass.fit_profile(..., profile="springs")`
 in these ways, every one timed on the wall clock:
 
-* `loop`: a plain Python loop (one core);
-* `fit_many(workers=W)`: the package's thread pool (the fit releases the GIL);
-* `dask processes=W`: the guide's Dask recipe, `client.map` over the files
-  on a `LocalCluster(n_workers=W, threads_per_worker=1)` (worker processes,
-  as on a cluster; skipped when dask.distributed is not installed).
+* `loop`: a plain Python loop of `fit_profile` calls;
+* `fit_many`: the package's thread pool, one thread per core (the fit
+  releases the GIL);
+* `dask`: the guide's Dask recipe, `client.map` over the files on a
+  `LocalCluster(n_workers=C, threads_per_worker=1)` (worker processes, as
+  on a cluster; skipped when dask.distributed is not installed).
 
-Each fit runs on one thread (`RAYON_NUM_THREADS=1`, set before the package
-is loaded), so W workers use W cores. The script checks that every way gives
-the same numbers, then prints records per second and the speed-up over the
-one-worker run of the same way.
+Each core count C runs in a child process confined to the first C cores
+(`os.sched_setaffinity` before the package is loaded: its thread pool and
+the Dask workers see C cores). The script checks that every way gives the
+same numbers, then prints records per second and the speed-up over the
+same way on one core.
 
-    python3 benches/many_records.py [--records 200] [--workers 1,2]
+    python3 benches/many_records.py [--records 200] [--cores 1,2]
 
 Needs numpy and the springmass package; dask and distributed for the Dask
 rows. On a shared machine, run it when the machine is otherwise idle: other
@@ -27,11 +29,17 @@ jobs on the cores lower the speed-up.
 """
 
 import argparse
+import json
 import os
+import subprocess
+import sys
 import tempfile
 import time
 
-os.environ.setdefault("RAYON_NUM_THREADS", "1")
+if __name__ == "__main__" and "--child" in sys.argv:
+    # confine this process (and what it starts) to the first C cores before
+    # the package's thread pool is created
+    os.sched_setaffinity(0, range(int(sys.argv[sys.argv.index("--child") + 1])))
 
 import numpy as np  # noqa: E402
 
@@ -69,44 +77,55 @@ def run_dask(paths, workers):
     from dask.distributed import Client, LocalCluster
 
     with LocalCluster(
-        n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-        env={"RAYON_NUM_THREADS": "1"},
+        n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
     ) as cluster, Client(cluster) as client:
         client.gather(client.map(fit_one, paths[:workers], pure=False))  # warm the workers
         return timed(lambda: client.gather(client.map(fit_one, paths)))
 
 
+def child(folder, cores):
+    """Every way on `cores` cores: {way: seconds}, checked against the loop."""
+    paths = sorted(os.path.join(folder, f) for f in os.listdir(folder))
+    ref, sec = timed(lambda: [fit_one(p) for p in paths])
+    out = {"loop": sec}
+    got, sec = timed(lambda: springmass.fit_many(paths, n=N, profile="springs", workers=cores))
+    assert [[(v.at, v.value, v.se) for v in r.values] for r in got] == ref
+    out["fit_many"] = sec
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        return out
+    got, sec = run_dask(paths, cores)
+    assert got == ref
+    out["dask"] = sec
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--records", type=int, default=200)
-    ap.add_argument("--workers", default="1,2", help="comma-separated worker counts")
+    ap.add_argument("--cores", default="1,2", help="comma-separated core counts")
+    ap.add_argument("--child", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--folder", help=argparse.SUPPRESS)
     a = ap.parse_args()
-    counts = [int(w) for w in a.workers.split(",")]
-    rows = []
+    if a.child:
+        print(json.dumps(child(a.folder, a.child)))
+        return
+    counts = [int(c) for c in a.cores.split(",")]
     with tempfile.TemporaryDirectory() as folder:
-        paths = write_records(folder, a.records)
-        ref, sec = timed(lambda: [fit_one(p) for p in paths])
-        rows.append(("loop", 1, sec))
-        for w in counts:
-            out, sec = timed(
-                lambda: springmass.fit_many(paths, n=N, profile="springs", workers=w)
-            )
-            assert [[(v.at, v.value, v.se) for v in r.values] for r in out] == ref
-            rows.append(("fit_many", w, sec))
-        try:
-            import distributed  # noqa: F401
-
-            for w in counts:
-                out, sec = run_dask(paths, w)
-                assert out == ref
-                rows.append(("dask processes", w, sec))
-        except ImportError:
-            print("dask.distributed is not installed: no Dask rows")
-    print(f"{a.records} records, n = {N}, profile springs, {os.cpu_count()} cores")
-    print(f"{'way':<16}{'workers':>8}{'seconds':>10}{'records/s':>11}{'speed-up':>10}")
-    for way, w, sec in rows:
-        one = next(s for wy, ww, s in rows if wy == way and ww == 1)
-        print(f"{way:<16}{w:>8}{sec:>10.2f}{a.records / sec:>11.1f}{one / sec:>10.2f}")
+        write_records(folder, a.records)
+        runs = {}
+        for c in counts:
+            cmd = [sys.executable, __file__, "--child", str(c), "--folder", folder]
+            out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+            runs[c] = json.loads(out.strip().splitlines()[-1])
+    print(f"{a.records} records, n = {N}, profile springs; {os.cpu_count()} cores on the machine")
+    print(f"{'way':<10}{'cores':>6}{'seconds':>10}{'records/s':>11}{'speed-up':>10}")
+    for way in runs[counts[0]]:
+        for c in counts:
+            sec = runs[c][way]
+            one = runs[counts[0]][way]
+            print(f"{way:<10}{c:>6}{sec:>10.2f}{a.records / sec:>11.1f}{one / sec:>10.2f}")
 
 
 if __name__ == "__main__":
