@@ -54,6 +54,8 @@ enum Command {
     Laplace(cmd::laplace::Args),
     /// Fit defects to a measured series (--data; noise and number of defects estimated) or a scene (--scene).
     Fit(Box<cmd::fit::Args>),
+    /// Fit every record of a structure in service against a baseline fit; flag a change at a stated false-alarm rate.
+    Monitor(Box<cmd::monitor::Args>),
     /// Residual surfaces r(j, m) and r(j1, j2) (the paper's Figures 16 and 17), CSV + SVG.
     Surface(cmd::surface::Args),
     /// The shipped noise studies (data-first defaults, per misfit, defect kinds) on the study engine.
@@ -94,6 +96,7 @@ fn run() -> anyhow::Result<()> {
             }
             None => cmd::fit::run(*a),
         },
+        Command::Monitor(a) => cmd::monitor::run(*a),
         Command::Surface(a) => cmd::surface::run(a),
         Command::NoiseStudy(a) => cmd::noise::run(a),
         Command::Spectral(a) => cmd::spectral::run(a),

@@ -53,6 +53,8 @@ mod long_search;
 mod mismatch;
 #[path = "modal_update.rs"]
 mod modal_update;
+#[path = "monitor.rs"]
+mod monitor;
 #[path = "noise.rs"]
 mod noise;
 #[path = "observables.rs"]

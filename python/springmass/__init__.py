@@ -23,6 +23,8 @@ scene
     A reference chain of the paper (``"S3"`` is Table 1's System 3).
 read_csv
     A measured series from a CSV file (the command line's reader).
+fit_many
+    :func:`fit` or :func:`fit_profile` of many records on a thread pool.
 
 Errors
 ------
@@ -75,6 +77,7 @@ __all__ = [
     "UnresolvableError",
     "NumericalError",
     "fit",
+    "fit_many",
     "simulate",
     "response",
     "controls",
@@ -1558,6 +1561,104 @@ def fit_profile(
         misfit=rep["misfit"],
         summary=raw["summary"],
     )
+
+
+def _record(i: int, rec: Any) -> Tuple[Any, Any]:
+    """Record ``i`` of :func:`fit_many`: a ``(t, x)`` pair or a CSV path."""
+    if isinstance(rec, str) or hasattr(rec, "__fspath__"):
+        t, cols = read_csv(rec)
+        if not cols:
+            raise _invalid(f"records[{i}]", _short(rec), "a CSV with a value column")
+        return t, next(iter(cols.values()))
+    try:
+        t, x = rec
+    except (TypeError, ValueError):
+        raise _invalid(f"records[{i}]", _short(rec), "a (t, x) pair of arrays or a CSV path") from None
+    return t, x
+
+
+def fit_many(
+    records: Any,
+    *,
+    workers: Optional[int] = None,
+    profile: Optional[str] = None,
+    errors: str = "raise",
+    **kwargs: Any,
+) -> List[Any]:
+    """Fit many records on a thread pool: :func:`fit` (or :func:`fit_profile`
+    with ``profile=``) of each, with the same keyword arguments.
+
+    The native fit releases the GIL, so the threads run in parallel on as
+    many cores as ``workers``; the results are those of one call per record,
+    in the order of ``records``, whatever the number of workers. Ctrl-C
+    stops every running fit (their signal check needs the main thread, so
+    the pool asks the library to stop them) and raises KeyboardInterrupt.
+    For records on many machines, map the same call with Dask (see the
+    guide's "Many records").
+
+    Parameters
+    ----------
+    records : iterable
+        ``(t, x)`` pairs of arrays, or paths of CSV records (their first
+        value column, read by :func:`read_csv`).
+    workers : int, optional
+        Threads (>= 1) [default: the number of cores].
+    profile : {"masses", "springs", "both"}, optional
+        Fit the whole profile (:func:`fit_profile`) instead of defects.
+    errors : {"raise", "return"}, default "raise"
+        On a record that fails: raise its exception (the other fits still
+        running are finished first), or put the exception in its place.
+    **kwargs
+        The keyword arguments of :func:`fit` or :func:`fit_profile` (``n``
+        at least).
+
+    Returns
+    -------
+    list
+        One :class:`FitResult` (or :class:`ProfileResult`) per record.
+
+    Examples
+    --------
+    >>> import numpy as np, springmass
+    >>> t = np.arange(0, 100, 0.25)
+    >>> recs = [(t, springmass.simulate(4, t=t, noise="rel:1e-3", seed=s)) for s in range(4)]
+    >>> [r.k for r in springmass.fit_many(recs, n=4, workers=2)]
+    [0, 0, 0, 0]
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    if errors not in ("raise", "return"):
+        raise _invalid("errors", _short(errors), '"raise" or "return"')
+    n_workers = (os.cpu_count() or 1) if workers is None else _count("workers", workers)
+    if n_workers < 1:
+        raise _invalid("workers", n_workers, ">= 1 (threads)")
+    recs = [_record(i, r) for i, r in enumerate(records)]
+    if profile is not None:
+        kwargs["profile"] = profile
+    fn = fit if profile is None else fit_profile
+
+    def one(rec: Tuple[Any, Any]) -> Any:
+        try:
+            return fn(rec[0], rec[1], **kwargs)
+        except Exception as e:
+            if errors == "return":
+                return e
+            raise
+
+    pool = ThreadPoolExecutor(max_workers=n_workers)
+    futures = [pool.submit(one, r) for r in recs]
+    try:
+        out = [f.result() for f in futures]
+    except KeyboardInterrupt:
+        _core.cancel(True)
+        pool.shutdown(wait=True, cancel_futures=True)
+        _core.cancel(False)
+        raise
+    except BaseException:
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+    return out
 
 
 @dataclass(frozen=True)

@@ -173,3 +173,6 @@ def fit_profile(
 
 def searches() -> List[Dict[str, Any]]:
     """[{"name", "aliases", "help", "kinds", "general_scene", "stochastic", "optimizer"}] (the search registry)."""
+
+def cancel(stop: bool) -> None:
+    """Ask every running fit to stop (True) or clear the request (False)."""

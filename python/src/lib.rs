@@ -112,17 +112,34 @@ fn values(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
     a.as_array().iter().copied().collect()
 }
 
-/// `job` without the GIL on a helper thread, interruptible: every 50 ms the
-/// calling thread takes the GIL and runs Python's signal handlers
+/// `job` without the GIL on a helper thread, interruptible: the calling
+/// thread waits for it without the GIL, and every 50 ms takes the GIL and runs Python's signal handlers
 /// (`Python::check_signals`); when one raises (Ctrl-C: KeyboardInterrupt),
 /// the library is asked to stop ([`springmass::cancel`]), the job returns
 /// promptly and the handler's exception is raised.
 fn interruptible<T: Send>(py: Python<'_>, job: impl FnOnce() -> Result<T> + Send) -> PyResult<T> {
+    use std::sync::mpsc::RecvTimeoutError;
     let (out, raised) = std::thread::scope(|scope| {
-        let worker = scope.spawn(job);
+        // the worker says when it is done: the wait ends then, not at the
+        // next 50 ms tick (a short fit would otherwise take 50 ms at least)
+        let (done_tx, done_rx) = std::sync::mpsc::channel::<()>();
+        let worker = scope.spawn(move || {
+            let out = job();
+            let _ = done_tx.send(());
+            out
+        });
         let mut raised = None;
-        while !worker.is_finished() {
-            py.detach(|| std::thread::sleep(std::time::Duration::from_millis(50)));
+        let tick = std::time::Duration::from_millis(50);
+        let mut rx = done_rx;
+        loop {
+            // (the receiver is not Sync: it goes into the GIL-free closure
+            // and comes back)
+            let (wait, back) = py.detach(move || (rx.recv_timeout(tick), rx));
+            rx = back;
+            // a panic drops the sender: Disconnected ends the wait too
+            if !matches!(wait, Err(RecvTimeoutError::Timeout)) {
+                break;
+            }
             if raised.is_none() {
                 if let Err(e) = py.check_signals() {
                     springmass::cancel::request();
@@ -866,6 +883,19 @@ fn searches(py: Python<'_>) -> PyResult<Vec<Bound<'_, PyDict>>> {
         .collect()
 }
 
+/// Ask every running fit to stop (`springmass::cancel::request`: they
+/// return promptly with an error), or with `stop = false` clear the
+/// request. `fit_many` calls it on Ctrl-C: its fits run on worker threads,
+/// where Python delivers no signal.
+#[pyfunction]
+fn cancel(stop: bool) {
+    if stop {
+        springmass::cancel::request();
+    } else {
+        springmass::cancel::reset();
+    }
+}
+
 /// The native module.
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -885,5 +915,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit_profile, m)?)?;
     m.add_function(wrap_pyfunction!(fit_modes, m)?)?;
     m.add_function(wrap_pyfunction!(searches, m)?)?;
+    m.add_function(wrap_pyfunction!(cancel, m)?)?;
     Ok(())
 }

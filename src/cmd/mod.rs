@@ -5,6 +5,7 @@ pub mod fit;
 pub mod fit_modes;
 pub mod laplace;
 pub mod locate;
+pub mod monitor;
 pub mod noise;
 pub mod response;
 pub mod simulate;

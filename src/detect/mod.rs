@@ -85,6 +85,7 @@ pub mod fit;
 pub mod locate;
 pub mod misfit;
 pub mod model;
+pub mod monitor;
 pub mod scene;
 pub mod search;
 pub mod unknowns;

@@ -529,6 +529,7 @@ pub fn fit_profile_with(
     let fit_p_value = chi2_sf(chi2_out, fit_dof);
     let fits_data = estimated || fit_p_value > 0.01;
     let (elements, params) = estimates(&space, &fin, &visible_set, scale);
+    let covariance = element_covariance(&fin, &visible_set, scale);
     let visible_depth = order[..visible]
         .iter()
         .map(|&i| space.elems[i].depth)
@@ -542,6 +543,7 @@ pub fn fit_profile_with(
         mode: opts.mode,
         elements,
         params,
+        covariance,
         visible_depth,
         change: opts.change,
         noise_sigma: sigma * scale,
@@ -605,6 +607,8 @@ struct FinalFit {
     theta: Vec<f64>,
     /// Their standard errors (NaN where the covariance fails).
     ses: Vec<f64>,
+    /// Their covariance (`None` when it fails).
+    cov: Option<DMatrix<f64>>,
     /// The data chi-square.
     chi2: f64,
     converged: bool,
@@ -642,11 +646,13 @@ fn final_fit(
         ..LmOptions::default()
     };
     let f = levenberg_marquardt(&final_prob, start, bounds, &lm_opts)?;
-    let ses: Vec<f64> = match covariance(&f.jacobian) {
-        Ok(c) => c.diagonal().iter().map(|v| v.max(0.0).sqrt()).collect(),
-        Err(_) => vec![f64::NAN; f.theta.len()],
+    let cov = covariance(&f.jacobian).ok();
+    let ses: Vec<f64> = match &cov {
+        Some(c) => c.diagonal().iter().map(|v| v.max(0.0).sqrt()).collect(),
+        None => vec![f64::NAN; f.theta.len()],
     };
     Ok(FinalFit {
+        cov,
         chi2: final_prob.data_chi2(&f.theta)?,
         theta: f.theta,
         ses,
@@ -694,6 +700,19 @@ fn time_polish(
         fin.theta[nf + j] = r.values[vis_idx.len() + j];
         fin.ses[nf + j] = r.std_errors[vis_idx.len() + j];
     }
+    // the polished block replaces the visible values' covariance
+    let idx: Vec<usize> = vis_idx.iter().copied().chain(nf..nf + np).collect();
+    fin.cov = match (fin.cov.take(), r.lm.covariance()) {
+        (Some(mut c), Ok(block)) => {
+            for (a, &i) in idx.iter().enumerate() {
+                for (b, &j) in idx.iter().enumerate() {
+                    c[(i, j)] = block[(a, b)];
+                }
+            }
+            Some(c)
+        }
+        _ => None,
+    };
     fin.at_bound =
         r.lm.at_bound
             .iter()
@@ -746,6 +765,22 @@ fn estimates(
         })
         .collect();
     (out, params)
+}
+
+/// The covariance of the element values of `fin`, scaled by `scale^2`
+/// (the rows and columns of hidden values NaN; all NaN without one).
+fn element_covariance(fin: &FinalFit, visible_set: &[bool], scale: f64) -> Vec<Vec<f64>> {
+    let nf = visible_set.len();
+    (0..nf)
+        .map(|i| {
+            (0..nf)
+                .map(|j| match &fin.cov {
+                    Some(c) if visible_set[i] && visible_set[j] => c[(i, j)] * scale * scale,
+                    _ => f64::NAN,
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// The pre-pass observation of a series: the same transformed data

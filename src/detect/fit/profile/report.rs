@@ -47,6 +47,11 @@ pub struct ProfileReport {
     /// Fitted chain parameters (`d`, `gamma`, `k`, `mass`), as the model
     /// asked, with standard errors.
     pub params: Vec<(String, f64, f64)>,
+    /// Covariance of the element values, in the order of `elements` (its
+    /// diagonal is `se^2`; rows and columns of the values that are not
+    /// visible are NaN, and every entry is NaN when the covariance fails).
+    /// Monitoring (`detect::monitor`) tests a later record's change with it.
+    pub covariance: Vec<Vec<f64>>,
     /// Deepest distance (in masses from the observed one) up to which every
     /// value is visible; `None` when none is.
     pub visible_depth: Option<f64>,
