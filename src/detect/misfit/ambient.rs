@@ -1,0 +1,311 @@
+//! The output spectrum as a measurement model: [`AmbientMisfit`] compares
+//! a candidate chain's cross-spectral matrix under white forces with the
+//! Welch estimate of a record ([`crate::detect::data::ambient`]).
+//!
+//! # Model
+//!
+//! Independent white forces of one unknown level `q` on the masses of the
+//! `ambient_on` set, channels observing masses `o_1..o_p` (displacement,
+//! velocity or acceleration: `(i w)^P`), white sensor noise of unknown level
+//! `nu_c` per channel:
+//!
+//! `G(w) = q A(w) + diag(nu)`, `A_ab(w) = (i w)^P (-i w)^P sum_{j in on} H_{o_a j}(i w) conj(H_{o_b j}(i w))`,
+//!
+//! `H(s) = (M s^2 + D s + K)^{-1}` by the O(n) tridiagonal solve at
+//! `s = i w` (one solve per observed mass: `H` is symmetric). What the
+//! Welch estimate expects is `A` smoothed by the Hann window's spectral
+//! kernel `|W(v)|^2` (a quadrature of 8 points per bin over +-4 bins), so
+//! that a resonance narrower than a few bins is not biased.
+//!
+//! # Residuals (least squares on the averaged spectra)
+//!
+//! With `K` averaged segments the estimate `G^` is a complex Wishart with
+//! `K` degrees of freedom; to first order `L^-1 (G^ - G) L^-H sqrt(K)` with
+//! `L L^H = G^` has independent unit-variance entries (the real diagonal,
+//! `sqrt 2` times the real and imaginary parts above it). These `p^2` real
+//! numbers per bin are the residuals (weights from the data: the minimum
+//! chi-square of Neyman; its bias is a common scale, absorbed by `q` and
+//! `nu`). Every second bin is used (the Hann window correlates neighbours).
+//! `q` and `nu` enter linearly and are profiled out by linear least squares
+//! at every evaluation (variable projection), so the chain's parameters
+//! see a chi-square of their own; the Jacobian is left to differences.
+//!
+//! The absolute scale is not determined: scaling every mass, spring and
+//! damper by `c` scales `A` by `c^-2`, which `q` absorbs. The masses are
+//! the user's known values.
+
+use crate::chain::Chain;
+use crate::detect::data::ambient::{hann, CrossSpectrum};
+use crate::detect::model::MeasurementModel;
+use crate::error::{Error, Result};
+use crate::forward::tridiag::solve_general;
+use crate::forward::Observable;
+use crate::sensitivity::Param;
+use nalgebra::{DMatrix, DVector};
+use num_complex::Complex64;
+
+/// Quadrature points of the window kernel per bin.
+const PER_BIN: usize = 8;
+/// Half-width of the window kernel in bins.
+const HALF_WIDTH: usize = 4;
+
+/// The output spectrum's measurement model (see the module docs).
+#[derive(Clone, Debug)]
+pub struct AmbientMisfit {
+    observe: Vec<usize>,
+    kind: Observable,
+    on: Vec<usize>,
+    /// Used bins (indices into the spectrum).
+    bins: Vec<usize>,
+    /// `L^-1` per used bin (`L L^H = G^`).
+    whiten: Vec<DMatrix<Complex64>>,
+    /// `sqrt(K)`, `K` the equivalent number of segments.
+    sqrt_k: f64,
+    /// The fine grid's frequencies and, per used bin, its (fine index, weight) list.
+    fine: Vec<f64>,
+    taps: Vec<Vec<(usize, f64)>>,
+    p: usize,
+}
+
+/// The fitted nuisance of one evaluation: the force level and the noise floors.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Nuisance {
+    /// White force level `q` (two-sided density per mass).
+    pub force_level: f64,
+    /// Sensor-noise floor per channel.
+    pub noise_floor: Vec<f64>,
+}
+
+impl AmbientMisfit {
+    /// The model of `spec` over the band `[w_lo, w_hi]` for channels at
+    /// `observe` of `kind`, white forces on `on` (1-based masses).
+    ///
+    /// # Errors
+    /// Fewer than `p + 2` bins in the band (field `band`); a matrix the
+    /// Cholesky factorisation refuses (field `spectrum`: a channel that is a
+    /// copy of another).
+    pub fn new(
+        spec: &CrossSpectrum,
+        observe: Vec<usize>,
+        kind: Observable,
+        on: Vec<usize>,
+        band: (f64, f64),
+    ) -> Result<AmbientMisfit> {
+        let p = observe.len();
+        let bins: Vec<usize> = (2..spec.omega.len() - HALF_WIDTH)
+            .step_by(2)
+            .filter(|&j| spec.omega[j] >= band.0 && spec.omega[j] <= band.1)
+            .collect();
+        if bins.len() < p + 2 {
+            return Err(Error::invalid(
+                "band",
+                format!("{:.4}..{:.4}", band.0, band.1),
+                format!("at least {} used bins (found {})", p + 2, bins.len()),
+            ));
+        }
+        let sqrt_k = spec.effective_segments().sqrt();
+        let mut whiten = Vec::with_capacity(bins.len());
+        for &j in &bins {
+            let l = nalgebra::Cholesky::new(spec.g[j].clone()).ok_or_else(|| {
+                Error::invalid(
+                    "spectrum",
+                    format!("bin {j}"),
+                    "a positive definite cross-spectral matrix (channels not copies of one another)",
+                )
+            })?;
+            let inv = l
+                .l()
+                .try_inverse()
+                .expect("a Cholesky factor is invertible");
+            whiten.push(inv);
+        }
+        let (fine, taps) = kernel_grid(spec, &bins);
+        Ok(AmbientMisfit {
+            observe,
+            kind,
+            on: on.iter().map(|m| m - 1).collect(),
+            bins,
+            whiten,
+            sqrt_k,
+            fine,
+            taps,
+            p,
+        })
+    }
+
+    /// Number of used bins.
+    pub fn bins(&self) -> usize {
+        self.bins.len()
+    }
+
+    /// The nuisance (force level, noise floors) fitted at `chain`.
+    ///
+    /// # Errors
+    /// As [`MeasurementModel::residuals`].
+    pub fn nuisance(&self, chain: &Chain) -> Result<Nuisance> {
+        let (_, c) = self.project(chain)?;
+        Ok(Nuisance {
+            force_level: c[0],
+            noise_floor: c.iter().skip(1).copied().collect(),
+        })
+    }
+
+    /// `A(w)` (the unit-force spectral matrix) at every fine frequency.
+    fn unit_spectra(&self, chain: &Chain) -> Result<Vec<DMatrix<Complex64>>> {
+        let c = chain.coefficients();
+        let (dd, kd) = (c.d_diag(), c.k_diag());
+        let n = chain.n();
+        let p = self.p;
+        let mut out = Vec::with_capacity(self.fine.len());
+        for &w in &self.fine {
+            let s = Complex64::new(0.0, w);
+            let diag: Vec<Complex64> = (0..n).map(|i| s * s * c.m[i] + s * dd[i] + kd[i]).collect();
+            let off: Vec<Complex64> = (1..n).map(|i| -(s * c.c[i] + c.k[i])).collect();
+            let factor = s.powu(self.kind.power());
+            let mut rows = Vec::with_capacity(p);
+            for &o in &self.observe {
+                let mut b = vec![Complex64::new(0.0, 0.0); n];
+                b[o - 1] = factor;
+                let h = solve_general(diag.clone(), off.clone(), b)
+                    .ok_or_else(|| Error::Singular { s: format!("{s}") })?;
+                rows.push(h);
+            }
+            let mut a = DMatrix::<Complex64>::zeros(p, p);
+            for x in 0..p {
+                for y in x..p {
+                    let v: Complex64 = self
+                        .on
+                        .iter()
+                        .map(|&j| rows[x][j] * rows[y][j].conj())
+                        .sum();
+                    a[(x, y)] = v;
+                    a[(y, x)] = v.conj();
+                }
+            }
+            out.push(a);
+        }
+        Ok(out)
+    }
+
+    /// The data vector `sqrt(K) vec(I)` and the columns
+    /// `sqrt(K) vec(L^-1 X L^-H)` for `X` the window-smoothed `A` and every
+    /// channel's unit noise floor.
+    fn columns(&self, chain: &Chain) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
+        let fine = self.unit_spectra(chain)?;
+        let p = self.p;
+        let mut data = Vec::with_capacity(self.bins.len() * p * p);
+        let mut cols = vec![Vec::with_capacity(data.capacity()); p + 1];
+        for (i, taps) in self.taps.iter().enumerate() {
+            let mut a = DMatrix::<Complex64>::zeros(p, p);
+            for &(f, w) in taps {
+                a += &fine[f] * Complex64::new(w, 0.0);
+            }
+            let wm = &self.whiten[i];
+            push_hermitian(&mut cols[0], &(wm * a * wm.adjoint()), self.sqrt_k);
+            for c in 0..p {
+                let e = wm.column(c) * wm.column(c).adjoint();
+                push_hermitian(&mut cols[c + 1], &e, self.sqrt_k);
+            }
+            push_hermitian(&mut data, &DMatrix::identity(p, p), self.sqrt_k);
+        }
+        Ok((data, cols))
+    }
+
+    /// The residuals with `q` and `nu` profiled out, and their values.
+    fn project(&self, chain: &Chain) -> Result<(Vec<f64>, Vec<f64>)> {
+        let (data, cols) = self.columns(chain)?;
+        let m = data.len();
+        let q = cols.len();
+        let b = DMatrix::from_fn(m, q, |r, c| cols[c][r]);
+        let y = DVector::from_vec(data);
+        let coef = b
+            .clone()
+            .svd(true, true)
+            .solve(&y, 1e-13)
+            .map_err(|e| Error::Numerical {
+                method: "ambient nuisance".into(),
+                reason: e.to_string(),
+            })?;
+        let r = &y - &b * &coef;
+        Ok((r.iter().copied().collect(), coef.iter().copied().collect()))
+    }
+}
+
+/// Append the `p^2` real coordinates of a Hermitian matrix, scaled: the
+/// diagonal, then `sqrt 2` times the real and imaginary parts above it.
+fn push_hermitian(out: &mut Vec<f64>, m: &DMatrix<Complex64>, scale: f64) {
+    let p = m.nrows();
+    for a in 0..p {
+        out.push(scale * m[(a, a)].re);
+    }
+    let r2 = std::f64::consts::SQRT_2 * scale;
+    for a in 0..p {
+        for b in a + 1..p {
+            out.push(r2 * m[(a, b)].re);
+            out.push(r2 * m[(a, b)].im);
+        }
+    }
+}
+
+/// The fine frequency grid and every used bin's quadrature of the Hann
+/// window's kernel `|W(v)|^2` (normalised to sum 1).
+fn kernel_grid(spec: &CrossSpectrum, bins: &[usize]) -> (Vec<f64>, Vec<Vec<(usize, f64)>>) {
+    let len = spec.seg_len;
+    let w = hann(len);
+    let step = spec.bin() / PER_BIN as f64;
+    let half = (HALF_WIDTH * PER_BIN) as i64;
+    let weights: Vec<f64> = (-half..=half)
+        .map(|q| {
+            // |W(v)|^2 at v = q step: W(v) = sum w_n e^{-i v n dt}
+            let v = q as f64 * step * spec.dt;
+            let z: Complex64 = w
+                .iter()
+                .enumerate()
+                .map(|(n, wn)| Complex64::from_polar(*wn, -v * n as f64))
+                .sum();
+            z.norm_sqr()
+        })
+        .collect();
+    let total: f64 = weights.iter().sum();
+    let lo = bins[0] as i64 * PER_BIN as i64 - half;
+    let hi = *bins.last().expect("checked non-empty") as i64 * PER_BIN as i64 + half;
+    let fine: Vec<f64> = (lo..=hi).map(|i| i as f64 * step).collect();
+    let taps = bins
+        .iter()
+        .map(|&j| {
+            let centre = j as i64 * PER_BIN as i64;
+            (-half..=half)
+                .map(|q| {
+                    let idx = (centre + q - lo) as usize;
+                    (idx, weights[(q + half) as usize] / total)
+                })
+                .collect()
+        })
+        .collect();
+    (fine, taps)
+}
+
+impl MeasurementModel for AmbientMisfit {
+    fn name(&self) -> &'static str {
+        "ambient"
+    }
+
+    fn dof(&self) -> usize {
+        self.bins.len() * self.p * self.p
+    }
+
+    fn residuals(&self, chain: &Chain) -> Result<Vec<f64>> {
+        let n = chain.n();
+        if let Some(&o) = self.observe.iter().find(|&&m| m > n) {
+            return Err(Error::invalid("observe", o, format!("1..={n}")));
+        }
+        if let Some(&o) = self.on.iter().find(|&&m| m >= n) {
+            return Err(Error::invalid("ambient_on", o + 1, format!("1..={n}")));
+        }
+        Ok(self.project(chain)?.0)
+    }
+
+    fn jacobian(&self, _chain: &Chain, _params: &[Param]) -> Result<Option<DMatrix<f64>>> {
+        Ok(None)
+    }
+}
