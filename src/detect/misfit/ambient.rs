@@ -14,7 +14,9 @@
 //! `H(s) = (M s^2 + D s + K)^{-1}` by the O(n) tridiagonal solve at
 //! `s = i w` (one solve per observed mass: `H` is symmetric). What the
 //! Welch estimate expects is `A` smoothed by the Hann window's spectral
-//! kernel `|W(v)|^2` (a quadrature of 8 points per bin over +-4 bins), so
+//! kernel `|W(v)|^2` (the trapezoid rule at half-bin steps over +-4 bins: a resonance at
+//! least two bins wide, as the segment length ensures, is integrated to
+//! about `exp(-4 pi)`), so
 //! that a resonance narrower than a few bins is not biased.
 //!
 //! # Residuals (least squares on the averaged spectra)
@@ -38,14 +40,13 @@ use crate::chain::Chain;
 use crate::detect::data::ambient::{hann, CrossSpectrum};
 use crate::detect::model::MeasurementModel;
 use crate::error::{Error, Result};
-use crate::forward::tridiag::solve_general;
 use crate::forward::Observable;
 use crate::sensitivity::Param;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 use num_complex::Complex64;
 
 /// Quadrature points of the window kernel per bin.
-const PER_BIN: usize = 8;
+const PER_BIN: usize = 2;
 /// Half-width of the window kernel in bins.
 const HALF_WIDTH: usize = 4;
 
@@ -61,6 +62,13 @@ pub struct AmbientMisfit {
     whiten: Vec<DMatrix<Complex64>>,
     /// `sqrt(K)`, `K` the equivalent number of segments.
     sqrt_k: f64,
+    /// The data vector `sqrt(K) vec(I)` per bin.
+    data: Vec<f64>,
+    /// Every channel's whitened unit noise floor, its Gram matrix and its
+    /// product with the data.
+    noise: Vec<Vec<f64>>,
+    noise_gram: DMatrix<f64>,
+    noise_y: Vec<f64>,
     /// The fine grid's frequencies and, per used bin, its (fine index, weight) list.
     fine: Vec<f64>,
     taps: Vec<Vec<(usize, f64)>>,
@@ -120,6 +128,16 @@ impl AmbientMisfit {
             whiten.push(inv);
         }
         let (fine, taps) = kernel_grid(spec, &bins);
+        let mut data = Vec::new();
+        let mut noise = vec![Vec::new(); p];
+        for wm in &whiten {
+            push_hermitian(&mut data, &DMatrix::identity(p, p), sqrt_k);
+            for (c, col) in noise.iter_mut().enumerate() {
+                push_hermitian(col, &(wm.column(c) * wm.column(c).adjoint()), sqrt_k);
+            }
+        }
+        let noise_gram = DMatrix::from_fn(p, p, |a, b| dot(&noise[a], &noise[b]));
+        let noise_y = noise.iter().map(|c| dot(c, &data)).collect();
         Ok(AmbientMisfit {
             observe,
             kind,
@@ -127,6 +145,10 @@ impl AmbientMisfit {
             bins,
             whiten,
             sqrt_k,
+            data,
+            noise,
+            noise_gram,
+            noise_y,
             fine,
             taps,
             p,
@@ -150,27 +172,30 @@ impl AmbientMisfit {
         })
     }
 
-    /// `A(w)` (the unit-force spectral matrix) at every fine frequency.
-    fn unit_spectra(&self, chain: &Chain) -> Result<Vec<DMatrix<Complex64>>> {
+    /// `A(w)` (the unit-force spectral matrix, `p x p` row-major) at every
+    /// fine frequency.
+    fn unit_spectra(&self, chain: &Chain) -> Result<Vec<Complex64>> {
         let c = chain.coefficients();
         let (dd, kd) = (c.d_diag(), c.k_diag());
         let n = chain.n();
         let p = self.p;
-        let mut out = Vec::with_capacity(self.fine.len());
-        for &w in &self.fine {
+        let zero = Complex64::new(0.0, 0.0);
+        let mut out = vec![zero; self.fine.len() * p * p];
+        let mut rows: Vec<Vec<Complex64>> = Vec::with_capacity(p);
+        for (f, &w) in self.fine.iter().enumerate() {
             let s = Complex64::new(0.0, w);
             let diag: Vec<Complex64> = (0..n).map(|i| s * s * c.m[i] + s * dd[i] + kd[i]).collect();
             let off: Vec<Complex64> = (1..n).map(|i| -(s * c.c[i] + c.k[i])).collect();
             let factor = s.powu(self.kind.power());
-            let mut rows = Vec::with_capacity(p);
+            let lu = TriLu::new(diag, off).ok_or_else(|| Error::Singular { s: format!("{s}") })?;
+            rows.clear();
             for &o in &self.observe {
-                let mut b = vec![Complex64::new(0.0, 0.0); n];
+                let mut b = vec![zero; n];
                 b[o - 1] = factor;
-                let h = solve_general(diag.clone(), off.clone(), b)
-                    .ok_or_else(|| Error::Singular { s: format!("{s}") })?;
-                rows.push(h);
+                lu.solve(&mut b);
+                rows.push(b);
             }
-            let mut a = DMatrix::<Complex64>::zeros(p, p);
+            let a = &mut out[f * p * p..(f + 1) * p * p];
             for x in 0..p {
                 for y in x..p {
                     let v: Complex64 = self
@@ -178,57 +203,79 @@ impl AmbientMisfit {
                         .iter()
                         .map(|&j| rows[x][j] * rows[y][j].conj())
                         .sum();
-                    a[(x, y)] = v;
-                    a[(y, x)] = v.conj();
+                    a[x * p + y] = v;
+                    a[y * p + x] = v.conj();
                 }
             }
-            out.push(a);
         }
         Ok(out)
     }
 
-    /// The data vector `sqrt(K) vec(I)` and the columns
-    /// `sqrt(K) vec(L^-1 X L^-H)` for `X` the window-smoothed `A` and every
-    /// channel's unit noise floor.
-    fn columns(&self, chain: &Chain) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
+    /// The column `sqrt(K) vec(L^-1 A L^-H)` of the window-smoothed `A`.
+    fn signal_column(&self, chain: &Chain) -> Result<Vec<f64>> {
         let fine = self.unit_spectra(chain)?;
         let p = self.p;
-        let mut data = Vec::with_capacity(self.bins.len() * p * p);
-        let mut cols = vec![Vec::with_capacity(data.capacity()); p + 1];
+        let mut col = Vec::with_capacity(self.bins.len() * p * p);
+        let mut a = DMatrix::<Complex64>::zeros(p, p);
         for (i, taps) in self.taps.iter().enumerate() {
-            let mut a = DMatrix::<Complex64>::zeros(p, p);
+            a.fill(Complex64::new(0.0, 0.0));
             for &(f, w) in taps {
-                a += &fine[f] * Complex64::new(w, 0.0);
+                let src = &fine[f * p * p..(f + 1) * p * p];
+                for x in 0..p {
+                    for y in 0..p {
+                        a[(x, y)] += src[x * p + y] * w;
+                    }
+                }
             }
             let wm = &self.whiten[i];
-            push_hermitian(&mut cols[0], &(wm * a * wm.adjoint()), self.sqrt_k);
-            for c in 0..p {
-                let e = wm.column(c) * wm.column(c).adjoint();
-                push_hermitian(&mut cols[c + 1], &e, self.sqrt_k);
-            }
-            push_hermitian(&mut data, &DMatrix::identity(p, p), self.sqrt_k);
+            push_hermitian(&mut col, &(wm * &a * wm.adjoint()), self.sqrt_k);
         }
-        Ok((data, cols))
+        Ok(col)
     }
 
-    /// The residuals with `q` and `nu` profiled out, and their values.
+    /// The residuals with `q` and `nu` profiled out, and their values
+    /// (normal equations of the `p + 1` linear coefficients; the noise
+    /// columns' part is precomputed).
     fn project(&self, chain: &Chain) -> Result<(Vec<f64>, Vec<f64>)> {
-        let (data, cols) = self.columns(chain)?;
-        let m = data.len();
-        let q = cols.len();
-        let b = DMatrix::from_fn(m, q, |r, c| cols[c][r]);
-        let y = DVector::from_vec(data);
-        let coef = b
+        let sig = self.signal_column(chain)?;
+        let p = self.p;
+        let mut ata = DMatrix::<f64>::zeros(p + 1, p + 1);
+        let mut aty = nalgebra::DVector::<f64>::zeros(p + 1);
+        ata[(0, 0)] = dot(&sig, &sig);
+        aty[0] = dot(&sig, &self.data);
+        for c in 0..p {
+            let v = dot(&sig, &self.noise[c]);
+            ata[(0, c + 1)] = v;
+            ata[(c + 1, 0)] = v;
+            aty[c + 1] = self.noise_y[c];
+            for d in 0..p {
+                ata[(c + 1, d + 1)] = self.noise_gram[(c, d)];
+            }
+        }
+        let coef = ata
             .clone()
-            .svd(true, true)
-            .solve(&y, 1e-13)
-            .map_err(|e| Error::Numerical {
+            .lu()
+            .solve(&aty)
+            .filter(|c| c.iter().all(|v| v.is_finite()))
+            .ok_or_else(|| Error::Numerical {
                 method: "ambient nuisance".into(),
-                reason: e.to_string(),
+                reason:
+                    "the force level and noise floors are not separable (singular normal equations)"
+                        .into(),
             })?;
-        let r = &y - &b * &coef;
-        Ok((r.iter().copied().collect(), coef.iter().copied().collect()))
+        let mut r = self.data.clone();
+        for (k, rk) in r.iter_mut().enumerate() {
+            *rk -= coef[0] * sig[k];
+            for c in 0..p {
+                *rk -= coef[c + 1] * self.noise[c][k];
+            }
+        }
+        Ok((r, coef.iter().copied().collect()))
     }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 /// Append the `p^2` real coordinates of a Hermitian matrix, scaled: the
@@ -307,5 +354,109 @@ impl MeasurementModel for AmbientMisfit {
 
     fn jacobian(&self, _chain: &Chain, _params: &[Param]) -> Result<Option<DMatrix<f64>>> {
         Ok(None)
+    }
+}
+
+/// The LU factorisation with partial pivoting of a complex symmetric
+/// tridiagonal matrix (LAPACK `gttrf`), for several right-hand sides
+/// (`gttrs`).
+struct TriLu {
+    dl: Vec<Complex64>,
+    d: Vec<Complex64>,
+    du: Vec<Complex64>,
+    du2: Vec<Complex64>,
+    swap: Vec<bool>,
+}
+
+impl TriLu {
+    /// Factor the matrix of diagonal `d` and off-diagonal `off`; `None`
+    /// when it is singular.
+    fn new(mut d: Vec<Complex64>, off: Vec<Complex64>) -> Option<TriLu> {
+        let n = d.len();
+        let (mut dl, mut du) = (off.clone(), off);
+        let zero = Complex64::new(0.0, 0.0);
+        let mut du2 = vec![zero; n.saturating_sub(2)];
+        let mut swap = vec![false; n.saturating_sub(1)];
+        for i in 0..n.saturating_sub(1) {
+            if d[i].l1_norm() >= dl[i].l1_norm() {
+                if d[i] != zero {
+                    let fact = dl[i] / d[i];
+                    dl[i] = fact;
+                    d[i + 1] -= fact * du[i];
+                }
+            } else {
+                let fact = d[i] / dl[i];
+                d[i] = dl[i];
+                dl[i] = fact;
+                let temp = du[i];
+                du[i] = d[i + 1];
+                d[i + 1] = temp - fact * d[i + 1];
+                if i + 2 < n {
+                    du2[i] = du[i + 1];
+                    du[i + 1] = -fact * du[i + 1];
+                }
+                swap[i] = true;
+            }
+        }
+        d.iter()
+            .all(|v| v.l1_norm() > 0.0 && v.is_finite())
+            .then_some(TriLu {
+                dl,
+                d,
+                du,
+                du2,
+                swap,
+            })
+    }
+
+    /// Overwrite `b` with the solution.
+    fn solve(&self, b: &mut [Complex64]) {
+        let n = b.len();
+        for i in 0..n.saturating_sub(1) {
+            if self.swap[i] {
+                let temp = b[i] - self.dl[i] * b[i + 1];
+                b[i] = b[i + 1];
+                b[i + 1] = temp;
+            } else {
+                let t = self.dl[i] * b[i];
+                b[i + 1] -= t;
+            }
+        }
+        for i in (0..n).rev() {
+            let mut v = b[i];
+            if i + 1 < n {
+                v -= self.du[i] * b[i + 1];
+            }
+            if i + 2 < n {
+                v -= self.du2[i] * b[i + 2];
+            }
+            b[i] = v / self.d[i];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_pivoted_tridiagonal_solve_matches_the_project_solver() {
+        let n = 7;
+        let diag: Vec<Complex64> = (0..n)
+            .map(|i| Complex64::new(0.3 - 0.2 * i as f64, 0.05 * (i + 1) as f64))
+            .collect();
+        let off: Vec<Complex64> = (1..n)
+            .map(|i| Complex64::new(-1.0 - 0.1 * i as f64, 0.0))
+            .collect();
+        for o in 0..n {
+            let mut b = vec![Complex64::new(0.0, 0.0); n];
+            b[o] = Complex64::new(1.0, 0.5);
+            let want = crate::forward::tridiag::solve_general(diag.clone(), off.clone(), b.clone())
+                .unwrap();
+            TriLu::new(diag.clone(), off.clone()).unwrap().solve(&mut b);
+            for (x, y) in b.iter().zip(&want) {
+                assert!((x - y).norm() < 1e-12 * (1.0 + y.norm()), "{x} vs {y}");
+            }
+        }
     }
 }
