@@ -336,3 +336,99 @@ fn sampling_too_coarse_for_the_highest_mode_is_refused() {
         "{e}"
     );
 }
+
+/// Write a record as the CLI reads it: `t` and one column per channel.
+fn write_csv(rec: &AmbientRecord, path: &std::path::Path) {
+    let mut text = String::from("t");
+    for o in &rec.observe {
+        text.push_str(&format!(",a{o}"));
+    }
+    text.push('\n');
+    for i in 0..rec.len() {
+        text.push_str(&format!("{}", i as f64 * rec.dt));
+        for c in &rec.channels {
+            text.push_str(&format!(",{:.9e}", c[i]));
+        }
+        text.push('\n');
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn the_cli_fits_an_ambient_record() {
+    let nominal = Chain::paper(8).unwrap();
+    let truth = nominal
+        .clone()
+        .with_defect(Defect::Spring { at: 3, k: 0.8 })
+        .unwrap();
+    let rec = generate(
+        &truth,
+        &[1, 5, 8],
+        Observable::Velocity,
+        0.5,
+        2,
+        6000,
+        0.1,
+        11,
+    );
+    let dir = std::env::temp_dir().join(format!("springmass-ambient-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("ambient.csv");
+    write_csv(&rec, &path);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_springmass"))
+        .args(["fit", "--data"])
+        .arg(&path)
+        .args([
+            "--n",
+            "8",
+            "--observe",
+            "1,5,8",
+            "--observe-kind",
+            "velocity",
+            "--excitation",
+            "ambient",
+            "--defects",
+            "auto:1",
+            "--fit",
+            "d",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["status"], "converged", "{v}");
+    assert_eq!(v["factors"][0]["at"], 3, "{v}");
+    assert_eq!(v["factors"][0]["kind"], "spring", "{v}");
+}
+
+/// Write the guide's 30-mass record (the acceptance case, seed 1) to the
+/// path in `AMBIENT_CSV`: `AMBIENT_CSV=ambient.csv cargo test --test all
+/// ambient::write_the_guide_record -- --ignored`.
+#[test]
+#[ignore = "writes a file for the guide's worked example"]
+fn write_the_guide_record() {
+    let path = std::env::var("AMBIENT_CSV").expect("AMBIENT_CSV=path");
+    let truth = thirty()
+        .with_defects([
+            Defect::Spring { at: 10, k: 0.9 },
+            Defect::Spring { at: 20, k: 0.9 },
+        ])
+        .unwrap();
+    let rec = generate(
+        &truth,
+        &[1, 15, 30],
+        Observable::Acceleration,
+        1.0,
+        16,
+        10_000,
+        0.1,
+        1,
+    );
+    write_csv(&rec, std::path::Path::new(&path));
+}

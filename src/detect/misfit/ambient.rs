@@ -73,6 +73,8 @@ pub struct AmbientMisfit {
     fine: Vec<f64>,
     taps: Vec<Vec<(usize, f64)>>,
     p: usize,
+    /// The Welch estimate at the used bins.
+    g_hat: Vec<DMatrix<Complex64>>,
 }
 
 /// The fitted nuisance of one evaluation: the force level and the noise floors.
@@ -111,48 +113,85 @@ impl AmbientMisfit {
                 format!("at least {} used bins (found {})", p + 2, bins.len()),
             ));
         }
-        let sqrt_k = spec.effective_segments().sqrt();
-        let mut whiten = Vec::with_capacity(bins.len());
-        for &j in &bins {
-            let l = nalgebra::Cholesky::new(spec.g[j].clone()).ok_or_else(|| {
+        let g_hat: Vec<DMatrix<Complex64>> = bins.iter().map(|&j| spec.g[j].clone()).collect();
+        let (fine, taps) = kernel_grid(spec, &bins);
+        let empty = AmbientMisfit {
+            observe,
+            kind,
+            on: on.iter().map(|m| m - 1).collect(),
+            bins,
+            whiten: Vec::new(),
+            sqrt_k: spec.effective_segments().sqrt(),
+            data: Vec::new(),
+            noise: Vec::new(),
+            noise_gram: DMatrix::zeros(0, 0),
+            noise_y: Vec::new(),
+            fine,
+            taps,
+            p,
+            g_hat: g_hat.clone(),
+        };
+        empty.with_weights(&g_hat)
+    }
+
+    /// The same data weighted by `weights` (one Hermitian positive definite
+    /// matrix per used bin, the expected spectrum): the residuals become
+    /// `sqrt(K) L^-1 (G^ - G) L^-H` with `L L^H = weights`.
+    ///
+    /// # Errors
+    /// A matrix the Cholesky factorisation refuses (field `spectrum`).
+    fn with_weights(mut self, weights: &[DMatrix<Complex64>]) -> Result<AmbientMisfit> {
+        let p = self.p;
+        self.whiten = Vec::with_capacity(weights.len());
+        for (w, &j) in weights.iter().zip(&self.bins) {
+            let l = nalgebra::Cholesky::new(w.clone()).ok_or_else(|| {
                 Error::invalid(
                     "spectrum",
                     format!("bin {j}"),
                     "a positive definite cross-spectral matrix (channels not copies of one another)",
                 )
             })?;
-            let inv = l
-                .l()
-                .try_inverse()
-                .expect("a Cholesky factor is invertible");
-            whiten.push(inv);
+            let inv = l.l().try_inverse().ok_or_else(|| {
+                Error::invalid("spectrum", format!("bin {j}"), "a regular matrix")
+            })?;
+            self.whiten.push(inv);
         }
-        let (fine, taps) = kernel_grid(spec, &bins);
         let mut data = Vec::new();
         let mut noise = vec![Vec::new(); p];
-        for wm in &whiten {
-            push_hermitian(&mut data, &DMatrix::identity(p, p), sqrt_k);
+        for (wm, g) in self.whiten.iter().zip(&self.g_hat) {
+            push_hermitian(&mut data, &(wm * g * wm.adjoint()), self.sqrt_k);
             for (c, col) in noise.iter_mut().enumerate() {
-                push_hermitian(col, &(wm.column(c) * wm.column(c).adjoint()), sqrt_k);
+                push_hermitian(col, &(wm.column(c) * wm.column(c).adjoint()), self.sqrt_k);
             }
         }
-        let noise_gram = DMatrix::from_fn(p, p, |a, b| dot(&noise[a], &noise[b]));
-        let noise_y = noise.iter().map(|c| dot(c, &data)).collect();
-        Ok(AmbientMisfit {
-            observe,
-            kind,
-            on: on.iter().map(|m| m - 1).collect(),
-            bins,
-            whiten,
-            sqrt_k,
-            data,
-            noise,
-            noise_gram,
-            noise_y,
-            fine,
-            taps,
-            p,
-        })
+        self.noise_gram = DMatrix::from_fn(p, p, |a, b| dot(&noise[a], &noise[b]));
+        self.noise_y = noise.iter().map(|c| dot(c, &data)).collect();
+        self.data = data;
+        self.noise = noise;
+        Ok(self)
+    }
+
+    /// The model weighted by the spectrum `chain` predicts (its fitted force
+    /// level and noise floors): the weights of the Whittle likelihood's
+    /// Fisher scoring, free of the data's noise.
+    ///
+    /// # Errors
+    /// A predicted spectrum that is not positive definite (a negative noise
+    /// floor; field `spectrum`); as [`MeasurementModel::residuals`].
+    pub fn reweighted(&self, chain: &Chain) -> Result<AmbientMisfit> {
+        let (_, c) = self.project(chain)?;
+        let weights: Vec<DMatrix<Complex64>> = self
+            .smoothed(chain)?
+            .into_iter()
+            .map(|a| {
+                let mut g = a * Complex64::new(c[0], 0.0);
+                for k in 0..self.p {
+                    g[(k, k)] += c[k + 1];
+                }
+                g
+            })
+            .collect();
+        self.clone().with_weights(&weights)
     }
 
     /// Number of used bins.
@@ -211,14 +250,13 @@ impl AmbientMisfit {
         Ok(out)
     }
 
-    /// The column `sqrt(K) vec(L^-1 A L^-H)` of the window-smoothed `A`.
-    fn signal_column(&self, chain: &Chain) -> Result<Vec<f64>> {
+    /// The window-smoothed `A` at every used bin.
+    fn smoothed(&self, chain: &Chain) -> Result<Vec<DMatrix<Complex64>>> {
         let fine = self.unit_spectra(chain)?;
         let p = self.p;
-        let mut col = Vec::with_capacity(self.bins.len() * p * p);
-        let mut a = DMatrix::<Complex64>::zeros(p, p);
-        for (i, taps) in self.taps.iter().enumerate() {
-            a.fill(Complex64::new(0.0, 0.0));
+        let mut out = Vec::with_capacity(self.bins.len());
+        for taps in &self.taps {
+            let mut a = DMatrix::<Complex64>::zeros(p, p);
             for &(f, w) in taps {
                 let src = &fine[f * p * p..(f + 1) * p * p];
                 for x in 0..p {
@@ -227,8 +265,16 @@ impl AmbientMisfit {
                     }
                 }
             }
-            let wm = &self.whiten[i];
-            push_hermitian(&mut col, &(wm * &a * wm.adjoint()), self.sqrt_k);
+            out.push(a);
+        }
+        Ok(out)
+    }
+
+    /// The column `sqrt(K) vec(L^-1 A L^-H)` of the window-smoothed `A`.
+    fn signal_column(&self, chain: &Chain) -> Result<Vec<f64>> {
+        let mut col = Vec::with_capacity(self.bins.len() * self.p * self.p);
+        for (a, wm) in self.smoothed(chain)?.iter().zip(&self.whiten) {
+            push_hermitian(&mut col, &(wm * a * wm.adjoint()), self.sqrt_k);
         }
         Ok(col)
     }
