@@ -831,6 +831,9 @@ impl AmbientReport {
                 set.join(", ")
             );
         }
+        if !self.k_selection.is_empty() {
+            out.push_str("number of defects by BIC (the search, weighted by the data):\n");
+        }
         for row in &self.k_selection {
             let mark = if row.k == self.k { "  <- chosen" } else { "" };
             let _ = writeln!(
