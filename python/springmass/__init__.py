@@ -1706,6 +1706,17 @@ def fit_ambient(
     dict
         The report as the CLI's ``--json`` prints it (``status``,
         ``factors``, ``d``, ``modes``, ...) and ``summary``, its text.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import springmass
+    >>> t = np.arange(3000) * 0.5
+    >>> try:  # a dead sensor is refused, naming its channel
+    ...     springmass.fit_ambient((t, [np.sin(t), np.ones_like(t)]), observe=[1, 4], n=4)
+    ... except ValueError as e:
+    ...     print("channel 2 (mass 4)" in str(e))
+    True
     """
     if isinstance(data, (str, os.PathLike)):
         t, cols = read_csv(data)
