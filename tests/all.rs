@@ -12,6 +12,8 @@
 // did as binaries of their own): three copies of the small helper module
 #![allow(clippy::duplicate_mod)]
 
+#[path = "ambient.rs"]
+mod ambient;
 #[path = "baseline.rs"]
 mod baseline;
 #[path = "boundaries.rs"]

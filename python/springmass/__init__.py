@@ -88,6 +88,7 @@ __all__ = [
     "spectral",
     "SpectralResult",
     "update_from_modes",
+    "fit_ambient",
     "searches",
 ]
 
@@ -1815,6 +1816,113 @@ def update_from_modes(
         hold_out=[_count("hold_out", j) for j in hold_out],
         starts=_count("starts", starts),
         seed=_count("seed", seed),
+        baseline=_baseline(baseline),
+    )
+    out = json.loads(raw["report"])
+    out["summary"] = raw["summary"]
+    return out
+
+
+def fit_ambient(
+    data: Any,
+    *,
+    observe: Sequence[int],
+    n: int,
+    observe_kind: str = "displacement",
+    mass: float = 1.0,
+    k: float = 1.0,
+    d: Optional[float] = None,
+    left: str = "fixed",
+    right: str = "fixed",
+    ambient_on: Optional[Sequence[int]] = None,
+    defects: Any = "auto",
+    kinds: str = "springs",
+    profile: bool = False,
+    baseline: Any = None,
+) -> Dict[str, Any]:
+    """Output-only (ambient) fit: which storey changed, from response records
+    under an unknown broadband force.
+
+    The same as ``springmass fit --data FILE --excitation ambient --observe
+    1,15,30``: the channels' Welch cross-spectral matrix is compared with the
+    chain's under white forces of an unknown level plus a sensor-noise floor
+    per channel; the masses fix the absolute scale.
+
+    Parameters
+    ----------
+    data : path or (t, channels)
+        A CSV file (``t`` and one column per observed mass, in the order of
+        ``observe``), or a pair of the times and a sequence of channels.
+    observe : sequence of int
+        The observed masses (1-based), one per channel.
+    n : int
+        Number of masses.
+    observe_kind : str
+        ``"displacement"``, ``"velocity"`` or ``"acceleration"``.
+    mass, k : float
+        The nominal (known) uniform mass and storey stiffness.
+    d : float, optional
+        The grounded damping; ``None`` (default): unknown, fitted.
+    left, right : str
+        ``"fixed"`` or ``"free"`` ends.
+    ambient_on : sequence of int, optional
+        The masses the white forces act on (default every mass).
+    defects : "auto", "auto:K" or int
+        The number of changed elements (default ``0..=2`` by BIC).
+    kinds : str
+        ``"springs"`` or ``"masses"``.
+    profile : bool
+        Every element a factor instead of the defect search.
+    baseline : str, path or dict, optional
+        A measured or design profile as the nominal chain (as in :func:`fit`).
+
+    Returns
+    -------
+    dict
+        The report as the CLI's ``--json`` prints it (``status``,
+        ``factors``, ``d``, ``modes``, ...) and ``summary``, its text.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import springmass
+    >>> t = np.arange(3000) * 0.5
+    >>> try:  # a dead sensor is refused, naming its channel
+    ...     springmass.fit_ambient((t, [np.sin(t), np.ones_like(t)]), observe=[1, 4], n=4)
+    ... except ValueError as e:
+    ...     print("channel 2 (mass 4)" in str(e))
+    True
+    """
+    if isinstance(data, (str, os.PathLike)):
+        t, cols = read_csv(data)
+        channels = [np.asarray(v, dtype=float).tolist() for v in cols.values()]
+    else:
+        t, channels = data
+        channels = [np.asarray(c, dtype=float).tolist() for c in channels]
+    text = str(defects)
+    if text == "auto":
+        k_min, k_max = 0, 2
+    elif text.startswith("auto:"):
+        k_min, k_max = 0, _count("defects", int(text[5:]))
+    else:
+        k_min = k_max = _count("defects", int(text))
+    raw = _core.fit_ambient(
+        np.asarray(t, dtype=float).tolist(),
+        channels,
+        observe=[_count("observe", j) for j in observe],
+        observe_kind=_text("observe_kind", observe_kind),
+        n=_chain_size(n),
+        mass=_real("mass", mass),
+        k=_real("k", k),
+        d=0.0 if d is None else _real("d", d),
+        left=_text("left", left),
+        right=_text("right", right),
+        ambient_on=None if ambient_on is None else [_count("ambient_on", j) for j in ambient_on],
+        k_min=k_min,
+        k_max=k_max,
+        kinds=_text("kinds", kinds),
+        profile=bool(profile),
+        fit_d=d is None,
         baseline=_baseline(baseline),
     )
     out = json.loads(raw["report"])

@@ -149,6 +149,28 @@ def fit_modes(
 ) -> Dict[str, Any]:
     """{"report": JSON text, "summary": text}."""
 
+def fit_ambient(
+    t: List[float],
+    channels: List[List[float]],
+    *,
+    observe: List[int],
+    observe_kind: str,
+    n: int,
+    mass: float,
+    k: float,
+    d: float,
+    left: str,
+    right: str,
+    ambient_on: Optional[List[int]],
+    k_min: int,
+    k_max: int,
+    kinds: str,
+    profile: bool,
+    fit_d: bool,
+    baseline: Any = None,
+) -> Dict[str, Any]:
+    """{"report": JSON text, "summary": text}."""
+
 def fit_profile(
     t: npt.NDArray[np.float64],
     x: npt.NDArray[np.float64],

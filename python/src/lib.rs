@@ -854,6 +854,75 @@ fn fit_modes<'py>(
     Ok(out)
 }
 
+/// Output-only (ambient) fit (`springmass::detect::fit::ambient`): `t` and
+/// one channel per observed mass. Returns the report as the CLI's JSON and
+/// its text summary.
+#[pyfunction]
+#[pyo3(signature = (t, channels, *, observe, observe_kind, n, mass, k, d, left, right,
+    ambient_on, k_min, k_max, kinds, profile, fit_d, baseline=None))]
+#[allow(clippy::too_many_arguments)]
+fn fit_ambient<'py>(
+    py: Python<'py>,
+    t: Vec<f64>,
+    channels: Vec<Vec<f64>>,
+    observe: Vec<usize>,
+    observe_kind: String,
+    n: usize,
+    mass: f64,
+    k: f64,
+    d: f64,
+    left: String,
+    right: String,
+    ambient_on: Option<Vec<usize>>,
+    k_min: usize,
+    k_max: usize,
+    kinds: String,
+    profile: bool,
+    fit_d: bool,
+    baseline: Option<BaselineArg>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use springmass::detect::data::ambient::AmbientRecord;
+    use springmass::detect::fit::ambient::{fit_ambient, AmbientOptions, AmbientTarget};
+    let baseline = baseline.map(BaselineArg::spec).transpose().py_err()?;
+    let spec = FitSpec {
+        baseline,
+        d: Some(d),
+        k: Some(k),
+        mass: Some(mass),
+        left: Some(left),
+        right: Some(right),
+        ..FitSpec::new(n)
+    };
+    let report = interruptible(py, move || -> Result<_> {
+        let cols = channels
+            .into_iter()
+            .enumerate()
+            .map(|(i, c)| (format!("y{}", i + 1), c))
+            .collect();
+        let ts = springmass::series::TimeSeries::new(t, cols)?;
+        let rec = AmbientRecord::from_series(&ts, observe, observe_kind.parse()?)?;
+        let opts = AmbientOptions {
+            ambient_on,
+            fit_d,
+            target: if profile {
+                AmbientTarget::Profile
+            } else {
+                AmbientTarget::Defects { k_min, k_max }
+            },
+            kinds: springmass::detect::fit::profile::ProfileMode::parse(&kinds)?,
+            ..Default::default()
+        };
+        fit_ambient(spec.model()?.chain(), &rec, &opts)
+    })?;
+    let json = serde_json::to_value(&report).map_err(|e| {
+        NumericalError::new_err(format!("the ambient report cannot be written: {e}"))
+    })?;
+    let out = PyDict::new(py);
+    out.set_item("report", json.to_string())?;
+    out.set_item("summary", report.summary())?;
+    Ok(out)
+}
+
 /// The search registry (`springmass::detect::search::SEARCHES`): one dict
 /// per search with its name, aliases, help, the defect kinds it places,
 /// whether the scene's general fit accepts it and whether it is stochastic.
@@ -914,6 +983,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(spectral, m)?)?;
     m.add_function(wrap_pyfunction!(fit_profile, m)?)?;
     m.add_function(wrap_pyfunction!(fit_modes, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_ambient, m)?)?;
     m.add_function(wrap_pyfunction!(searches, m)?)?;
     m.add_function(wrap_pyfunction!(cancel, m)?)?;
     Ok(())

@@ -122,12 +122,22 @@ pub struct Args {
     /// Right end (mass n's side): fixed or free [default: fixed].
     #[arg(long, requires = "input")]
     pub right: Option<String>,
-    /// The observed mass (1-based) [default: 1].
-    #[arg(long, requires = "data")]
-    pub observe: Option<usize>,
+    /// The observed mass (1-based) [default: 1]; with --excitation ambient
+    /// the observed masses, one per value column in order: 1,15,30.
+    #[arg(long, requires = "data", value_delimiter = ',')]
+    pub observe: Vec<usize>,
     /// What the column measured: displacement, velocity or acceleration [default: displacement].
     #[arg(long, requires = "data")]
     pub observe_kind: Option<String>,
+    /// The excitation of --data: impulse (or a measured force, --force) by
+    /// default; `ambient`: an unknown broadband force (output-only), the
+    /// channels' Welch cross-spectral matrix fitted (--observe a list).
+    #[arg(long, requires = "data", value_name = "ambient")]
+    pub excitation: Option<String>,
+    /// With --excitation ambient: the masses the white forces act on
+    /// [default: every mass].
+    #[arg(long, requires = "excitation", value_delimiter = ',')]
+    pub ambient_on: Vec<usize>,
     /// A measured force on mass 1 instead of the impulse: this column of --data
     /// (with --force FILE: of that file) [hammer test].
     #[arg(long, requires = "data")]
@@ -209,6 +219,16 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     if a.modes.is_some() {
         return super::fit_modes::run(&a);
+    }
+    if a.excitation.is_some() {
+        return super::fit_ambient::run(&a);
+    }
+    if a.observe.len() > 1 {
+        anyhow::bail!(springmass::Error::invalid(
+            "observe",
+            format!("{:?}", a.observe),
+            "one mass (several with --excitation ambient)"
+        ));
     }
     if a.data.is_some() {
         return run_data(a);
@@ -406,7 +426,7 @@ fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
         gamma: a.gamma,
         left: a.left.clone(),
         right: a.right.clone(),
-        observe: a.observe,
+        observe: a.observe.first().copied(),
         observe_kind: a.observe_kind.clone(),
         fit: a.fit.clone(),
         known: a.known.clone(),

@@ -72,7 +72,7 @@ fn run_locate(a: &Args, n: usize) -> anyhow::Result<()> {
 }
 
 /// `auto` (0..=2), `auto:K` (0..=K) or `K` (exactly K).
-fn parse_defects(text: &str) -> springmass::Result<(usize, usize)> {
+pub(crate) fn parse_defects(text: &str) -> springmass::Result<(usize, usize)> {
     let bad =
         || springmass::Error::invalid("defects", text, "auto, auto:K or K (a number of defects)");
     match text.split_once(':') {
@@ -87,7 +87,7 @@ fn parse_defects(text: &str) -> springmass::Result<(usize, usize)> {
 }
 
 /// The nominal chain of the flags: uniform (--mass, --k, --d) or a baseline.
-fn nominal_chain(a: &Args, n: usize) -> anyhow::Result<springmass::Chain> {
+pub(crate) fn nominal_chain(a: &Args, n: usize) -> anyhow::Result<springmass::Chain> {
     let spec = springmass::detect::fit::options::FitSpec {
         d: Some(a.d.unwrap_or(0.0)),
         k: a.k,

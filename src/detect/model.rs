@@ -19,6 +19,7 @@
 //! |---|---|---|
 //! | time domain | [`crate::detect::misfit::time`] ([`TimeMisfit`](crate::detect::misfit::time::TimeMisfit)) | `(x_1(t_i) - y_i) / sigma` from the exact modal sum |
 //! | Laplace values, real axis or Bromwich line | [`crate::detect::data::laplace`] ([`LaplaceObs`](crate::detect::data::laplace::LaplaceObs)) | `W (X_1(s_q) - d_q)` stacked real and imaginary parts, or `sqrt(w_q)` weights |
+//! | output spectrum (ambient records) | [`crate::detect::misfit::ambient`] ([`AmbientMisfit`](crate::detect::misfit::ambient::AmbientMisfit)) | `sqrt(K) L^-1 (G^ - G) L^-H` of the Welch cross-spectral matrix, force level and noise floors profiled out |
 //! | measured modes (frequencies, shapes) | [`crate::detect::misfit::modal`] ([`ModalMisfit`](crate::detect::misfit::modal::ModalMisfit)) | `(f_j - f) / se_f` and `(c phi_j - phi) / se` over the measured masses, MAC-paired |
 //!
 //! The continuous fit ([`crate::detect::fit::chainfit::fit_chain`]), the

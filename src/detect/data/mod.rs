@@ -14,6 +14,7 @@
 //! | [`nuisance`] | the sensor's offset and drift, profiled out by projection |
 //! | [`whiten`] | whitening of the correlated Laplace-domain noise of a transformed series |
 
+pub mod ambient;
 pub mod exact;
 pub mod force_window;
 pub mod laplace;

@@ -63,6 +63,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+pub mod ambient;
 mod assemble;
 pub mod chainfit;
 pub mod damping;

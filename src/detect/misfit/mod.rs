@@ -40,6 +40,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+pub mod ambient;
 pub mod laplace_sets;
 pub mod modal;
 pub mod quadrature;

@@ -1,0 +1,89 @@
+//! `springmass fit --data FILE --excitation ambient --observe 1,15,30`:
+//! output-only fits (`springmass::detect::fit::ambient`).
+
+use super::fit::Args;
+use anyhow::Context;
+use springmass::detect::data::ambient::AmbientRecord;
+use springmass::detect::fit::ambient::{fit_ambient, AmbientOptions, AmbientTarget};
+use springmass::detect::fit::profile::ProfileMode;
+use springmass::forward::Observable;
+
+/// Parse the flags, read the record, fit, print.
+pub fn run(a: &Args) -> anyhow::Result<()> {
+    let excitation = a.excitation.as_deref().unwrap_or_default();
+    if excitation.trim() != "ambient" {
+        anyhow::bail!(springmass::Error::invalid(
+            "excitation",
+            excitation,
+            "ambient (an impulse or a measured force need no --excitation)"
+        ));
+    }
+    let path = a.data.clone().ok_or_else(|| {
+        springmass::Error::invalid("data", "(none)", "--data FILE with --excitation ambient")
+    })?;
+    let n = super::fit::chain_size(a)?;
+    let opts = options(a)?;
+    let kind: Observable = a
+        .observe_kind
+        .as_deref()
+        .unwrap_or("displacement")
+        .parse()?;
+    let observe = if a.observe.is_empty() {
+        vec![1]
+    } else {
+        a.observe.clone()
+    };
+    let nominal = super::fit_modes::nominal_chain(a, n)?;
+    let rec = AmbientRecord::read_csv(&path, observe, kind)?;
+    let report = fit_ambient(&nominal, &rec, &opts)
+        .with_context(|| format!("fitting the ambient record {}", path.display()))?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", report.summary());
+    }
+    Ok(())
+}
+
+/// The fit's options from the flags: --defects or --profile, --kinds,
+/// --fit d (also when --d is not given: the damping is then unknown),
+/// --ambient-on.
+fn options(a: &Args) -> anyhow::Result<AmbientOptions> {
+    let mut opts = AmbientOptions::default();
+    let kinds = a.kinds.as_deref().or(a.profile.as_deref());
+    if let Some(k) = kinds {
+        opts.kinds = match k.trim() {
+            "spring" | "springs" => ProfileMode::Springs,
+            "mass" | "masses" => ProfileMode::Masses,
+            other => Err(springmass::Error::invalid(
+                "kinds",
+                other,
+                "spring or mass (with --excitation ambient)",
+            ))?,
+        };
+    }
+    if a.profile.is_some() {
+        opts.target = AmbientTarget::Profile;
+    } else {
+        let text = a.defects.as_deref().unwrap_or("auto");
+        let (k_min, k_max) = super::fit_modes::parse_defects(text)?;
+        opts.target = AmbientTarget::Defects { k_min, k_max };
+    }
+    let fit = a.fit.as_deref().unwrap_or("");
+    if let Some(other) = fit
+        .split(',')
+        .map(str::trim)
+        .find(|p| !p.is_empty() && *p != "d")
+    {
+        anyhow::bail!(springmass::Error::invalid(
+            "fit",
+            other,
+            "d (with --excitation ambient; the masses fix the scale)"
+        ));
+    }
+    opts.fit_d = fit.contains('d') || a.d.is_none();
+    if !a.ambient_on.is_empty() {
+        opts.ambient_on = Some(a.ambient_on.clone());
+    }
+    Ok(opts)
+}

@@ -1,0 +1,434 @@
+//! Output-only (ambient) fits against a generator of their own: the exact
+//! discretisation of the continuous state-space model under white forces
+//! (matrix exponential of the dense state matrix, the discrete noise
+//! covariance by Van Loan's method), independent of the fitted model's
+//! tridiagonal frequency-domain path; bad records refused.
+
+use rand::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+use springmass::chain::{Chain, Defect};
+use springmass::detect::data::ambient::AmbientRecord;
+use springmass::detect::fit::ambient::{fit_ambient, AmbientOptions, AmbientTarget};
+use springmass::forward::Observable;
+use springmass::time::modal::natural_modes;
+
+use nalgebra::DMatrix;
+
+/// The state matrix `[[0, I], [-M^-1 K, -M^-1 D]]` and the force input
+/// `[0; M^-1 E_on]`, assembled densely from the chain's coefficient lists.
+fn state_space(chain: &Chain, on: &[usize]) -> (DMatrix<f64>, DMatrix<f64>) {
+    let n = chain.n();
+    let c = chain.coefficients();
+    let mut k = DMatrix::zeros(n, n);
+    let mut d = DMatrix::zeros(n, n);
+    for i in 0..n {
+        k[(i, i)] = c.g[i] + c.k[i] + c.k[i + 1];
+        d[(i, i)] = c.d[i] + c.c[i] + c.c[i + 1];
+        if i + 1 < n {
+            k[(i, i + 1)] = -c.k[i + 1];
+            k[(i + 1, i)] = -c.k[i + 1];
+            d[(i, i + 1)] = -c.c[i + 1];
+            d[(i + 1, i)] = -c.c[i + 1];
+        }
+    }
+    let minv = DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
+        n,
+        c.m.iter().map(|m| 1.0 / m),
+    ));
+    let mut a = DMatrix::zeros(2 * n, 2 * n);
+    a.view_mut((0, n), (n, n)).fill_with_identity();
+    a.view_mut((n, 0), (n, n)).copy_from(&(-&minv * k));
+    a.view_mut((n, n), (n, n)).copy_from(&(-&minv * d));
+    let mut b = DMatrix::zeros(2 * n, on.len());
+    for (j, &m) in on.iter().enumerate() {
+        b[(n + m - 1, j)] = minv[(m - 1, m - 1)];
+    }
+    (a, b)
+}
+
+/// `Phi = e^{A h}` and a square root of `Q_d = int_0^h e^{A t} B B^T e^{A^T t} dt`
+/// (unit force intensity) by Van Loan's block exponential.
+fn discretise(a: &DMatrix<f64>, b: &DMatrix<f64>, h: f64) -> (DMatrix<f64>, DMatrix<f64>) {
+    let s = a.nrows();
+    let mut c = DMatrix::zeros(2 * s, 2 * s);
+    c.view_mut((0, 0), (s, s)).copy_from(&(-a * h));
+    c.view_mut((0, s), (s, s))
+        .copy_from(&(b * b.transpose() * h));
+    c.view_mut((s, s), (s, s)).copy_from(&(a.transpose() * h));
+    let e = c.exp();
+    let phi = e.view((s, s), (s, s)).transpose();
+    let q = &phi * e.view((0, s), (s, s));
+    let q = (&q + q.transpose()) * 0.5;
+    let eig = q.symmetric_eigen();
+    let root = DMatrix::from_diagonal(&eig.eigenvalues.map(|v| v.max(0.0).sqrt()));
+    (phi, &eig.eigenvectors * root)
+}
+
+/// A record of `samples` at step `dt`: `sub` exact steps per sample; the
+/// channels at `observe` (displacement, velocity, or acceleration as the
+/// mean over the last sub-step, what a sensor with a short averaging time
+/// records), plus white sensor noise of `noise` times each channel's std.
+#[allow(clippy::too_many_arguments)]
+fn generate(
+    chain: &Chain,
+    observe: &[usize],
+    kind: Observable,
+    dt: f64,
+    sub: usize,
+    samples: usize,
+    noise: f64,
+    seed: u64,
+) -> AmbientRecord {
+    let n = chain.n();
+    let on: Vec<usize> = (1..=n).collect();
+    let (a, b) = state_space(chain, &on);
+    let h = dt / sub as f64;
+    let (phi, root) = discretise(&a, &b, h);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut z = nalgebra::DVector::<f64>::zeros(2 * n);
+    let mut step = |z: &nalgebra::DVector<f64>| {
+        let xi = nalgebra::DVector::from_fn(2 * n, |_, _| StandardNormal.sample(&mut rng));
+        &phi * z + &root * xi
+    };
+    for _ in 0..20 * sub * 50 {
+        z = step(&z); // settle into the stationary state
+    }
+    let mut ch = vec![Vec::with_capacity(samples); observe.len()];
+    for _ in 0..samples {
+        let mut prev = z.clone();
+        for _ in 0..sub {
+            prev = z.clone();
+            z = step(&z);
+        }
+        for (c, &o) in ch.iter_mut().zip(observe) {
+            let i = o - 1;
+            c.push(match kind {
+                Observable::Displacement => z[i],
+                Observable::Velocity => z[n + i],
+                Observable::Acceleration => (z[n + i] - prev[n + i]) / h,
+            });
+        }
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
+    for c in &mut ch {
+        let mean = c.iter().sum::<f64>() / c.len() as f64;
+        let sd = (c.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / c.len() as f64).sqrt();
+        for v in c.iter_mut() {
+            let e: f64 = StandardNormal.sample(&mut rng);
+            *v += noise * sd * e;
+        }
+    }
+    AmbientRecord::new(dt, observe.to_vec(), kind, ch).unwrap()
+}
+
+#[test]
+fn one_weak_storey_of_an_8_mass_chain_is_found_from_three_displacement_channels() {
+    let nominal = Chain::paper(8).unwrap();
+    let truth = nominal
+        .clone()
+        .with_defect(Defect::Spring { at: 3, k: 0.8 })
+        .unwrap();
+    let rec = generate(
+        &truth,
+        &[1, 5, 8],
+        Observable::Displacement,
+        0.5,
+        2,
+        6000,
+        0.1,
+        7,
+    );
+    let opts = AmbientOptions {
+        target: AmbientTarget::Defects { k_min: 0, k_max: 1 },
+        ..AmbientOptions::default()
+    };
+    let r = fit_ambient(&nominal, &rec, &opts).unwrap();
+    assert_eq!(r.status, "converged", "{}", r.summary());
+    assert_eq!(r.k, 1, "{}", r.summary());
+    let f = &r.factors[0];
+    assert_eq!((f.kind, f.at), ("spring", 3), "{}", r.summary());
+    let se = f.se.unwrap();
+    assert!((f.factor - 0.8).abs() < 3.0 * se, "{}", r.summary());
+    assert!(se < 0.05, "{}", r.summary());
+    let (d, dse) = r.d;
+    assert!((d - 0.1).abs() < 3.0 * dse.unwrap(), "{}", r.summary());
+    // the first modes' frequency and damping within 3 SE of the truth
+    let true_modes = natural_modes(&truth).unwrap();
+    for m in r.modes.iter().take(3) {
+        let t = &true_modes[m.mode - 1];
+        assert!(
+            (m.omega - t.omega).abs() < 3.0 * m.omega_se.unwrap(),
+            "mode {}: {} vs {}\n{}",
+            m.mode,
+            m.omega,
+            t.omega,
+            r.summary()
+        );
+        assert!(
+            (m.zeta - t.zeta.unwrap()).abs() < 3.0 * m.zeta_se.unwrap(),
+            "{}",
+            r.summary()
+        );
+    }
+}
+
+/// The nominal 30-mass chain of the acceptance case.
+fn thirty() -> Chain {
+    Chain::new(30).unwrap().with_d(0.02).unwrap()
+}
+
+/// The acceptance case: a 30-mass chain, accelerometers on masses 1, 15
+/// and 30, storey springs 10 and 20 weakened by 10%, sensor noise at 10% of
+/// each channel's std, 10,000 samples at `dt = 1`; damping `d = 0.02`
+/// (10% of critical at the first mode, 0.5% at the last). Returns whether both defects were
+/// found with values within 3 SE, and the report.
+fn thirty_mass_case(seed: u64) -> (bool, springmass::detect::fit::ambient::AmbientReport, f64) {
+    let nominal = thirty();
+    let truth = nominal
+        .clone()
+        .with_defects([
+            Defect::Spring { at: 10, k: 0.9 },
+            Defect::Spring { at: 20, k: 0.9 },
+        ])
+        .unwrap();
+    let rec = generate(
+        &truth,
+        &[1, 15, 30],
+        Observable::Acceleration,
+        1.0,
+        16,
+        10_000,
+        0.1,
+        seed,
+    );
+    let clock = std::time::Instant::now();
+    let r = fit_ambient(&nominal, &rec, &AmbientOptions::default()).unwrap();
+    let seconds = clock.elapsed().as_secs_f64();
+    let found = r.k == 2
+        && r.factors.iter().all(|f| {
+            f.kind == "spring"
+                && [10, 20].contains(&f.at)
+                && f.se.is_some_and(|se| (f.factor - 0.9).abs() < 3.0 * se)
+        });
+    (found, r, seconds)
+}
+
+#[test]
+fn two_weak_storeys_of_a_30_mass_chain_from_three_accelerometers() {
+    let (found, r, _) = thirty_mass_case(1);
+    assert!(found, "{}", r.summary());
+    assert_eq!(r.status, "converged", "{}", r.summary());
+    assert!(modes_within_3_se(&r), "{}", r.summary());
+}
+
+/// Whether the first three modes' frequency and damping ratio are within
+/// 3 SE of the truth of the 30-mass case.
+fn modes_within_3_se(r: &springmass::detect::fit::ambient::AmbientReport) -> bool {
+    let truth = thirty()
+        .with_defects([
+            Defect::Spring { at: 10, k: 0.9 },
+            Defect::Spring { at: 20, k: 0.9 },
+        ])
+        .unwrap();
+    let true_modes = natural_modes(&truth).unwrap();
+    r.modes.iter().take(3).all(|m| {
+        let t = &true_modes[m.mode - 1];
+        m.omega_se
+            .is_some_and(|se| (m.omega - t.omega).abs() < 3.0 * se)
+            && m.zeta_se
+                .is_some_and(|se| (m.zeta - t.zeta.unwrap()).abs() < 3.0 * se)
+    })
+}
+
+/// The seed study of the acceptance case (20 seeds): run with
+/// `cargo test --release --test all ambient::seed_study -- --ignored --nocapture`.
+#[test]
+#[ignore = "20 fits of the 30-mass case: a seed study, run on demand"]
+fn seed_study_of_the_30_mass_case() {
+    let seeds: u64 = std::env::var("AMBIENT_SEEDS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(20);
+    let (mut hits, mut modes_ok) = (0, 0);
+    for seed in 1..=seeds {
+        let (found, r, seconds) = thirty_mass_case(seed);
+        let set: Vec<String> = r
+            .factors
+            .iter()
+            .map(|f| {
+                format!(
+                    "{} {} {:.4}+-{:.4}",
+                    f.kind,
+                    f.at,
+                    f.factor,
+                    f.se.unwrap_or(f64::NAN)
+                )
+            })
+            .collect();
+        println!(
+            "seed {seed}: found {found}, status {}, k {}, [{}], chi2 {:.1}/{}, fit {seconds:.2} s",
+            r.status,
+            r.k,
+            set.join(", "),
+            r.chi2,
+            r.dof,
+        );
+        hits += usize::from(found);
+        modes_ok += usize::from(modes_within_3_se(&r));
+    }
+    println!("first three modes' omega and zeta within 3 SE in {modes_ok} of {seeds} seeds");
+    println!("both defects within 3 SE in {hits} of {seeds} seeds");
+    assert!(10 * hits >= 9 * seeds as usize, "{hits} of {seeds}");
+}
+
+#[test]
+fn a_record_too_short_for_the_first_mode_is_refused() {
+    let nominal = Chain::paper(30).unwrap();
+    let rec = generate(
+        &nominal,
+        &[1, 15, 30],
+        Observable::Acceleration,
+        0.5,
+        1,
+        2000,
+        0.1,
+        3,
+    );
+    let e = fit_ambient(&nominal, &rec, &AmbientOptions::default()).unwrap_err();
+    assert!(
+        e.to_string().contains("samples") && e.to_string().contains("first mode"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_constant_channel_is_refused_naming_it() {
+    let mut text = String::from("t,a1,a15\n");
+    for i in 0..3000 {
+        let v = ((i * 7919) % 101) as f64 / 101.0;
+        text.push_str(&format!("{},{v},0.25\n", i as f64 * 0.5));
+    }
+    let ts = springmass::series::TimeSeries::from_csv_str(&text).unwrap();
+    let e = AmbientRecord::from_series(&ts, vec![1, 15], Observable::Acceleration).unwrap_err();
+    assert!(
+        e.to_string().contains("channel 2 (mass 15)") && e.to_string().contains("constant"),
+        "{e}"
+    );
+}
+
+#[test]
+fn sampling_too_coarse_for_the_highest_mode_is_refused() {
+    let nominal = Chain::paper(30).unwrap();
+    // omega_max ~ 2: dt = 1.5 puts the Nyquist frequency at 2.1
+    let rec = generate(
+        &nominal,
+        &[1, 15, 30],
+        Observable::Acceleration,
+        1.5,
+        2,
+        6000,
+        0.1,
+        4,
+    );
+    let e = fit_ambient(&nominal, &rec, &AmbientOptions::default()).unwrap_err();
+    assert!(
+        e.to_string().contains("dt") && e.to_string().contains("highest mode"),
+        "{e}"
+    );
+}
+
+/// Write a record as the CLI reads it: `t` and one column per channel.
+fn write_csv(rec: &AmbientRecord, path: &std::path::Path) {
+    let mut text = String::from("t");
+    for o in &rec.observe {
+        text.push_str(&format!(",a{o}"));
+    }
+    text.push('\n');
+    for i in 0..rec.len() {
+        text.push_str(&format!("{}", i as f64 * rec.dt));
+        for c in &rec.channels {
+            text.push_str(&format!(",{:.9e}", c[i]));
+        }
+        text.push('\n');
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn the_cli_fits_an_ambient_record() {
+    let nominal = Chain::paper(8).unwrap();
+    let truth = nominal
+        .clone()
+        .with_defect(Defect::Spring { at: 3, k: 0.8 })
+        .unwrap();
+    let rec = generate(
+        &truth,
+        &[1, 5, 8],
+        Observable::Velocity,
+        0.5,
+        2,
+        6000,
+        0.1,
+        11,
+    );
+    let dir = std::env::temp_dir().join(format!("springmass-ambient-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("ambient.csv");
+    write_csv(&rec, &path);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_springmass"))
+        .args(["fit", "--data"])
+        .arg(&path)
+        .args([
+            "--n",
+            "8",
+            "--observe",
+            "1,5,8",
+            "--observe-kind",
+            "velocity",
+            "--excitation",
+            "ambient",
+            "--defects",
+            "auto:1",
+            "--fit",
+            "d",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["status"], "converged", "{v}");
+    assert_eq!(v["factors"][0]["at"], 3, "{v}");
+    assert_eq!(v["factors"][0]["kind"], "spring", "{v}");
+}
+
+/// Write the guide's 30-mass record (the acceptance case, seed 1) to the
+/// path in `AMBIENT_CSV`: `AMBIENT_CSV=ambient.csv cargo test --test all
+/// ambient::write_the_guide_record -- --ignored`.
+#[test]
+#[ignore = "writes a file for the guide's worked example"]
+fn write_the_guide_record() {
+    let path = std::env::var("AMBIENT_CSV").expect("AMBIENT_CSV=path");
+    let truth = thirty()
+        .with_defects([
+            Defect::Spring { at: 10, k: 0.9 },
+            Defect::Spring { at: 20, k: 0.9 },
+        ])
+        .unwrap();
+    let rec = generate(
+        &truth,
+        &[1, 15, 30],
+        Observable::Acceleration,
+        1.0,
+        16,
+        10_000,
+        0.1,
+        1,
+    );
+    write_csv(&rec, std::path::Path::new(&path));
+}
