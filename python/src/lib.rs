@@ -824,16 +824,7 @@ fn fit_modes<'py>(
     baseline: Option<BaselineArg>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use springmass::detect::fit::modal_update::{update_from_modes, ModalUpdateOptions};
-    let baseline = baseline.map(BaselineArg::spec).transpose().py_err()?;
-    let spec = FitSpec {
-        baseline,
-        d: Some(d),
-        k: Some(k),
-        mass: Some(mass),
-        left: Some(left),
-        right: Some(right),
-        ..FitSpec::new(n)
-    };
+    let spec = nominal_spec(n, mass, k, d, left, right, baseline)?;
     let report = interruptible(py, move || -> Result<_> {
         let data = springmass::detect::data::modes::MeasuredModes::from_csv_str(&modes)?;
         let opts = ModalUpdateOptions {
@@ -845,13 +836,7 @@ fn fit_modes<'py>(
         };
         update_from_modes(spec.model()?.chain(), data, &opts)
     })?;
-    let json = serde_json::to_value(&report).map_err(|e| {
-        NumericalError::new_err(format!("the modal update report cannot be written: {e}"))
-    })?;
-    let out = PyDict::new(py);
-    out.set_item("report", json.to_string())?;
-    out.set_item("summary", report.summary())?;
-    Ok(out)
+    report_dict(py, &report, report.summary(), "modal update")
 }
 
 /// Output-only (ambient) fit (`springmass::detect::fit::ambient`): `t` and
@@ -883,16 +868,7 @@ fn fit_ambient<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     use springmass::detect::data::ambient::AmbientRecord;
     use springmass::detect::fit::ambient::{fit_ambient, AmbientOptions, AmbientTarget};
-    let baseline = baseline.map(BaselineArg::spec).transpose().py_err()?;
-    let spec = FitSpec {
-        baseline,
-        d: Some(d),
-        k: Some(k),
-        mass: Some(mass),
-        left: Some(left),
-        right: Some(right),
-        ..FitSpec::new(n)
-    };
+    let spec = nominal_spec(n, mass, k, d, left, right, baseline)?;
     let report = interruptible(py, move || -> Result<_> {
         let cols = channels
             .into_iter()
@@ -914,12 +890,46 @@ fn fit_ambient<'py>(
         };
         fit_ambient(spec.model()?.chain(), &rec, &opts)
     })?;
-    let json = serde_json::to_value(&report).map_err(|e| {
-        NumericalError::new_err(format!("the ambient report cannot be written: {e}"))
+    report_dict(py, &report, report.summary(), "ambient")
+}
+
+/// The nominal chain of the modal update and the ambient fit: uniform from
+/// `mass`, `k`, `d` and the ends, or a baseline table.
+#[allow(clippy::too_many_arguments)]
+fn nominal_spec(
+    n: usize,
+    mass: f64,
+    k: f64,
+    d: f64,
+    left: String,
+    right: String,
+    baseline: Option<BaselineArg>,
+) -> PyResult<FitSpec> {
+    let baseline = baseline.map(BaselineArg::spec).transpose().py_err()?;
+    Ok(FitSpec {
+        baseline,
+        d: Some(d),
+        k: Some(k),
+        mass: Some(mass),
+        left: Some(left),
+        right: Some(right),
+        ..FitSpec::new(n)
+    })
+}
+
+/// `{"report": JSON text, "summary": text}` of a report named `what`.
+fn report_dict<'py>(
+    py: Python<'py>,
+    report: &impl serde::Serialize,
+    summary: String,
+    what: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let json = serde_json::to_value(report).map_err(|e| {
+        NumericalError::new_err(format!("the {what} report cannot be written: {e}"))
     })?;
     let out = PyDict::new(py);
     out.set_item("report", json.to_string())?;
-    out.set_item("summary", report.summary())?;
+    out.set_item("summary", summary)?;
     Ok(out)
 }
 

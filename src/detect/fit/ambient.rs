@@ -509,21 +509,6 @@ fn screen_score(gram: &DMatrix<f64>, g: &[f64], chi2: f64, set: &[usize], d: Opt
     }
 }
 
-/// The next k-subset of `0..n` in lexicographic order; false after the last.
-fn next_combination(idx: &mut [usize], n: usize) -> bool {
-    let k = idx.len();
-    for i in (0..k).rev() {
-        if idx[i] < n - k + i {
-            idx[i] += 1;
-            for j in i + 1..k {
-                idx[j] = idx[j - 1] + 1;
-            }
-            return true;
-        }
-    }
-    false
-}
-
 /// The defect search: screen, fit the best sets of each `k`, choose `k` by BIC.
 fn search(
     base: &Problem,
@@ -567,7 +552,7 @@ fn search(
                 screen_score(&gram, &g, base_fit.chi2, &idx, d_col),
                 idx.clone(),
             ));
-            if !next_combination(&mut idx, els.len()) {
+            if !super::modal_locate::next_combination(&mut idx, els.len()) {
                 break;
             }
         }

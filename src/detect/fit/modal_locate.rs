@@ -307,8 +307,9 @@ fn best_sets(
     Ok((first, it.next(), count))
 }
 
-/// The next k-subset of `0..n` in lexicographic order; false after the last.
-fn next_combination(idx: &mut [usize], n: usize) -> bool {
+/// The next k-subset of `0..n` in lexicographic order; false after the
+/// last (the exhaustive searches on modes and on an output spectrum).
+pub(super) fn next_combination(idx: &mut [usize], n: usize) -> bool {
     let k = idx.len();
     for i in (0..k).rev() {
         if idx[i] < n - k + i {
