@@ -632,20 +632,8 @@ fn estimates(
             let f = fit.theta[c];
             let se = cov.map(|m| m[(c, c)].max(0.0).sqrt());
             let at_bound = on_bound(f, bounds);
-            FactorEstimate {
-                kind: if matches!(d, Defect::Mass { .. }) {
-                    "mass"
-                } else {
-                    "spring"
-                },
-                at: d.at(),
-                nominal: d.value(),
-                value: d.value() * f,
-                factor: f,
-                se,
-                determined: se.is_some_and(|s| s.is_finite() && s < 0.5 * f) && !at_bound,
-                at_bound,
-            }
+            let determined = se.is_some_and(|s| s.is_finite() && s < 0.5 * f) && !at_bound;
+            FactorEstimate::new(d, f, se, determined, at_bound)
         })
         .collect()
 }

@@ -44,11 +44,7 @@ impl Local {
         let base = model.chain();
         let chain = h.to_chain(base)?;
         let kb = KindBounds::for_chain(base);
-        let known: Vec<(DefectKind, usize)> = base
-            .defects()
-            .iter()
-            .map(|d| (DefectKind::of(d), d.at()))
-            .collect();
+        let known = known_keys(base);
         let mut params = Vec::new();
         let mut bounds = Vec::new();
         for (i, d) in chain.defects().iter().enumerate() {
@@ -93,6 +89,24 @@ impl Local {
     pub(super) fn information(&self) -> DMatrix<f64> {
         self.jacobian.transpose() * &self.jacobian
     }
+}
+
+/// `(kind, position)` of the defects `base` knows (not fitted).
+pub(super) fn known_keys(base: &Chain) -> Vec<(DefectKind, usize)> {
+    base.defects()
+        .iter()
+        .map(|d| (DefectKind::of(d), d.at()))
+        .collect()
+}
+
+/// The defects of `defects` that `base` does not know.
+pub(super) fn free_of(defects: &[crate::chain::Defect], base: &Chain) -> Vec<crate::chain::Defect> {
+    let known = known_keys(base);
+    defects
+        .iter()
+        .filter(|d| !known.contains(&(DefectKind::of(d), d.at())))
+        .copied()
+        .collect()
 }
 
 /// The profile of `chi^2` in parameter `i` of `local`: the others refitted

@@ -367,22 +367,30 @@ fn add_uncertainty(report: &mut FitReport, stage: &stages::Stage<'_>) -> Result<
         return Ok(());
     };
     let ratio = stage.sigma / f.sigma_fit;
-    if let Some(h) = f.ranked.first() {
-        if let Ok(local) = local::Local::of(h, engine.model, data.as_ref()) {
-            let found = crate::cancel::checked(intervals::intervals(
-                &local,
-                data.as_ref(),
-                ratio,
-                engine.opts.level,
-            ));
-            if let Ok(ivs) = found {
-                place_intervals(report, &local, &ivs);
-            } else if let Err(e @ crate::Error::Cancelled) = found {
-                return Err(e);
-            }
+    let best = f
+        .ranked
+        .first()
+        .and_then(|h| local::Local::of(h, engine.model, data.as_ref()).ok());
+    if let Some(local) = &best {
+        let found = crate::cancel::checked(intervals::intervals(
+            local,
+            data.as_ref(),
+            ratio,
+            engine.opts.level,
+        ));
+        if let Ok(ivs) = found {
+            place_intervals(report, local, &ivs);
+        } else if let Err(e @ crate::Error::Cancelled) = found {
+            return Err(e);
         }
     }
-    report.posterior = crate::cancel::checked(posterior::posterior(stage, &engine.opts.prior)).ok();
+    report.posterior = crate::cancel::checked(posterior::posterior(
+        stage,
+        &engine.opts.prior,
+        (f.sigma_fit, data.as_ref()),
+        best.as_ref(),
+    ))
+    .ok();
     crate::cancel::check()?;
     doubt_improbable_answer(report);
     Ok(())

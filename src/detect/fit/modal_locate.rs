@@ -380,20 +380,13 @@ fn defect_estimates(els: &[Defect], s: &SetFit, opts: &ModalLocateOptions) -> Ve
             let f = s.fit.theta[c];
             let se = cov.as_ref().map(|m| m[(c, c)].max(0.0).sqrt());
             let at_bound = on_bound(f, opts.bounds);
-            FactorEstimate {
-                kind: if matches!(d, Defect::Mass { .. }) {
-                    "mass"
-                } else {
-                    "spring"
-                },
-                at: d.at(),
-                nominal: d.value(),
-                value: d.value() * f,
-                factor: f,
+            FactorEstimate::new(
+                d,
+                f,
                 se,
-                determined: se.is_some_and(f64::is_finite) && !at_bound,
+                se.is_some_and(f64::is_finite) && !at_bound,
                 at_bound,
-            }
+            )
         })
         .collect()
 }

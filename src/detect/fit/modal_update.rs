@@ -115,6 +115,34 @@ pub struct FactorEstimate {
     pub at_bound: bool,
 }
 
+impl FactorEstimate {
+    /// Element `d` (its nominal value) at factor `factor`, with the factor's
+    /// standard error `se`, whether the data determine it and whether it
+    /// stopped on a bound.
+    pub fn new(
+        d: &Defect,
+        factor: f64,
+        se: Option<f64>,
+        determined: bool,
+        at_bound: bool,
+    ) -> FactorEstimate {
+        FactorEstimate {
+            kind: if matches!(d, Defect::Mass { .. }) {
+                "mass"
+            } else {
+                "spring"
+            },
+            at: d.at(),
+            nominal: d.value(),
+            value: d.value() * factor,
+            factor,
+            se,
+            determined,
+            at_bound,
+        }
+    }
+}
+
 /// One mode of the updated chain.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct PredictedMode {
@@ -525,20 +553,7 @@ fn estimates(
                 (Some(s), None) => s.is_finite() && s < 0.5 * f && !at_bound,
                 (None, _) => false,
             };
-            FactorEstimate {
-                kind: if matches!(d, Defect::Mass { .. }) {
-                    "mass"
-                } else {
-                    "spring"
-                },
-                at: d.at(),
-                nominal: d.value(),
-                value: d.value() * f,
-                factor: f,
-                se: se.filter(|_| determined),
-                determined,
-                at_bound,
-            }
+            FactorEstimate::new(d, f, se.filter(|_| determined), determined, at_bound)
         })
         .collect()
 }

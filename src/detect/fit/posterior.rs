@@ -26,9 +26,10 @@
 //! are bounded by the worst kept one's weight each: `pruned_bound` is the
 //! largest share of probability they could hold.
 
-use super::local::Local;
+use super::local::{free_of, Local};
 use super::stages::Stage;
 use crate::chain::Defect;
+use crate::detect::model::MeasurementModel;
 use crate::detect::unknowns::DefectKind;
 use crate::error::{Error, Result};
 use serde::Serialize;
@@ -265,7 +266,12 @@ struct Weighted {
 ///
 /// # Errors
 /// The measurement model's errors at a refitted hypothesis.
-pub(super) fn posterior(stage: &Stage<'_>, prior: &Prior) -> Result<Posterior> {
+pub(super) fn posterior(
+    stage: &Stage<'_>,
+    prior: &Prior,
+    data: (f64, &dyn MeasurementModel),
+    answer: Option<&Local>,
+) -> Result<Posterior> {
     let engine = &stage.engine;
     let model = engine.model;
     let base = model.chain();
@@ -284,7 +290,12 @@ pub(super) fn posterior(stage: &Stage<'_>, prior: &Prior) -> Result<Posterior> {
     let mut all: Vec<Weighted> = Vec::new();
     let mut floor: Vec<(usize, f64, f64)> = Vec::new(); // (k, pruned count, worst log z)
     for f in &stage.fits {
-        let data = engine.measurement_at(f.sigma_fit)?;
+        // the model the answer's fit ranked on serves every fit at its level
+        let own = match f.sigma_fit == data.0 {
+            true => None,
+            false => Some(engine.measurement_at(f.sigma_fit)?),
+        };
+        let on: &dyn MeasurementModel = own.as_deref().unwrap_or(data.1);
         let scale2 = (f.sigma_fit / sigma).powi(2);
         let space = engine.space_size(f.k)?;
         let ln_pos = match prior.k {
@@ -305,10 +316,15 @@ pub(super) fn posterior(stage: &Stage<'_>, prior: &Prior) -> Result<Posterior> {
             // errors, without a Jacobian
             let (log_z, defects, chi2) = if chi2 - best_chi2 > FAR {
                 let lz = rough_log_evidence(h, chi2, sigma / f.sigma_fit, base, prior);
-                (lz, free_of(h, base), chi2)
+                (lz, free_of(&h.defects, base), chi2)
             } else {
-                let local = Local::of(h, model, data.as_ref())?;
-                let lz = log_evidence(&local, scale2, sigma / f.sigma_fit, prior, base);
+                let reused = answer.filter(|_| std::ptr::eq(h, &stage.best().ranked[0]));
+                let fresh = match reused {
+                    Some(_) => None,
+                    None => Some(Local::of(h, model, on)?),
+                };
+                let local = reused.or(fresh.as_ref()).expect("one of the two");
+                let lz = log_evidence(local, scale2, sigma / f.sigma_fit, prior, base);
                 (lz, local.free_defects(), local.chi2 * scale2)
             };
             let log_z = log_z + ln_pos;
@@ -406,14 +422,7 @@ fn sorted_key(defects: &[Defect]) -> Vec<(DefectKind, usize)> {
 
 /// The answer's key without the model's known defects, sorted.
 fn free_key(key: &[(DefectKind, usize)], stage: &Stage<'_>) -> Vec<(DefectKind, usize)> {
-    let known: Vec<(DefectKind, usize)> = stage
-        .engine
-        .model
-        .chain()
-        .defects()
-        .iter()
-        .map(|d| (DefectKind::of(d), d.at()))
-        .collect();
+    let known = super::local::known_keys(stage.engine.model.chain());
     let mut k: Vec<(DefectKind, usize)> =
         key.iter().filter(|k| !known.contains(k)).copied().collect();
     k.sort();
@@ -425,20 +434,6 @@ fn free_key(key: &[(DefectKind, usize)], stage: &Stage<'_>) -> Vec<(DefectKind, 
 /// best's either way).
 const FAR: f64 = 200.0;
 
-/// The free defects of `h` (the model's known ones left out).
-fn free_of(h: &super::general::Hypothesis, base: &crate::chain::Chain) -> Vec<Defect> {
-    let known: Vec<(DefectKind, usize)> = base
-        .defects()
-        .iter()
-        .map(|d| (DefectKind::of(d), d.at()))
-        .collect();
-    h.defects
-        .iter()
-        .filter(|d| !known.contains(&(DefectKind::of(d), d.at())))
-        .copied()
-        .collect()
-}
-
 /// [`log_evidence`] from the hypothesis's standard errors (correlations
 /// left out) and the search ranges, for a hypothesis far from the best.
 fn rough_log_evidence(
@@ -449,7 +444,7 @@ fn rough_log_evidence(
     prior: &Prior,
 ) -> f64 {
     let kb = crate::detect::unknowns::KindBounds::for_chain(base);
-    let free = free_of(h, base);
+    let free = free_of(&h.defects, base);
     let mut occam = 0.0;
     for (d, se) in h.defects.iter().zip(&h.std_errors) {
         if !free.contains(d) {
