@@ -46,7 +46,7 @@ use super::select::Criterion;
 use crate::chain::{Boundary, Defect};
 pub use crate::detect::data::force_window::ForceWindow;
 use crate::detect::data::measurement::{Measurement, Sensor};
-use crate::detect::data::observations::Observations;
+use crate::detect::data::observations::{Observations, Series};
 pub use crate::detect::data::trigger::TriggerSpec;
 use crate::detect::misfit::MisfitKind;
 use crate::detect::search::FitMethod;
@@ -272,7 +272,12 @@ impl FitOptions {
             ));
         }
         match obs {
-            Observations::Series(s) => s.measurement().sensor().check(n)?,
+            Observations::Series(s) => {
+                for o in s.sensors() {
+                    o.measurement().sensor().check(n)?;
+                }
+                self.validate_sensors(s)?;
+            }
             Observations::Laplace(l) => l.sensor().check(n)?,
         }
         if matches!(obs, Observations::Laplace(_)) && self.misfit == Some(MisfitKind::Time) {
@@ -294,6 +299,42 @@ impl FitOptions {
 }
 
 impl FitOptions {
+    /// A record of several sensors is fitted by the time misfit with white
+    /// noise, by the enumeration or a stochastic search (the greedy
+    /// search's rank-one scores and the relaxation's profile read one
+    /// sensor).
+    fn validate_sensors(&self, s: &Series) -> Result<()> {
+        use super::record::forced;
+        if s.others().is_empty() {
+            return Ok(());
+        }
+        let sensors = format!("{} sensors", s.sensors().count());
+        if self.misfit.is_some_and(|m| m != MisfitKind::Time) {
+            return Err(Error::invalid(
+                "misfit",
+                self.misfit.map_or("", |m| m.name()),
+                format!("time with {sensors} (one joint time-domain fit)"),
+            ));
+        }
+        if matches!(self.method, FitMethod::Greedy | FitMethod::Relax) {
+            return Err(Error::invalid(
+                "method",
+                self.method.name(),
+                format!("enumerate, ga, nelder-mead or pso with {sensors}"),
+            ));
+        }
+        if forced(self.noise_model, self.nuisance) {
+            return Err(Error::invalid(
+                "noise_model",
+                "ar, offset or drift",
+                format!(
+                    "white noise and no nuisance with {sensors} (each sensor's level is estimated)"
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// A record model asked for (an AR noise model, an offset or a drift)
     /// needs the time misfit of a sampled series.
     fn validate_record(&self, obs: &Observations) -> Result<()> {
