@@ -199,6 +199,53 @@ impl Series {
         Series::on_axis(ts.t().to_vec(), x.to_vec(), sigma)
     }
 
+    /// One record of several sensors from a table: `columns` (one per
+    /// measurement, in order; `None`: the table's value columns in order,
+    /// `skip` left out, as many as measurements), each column with its
+    /// measurement, the first joined by the others ([`Series::with_sensors`]).
+    ///
+    /// # Errors
+    /// A column that does not exist (field `column`), columns and sensors
+    /// of different counts (field `column`); as [`Series::from_table`],
+    /// [`Series::with_measurement`] and [`Series::with_sensors`].
+    pub fn from_table_sensors(
+        ts: &TimeSeries,
+        columns: Option<&[String]>,
+        skip: Option<&str>,
+        measurements: Vec<Measurement>,
+        sigma: Option<f64>,
+    ) -> Result<Series> {
+        let names: Vec<String> = match columns {
+            Some(c) => c.to_vec(),
+            None => ts
+                .names()
+                .iter()
+                .filter(|c| Some(c.as_str()) != skip)
+                .take(measurements.len())
+                .cloned()
+                .collect(),
+        };
+        if measurements.is_empty() {
+            return Err(Error::invalid("observe", "(none)", "at least one sensor"));
+        }
+        if names.len() != measurements.len() {
+            return Err(Error::invalid(
+                "column",
+                format!("{} columns ({})", names.len(), names.join(", ")),
+                format!(
+                    "one value column per sensor: {} sensors",
+                    measurements.len()
+                ),
+            ));
+        }
+        let mut all = names
+            .iter()
+            .zip(measurements)
+            .map(|(c, m)| Series::from_table(ts, Some(c), sigma)?.with_measurement(m));
+        let first = all.next().expect("at least one sensor")?;
+        first.with_sensors(all.collect::<Result<_>>()?)
+    }
+
     /// The times.
     pub fn t(&self) -> &[f64] {
         &self.t

@@ -380,6 +380,13 @@ pub struct FitSpec {
     pub observe: Option<usize>,
     /// `displacement`, `velocity` or `acceleration` [default displacement].
     pub observe_kind: Option<String>,
+    /// Several sensors: every observed mass, one value column each in
+    /// order, fitted jointly (empty: the one sensor `observe`; when given,
+    /// `observe` is unused) [default empty].
+    pub sensors: Vec<usize>,
+    /// What each of `sensors` measured: one kind for every sensor, or one
+    /// per sensor (empty: `observe_kind` for every one) [default empty].
+    pub sensor_kinds: Vec<String>,
     /// Chain parameters fitted too: `d,gamma,k,mass` (any subset) [default none].
     pub fit: Option<String>,
     /// Known defects, `kind:at:value` each.
@@ -633,6 +640,83 @@ impl FitSpec {
             Some(f) => m.with_force(f),
             None => Ok(m),
         }
+    }
+
+    /// What every sensor of the record measured, driven by `force` (as
+    /// [`FitSpec::measurement`]): one measurement per mass of `sensors`
+    /// (the kind of `sensor_kinds`, one for all or one each), or the one
+    /// sensor's when `sensors` is empty.
+    ///
+    /// ```
+    /// use springmass::detect::fit::options::FitSpec;
+    /// let spec = FitSpec { sensors: vec![1, 30, 60], ..FitSpec::new(60) };
+    /// assert_eq!(spec.measurements(None)?.len(), 3);
+    /// let twice = FitSpec { sensors: vec![1, 30, 30], ..FitSpec::new(60) };
+    /// assert!(twice.measurements(None).is_err());
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`]: a mass outside the chain or observed
+    /// twice (field `observe`), a kinds list of another length than the
+    /// sensors or an unknown kind (field `observe_kind`); as
+    /// [`FitSpec::measurement`].
+    pub fn measurements(&self, force: Option<Vec<f64>>) -> Result<Vec<Measurement>> {
+        if self.sensors.is_empty() {
+            return Ok(vec![self.measurement(force)?]);
+        }
+        let kinds: Vec<String> = match self.sensor_kinds.len() {
+            0 => {
+                vec![self.observe_kind.clone().unwrap_or("displacement".into()); self.sensors.len()]
+            }
+            1 => vec![self.sensor_kinds[0].clone(); self.sensors.len()],
+            m if m == self.sensors.len() => self.sensor_kinds.clone(),
+            m => {
+                return Err(Error::invalid(
+                    "observe_kind",
+                    format!("{m} kinds for {} sensors", self.sensors.len()),
+                    "one kind for every sensor, or one per sensor",
+                ))
+            }
+        };
+        for (i, at) in self.sensors.iter().enumerate() {
+            if self.sensors[..i].contains(at) {
+                return Err(Error::invalid(
+                    "observe",
+                    format!("{:?}", self.sensors),
+                    format!("each mass once (mass {at} is listed twice)"),
+                ));
+            }
+        }
+        self.sensors
+            .iter()
+            .zip(kinds)
+            .map(|(&at, kind)| {
+                FitSpec {
+                    observe: Some(at),
+                    observe_kind: Some(kind),
+                    ..self.clone()
+                }
+                .measurement(force.clone())
+            })
+            .collect()
+    }
+
+    /// [`FitSpec::measurements`] with the force `f` at the record's times
+    /// `t` windowed, as [`FitSpec::measurement_at`].
+    ///
+    /// # Errors
+    /// As [`FitSpec::measurements`] and [`FitSpec::measurement_at`].
+    pub fn measurements_at(&self, t: &[f64], force: Option<Vec<f64>>) -> Result<Vec<Measurement>> {
+        let Some(f) = force else {
+            return self.measurements(None);
+        };
+        let (g, window) = crate::detect::data::force_window::apply(t, &f, self.force_window()?)?;
+        Ok(self
+            .measurements(Some(g))?
+            .into_iter()
+            .map(|m| m.with_force_window(window))
+            .collect())
     }
 
     /// The model and the options: the options are parsed first, then the
