@@ -248,6 +248,10 @@ impl Engine<'_> {
         format!(
             "{}; ends {}-{}",
             match self.obs {
+                Observations::Series(s) if !s.others().is_empty() => {
+                    let d: Vec<String> = s.sensors().map(|o| o.measurement().describe()).collect();
+                    d.join("; ")
+                }
                 Observations::Series(s) => s.measurement().describe(),
                 Observations::Laplace(l) => format!(
                     "{} of mass {} (Laplace values)",

@@ -195,7 +195,9 @@ pub struct FitReport {
     /// Whether it was estimated from the data.
     pub noise_estimated: bool,
     /// Every sensor of a record of several, with its own noise level
-    /// (`noise_sigma` is the first's); empty for one sensor.
+    /// estimated from its own residual (`noise_sigma` is then the first
+    /// sensor's level as the joint residual estimates it, every sensor's
+    /// residual scaled to it); empty for one sensor.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub sensors: Vec<SensorEstimate>,
     /// Final chi-square.
