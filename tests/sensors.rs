@@ -244,3 +244,85 @@ fn twenty_seeds_one_sensor_against_three() {
     }
     assert!(table[1].1 * 100 >= 95 * seeds as usize, "{table:?}");
 }
+
+/// `fit --data --observe 1,8`: one value column per sensor; columns and
+/// sensors of different counts, a mass twice, a kinds list of the wrong
+/// length refused naming the field.
+#[test]
+fn cli_takes_one_column_per_sensor() {
+    let truth = Chain::paper(8)
+        .unwrap()
+        .with_defect(Defect::Mass { at: 6, m: 2.0 })
+        .unwrap();
+    let Observations::Series(s) = record(&truth, &[1, 8], 2) else {
+        unreachable!()
+    };
+    let dir = std::env::temp_dir().join(format!("springmass-sensors-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("rec.csv");
+    let mut text = String::from("t,near,far\n");
+    for (i, t) in s.t().iter().enumerate() {
+        text.push_str(&format!(
+            "{t:e},{:e},{:e}\n",
+            s.x()[i],
+            s.others()[0].x()[i]
+        ));
+    }
+    std::fs::write(&path, text).unwrap();
+    let run = |extra: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_springmass"))
+            .args([
+                "fit",
+                "--data",
+                path.to_str().unwrap(),
+                "--n",
+                "8",
+                "--defects",
+                "1",
+            ])
+            .args(["--no-uncertainty", "--json"])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let out = run(&["--observe", "1,8", "--column", "near,far"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["defects"][0]["at"], 6);
+    assert_eq!(j["sensors"].as_array().unwrap().len(), 2);
+    assert_eq!(j["sensors"][1]["at"], 8);
+    // the value columns in order when --column is not given: the same fit
+    let again = run(&["--observe", "1,8"]);
+    let k: serde_json::Value = serde_json::from_slice(&again.stdout).unwrap();
+    assert_eq!(j["defects"][0]["value"], k["defects"][0]["value"]);
+    for (extra, field) in [
+        (
+            &["--observe", "1,8", "--column", "near"][..],
+            "invalid column",
+        ),
+        (&["--observe", "1,8,3"][..], "invalid column"),
+        (&["--observe", "1,1"][..], "invalid observe"),
+        (&["--observe", "1,9"][..], "invalid observe"),
+        (
+            &[
+                "--observe",
+                "1,8",
+                "--observe-kind",
+                "displacement,velocity,velocity",
+            ][..],
+            "invalid observe_kind",
+        ),
+    ] {
+        let out = run(extra);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(field),
+            "{extra:?}: {err}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

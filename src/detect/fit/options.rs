@@ -491,9 +491,11 @@ impl FitSpec {
         }
         if let Some(m) = &self.method {
             opts.method = FitMethod::parse(m)?;
-        } else if enumeration_too_large(self.n, &opts) {
+        } else if enumeration_too_large(self.n, &opts) && self.sensors.len() <= 1 {
             // not asked for: a chain too long to enumerate is searched
-            // greedily (the report's method line says so)
+            // greedily (the report's method line says so; the greedy
+            // search reads one sensor: several are enumerated, or refused
+            // beyond `max_sets`)
             opts.method = FitMethod::Greedy;
         }
         if let Some(c) = &self.criterion {
