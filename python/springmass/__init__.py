@@ -855,7 +855,8 @@ def _sensors(x: Any, observe: Any, observe_kind: Any) -> Tuple[Any, List[Any], L
         arr = np.asarray(x)
     except Exception as e:  # ragged lists and the like
         raise _invalid("x", _short(x), f"an array of real numbers ({e})") from None
-    if arr.ndim == 1 and not several and not kinds:
+    if not several and (arr.ndim != 1 or not kinds):
+        # one sensor: x one-dimensional (a 2-D x needs a list of masses)
         return _vector("x", x), [], [], []
     if arr.ndim == 1:
         arr = arr[:, None]
