@@ -67,6 +67,8 @@ mod real_setups;
 mod realistic_noise;
 #[path = "search.rs"]
 mod search;
+#[path = "sensors.rs"]
+mod sensors;
 #[path = "simulate.rs"]
 mod simulate;
 #[path = "spectral.rs"]

@@ -455,6 +455,10 @@ class FitResult:
         The blow's time on the record's axis when the record was re-timed to
         it: ``time``, ``se``, ``dropped`` (samples before it), ``detected``,
         ``refits``; ``None`` for a record that starts with its blow.
+    sensors : list of dict
+        With several sensors, each one's ``at``, ``kind``, ``samples`` and
+        noise level ``sigma`` (estimated from its own residual, or given);
+        empty for one sensor (``sigma`` is then its level).
     damping : dict or None
         The damping model and its parameters with standard errors, e.g.
         ``{"model": "rayleigh", "a": ..., "b": ..., "se": {"a": ..., "b": ...},
@@ -493,6 +497,7 @@ class FitResult:
     nuisance: List[Dict[str, Any]]
     damping: Optional[Dict[str, Any]]
     trigger: Optional[Dict[str, Any]]
+    sensors: List[Dict[str, Any]]
     hypotheses: List[Dict[str, Any]]
     k_probability: Dict[int, float]
     position_probability: List[Dict[str, Any]]
@@ -593,6 +598,7 @@ class FitResult:
             nuisance=list(r.get("nuisance", [])),
             damping=r.get("damping"),
             trigger=r.get("trigger"),
+            sensors=list(r.get("sensors", [])),
             hypotheses=list(r.get("hypotheses", [])),
             k_probability={int(e["k"]): _nan(e["probability"]) for e in r.get("k_probability", [])},
             position_probability=list(r.get("position_probability", [])),
@@ -629,8 +635,8 @@ def fit(
     mass: float = 1.0,
     left: str = "fixed",
     right: str = "fixed",
-    observe: int = 1,
-    observe_kind: str = "displacement",
+    observe: Union[int, Sequence[int]] = 1,
+    observe_kind: Union[str, Sequence[str]] = "displacement",
     force: Any = None,
     noise_model: str = "auto",
     nuisance: str = "auto",
@@ -658,8 +664,10 @@ def fit(
     ----------
     t : array_like, shape (N,)
         Sample times, ``>= 0``, strictly increasing (at least 16 samples).
-    x : array_like, shape (N,)
-        Displacement of mass 1 at ``t`` (finite).
+    x : array_like, shape (N,) or (N, S)
+        Displacement of mass 1 at ``t`` (finite); with several sensors one
+        column per observed mass of ``observe`` (samples x sensors), fitted
+        jointly, each sensor's noise level estimated (``FitResult.sensors``).
     n : int
         Number of masses.
     d : float, default 0.1
@@ -700,10 +708,11 @@ def fit(
         data; the report's natural frequencies are then in rad/s).
     left, right : {"fixed", "free"}, default "fixed"
         The chain's ends (a shear frame seen from its roof: ``left="free"``).
-    observe : int, default 1
-        The observed mass.
-    observe_kind : {"displacement", "velocity", "acceleration"}
-        What ``x`` measured.
+    observe : int or sequence of int, default 1
+        The observed mass; a sequence (one per column of a 2-D ``x``) for
+        several sensors, each mass once.
+    observe_kind : {"displacement", "velocity", "acceleration"} or sequence
+        What ``x`` measured: one kind for every sensor or one per sensor.
     force : array_like, shape (N,), optional
         A measured force on mass 1 at the times ``t`` (a hammer test; ``t``
         then uniform from 0), used instead of the ideal impulse.
@@ -775,7 +784,8 @@ def fit(
     >>> [(e.at, round(e.value, 1)) for e in r.defects]
     [(2, 3.0), (4, 0.5)]
     """
-    tv, xv = _vector("t", t), _vector("x", x)
+    tv = _vector("t", t)
+    xv, more, sensors, sensor_kinds = _sensors(x, observe, observe_kind)
     fit_text = _fit_text(fit)
     if isinstance(defects, str):
         defects_text = defects
@@ -813,8 +823,11 @@ def fit(
         mass=_real("mass", mass),
         left=left_text,
         right=right_text,
-        observe=_count("observe", observe),
-        observe_kind=_text("observe_kind", observe_kind),
+        observe=None if sensors else _count("observe", observe),
+        observe_kind=None if sensor_kinds else _text("observe_kind", observe_kind),
+        sensors=sensors,
+        sensor_kinds=sensor_kinds,
+        more=more,
         force=None if force is None else _vector("force", force),
         noise_model=_text("noise_model", noise_model),
         nuisance=_text("nuisance", nuisance),
@@ -828,6 +841,34 @@ def fit(
         uncertainty=bool(uncertainty),
     )
     return FitResult._from_core(raw)
+
+
+def _sensors(x: Any, observe: Any, observe_kind: Any) -> Tuple[Any, List[Any], List[int], List[str]]:
+    """``x`` (1-D, or 2-D samples x sensors) as the native fit takes it: the
+    first sensor's record, the others' records, the observed masses and
+    their kinds (both empty for one sensor given as a 1-D ``x`` and an int)."""
+    several = not isinstance(observe, (int, np.integer))
+    kinds: List[str] = []
+    if not isinstance(observe_kind, str):
+        kinds = [_text(f"observe_kind[{i}]", k) for i, k in enumerate(observe_kind)]
+    try:
+        arr = np.asarray(x)
+    except Exception as e:  # ragged lists and the like
+        raise _invalid("x", _short(x), f"an array of real numbers ({e})") from None
+    if not several and (arr.ndim != 1 or not kinds):
+        # one sensor: x one-dimensional (a 2-D x needs a list of masses)
+        return _vector("x", x), [], [], []
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2:
+        raise _invalid("x", f"{arr.ndim} dimensions", "1 (one sensor) or 2 (samples x sensors)")
+    masses = [_count(f"observe[{i}]", m) for i, m in enumerate([observe] if not several else observe)]
+    if len(masses) != arr.shape[1]:
+        raise _invalid("observe", str(masses), f"one mass per column of x ({arr.shape[1]} columns)")
+    if len(kinds) == 0:
+        kinds = [_text("observe_kind", observe_kind)]
+    columns = [_vector(f"x[:, {j}]", arr[:, j]) for j in range(arr.shape[1])]
+    return columns[0], columns[1:], masses, kinds
 
 
 def _interval(entry: Dict[str, Any]) -> Optional[Tuple[float, float]]:

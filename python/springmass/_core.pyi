@@ -60,6 +60,9 @@ def fit(
     prior_k: Optional[str] = None,
     prior_range: Optional[str] = None,
     uncertainty: Optional[bool] = None,
+    sensors: List[int] = ...,
+    sensor_kinds: List[str] = ...,
+    more: List[npt.NDArray[np.float64]] = ...,
 ) -> Dict[str, Any]:
     """The data-first fit: {"report": JSON text, "summary": str, "t", "observed", "model", "residual": ndarray}."""
 

@@ -160,17 +160,42 @@ fn interruptible<T: Send>(py: Python<'_>, job: impl FnOnce() -> Result<T> + Send
 }
 
 /// The record `(t, x)` as observations: the sensor and the measured force
-/// of `spec`, the noise level when known.
+/// of `spec`, the noise level when known; with several sensors
+/// (`spec.sensors`) `x` is the first's record and `more` the others', in
+/// order.
 fn series_obs(
     spec: &FitSpec,
     t: Vec<f64>,
     x: Vec<f64>,
+    more: Vec<Vec<f64>>,
     force: Option<Vec<f64>>,
     sigma: Option<f64>,
 ) -> Result<Observations> {
-    let measurement = spec.measurement_at(&t, force)?;
+    if spec.sensors.is_empty() && more.is_empty() {
+        let measurement = spec.measurement_at(&t, force)?;
+        return Ok(Observations::Series(
+            Series::on_axis(t, x, sigma)?.with_measurement(measurement)?,
+        ));
+    }
+    let measurements = spec.measurements_at(&t, force)?;
+    if measurements.len() != more.len() + 1 {
+        return Err(Error::invalid(
+            "observe",
+            format!(
+                "{} sensors for {} columns of x",
+                measurements.len(),
+                more.len() + 1
+            ),
+            "one observed mass per column of x",
+        ));
+    }
+    let mut all = std::iter::once(x)
+        .chain(more)
+        .zip(measurements)
+        .map(|(x, m)| Series::on_axis(t.clone(), x, sigma)?.with_measurement(m));
+    let first = all.next().expect("at least one sensor")?;
     Ok(Observations::Series(
-        Series::on_axis(t, x, sigma)?.with_measurement(measurement)?,
+        first.with_sensors(all.collect::<Result<_>>()?)?,
     ))
 }
 
@@ -183,7 +208,8 @@ fn series_obs(
     kinds=None, slot_kinds=Vec::new(), noise=None, misfit=None, method=None, criterion=None,
     seed=None, max_evals=None, k=None, mass=None, left=None, right=None, observe=None,
     observe_kind=None, force=None, trigger=None, noise_model=None, nuisance=None, damping=None, force_window=None,
-    baseline=None, level=None, prior_k=None, prior_range=None, uncertainty=None))]
+    baseline=None, level=None, prior_k=None, prior_range=None, uncertainty=None,
+    sensors=Vec::new(), sensor_kinds=Vec::new(), more=Vec::new()))]
 #[allow(clippy::too_many_arguments)]
 fn fit<'py>(
     py: Python<'py>,
@@ -220,9 +246,14 @@ fn fit<'py>(
     prior_k: Option<String>,
     prior_range: Option<String>,
     uncertainty: Option<bool>,
+    sensors: Vec<usize>,
+    sensor_kinds: Vec<String>,
+    more: Vec<PyReadonlyArray1<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let baseline = baseline.map(BaselineArg::spec).transpose().py_err()?;
     let spec = FitSpec {
+        sensors,
+        sensor_kinds,
         level,
         prior_k,
         prior_range,
@@ -255,10 +286,11 @@ fn fit<'py>(
         ..FitSpec::new(n)
     };
     let (t, x) = (values(&t), values(&x));
+    let more: Vec<Vec<f64>> = more.iter().map(values).collect();
     let force = force.as_ref().map(values);
     let report = interruptible(py, move || -> Result<_> {
         let (model, opts) = spec.build()?;
-        let obs = series_obs(&spec, t, x, force, opts.noise.known())?;
+        let obs = series_obs(&spec, t, x, more, force, opts.noise.known())?;
         opts.validate(&obs, &model)?;
         springmass::detect::fit::fit(&obs, &model, &opts)
     })?;
@@ -749,7 +781,7 @@ fn fit_profile<'py>(
     let report = interruptible(py, move || -> Result<_> {
         let mode = ProfileMode::parse(&profile)?;
         let (model, opts) = spec.build()?;
-        let obs = series_obs(&spec, t, x, force, opts.noise.known())?;
+        let obs = series_obs(&spec, t, x, Vec::new(), force, opts.noise.known())?;
         let mut po = ProfileOptions::new(mode);
         po.noise = opts.noise;
         if let Some(c) = change {

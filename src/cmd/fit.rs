@@ -43,7 +43,9 @@ pub struct Args {
     /// Random starts of the modal update beside the nominal one [default: 20].
     #[arg(long, requires = "modes")]
     pub starts: Option<usize>,
-    /// The column of --data to fit [default: the first after t].
+    /// The column of --data to fit [default: the first after t]; with
+    /// several --observe masses one column per mass, in order: a,b,c
+    /// [default: the value columns in order, the force column left out].
     #[arg(long, requires = "data")]
     pub column: Option<String>,
     /// Number of masses of the chain (--data, --modes).
@@ -122,11 +124,12 @@ pub struct Args {
     /// Right end (mass n's side): fixed or free [default: fixed].
     #[arg(long, requires = "input")]
     pub right: Option<String>,
-    /// The observed mass (1-based) [default: 1]; with --excitation ambient
-    /// the observed masses, one per value column in order: 1,15,30.
+    /// The observed mass (1-based) [default: 1]; several masses, one value
+    /// column each (--column), are fitted jointly, each sensor's noise
+    /// level estimated: 1,30,60 (with --excitation ambient: the channels).
     #[arg(long, requires = "data", value_delimiter = ',')]
     pub observe: Vec<usize>,
-    /// What the column measured: displacement, velocity or acceleration [default: displacement].
+    /// What the column measured: displacement, velocity or acceleration [default: displacement]; with several --observe masses one kind for all or one per mass: displacement,acceleration,acceleration.
     #[arg(long, requires = "data")]
     pub observe_kind: Option<String>,
     /// The excitation of --data: impulse (or a measured force, --force) by
@@ -222,13 +225,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     if a.excitation.is_some() {
         return super::fit_ambient::run(&a);
-    }
-    if a.observe.len() > 1 {
-        anyhow::bail!(springmass::Error::invalid(
-            "observe",
-            format!("{:?}", a.observe),
-            "one mass (several with --excitation ambient)"
-        ));
     }
     if a.data.is_some() {
         return run_data(a);
@@ -427,7 +423,13 @@ fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
         left: a.left.clone(),
         right: a.right.clone(),
         observe: a.observe.first().copied(),
-        observe_kind: a.observe_kind.clone(),
+        observe_kind: a.observe_kind.clone().filter(|k| !k.contains(',')),
+        sensors: match (a.observe.len(), kind_list(a).len()) {
+            (0 | 1, 0 | 1) => Vec::new(),
+            (0, _) => vec![1],
+            _ => a.observe.clone(),
+        },
+        sensor_kinds: kind_list(a),
         fit: a.fit.clone(),
         known: a.known.clone(),
         defects: a.defects.clone(),
@@ -449,6 +451,14 @@ fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
         prior_range: a.prior_range.clone(),
         uncertainty: a.no_uncertainty.then_some(false),
         ..springmass::detect::fit::options::FitSpec::new(n)
+    }
+}
+
+/// `--observe-kind` as a list of several kinds (empty: one kind or none).
+fn kind_list(a: &Args) -> Vec<String> {
+    match a.observe_kind.as_deref() {
+        Some(k) if k.contains(',') => k.split(',').map(|s| s.trim().to_string()).collect(),
+        _ => Vec::new(),
     }
 }
 
@@ -508,6 +518,9 @@ fn read_observations(
 )> {
     use springmass::detect::data::observations::{Observations, Series};
     use springmass::series::TimeSeries;
+    if !spec.sensors.is_empty() {
+        return read_sensors(a, path, spec, opts);
+    }
     // the sensor is checked before the data are read; the force is data
     let sensor_only = spec.measurement(None)?;
     let table = TimeSeries::read_csv(path)?;
@@ -550,6 +563,71 @@ fn read_observations(
         Observations::Series(series.with_measurement(measurement)?),
         axes,
     ))
+}
+
+/// The record of several sensors of `path` (`--observe` a list): one value
+/// column per sensor (`--column a,b,c`, or the value columns in order, the
+/// force column left out), each in SI units, with the measured force if
+/// any.
+fn read_sensors(
+    a: &Args,
+    path: &std::path::Path,
+    spec: &springmass::detect::fit::options::FitSpec,
+    opts: &springmass::detect::fit::FitOptions,
+) -> anyhow::Result<(
+    springmass::detect::data::observations::Observations,
+    AxisNames,
+)> {
+    use springmass::detect::data::observations::{Observations, Series};
+    use springmass::series::TimeSeries;
+    // the sensors are checked before the data are read; the force is data
+    let sensors = spec.measurements(None)?;
+    let mut table = TimeSeries::read_csv(path)?;
+    let columns: Option<Vec<String>> = a
+        .column
+        .as_ref()
+        .map(|c| c.split(',').map(|s| s.trim().to_string()).collect());
+    let skip = a.force_column.as_deref().filter(|_| a.force.is_none());
+    let names: Vec<String> = match &columns {
+        Some(c) => c.clone(),
+        None => table
+            .names()
+            .iter()
+            .filter(|c| Some(c.as_str()) != skip)
+            .take(sensors.len())
+            .cloned()
+            .collect(),
+    };
+    for (name, m) in names.iter().zip(&sensors) {
+        if table.column(name).is_none() {
+            continue; // named by the reader below
+        }
+        let (t, notes) = springmass::units::record_in_si(&table, name, m.sensor().kind)?;
+        for note in &notes {
+            eprintln!("note: {note}");
+        }
+        table = t;
+    }
+    let measurements = if a.force.is_some() || a.force_column.is_some() {
+        spec.measurements_at(table.t(), Some(read_force(a, &table)?))?
+    } else {
+        sensors
+    };
+    let series = Series::from_table_sensors(
+        &table,
+        columns.as_deref(),
+        skip,
+        measurements,
+        opts.noise.known(),
+    )?;
+    let axes = AxisNames {
+        t: match table.time_unit() {
+            Some(u) => format!("t [{u}]"),
+            None => "t".to_string(),
+        },
+        x: names.first().cloned().unwrap_or_else(|| "x".into()),
+    };
+    Ok((Observations::Series(series), axes))
 }
 
 /// The measured force: `--force FILE` (same times as the data) or a column

@@ -41,6 +41,9 @@ pub struct LaplaceObs {
     /// Names these nodes, data and measurement for the per-thread memo of
     /// the last sweep ([`LastSweep`]); a new one whenever they change.
     id: ObsId,
+    /// Further sensors' values (each its own nodes, weighting and sensor):
+    /// their residuals follow these (empty: one sensor).
+    others: Vec<LaplaceObs>,
 }
 
 /// A process-wide unique number naming the content of a [`LaplaceObs`]
@@ -131,6 +134,7 @@ impl LaplaceObs {
             tables: TableCache::default(),
             screen: None,
             id: ObsId::fresh(),
+            others: Vec::new(),
         })
     }
 
@@ -168,6 +172,27 @@ impl LaplaceObs {
     pub fn with_screen(mut self, screen: LaplaceObs) -> LaplaceObs {
         self.screen = Some(Box::new(screen));
         self
+    }
+
+    /// The same values joined by further sensors' (one joint chi-square,
+    /// the residuals of each sensor in turn; the screens join as well).
+    /// The rational set kernels do not apply to a joint observation
+    /// ([`crate::detect::misfit::laplace_sets::SetTables::new`] answers
+    /// `None`): every evaluation sweeps the chain at every node.
+    pub fn with_others(mut self, others: Vec<LaplaceObs>) -> LaplaceObs {
+        let screens: Option<Vec<LaplaceObs>> = others.iter().map(|o| o.screen().cloned()).collect();
+        if let (Some(sc), Some(screens)) = (self.screen.as_mut(), screens) {
+            sc.others = screens;
+        } else {
+            self.screen = None;
+        }
+        self.others = others;
+        self
+    }
+
+    /// The further sensors' values (empty: one sensor).
+    pub fn others(&self) -> &[LaplaceObs] {
+        &self.others
     }
 
     /// The screening observation, if any (see [`LaplaceObs::with_screen`]).
@@ -270,10 +295,11 @@ impl LaplaceObs {
     /// node, two per complex node; with diagonal weights this is only a
     /// count, the misfit is not a chi-square).
     pub fn dof(&self) -> usize {
-        match &self.whitening {
+        let own = match &self.whitening {
             Some(w) => w.nrows(),
             None => crate::time::series::stacked_rows(&self.s).len(),
-        }
+        };
+        own + self.others.iter().map(LaplaceObs::dof).sum::<usize>()
     }
 
     /// The whitening matrix, if any.
@@ -318,11 +344,20 @@ impl LaplaceObs {
     }
 
     /// Whitened residuals of `chain` (real and imaginary parts, imaginary parts
-    /// only for complex nodes).
+    /// only for complex nodes; with further sensors, each sensor's in turn).
     ///
     /// # Errors
     /// As [`Forward::eval`].
     pub fn residuals(&self, chain: &Chain) -> Result<Vec<f64>> {
+        let mut r = self.channel_residuals(chain)?;
+        for o in &self.others {
+            r.extend(o.channel_residuals(chain)?);
+        }
+        Ok(r)
+    }
+
+    /// [`LaplaceObs::residuals`] of this sensor alone.
+    fn channel_residuals(&self, chain: &Chain) -> Result<Vec<f64>> {
         let fwd = Forward::new(chain);
         let model = self.models(&fwd)?;
         if let Some(w) = &self.whitening {
@@ -430,6 +465,18 @@ impl LaplaceObs {
     }
 
     pub(crate) fn jacobian(&self, chain: &Chain, params: &[Param]) -> Result<DMatrix<f64>> {
+        let mut out = self.channel_jacobian(chain, params)?;
+        for o in &self.others {
+            let b = o.channel_jacobian(chain, params)?;
+            let top = out.nrows();
+            out = out.resize_vertically(top + b.nrows(), 0.0);
+            out.rows_mut(top, b.nrows()).copy_from(&b);
+        }
+        Ok(out)
+    }
+
+    /// [`LaplaceObs::jacobian`] of this sensor alone.
+    fn channel_jacobian(&self, chain: &Chain, params: &[Param]) -> Result<DMatrix<f64>> {
         // defect parameters only: O(k) per site by the transfer sweep
         let defect_idx: Option<Vec<usize>> = params
             .iter()

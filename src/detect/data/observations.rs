@@ -39,6 +39,9 @@ pub struct Series {
     /// the record was re-based, [`Series::on_axis`], or re-timed to its
     /// blow, [`Series::shifted`]).
     origin: f64,
+    /// Further sensors' records at the same times ([`Series::with_sensors`];
+    /// empty: one sensor).
+    others: Vec<Series>,
 }
 
 /// Largest accepted magnitude of a recorded value: the misfit squares and
@@ -121,6 +124,7 @@ impl Series {
             sigma,
             measurement: Measurement::paper(),
             origin: 0.0,
+            others: Vec::new(),
         })
     }
 
@@ -195,6 +199,53 @@ impl Series {
         Series::on_axis(ts.t().to_vec(), x.to_vec(), sigma)
     }
 
+    /// One record of several sensors from a table: `columns` (one per
+    /// measurement, in order; `None`: the table's value columns in order,
+    /// `skip` left out, as many as measurements), each column with its
+    /// measurement, the first joined by the others ([`Series::with_sensors`]).
+    ///
+    /// # Errors
+    /// A column that does not exist (field `column`), columns and sensors
+    /// of different counts (field `column`); as [`Series::from_table`],
+    /// [`Series::with_measurement`] and [`Series::with_sensors`].
+    pub fn from_table_sensors(
+        ts: &TimeSeries,
+        columns: Option<&[String]>,
+        skip: Option<&str>,
+        measurements: Vec<Measurement>,
+        sigma: Option<f64>,
+    ) -> Result<Series> {
+        let names: Vec<String> = match columns {
+            Some(c) => c.to_vec(),
+            None => ts
+                .names()
+                .iter()
+                .filter(|c| Some(c.as_str()) != skip)
+                .take(measurements.len())
+                .cloned()
+                .collect(),
+        };
+        if measurements.is_empty() {
+            return Err(Error::invalid("observe", "(none)", "at least one sensor"));
+        }
+        if names.len() != measurements.len() {
+            return Err(Error::invalid(
+                "column",
+                format!("{} columns ({})", names.len(), names.join(", ")),
+                format!(
+                    "one value column per sensor: {} sensors",
+                    measurements.len()
+                ),
+            ));
+        }
+        let mut all = names
+            .iter()
+            .zip(measurements)
+            .map(|(c, m)| Series::from_table(ts, Some(c), sigma)?.with_measurement(m));
+        let first = all.next().expect("at least one sensor")?;
+        first.with_sensors(all.collect::<Result<_>>()?)
+    }
+
     /// The times.
     pub fn t(&self) -> &[f64] {
         &self.t
@@ -228,14 +279,91 @@ impl Series {
         &self.measurement
     }
 
+    /// The same record joined by further sensors' records of the same
+    /// test (one joint fit: [`crate::detect::fit::fit`] stacks the
+    /// residuals of every sensor, each at its own noise level).
+    ///
+    /// ```
+    /// use springmass::{detect::data::{measurement::Measurement, observations::Series}, forward::Observable};
+    /// let t: Vec<f64> = (0..40).map(|i| 0.5 * i as f64).collect();
+    /// let x: Vec<f64> = t.iter().map(|t| t.sin()).collect();
+    /// let far = Series::new(t.clone(), x.clone(), None)?.with_measurement(Measurement::new(5, Observable::Displacement))?;
+    /// let joint = Series::new(t.clone(), x.clone(), None)?.with_sensors(vec![far.clone()])?;
+    /// assert_eq!(joint.sensors().count(), 2);
+    /// // the same mass twice is refused
+    /// assert!(Series::new(t, x, None)?.with_sensors(vec![far.clone(), far]).is_err());
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`]: a record at other times or with
+    /// further sensors of its own (field `sensors`), a mass observed twice
+    /// (field `observe`).
+    pub fn with_sensors(mut self, others: Vec<Series>) -> Result<Series> {
+        for (j, o) in others.iter().enumerate() {
+            if o.t != self.t || !o.others.is_empty() {
+                return Err(Error::invalid(
+                    "sensors",
+                    format!("sensor {} of {}", j + 2, others.len() + 1),
+                    "records at the first sensor's times, with no further sensors of their own",
+                ));
+            }
+        }
+        let mut seen = vec![self.measurement.sensor().at];
+        for o in &others {
+            let at = o.measurement.sensor().at;
+            if seen.contains(&at) {
+                return Err(Error::invalid(
+                    "observe",
+                    at,
+                    "each mass observed once (one column per sensor)",
+                ));
+            }
+            seen.push(at);
+        }
+        self.others = others;
+        Ok(self)
+    }
+
+    /// Every sensor's record, this one first.
+    pub fn sensors(&self) -> impl Iterator<Item = &Series> {
+        std::iter::once(self).chain(&self.others)
+    }
+
+    /// The further sensors' records (empty: one sensor).
+    pub fn others(&self) -> &[Series] {
+        &self.others
+    }
+
     /// The same record with noise level `sigma` as [`TimeData`] (the form
     /// the misfits use).
     ///
     /// # Errors
     /// `sigma` negative or not finite.
     pub fn time_data(&self, sigma: f64) -> Result<TimeData> {
-        TimeData::new(self.t.clone(), self.x.clone(), sigma)?
-            .with_measurement(self.measurement.clone())
+        self.time_data_scaled(sigma, &[])
+    }
+
+    /// As [`Series::time_data`], the further sensors at noise levels
+    /// `sigma * scales[j]` (1 where `scales` has no entry).
+    ///
+    /// # Errors
+    /// As [`Series::time_data`].
+    pub fn time_data_scaled(&self, sigma: f64, scales: &[f64]) -> Result<TimeData> {
+        let one = |s: &Series, sigma: f64| {
+            TimeData::new(s.t.clone(), s.x.clone(), sigma)?.with_measurement(s.measurement.clone())
+        };
+        let td = one(self, sigma)?;
+        if self.others.is_empty() {
+            return Ok(td);
+        }
+        let others = self
+            .others
+            .iter()
+            .enumerate()
+            .map(|(j, o)| one(o, sigma * scales.get(j).copied().unwrap_or(1.0)))
+            .collect::<Result<Vec<_>>>()?;
+        td.with_others(others)
     }
 
     /// Largest `|x|`.
@@ -370,10 +498,10 @@ pub enum Observations {
 }
 
 impl Observations {
-    /// Number of samples or nodes.
+    /// Number of samples (of every sensor) or nodes.
     pub fn len(&self) -> usize {
         match self {
-            Observations::Series(s) => s.t.len(),
+            Observations::Series(s) => s.t.len() * s.sensors().count(),
             Observations::Laplace(l) => l.s.len(),
         }
     }

@@ -16,6 +16,9 @@ pub struct TimeData {
     y: Vec<f64>,
     sigma: f64,
     measurement: Measurement,
+    /// Further sensors' records at the same times, each with its own noise
+    /// level and measurement (empty: one sensor).
+    others: Vec<TimeData>,
 }
 
 impl TimeData {
@@ -41,6 +44,7 @@ impl TimeData {
             y,
             sigma,
             measurement: Measurement::paper(),
+            others: Vec::new(),
         })
     }
 
@@ -167,6 +171,30 @@ impl TimeData {
         measurement.check_times(&self.t)?;
         self.measurement = measurement;
         Ok(self)
+    }
+    /// The same record with further sensors' records at the same times
+    /// (each with its own noise level and measurement; none of them with
+    /// further sensors of its own): one joint record of several sensors.
+    ///
+    /// # Errors
+    /// A record at other times (field `sensors`), or one that holds further
+    /// sensors itself (field `sensors`).
+    pub fn with_others(mut self, others: Vec<TimeData>) -> Result<TimeData> {
+        for (j, o) in others.iter().enumerate() {
+            if o.t != self.t || !o.others.is_empty() {
+                return Err(Error::invalid(
+                    "sensors",
+                    format!("sensor {} of {}", j + 2, others.len() + 1),
+                    "records at the first sensor's times, with no further sensors of their own",
+                ));
+            }
+        }
+        self.others = others;
+        Ok(self)
+    }
+    /// The further sensors' records (empty: one sensor).
+    pub fn others(&self) -> &[TimeData] {
+        &self.others
     }
     /// The same samples with another stated noise level.
     pub fn with_sigma(mut self, sigma: f64) -> Result<TimeData> {

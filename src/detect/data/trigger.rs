@@ -134,6 +134,14 @@ impl Series {
         let mut out = Series::new(ts, self.x()[first..].to_vec(), self.sigma())?
             .with_measurement(self.measurement().clone())?;
         out.set_origin(self.origin() + t0);
+        if !self.others().is_empty() {
+            let others = self
+                .others()
+                .iter()
+                .map(|o| Ok(o.shifted(t0)?.0))
+                .collect::<Result<Vec<_>>>()?;
+            out = out.with_sensors(others)?;
+        }
         Ok((out, first))
     }
 }

@@ -9,6 +9,7 @@ use super::general::{self, identify_general, Hypothesis};
 use super::judge::{judge, Bar, Evidence};
 use super::report::{
     Alternative, DefectEstimate, FitReport, KRow, ModeEstimate, ParamEstimate, Predicted,
+    SensorEstimate,
 };
 use super::{identify, noise, select};
 use crate::chain::Chain;
@@ -75,6 +76,7 @@ impl Engine<'_> {
             params,
             noise_sigma: sigma,
             noise_estimated: estimated,
+            sensors: self.sensor_estimates(f, sigma, estimated),
             chi2: chi2_final,
             dof: f.dof,
             status: verdict.status,
@@ -197,6 +199,36 @@ impl Engine<'_> {
             .collect()
     }
 
+    /// Every sensor of a record of several with its noise level: its
+    /// residual's estimate, or the given level (empty for one sensor).
+    fn sensor_estimates(&self, f: &KFit, sigma: f64, estimated: bool) -> Vec<SensorEstimate> {
+        let Observations::Series(s) = self.obs else {
+            return Vec::new();
+        };
+        if s.others().is_empty() {
+            return Vec::new();
+        }
+        let levels = super::stages::sensor_levels(f);
+        s.sensors()
+            .enumerate()
+            .map(|(j, o)| {
+                let scale = match j {
+                    0 => 1.0,
+                    j => self.record.scales.get(j - 1).copied().unwrap_or(1.0),
+                };
+                SensorEstimate {
+                    at: o.measurement().sensor().at,
+                    kind: o.measurement().sensor().kind.name().to_string(),
+                    samples: o.x().len(),
+                    sigma: match levels.get(j) {
+                        Some(&l) if estimated => l,
+                        _ => sigma * scale,
+                    },
+                }
+            })
+            .collect()
+    }
+
     /// The predicted series next to the observed one (series data only).
     fn predicted(&self, f: &KFit) -> Option<Predicted> {
         match (self.obs, &f.predicted) {
@@ -216,6 +248,10 @@ impl Engine<'_> {
         format!(
             "{}; ends {}-{}",
             match self.obs {
+                Observations::Series(s) if !s.others().is_empty() => {
+                    let d: Vec<String> = s.sensors().map(|o| o.measurement().describe()).collect();
+                    d.join("; ")
+                }
                 Observations::Series(s) => s.measurement().describe(),
                 Observations::Laplace(l) => format!(
                     "{} of mass {} (Laplace values)",

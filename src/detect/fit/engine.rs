@@ -9,7 +9,7 @@ use super::options::FitOptions;
 use super::report::KRow;
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
-use crate::detect::data::observations::Observations;
+use crate::detect::data::observations::{Observations, Series};
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::{Misfit, MisfitKind};
 use crate::detect::model::MeasurementModel;
@@ -82,7 +82,14 @@ pub(super) struct KFit {
     pub(super) exhaustive: bool,
     /// The stochastic search's trace, when asked for.
     pub(super) trace: Option<Vec<(usize, f64)>>,
+    /// Per sensor of a record of several: the residual sum of squares at
+    /// the best answer in the sensor's own units, and its samples (empty
+    /// for one sensor).
+    pub(super) sensors: Vec<SensorRss>,
 }
+
+/// One sensor's residual sum of squares (in its own units) and samples.
+pub(super) type SensorRss = (f64, usize);
 
 /// What a caller that has already built its unknowns gives the engine
 /// beyond [`FitOptions`]: the scene path ([`super::paper`]) passes its
@@ -231,7 +238,7 @@ impl Engine<'_> {
         match self.obs {
             Observations::Series(s) => {
                 let mut setup = Setup::for_record(s.t().last().copied(), self.model.chain())?;
-                let td = s.time_data(sigma)?;
+                let td = self.record.time_data(s, sigma)?;
                 // the time misfit refines a shortlist of the Bromwich line's
                 let coarse_kind = match self.misfit {
                     MisfitKind::Time => MisfitKind::Bromwich,
@@ -240,6 +247,16 @@ impl Engine<'_> {
                 let coarse = match self.record.screen_data(&td)? {
                     Some(screen) => laplace_obs(&screen, coarse_kind, &setup)?,
                     None => laplace_obs(&td, coarse_kind, &setup)?,
+                };
+                // further sensors: each sensor's transform at its own level
+                let coarse = match td.others() {
+                    [] => coarse,
+                    others => coarse.with_others(
+                        others
+                            .iter()
+                            .map(|o| laplace_obs(o, coarse_kind, &setup))
+                            .collect::<Result<_>>()?,
+                    ),
                 };
                 self.record.widen(&mut setup);
                 let name = self.misfit_name(&td, &coarse, &setup);
@@ -275,8 +292,12 @@ impl Engine<'_> {
     ) -> String {
         match self.misfit {
             MisfitKind::Time => format!(
-                "time (chi-square of {} samples{}; shortlist from the whitened Bromwich line, sigma_B = {})",
-                td.len(),
+                "time (chi-square of {} samples{}{}; shortlist from the whitened Bromwich line, sigma_B = {})",
+                td.len() * (1 + td.others().len()),
+                match td.others().len() {
+                    0 => String::new(),
+                    m => format!(" of {} sensors", m + 1),
+                },
                 self.record.describe(),
                 setup.bromwich_sigma
             ),
@@ -544,16 +565,21 @@ impl Engine<'_> {
             reason: "no hypothesis".into(),
         })?;
         let params = 2 * k + self.model.fitted().len();
+        let mut sensors = Vec::new();
         let (rss, n_data, predicted, chi2, dof, whitened) = match self.obs {
             Observations::Series(s) => {
                 let chain = best.to_chain(self.model.chain())?;
-                let tm = self.record.misfit(s.time_data(sigma)?)?;
-                let (model, r, whitened) = self.record.measured(&tm, &chain, s.x())?;
+                let tm = self.record.misfit(self.record.time_data(s, sigma)?)?;
+                let (model, r, mut whitened) = self.record.measured(&tm, &chain, s.x())?;
+                if !s.others().is_empty() {
+                    let (w, per) = self.sensor_residuals(&tm, &chain, s, &r)?;
+                    (whitened, sensors) = (Some(w), per);
+                }
                 let rss = match &whitened {
                     Some(w) => w.iter().map(|v| v * v).sum(),
                     None => r.iter().map(|v| v * v).sum(),
                 };
-                let n = s.x().len() - self.record.lost();
+                let n = s.x().len() * s.sensors().count() - self.record.lost();
                 let dof = match fine {
                     Some(_) => n.saturating_sub(params),
                     None => coarse.dof().saturating_sub(params),
@@ -586,7 +612,40 @@ impl Engine<'_> {
             whitened,
             exhaustive: found.exhaustive,
             trace: found.trace,
+            sensors,
         })
+    }
+
+    /// The residuals of a record of several sensors at `chain`: every
+    /// sensor's `x - model` in turn, each divided by its noise scale (so
+    /// that all are at the first sensor's level: the residual the noise
+    /// estimate and the whiteness test read), and per sensor its residual
+    /// sum of squares in its own units and its samples. `first` is the
+    /// first sensor's residual.
+    ///
+    /// # Errors
+    /// As the time misfit's model.
+    fn sensor_residuals(
+        &self,
+        tm: &TimeMisfit,
+        chain: &Chain,
+        s: &Series,
+        first: &[f64],
+    ) -> Result<(Vec<f64>, Vec<SensorRss>)> {
+        let mut stacked = first.to_vec();
+        let mut per = vec![(first.iter().map(|v| v * v).sum(), first.len())];
+        for (j, (o, m)) in s.others().iter().zip(tm.others()).enumerate() {
+            let scale = self.record.scales.get(j).copied().unwrap_or(1.0);
+            let r: Vec<f64> = o
+                .x()
+                .iter()
+                .zip(m.model(chain)?)
+                .map(|(a, b)| a - b)
+                .collect();
+            per.push((r.iter().map(|v| v * v).sum(), r.len()));
+            stacked.extend(r.iter().map(|v| v / scale));
+        }
+        Ok((stacked, per))
     }
 
     /// No defect of unknown position: the chain (with its known defects) as

@@ -97,7 +97,8 @@ pub use crate::detect::search::FitMethod;
 pub use model::{parse_params, Model};
 pub use options::{DefectCount, FitOptions, NoiseSpec, TriggerSpec, DEFAULT_K_MAX};
 pub use report::{
-    Alternative, DefectEstimate, FitReport, KRow, ModeEstimate, ParamEstimate, Predicted, Status,
+    Alternative, DefectEstimate, FitReport, KRow, ModeEstimate, ParamEstimate, Predicted,
+    SensorEstimate, Status,
 };
 pub use select::Criterion;
 
@@ -195,7 +196,11 @@ fn fit_record(
     )?;
     // how deep the data see (mass defects of a user's data; not the
     // scene path, whose data are the model's own)
-    if !scene && report.defects.iter().all(|d| d.kind == "mass") {
+    let one_sensor = match obs {
+        Observations::Series(s) => s.others().is_empty(),
+        Observations::Laplace(_) => true,
+    };
+    if !scene && one_sensor && report.defects.iter().all(|d| d.kind == "mass") {
         add_visibility(&mut report, engine, sigma)?;
     }
     if opts.uncertainty {

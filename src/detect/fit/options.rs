@@ -46,7 +46,7 @@ use super::select::Criterion;
 use crate::chain::{Boundary, Defect};
 pub use crate::detect::data::force_window::ForceWindow;
 use crate::detect::data::measurement::{Measurement, Sensor};
-use crate::detect::data::observations::Observations;
+use crate::detect::data::observations::{Observations, Series};
 pub use crate::detect::data::trigger::TriggerSpec;
 use crate::detect::misfit::MisfitKind;
 use crate::detect::search::FitMethod;
@@ -272,7 +272,12 @@ impl FitOptions {
             ));
         }
         match obs {
-            Observations::Series(s) => s.measurement().sensor().check(n)?,
+            Observations::Series(s) => {
+                for o in s.sensors() {
+                    o.measurement().sensor().check(n)?;
+                }
+                self.validate_sensors(s)?;
+            }
             Observations::Laplace(l) => l.sensor().check(n)?,
         }
         if matches!(obs, Observations::Laplace(_)) && self.misfit == Some(MisfitKind::Time) {
@@ -294,6 +299,42 @@ impl FitOptions {
 }
 
 impl FitOptions {
+    /// A record of several sensors is fitted by the time misfit with white
+    /// noise, by the enumeration or a stochastic search (the greedy
+    /// search's rank-one scores and the relaxation's profile read one
+    /// sensor).
+    fn validate_sensors(&self, s: &Series) -> Result<()> {
+        use super::record::forced;
+        if s.others().is_empty() {
+            return Ok(());
+        }
+        let sensors = format!("{} sensors", s.sensors().count());
+        if self.misfit.is_some_and(|m| m != MisfitKind::Time) {
+            return Err(Error::invalid(
+                "misfit",
+                self.misfit.map_or("", |m| m.name()),
+                format!("time with {sensors} (one joint time-domain fit)"),
+            ));
+        }
+        if matches!(self.method, FitMethod::Greedy | FitMethod::Relax) {
+            return Err(Error::invalid(
+                "method",
+                self.method.name(),
+                format!("enumerate, ga, nelder-mead or pso with {sensors}"),
+            ));
+        }
+        if forced(self.noise_model, self.nuisance) {
+            return Err(Error::invalid(
+                "noise_model",
+                "ar, offset or drift",
+                format!(
+                    "white noise and no nuisance with {sensors} (each sensor's level is estimated)"
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// A record model asked for (an AR noise model, an offset or a drift)
     /// needs the time misfit of a sampled series.
     fn validate_record(&self, obs: &Observations) -> Result<()> {
@@ -339,6 +380,13 @@ pub struct FitSpec {
     pub observe: Option<usize>,
     /// `displacement`, `velocity` or `acceleration` [default displacement].
     pub observe_kind: Option<String>,
+    /// Several sensors: every observed mass, one value column each in
+    /// order, fitted jointly (empty: the one sensor `observe`; when given,
+    /// `observe` is unused) [default empty].
+    pub sensors: Vec<usize>,
+    /// What each of `sensors` measured: one kind for every sensor, or one
+    /// per sensor (empty: `observe_kind` for every one) [default empty].
+    pub sensor_kinds: Vec<String>,
     /// Chain parameters fitted too: `d,gamma,k,mass` (any subset) [default none].
     pub fit: Option<String>,
     /// Known defects, `kind:at:value` each.
@@ -443,9 +491,11 @@ impl FitSpec {
         }
         if let Some(m) = &self.method {
             opts.method = FitMethod::parse(m)?;
-        } else if enumeration_too_large(self.n, &opts) {
+        } else if enumeration_too_large(self.n, &opts) && self.sensors.len() <= 1 {
             // not asked for: a chain too long to enumerate is searched
-            // greedily (the report's method line says so)
+            // greedily (the report's method line says so; the greedy
+            // search reads one sensor: several are enumerated, or refused
+            // beyond `max_sets`)
             opts.method = FitMethod::Greedy;
         }
         if let Some(c) = &self.criterion {
@@ -592,6 +642,83 @@ impl FitSpec {
             Some(f) => m.with_force(f),
             None => Ok(m),
         }
+    }
+
+    /// What every sensor of the record measured, driven by `force` (as
+    /// [`FitSpec::measurement`]): one measurement per mass of `sensors`
+    /// (the kind of `sensor_kinds`, one for all or one each), or the one
+    /// sensor's when `sensors` is empty.
+    ///
+    /// ```
+    /// use springmass::detect::fit::options::FitSpec;
+    /// let spec = FitSpec { sensors: vec![1, 30, 60], ..FitSpec::new(60) };
+    /// assert_eq!(spec.measurements(None)?.len(), 3);
+    /// let twice = FitSpec { sensors: vec![1, 30, 30], ..FitSpec::new(60) };
+    /// assert!(twice.measurements(None).is_err());
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`]: a mass outside the chain or observed
+    /// twice (field `observe`), a kinds list of another length than the
+    /// sensors or an unknown kind (field `observe_kind`); as
+    /// [`FitSpec::measurement`].
+    pub fn measurements(&self, force: Option<Vec<f64>>) -> Result<Vec<Measurement>> {
+        if self.sensors.is_empty() {
+            return Ok(vec![self.measurement(force)?]);
+        }
+        let kinds: Vec<String> = match self.sensor_kinds.len() {
+            0 => {
+                vec![self.observe_kind.clone().unwrap_or("displacement".into()); self.sensors.len()]
+            }
+            1 => vec![self.sensor_kinds[0].clone(); self.sensors.len()],
+            m if m == self.sensors.len() => self.sensor_kinds.clone(),
+            m => {
+                return Err(Error::invalid(
+                    "observe_kind",
+                    format!("{m} kinds for {} sensors", self.sensors.len()),
+                    "one kind for every sensor, or one per sensor",
+                ))
+            }
+        };
+        for (i, at) in self.sensors.iter().enumerate() {
+            if self.sensors[..i].contains(at) {
+                return Err(Error::invalid(
+                    "observe",
+                    format!("{:?}", self.sensors),
+                    format!("each mass once (mass {at} is listed twice)"),
+                ));
+            }
+        }
+        self.sensors
+            .iter()
+            .zip(kinds)
+            .map(|(&at, kind)| {
+                FitSpec {
+                    observe: Some(at),
+                    observe_kind: Some(kind),
+                    ..self.clone()
+                }
+                .measurement(force.clone())
+            })
+            .collect()
+    }
+
+    /// [`FitSpec::measurements`] with the force `f` at the record's times
+    /// `t` windowed, as [`FitSpec::measurement_at`].
+    ///
+    /// # Errors
+    /// As [`FitSpec::measurements`] and [`FitSpec::measurement_at`].
+    pub fn measurements_at(&self, t: &[f64], force: Option<Vec<f64>>) -> Result<Vec<Measurement>> {
+        let Some(f) = force else {
+            return self.measurements(None);
+        };
+        let (g, window) = crate::detect::data::force_window::apply(t, &f, self.force_window()?)?;
+        Ok(self
+            .measurements(Some(g))?
+            .into_iter()
+            .map(|m| m.with_force_window(window))
+            .collect())
     }
 
     /// The model and the options: the options are parsed first, then the

@@ -20,6 +20,7 @@ use super::setup::Setup;
 use crate::chain::Chain;
 use crate::detect::data::noise_model::{burg, ArFit, NoiseModel, P_MAX};
 use crate::detect::data::nuisance::Nuisance;
+use crate::detect::data::observations::Series;
 use crate::detect::data::series::TimeData;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::error::{Error, Result};
@@ -167,6 +168,9 @@ pub struct RecordModel {
     pub iterations: usize,
     /// The AR coefficients stopped moving.
     pub converged: bool,
+    /// The further sensors' noise levels relative to the first sensor's
+    /// (empty: one sensor, or every sensor at the same level).
+    pub scales: Vec<f64>,
 }
 
 impl RecordModel {
@@ -178,6 +182,15 @@ impl RecordModel {
     /// Samples the whitened residual loses: the AR order plus the nuisances.
     pub fn lost(&self) -> usize {
         self.noise.order() + self.nuisance.count()
+    }
+
+    /// The record `s` as the time misfit's data at noise level `sigma` (the
+    /// further sensors' at `sigma` times their [`RecordModel::scales`]).
+    ///
+    /// # Errors
+    /// As [`Series::time_data_scaled`].
+    pub fn time_data(&self, s: &Series, sigma: f64) -> Result<TimeData> {
+        s.time_data_scaled(sigma, &self.scales)
     }
 
     /// The time misfit of `td` under this model.

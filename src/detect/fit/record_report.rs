@@ -61,7 +61,7 @@ impl Engine<'_> {
         if self.record.nuisance == Nuisance::None {
             return Ok(Vec::new());
         }
-        let tm = self.record.misfit(s.time_data(sigma)?)?;
+        let tm = self.record.misfit(self.record.time_data(s, sigma)?)?;
         let chain = best.to_chain(self.model.chain())?;
         let values = tm.nuisance_values(&chain)?;
         let known = self.model.chain().defects();

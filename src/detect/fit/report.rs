@@ -166,6 +166,20 @@ pub struct Predicted {
     pub residual: Vec<f64>,
 }
 
+/// One sensor of a record of several: what it measured and its noise level.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SensorEstimate {
+    /// The observed mass.
+    pub at: usize,
+    /// `displacement`, `velocity` or `acceleration`.
+    pub kind: String,
+    /// Its samples.
+    pub samples: usize,
+    /// Its noise standard deviation: estimated from its own residual at the
+    /// answer (`noise_estimated`), or the given level.
+    pub sigma: f64,
+}
+
 /// The answer of a data-first fit.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct FitReport {
@@ -180,6 +194,12 @@ pub struct FitReport {
     pub noise_sigma: f64,
     /// Whether it was estimated from the data.
     pub noise_estimated: bool,
+    /// Every sensor of a record of several, with its own noise level
+    /// estimated from its own residual (`noise_sigma` is then the first
+    /// sensor's level as the joint residual estimates it, every sensor's
+    /// residual scaled to it); empty for one sensor.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub sensors: Vec<SensorEstimate>,
     /// Final chi-square.
     pub chi2: f64,
     /// Its degrees of freedom.
@@ -375,6 +395,14 @@ impl FitReport {
             if self.fits_data { "yes" } else { "NO" },
             self.fit_p_value
         ));
+        if !self.sensors.is_empty() {
+            let s: Vec<String> = self
+                .sensors
+                .iter()
+                .map(|s| format!("{} of mass {}: sigma {}", s.kind, s.at, fmt_g(s.sigma)))
+                .collect();
+            out.push_str(&format!("sensors: {}\n", s.join("; ")));
+        }
         if let Some(t) = &self.trigger {
             out.push_str(&format!("{}\n", t.line()));
         }

@@ -132,19 +132,18 @@ pub(super) fn fit_stages<'a>(
 ) -> Result<Stage<'a>> {
     let (sigma0, estimated) = first_sigma(obs, opts);
     let scene = given.is_some();
-    let mut stage = run(
-        obs,
-        model,
-        opts,
-        given,
-        RecordModel::default(),
-        sigma0,
-        estimated,
-    )?;
+    let first = RecordModel {
+        scales: sensor_scales(obs, opts),
+        ..RecordModel::default()
+    };
+    let mut stage = run(obs, model, opts, given, first, sigma0, estimated)?;
     stage.engine.record.converged = true;
     let Observations::Series(series) = obs else {
         return Ok(stage);
     };
+    if !series.others().is_empty() {
+        return rescaled(stage, sigma0, estimated);
+    }
     // a known sigma is of white noise: AR only when asked for
     let noise_choice = match (opts.noise, opts.noise_model) {
         (NoiseSpec::Sigma(_), record::NoiseModelChoice::Auto) => record::NoiseModelChoice::White,
@@ -175,6 +174,77 @@ pub(super) fn fit_stages<'a>(
         sigma0
     };
     refine(series, stage, &mut rec, &mut sigma, estimated, noise_choice)
+}
+
+/// Refits after the first fit of a record of several sensors with an
+/// estimated noise level, while a sensor's level relative to the first's
+/// (from the residuals at the answer) differs from the one fitted with by
+/// more than [`SCALE_TOLERANCE`] (at most [`MAX_REFITS`]). The sensors'
+/// records are taken as white (no noise model, no nuisance).
+///
+/// # Errors
+/// As [`fit_every_k`].
+fn rescaled(mut stage: Stage<'_>, sigma0: f64, estimated: bool) -> Result<Stage<'_>> {
+    let (obs, model, opts) = (stage.engine.obs, stage.engine.model, stage.engine.opts);
+    let mut refits = 0;
+    while estimated && refits < MAX_REFITS {
+        let levels = sensor_levels(stage.best());
+        let scales: Vec<f64> = levels.iter().skip(1).map(|s| s / levels[0]).collect();
+        let old = &stage.engine.record.scales;
+        let moved = scales
+            .iter()
+            .zip(old)
+            .any(|(a, b)| !(a / b).ln().is_finite() || (a / b).ln().abs() > SCALE_TOLERANCE.ln());
+        if !moved {
+            break;
+        }
+        let rec = RecordModel {
+            scales,
+            ..RecordModel::default()
+        };
+        refits += 1;
+        let evaluations = stage.evaluations;
+        stage = run(obs, model, opts, None, rec, sigma0, estimated)?;
+        stage.evaluations += evaluations;
+        stage.engine.record.converged = true;
+    }
+    Ok(stage)
+}
+
+/// The largest ratio between a sensor's relative noise level estimated
+/// from the residuals and the one a fit used before it is refitted.
+pub const SCALE_TOLERANCE: f64 = 1.25;
+
+/// Each sensor's noise level from its residual at `f`'s answer,
+/// `sqrt(RSS_j / (N_j (1 - p / N)))` with `N` the samples of every sensor
+/// and `p` the fit's parameters (empty for one sensor).
+pub(super) fn sensor_levels(f: &KFit) -> Vec<f64> {
+    let total: usize = f.sensors.iter().map(|s| s.1).sum();
+    let keep = 1.0 - f.params as f64 / total.max(1) as f64;
+    f.sensors
+        .iter()
+        .map(|&(rss, n)| {
+            (rss / (n as f64 * keep.max(1e-12)))
+                .sqrt()
+                .max(f64::MIN_POSITIVE)
+        })
+        .collect()
+}
+
+/// The further sensors' noise levels relative to the first's to start
+/// from: 1 (a given level holds for every sensor), or the ratios of the
+/// levels of their finest scales ([`super::noise::high_frequency_sigma`]).
+fn sensor_scales(obs: &Observations, opts: &FitOptions) -> Vec<f64> {
+    let (Observations::Series(s), NoiseSpec::Auto) = (obs, opts.noise) else {
+        return Vec::new();
+    };
+    let level = |o: &Series| {
+        super::noise::high_frequency_sigma(o.x())
+            .max(1e-12 * o.max_abs())
+            .max(1e-300)
+    };
+    let first = level(s);
+    s.others().iter().map(|o| level(o) / first).collect()
 }
 
 /// The refits with the record model `rec` until the criterion's AR order
@@ -226,5 +296,6 @@ fn screen_estimate(
     chain: &Chain,
     sigma: f64,
 ) -> Result<Vec<f64>> {
-    rec.misfit(series.time_data(sigma)?)?.nuisance_values(chain)
+    rec.misfit(rec.time_data(series, sigma)?)?
+        .nuisance_values(chain)
 }

@@ -90,7 +90,7 @@ impl<'a> SetTables<'a> {
         sites: impl IntoIterator<Item = Probe>,
         pair_uses: usize,
     ) -> Option<SetTables<'a>> {
-        if !obs.tabulable() {
+        if !obs.tabulable() || !obs.others().is_empty() {
             return None;
         }
         let uniform = chain.uniform();

@@ -87,11 +87,27 @@ pub struct TimeMisfit {
     /// The sensor's nuisances, profiled out.
     nuisance: Nuisance,
     projector: Option<Projector>,
+    /// The further sensors' misfits ([`TimeData::others`]): their
+    /// residuals follow this sensor's, each whitened by its own level.
+    others: Vec<TimeMisfit>,
+    /// One of several sensors: the modal sum and its exact Jacobian serve
+    /// the displacement of any mass after the impulse (one sensor keeps
+    /// the single-sensor path: differences off mass 1).
+    joint: bool,
 }
 
 impl TimeMisfit {
     /// Misfit against `data`.
     pub fn new(data: TimeData) -> TimeMisfit {
+        let joint = !data.others().is_empty();
+        let others = data
+            .others()
+            .iter()
+            .map(|o| TimeMisfit {
+                joint,
+                ..TimeMisfit::new(o.clone())
+            })
+            .collect();
         let inv_sigma = 1.0 / data.sigma_eff();
         TimeMisfit {
             data,
@@ -100,7 +116,19 @@ impl TimeMisfit {
             noise: NoiseModel::White,
             nuisance: Nuisance::None,
             projector: None,
+            others,
+            joint,
         }
+    }
+
+    /// The number of sensors (1 + the further sensors').
+    pub fn sensors(&self) -> usize {
+        1 + self.others.len()
+    }
+
+    /// The further sensors' misfits (empty: one sensor).
+    pub fn others(&self) -> &[TimeMisfit] {
+        &self.others
     }
 
     /// The same misfit under a noise model and with sensor nuisances
@@ -118,6 +146,10 @@ impl TimeMisfit {
         nuisance: Nuisance,
     ) -> Result<TimeMisfit> {
         self.projector = Projector::new(nuisance, self.data.t(), &noise)?;
+        self.others = std::mem::take(&mut self.others)
+            .into_iter()
+            .map(|o| o.with_record_model(noise.clone(), nuisance))
+            .collect::<Result<_>>()?;
         self.noise = noise;
         self.nuisance = nuisance;
         Ok(self)
@@ -200,6 +232,7 @@ impl TimeMisfit {
         let plain = TimeMisfit {
             projector: None,
             nuisance: Nuisance::None,
+            others: Vec::new(),
             ..self.clone()
         };
         plain.jacobian(chain, params)
@@ -210,6 +243,10 @@ impl TimeMisfit {
     /// baseline for benchmarks and tests).
     pub fn with_analytic_jacobian(mut self, analytic: bool) -> TimeMisfit {
         self.analytic = analytic;
+        self.others = std::mem::take(&mut self.others)
+            .into_iter()
+            .map(|o| o.with_analytic_jacobian(analytic))
+            .collect();
         self
     }
 
@@ -225,9 +262,41 @@ impl TimeMisfit {
     ///
     /// # Errors
     /// A defect index out of range (field `params`); as [`Modes::new`].
+    /// With several sensors the rows of every sensor follow each other
+    /// (`None` unless every sensor's block is exact).
     pub fn jacobian(&self, chain: &Chain, params: &[Param]) -> Result<Option<DMatrix<f64>>> {
+        let Some(mut out) = self.channel_jacobian(chain, params)? else {
+            return Ok(None);
+        };
+        for o in &self.others {
+            let Some(b) = o.channel_jacobian(chain, params)? else {
+                return Ok(None);
+            };
+            let top = out.nrows();
+            out = out.resize_vertically(top + b.nrows(), 0.0);
+            out.rows_mut(top, b.nrows()).copy_from(&b);
+        }
+        Ok(Some(out))
+    }
+
+    /// The observed mass when this sensor's model is the modal sum of the
+    /// displacement after the impulse with its exact Jacobian: mass 1
+    /// (the paper's measurement), or any mass as one of several sensors.
+    fn modal_mass(&self) -> Option<usize> {
+        let m = self.data.measurement();
+        if m.is_paper() {
+            return Some(1);
+        }
+        let displacement = m.sensor().kind == crate::forward::Observable::Displacement;
+        (self.joint && m.force().is_none() && displacement).then_some(m.sensor().at)
+    }
+
+    /// [`TimeMisfit::jacobian`] of this sensor alone.
+    fn channel_jacobian(&self, chain: &Chain, params: &[Param]) -> Result<Option<DMatrix<f64>>> {
+        let Some(at) = self.modal_mass() else {
+            return Ok(None);
+        };
         if !self.analytic
-            || !self.data.measurement().is_paper()
             || params
                 .iter()
                 .any(|p| !matches!(p, Param::Defect(_) | Param::Gamma))
@@ -240,7 +309,7 @@ impl TimeMisfit {
         if simulated(chain) {
             return Ok(None);
         }
-        with_modes(chain, |modes| self.jacobian_with(modes, chain, params))
+        with_modes(chain, |modes| self.jacobian_with(modes, chain, params, at))
     }
 
     fn jacobian_with(
@@ -248,6 +317,7 @@ impl TimeMisfit {
         modes: &Modes,
         chain: &Chain,
         params: &[Param],
+        at: usize,
     ) -> Result<Option<DMatrix<f64>>> {
         let t = self.data.t();
         let n = chain.n();
@@ -265,12 +335,12 @@ impl TimeMisfit {
                     })?;
                     let site = chain.site(d);
                     let u: Vec<(usize, f64)> = site.probe.entries(n).collect();
-                    match modes.value_derivative_poly(1, 1, gamma, &u, site.poly)? {
+                    match modes.value_derivative_poly(at, 1, gamma, &u, site.poly)? {
                         Some(d) => d.eval_many(t),
                         None => return Ok(None),
                     }
                 }
-                _ if gamma != 0.0 => modes.response(1, 1, 1.0)?.eval_many(t),
+                _ if gamma != 0.0 => modes.response(at, 1, 1.0)?.eval_many(t),
                 _ => return Ok(None),
             };
             for (o, v) in out.column_mut(c).iter_mut().zip(&col) {
@@ -298,6 +368,15 @@ impl TimeMisfit {
     /// [`Measurement::time_model`](crate::detect::data::measurement::Measurement::time_model).
     pub fn model(&self, chain: &Chain) -> Result<Vec<f64>> {
         let m = self.data.measurement();
+        if let Some(at) = self.modal_mass().filter(|&at| at != 1) {
+            // another sensor of several: the modal sum of the decomposition
+            // every sensor shares
+            return with_modes(chain, |modes| {
+                Ok(modes
+                    .response(at, 1, chain.gamma())?
+                    .eval_many(self.data.t()))
+            });
+        }
         if m.is_paper() {
             // a long chain whose modes are not at hand: the sparse stepping
             // (O(n T), exact to rounding as the modal sum) rather than a
@@ -318,11 +397,21 @@ impl TimeMisfit {
 
     /// Whitened residuals `(x_1(t_i) - y_i) / sigma` (with a noise model
     /// or nuisances: `P W (x - y) / sigma`, see
-    /// [`TimeMisfit::with_record_model`]).
+    /// [`TimeMisfit::with_record_model`]); with several sensors, each
+    /// sensor's in turn, each at its own noise level.
     ///
     /// # Errors
     /// As [`TimeMisfit::model`].
     pub fn residuals(&self, chain: &Chain) -> Result<Vec<f64>> {
+        let mut r = self.channel_residuals(chain)?;
+        for o in &self.others {
+            r.extend(o.channel_residuals(chain)?);
+        }
+        Ok(r)
+    }
+
+    /// [`TimeMisfit::residuals`] of this sensor alone.
+    pub fn channel_residuals(&self, chain: &Chain) -> Result<Vec<f64>> {
         let x = self.model(chain)?;
         let r: Vec<f64> = x
             .iter()
@@ -349,10 +438,16 @@ impl crate::detect::model::MeasurementModel for TimeMisfit {
         "time"
     }
     fn dof(&self) -> usize {
-        self.data
+        let own = self
+            .data
             .t()
             .len()
-            .saturating_sub(self.noise.order() + self.nuisance.count())
+            .saturating_sub(self.noise.order() + self.nuisance.count());
+        own + self
+            .others
+            .iter()
+            .map(crate::detect::model::MeasurementModel::dof)
+            .sum::<usize>()
     }
     fn residuals(&self, chain: &Chain) -> Result<Vec<f64>> {
         TimeMisfit::residuals(self, chain)

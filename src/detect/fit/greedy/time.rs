@@ -139,6 +139,7 @@ pub(super) fn run(g: &Greedy<'_>, t: &TimeMisfit) -> Result<Option<GreedyFit>> {
     let opts = &g.opts.time;
     let data = t.data();
     if !opts.enabled
+        || t.sensors() > 1
         || !data.measurement().is_paper()
         || !g.unknowns.chain().is_empty()
         || g.base.gamma() == 0.0

@@ -493,6 +493,15 @@ pub fn fit_profile_with(
     defect_fit: Option<DefectFitter>,
 ) -> Result<ProfileReport> {
     opts.validate()?;
+    if let Observations::Series(s) = obs {
+        if !s.others().is_empty() {
+            return Err(crate::error::Error::invalid(
+                "observe",
+                format!("{} sensors", s.sensors().count()),
+                "one sensor for the whole-profile fit",
+            ));
+        }
+    }
     // issue 32 item 7: dense n x n blocks; refuse before allocating
     crate::io::check_fit_memory(model.chain().n(), true)?;
     let t0 = Instant::now();
