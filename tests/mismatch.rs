@@ -124,3 +124,41 @@ fn exact_record_is_not_a_model_mismatch() {
     let at: Vec<usize> = r.defects.iter().map(|d| d.at).collect();
     assert!(at.contains(&3) && at.contains(&7), "{}", r.summary());
 }
+
+/// A spring defect searched for as mass defects (the default kinds): no
+/// set of masses explains the record, the status says so, and the message
+/// names the way out (`--kinds any`); searched as a spring it is found.
+#[test]
+fn a_spring_defect_searched_as_masses_is_a_mismatch_that_names_the_kinds() {
+    use springmass::chain::Defect;
+    use springmass::detect::unknowns::KindChoice;
+    let truth = scenes::table1(2)
+        .unwrap()
+        .uniform()
+        .with_defects([Defect::Spring { at: 4, k: 0.5 }])
+        .unwrap();
+    let d = TimeData::simulate(&truth, 150.0, 0.25, NoiseLevel::Absolute(0.0), 0).unwrap();
+    let peak = d.y().iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let e = noise(d.y().len(), 0.01 * peak, 0.0, 11);
+    let y: Vec<f64> = d.y().iter().zip(&e).map(|(x, e)| x + e).collect();
+    let obs = Observations::Series(Series::new(d.t().to_vec(), y, None).unwrap());
+    let model = Model::new(10).unwrap();
+    let r = fit(&obs, &model, &FitOptions::default()).unwrap();
+    // the coloured noise model can absorb part of the misfit: the answer
+    // is then a mismatch or a mass driven to its bound, never converged
+    assert!(
+        matches!(r.status, Status::ModelMismatch | Status::ValueAtBound),
+        "{}",
+        r.summary()
+    );
+    assert!(!r.resolved);
+    assert!(r.message.contains("--kinds any"), "{}", r.message);
+    let springs = FitOptions {
+        kinds: KindChoice::Spring,
+        ..FitOptions::default()
+    };
+    let r = fit(&obs, &model, &springs).unwrap();
+    assert!(r.fits_data, "{}", r.summary());
+    let at: Vec<(usize, &str)> = r.defects.iter().map(|d| (d.at, d.kind)).collect();
+    assert_eq!(at, vec![(4, "spring")], "{}", r.summary());
+}

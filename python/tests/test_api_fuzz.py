@@ -107,7 +107,10 @@ def _bad_value(rng: random.Random, name: str, base: Any, evaluation_grid: bool =
     """A value of `name` that no call may accept (`evaluation_grid`: `t` holds
     the times to evaluate at, not a record's, as in `controls`)."""
     if name in COUNTS:
-        return rng.choice([-1, -(10**6), 2.5, float("nan"), "3", [3], None if name != "observe" else -2, 1j])
+        # `fit` takes a list of observed masses (several sensors): a list
+        # is bad there only with a mass outside the chain
+        listed = [3] if name != "observe" else [0]
+        return rng.choice([-1, -(10**6), 2.5, float("nan"), "3", listed, None if name != "observe" else -2, 1j])
     if name in SEEDS:
         return rng.choice([-1, 2.5, "x", float("nan"), [1]])
     if name in POSITIVE:

@@ -67,6 +67,7 @@ impl Engine<'_> {
                 runner_up_gap: alternatives.first().map(|a| a.gap),
                 fits_data,
                 mismatch_hint: hint.as_deref(),
+                one_kind: self.searched_one_kind(),
             },
             Bar::ChiSquare(identify::DEFAULT_THRESHOLD),
         );

@@ -56,6 +56,10 @@ pub struct Evidence<'a> {
     /// What a residual that is not noise suggests (a trend, colour, an
     /// early misfit), for the model-mismatch message.
     pub mismatch_hint: Option<&'a str>,
+    /// The search tried one defect kind only (the default: masses): a
+    /// model mismatch or a value at a bound may be a defect of another
+    /// kind, and their messages say how to search for it.
+    pub one_kind: bool,
 }
 
 impl Default for Evidence<'_> {
@@ -71,6 +75,7 @@ impl Default for Evidence<'_> {
             runner_up_gap: None,
             fits_data: true,
             mismatch_hint: None,
+            one_kind: false,
         }
     }
 }
@@ -116,6 +121,10 @@ pub fn judge(e: &Evidence<'_>, bar: Bar) -> Verdict {
     }
 }
 
+/// What a mismatch or a value at a bound adds when one defect kind was
+/// searched: a defect of another kind fits neither.
+const OTHER_KINDS: &str = "; or a defect of a kind the search left out: try --kinds any";
+
 /// The status and its message: the first cause that applies.
 fn status(e: &Evidence<'_>, gap_ok: bool, threshold: f64, floor: bool) -> (Status, String) {
     if let Some(budget) = e.budget_exhausted {
@@ -135,13 +144,17 @@ fn status(e: &Evidence<'_>, gap_ok: bool, threshold: f64, floor: bool) -> (Statu
         if let Some(h) = e.mismatch_hint {
             message.push_str(&format!("; the residual shows {h}"));
         }
+        if e.one_kind {
+            message.push_str(OTHER_KINDS);
+        }
         return (Status::ModelMismatch, message);
     }
     if e.at_bound {
-        return (
-            Status::ValueAtBound,
-            "a fitted value ended on a bound of its range: a wrong basin, or a defect outside the range searched".to_string(),
-        );
+        let mut message = "a fitted value ended on a bound of its range: a wrong basin, or a defect outside the range searched".to_string();
+        if e.one_kind {
+            message.push_str(OTHER_KINDS);
+        }
+        return (Status::ValueAtBound, message);
     }
     let gap = e.runner_up_gap.unwrap_or(0.0);
     if floor && !gap_ok {
@@ -189,6 +202,7 @@ pub fn evidence_of(r: &FitReport, max_evals: usize) -> Evidence<'static> {
         runner_up_gap: r.alternatives.first().map(|a| a.gap),
         fits_data: r.fits_data,
         mismatch_hint: None,
+        one_kind: false,
     }
 }
 

@@ -124,6 +124,17 @@ impl Engine<'_> {
         ))
     }
 
+    /// Whether the search tried one defect kind only where the user left
+    /// the kinds to the defaults or named one (`kinds` not `any`, no
+    /// per-defect kinds, no scene's unknowns, some defect searched for).
+    pub(super) fn searched_one_kind(&self) -> bool {
+        let searched = !matches!(self.opts.defects, super::options::DefectCount::Exactly(0));
+        searched
+            && self.given.is_none()
+            && self.opts.slot_kinds.is_empty()
+            && self.opts.kinds != crate::detect::unknowns::KindChoice::Any
+    }
+
     /// What a residual that is not noise suggests: a trend (offset, drift),
     /// colour (an AR noise model), a misfit at early times (a late trigger
     /// or another impulse). `None` when nothing specific shows.
