@@ -28,6 +28,9 @@ mod cli_fit;
 mod cli_hardening;
 #[path = "damping_models.rs"]
 mod damping_models;
+/// The tests' own dense state-space generator of records.
+#[path = "common/dense.rs"]
+mod dense;
 #[path = "first_use.rs"]
 mod first_use;
 #[path = "fit.rs"]

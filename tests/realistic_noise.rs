@@ -12,7 +12,6 @@
 //! more seeds is `#[ignore]`d (`cargo test --release --test all
 //! realistic_noise -- --ignored`).
 
-use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -23,32 +22,8 @@ use springmass::{scenes, Chain};
 /// `x_1(t_i)` of `truth` after the impulse on `0, dt, ..., t_end`, by the
 /// dense state-space matrix exponential.
 fn clean_record(truth: &Chain, t_end: f64, dt: f64) -> (Vec<f64>, Vec<f64>) {
-    let c = truth.coefficients();
-    let n = c.m.len();
-    let mut a = DMatrix::<f64>::zeros(2 * n, 2 * n);
-    for i in 0..n {
-        a[(i, n + i)] = 1.0;
-        a[(n + i, i)] = -(c.g[i] + c.k[i] + c.k[i + 1]) / c.m[i];
-        if i > 0 {
-            a[(n + i, i - 1)] = c.k[i] / c.m[i];
-        }
-        if i + 1 < n {
-            a[(n + i, i + 1)] = c.k[i + 1] / c.m[i];
-        }
-        a[(n + i, n + i)] = -c.d[i] / c.m[i];
-    }
-    let step = (a * dt).exp();
-    let mut z = DVector::<f64>::zeros(2 * n);
-    z[n] = truth.gamma() / c.m[0];
-    let samples = (t_end / dt).round() as usize + 1;
-    let mut t = Vec::with_capacity(samples);
-    let mut x = Vec::with_capacity(samples);
-    for i in 0..samples {
-        t.push(i as f64 * dt);
-        x.push(z[0]);
-        z = &step * z;
-    }
-    (t, x)
+    let (t, mut x) = crate::dense::records(truth, &[1], t_end, dt);
+    (t, x.remove(0))
 }
 
 /// What the sensor adds.
