@@ -300,15 +300,10 @@ impl Series {
     /// further sensors of its own (field `sensors`), a mass observed twice
     /// (field `observe`).
     pub fn with_sensors(mut self, others: Vec<Series>) -> Result<Series> {
-        for (j, o) in others.iter().enumerate() {
-            if o.t != self.t || !o.others.is_empty() {
-                return Err(Error::invalid(
-                    "sensors",
-                    format!("sensor {} of {}", j + 2, others.len() + 1),
-                    "records at the first sensor's times, with no further sensors of their own",
-                ));
-            }
-        }
+        crate::detect::data::series::check_joint(
+            &self.t,
+            others.iter().map(|o| (o.t.as_slice(), o.others.is_empty())),
+        )?;
         let mut seen = vec![self.measurement.sensor().at];
         for o in &others {
             let at = o.measurement.sensor().at;

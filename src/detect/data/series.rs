@@ -180,15 +180,10 @@ impl TimeData {
     /// A record at other times (field `sensors`), or one that holds further
     /// sensors itself (field `sensors`).
     pub fn with_others(mut self, others: Vec<TimeData>) -> Result<TimeData> {
-        for (j, o) in others.iter().enumerate() {
-            if o.t != self.t || !o.others.is_empty() {
-                return Err(Error::invalid(
-                    "sensors",
-                    format!("sensor {} of {}", j + 2, others.len() + 1),
-                    "records at the first sensor's times, with no further sensors of their own",
-                ));
-            }
-        }
+        check_joint(
+            &self.t,
+            others.iter().map(|o| (o.t.as_slice(), o.others.is_empty())),
+        )?;
         self.others = others;
         Ok(self)
     }
@@ -201,4 +196,27 @@ impl TimeData {
         self.sigma = check_f64("sigma", sigma, sigma >= 0.0, ">= 0 and finite")?;
         Ok(self)
     }
+}
+
+/// The check of a joint record of several sensors: every further sensor's
+/// record (its times, and whether it holds no further sensors of its own)
+/// at the first sensor's times `t`, with no further sensors of its own.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming `sensors` and the sensor's place.
+pub(crate) fn check_joint<'a>(
+    t: &[f64],
+    others: impl ExactSizeIterator<Item = (&'a [f64], bool)>,
+) -> Result<()> {
+    let count = others.len() + 1;
+    for (j, (ot, single)) in others.enumerate() {
+        if ot != t || !single {
+            return Err(Error::invalid(
+                "sensors",
+                format!("sensor {} of {count}", j + 2),
+                "records at the first sensor's times, with no further sensors of their own",
+            ));
+        }
+    }
+    Ok(())
 }
