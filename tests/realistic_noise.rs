@@ -154,6 +154,50 @@ fn spring_defect_under_ar_noise() {
     check(&truth, 1e-3, Deviation::Ar(0.9), 4, Some("spring"));
 }
 
+/// System 3 under AR(0.9) noise at 1% (a record of the study generator,
+/// `springmass::study::realistic`, whose seed made the fit report one
+/// defect as `converged`): the noise hides the far half of the chain, so
+/// the answer, right or wrong, is not called complete, and the report names
+/// the masses a further defect could hide at.
+#[test]
+fn a_defect_the_coloured_noise_hides_is_not_called_converged() {
+    use springmass::study::realistic::{record, Deviations};
+    let truth = system3();
+    let dev = Deviations::named("ar1-0.9", 1.0).unwrap();
+    let (t, x) = record(&truth, &dev, 200.0, 0.2, 1e-2, 1_163_048_740_634_525_917).unwrap();
+    let obs = Observations::Series(Series::on_axis(t, x, None).unwrap());
+    let r = defaults(&obs, 20, None);
+    assert!(honest(&truth, &r), "{}", r.summary());
+    assert_eq!(r.status, Status::NotIdentifiable, "{}", r.summary());
+    assert!(
+        r.message.contains("would not show a further defect"),
+        "{}",
+        r.summary()
+    );
+    assert!(r.message.contains("mass 13"), "{}", r.summary());
+}
+
+/// With little noise every mass of a short chain shows: the check leaves
+/// a right answer `converged`; with much noise on a longer chain the far
+/// masses do not show, and the report says which.
+#[test]
+fn the_check_for_hidden_defects_follows_the_noise() {
+    let truth = scenes::paper_with(8, "mass:3:2").unwrap();
+    let r = defaults(&record(&truth, 1e-4, Deviation::Ar(0.0), 6), 8, None);
+    assert!(right(&r, &truth).1, "{}", r.summary());
+    assert_eq!(r.status, Status::Converged, "{}", r.summary());
+    let truth = scenes::paper_with(40, "mass:3:2").unwrap();
+    let r = defaults(&record(&truth, 1e-1, Deviation::Ar(0.0), 6), 40, None);
+    assert!(honest(&truth, &r), "{}", r.summary());
+    assert_eq!(r.status, Status::NotIdentifiable, "{}", r.summary());
+    assert!(
+        r.message.contains("would not show a further defect"),
+        "{}",
+        r.summary()
+    );
+    assert!(r.message.contains("-40"), "{}", r.summary());
+}
+
 /// A white-noise record keeps the white model, no nuisance, and the
 /// answer of the paper's record model.
 #[test]

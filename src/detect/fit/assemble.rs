@@ -47,7 +47,8 @@ impl Engine<'_> {
         let hint = (!fits_data).then(|| self.mismatch_hint(f)).flatten();
         let k_margin = self
             .k_margin(&rows, f.k, &criterion)
-            .or_else(|| self.k_at_limit(&rows, f.k));
+            .or_else(|| self.k_at_limit(&rows, f.k))
+            .or_else(|| self.unseen_line(f, best, scale));
         let verdict = judge(
             &Evidence {
                 k: f.k,

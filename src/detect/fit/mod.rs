@@ -45,6 +45,10 @@
 //! * **visibility**: for mass defects on a user's data the report says how
 //!   deep the data see a 10% mass change ([`visibility::Visibility`]) and names
 //!   fitted defects beyond that depth;
+//! * **hidden defects**: with the number of defects left to the criterion,
+//!   every mass and spring the answer leaves unchanged is halved and doubled
+//!   in turn; one the data would not show makes the status
+//!   `not-identifiable` ([`unseen`]);
 //! * **every value free** instead of a few defects: [`fit_profile`]
 //!   (`springmass fit --profile masses|springs|both`).
 //!
@@ -91,6 +95,7 @@ pub mod setup;
 pub mod spectral;
 mod stages;
 pub mod trigger;
+pub mod unseen;
 pub mod visibility;
 
 pub use crate::detect::search::FitMethod;
