@@ -175,6 +175,12 @@ fn a_defect_the_coloured_noise_hides_is_not_called_converged() {
         r.summary()
     );
     assert!(r.message.contains("mass 13"), "{}", r.summary());
+    let u = r.unseen.as_ref().expect("the check ran");
+    assert!(
+        u.elements.iter().any(|e| e.kind == "mass" && e.at == 13),
+        "{u:?}"
+    );
+    assert_eq!((u.checked, u.of), (19, 19), "{u:?}");
 }
 
 /// With little noise every mass of a short chain shows: the check leaves

@@ -442,6 +442,13 @@ class FitResult:
         How deep the data see a 10% mass change (``depth`` in masses from
         the observed one, ``se`` of a change at each mass, ``hidden``: fitted
         defects beyond that depth); mass defects only.
+    unseen : dict or None
+        With the number of defects left to the criterion, the masses and
+        springs the answer leaves unchanged whose halving or doubling the
+        data would not show: ``elements`` (each ``kind``, ``at``),
+        ``checked`` and ``of`` (elements probed, of those left unchanged).
+        Non-empty ``elements`` make the status ``not-identifiable``: a
+        further defect could hide there. ``None`` when not checked.
     noise_model : dict or None
         The record's noise model: ``kind`` (``"white"`` or ``"ar"``), ``p``,
         ``coefficients``, ``innovation_sigma``, ``iterations`` (refits under
@@ -492,6 +499,7 @@ class FitResult:
     wall_time_s: float
     identifiability: Optional[Dict[str, Any]]
     visibility: Optional[Dict[str, Any]]
+    unseen: Optional[Dict[str, Any]]
     noise_model: Optional[Dict[str, Any]]
     whiteness_p: Optional[float]
     nuisance: List[Dict[str, Any]]
@@ -593,6 +601,7 @@ class FitResult:
             wall_time_s=float(r["wall_time_s"]),
             identifiability=r.get("identifiability"),
             visibility=r.get("visibility"),
+            unseen=r.get("unseen"),
             noise_model=r.get("noise_model"),
             whiteness_p=None if r.get("whiteness_p") is None else _nan(r["whiteness_p"]),
             nuisance=list(r.get("nuisance", [])),

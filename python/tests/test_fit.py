@@ -32,6 +32,9 @@ def test_round_trip_recovers_system3_at_one_percent_noise():
     sigma_true = 0.01 * np.max(np.abs(clean))
     assert abs(r.sigma / sigma_true - 1) < 0.2, (r.sigma, sigma_true)
     assert r.status == "converged" and r.fits_data, r.summary
+    # every mass the answer leaves unchanged would show halved or doubled
+    assert r.unseen is not None and r.unseen["elements"] == [], r.unseen
+    assert (r.unseen["checked"], r.unseen["of"]) == (18, 18), r.unseen
     assert [row.k for row in r.k_selection] == [0, 1, 2, 3]
     assert min(r.k_selection, key=lambda row: row.criterion).k == 2
     assert r.predicted.shape == t.shape

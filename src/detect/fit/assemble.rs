@@ -45,10 +45,14 @@ impl Engine<'_> {
             .collect();
         let (fits_data, p) = goodness_of_fit(f, chi2_final, estimated);
         let hint = (!fits_data).then(|| self.mismatch_hint(f)).flatten();
+        let unseen = self.unseen_of(f, best, scale);
         let k_margin = self
             .k_margin(&rows, f.k, &criterion)
             .or_else(|| self.k_at_limit(&rows, f.k))
-            .or_else(|| self.unseen_line(f, best, scale));
+            .or_else(|| {
+                let u = unseen.as_ref()?;
+                (!u.elements.is_empty()).then(|| u.line())
+            });
         let verdict = judge(
             &Evidence {
                 k: f.k,
@@ -102,6 +106,7 @@ impl Engine<'_> {
             trigger: None,
             identifiability: ident,
             visibility: None,
+            unseen,
             noise_model: self.noise_model_report(sigma),
             whiteness_p: self.whiteness_p(f),
             nuisance: self.nuisance_estimates(best, sigma).unwrap_or_default(),

@@ -255,6 +255,12 @@ pub struct FitReport {
     /// defects the data cannot see are named there.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub visibility: Option<crate::detect::fit::visibility::Visibility>,
+    /// With the number of defects left to the criterion: the masses and
+    /// springs whose halving or doubling the data would not show (a
+    /// further defect could hide there; see [`crate::detect::fit::unseen`]);
+    /// `None` when the check was not made.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unseen: Option<crate::detect::fit::unseen::Unseen>,
     /// Natural frequencies and damping ratios of the fitted chain (its
     /// units: rad/s and Hz when the data and the chain are in SI units);
     /// empty for a non-uniform chain of more than 400 masses (the dense

@@ -35,6 +35,7 @@ use crate::detect::unknowns::DefectKind;
 use crate::error::Result;
 use crate::sensitivity::Param;
 use nalgebra::DVector;
+use serde::Serialize;
 
 /// Standard errors a change must span to count as seen: it must move
 /// `chi^2` by at least `Z^2 = 4` (the report's visibility line uses the same
@@ -49,11 +50,21 @@ pub const CHANGE: f64 = 0.5;
 /// probed at this many evenly spaced elements.
 pub const MAX_PROBES: usize = 120;
 
-/// The elements a halving of which the data would not show.
-#[derive(Clone, Debug, PartialEq)]
+/// One element whose halving or doubling the data would not show.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct UnseenElement {
+    /// `mass` or `spring`.
+    pub kind: &'static str,
+    /// Its position (a mass `1..=n`, a spring `0..=n`).
+    pub at: usize,
+}
+
+/// The check's result: the elements whose halving or doubling the data
+/// would not show (the report's JSON field `unseen`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Unseen {
-    /// `(kind, position)` of each such element.
-    pub elements: Vec<(DefectKind, usize)>,
+    /// Each such element, masses first, by position.
+    pub elements: Vec<UnseenElement>,
     /// The elements probed.
     pub checked: usize,
     /// The elements the answer leaves unchanged (more than `checked` on a
@@ -69,8 +80,8 @@ impl Unseen {
             let at: Vec<usize> = self
                 .elements
                 .iter()
-                .filter(|(k, _)| *k == kind)
-                .map(|(_, a)| *a)
+                .filter(|e| e.kind == kind.name())
+                .map(|e| e.at)
                 .collect();
             if !at.is_empty() {
                 parts.push(format!("{} {}", kind.name(), ranges(&at)));
@@ -89,18 +100,17 @@ impl Unseen {
 }
 
 impl Engine<'_> {
-    /// The line of [`unseen`] for the answer `best` of `f` (`scale`: the
-    /// final noise level over `f`'s), when the number of defects was left
-    /// to the criterion for the kinds of `--kinds` and some element would
-    /// not show; `None` otherwise, or when the check cannot be made (it
-    /// never costs the fit its answer).
-    pub(super) fn unseen_line(&self, f: &KFit, best: &Hypothesis, scale: f64) -> Option<String> {
+    /// [`unseen`] for the answer `best` of `f` (`scale`: the final noise
+    /// level over `f`'s) when the number of defects was left to the
+    /// criterion, for the kinds of `--kinds`; `None` otherwise, or when the
+    /// check cannot be made (it never costs the fit its answer).
+    pub(super) fn unseen_of(&self, f: &KFit, best: &Hypothesis, scale: f64) -> Option<Unseen> {
         let auto = matches!(self.opts.defects, DefectCount::Auto { .. });
         if !auto || self.given.is_some() || !self.opts.slot_kinds.is_empty() {
             return None;
         }
         let data = self.measurement_at(f.sigma_fit).ok()?;
-        let u = unseen(
+        unseen(
             best,
             self.model,
             data.as_ref(),
@@ -108,8 +118,8 @@ impl Engine<'_> {
             scale,
             self.opts.parallel,
         )
-        .ok()??;
-        (!u.elements.is_empty()).then(|| u.line())
+        .ok()
+        .flatten()
     }
 }
 
@@ -193,7 +203,10 @@ pub fn unseen(
         // NaN (a change the model cannot evaluate) counts as not shown
         let least = least?;
         if least.is_nan() || least < Z * Z {
-            elements.push((kind, at));
+            elements.push(UnseenElement {
+                kind: kind.name(),
+                at,
+            });
         }
     }
     Ok(Some(Unseen {
