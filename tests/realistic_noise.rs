@@ -154,6 +154,14 @@ fn spring_defect_under_ar_noise() {
     check(&truth, 1e-3, Deviation::Ar(0.9), 4, Some("spring"));
 }
 
+/// An honest report that says a further defect could hide.
+fn hidden_named(truth: &Chain, r: &FitReport) {
+    assert!(honest(truth, r), "{}", r.summary());
+    assert_eq!(r.status, Status::NotIdentifiable, "{}", r.summary());
+    let said = r.message.contains("would not show a further defect");
+    assert!(said, "{}", r.summary());
+}
+
 /// System 3 under AR(0.9) noise at 1% (a record of the study generator,
 /// `springmass::study::realistic`, whose seed made the fit report one
 /// defect as `converged`): the noise hides the far half of the chain, so
@@ -167,13 +175,7 @@ fn a_defect_the_coloured_noise_hides_is_not_called_converged() {
     let (t, x) = record(&truth, &dev, 200.0, 0.2, 1e-2, 1_163_048_740_634_525_917).unwrap();
     let obs = Observations::Series(Series::on_axis(t, x, None).unwrap());
     let r = defaults(&obs, 20, None);
-    assert!(honest(&truth, &r), "{}", r.summary());
-    assert_eq!(r.status, Status::NotIdentifiable, "{}", r.summary());
-    assert!(
-        r.message.contains("would not show a further defect"),
-        "{}",
-        r.summary()
-    );
+    hidden_named(&truth, &r);
     assert!(r.message.contains("mass 13"), "{}", r.summary());
     let u = r.unseen.as_ref().expect("the check ran");
     assert!(
@@ -194,13 +196,7 @@ fn the_check_for_hidden_defects_follows_the_noise() {
     assert_eq!(r.status, Status::Converged, "{}", r.summary());
     let truth = scenes::paper_with(40, "mass:3:2").unwrap();
     let r = defaults(&record(&truth, 1e-1, Deviation::Ar(0.0), 6), 40, None);
-    assert!(honest(&truth, &r), "{}", r.summary());
-    assert_eq!(r.status, Status::NotIdentifiable, "{}", r.summary());
-    assert!(
-        r.message.contains("would not show a further defect"),
-        "{}",
-        r.summary()
-    );
+    hidden_named(&truth, &r);
     assert!(r.message.contains("-40"), "{}", r.summary());
 }
 
