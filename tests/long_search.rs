@@ -305,3 +305,36 @@ fn relax_seeds_the_discrete_fit_from_the_profile() {
         assert_eq!(field(e), "kinds");
     }
 }
+
+/// The scene path on exact data of a long chain (issue 30): `relax` and
+/// `greedy` either return the truth or say the answer does not explain the
+/// data; never a wrong set called `converged` or resolved (relax returned
+/// masses 1, 2 and 5 as `converged` and resolved on this scene).
+#[test]
+fn scene_searches_never_call_a_wrong_set_converged() {
+    use springmass::detect::fit::{paper, Status};
+    use springmass::detect::scene::FitScene;
+    let truth = Chain::paper(60)
+        .unwrap()
+        .with_defects([
+            Defect::Mass { at: 10, m: 2.0 },
+            Defect::Mass { at: 31, m: 3.0 },
+            Defect::Mass { at: 45, m: 0.5 },
+        ])
+        .unwrap();
+    let scene = FitScene::synthetic(&truth);
+    let data = scene.data().unwrap();
+    for method in [FitMethod::Relax, FitMethod::Greedy] {
+        let options = springmass::detect::scene::SceneOptions {
+            method,
+            ..scene.options()
+        };
+        let r = paper::fit(&scene, &data, &options).unwrap();
+        let at: Vec<usize> = r.defects.iter().map(|d| d.at()).collect();
+        let case = format!("{method:?}: {at:?}, {:?}: {}", r.status, r.message);
+        if at != [10, 31, 45] {
+            assert_eq!(r.status, Status::ModelMismatch, "{case}");
+            assert!(!r.resolved && !r.fits_data, "{case}");
+        }
+    }
+}

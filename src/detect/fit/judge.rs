@@ -13,12 +13,14 @@
 //!
 //! The status is the first that applies of: budget exhausted, stalled,
 //! model mismatch (on the data path: the residual is not noise, so no
-//! answer of this model explains the data), value at bound, not
+//! answer of this model explains the data; on the scene path's floor: the
+//! residual is more than 4 times the floor, so the answer lacks a defect
+//! or the search missed the truth), value at bound, not
 //! identifiable (a defect flagged, or the runner-up within the bar),
 //! converged. `resolved` is, on the data path, converged
 //! with the runner-up above the bar, every defect identifiable and the
 //! residual consistent with noise; on the scene path's floor, the
-//! runner-up above the floor (the scene's rule since its first version).
+//! runner-up above the floor and the residual within 4 floors.
 //!
 //! ```
 //! use springmass::detect::fit::judge::{judge, Bar, Evidence};
@@ -110,7 +112,7 @@ pub fn judge(e: &Evidence<'_>, bar: Bar) -> Verdict {
     let gap_ok = e.runner_up_gap.is_none_or(|g| g > threshold);
     let (status, message) = status(e, gap_ok, threshold, floor);
     let resolved = if floor {
-        gap_ok
+        gap_ok && e.fits_data
     } else {
         status == Status::Converged && gap_ok && e.all_identifiable && e.fits_data
     };
@@ -148,6 +150,12 @@ fn status(e: &Evidence<'_>, gap_ok: bool, threshold: f64, floor: bool) -> (Statu
             message.push_str(OTHER_KINDS);
         }
         return (Status::ModelMismatch, message);
+    }
+    if floor && !e.fits_data {
+        return (
+            Status::ModelMismatch,
+            format!("the answer does not explain the data: its residual is far above the data's error floor {threshold:.3e}; a defect missing from the unknowns, or the search missed the truth (try the enumeration)"),
+        );
     }
     if e.at_bound {
         let mut message = "a fitted value ended on a bound of its range: a wrong basin, or a defect outside the range searched".to_string();
@@ -275,9 +283,11 @@ mod tests {
         );
         assert_eq!((v.status, v.resolved), (Status::ModelMismatch, false));
         assert!(v.message.contains("not noise"), "{}", v.message);
-        // the scene's floor: resolved is the gap alone
+        // the scene's floor: a residual far above it is a mismatch (a
+        // missing defect or a missed truth), never resolved
         let v = judge(&misfit, Bar::Floor(1.0));
-        assert_eq!((v.status, v.resolved), (Status::Converged, true));
+        assert_eq!((v.status, v.resolved), (Status::ModelMismatch, false));
+        assert!(v.message.contains("error floor"), "{}", v.message);
         let v = judge(&ok, Bar::Floor(30.0));
         assert_eq!((v.status, v.resolved), (Status::NotIdentifiable, false));
         assert!(v.message.contains("floor"));

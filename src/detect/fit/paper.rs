@@ -66,7 +66,7 @@
 //! ```
 
 use super::engine::Given;
-use super::judge::{evidence_of, judge, Bar};
+use super::judge::{evidence_of, judge, Bar, Evidence};
 use super::{fit_with, Alternative, DefectCount, FitOptions, Model, NoiseSpec, Status};
 use crate::chain::Defect;
 use crate::detect::data::exact::Data;
@@ -212,7 +212,12 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
     let r = fit_with(&obs, &model, &opts, Some(given))?;
     // the scene's judgment: gaps and residual against the data's floor
     let residual = r.chi2;
-    let verdict = judge(&evidence_of(&r, options.max_evals), Bar::Floor(floor));
+    let fits_data = residual <= 4.0 * floor;
+    let evidence = Evidence {
+        fits_data,
+        ..evidence_of(&r, options.max_evals)
+    };
+    let verdict = judge(&evidence, Bar::Floor(floor));
     let terms = if scene.misfit.kind == MisfitKind::Bromwich {
         2 * rule.len()
     } else {
@@ -237,7 +242,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
         status: verdict.status,
         message: verdict.message,
         resolved: verdict.resolved,
-        fits_data: residual <= 4.0 * floor,
+        fits_data,
         std_errors: Vec::new(),
         chain_params: Vec::new(),
         identifiability: None,

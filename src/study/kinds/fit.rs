@@ -126,7 +126,7 @@ pub const METRICS: &[(&str, &str)] = &[
     ("floor", "the data's error floor on the residual"),
     (
         "resolved",
-        "gap above the floor: the data decide the answer",
+        "gap above the floor and the residual within 4 floors: the data decide the answer",
     ),
     (
         "fits_data",
