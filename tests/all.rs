@@ -68,6 +68,8 @@ mod observables;
 mod real_setups;
 #[path = "realistic_noise.rs"]
 mod realistic_noise;
+#[path = "records.rs"]
+mod records;
 #[path = "search.rs"]
 mod search;
 #[path = "sensors.rs"]

@@ -487,3 +487,62 @@ fn fit_data_of_a_long_chain_with_the_defaults_searches_greedily() {
         );
     }
 }
+
+/// `--data` repeated: two records of the same chain (different lengths
+/// and noise) fitted jointly, each listed with its own level; the options
+/// that read one record are refused naming the field.
+#[test]
+fn fit_data_of_several_records() {
+    let dir = temp_dir("records");
+    let truth = Chain::paper(10)
+        .unwrap()
+        .with_defects([
+            Defect::Mass { at: 3, m: 3.0 },
+            Defect::Mass { at: 7, m: 2.0 },
+        ])
+        .unwrap();
+    write_series(&dir.join("a.csv"), &truth, 150.0, 1e-3, 31);
+    write_series(&dir.join("b.csv"), &truth, 100.0, 3e-3, 32);
+    let v = json_of(
+        bin()
+            .args([
+                "fit", "--data", "a.csv", "--data", "b.csv", "--n", "10", "--json",
+            ])
+            .current_dir(&dir),
+    );
+    let at: Vec<u64> = v["defects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d["at"].as_u64().unwrap())
+        .collect();
+    assert_eq!(at, vec![3, 7], "{v}");
+    let recs = v["sensors"].as_array().unwrap();
+    assert_eq!(recs.len(), 2, "{v}");
+    assert_eq!(
+        (recs[0]["record"].as_u64(), recs[1]["samples"].as_u64()),
+        (Some(1), Some(401))
+    );
+    assert!(recs.iter().all(|r| r["fits_data"] == true), "{v}");
+    let both = ["fit", "--data", "a.csv", "--data", "b.csv", "--n", "10"];
+    refused(
+        &[&both[..], &["--observe", "1,2"]].concat(),
+        &dir,
+        "observe",
+    );
+    refused(
+        &[&both[..], &["--method", "greedy"]].concat(),
+        &dir,
+        "method",
+    );
+    refused(
+        &[&both[..], &["--profile", "masses"]].concat(),
+        &dir,
+        "profile",
+    );
+    refused(
+        &[&both[..], &["--excitation", "ambient"]].concat(),
+        &dir,
+        "data",
+    );
+}

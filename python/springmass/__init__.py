@@ -111,6 +111,22 @@ def _short(v: Any) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
+def _records(records: Any) -> Dict[str, Any]:
+    """The native keywords of ``fit(records=...)``: each record's times,
+    values and measured force (or None)."""
+    if isinstance(records, (str, bytes)) or not isinstance(records, Sequence):
+        raise _invalid("records", _short(records), "a sequence of (t, x) or (t, x, force) tuples")
+    ts, xs, fs = [], [], []
+    for i, rec in enumerate(records):
+        if not isinstance(rec, (tuple, list)) or len(rec) not in (2, 3):
+            raise _invalid(f"records[{i}]", _short(rec), "a (t, x) or (t, x, force) tuple")
+        ts.append(_vector(f"records[{i}].t", rec[0]))
+        xs.append(_vector(f"records[{i}].x", rec[1]))
+        f = rec[2] if len(rec) == 3 else None
+        fs.append(None if f is None else _vector(f"records[{i}].force", f))
+    return {"record_t": ts, "record_x": xs, "record_force": fs}
+
+
 def _vector(name: str, v: Any) -> np.ndarray:
     """A one-dimensional float64 array (lists, any real dtype, any strides)."""
     try:
@@ -463,9 +479,12 @@ class FitResult:
         it: ``time``, ``se``, ``dropped`` (samples before it), ``detected``,
         ``refits``; ``None`` for a record that starts with its blow.
     sensors : list of dict
-        With several sensors, each one's ``at``, ``kind``, ``samples`` and
-        noise level ``sigma`` (estimated from its own residual, or given);
-        empty for one sensor (``sigma`` is then its level).
+        With several sensors (or several records, ``records``), each one's
+        ``at``, ``kind``, ``samples``, noise level ``sigma`` (estimated from
+        its own residual, or given), ``whiteness_p`` (Ljung-Box of its own
+        residual) and ``fits_data`` (the joint answer explains it); ``record``
+        is the record's place (1-based) with several records, else 0; empty
+        for one sensor (``sigma`` is then its level).
     damping : dict or None
         The damping model and its parameters with standard errors, e.g.
         ``{"model": "rayleigh", "a": ..., "b": ..., "se": {"a": ..., "b": ...},
@@ -657,6 +676,7 @@ def fit(
     prior_k: Optional[str] = None,
     prior_range: Optional[str] = None,
     uncertainty: bool = True,
+    records: Sequence[Any] = (),
 ) -> FitResult:
     """Fit defects to a measured series of mass 1's displacement.
 
@@ -725,6 +745,16 @@ def fit(
     force : array_like, shape (N,), optional
         A measured force on mass 1 at the times ``t`` (a hammer test; ``t``
         then uniform from 0), used instead of the ideal impulse.
+    records : sequence of tuples, optional
+        Further records of the same chain (several hammer hits), each
+        ``(t, x)`` or ``(t, x, force)`` with its own times and, if measured,
+        its own force (else the impulse ``gamma``), of the same sensor as
+        ``x``: one joint fit, a noise level per record, and
+        ``FitResult.sensors`` lists every record (``record``, ``sigma``,
+        ``whiteness_p``, ``fits_data``). A record the joint answer does not
+        explain (its own residual is not noise) makes the status
+        ``"model-mismatch"`` and is named in the message. Not with several
+        sensors (a 2-D ``x``).
     noise_model : {"auto", "white", "ar", "ar:P"}, default "auto"
         The record's noise model: ``"auto"`` keeps white noise unless the
         white fit's residual fails the Ljung-Box test and an AR(p) model
@@ -837,6 +867,7 @@ def fit(
         sensors=sensors,
         sensor_kinds=sensor_kinds,
         more=more,
+        **_records(records),
         force=None if force is None else _vector("force", force),
         noise_model=_text("noise_model", noise_model),
         nuisance=_text("nuisance", nuisance),

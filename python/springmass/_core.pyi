@@ -63,6 +63,9 @@ def fit(
     sensors: List[int] = ...,
     sensor_kinds: List[str] = ...,
     more: List[npt.NDArray[np.float64]] = ...,
+    record_t: List[npt.NDArray[np.float64]] = ...,
+    record_x: List[npt.NDArray[np.float64]] = ...,
+    record_force: List[Optional[npt.NDArray[np.float64]]] = ...,
 ) -> Dict[str, Any]:
     """The data-first fit: {"report": JSON text, "summary": str, "t", "observed", "model", "residual": ndarray}."""
 

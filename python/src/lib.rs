@@ -199,6 +199,33 @@ fn series_obs(
     ))
 }
 
+/// One further record of the same chain: times, values, measured force.
+type Record = (Vec<f64>, Vec<f64>, Option<Vec<f64>>);
+
+/// `obs` joined by further records of the same chain (each with its own
+/// times and measured force, or the impulse), as `--data` repeated.
+fn with_records(
+    spec: &FitSpec,
+    obs: Observations,
+    records: Vec<Record>,
+    sigma: Option<f64>,
+) -> Result<Observations> {
+    if records.is_empty() {
+        return Ok(obs);
+    }
+    let Observations::Series(first) = obs else {
+        return Ok(obs);
+    };
+    let rest = records
+        .into_iter()
+        .map(|(t, x, f)| {
+            let m = spec.measurement_at(&t, f)?;
+            Series::on_axis(t, x, sigma)?.with_measurement(m)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Observations::Series(first.with_records(rest)?))
+}
+
 /// The data-first fit (`springmass::detect::fit::fit`) of a series; the
 /// options are those of `springmass fit --data` ([`FitSpec`]). Returns the
 /// report as the CLI's JSON (without the predicted series) and the predicted
@@ -209,7 +236,8 @@ fn series_obs(
     seed=None, max_evals=None, k=None, mass=None, left=None, right=None, observe=None,
     observe_kind=None, force=None, trigger=None, noise_model=None, nuisance=None, damping=None, force_window=None,
     baseline=None, level=None, prior_k=None, prior_range=None, uncertainty=None,
-    sensors=Vec::new(), sensor_kinds=Vec::new(), more=Vec::new()))]
+    sensors=Vec::new(), sensor_kinds=Vec::new(), more=Vec::new(), record_t=Vec::new(),
+    record_x=Vec::new(), record_force=Vec::new()))]
 #[allow(clippy::too_many_arguments)]
 fn fit<'py>(
     py: Python<'py>,
@@ -249,6 +277,9 @@ fn fit<'py>(
     sensors: Vec<usize>,
     sensor_kinds: Vec<String>,
     more: Vec<PyReadonlyArray1<'py, f64>>,
+    record_t: Vec<PyReadonlyArray1<'py, f64>>,
+    record_x: Vec<PyReadonlyArray1<'py, f64>>,
+    record_force: Vec<Option<PyReadonlyArray1<'py, f64>>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let baseline = baseline.map(BaselineArg::spec).transpose().py_err()?;
     let spec = FitSpec {
@@ -288,9 +319,16 @@ fn fit<'py>(
     let (t, x) = (values(&t), values(&x));
     let more: Vec<Vec<f64>> = more.iter().map(values).collect();
     let force = force.as_ref().map(values);
+    let records: Vec<Record> = record_t
+        .iter()
+        .zip(&record_x)
+        .zip(record_force.iter().chain(std::iter::repeat(&None)))
+        .map(|((t, x), f)| (values(t), values(x), f.as_ref().map(values)))
+        .collect();
     let report = interruptible(py, move || -> Result<_> {
         let (model, opts) = spec.build()?;
         let obs = series_obs(&spec, t, x, more, force, opts.noise.known())?;
+        let obs = with_records(&spec, obs, records, opts.noise.known())?;
         opts.validate(&obs, &model)?;
         springmass::detect::fit::fit(&obs, &model, &opts)
     })?;

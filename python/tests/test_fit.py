@@ -209,3 +209,25 @@ def test_a_record_with_a_pre_trigger_segment_gets_its_blow_time():
         springmass.fit(t_axis, x_axis, n=5, defects=1, trigger=[1])
     with pytest.raises(ValueError, match="force_window"):
         springmass.fit(t, x, n=5, force=np.ones_like(t), force_window="soon")
+
+
+def test_several_records_are_fitted_jointly_and_a_foreign_one_is_named():
+    # two hits of System 3 sampled differently, and one of another chain
+    s3 = springmass.scene("S3")
+    ta = np.linspace(0.0, 200.0, 1001)
+    tb = np.linspace(0.0, 150.0, 1501)
+    xa = springmass.simulate(t=ta, noise="rel:0.01", seed=1, **s3.chain())
+    xb = springmass.simulate(t=tb, noise="rel:0.01", seed=2, **s3.chain())
+    r = springmass.fit(ta, xa, n=20, defects="auto:3", records=[(tb, xb)])
+    assert [(e.at) for e in r.defects] == [8, 15], r.summary
+    assert r.status == "converged", r.summary
+    assert [s["record"] for s in r.sensors] == [1, 2]
+    assert [s["samples"] for s in r.sensors] == [1001, 1501]
+    assert all(s["fits_data"] for s in r.sensors), r.sensors
+    other = springmass.simulate(20, defects=[("mass", 8, 5.0), ("mass", 12, 3.0)], t=ta, noise="rel:0.01", seed=3)
+    bad = springmass.fit(ta, xa, n=20, defects="auto:3", records=[(tb, xb), (ta, other)])
+    assert bad.status == "model-mismatch", bad.summary
+    assert [s["fits_data"] for s in bad.sensors] == [True, True, False], bad.sensors
+    assert "record 3" in bad.message
+    with pytest.raises(ValueError, match="records"):
+        springmass.fit(ta, xa, n=20, records=[(tb,)])

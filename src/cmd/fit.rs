@@ -22,9 +22,13 @@ use std::path::PathBuf;
 Scene file: springmass fit --scene configs/scenes/table1-system3.toml (its [chain] defects are the truth that synthesises the data)."
 )]
 pub struct Args {
-    /// A measured series: CSV with a time column `t` and one or more value columns.
-    #[arg(long, conflicts_with = "scene")]
-    pub data: Option<PathBuf>,
+    /// A measured series: CSV with a time column `t` and one or more value
+    /// columns. Repeat for several records of the same chain (several hammer
+    /// hits, each with its own times, impulse or --force-column): one joint
+    /// fit, a noise level per record, and a record the answer does not
+    /// explain is named.
+    #[arg(long, conflicts_with = "scene", action = clap::ArgAction::Append)]
+    pub data: Vec<PathBuf>,
     /// Measured modes instead of a series: CSV, one row per mode, columns
     /// frequency (Hz), optional frequency_se, damping, phi_J (shape at mass
     /// J) and phi_J_se; the storey springs (or masses, --profile) are updated
@@ -226,7 +230,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.excitation.is_some() {
         return super::fit_ambient::run(&a);
     }
-    if a.data.is_some() {
+    if !a.data.is_empty() {
         return run_data(a);
     }
     let Some(scene_path) = a.scene.clone() else {
@@ -326,13 +330,16 @@ fn force_column(
 /// `springmass fit --data`: the data-first pipeline.
 fn run_data(a: Args) -> anyhow::Result<()> {
     use springmass::detect::fit as dfit;
-    let path = a.data.clone().expect("checked by the caller");
+    let path = a.data[0].clone();
     let n = chain_size(&a)?;
     // every option is parsed before the data are read or any work starts
     let spec = data_spec(&a, n);
     let (model, opts) = spec.build()?;
     let profile = profile_mode(&a)?;
-    let (obs, axes) = read_observations(&a, &path, &spec, &opts)?;
+    let (obs, axes) = match a.data.len() {
+        1 => read_observations(&a, &path, &spec, &opts)?,
+        _ => read_records(&a, &spec, &opts, profile.is_some())?,
+    };
     if let Some(mode) = profile {
         let (c, w) = (a.profile_change, a.penalty);
         run_profile(&a, &path, &obs, &model, mode, opts.noise, c, w)?;
@@ -562,6 +569,55 @@ fn read_observations(
     Ok((
         Observations::Series(series.with_measurement(measurement)?),
         axes,
+    ))
+}
+
+/// Several records of the same chain (`--data` repeated), each read as
+/// one record is, joined for one joint fit.
+fn read_records(
+    a: &Args,
+    spec: &springmass::detect::fit::options::FitSpec,
+    opts: &springmass::detect::fit::FitOptions,
+    profile: bool,
+) -> anyhow::Result<(
+    springmass::detect::data::observations::Observations,
+    AxisNames,
+)> {
+    use springmass::detect::data::observations::Observations;
+    let refuse = |what: &str, value: String| -> anyhow::Result<()> {
+        anyhow::bail!(springmass::Error::invalid(
+            what,
+            value,
+            format!(
+                "one --data file with {what} ({} given: several records are fitted jointly as one defect fit of records of one sensor each, with their own force columns)",
+                a.data.len()
+            ),
+        ))
+    };
+    if !spec.sensors.is_empty() {
+        refuse("observe", format!("{:?}", spec.sensors))?;
+    }
+    if a.force.is_some() {
+        refuse("force", "a force file".into())?;
+    }
+    if profile {
+        refuse("profile", a.profile.clone().unwrap_or_default())?;
+    }
+    let mut records = Vec::new();
+    let mut axes = None;
+    for path in &a.data {
+        let (obs, ax) = read_observations(a, path, spec, opts)
+            .with_context(|| format!("record {}", path.display()))?;
+        let Observations::Series(s) = obs else {
+            anyhow::bail!("{}: not a sampled series", path.display());
+        };
+        records.push(s);
+        axes.get_or_insert(ax);
+    }
+    let first = records.remove(0);
+    Ok((
+        Observations::Series(first.with_records(records)?),
+        axes.expect("at least two records"),
     ))
 }
 

@@ -18,9 +18,19 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             "ambient (an impulse or a measured force need no --excitation)"
         ));
     }
-    let path = a.data.clone().ok_or_else(|| {
-        springmass::Error::invalid("data", "(none)", "--data FILE with --excitation ambient")
-    })?;
+    let path = match a.data.as_slice() {
+        [one] => one.clone(),
+        [] => anyhow::bail!(springmass::Error::invalid(
+            "data",
+            "(none)",
+            "--data FILE with --excitation ambient"
+        )),
+        more => anyhow::bail!(springmass::Error::invalid(
+            "data",
+            format!("{} files", more.len()),
+            "one --data file with --excitation ambient"
+        )),
+    };
     let n = super::fit::chain_size(a)?;
     let opts = options(a)?;
     let kind: Observable = a

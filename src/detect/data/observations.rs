@@ -40,8 +40,12 @@ pub struct Series {
     /// blow, [`Series::shifted`]).
     origin: f64,
     /// Further sensors' records at the same times ([`Series::with_sensors`];
-    /// empty: one sensor).
+    /// empty: one sensor), or further records of the same chain
+    /// ([`Series::with_records`]).
     others: Vec<Series>,
+    /// `others` are separate records (tests of their own), not sensors of
+    /// this one.
+    separate: bool,
 }
 
 /// Largest accepted magnitude of a recorded value: the misfit squares and
@@ -125,6 +129,7 @@ impl Series {
             measurement: Measurement::paper(),
             origin: 0.0,
             others: Vec::new(),
+            separate: false,
         })
     }
 
@@ -320,6 +325,55 @@ impl Series {
         Ok(self)
     }
 
+    /// The same record joined by the records of further tests of the same
+    /// chain (several hammer hits, a record per excitation): each with its
+    /// own times, sensor, impulse or measured force and noise level. One
+    /// joint fit ([`crate::detect::fit::fit`] stacks every record's
+    /// residual at its own noise level, as for several sensors); the report
+    /// lists each record with its level and whether the joint answer
+    /// explains it ([`crate::detect::fit::report::SensorEstimate`]).
+    ///
+    /// ```
+    /// use springmass::detect::data::observations::Series;
+    /// let t: Vec<f64> = (0..40).map(|i| 0.5 * i as f64).collect();
+    /// let x: Vec<f64> = t.iter().map(|t| t.sin()).collect();
+    /// let t2: Vec<f64> = (0..30).map(|i| 0.25 * i as f64).collect();
+    /// let x2: Vec<f64> = t2.iter().map(|t| 0.5 * t.sin()).collect();
+    /// let second = Series::new(t2, x2, None)?;
+    /// let joint = Series::new(t, x, None)?.with_records(vec![second.clone()])?;
+    /// assert_eq!(joint.sensors().count(), 2);
+    /// assert!(joint.separate_records());
+    /// // a record that holds records of its own is refused
+    /// assert!(second.clone().with_records(vec![joint]).is_err());
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `records`: this record or a
+    /// further one holding further sensors or records of its own.
+    pub fn with_records(mut self, others: Vec<Series>) -> Result<Series> {
+        let count = others.len() + 1;
+        let nested = std::iter::once(&self)
+            .chain(&others)
+            .position(|o| !o.others.is_empty());
+        if let Some(j) = nested {
+            return Err(Error::invalid(
+                "records",
+                format!("record {} of {count}", j + 1),
+                "records of one sensor each (several sensors and several records are not fitted together)",
+            ));
+        }
+        self.others = others;
+        self.separate = !self.others.is_empty();
+        Ok(self)
+    }
+
+    /// Whether the further series are separate records
+    /// ([`Series::with_records`]) rather than sensors of one test.
+    pub fn separate_records(&self) -> bool {
+        self.separate
+    }
+
     /// Every sensor's record, this one first.
     pub fn sensors(&self) -> impl Iterator<Item = &Series> {
         std::iter::once(self).chain(&self.others)
@@ -358,7 +412,11 @@ impl Series {
             .enumerate()
             .map(|(j, o)| one(o, sigma * scales.get(j).copied().unwrap_or(1.0)))
             .collect::<Result<Vec<_>>>()?;
-        td.with_others(others)
+        if self.separate {
+            Ok(td.with_records(others))
+        } else {
+            td.with_others(others)
+        }
     }
 
     /// Largest `|x|`.

@@ -17,7 +17,8 @@ pub struct TimeData {
     sigma: f64,
     measurement: Measurement,
     /// Further sensors' records at the same times, each with its own noise
-    /// level and measurement (empty: one sensor).
+    /// level and measurement (empty: one sensor), or further records of
+    /// the same chain at times of their own ([`TimeData::with_records`]).
     others: Vec<TimeData>,
 }
 
@@ -186,6 +187,14 @@ impl TimeData {
         )?;
         self.others = others;
         Ok(self)
+    }
+    /// The same record with further records of the same chain, each at
+    /// its own times with its own noise level and measurement (checked by
+    /// [`crate::detect::data::observations::Series::with_records`], which
+    /// builds them).
+    pub(crate) fn with_records(mut self, others: Vec<TimeData>) -> TimeData {
+        self.others = others;
+        self
     }
     /// The further sensors' records (empty: one sensor).
     pub fn others(&self) -> &[TimeData] {

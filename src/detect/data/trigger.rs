@@ -140,7 +140,11 @@ impl Series {
                 .iter()
                 .map(|o| Ok(o.shifted(t0)?.0))
                 .collect::<Result<Vec<_>>>()?;
-            out = out.with_sensors(others)?;
+            out = if self.separate_records() {
+                out.with_records(others)?
+            } else {
+                out.with_sensors(others)?
+            };
         }
         Ok((out, first))
     }

@@ -18,6 +18,11 @@ use crate::detect::unknowns::{DefectKind, KindBounds};
 use crate::error::Result;
 use std::time::Instant;
 
+/// The Ljung-Box p-value below which one sensor's or record's own residual
+/// is not noise: it disagrees with the joint answer (the level of the
+/// whole fit's whiteness test).
+pub const DISAGREE_P: f64 = 1e-3;
+
 impl Engine<'_> {
     #[allow(clippy::too_many_arguments)]
     pub(super) fn report(
@@ -43,8 +48,14 @@ impl Engine<'_> {
             .take(self.opts.alternatives)
             .map(|h| Alternative::new(h.defects.clone(), h.chi2, best.chi2))
             .collect();
+        let sensors = self.sensor_estimates(f, sigma, estimated);
+        let disagree = self.disagreeing(&sensors);
         let (fits_data, p) = goodness_of_fit(f, chi2_final, estimated);
-        let hint = (!fits_data).then(|| self.mismatch_hint(f)).flatten();
+        let fits_data = fits_data && disagree.is_none();
+        let hint = match disagree {
+            Some(d) => Some(d),
+            None => (!fits_data).then(|| self.mismatch_hint(f)).flatten(),
+        };
         let unseen = self.unseen_of(f, best, scale);
         let k_margin = self
             .k_margin(&rows, f.k, &criterion)
@@ -82,7 +93,7 @@ impl Engine<'_> {
             params,
             noise_sigma: sigma,
             noise_estimated: estimated,
-            sensors: self.sensor_estimates(f, sigma, estimated),
+            sensors,
             chi2: chi2_final,
             dof: f.dof,
             status: verdict.status,
@@ -206,6 +217,28 @@ impl Engine<'_> {
             .collect()
     }
 
+    /// The sensors or records of a joint fit whose own residual is not
+    /// noise ([`SensorEstimate::fits_data`]), as the mismatch message's
+    /// hint; `None` when every one agrees.
+    fn disagreeing(&self, sensors: &[SensorEstimate]) -> Option<String> {
+        let records = matches!(self.obs, Observations::Series(s) if s.separate_records());
+        let bad: Vec<String> = sensors
+            .iter()
+            .enumerate()
+            .filter(|(_, e)| !e.fits_data)
+            .map(|(j, e)| match records {
+                true => format!("record {} (p = {:.1e})", j + 1, e.whiteness_p),
+                false => format!("the sensor at mass {} (p = {:.1e})", e.at, e.whiteness_p),
+            })
+            .collect();
+        (!bad.is_empty()).then(|| {
+            format!(
+                "that the joint answer does not explain {}: its own residual is not noise (Ljung-Box), so it disagrees with the others (another chain, or a fault of that test)",
+                bad.join(", ")
+            )
+        })
+    }
+
     /// Every sensor of a record of several with its noise level: its
     /// residual's estimate, or the given level (empty for one sensor).
     fn sensor_estimates(&self, f: &KFit, sigma: f64, estimated: bool) -> Vec<SensorEstimate> {
@@ -223,7 +256,9 @@ impl Engine<'_> {
                     0 => 1.0,
                     j => self.record.scales.get(j - 1).copied().unwrap_or(1.0),
                 };
+                let whiteness_p = f.sensors.get(j).map_or(f64::NAN, |r| r.2);
                 SensorEstimate {
+                    record: if s.separate_records() { j + 1 } else { 0 },
                     at: o.measurement().sensor().at,
                     kind: o.measurement().sensor().kind.name().to_string(),
                     samples: o.x().len(),
@@ -231,6 +266,8 @@ impl Engine<'_> {
                         Some(&l) if estimated => l,
                         _ => sigma * scale,
                     },
+                    whiteness_p,
+                    fits_data: whiteness_p.is_nan() || whiteness_p >= DISAGREE_P,
                 }
             })
             .collect()

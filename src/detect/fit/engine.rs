@@ -88,8 +88,9 @@ pub(super) struct KFit {
     pub(super) sensors: Vec<SensorRss>,
 }
 
-/// One sensor's residual sum of squares (in its own units) and samples.
-pub(super) type SensorRss = (f64, usize);
+/// One sensor's residual sum of squares (in its own units), samples and
+/// the Ljung-Box p-value of its own residual.
+pub(super) type SensorRss = (f64, usize, f64);
 
 /// What a caller that has already built its unknowns gives the engine
 /// beyond [`FitOptions`]: the scene path ([`super::paper`]) passes its
@@ -259,7 +260,7 @@ impl Engine<'_> {
                     ),
                 };
                 self.record.widen(&mut setup);
-                let name = self.misfit_name(&td, &coarse, &setup);
+                let name = self.misfit_name(&td, s.separate_records(), &coarse, &setup);
                 let fine = match self.misfit {
                     MisfitKind::Time => Some(self.record.misfit(td)?),
                     _ => None,
@@ -287,16 +288,18 @@ impl Engine<'_> {
     fn misfit_name(
         &self,
         td: &crate::detect::data::series::TimeData,
+        records: bool,
         coarse: &LaplaceObs,
         setup: &Setup,
     ) -> String {
         match self.misfit {
             MisfitKind::Time => format!(
                 "time (chi-square of {} samples{}{}; shortlist from the whitened Bromwich line, sigma_B = {})",
-                td.len() * (1 + td.others().len()),
-                match td.others().len() {
-                    0 => String::new(),
-                    m => format!(" of {} sensors", m + 1),
+                td.len() + td.others().iter().map(|o| o.len()).sum::<usize>(),
+                match (td.others().len(), records) {
+                    (0, _) => String::new(),
+                    (m, false) => format!(" of {} sensors", m + 1),
+                    (m, true) => format!(" of {} records", m + 1),
                 },
                 self.record.describe(),
                 setup.bromwich_sigma
@@ -579,7 +582,7 @@ impl Engine<'_> {
                     Some(w) => w.iter().map(|v| v * v).sum(),
                     None => r.iter().map(|v| v * v).sum(),
                 };
-                let n = s.x().len() * s.sensors().count() - self.record.lost();
+                let n = s.sensors().map(|o| o.x().len()).sum::<usize>() - self.record.lost();
                 let dof = match fine {
                     Some(_) => n.saturating_sub(params),
                     None => coarse.dof().saturating_sub(params),
@@ -633,7 +636,8 @@ impl Engine<'_> {
         first: &[f64],
     ) -> Result<(Vec<f64>, Vec<SensorRss>)> {
         let mut stacked = first.to_vec();
-        let mut per = vec![(first.iter().map(|v| v * v).sum(), first.len())];
+        let lb = |r: &[f64]| super::noise::ljung_box(r, 20).1;
+        let mut per = vec![(first.iter().map(|v| v * v).sum(), first.len(), lb(first))];
         for (j, (o, m)) in s.others().iter().zip(tm.others()).enumerate() {
             let scale = self.record.scales.get(j).copied().unwrap_or(1.0);
             let r: Vec<f64> = o
@@ -642,7 +646,7 @@ impl Engine<'_> {
                 .zip(m.model(chain)?)
                 .map(|(a, b)| a - b)
                 .collect();
-            per.push((r.iter().map(|v| v * v).sum(), r.len()));
+            per.push((r.iter().map(|v| v * v).sum(), r.len(), lb(&r)));
             stacked.extend(r.iter().map(|v| v / scale));
         }
         Ok((stacked, per))

@@ -308,7 +308,15 @@ impl FitOptions {
         if s.others().is_empty() {
             return Ok(());
         }
-        let sensors = format!("{} sensors", s.sensors().count());
+        let sensors = format!(
+            "{} {}",
+            s.sensors().count(),
+            if s.separate_records() {
+                "records"
+            } else {
+                "sensors"
+            }
+        );
         if self.misfit.is_some_and(|m| m != MisfitKind::Time) {
             return Err(Error::invalid(
                 "misfit",

@@ -169,6 +169,9 @@ pub struct Predicted {
 /// One sensor of a record of several: what it measured and its noise level.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct SensorEstimate {
+    /// With several records (`--data` repeated), the record's place
+    /// (1-based, in the order given); 0 for a sensor of one record.
+    pub record: usize,
     /// The observed mass.
     pub at: usize,
     /// `displacement`, `velocity` or `acceleration`.
@@ -178,6 +181,13 @@ pub struct SensorEstimate {
     /// Its noise standard deviation: estimated from its own residual at the
     /// answer (`noise_estimated`), or the given level.
     pub sigma: f64,
+    /// The Ljung-Box p-value of its own residual at the joint answer.
+    pub whiteness_p: f64,
+    /// Whether the joint answer explains it (`whiteness_p >= 0.001`): a
+    /// sensor or record whose residual is not noise disagrees with the
+    /// others (another chain, a fault of that test), and the fit's status
+    /// is then `model-mismatch`, naming it.
+    pub fits_data: bool,
 }
 
 /// The answer of a data-first fit.
@@ -402,12 +412,31 @@ impl FitReport {
             self.fit_p_value
         ));
         if !self.sensors.is_empty() {
+            let records = self.sensors[0].record > 0;
             let s: Vec<String> = self
                 .sensors
                 .iter()
-                .map(|s| format!("{} of mass {}: sigma {}", s.kind, s.at, fmt_g(s.sigma)))
+                .map(|s| {
+                    format!(
+                        "{}{} of mass {}: sigma {}{}",
+                        if records {
+                            format!("record {}: ", s.record)
+                        } else {
+                            String::new()
+                        },
+                        s.kind,
+                        s.at,
+                        fmt_g(s.sigma),
+                        if s.fits_data {
+                            String::new()
+                        } else {
+                            format!(" (NOT explained, whiteness p = {:.1e})", s.whiteness_p)
+                        }
+                    )
+                })
                 .collect();
-            out.push_str(&format!("sensors: {}\n", s.join("; ")));
+            let label = if records { "records" } else { "sensors" };
+            out.push_str(&format!("{label}: {}\n", s.join("; ")));
         }
         if let Some(t) = &self.trigger {
             out.push_str(&format!("{}\n", t.line()));

@@ -223,7 +223,7 @@ pub(super) fn sensor_levels(f: &KFit) -> Vec<f64> {
     let keep = 1.0 - f.params as f64 / total.max(1) as f64;
     f.sensors
         .iter()
-        .map(|&(rss, n)| {
+        .map(|&(rss, n, _)| {
             (rss / (n as f64 * keep.max(1e-12)))
                 .sqrt()
                 .max(f64::MIN_POSITIVE)

@@ -28,7 +28,7 @@ use crate::detect::data::observations::{Observations, Series};
 use crate::detect::data::trigger::{detect_onset, TriggerSpec};
 use crate::detect::fit::report::fmt_g;
 use crate::detect::fit::{FitReport, Model};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use crate::time::modal::ModalResponse;
 use nalgebra::DMatrix;
@@ -80,6 +80,24 @@ pub(super) fn plan(obs: &Observations, model: &Model, spec: TriggerSpec) -> Resu
     let Observations::Series(s) = obs else {
         return Ok(None);
     };
+    if s.separate_records() {
+        // one blow time re-times one test: several records must each
+        // start with their own blow
+        for (j, r) in s.sensors().enumerate() {
+            let t0 = match spec {
+                TriggerSpec::At(v) => v - r.origin(),
+                TriggerSpec::Auto => detect_onset(r, &model.chain().uniform())?.unwrap_or(0.0),
+            };
+            if t0 != 0.0 {
+                return Err(Error::invalid(
+                    "trigger",
+                    format!("record {} of {}", j + 1, s.sensors().count()),
+                    "several records that each start with their blow (cut each record at its blow; the blow time is fitted for one record only)",
+                ));
+            }
+        }
+        return Ok(None);
+    }
     let t0 = match spec {
         TriggerSpec::At(v) => v - s.origin(),
         TriggerSpec::Auto => detect_onset(s, &model.chain().uniform())?.unwrap_or(-s.origin()),
