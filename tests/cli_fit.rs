@@ -30,15 +30,19 @@ fn temp_dir(tag: &str) -> PathBuf {
     d
 }
 
-fn write_record(path: &Path, level: f64) {
-    let truth = Chain::paper(10)
+/// The paper's chain of 10 masses with masses 3 at 3 and 2 at 7.
+fn two_defects() -> Chain {
+    Chain::paper(10)
         .unwrap()
         .with_defects([
             Defect::Mass { at: 3, m: 3.0 },
             Defect::Mass { at: 7, m: 2.0 },
         ])
-        .unwrap();
-    write_series(path, &truth, 150.0, level, 21);
+        .unwrap()
+}
+
+fn write_record(path: &Path, level: f64) {
+    write_series(path, &two_defects(), 150.0, level, 21);
 }
 
 /// `x_1` of `truth` on `[0, t_end]` every 0.25 with noise `level` of max |x_1|, as a CSV.
@@ -494,13 +498,7 @@ fn fit_data_of_a_long_chain_with_the_defaults_searches_greedily() {
 #[test]
 fn fit_data_of_several_records() {
     let dir = temp_dir("records");
-    let truth = Chain::paper(10)
-        .unwrap()
-        .with_defects([
-            Defect::Mass { at: 3, m: 3.0 },
-            Defect::Mass { at: 7, m: 2.0 },
-        ])
-        .unwrap();
+    let truth = two_defects();
     write_series(&dir.join("a.csv"), &truth, 150.0, 1e-3, 31);
     write_series(&dir.join("b.csv"), &truth, 100.0, 3e-3, 32);
     let v = json_of(
