@@ -523,24 +523,12 @@ fn fit_data_of_several_records() {
     );
     assert!(recs.iter().all(|r| r["fits_data"] == true), "{v}");
     let both = ["fit", "--data", "a.csv", "--data", "b.csv", "--n", "10"];
-    refused(
-        &[&both[..], &["--observe", "1,2"]].concat(),
-        &dir,
-        "observe",
-    );
-    refused(
-        &[&both[..], &["--method", "greedy"]].concat(),
-        &dir,
-        "method",
-    );
-    refused(
-        &[&both[..], &["--profile", "masses"]].concat(),
-        &dir,
-        "profile",
-    );
-    refused(
-        &[&both[..], &["--excitation", "ambient"]].concat(),
-        &dir,
-        "data",
-    );
+    for (flag, value, field) in [
+        ("--observe", "1,2", "observe"),
+        ("--method", "greedy", "method"),
+        ("--profile", "masses", "profile"),
+        ("--excitation", "ambient", "data"),
+    ] {
+        refused(&[&both[..], &[flag, value]].concat(), &dir, field);
+    }
 }

@@ -18,10 +18,11 @@ use crate::detect::unknowns::{DefectKind, KindBounds};
 use crate::error::Result;
 use std::time::Instant;
 
-/// The Ljung-Box p-value below which one sensor's or record's own residual
-/// is not noise: it disagrees with the joint answer (the level of the
-/// whole fit's whiteness test).
-pub const DISAGREE_P: f64 = 1e-3;
+/// The p-value below which a residual is not noise: the level of the fit's
+/// `fits_data` test (chi-square or Ljung-Box), and of each sensor's or
+/// record's own residual in a joint fit (one that fails disagrees with the
+/// joint answer).
+pub const FITS_DATA_P: f64 = 1e-3;
 
 impl Engine<'_> {
     #[allow(clippy::too_many_arguments)]
@@ -52,10 +53,7 @@ impl Engine<'_> {
         let disagree = self.disagreeing(&sensors);
         let (fits_data, p) = goodness_of_fit(f, chi2_final, estimated);
         let fits_data = fits_data && disagree.is_none();
-        let hint = match disagree {
-            Some(d) => Some(d),
-            None => (!fits_data).then(|| self.mismatch_hint(f)).flatten(),
-        };
+        let hint = disagree.or_else(|| (!fits_data).then(|| self.mismatch_hint(f)).flatten());
         let unseen = self.unseen_of(f, best, scale);
         let k_margin = self
             .k_margin(&rows, f.k, &criterion)
@@ -267,7 +265,7 @@ impl Engine<'_> {
                         _ => sigma * scale,
                     },
                     whiteness_p,
-                    fits_data: whiteness_p.is_nan() || whiteness_p >= DISAGREE_P,
+                    fits_data: whiteness_p.is_nan() || whiteness_p >= FITS_DATA_P,
                 }
             })
             .collect()
@@ -346,11 +344,11 @@ fn goodness_of_fit(f: &KFit, chi2_final: f64, estimated: bool) -> (bool, f64) {
             let p = noise::ljung_box(f.whitened.as_deref().unwrap_or(r), 20).1;
             let peak = model.iter().fold(0.0f64, |a, v| a.max(v.abs()));
             let rms = (r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64).sqrt();
-            (p >= 0.001 || rms <= EXACT_RECORD_RESIDUAL * peak, p)
+            (p >= FITS_DATA_P || rms <= EXACT_RECORD_RESIDUAL * peak, p)
         }
         _ => {
             let p = select::chi2_sf(chi2_final, f.dof.max(1) as f64);
-            (p >= 0.001, p)
+            (p >= FITS_DATA_P, p)
         }
     }
 }
