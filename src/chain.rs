@@ -559,7 +559,7 @@ impl Chain {
     /// `p(s) = s^2 + a s`, a spring or ground spring defect `1 + b s`.
     pub fn site(&self, defect: &Defect) -> Site {
         let mut site = defect.site();
-        match (self.damping, defect) {
+        match (self.tridiagonal_damping(), defect) {
             (Damping::Between { .. }, Defect::Damper { at, .. }) => {
                 site.probe = Probe::Diff(*at);
             }
@@ -692,6 +692,16 @@ impl Chain {
             }
             check_f64(&format!("defects[{idx}].{name}"), defect.value(), ok, range)?;
         }
+        if matches!(
+            (defect, self.damping),
+            (Defect::Damper { .. }, Damping::Modal { .. })
+        ) {
+            return Err(Error::invalid(
+                format!("defects[{idx}]"),
+                defect,
+                "a mass, spring or ground defect: the modal damping model has no dampers (its damping is one ratio for every mode)",
+            ));
+        }
         if self
             .defects
             .iter()
@@ -819,7 +829,7 @@ impl Chain {
             (_, Some(b)) => b[..self.n].to_vec(),
         };
         let mut d = self.point_values(1, base);
-        if let Damping::Rayleigh { a, b } = self.damping {
+        if let Damping::Rayleigh { a, b } = self.tridiagonal_damping() {
             let (m, g) = (self.masses(), self.grounds());
             for i in 0..self.n {
                 d[i] += a * m[i] + b * g[i];
@@ -832,8 +842,8 @@ impl Chain {
     /// [`Chain::springs`]; zero at a free end and in the grounded model):
     /// `c` and the damper defects (`between`), `b k_i` (`rayleigh`).
     pub fn spring_dampers(&self) -> Vec<f64> {
-        let mut v = match self.damping {
-            Damping::Grounded => return vec![0.0; self.n + 1],
+        let mut v = match self.tridiagonal_damping() {
+            Damping::Grounded | Damping::Modal { .. } => return vec![0.0; self.n + 1],
             Damping::Between { c } => {
                 let mut v = match self.baseline_dampers() {
                     Some(b) => b.to_vec(),
@@ -862,8 +872,9 @@ impl Chain {
     /// Rayleigh. The uniform dynamic stiffness is
     /// `(mass s^2 + d_u s) I + (k + c_u s) Lap`.
     pub fn uniform_damping(&self) -> (f64, f64) {
-        match self.damping {
-            Damping::Grounded => (self.d, 0.0),
+        match self.tridiagonal_damping() {
+            // (never modal: its stand-in is Rayleigh)
+            Damping::Grounded | Damping::Modal { .. } => (self.d, 0.0),
             Damping::Between { c } => (self.d, c),
             Damping::Rayleigh { a, b } => (self.d + a * self.mass, b * self.k),
         }
@@ -889,9 +900,40 @@ impl Chain {
         }
     }
 
+    /// The uniform chain's undamped frequencies `omega_j = 2 sqrt(k / mass)
+    /// sin(theta_j / 2)` (closed form for its ends, [`closed_theta`]).
+    pub fn uniform_omegas(&self) -> Vec<f64> {
+        let ends = (self.left, self.right);
+        let scale = 2.0 * (self.k / self.mass).sqrt();
+        (1..=self.n)
+            .map(|j| scale * (0.5 * closed_theta(ends, self.n, j)).sin())
+            .collect()
+    }
+
+    /// The damping model as the tridiagonal `K(s)` holds it
+    /// ([`Damping::tridiagonal`]: `modal` becomes its Rayleigh stand-in
+    /// over [`Chain::uniform_omegas`]).
+    pub fn tridiagonal_damping(&self) -> Damping {
+        self.damping.tridiagonal(&self.uniform_omegas())
+    }
+
     /// Check a 1-based observed mass index.
     pub fn check_observe(&self, i: usize) -> Result<usize> {
         check_pos("observe", i, 1, self.n)
+    }
+}
+
+/// `theta_j` of the uniform chain's mode `j` (1-based) for the given ends:
+/// `j pi / (n + 1)` fixed-fixed, `(j - 1) pi / n` free-free, `(2j - 1) pi /
+/// (2n + 1)` with one end free (the chain's frequencies are
+/// `2 sqrt(k / m) sin(theta_j / 2)`, see [`crate::green`]).
+pub(crate) fn closed_theta(ends: (Boundary, Boundary), n: usize, j: usize) -> f64 {
+    use std::f64::consts::PI;
+    let (n, j) = (n as f64, j as f64);
+    match ends {
+        (Boundary::Fixed, Boundary::Fixed) => j * PI / (n + 1.0),
+        (Boundary::Free, Boundary::Free) => (j - 1.0) * PI / n,
+        _ => (2.0 * j - 1.0) * PI / (2.0 * n + 1.0),
     }
 }
 
@@ -1102,6 +1144,46 @@ mod tests {
         // SI: c in N s/m, a = C/M, b = C/K
         let si = r.to_si(&Units::new(10.0, 100.0, 1000.0).unwrap()).unwrap();
         assert_eq!(si.damping(), Damping::Rayleigh { a: 20.0, b: 3.0 });
+        // modal: a ratio in 0..=4, the same in SI; no damper defects; its
+        // tridiagonal stand-in a Rayleigh damping close to zeta
+        let (m, missing) = Damping::parse_spec("modal").unwrap();
+        assert_eq!((m, missing), (Damping::Modal { zeta: 0.0 }, vec!["zeta"]));
+        let m = Damping::parse_complete("modal:0.03").unwrap();
+        for bad in ["modal:-0.1", "modal:5", "modal:nan"] {
+            match Damping::parse_complete(bad) {
+                Err(Error::InvalidParameter { field, allowed, .. }) => {
+                    assert_eq!(field, "damping.zeta", "{bad}");
+                    assert!(allowed.contains("0 <= zeta <= 4"), "{allowed}");
+                }
+                other => panic!("{bad}: {other:?}"),
+            }
+        }
+        let mc = Chain::paper(5).unwrap().with_d(0.0).unwrap().with_damping(m).unwrap();
+        assert_eq!(
+            mc.to_si(&Units::new(10.0, 100.0, 1000.0).unwrap())
+                .unwrap()
+                .damping(),
+            m
+        );
+        match mc.clone().with_defect(Defect::Damper { at: 2, d: 0.3 }) {
+            Err(Error::InvalidParameter { field, allowed, .. }) => {
+                assert_eq!(field, "defects[0]");
+                assert!(allowed.contains("no dampers"), "{allowed}");
+            }
+            other => panic!("{other:?}"),
+        }
+        let Damping::Rayleigh { a, b } = mc.tridiagonal_damping() else {
+            panic!("a Rayleigh stand-in")
+        };
+        let worst = mc
+            .uniform_omegas()
+            .iter()
+            .map(|w| (a / (2.0 * w) + b * w / 2.0 - 0.03).abs())
+            .fold(0.0, f64::max);
+        assert!(a > 0.0 && b > 0.0 && worst < 0.03, "{a} {b} {worst}");
+        let json = serde_json::to_string(&mc).unwrap();
+        assert!(json.contains(r#""damping":{"model":"modal","zeta":0.03}"#), "{json}");
+        assert_eq!(serde_json::from_str::<Chain>(&json).unwrap(), mc);
     }
 
     #[test]

@@ -71,6 +71,8 @@ pub enum Param {
     A,
     /// `b` of the `rayleigh` damping model.
     B,
+    /// `zeta` of the `modal` damping model (every mode's damping ratio).
+    Zeta,
 }
 
 impl Param {
@@ -87,6 +89,7 @@ impl Param {
             Damping::Grounded => vec![],
             Damping::Between { .. } => vec![Param::C],
             Damping::Rayleigh { .. } => vec![Param::A, Param::B],
+            Damping::Modal { .. } => vec![Param::Zeta],
         }
     }
 
@@ -94,18 +97,21 @@ impl Param {
     /// `chain`'s model; `None` for another parameter or model.
     fn damping_index(&self, chain: &Chain) -> Option<usize> {
         match (*self, chain.damping()) {
-            (Param::C, Damping::Between { .. }) | (Param::A, Damping::Rayleigh { .. }) => Some(0),
+            (Param::C, Damping::Between { .. })
+            | (Param::A, Damping::Rayleigh { .. })
+            | (Param::Zeta, Damping::Modal { .. }) => Some(0),
             (Param::B, Damping::Rayleigh { .. }) => Some(1),
             _ => None,
         }
     }
 
-    /// `c`, `a`, `b` (the damping parameters), else `None`.
+    /// `c`, `a`, `b`, `zeta` (the damping parameters), else `None`.
     pub fn damping_name(&self) -> Option<&'static str> {
         match self {
             Param::C => Some("c"),
             Param::A => Some("a"),
             Param::B => Some("b"),
+            Param::Zeta => Some("zeta"),
             _ => None,
         }
     }
@@ -129,6 +135,7 @@ impl Param {
             Param::C => "c".into(),
             Param::A => "a".into(),
             Param::B => "b".into(),
+            Param::Zeta => "zeta".into(),
         }
     }
 
@@ -143,7 +150,7 @@ impl Param {
             Param::K => chain.k(),
             Param::Mass => chain.mass(),
             Param::Gamma => chain.gamma(),
-            Param::C | Param::A | Param::B => {
+            Param::C | Param::A | Param::B | Param::Zeta => {
                 let i = self.damping_index(chain).ok_or_else(|| {
                     Error::invalid(
                         "param",
@@ -188,7 +195,7 @@ impl Param {
             Param::K => k = value,
             Param::Mass => mass = value,
             Param::Gamma => gamma = value,
-            Param::C | Param::A | Param::B => {
+            Param::C | Param::A | Param::B | Param::Zeta => {
                 self.get(chain)?;
                 let i = self.damping_index(chain).unwrap_or(0);
                 let mut v: Vec<f64> = damping.params().iter().map(|p| p.1).collect();
@@ -435,12 +442,12 @@ impl<T: Scalar> Forms<'_, T> {
                 };
                 s_pow * u
             }
-            Param::Mass => match chain.damping() {
+            Param::Mass => match chain.tridiagonal_damping() {
                 Damping::Rayleigh { a, .. } => (s2 + s.scale(a)) * self.points(&sites.mass),
                 _ => s2 * self.points(&sites.mass),
             },
             Param::D => s.clone() * self.points(&sites.damp),
-            Param::K => match chain.damping() {
+            Param::K => match chain.tridiagonal_damping() {
                 Damping::Rayleigh { b, .. } => {
                     (T::one() + s.scale(b)) * self.springs(chain, &sites.spring)
                 }
@@ -451,24 +458,36 @@ impl<T: Scalar> Forms<'_, T> {
                 p.get(chain)?;
                 match p {
                     Param::C => s.clone() * self.springs(chain, &sites.spring_damp),
-                    Param::A => {
-                        let m = chain.masses();
-                        s.clone() * self.weighted_points(&m)
-                    }
-                    _ => {
-                        // b: d(b K)/db = K, springs and ground springs
-                        let k = chain.springs();
-                        let (lo, hi) = chain.spring_range();
-                        let mut acc = self.weighted_points(&chain.grounds());
-                        for (j, &kj) in k.iter().enumerate().take(hi + 1).skip(lo) {
-                            acc = acc + self.spring(j).scale(kj);
-                        }
-                        s.clone() * acc
-                    }
+                    Param::A => s.clone() * self.weighted_points(&chain.masses()),
+                    _ => s.clone() * self.stiffness(chain),
                 }
+            }
+            // the modal model's tridiagonal stand-in a M + b K is linear in
+            // zeta ([`Damping::tridiagonal`]): d/dzeta = (a_1 M + b_1 K) s
+            Param::Zeta => {
+                p.get(chain)?;
+                let unit = Damping::Modal { zeta: 1.0 }.tridiagonal(&chain.uniform_omegas());
+                let Damping::Rayleigh { a, b } = unit else {
+                    return Ok(None);
+                };
+                s.clone()
+                    * (self.weighted_points(&chain.masses()).scale(a)
+                        + self.stiffness(chain).scale(b))
             }
         };
         Ok(Some(b))
+    }
+
+    /// `K`'s form: every spring and ground spring weighted by its
+    /// stiffness (`d(b K)/db`).
+    fn stiffness(&self, chain: &Chain) -> T {
+        let k = chain.springs();
+        let (lo, hi) = chain.spring_range();
+        let mut acc = self.weighted_points(&chain.grounds());
+        for (j, &kj) in k.iter().enumerate().take(hi + 1).skip(lo) {
+            acc = acc + self.spring(j).scale(kj);
+        }
+        acc
     }
 
     /// The sum of the spring forms of the springs that exist (a free end

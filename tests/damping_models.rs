@@ -1,5 +1,5 @@
-//! Damping models end to end: records of between-storey and Rayleigh damped
-//! chains from a generator of their own (the matrices assembled densely
+//! Damping models end to end: records of between-storey, Rayleigh and
+//! modally damped chains from a generator of their own (the matrices assembled densely
 //! from the models' definitions, the impulse response by the matrix
 //! exponential of the state-space form: no code of the library's forward
 //! or time paths), fitted with the defaults and `--fit d` (every damping
@@ -19,6 +19,9 @@ enum Model {
     Between(f64),
     /// `C = a M + b K`.
     Rayleigh(f64, f64),
+    /// Every undamped mode damped with one ratio:
+    /// `C = M Phi diag(2 zeta omega) Phi^T M` (mass-normalised shapes).
+    Modal(f64),
 }
 
 /// `M`, `C`, `K` of a fixed-fixed chain of unit masses and springs with
@@ -37,6 +40,14 @@ fn matrices(n: usize, masses: &[(usize, f64)], model: Model) -> [DMatrix<f64>; 3
     let c = match model {
         Model::Between(c) => &lap * c,
         Model::Rayleigh(a, b) => &m * a + &lap * b,
+        Model::Modal(zeta) => {
+            // M^-1/2 K M^-1/2 = Q diag(omega^2) Q^T, Phi = M^-1/2 Q
+            let mh = DMatrix::from_diagonal(&m.diagonal().map(|v| 1.0 / v.sqrt()));
+            let eig = (&mh * &lap * &mh).symmetric_eigen();
+            let phi = &mh * &eig.eigenvectors;
+            let w = eig.eigenvalues.map(|l| 2.0 * zeta * l.sqrt());
+            &m * &phi * DMatrix::from_diagonal(&w) * phi.transpose() * &m
+        }
     };
     [m, c, lap]
 }
@@ -99,10 +110,12 @@ fn check(
     let truth: Vec<(&str, f64)> = match model {
         Model::Between(c) => vec![("c", c)],
         Model::Rayleigh(a, b) => vec![("a", a), ("b", b)],
+        Model::Modal(zeta) => vec![("zeta", zeta)],
     };
     let name = match model {
         Model::Between(_) => "between",
         Model::Rayleigh(..) => "rayleigh",
+        Model::Modal(_) => "modal",
     };
     assert_eq!(est.model, name, "{what}");
     assert!(est.fitted);
@@ -114,7 +127,7 @@ fn check(
         );
     }
     if damping.is_none() {
-        assert_eq!(est.candidates.len(), 3, "{what}");
+        assert_eq!(est.candidates.len(), 4, "{what}");
     }
 }
 
@@ -135,6 +148,13 @@ fn between_storey_records_are_fitted_and_the_model_chosen() {
 }
 
 #[test]
+fn modally_damped_records_are_fitted_and_the_model_chosen() {
+    for (level, seed) in [(1e-3, 7), (1e-2, 8)] {
+        check(5, &SYSTEM, Model::Modal(0.03), level, seed, None);
+    }
+}
+
+#[test]
 fn a_given_model_with_its_parameters_fitted() {
     check(
         5,
@@ -145,6 +165,7 @@ fn a_given_model_with_its_parameters_fitted() {
         Some("rayleigh"),
     );
     check(5, &SYSTEM, Model::Between(0.05), 1e-2, 6, Some("between"));
+    check(5, &SYSTEM, Model::Modal(0.02), 1e-2, 9, Some("modal"));
 }
 
 #[test]
@@ -186,6 +207,7 @@ fn larger_grid_of_seeds() {
         for level in [1e-3, 1e-2] {
             check(20, &paper, Model::Rayleigh(0.05, 0.01), level, seed, None);
             check(20, &paper, Model::Between(0.05), level, 100 + seed, None);
+            check(20, &paper, Model::Modal(0.02), level, 200 + seed, None);
         }
     }
 }

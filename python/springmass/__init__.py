@@ -701,8 +701,8 @@ def fit(
         Number of masses.
     d : float, default 0.1
         Damping per mass (known, or the starting value with ``fit=("d",)``);
-        with ``damping="between"`` or ``"rayleigh"`` an extra grounded
-        damping (default 0).
+        with ``damping="between"``, ``"rayleigh"`` or ``"modal"`` an extra
+        grounded damping (default 0).
     fit : str or sequence of str, default ()
         Chain parameters fitted too: any of ``"d"``, ``"gamma"``, ``"k"``,
         ``"mass"`` (at most three), or a comma-separated string.
@@ -767,7 +767,8 @@ def fit(
     damping : str, optional
         The damping model ``"MODEL[:P1[:P2]]"``: ``"grounded"`` (``d`` on
         every mass), ``"between:C"`` (a damper ``C`` parallel to every
-        spring), ``"rayleigh:A:B"`` (``C = A M + B K``); parameters not given
+        spring), ``"rayleigh:A:B"`` (``C = A M + B K``), ``"modal:ZETA"``
+        (every mode damped with the ratio ``ZETA``); parameters not given
         are fitted with ``fit=("d",)``. Default: grounded, or with
         ``fit=("d",)`` every model, the BIC choosing (``FitResult.damping``).
     trigger : "auto" or float, default "auto"
@@ -1015,8 +1016,9 @@ def simulate(
         extra grounded damping), stiffness (1), impulse (1) and mass (1).
     damping : str, optional
         The damping model ``"grounded"`` (default), ``"between:C"`` (a
-        damper ``C`` parallel to every spring) or ``"rayleigh:A:B"``
-        (``C = A M + B K``).
+        damper ``C`` parallel to every spring), ``"rayleigh:A:B"``
+        (``C = A M + B K``) or ``"modal:ZETA"`` (every mode damped with the
+        ratio ``ZETA``).
     observe : int or sequence of int, default 1
         Observed mass(es), 1-based.
     observe_kind : {"displacement", "velocity", "acceleration"}

@@ -9,6 +9,14 @@ use super::*;
 /// | `grounded` (the paper's, default) | `diag(d_i)`: a damper from every mass to the ground | `d` |
 /// | `between` | `diag(d_i) + Lap(c_j)`: a damper `c_j` parallel to every spring (the wall springs included), as between the storeys of a building | `c` (and `d`, usually 0) |
 /// | `rayleigh` | `a M + b K` (`M`, `K` with the defects) plus `diag(d_i)` | `a`, `b` (and `d`, usually 0) |
+/// | `modal` | every undamped mode `j` of the chain (defects included) damped with one ratio: `M Phi diag(2 zeta omega_j) Phi^T M`, plus `diag(d_i)` | `zeta` (and `d`, usually 0) |
+///
+/// The modal model's `C` is a full matrix: its responses are exact modal
+/// sums ([`crate::time::modal`], [`crate::forward::response`]), and
+/// the Laplace-domain code that needs a tridiagonal `K(s)` (the fit's
+/// Laplace screens) works with its Rayleigh stand-in
+/// ([`Damping::tridiagonal`]), never as an answer. It has no damper defects
+/// (its dampers are not physical elements).
 ///
 /// A damper defect (`damper:at:value`) changes one damper of the model: the
 /// grounded damper of mass `at` (`grounded`, `rayleigh`: an added damper to
@@ -45,6 +53,11 @@ pub enum Damping {
         /// Stiffness-proportional coefficient, `>= 0` (time).
         b: f64,
     },
+    /// One damping ratio for every undamped mode.
+    Modal {
+        /// Damping ratio of every mode, `0 <= zeta <= 4`.
+        zeta: f64,
+    },
 }
 
 /// A damping model as scene files write it: the table
@@ -63,6 +76,7 @@ enum DampingTable {
     Grounded,
     Between { c: f64 },
     Rayleigh { a: f64, b: f64 },
+    Modal { zeta: f64 },
 }
 
 impl TryFrom<DampingRepr> for Damping {
@@ -73,6 +87,7 @@ impl TryFrom<DampingRepr> for Damping {
             DampingRepr::Table(DampingTable::Grounded) => Damping::Grounded,
             DampingRepr::Table(DampingTable::Between { c }) => Damping::Between { c },
             DampingRepr::Table(DampingTable::Rayleigh { a, b }) => Damping::Rayleigh { a, b },
+            DampingRepr::Table(DampingTable::Modal { zeta }) => Damping::Modal { zeta },
         };
         d.check()?;
         Ok(d)
@@ -81,20 +96,26 @@ impl TryFrom<DampingRepr> for Damping {
 
 impl Damping {
     /// Every model's name.
-    pub const MODELS: [&'static str; 3] = ["grounded", "between", "rayleigh"];
+    pub const MODELS: [&'static str; 4] = ["grounded", "between", "rayleigh", "modal"];
 
-    /// `grounded`, `between` or `rayleigh`.
+    /// `grounded`, `between`, `rayleigh` or `modal`.
     pub fn name(&self) -> &'static str {
         match self {
             Damping::Grounded => "grounded",
             Damping::Between { .. } => "between",
             Damping::Rayleigh { .. } => "rayleigh",
+            Damping::Modal { .. } => "modal",
         }
     }
 
     /// The paper's model.
     pub fn is_grounded(&self) -> bool {
         *self == Damping::Grounded
+    }
+
+    /// The `modal` model (a full `C`: see [`Damping::tridiagonal`]).
+    pub fn is_modal(&self) -> bool {
+        matches!(self, Damping::Modal { .. })
     }
 
     /// The model's own parameters `(name, value)` (none for `grounded`,
@@ -104,6 +125,7 @@ impl Damping {
             Damping::Grounded => vec![],
             Damping::Between { c } => vec![("c", c)],
             Damping::Rayleigh { a, b } => vec![("a", a), ("b", b)],
+            Damping::Modal { zeta } => vec![("zeta", zeta)],
         }
     }
 
@@ -118,6 +140,7 @@ impl Damping {
                 a: v(0, a),
                 b: v(1, b),
             },
+            Damping::Modal { zeta } => Damping::Modal { zeta: v(0, zeta) },
         }
     }
 
@@ -145,13 +168,16 @@ impl Damping {
                 a: need(a, "a")?,
                 b: need(b, "b")?,
             },
+            Damping::Modal { .. } => Damping::Modal {
+                zeta: need(c, "zeta (passed as c)")?,
+            },
         };
         out.check()?;
         Ok(out)
     }
 
     /// Parse `MODEL[:P1[:P2]]`: `grounded`, `between[:c]`,
-    /// `rayleigh[:a:b]`. Returns the model (missing parameters 0) and the
+    /// `rayleigh[:a:b]`, `modal[:zeta]`. Returns the model (missing parameters 0) and the
     /// names of the parameters not given.
     ///
     /// # Errors
@@ -175,7 +201,7 @@ impl Damping {
                     Error::parse(
                         "damping",
                         text,
-                        "MODEL[:P1[:P2]], e.g. between:0.05 or rayleigh:0.01:0.02, with numbers",
+                        "MODEL[:P1[:P2]], e.g. between:0.05, rayleigh:0.01:0.02 or modal:0.02, with numbers",
                     )
                 })
             })
@@ -213,7 +239,7 @@ impl Damping {
                 "damping",
                 text,
                 format!(
-                    "the {} model needs its parameter {p} (e.g. between:0.05, rayleigh:0.01:0.02), or fit it with --fit d",
+                    "the {} model needs its parameter {p} (e.g. between:0.05, rayleigh:0.01:0.02, modal:0.02), or fit it with --fit d",
                     d.name()
                 ),
             ));
@@ -221,15 +247,84 @@ impl Damping {
         Ok(d)
     }
 
-    /// Every parameter finite and `>= 0`.
+    /// Every parameter finite and `>= 0` (a modal ratio at most
+    /// [`Damping::MAX_ZETA`]).
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] naming `damping.<parameter>` and the range.
     pub fn check(&self) -> Result<()> {
+        if let Damping::Modal { zeta } = *self {
+            check_f64(
+                "damping.zeta",
+                zeta,
+                (0.0..=Self::MAX_ZETA).contains(&zeta),
+                "0 <= zeta <= 4 (a damping ratio)",
+            )?;
+            return Ok(());
+        }
         for (p, v) in self.params() {
             check_f64(&format!("damping.{p}"), v, v >= 0.0, ">= 0 and finite")?;
         }
         Ok(())
+    }
+
+    /// The largest modal damping ratio accepted.
+    pub const MAX_ZETA: f64 = 4.0;
+
+    /// The model as the tridiagonal `K(s) = M s^2 + C s + K` of a chain with
+    /// undamped frequencies `omegas` can hold it: itself, except `modal`,
+    /// whose full `C` is replaced by the Rayleigh damping `a M + b K` whose
+    /// ratio `a / (2 omega) + b omega / 2` is closest to `zeta` over
+    /// `omegas` (least squares, `a, b >= 0`). Only the fit's Laplace
+    /// screens use that stand-in; every response of a modal chain is its
+    /// exact modal sum.
+    ///
+    /// ```
+    /// use springmass::chain::Damping;
+    /// let Damping::Rayleigh { a, b } = Damping::Modal { zeta: 0.02 }.tridiagonal(&[1.0]) else {
+    ///     unreachable!()
+    /// };
+    /// assert!((a / 2.0 + b / 2.0 - 0.02).abs() < 1e-15);
+    /// ```
+    pub fn tridiagonal(&self, omegas: &[f64]) -> Damping {
+        let Damping::Modal { zeta } = *self else {
+            return *self;
+        };
+        let w: Vec<f64> = omegas.iter().copied().filter(|w| *w > 0.0).collect();
+        if w.is_empty() || zeta == 0.0 {
+            return Damping::Rayleigh { a: 0.0, b: 0.0 };
+        }
+        // ratio(w) = a u + b v, u = 1 / (2 w), v = w / 2
+        let (mut uu, mut uv, mut vv, mut uz, mut vz) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for &x in &w {
+            let (u, v) = (0.5 / x, 0.5 * x);
+            uu += u * u;
+            uv += u * v;
+            vv += v * v;
+            uz += u * zeta;
+            vz += v * zeta;
+        }
+        let det = uu * vv - uv * uv;
+        let (a, b) = if det > 1e-12 * uu * vv {
+            ((uz * vv - vz * uv) / det, (vz * uu - uz * uv) / det)
+        } else {
+            (f64::NAN, f64::NAN)
+        };
+        if a >= 0.0 && b >= 0.0 {
+            return Damping::Rayleigh { a, b };
+        }
+        // one term alone: the better of mass- and stiffness-proportional
+        let (a1, b1) = (uz / uu, vz / vv);
+        let err = |a: f64, b: f64| -> f64 {
+            w.iter()
+                .map(|x| (a * 0.5 / x + b * 0.5 * x - zeta).powi(2))
+                .sum()
+        };
+        if err(a1, 0.0) <= err(0.0, b1) {
+            Damping::Rayleigh { a: a1, b: 0.0 }
+        } else {
+            Damping::Rayleigh { a: 0.0, b: b1 }
+        }
     }
 }
 
@@ -254,10 +349,11 @@ impl std::str::FromStr for Damping {
             "grounded" | "ground" => Ok(Damping::Grounded),
             "between" | "interstorey" | "spring-parallel" => Ok(Damping::Between { c: 0.0 }),
             "rayleigh" => Ok(Damping::Rayleigh { a: 0.0, b: 0.0 }),
+            "modal" => Ok(Damping::Modal { zeta: 0.0 }),
             _ => Err(Error::invalid(
                 "damping",
                 s,
-                "grounded, between or rayleigh",
+                "grounded, between, rayleigh or modal",
             )),
         }
     }

@@ -84,6 +84,15 @@ pub fn assemble(chain: &Chain) -> Dense {
             }
         }
         Damping::Rayleigh { a, b } => c += &m * a + &k * b,
+        Damping::Modal { zeta } => {
+            // M^-1/2 K M^-1/2 = Q diag(omega^2) Q^T, Phi = M^-1/2 Q:
+            // C = M Phi diag(2 zeta omega) Phi^T M
+            let mh = DMatrix::from_diagonal(&m.diagonal().map(|v| 1.0 / v.sqrt()));
+            let eig = (&mh * &k * &mh).symmetric_eigen();
+            let phi = &mh * &eig.eigenvectors;
+            let w = eig.eigenvalues.map(|l| 2.0 * zeta * l.max(0.0).sqrt());
+            c += &m * &phi * DMatrix::from_diagonal(&w) * phi.transpose() * &m;
+        }
     }
     Dense { m, c, k }
 }
@@ -147,6 +156,31 @@ pub fn model_chains() -> Vec<Chain> {
                 .expect("rayleigh"),
         );
     }
+    out
+}
+
+/// Modally damped chains (`zeta = 0.03`, `d = 0`) with a mass, a spring and
+/// a ground defect, `n = 8`, fixed-fixed and free-fixed; the last with a
+/// grounded `d` proportional to the masses beside the modes' damping.
+pub fn modal_chains() -> Vec<Chain> {
+    use super::Boundary;
+    let base = crate::scenes::paper_with(8, "mass:3:2 spring:5:1.5 ground:6:0.4")
+        .and_then(|c| c.with_d(0.0))
+        .and_then(|c| c.with_damping(Damping::Modal { zeta: 0.03 }))
+        .expect("a valid chain");
+    let mut out: Vec<Chain> = [
+        (Boundary::Fixed, Boundary::Fixed),
+        (Boundary::Free, Boundary::Fixed),
+    ]
+    .iter()
+    .map(|e| base.clone().with_boundaries(e.0, e.1).expect("ends"))
+    .collect();
+    out.push(
+        crate::scenes::paper_with(8, "spring:5:1.5")
+            .and_then(|c| c.with_d(0.02))
+            .and_then(|c| c.with_damping(Damping::Modal { zeta: 0.05 }))
+            .expect("a valid chain"),
+    );
     out
 }
 

@@ -117,6 +117,8 @@ impl Chain {
                     a: a * ds / ms,
                     b: b * ds / ks,
                 },
+                // a ratio: the same in every unit system
+                Damping::Modal { zeta } => Damping::Modal { zeta },
             })?;
         match &self.baseline {
             Some(b) => chain

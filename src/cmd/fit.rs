@@ -216,7 +216,8 @@ pub struct Args {
     pub threads: Option<usize>,
     /// Damping model: grounded (a damper from every mass to the ground, the
     /// paper's), between[:C] (dampers parallel to the springs, as between
-    /// storeys), rayleigh[:A:B] (C = A M + B K). Parameters not given are
+    /// storeys), rayleigh[:A:B] (C = A M + B K), modal[:ZETA] (one damping
+    /// ratio for every mode). Parameters not given are
     /// fitted with --fit d. Default: grounded; with --fit d every model is
     /// fitted and BIC chooses. --d is then the extra grounded damping (default 0).
     #[arg(long, requires = "input", value_name = "MODEL[:P1[:P2]]")]

@@ -46,8 +46,9 @@ pub struct ChainArgs {
     #[arg(long)]
     pub scene: Option<PathBuf>,
     /// Damping model: grounded (the paper's: d on every mass), between:C
-    /// (a damper C parallel to every spring), rayleigh:A:B (C = A M + B K).
-    /// With between or rayleigh, --d is an extra grounded damping [default 0].
+    /// (a damper C parallel to every spring), rayleigh:A:B (C = A M + B K),
+    /// modal:ZETA (every mode damped with the ratio ZETA).
+    /// With another model than grounded, --d is an extra grounded damping [default 0].
     #[arg(long, value_name = "MODEL[:P1[:P2]]")]
     pub damping: Option<String>,
     /// A measured profile instead of the uniform chain: a CSV with one row

@@ -537,9 +537,60 @@ pub fn woodbury<T: Scalar>(
     (base - corr).scale(gamma)
 }
 
-/// `X_observe(s)` of `chain` (see [`Forward::eval`]).
+/// `X_observe(s)` of `chain` (see [`Forward::eval`]; a chain with
+/// `modal` damping by its exact modal sum, [`modal_sum`]).
 pub fn response<T: Scalar>(chain: &Chain, s: T, observe: usize) -> Result<T> {
+    if chain.damping().is_modal() {
+        return modal_sum(chain, s, observe, Observable::Displacement, false);
+    }
     Forward::new(chain).eval(s, observe)
+}
+
+/// The Laplace transform of a chain with `modal` damping
+/// ([`crate::chain::Damping::Modal`]), whose `C` is not tridiagonal: the
+/// exact sum over its undamped modes
+/// `X_at(s) = amp sum_j phi_at,j phi_1,j / (s^2 + 2 zeta omega_j s + omega_j^2)`
+/// ([`crate::time::modal::Modes`]), then the observable (`transfer`: per
+/// unit force, no jump term). A [`Forward`] of such a chain evaluates its
+/// tridiagonal Rayleigh stand-in instead (the fit's screens).
+///
+/// # Errors
+/// As [`check_s`]; `at` outside `1..=n`; as [`crate::time::modal::Modes::new`].
+///
+/// ```
+/// use springmass::{Chain, chain::Damping, forward::response};
+/// let c = Chain::paper(1)?.with_d(0.0)?.with_damping(Damping::Modal { zeta: 0.1 })?;
+/// // one mass, two unit springs: omega^2 = 2
+/// let s = 0.7_f64;
+/// let want = 1.0 / (s * s + 2.0 * 0.1 * 2f64.sqrt() * s + 2.0);
+/// assert!((response(&c, s, 1)? - want).abs() < 1e-15);
+/// # Ok::<(), springmass::Error>(())
+/// ```
+pub fn modal_sum<T: Scalar>(
+    chain: &Chain,
+    s: T,
+    at: usize,
+    obs: Observable,
+    transfer: bool,
+) -> Result<T> {
+    check_s(&s)?;
+    chain.check_observe(at)?;
+    let gamma = if transfer { 1.0 } else { chain.gamma() };
+    let z = s.to_c64();
+    let x = crate::time::modal::Modes::new(chain)?
+        .response(at, 1, gamma)?
+        .laplace(z);
+    let x = if z.im == 0.0 {
+        T::from_f64(x.re)
+    } else {
+        T::from_c64(x).ok_or_else(|| Error::invalid("s", format!("{z}"), "a real s"))?
+    };
+    let (jump, m1) = if transfer {
+        (0.0, 1.0)
+    } else {
+        (gamma, chain.mass_at(1))
+    };
+    Ok(obs.from_displacement(x, &s, at, jump, m1))
 }
 
 /// The observable `obs` of mass `at` after the impulse on mass 1 (see
@@ -548,6 +599,9 @@ pub fn response<T: Scalar>(chain: &Chain, s: T, observe: usize) -> Result<T> {
 /// # Errors
 /// As [`Forward::eval`].
 pub fn observe<T: Scalar>(chain: &Chain, s: T, at: usize, obs: Observable) -> Result<T> {
+    if chain.damping().is_modal() {
+        return modal_sum(chain, s, at, obs, false);
+    }
     Forward::new(chain).observe(s, at, obs)
 }
 
@@ -565,6 +619,9 @@ pub fn observe<T: Scalar>(chain: &Chain, s: T, at: usize, obs: Observable) -> Re
 /// # Ok::<(), springmass::Error>(())
 /// ```
 pub fn transfer_function<T: Scalar>(chain: &Chain, s: T, at: usize, obs: Observable) -> Result<T> {
+    if chain.damping().is_modal() {
+        return modal_sum(chain, s, at, obs, true);
+    }
     Forward::new(chain).transfer_function(s, at, obs)
 }
 

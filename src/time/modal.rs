@@ -57,7 +57,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::chain::{Boundary, Chain};
+use crate::chain::{closed_theta, Boundary, Chain, Damping};
 use crate::error::{Error, Result};
 use crate::forward::Observable;
 use nalgebra::DMatrix;
@@ -518,6 +518,8 @@ enum Inner {
     Prop {
         alpha: f64,
         beta: f64,
+        /// the modal model's ratio: mode k's damping adds 2 zeta omega_k
+        zeta: f64,
         omega2: Vec<f64>,
         q: Option<DMatrix<f64>>,
     },
@@ -556,27 +558,45 @@ impl Modes {
     /// A chain too large for the path it needs ([`MAX_N_SYMMETRIC`],
     /// [`MAX_N_QUADRATIC`]), or an eigenvalue solver that does not converge.
     pub fn new(chain: &Chain) -> Result<Modes> {
-        if proportional_damping(chain).is_some() {
+        if matches!(chain.damping(), Damping::Modal { .. }) || proportional_damping(chain).is_some() {
             Modes::proportional(chain)
         } else {
             Modes::quadratic(chain)
         }
     }
 
-    /// The proportional-damping path.
+    /// The proportional-damping path; also the `modal` damping model's
+    /// (every undamped mode damped with its ratio `zeta`, plus grounded
+    /// dampers proportional to the masses, if any).
     ///
     /// # Errors
     /// Damping not proportional to mass; `n >` [`MAX_N_SYMMETRIC`] for a
     /// non-uniform chain.
     pub fn proportional(chain: &Chain) -> Result<Modes> {
         let n = chain.n();
-        let (alpha, beta) = proportional_damping(chain).ok_or_else(|| {
-            Error::invalid(
-                "chain",
-                "damping not proportional",
-                "C = alpha M + beta K (use the quadratic path)",
-            )
-        })?;
+        let (alpha, beta, zeta) = match chain.damping() {
+            Damping::Modal { zeta } => {
+                let grounded = chain.clone().with_damping(Damping::Grounded)?;
+                let alpha = proportional_alpha(&grounded).ok_or_else(|| {
+                    Error::invalid(
+                        "d",
+                        chain.d(),
+                        "0 (or dampers proportional to the masses) beside the modal damping model",
+                    )
+                })?;
+                (alpha, 0.0, zeta)
+            }
+            _ => {
+                let (alpha, beta) = proportional_damping(chain).ok_or_else(|| {
+                    Error::invalid(
+                        "chain",
+                        "damping not proportional",
+                        "C = alpha M + beta K (use the quadratic path)",
+                    )
+                })?;
+                (alpha, beta, 0.0)
+            }
+        };
         let masses = chain.masses();
         let springs = chain.springs();
         let grounds = chain.grounds();
@@ -600,6 +620,7 @@ impl Modes {
                 inner: Inner::Prop {
                     alpha,
                     beta,
+                    zeta,
                     omega2,
                     q: None,
                 },
@@ -619,6 +640,7 @@ impl Modes {
             inner: Inner::Prop {
                 alpha,
                 beta,
+                zeta,
                 omega2: eig.eigenvalues.iter().copied().collect(),
                 q: Some(eig.eigenvectors),
             },
@@ -717,17 +739,21 @@ impl Modes {
             Inner::Prop {
                 alpha,
                 beta,
+                zeta,
                 omega2,
                 q,
             } => {
                 let n = self.n;
                 let scale = amp / (self.masses[i0] * self.masses[j0]).sqrt();
                 for (kk, &w) in omega2.iter().enumerate() {
-                    let a = if *beta == 0.0 {
+                    let mut a = if *beta == 0.0 {
                         0.5 * alpha
                     } else {
                         0.5 * (alpha + beta * w.max(0.0))
                     };
+                    if *zeta != 0.0 {
+                        a += zeta * w.max(0.0).sqrt();
+                    }
                     let (qi, qj) = match q {
                         Some(q) => (q[(i0, kk)], q[(j0, kk)]),
                         None => (
@@ -1328,17 +1354,6 @@ fn fit_clusters(
         .collect())
 }
 
-/// `theta_j` of the uniform chain's mode `j` (1-based) for the given ends
-/// (module docs).
-fn closed_theta(ends: (Boundary, Boundary), n: usize, j: usize) -> f64 {
-    use std::f64::consts::PI;
-    let (n, j) = (n as f64, j as f64);
-    match ends {
-        (Boundary::Fixed, Boundary::Fixed) => j * PI / (n + 1.0),
-        (Boundary::Free, Boundary::Free) => (j - 1.0) * PI / n,
-        _ => (2.0 * j - 1.0) * PI / (2.0 * n + 1.0),
-    }
-}
 
 /// Normalised shape of mode `j` at mass `i` (both 1-based) of the uniform
 /// chain with the given ends.
@@ -1439,6 +1454,17 @@ pub fn undamped_modes(chain: &Chain) -> Result<UndampedModes> {
 /// # Ok::<(), springmass::Error>(())
 /// ```
 pub fn natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
+    if let Damping::Modal { zeta } = chain.damping() {
+        // every mode's ratio is zeta, beside the grounded dampers' own
+        let grounded = chain.clone().with_damping(Damping::Grounded)?;
+        return Ok(natural_modes(&grounded)?
+            .into_iter()
+            .map(|m| NaturalMode {
+                zeta: m.zeta.map(|z| z + zeta),
+                ..m
+            })
+            .collect());
+    }
     let n = chain.n();
     let masses = chain.masses();
     let dampers = chain.dampers();
@@ -2258,6 +2284,43 @@ mod damping_tests {
             .unwrap();
         assert_eq!(Modes::new(&q).unwrap().path(), ModalPath::Quadratic);
         check(&q);
+    }
+
+    #[test]
+    fn modal_damping_matches_the_matrix_exponential_and_the_dense_solve() {
+        for chain in dense_ref::modal_chains() {
+            check(&chain);
+            // the Laplace transform: the exact modal sum, not the stand-in
+            for s in [
+                num_complex::Complex64::new(0.05, 0.0),
+                num_complex::Complex64::new(0.3, 1.2),
+                num_complex::Complex64::new(2.0, -0.7),
+            ] {
+                for o in [1, 4] {
+                    let want = dense_ref::solve(&chain, s, o);
+                    let got = crate::forward::response(&chain, s, o).unwrap();
+                    assert!((got - want).norm() <= 1e-12 * want.norm(), "{s} {o}");
+                }
+            }
+            // every mode's ratio is zeta (plus d's alpha / (2 omega))
+            let zeta = match chain.damping() {
+                Damping::Modal { zeta } => zeta,
+                _ => unreachable!(),
+            };
+            for m in natural_modes(&chain).unwrap() {
+                let extra = chain.d() / (2.0 * m.omega);
+                assert!((m.zeta.unwrap() - zeta - extra).abs() < 1e-12, "{m:?}");
+            }
+        }
+        // grounded dampers not proportional to the masses: refused, typed
+        let bad = crate::scenes::paper_with(6, "mass:2:3")
+            .unwrap()
+            .with_damping(Damping::Modal { zeta: 0.02 })
+            .unwrap();
+        match Modes::new(&bad) {
+            Err(Error::InvalidParameter { field, .. }) => assert_eq!(field, "d"),
+            other => panic!("{other:?}"),
+        }
     }
 
     #[test]

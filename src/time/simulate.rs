@@ -66,7 +66,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::chain::Chain;
+use crate::chain::{Chain, Damping};
 use crate::error::{Error, Result};
 use crate::forward::Observable;
 use crate::series::TimeSeries;
@@ -502,7 +502,7 @@ pub fn simulate_forced(chain: &Chain, opts: &SimOptions, forcing: &Forcing) -> R
     let samples = opts.samples(chain)?;
     forcing.check(chain.n())?;
     let t: Vec<f64> = (0..samples).map(|k| k as f64 * opts.dt).collect();
-    let sys = System::new(chain, forcing, opts);
+    let sys = System::new(chain, forcing, opts)?;
     let method = match opts.method {
         Method::Auto => sys.cheaper(opts, samples),
         m => m,
@@ -587,6 +587,9 @@ struct System<'a> {
     /// the rows of `M^-1 D`'s off-diagonal (spring-parallel dampers):
     /// `[left, right]` per mass; empty without them
     vrows: Vec<[f64; 2]>,
+    /// `M^-1 C` of the `modal` damping model (full, `n x n`), beside the
+    /// tridiagonal part above (its grounded dampers only)
+    modal: Option<DMatrix<f64>>,
     /// spring-parallel dampers (`n + 1`)
     c: Vec<f64>,
     k: Vec<f64>,
@@ -607,7 +610,29 @@ struct System<'a> {
 }
 
 impl<'a> System<'a> {
-    fn new(chain: &Chain, forcing: &'a Forcing, opts: &SimOptions) -> System<'a> {
+    fn new(chain: &Chain, forcing: &'a Forcing, opts: &SimOptions) -> Result<System<'a>> {
+        // the modal model's C is full: M^-1 C = Phi diag(2 zeta omega) Phi^T M
+        // (mass-normalised shapes), the grounded dampers stay tridiagonal
+        let grounded;
+        let (chain, modal) = match chain.damping() {
+            Damping::Modal { zeta } => {
+                let modes = super::modal::undamped_modes(chain)?;
+                let m = chain.masses();
+                let phi = &modes.shapes;
+                let n = chain.n();
+                let mut scaled = phi.clone();
+                for (j, w) in modes.omega.iter().enumerate() {
+                    scaled.column_mut(j).scale_mut(2.0 * zeta * w);
+                }
+                let mut a = scaled * phi.transpose();
+                for i in 0..n {
+                    a.column_mut(i).scale_mut(m[i]);
+                }
+                grounded = chain.clone().with_damping(Damping::Grounded)?;
+                (&grounded, Some(a))
+            }
+            _ => (chain, None),
+        };
         let q = opts.force_nodes;
         let m = chain.masses();
         let fm = forcing.masses();
@@ -625,7 +650,8 @@ impl<'a> System<'a> {
         let grounds = chain.grounds();
         let c = chain.spring_dampers();
         let general = c.iter().any(|&v| v != 0.0);
-        System {
+        Ok(System {
+            modal,
             vrows: if general {
                 (0..chain.n())
                     .map(|i| [c[i] / m[i], c[i + 1] / m[i]])
@@ -659,7 +685,7 @@ impl<'a> System<'a> {
             fm,
             nodes,
             vinv,
-        }
+        })
     }
 
     /// `Expm` or `Rk`, whichever a cost model (calibrated on this code:
@@ -744,6 +770,12 @@ impl<'a> System<'a> {
             let vr = if i + 1 < n { v[i + 1] } else { 0.0 };
             ov[i] += alpha * (cl * vl + cr * vr);
         }
+        if let Some(a) = &self.modal {
+            for (i, o) in ov.iter_mut().enumerate() {
+                let row: f64 = a.row(i).iter().zip(v).map(|(x, y)| x * y).sum();
+                *o -= alpha * row;
+            }
+        }
     }
 
     fn norm_a(&self) -> f64 {
@@ -753,6 +785,7 @@ impl<'a> System<'a> {
                     + self.g[i]
                     + self.d[i])
                     / self.m[i]
+                    + self.modal.as_ref().map_or(0.0, |a| a.row(i).abs().sum())
             })
             .fold(1.0, f64::max)
     }
@@ -772,6 +805,10 @@ impl<'a> System<'a> {
                 a[(n + i, i + 1)] = self.k[i + 1] / self.m[i];
                 a[(n + i, n + i + 1)] = self.c[i + 1] / self.m[i];
             }
+        }
+        if let Some(c) = &self.modal {
+            let mut block = a.view_mut((n, n), (n, n));
+            block -= c;
         }
         a
     }
@@ -968,8 +1005,11 @@ mod damping_tests {
     #[test]
     fn steppers_match_the_matrix_exponential_in_every_model() {
         let (dt, samples) = (0.2, 301);
-        for chain in dense_ref::model_chains() {
-            for method in [Method::Expm, Method::Rk] {
+        for chain in dense_ref::model_chains()
+            .into_iter()
+            .chain(dense_ref::modal_chains())
+        {
+            for method in [Method::Expm, Method::Rk, Method::Modal] {
                 let opts = SimOptions::new(dt * (samples - 1) as f64, dt)
                     .with_observe(vec![1, 6])
                     .with_method(method);

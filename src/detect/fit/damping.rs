@@ -8,12 +8,14 @@
 //! With `omega_min`, `omega_max` the uniform chain's lowest and highest
 //! natural frequencies and `omega_ref = sqrt(omega_min omega_max)`, the
 //! damping ratio of mode `omega` is `d / (2 mass omega)` (grounded),
-//! `c omega / (2 k)` (between) and `a / (2 omega) + b omega / 2` (Rayleigh).
+//! `c omega / (2 k)` (between), `a / (2 omega) + b omega / 2` (Rayleigh)
+//! and `zeta` itself (modal).
 //!
 //! * **Starting values**: the damping of the chain's `d` (the user's, or the
 //!   paper's 0.1) at `omega_ref`, i.e. `c = d k / (mass omega_ref^2)`,
-//!   `a = d / (2 mass)`, `b = d / (2 mass omega_ref^2)` (a ratio of 2% at
-//!   `omega_ref` when `d` is 0).
+//!   `a = d / (2 mass)`, `b = d / (2 mass omega_ref^2)`,
+//!   `zeta = d / (2 mass omega_ref)` (a ratio of 2% at `omega_ref` when `d`
+//!   is 0).
 //! * **Bounds**: from 0 to a damping ratio of 1 at `omega_min` for each
 //!   parameter alone: `c <= 2 k / omega_min`, `a <= 2 omega_min`,
 //!   `b <= 2 / omega_min`.
@@ -82,6 +84,9 @@ pub fn start(chain: &Chain, name: &str) -> Result<Damping> {
         Damping::Between { .. } => Damping::Between {
             c: d * k / (m * w2),
         },
+        Damping::Modal { .. } => Damping::Modal {
+            zeta: d / (2.0 * m * w2.sqrt()),
+        },
         _ => Damping::Rayleigh {
             a: d / (2.0 * m),
             b: d / (2.0 * m * w2),
@@ -103,6 +108,7 @@ fn params_of(d: &Damping) -> Vec<Param> {
         Damping::Grounded => vec![],
         Damping::Between { .. } => vec![Param::C],
         Damping::Rayleigh { .. } => vec![Param::A, Param::B],
+        Damping::Modal { .. } => vec![Param::Zeta],
     }
 }
 
@@ -110,6 +116,9 @@ fn params_of(d: &Damping) -> Vec<Param> {
 /// docs); `None` for any other parameter or when the chain has no
 /// vibrating mode.
 pub fn bounds(chain: &Chain, p: Param) -> Option<(f64, f64)> {
+    if p == Param::Zeta {
+        return Some((0.0, 1.0));
+    }
     if !matches!(p, Param::C | Param::A | Param::B) {
         return None;
     }

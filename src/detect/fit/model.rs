@@ -198,6 +198,7 @@ impl Model {
                     if missing.len() > 1 { "them" } else { "it" },
                     match damping {
                         Damping::Between { .. } => "between:C",
+                        Damping::Modal { .. } => "modal:ZETA",
                         _ => "rayleigh:A:B",
                     },
                     if missing.len() > 1 { "them" } else { "it" },
@@ -224,7 +225,7 @@ impl Model {
         Ok(m)
     }
 
-    /// Fit every damping model (grounded, between, Rayleigh) and report
+    /// Fit every damping model (grounded, between, Rayleigh, modal) and report
     /// the one the criterion prefers ([`crate::detect::fit::damping`]);
     /// meaningful with `D` fitted.
     pub fn choosing_damping(mut self) -> Model {

@@ -287,6 +287,17 @@ impl FitOptions {
                 "real-axis or bromwich for Laplace values (the time misfit needs a sampled series)",
             ));
         }
+        if model.chain().damping().is_modal()
+            && (matches!(obs, Observations::Laplace(_))
+                || self.misfit.is_some_and(|m| m != MisfitKind::Time)
+                || matches!(self.method, FitMethod::Greedy | FitMethod::Relax))
+        {
+            return Err(Error::invalid(
+                "damping",
+                "modal",
+                "a sampled record fitted by the time misfit with the enumeration or a stochastic search (the modal model's C is not tridiagonal: its exact response is a modal sum in time)",
+            ));
+        }
         self.validate_record(obs)?;
         if self.max_evals == 0 {
             return Err(Error::invalid("max_evals", 0, ">= 1"));

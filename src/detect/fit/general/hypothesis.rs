@@ -176,6 +176,7 @@ pub fn param_name(p: &Param) -> &'static str {
         Param::C => "c",
         Param::A => "a",
         Param::B => "b",
+        Param::Zeta => "zeta",
     }
 }
 
@@ -188,10 +189,11 @@ pub(super) fn chain_param(name: &str) -> Result<Param> {
         "c" => Ok(Param::C),
         "a" => Ok(Param::A),
         "b" => Ok(Param::B),
+        "zeta" => Ok(Param::Zeta),
         _ => Err(Error::invalid(
             "param",
             name,
-            "d, gamma, k, mass, c, a or b",
+            "d, gamma, k, mass, c, a, b or zeta",
         )),
     }
 }
