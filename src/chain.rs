@@ -1158,7 +1158,12 @@ mod tests {
                 other => panic!("{bad}: {other:?}"),
             }
         }
-        let mc = Chain::paper(5).unwrap().with_d(0.0).unwrap().with_damping(m).unwrap();
+        let mc = Chain::paper(5)
+            .unwrap()
+            .with_d(0.0)
+            .unwrap()
+            .with_damping(m)
+            .unwrap();
         assert_eq!(
             mc.to_si(&Units::new(10.0, 100.0, 1000.0).unwrap())
                 .unwrap()
@@ -1182,7 +1187,10 @@ mod tests {
             .fold(0.0, f64::max);
         assert!(a > 0.0 && b > 0.0 && worst < 0.03, "{a} {b} {worst}");
         let json = serde_json::to_string(&mc).unwrap();
-        assert!(json.contains(r#""damping":{"model":"modal","zeta":0.03}"#), "{json}");
+        assert!(
+            json.contains(r#""damping":{"model":"modal","zeta":0.03}"#),
+            "{json}"
+        );
         assert_eq!(serde_json::from_str::<Chain>(&json).unwrap(), mc);
     }
 

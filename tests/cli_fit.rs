@@ -532,3 +532,101 @@ fn fit_data_of_several_records() {
         refused(&[&both[..], &[flag, value]].concat(), &dir, field);
     }
 }
+
+#[test]
+fn fit_data_with_modal_damping() {
+    let dir = temp_dir("modal");
+    let sim = bin()
+        .args([
+            "simulate",
+            "--n",
+            "5",
+            "--defect",
+            "mass:2:3",
+            "--defect",
+            "mass:4:0.5",
+            "--damping",
+            "modal:0.03",
+            "--t-end",
+            "120",
+            "--dt",
+            "0.5",
+            "--noise",
+            "rel:1e-2",
+            "--seed",
+            "3",
+            "--out",
+            "x1.csv",
+        ])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
+    let v = json_of(bin().current_dir(&dir).args([
+        "fit",
+        "--data",
+        "x1.csv",
+        "--n",
+        "5",
+        "--damping",
+        "modal",
+        "--fit",
+        "d",
+        "--json",
+    ]));
+    let at: Vec<u64> = v["defects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d["at"].as_u64().unwrap())
+        .collect();
+    assert_eq!(at, [2, 4], "{v}");
+    let damping = &v["damping"];
+    assert_eq!(damping["model"], "modal", "{damping}");
+    let (zeta, se) = (
+        damping["zeta"].as_f64().unwrap(),
+        damping["se"]["zeta"].as_f64().unwrap(),
+    );
+    assert!(se > 0.0 && (zeta - 0.03).abs() < 3.0 * se, "{damping}");
+    // what the modal model cannot take, refused naming the field
+    refused(
+        &[
+            "fit",
+            "--data",
+            "x1.csv",
+            "--n",
+            "5",
+            "--damping",
+            "modal",
+            "--fit",
+            "d",
+            "--method",
+            "greedy",
+        ],
+        &dir,
+        "damping",
+    );
+    refused(
+        &[
+            "simulate",
+            "--n",
+            "5",
+            "--damping",
+            "modal:0.03",
+            "--defect",
+            "damper:2:0.3",
+        ],
+        &dir,
+        "defects[0]",
+    );
+    refused(
+        &["simulate", "--n", "5", "--damping", "modal:9"],
+        &dir,
+        "damping.zeta",
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

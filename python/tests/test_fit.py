@@ -231,3 +231,41 @@ def test_several_records_are_fitted_jointly_and_a_foreign_one_is_named():
     assert "record 3" in bad.message
     with pytest.raises(ValueError, match="records"):
         springmass.fit(ta, xa, n=20, records=[(tb,)])
+
+
+def _modal_record(n, masses, zeta, t, level, seed):
+    """x_1(t) after a unit impulse on mass 1 of a fixed-fixed chain of unit
+    springs whose every mode has the damping ratio zeta: numpy's own modal
+    sum (not the library's)."""
+    m = np.ones(n)
+    for at, v in masses:
+        m[at - 1] = v
+    k = 2.0 * np.eye(n) - np.eye(n, k=1) - np.eye(n, k=-1)
+    mh = 1.0 / np.sqrt(m)
+    w2, q = np.linalg.eigh(mh[:, None] * k * mh[None, :])
+    w = np.sqrt(w2)
+    phi1 = mh[0] * q[0, :]
+    wd = w * np.sqrt(1.0 - zeta**2)
+    x = (phi1**2 * np.exp(-zeta * w * t[:, None]) * np.sin(wd * t[:, None]) / wd).sum(axis=1)
+    rng = np.random.default_rng(seed)
+    return x + level * np.abs(x).max() * rng.standard_normal(t.size)
+
+
+def test_modal_damping_is_simulated_fitted_and_chosen():
+    t = np.arange(0.0, 120.5, 0.5)
+    masses = [(2, 3.0), (4, 0.5)]
+    exact = _modal_record(5, masses, 0.03, t, 0.0, 0)
+    sim = springmass.simulate(5, defects=[("mass", 2, 3.0), ("mass", 4, 0.5)], t=t, d=0.0, damping="modal:0.03")
+    assert np.abs(sim - exact).max() < 1e-9 * np.abs(exact).max()
+    x = _modal_record(5, masses, 0.03, t, 1e-2, 11)
+    given = springmass.fit(t, x, n=5, damping="modal", fit=("d",))
+    chosen = springmass.fit(t, x, n=5, fit=("d",))
+    for r in (given, chosen):
+        assert [(e.kind, e.at) for e in r.defects] == [("mass", 2), ("mass", 4)], r.summary
+        for e, (_, v) in zip(r.defects, masses):
+            assert abs(e.value - v) < 3 * e.se, r.summary
+        assert r.damping["model"] == "modal", r.damping
+        assert abs(r.damping["zeta"] - 0.03) < 3 * r.damping["se"]["zeta"], r.damping
+    assert [c["model"] for c in chosen.damping["candidates"]] == ["grounded", "between", "rayleigh", "modal"]
+    with pytest.raises(ValueError, match="damping.zeta"):
+        springmass.simulate(5, t=t, damping="modal:7")

@@ -250,17 +250,52 @@ pub struct Forward {
     /// dampers, Rayleigh): every value by Woodbury on the generalised
     /// Green's function, the O(n) solver where that is not finite.
     general: bool,
+    /// The modes of a chain with `modal` damping (`None` otherwise, or when
+    /// they cannot be computed: its values then give that error): its
+    /// [`Forward::eval`], [`Forward::observe`] and
+    /// [`Forward::transfer_function`] are the exact modal sums
+    /// ([`modal_sum`]); the Green's function and the Woodbury updates
+    /// ([`Forward::green`], [`Forward::eval_with`], [`Forward::sites_with`])
+    /// are those of its tridiagonal Rayleigh stand-in (the fit's screens).
+    modes: Option<std::sync::Arc<crate::time::modal::Modes>>,
 }
 
 impl Forward {
     /// Prepare the updates of `chain` (validated by construction).
     pub fn new(chain: &Chain) -> Forward {
+        let modes = chain
+            .damping()
+            .is_modal()
+            .then(|| {
+                crate::time::modal::Modes::new(chain)
+                    .ok()
+                    .map(std::sync::Arc::new)
+            })
+            .flatten();
         Forward {
             chain: chain.clone(),
             updates: updates(chain),
             transfer: Transfer::new(chain),
             general: !chain.damping().is_grounded() || chain.baseline().is_some(),
+            modes,
         }
+    }
+
+    /// [`modal_sum`] with this chain's modes when it has `modal` damping.
+    fn modal<T: Scalar>(
+        &self,
+        s: &T,
+        at: usize,
+        obs: Observable,
+        transfer: bool,
+    ) -> Option<Result<T>> {
+        if !self.chain.damping().is_modal() {
+            return None;
+        }
+        Some(match &self.modes {
+            Some(m) => modal_sum_with(m, &self.chain, s.clone(), at, obs, transfer),
+            None => modal_sum(&self.chain, s.clone(), at, obs, transfer),
+        })
     }
 
     /// The chain.
@@ -308,6 +343,9 @@ impl Forward {
     /// # Errors
     /// As [`Forward::eval`].
     pub fn transfer_function<T: Scalar>(&self, s: T, at: usize, obs: Observable) -> Result<T> {
+        if let Some(x) = self.modal(&s, at, obs, true) {
+            return x;
+        }
         check_s(&s)?;
         self.chain.check_observe(at)?;
         let x = if self.general {
@@ -334,6 +372,11 @@ impl Forward {
     }
 
     fn observe_scaled<T: Scalar>(&self, s: T, at: usize, obs: Observable, gamma: f64) -> Result<T> {
+        if gamma == self.chain.gamma() {
+            if let Some(x) = self.modal(&s, at, obs, false) {
+                return x;
+            }
+        }
         check_s(&s)?;
         self.chain.check_observe(at)?;
         let m1 = self.chain.mass_at(1);
@@ -357,6 +400,9 @@ impl Forward {
     /// `s` not finite, `Re s < 0` or `|s| > 1e100`; `observe` outside `1..=n`;
     /// [`Error::Singular`] at a pole (undamped chain on the imaginary axis).
     pub fn eval<T: Scalar>(&self, s: T, observe: usize) -> Result<T> {
+        if let Some(x) = self.modal(&s, observe, Observable::Displacement, false) {
+            return x;
+        }
         check_s(&s)?;
         self.chain.check_observe(observe)?;
         if self.general {
@@ -540,9 +586,6 @@ pub fn woodbury<T: Scalar>(
 /// `X_observe(s)` of `chain` (see [`Forward::eval`]; a chain with
 /// `modal` damping by its exact modal sum, [`modal_sum`]).
 pub fn response<T: Scalar>(chain: &Chain, s: T, observe: usize) -> Result<T> {
-    if chain.damping().is_modal() {
-        return modal_sum(chain, s, observe, Observable::Displacement, false);
-    }
     Forward::new(chain).eval(s, observe)
 }
 
@@ -551,8 +594,10 @@ pub fn response<T: Scalar>(chain: &Chain, s: T, observe: usize) -> Result<T> {
 /// exact sum over its undamped modes
 /// `X_at(s) = amp sum_j phi_at,j phi_1,j / (s^2 + 2 zeta omega_j s + omega_j^2)`
 /// ([`crate::time::modal::Modes`]), then the observable (`transfer`: per
-/// unit force, no jump term). A [`Forward`] of such a chain evaluates its
-/// tridiagonal Rayleigh stand-in instead (the fit's screens).
+/// unit force, no jump term). [`Forward::eval`] and the free functions of
+/// this module take it for such a chain; the Green's function and Woodbury
+/// updates of a [`Forward`] are its tridiagonal Rayleigh stand-in's (the
+/// fit's screens).
 ///
 /// # Errors
 /// As [`check_s`]; `at` outside `1..=n`; as [`crate::time::modal::Modes::new`].
@@ -575,11 +620,24 @@ pub fn modal_sum<T: Scalar>(
 ) -> Result<T> {
     check_s(&s)?;
     chain.check_observe(at)?;
+    let modes = crate::time::modal::Modes::new(chain)?;
+    modal_sum_with(&modes, chain, s, at, obs, transfer)
+}
+
+/// [`modal_sum`] with `chain`'s modes at hand.
+fn modal_sum_with<T: Scalar>(
+    modes: &crate::time::modal::Modes,
+    chain: &Chain,
+    s: T,
+    at: usize,
+    obs: Observable,
+    transfer: bool,
+) -> Result<T> {
+    check_s(&s)?;
+    chain.check_observe(at)?;
     let gamma = if transfer { 1.0 } else { chain.gamma() };
     let z = s.to_c64();
-    let x = crate::time::modal::Modes::new(chain)?
-        .response(at, 1, gamma)?
-        .laplace(z);
+    let x = modes.response(at, 1, gamma)?.laplace(z);
     let x = if z.im == 0.0 {
         T::from_f64(x.re)
     } else {
@@ -599,9 +657,6 @@ pub fn modal_sum<T: Scalar>(
 /// # Errors
 /// As [`Forward::eval`].
 pub fn observe<T: Scalar>(chain: &Chain, s: T, at: usize, obs: Observable) -> Result<T> {
-    if chain.damping().is_modal() {
-        return modal_sum(chain, s, at, obs, false);
-    }
     Forward::new(chain).observe(s, at, obs)
 }
 
@@ -619,9 +674,6 @@ pub fn observe<T: Scalar>(chain: &Chain, s: T, at: usize, obs: Observable) -> Re
 /// # Ok::<(), springmass::Error>(())
 /// ```
 pub fn transfer_function<T: Scalar>(chain: &Chain, s: T, at: usize, obs: Observable) -> Result<T> {
-    if chain.damping().is_modal() {
-        return modal_sum(chain, s, at, obs, true);
-    }
     Forward::new(chain).transfer_function(s, at, obs)
 }
 

@@ -558,7 +558,8 @@ impl Modes {
     /// A chain too large for the path it needs ([`MAX_N_SYMMETRIC`],
     /// [`MAX_N_QUADRATIC`]), or an eigenvalue solver that does not converge.
     pub fn new(chain: &Chain) -> Result<Modes> {
-        if matches!(chain.damping(), Damping::Modal { .. }) || proportional_damping(chain).is_some() {
+        if matches!(chain.damping(), Damping::Modal { .. }) || proportional_damping(chain).is_some()
+        {
             Modes::proportional(chain)
         } else {
             Modes::quadratic(chain)
@@ -1353,7 +1354,6 @@ fn fit_clusters(
         })
         .collect())
 }
-
 
 /// Normalised shape of mode `j` at mass `i` (both 1-based) of the uniform
 /// chain with the given ends.
@@ -2300,6 +2300,15 @@ mod damping_tests {
                     let want = dense_ref::solve(&chain, s, o);
                     let got = crate::forward::response(&chain, s, o).unwrap();
                     assert!((got - want).norm() <= 1e-12 * want.norm(), "{s} {o}");
+                    let h = crate::forward::transfer_function(
+                        &chain,
+                        s,
+                        o,
+                        crate::forward::Observable::Velocity,
+                    )
+                    .unwrap();
+                    let v = s * want / chain.gamma();
+                    assert!((h - v).norm() <= 1e-12 * v.norm(), "{s} {o}");
                 }
             }
             // every mode's ratio is zeta (plus d's alpha / (2 omega))
