@@ -29,6 +29,7 @@ pub(crate) mod dense_ref;
 mod spec;
 mod with_baseline;
 pub use baseline::{Baseline, BaselineSpec};
+pub(crate) use damping::closed_theta;
 pub use damping::Damping;
 pub use spec::{ChainSpec, Units};
 use std::sync::Arc;
@@ -900,40 +901,9 @@ impl Chain {
         }
     }
 
-    /// The uniform chain's undamped frequencies `omega_j = 2 sqrt(k / mass)
-    /// sin(theta_j / 2)` (closed form for its ends, [`closed_theta`]).
-    pub fn uniform_omegas(&self) -> Vec<f64> {
-        let ends = (self.left, self.right);
-        let scale = 2.0 * (self.k / self.mass).sqrt();
-        (1..=self.n)
-            .map(|j| scale * (0.5 * closed_theta(ends, self.n, j)).sin())
-            .collect()
-    }
-
-    /// The damping model as the tridiagonal `K(s)` holds it
-    /// ([`Damping::tridiagonal`]: `modal` becomes its Rayleigh stand-in
-    /// over [`Chain::uniform_omegas`]).
-    pub fn tridiagonal_damping(&self) -> Damping {
-        self.damping.tridiagonal(&self.uniform_omegas())
-    }
-
     /// Check a 1-based observed mass index.
     pub fn check_observe(&self, i: usize) -> Result<usize> {
         check_pos("observe", i, 1, self.n)
-    }
-}
-
-/// `theta_j` of the uniform chain's mode `j` (1-based) for the given ends:
-/// `j pi / (n + 1)` fixed-fixed, `(j - 1) pi / n` free-free, `(2j - 1) pi /
-/// (2n + 1)` with one end free (the chain's frequencies are
-/// `2 sqrt(k / m) sin(theta_j / 2)`, see [`crate::green`]).
-pub(crate) fn closed_theta(ends: (Boundary, Boundary), n: usize, j: usize) -> f64 {
-    use std::f64::consts::PI;
-    let (n, j) = (n as f64, j as f64);
-    match ends {
-        (Boundary::Fixed, Boundary::Fixed) => j * PI / (n + 1.0),
-        (Boundary::Free, Boundary::Free) => (j - 1.0) * PI / n,
-        _ => (2.0 * j - 1.0) * PI / (2.0 * n + 1.0),
     }
 }
 

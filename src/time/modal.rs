@@ -1455,15 +1455,7 @@ pub fn undamped_modes(chain: &Chain) -> Result<UndampedModes> {
 /// ```
 pub fn natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
     if let Damping::Modal { zeta } = chain.damping() {
-        // every mode's ratio is zeta, beside the grounded dampers' own
-        let grounded = chain.clone().with_damping(Damping::Grounded)?;
-        return Ok(natural_modes(&grounded)?
-            .into_iter()
-            .map(|m| NaturalMode {
-                zeta: m.zeta.map(|z| z + zeta),
-                ..m
-            })
-            .collect());
+        return modal_natural_modes(chain, zeta);
     }
     let n = chain.n();
     let masses = chain.masses();
@@ -1532,6 +1524,19 @@ pub fn natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
                 frequency: omega / (2.0 * std::f64::consts::PI),
                 zeta: (!rigid).then(|| damp / (2.0 * omega)),
             }
+        })
+        .collect())
+}
+
+/// [`natural_modes`] of a chain with modal damping: every mode's ratio is
+/// `zeta`, beside the grounded dampers' own.
+fn modal_natural_modes(chain: &Chain, zeta: f64) -> Result<Vec<NaturalMode>> {
+    let grounded = chain.clone().with_damping(Damping::Grounded)?;
+    Ok(natural_modes(&grounded)?
+        .into_iter()
+        .map(|m| NaturalMode {
+            zeta: m.zeta.map(|z| z + zeta),
+            ..m
         })
         .collect())
 }

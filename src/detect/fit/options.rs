@@ -280,6 +280,25 @@ impl FitOptions {
             }
             Observations::Laplace(l) => l.sensor().check(n)?,
         }
+        self.validate_misfit(obs, model)?;
+        self.validate_record(obs)?;
+        if self.max_evals == 0 {
+            return Err(Error::invalid("max_evals", 0, ">= 1"));
+        }
+        if self.max_sets == 0 {
+            return Err(Error::invalid("max_sets", 0, ">= 1"));
+        }
+        Ok(())
+    }
+}
+
+impl FitOptions {
+    /// The misfit the data and the model allow: the time misfit needs a
+    /// sampled series; the modal damping model is fitted from a sampled
+    /// record by the time misfit, by the enumeration or a stochastic search
+    /// (its `C` is not tridiagonal: its exact response is a modal sum in
+    /// time).
+    fn validate_misfit(&self, obs: &Observations, model: &Model) -> Result<()> {
         if matches!(obs, Observations::Laplace(_)) && self.misfit == Some(MisfitKind::Time) {
             return Err(Error::invalid(
                 "misfit",
@@ -298,18 +317,18 @@ impl FitOptions {
                 "a sampled record fitted by the time misfit with the enumeration or a stochastic search (the modal model's C is not tridiagonal: its exact response is a modal sum in time)",
             ));
         }
-        self.validate_record(obs)?;
-        if self.max_evals == 0 {
-            return Err(Error::invalid("max_evals", 0, ">= 1"));
-        }
-        if self.max_sets == 0 {
-            return Err(Error::invalid("max_sets", 0, ">= 1"));
+        if model.chain().damping().is_modal() && model.chain().d() != 0.0 {
+            // a searched mass defect would make grounded dampers
+            // non-proportional, which the modal sum cannot take
+            return Err(Error::invalid(
+                "d",
+                model.chain().d(),
+                "0 beside the modal damping model in a fit (its damping is zeta alone)",
+            ));
         }
         Ok(())
     }
-}
 
-impl FitOptions {
     /// A record of several sensors is fitted by the time misfit with white
     /// noise, by the enumeration or a stochastic search (the greedy
     /// search's rank-one scores and the relaxation's profile read one
