@@ -619,14 +619,13 @@ impl<'a> System<'a> {
                 let modes = super::modal::undamped_modes(chain)?;
                 let m = chain.masses();
                 let phi = &modes.shapes;
-                let n = chain.n();
                 let mut scaled = phi.clone();
                 for (j, w) in modes.omega.iter().enumerate() {
                     scaled.column_mut(j).scale_mut(2.0 * zeta * w);
                 }
                 let mut a = scaled * phi.transpose();
-                for i in 0..n {
-                    a.column_mut(i).scale_mut(m[i]);
+                for (i, mi) in m.iter().enumerate() {
+                    a.column_mut(i).scale_mut(*mi);
                 }
                 grounded = chain.clone().with_damping(Damping::Grounded)?;
                 (&grounded, Some(a))
