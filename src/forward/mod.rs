@@ -281,7 +281,8 @@ impl Forward {
         }
     }
 
-    /// [`modal_sum`] with this chain's modes when it has `modal` damping.
+    /// The exact modal sum ([`modal_sum`]) when the chain has `modal`
+    /// damping, `None` otherwise.
     fn modal<T: Scalar>(
         &self,
         s: &T,
@@ -293,8 +294,10 @@ impl Forward {
             return None;
         }
         Some(match &self.modes {
-            Some(m) => modal_sum_with(m, &self.chain, s.clone(), at, obs, transfer),
-            None => modal_sum(&self.chain, s.clone(), at, obs, transfer),
+            Some(m) => modal_sum(m, &self.chain, s.clone(), at, obs, transfer),
+            // the modes could not be computed: say why
+            None => crate::time::modal::Modes::new(&self.chain)
+                .and_then(|m| modal_sum(&m, &self.chain, s.clone(), at, obs, transfer)),
         })
     }
 
@@ -584,23 +587,7 @@ pub fn woodbury<T: Scalar>(
 }
 
 /// `X_observe(s)` of `chain` (see [`Forward::eval`]; a chain with
-/// `modal` damping by its exact modal sum, [`modal_sum`]).
-pub fn response<T: Scalar>(chain: &Chain, s: T, observe: usize) -> Result<T> {
-    Forward::new(chain).eval(s, observe)
-}
-
-/// The Laplace transform of a chain with `modal` damping
-/// ([`crate::chain::Damping::Modal`]), whose `C` is not tridiagonal: the
-/// exact sum over its undamped modes
-/// `X_at(s) = amp sum_j phi_at,j phi_1,j / (s^2 + 2 zeta omega_j s + omega_j^2)`
-/// ([`crate::time::modal::Modes`]), then the observable (`transfer`: per
-/// unit force, no jump term). [`Forward::eval`] and the free functions of
-/// this module take it for such a chain; the Green's function and Woodbury
-/// updates of a [`Forward`] are its tridiagonal Rayleigh stand-in's (the
-/// fit's screens).
-///
-/// # Errors
-/// As [`check_s`]; `at` outside `1..=n`; as [`crate::time::modal::Modes::new`].
+/// `modal` damping by its exact modal sum).
 ///
 /// ```
 /// use springmass::{Chain, chain::Damping, forward::response};
@@ -611,21 +598,21 @@ pub fn response<T: Scalar>(chain: &Chain, s: T, observe: usize) -> Result<T> {
 /// assert!((response(&c, s, 1)? - want).abs() < 1e-15);
 /// # Ok::<(), springmass::Error>(())
 /// ```
-pub fn modal_sum<T: Scalar>(
-    chain: &Chain,
-    s: T,
-    at: usize,
-    obs: Observable,
-    transfer: bool,
-) -> Result<T> {
-    check_s(&s)?;
-    chain.check_observe(at)?;
-    let modes = crate::time::modal::Modes::new(chain)?;
-    modal_sum_with(&modes, chain, s, at, obs, transfer)
+pub fn response<T: Scalar>(chain: &Chain, s: T, observe: usize) -> Result<T> {
+    Forward::new(chain).eval(s, observe)
 }
 
-/// [`modal_sum`] with `chain`'s modes at hand.
-fn modal_sum_with<T: Scalar>(
+/// The Laplace transform of a chain with `modal` damping
+/// ([`crate::chain::Damping::Modal`]), whose `C` is not tridiagonal: the
+/// exact sum over its undamped modes
+/// `X_at(s) = amp sum_j phi_at,j phi_1,j / (s^2 + 2 zeta omega_j s + omega_j^2)`
+/// ([`crate::time::modal::Modes`]), then the observable (`transfer`: per
+/// unit force, no jump term). [`Forward::eval`], [`Forward::observe`] and
+/// [`Forward::transfer_function`] (and the free functions of this module)
+/// take it for such a chain; the Green's function and Woodbury updates of
+/// a [`Forward`] are its tridiagonal Rayleigh stand-in's (the fit's
+/// screens).
+fn modal_sum<T: Scalar>(
     modes: &crate::time::modal::Modes,
     chain: &Chain,
     s: T,
