@@ -24,6 +24,16 @@ fn json_of(cmd: &mut Command) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
+/// The positions of a JSON report's defects.
+fn positions(v: &serde_json::Value) -> Vec<u64> {
+    v["defects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d["at"].as_u64().unwrap())
+        .collect()
+}
+
 fn temp_dir(tag: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("springmass-cli-fit-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
@@ -69,12 +79,7 @@ fn fit_data_recovers_both_defects_from_n_and_d_only() {
             .arg(dir.join("fit.csv")),
     );
     assert_eq!(v["k"], 2, "{v}");
-    let at: Vec<u64> = v["defects"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|d| d["at"].as_u64().unwrap())
-        .collect();
+    let at = positions(&v);
     assert_eq!(at, vec![3, 7]);
     for (d, truth) in v["defects"].as_array().unwrap().iter().zip([3.0, 2.0]) {
         let (val, se) = (d["value"].as_f64().unwrap(), d["se"].as_f64().unwrap());
@@ -508,12 +513,7 @@ fn fit_data_of_several_records() {
             ])
             .current_dir(&dir),
     );
-    let at: Vec<u64> = v["defects"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|d| d["at"].as_u64().unwrap())
-        .collect();
+    let at = positions(&v);
     assert_eq!(at, vec![3, 7], "{v}");
     let recs = v["sensors"].as_array().unwrap();
     assert_eq!(recs.len(), 2, "{v}");
@@ -578,12 +578,7 @@ fn fit_data_with_modal_damping() {
         "d",
     ];
     let v = json_of(bin().current_dir(&dir).args(fit).arg("--json"));
-    let at: Vec<u64> = v["defects"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|d| d["at"].as_u64().unwrap())
-        .collect();
+    let at = positions(&v);
     assert_eq!(at, [2, 4], "{v}");
     let damping = &v["damping"];
     assert_eq!(damping["model"], "modal", "{damping}");
