@@ -330,7 +330,7 @@ impl Damping {
 
 impl Chain {
     /// The uniform chain's undamped frequencies `omega_j = 2 sqrt(k / mass)
-    /// sin(theta_j / 2)` (closed form for its ends, [`closed_theta`]).
+    /// sin(theta_j / 2)` (closed form for its ends, `closed_theta`).
     pub fn uniform_omegas(&self) -> Vec<f64> {
         let ends = (self.left, self.right);
         let scale = 2.0 * (self.k / self.mass).sqrt();

@@ -364,6 +364,14 @@ fn reweight(
 
 /// The options against the chain and the record.
 fn check(nominal: &Chain, rec: &AmbientRecord, opts: &AmbientOptions) -> Result<()> {
+    if nominal.damping().is_modal() {
+        // the output spectrum is assembled from the tridiagonal K(s)
+        return Err(Error::invalid(
+            "damping",
+            "modal",
+            "grounded, between or rayleigh for an output-only fit (its spectrum needs a tridiagonal damping matrix)",
+        ));
+    }
     let n = nominal.n();
     for &o in &rec.observe {
         nominal.check_observe(o)?;
