@@ -343,7 +343,13 @@ impl Chain {
     /// ([`Damping::tridiagonal`]: `modal` becomes its Rayleigh stand-in
     /// over [`Chain::uniform_omegas`]).
     pub fn tridiagonal_damping(&self) -> Damping {
-        self.damping.tridiagonal(&self.uniform_omegas())
+        // the frequencies only for the modal model: `site` and `dampers`
+        // call this on every chain, in the fit's inner loops
+        if self.damping.is_modal() {
+            self.damping.tridiagonal(&self.uniform_omegas())
+        } else {
+            self.damping
+        }
     }
 }
 
