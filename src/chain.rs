@@ -549,8 +549,8 @@ impl Chain {
     }
 
     /// The damping model.
-    pub fn damping(&self) -> Damping {
-        self.damping
+    pub fn damping(&self) -> &Damping {
+        &self.damping
     }
 
     /// Where `defect` enters this chain's equations of motion: the
@@ -694,13 +694,13 @@ impl Chain {
             check_f64(&format!("defects[{idx}].{name}"), defect.value(), ok, range)?;
         }
         if matches!(
-            (defect, self.damping),
+            (defect, &self.damping),
             (Defect::Damper { .. }, Damping::Modal { .. })
         ) {
             return Err(Error::invalid(
                 format!("defects[{idx}]"),
                 defect,
-                "a mass, spring or ground defect: the modal damping model has no dampers (its damping is one ratio for every mode)",
+                "a mass, spring or ground defect: the modal damping model has no dampers (its damping is a ratio per mode)",
             ));
         }
         if self
@@ -1043,7 +1043,7 @@ mod tests {
             ),
             (Damping::Rayleigh { a: -1.0, b: 0.0 }, "damping.a"),
         ] {
-            match c.clone().with_damping(bad) {
+            match c.clone().with_damping(bad.clone()) {
                 Err(Error::InvalidParameter {
                     field: f, allowed, ..
                 }) => {
@@ -1108,16 +1108,16 @@ mod tests {
             toml::from_str("n = 4\nd = 0\ndamping = { model = \"between\", c = 0.05 }").unwrap();
         assert_eq!(
             spec.build().unwrap().damping(),
-            Damping::Between { c: 0.05 }
+            &Damping::Between { c: 0.05 }
         );
         assert!(toml::from_str::<ChainSpec>("n = 4\ndamping = { model = \"between\" }").is_err());
         // SI: c in N s/m, a = C/M, b = C/K
         let si = r.to_si(&Units::new(10.0, 100.0, 1000.0).unwrap()).unwrap();
-        assert_eq!(si.damping(), Damping::Rayleigh { a: 20.0, b: 3.0 });
+        assert_eq!(si.damping(), &Damping::Rayleigh { a: 20.0, b: 3.0 });
         // modal: a ratio in 0..=4, the same in SI; no damper defects; its
         // tridiagonal stand-in a Rayleigh damping close to zeta
         let (m, missing) = Damping::parse_spec("modal").unwrap();
-        assert_eq!((m, missing), (Damping::Modal { zeta: 0.0 }, vec!["zeta"]));
+        assert_eq!((m, missing), (Damping::modal(0.0), vec!["zeta"]));
         let m = Damping::parse_complete("modal:0.03").unwrap();
         for bad in ["modal:-0.1", "modal:5", "modal:nan"] {
             match Damping::parse_complete(bad) {
@@ -1132,13 +1132,13 @@ mod tests {
             .unwrap()
             .with_d(0.0)
             .unwrap()
-            .with_damping(m)
+            .with_damping(m.clone())
             .unwrap();
         assert_eq!(
             mc.to_si(&Units::new(10.0, 100.0, 1000.0).unwrap())
                 .unwrap()
                 .damping(),
-            m
+            &m
         );
         match mc.clone().with_defect(Defect::Damper { at: 2, d: 0.3 }) {
             Err(Error::InvalidParameter { field, allowed, .. }) => {

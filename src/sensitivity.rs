@@ -71,8 +71,15 @@ pub enum Param {
     A,
     /// `b` of the `rayleigh` damping model.
     B,
-    /// `zeta` of the `modal` damping model (every mode's damping ratio).
-    Zeta,
+    /// Ratio `index` of the `of` ratios of the `modal` damping model
+    /// (`zeta` when `of` is 1: every mode's; else `zeta_{index+1}`, the
+    /// ratio of mode `index + 1`, the last one also of every higher mode).
+    Zeta {
+        /// 0-based.
+        index: usize,
+        /// How many ratios the model has.
+        of: usize,
+    },
 }
 
 impl Param {
@@ -89,7 +96,12 @@ impl Param {
             Damping::Grounded => vec![],
             Damping::Between { .. } => vec![Param::C],
             Damping::Rayleigh { .. } => vec![Param::A, Param::B],
-            Damping::Modal { .. } => vec![Param::Zeta],
+            Damping::Modal { zeta } => (0..zeta.len())
+                .map(|index| Param::Zeta {
+                    index,
+                    of: zeta.len(),
+                })
+                .collect(),
         }
     }
 
@@ -97,21 +109,9 @@ impl Param {
     /// `chain`'s model; `None` for another parameter or model.
     fn damping_index(&self, chain: &Chain) -> Option<usize> {
         match (*self, chain.damping()) {
-            (Param::C, Damping::Between { .. })
-            | (Param::A, Damping::Rayleigh { .. })
-            | (Param::Zeta, Damping::Modal { .. }) => Some(0),
+            (Param::C, Damping::Between { .. }) | (Param::A, Damping::Rayleigh { .. }) => Some(0),
             (Param::B, Damping::Rayleigh { .. }) => Some(1),
-            _ => None,
-        }
-    }
-
-    /// `c`, `a`, `b`, `zeta` (the damping parameters), else `None`.
-    pub fn damping_name(&self) -> Option<&'static str> {
-        match self {
-            Param::C => Some("c"),
-            Param::A => Some("a"),
-            Param::B => Some("b"),
-            Param::Zeta => Some("zeta"),
+            (Param::Zeta { index, of }, Damping::Modal { zeta }) if of == zeta.len() => Some(index),
             _ => None,
         }
     }
@@ -135,7 +135,7 @@ impl Param {
             Param::C => "c".into(),
             Param::A => "a".into(),
             Param::B => "b".into(),
-            Param::Zeta => "zeta".into(),
+            Param::Zeta { index, of } => Damping::ratio_name(index, of),
         }
     }
 
@@ -150,7 +150,7 @@ impl Param {
             Param::K => chain.k(),
             Param::Mass => chain.mass(),
             Param::Gamma => chain.gamma(),
-            Param::C | Param::A | Param::B | Param::Zeta => {
+            Param::C | Param::A | Param::B | Param::Zeta { .. } => {
                 let i = self.damping_index(chain).ok_or_else(|| {
                     Error::invalid(
                         "param",
@@ -185,7 +185,7 @@ impl Param {
         let mut defects = chain.defects().to_vec();
         let (mut d, mut k, mut mass, mut gamma) =
             (chain.d(), chain.k(), chain.mass(), chain.gamma());
-        let mut damping = chain.damping();
+        let mut damping = chain.damping().clone();
         match *self {
             Param::Defect(i) => {
                 let old = *self.defect(chain, i)?;
@@ -195,7 +195,7 @@ impl Param {
             Param::K => k = value,
             Param::Mass => mass = value,
             Param::Gamma => gamma = value,
-            Param::C | Param::A | Param::B | Param::Zeta => {
+            Param::C | Param::A | Param::B | Param::Zeta { .. } => {
                 self.get(chain)?;
                 let i = self.damping_index(chain).unwrap_or(0);
                 let mut v: Vec<f64> = damping.params().iter().map(|p| p.1).collect();
@@ -463,13 +463,25 @@ impl<T: Scalar> Forms<'_, T> {
                 }
             }
             // the modal model's tridiagonal stand-in a M + b K is linear in
-            // zeta ([`Damping::tridiagonal`]): d/dzeta = (a_1 M + b_1 K) s
-            Param::Zeta => {
-                p.get(chain)?;
-                let unit = Damping::Modal { zeta: 1.0 }.tridiagonal(&chain.uniform_omegas());
-                let Damping::Rayleigh { a, b } = unit else {
+            // the ratios wherever the same terms are kept
+            // ([`Damping::tridiagonal`]): d/dzeta_j = (da M + db K) s, da and
+            // db the change of a and b over a step h of zeta_j, exact on
+            // that linear piece
+            Param::Zeta { index, .. } => {
+                let z = p.get(chain)?;
+                let omegas = chain.uniform_omegas();
+                let h = 1e-3 * z.abs().max(1e-2);
+                let stand_in = |v: f64| {
+                    let mut zeta: Vec<f64> = chain.damping().params().iter().map(|q| q.1).collect();
+                    zeta[index] = v;
+                    Damping::Modal { zeta }.tridiagonal(&omegas)
+                };
+                let (Damping::Rayleigh { a: a0, b: b0 }, Damping::Rayleigh { a: a1, b: b1 }) =
+                    (stand_in(z), stand_in(z + h))
+                else {
                     return Ok(None);
                 };
+                let (a, b) = ((a1 - a0) / h, (b1 - b0) / h);
                 s.clone()
                     * (self.weighted_points(&chain.masses()).scale(a)
                         + self.stiffness(chain).scale(b))

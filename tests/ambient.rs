@@ -302,7 +302,7 @@ fn a_record_too_short_for_the_first_mode_is_refused() {
     // a nominal chain with modal damping: refused naming the field
     let modal = nominal
         .with_d(0.0)
-        .and_then(|c| c.with_damping(springmass::chain::Damping::Modal { zeta: 0.02 }))
+        .and_then(|c| c.with_damping(springmass::chain::Damping::modal(0.02)))
         .unwrap();
     match fit_ambient(&modal, &rec, &AmbientOptions::default()) {
         Err(springmass::Error::InvalidParameter { field, .. }) => assert_eq!(field, "damping"),

@@ -611,5 +611,49 @@ fn fit_data_with_modal_damping() {
         &dir,
         "damping.zeta",
     );
+    refused(
+        &["simulate", "--n", "5", "--damping", "modal:0.01,9"],
+        &dir,
+        "damping.zeta[1]",
+    );
+    // a ratio per mode (modes 1, 2 and the rest), fitted from 3% each
+    let sim = bin()
+        .args([
+            "simulate",
+            "--n",
+            "5",
+            "--defect",
+            "mass:2:3",
+            "--defect",
+            "mass:4:0.5",
+            "--damping",
+            "modal:0.01,0.05,0.02",
+            "--t-end",
+            "120",
+            "--dt",
+            "0.5",
+            "--noise",
+            "rel:1e-3",
+            "--seed",
+            "4",
+            "--out",
+            "x2.csv",
+        ])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(sim.status.success());
+    let mut per_mode = fit.to_vec();
+    per_mode[2] = "x2.csv";
+    per_mode[6] = "modal:0.03,0.03,0.03";
+    let v = json_of(bin().current_dir(&dir).args(&per_mode).arg("--json"));
+    assert_eq!(positions(&v), [2, 4], "{v}");
+    for (name, truth) in [("zeta_1", 0.01), ("zeta_2", 0.05), ("zeta_3", 0.02)] {
+        let (z, se) = (
+            v["damping"][name].as_f64().unwrap(),
+            v["damping"]["se"][name].as_f64().unwrap(),
+        );
+        assert!(se > 0.0 && (z - truth).abs() < 3.0 * se, "{name}: {v}");
+    }
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -22,6 +22,8 @@ enum Model {
     /// Every undamped mode damped with one ratio:
     /// `C = M Phi diag(2 zeta omega) Phi^T M` (mass-normalised shapes).
     Modal(f64),
+    /// A ratio per mode: modes 1, 2 and the rest.
+    ModalPerMode([f64; 3]),
 }
 
 /// `M`, `C`, `K` of a fixed-fixed chain of unit masses and springs with
@@ -40,16 +42,26 @@ fn matrices(n: usize, masses: &[(usize, f64)], model: Model) -> [DMatrix<f64>; 3
     let c = match model {
         Model::Between(c) => &lap * c,
         Model::Rayleigh(a, b) => &m * a + &lap * b,
-        Model::Modal(zeta) => {
-            // M^-1/2 K M^-1/2 = Q diag(omega^2) Q^T, Phi = M^-1/2 Q
-            let mh = DMatrix::from_diagonal(&m.diagonal().map(|v| 1.0 / v.sqrt()));
-            let eig = (&mh * &lap * &mh).symmetric_eigen();
-            let phi = &mh * &eig.eigenvectors;
-            let w = eig.eigenvalues.map(|l| 2.0 * zeta * l.sqrt());
-            &m * &phi * DMatrix::from_diagonal(&w) * phi.transpose() * &m
-        }
+        Model::Modal(zeta) => modal_c(&m, &lap, [zeta; 3]),
+        Model::ModalPerMode(zeta) => modal_c(&m, &lap, zeta),
     };
     [m, c, lap]
+}
+
+/// `M Phi diag(2 zeta_j omega_j) Phi^T M` with `zeta` the ratios of
+/// modes 1, 2 and the rest (in the order of the frequencies).
+fn modal_c(m: &DMatrix<f64>, k: &DMatrix<f64>, zeta: [f64; 3]) -> DMatrix<f64> {
+    // M^-1/2 K M^-1/2 = Q diag(omega^2) Q^T, Phi = M^-1/2 Q
+    let mh = DMatrix::from_diagonal(&m.diagonal().map(|v| 1.0 / v.sqrt()));
+    let eig = (&mh * k * &mh).symmetric_eigen();
+    let phi = &mh * &eig.eigenvectors;
+    let mut rank: Vec<usize> = (0..eig.eigenvalues.len()).collect();
+    rank.sort_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]));
+    let mut w = eig.eigenvalues.clone();
+    for (r, &i) in rank.iter().enumerate() {
+        w[i] = 2.0 * zeta[r.min(2)] * eig.eigenvalues[i].sqrt();
+    }
+    m * &phi * DMatrix::from_diagonal(&w) * phi.transpose() * m
 }
 
 /// `x_1(i dt)`, `i < samples`, after a unit impulse on mass 1, plus white
@@ -111,11 +123,12 @@ fn check(
         Model::Between(c) => vec![("c", c)],
         Model::Rayleigh(a, b) => vec![("a", a), ("b", b)],
         Model::Modal(zeta) => vec![("zeta", zeta)],
+        Model::ModalPerMode(z) => vec![("zeta_1", z[0]), ("zeta_2", z[1]), ("zeta_3", z[2])],
     };
     let name = match model {
         Model::Between(_) => "between",
         Model::Rayleigh(..) => "rayleigh",
-        Model::Modal(_) => "modal",
+        Model::Modal(_) | Model::ModalPerMode(_) => "modal",
     };
     assert_eq!(est.model, name, "{what}");
     assert!(est.fitted);
@@ -166,6 +179,21 @@ fn a_given_model_with_its_parameters_fitted() {
     );
     check(5, &SYSTEM, Model::Between(0.05), 1e-2, 6, Some("between"));
     check(5, &SYSTEM, Model::Modal(0.02), 1e-2, 9, Some("modal"));
+}
+
+#[test]
+fn a_ratio_per_mode_is_fitted_from_its_starting_values() {
+    // modes 1, 2 and 3..5 with their own ratios, fitted from 2% each
+    for (level, seed) in [(1e-3, 11), (1e-2, 12)] {
+        check(
+            5,
+            &SYSTEM,
+            Model::ModalPerMode([0.01, 0.04, 0.02]),
+            level,
+            seed,
+            Some("modal:0.02,0.02,0.02"),
+        );
+    }
 }
 
 #[test]

@@ -768,8 +768,11 @@ def fit(
         The damping model ``"MODEL[:P1[:P2]]"``: ``"grounded"`` (``d`` on
         every mass), ``"between:C"`` (a damper ``C`` parallel to every
         spring), ``"rayleigh:A:B"`` (``C = A M + B K``), ``"modal:ZETA"``
-        (every mode damped with the ratio ``ZETA``); parameters not given
-        are fitted with ``fit=("d",)``. Default: grounded, or with
+        (every mode damped with the ratio ``ZETA``) or ``"modal:Z1,Z2,Z3"``
+        (a ratio per mode, the last for every higher mode; with
+        ``fit=("d",)`` the starting values of the fitted ratios, reported as
+        ``zeta_1``, ``zeta_2``, ..); parameters not given are fitted with
+        ``fit=("d",)``. Default: grounded, or with
         ``fit=("d",)`` every model, the BIC choosing (``FitResult.damping``).
     trigger : "auto" or float, default "auto"
         When the blow came on the record's time axis: ``"auto"`` detects a
@@ -1017,8 +1020,9 @@ def simulate(
     damping : str, optional
         The damping model ``"grounded"`` (default), ``"between:C"`` (a
         damper ``C`` parallel to every spring), ``"rayleigh:A:B"``
-        (``C = A M + B K``) or ``"modal:ZETA"`` (every mode damped with the
-        ratio ``ZETA``).
+        (``C = A M + B K``), ``"modal:ZETA"`` (every mode damped with the
+        ratio ``ZETA``) or ``"modal:Z1,Z2,.."`` (a ratio per mode in the
+        order of frequency, the last for every higher mode).
     observe : int or sequence of int, default 1
         Observed mass(es), 1-based.
     observe_kind : {"displacement", "velocity", "acceleration"}

@@ -235,15 +235,17 @@ def test_several_records_are_fitted_jointly_and_a_foreign_one_is_named():
 
 def _modal_record(n, masses, zeta, t, level, seed):
     """x_1(t) after a unit impulse on mass 1 of a fixed-fixed chain of unit
-    springs whose every mode has the damping ratio zeta: numpy's own modal
-    sum (not the library's)."""
+    springs whose every mode has the damping ratio zeta (or, for a list,
+    mode j the ratio zeta[j], the last for every higher mode): numpy's own
+    modal sum (not the library's)."""
     m = np.ones(n)
     for at, v in masses:
         m[at - 1] = v
     k = 2.0 * np.eye(n) - np.eye(n, k=1) - np.eye(n, k=-1)
     mh = 1.0 / np.sqrt(m)
     w2, q = np.linalg.eigh(mh[:, None] * k * mh[None, :])
-    w = np.sqrt(w2)
+    w = np.sqrt(w2)  # ascending (eigh)
+    zeta = np.array([np.atleast_1d(zeta)[min(j, np.size(zeta) - 1)] for j in range(n)])
     phi1 = mh[0] * q[0, :]
     wd = w * np.sqrt(1.0 - zeta**2)
     x = (phi1**2 * np.exp(-zeta * w * t[:, None]) * np.sin(wd * t[:, None]) / wd).sum(axis=1)
@@ -269,3 +271,22 @@ def test_modal_damping_is_simulated_fitted_and_chosen():
     assert [c["model"] for c in chosen.damping["candidates"]] == ["grounded", "between", "rayleigh", "modal"]
     with pytest.raises(ValueError, match="damping.zeta"):
         springmass.simulate(5, t=t, damping="modal:7")
+
+
+def test_a_ratio_per_mode_is_simulated_and_fitted():
+    t = np.arange(0.0, 120.5, 0.5)
+    masses = [(2, 3.0), (4, 0.5)]
+    zeta = [0.01, 0.05, 0.02]  # modes 1, 2, and 3 to 5
+    exact = _modal_record(5, masses, zeta, t, 0.0, 0)
+    sim = springmass.simulate(5, defects=[("mass", 2, 3.0), ("mass", 4, 0.5)], t=t, d=0.0, damping="modal:0.01,0.05,0.02")
+    assert np.abs(sim - exact).max() < 1e-9 * np.abs(exact).max()
+    x = _modal_record(5, masses, zeta, t, 1e-3, 12)
+    r = springmass.fit(t, x, n=5, damping="modal:0.03,0.03,0.03", fit=("d",))
+    assert [(e.kind, e.at) for e in r.defects] == [("mass", 2), ("mass", 4)], r.summary
+    for e, (_, v) in zip(r.defects, masses):
+        assert abs(e.value - v) < 3 * e.se, r.summary
+    for j, z in enumerate(zeta):
+        name = f"zeta_{j + 1}"
+        assert abs(r.damping[name] - z) < 3 * r.damping["se"][name], r.damping
+    with pytest.raises(ValueError, match=r"damping.zeta\[1\]"):
+        springmass.simulate(5, t=t, damping="modal:0.01,-1")

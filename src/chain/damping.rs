@@ -9,7 +9,7 @@ use super::*;
 /// | `grounded` (the paper's, default) | `diag(d_i)`: a damper from every mass to the ground | `d` |
 /// | `between` | `diag(d_i) + Lap(c_j)`: a damper `c_j` parallel to every spring (the wall springs included), as between the storeys of a building | `c` (and `d`, usually 0) |
 /// | `rayleigh` | `a M + b K` (`M`, `K` with the defects) plus `diag(d_i)` | `a`, `b` (and `d`, usually 0) |
-/// | `modal` | every undamped mode `j` of the chain (defects included) damped with one ratio: `M Phi diag(2 zeta omega_j) Phi^T M`, plus `diag(d_i)` | `zeta` (and `d`, usually 0) |
+/// | `modal` | every undamped mode `j` of the chain (defects included) damped with its ratio `zeta_j`: `M Phi diag(2 zeta_j omega_j) Phi^T M`, plus `diag(d_i)` | `zeta` (one ratio for every mode) or `zeta_1, zeta_2, ..` (one per mode, the last for every higher mode), and `d`, usually 0 |
 ///
 /// The modal model's `C` is a full matrix: its responses are exact modal
 /// sums ([`crate::time::modal`], [`crate::forward::response`]), and
@@ -30,7 +30,7 @@ use super::*;
 /// assert_eq!(Damping::default(), Damping::Grounded);
 /// # Ok::<(), springmass::Error>(())
 /// ```
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(
     tag = "model",
     rename_all = "lowercase",
@@ -53,11 +53,34 @@ pub enum Damping {
         /// Stiffness-proportional coefficient, `>= 0` (time).
         b: f64,
     },
-    /// One damping ratio for every undamped mode.
+    /// Damping ratios of the undamped modes.
     Modal {
-        /// Damping ratio of every mode, `0 <= zeta <= 4`.
-        zeta: f64,
+        /// The ratios of the modes in the order of their frequencies, each
+        /// `0 <= zeta <= 4`: one value for every mode, or one per mode with
+        /// the last for every higher mode (at least one, at most
+        /// [`Damping::MAX_RATIOS`]). Written as a number when there is one.
+        #[serde(serialize_with = "ratios_as_written")]
+        zeta: Vec<f64>,
     },
+}
+
+/// One ratio as a number, several as a list.
+fn ratios_as_written<S: serde::Serializer>(
+    zeta: &[f64],
+    s: S,
+) -> std::result::Result<S::Ok, S::Error> {
+    match zeta {
+        [one] => s.serialize_f64(*one),
+        many => many.serialize(s),
+    }
+}
+
+/// A modal ratio in a scene's table: a number or a list.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum Ratios {
+    One(f64),
+    PerMode(Vec<f64>),
 }
 
 /// A damping model as scene files write it: the table
@@ -76,7 +99,7 @@ enum DampingTable {
     Grounded,
     Between { c: f64 },
     Rayleigh { a: f64, b: f64 },
-    Modal { zeta: f64 },
+    Modal { zeta: Ratios },
 }
 
 impl TryFrom<DampingRepr> for Damping {
@@ -87,7 +110,12 @@ impl TryFrom<DampingRepr> for Damping {
             DampingRepr::Table(DampingTable::Grounded) => Damping::Grounded,
             DampingRepr::Table(DampingTable::Between { c }) => Damping::Between { c },
             DampingRepr::Table(DampingTable::Rayleigh { a, b }) => Damping::Rayleigh { a, b },
-            DampingRepr::Table(DampingTable::Modal { zeta }) => Damping::Modal { zeta },
+            DampingRepr::Table(DampingTable::Modal { zeta }) => Damping::Modal {
+                zeta: match zeta {
+                    Ratios::One(z) => vec![z],
+                    Ratios::PerMode(z) => z,
+                },
+            },
         };
         d.check()?;
         Ok(d)
@@ -119,18 +147,62 @@ impl Damping {
     }
 
     /// The model's own parameters `(name, value)` (none for `grounded`,
-    /// whose parameter is the chain's `d`).
-    pub fn params(&self) -> Vec<(&'static str, f64)> {
-        match *self {
+    /// whose parameter is the chain's `d`): `c`; `a`, `b`; `zeta` for one
+    /// modal ratio, `zeta_1`, `zeta_2`, .. for one per mode.
+    pub fn params(&self) -> Vec<(String, f64)> {
+        match self {
             Damping::Grounded => vec![],
-            Damping::Between { c } => vec![("c", c)],
-            Damping::Rayleigh { a, b } => vec![("a", a), ("b", b)],
-            Damping::Modal { zeta } => vec![("zeta", zeta)],
+            Damping::Between { c } => vec![("c".into(), *c)],
+            Damping::Rayleigh { a, b } => vec![("a".into(), *a), ("b".into(), *b)],
+            Damping::Modal { zeta } => zeta
+                .iter()
+                .enumerate()
+                .map(|(j, &z)| (Damping::ratio_name(j, zeta.len()), z))
+                .collect(),
         }
     }
 
+    /// The name of modal ratio `j` (0-based) of `count`: `zeta` alone,
+    /// else `zeta_{j+1}`.
+    pub fn ratio_name(j: usize, count: usize) -> String {
+        if count == 1 {
+            "zeta".into()
+        } else {
+            format!("zeta_{}", j + 1)
+        }
+    }
+
+    /// One damping ratio `zeta` for every mode.
+    pub fn modal(zeta: f64) -> Damping {
+        Damping::Modal { zeta: vec![zeta] }
+    }
+
+    /// The ratio of the mode of rank `j` (0-based, in the order of the
+    /// frequencies) under the modal model: its own, or the last one given
+    /// for every higher mode; 0 for another model.
+    pub fn modal_ratio(&self, j: usize) -> f64 {
+        match self {
+            Damping::Modal { zeta } => zeta.get(j).or(zeta.last()).copied().unwrap_or(0.0),
+            _ => 0.0,
+        }
+    }
+
+    /// The modal ratio of each of `omega2` (squared frequencies in any
+    /// order): the ratio of its rank among them ([`Damping::modal_ratio`];
+    /// ties keep their order).
+    pub fn modal_ratios_of(&self, omega2: &[f64]) -> Vec<f64> {
+        let mut order: Vec<usize> = (0..omega2.len()).collect();
+        order.sort_by(|&a, &b| omega2[a].total_cmp(&omega2[b]));
+        let mut out = vec![0.0; omega2.len()];
+        for (rank, &i) in order.iter().enumerate() {
+            out[i] = self.modal_ratio(rank);
+        }
+        out
+    }
+
     /// The same model with its parameters `values` (in the order of
-    /// [`Damping::params`]; missing values keep the current ones).
+    /// [`Damping::params`]; missing values keep the current ones; a modal
+    /// model takes as many ratios as given, if more than it had).
     pub fn with_params(self, values: &[f64]) -> Damping {
         let v = |i: usize, old: f64| values.get(i).copied().unwrap_or(old);
         match self {
@@ -140,7 +212,11 @@ impl Damping {
                 a: v(0, a),
                 b: v(1, b),
             },
-            Damping::Modal { zeta } => Damping::Modal { zeta: v(0, zeta) },
+            Damping::Modal { zeta } => Damping::Modal {
+                zeta: (0..zeta.len().max(values.len()))
+                    .map(|i| v(i, zeta.get(i).copied().unwrap_or(0.0)))
+                    .collect(),
+            },
         }
     }
 
@@ -168,45 +244,68 @@ impl Damping {
                 a: need(a, "a")?,
                 b: need(b, "b")?,
             },
-            Damping::Modal { .. } => Damping::Modal {
-                zeta: need(c, "zeta (passed as c)")?,
-            },
+            Damping::Modal { .. } => Damping::modal(need(c, "zeta (passed as c)")?),
         };
         out.check()?;
         Ok(out)
     }
 
     /// Parse `MODEL[:P1[:P2]]`: `grounded`, `between[:c]`,
-    /// `rayleigh[:a:b]`, `modal[:zeta]`. Returns the model (missing parameters 0) and the
-    /// names of the parameters not given.
+    /// `rayleigh[:a:b]`, `modal[:zeta]` or `modal:zeta_1,zeta_2,..` (one
+    /// ratio per mode, the last for every higher mode). Returns the model
+    /// (missing parameters 0) and the names of the parameters not given.
     ///
     /// # Errors
     /// An unknown model or a parameter that is not a number (field
     /// `damping`); too many parameters (field `damping`); a negative or
-    /// non-finite one (`damping.c`, `damping.a`, `damping.b`).
+    /// non-finite one (`damping.c`, `damping.a`, `damping.b`), a ratio out
+    /// of `0..=4` (`damping.zeta`).
     ///
     /// ```
     /// use springmass::chain::Damping;
     /// let (d, missing) = Damping::parse_spec("rayleigh:0.01")?;
     /// assert_eq!(d, Damping::Rayleigh { a: 0.01, b: 0.0 });
     /// assert_eq!(missing, vec!["b"]);
+    /// let (d, _) = Damping::parse_spec("modal:0.01,0.02,0.05")?;
+    /// assert_eq!(d.modal_ratio(1), 0.02);
+    /// assert_eq!(d.modal_ratio(7), 0.05);
     /// # Ok::<(), springmass::Error>(())
     /// ```
     pub fn parse_spec(text: &str) -> Result<(Damping, Vec<&'static str>)> {
         let mut parts = text.split(':').map(str::trim);
         let model: Damping = parts.next().unwrap_or("").parse()?;
-        let values: Vec<f64> = parts
-            .map(|p| {
-                p.parse::<f64>().map_err(|_| {
-                    Error::parse(
-                        "damping",
-                        text,
-                        "MODEL[:P1[:P2]], e.g. between:0.05, rayleigh:0.01:0.02 or modal:0.02, with numbers",
-                    )
-                })
+        let number = |p: &str| {
+            p.trim().parse::<f64>().map_err(|_| {
+                Error::parse(
+                    "damping",
+                    text,
+                    "MODEL[:P1[:P2]], e.g. between:0.05, rayleigh:0.01:0.02, modal:0.02 or modal:0.01,0.02,0.03, with numbers",
+                )
             })
-            .collect::<Result<_>>()?;
-        let names: Vec<&'static str> = model.params().iter().map(|p| p.0).collect();
+        };
+        let rest: Vec<&str> = parts.collect();
+        if model.is_modal() {
+            return match rest.as_slice() {
+                [] => Ok((model, vec!["zeta"])),
+                [list] => {
+                    let zeta = list.split(',').map(number).collect::<Result<Vec<f64>>>()?;
+                    let out = Damping::Modal { zeta };
+                    out.check()?;
+                    Ok((out, vec![]))
+                }
+                _ => Err(Error::invalid(
+                    "damping",
+                    text,
+                    "modal:ZETA (one ratio for every mode) or modal:ZETA_1,ZETA_2,.. (one per mode, the last for every higher mode)",
+                )),
+            };
+        }
+        let values: Vec<f64> = rest.into_iter().map(number).collect::<Result<_>>()?;
+        let names: Vec<&'static str> = match model {
+            Damping::Between { .. } => vec!["c"],
+            Damping::Rayleigh { .. } => vec!["a", "b"],
+            _ => vec![],
+        };
         if values.len() > names.len() {
             return Err(Error::invalid(
                 "damping",
@@ -248,18 +347,35 @@ impl Damping {
     }
 
     /// Every parameter finite and `>= 0` (a modal ratio at most
-    /// [`Damping::MAX_ZETA`]).
+    /// [`Damping::MAX_ZETA`], from 1 to [`Damping::MAX_RATIOS`] of them).
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] naming `damping.<parameter>` and the range.
     pub fn check(&self) -> Result<()> {
-        if let Damping::Modal { zeta } = *self {
-            check_f64(
-                "damping.zeta",
-                zeta,
-                (0.0..=Self::MAX_ZETA).contains(&zeta),
-                "0 <= zeta <= 4 (a damping ratio)",
-            )?;
+        if let Damping::Modal { zeta } = self {
+            if zeta.is_empty() || zeta.len() > Self::MAX_RATIOS {
+                return Err(Error::invalid(
+                    "damping.zeta",
+                    format!("{} ratios", zeta.len()),
+                    format!(
+                        "1 to {} damping ratios (the last one applies to every higher mode)",
+                        Self::MAX_RATIOS
+                    ),
+                ));
+            }
+            for (j, &z) in zeta.iter().enumerate() {
+                let field = if zeta.len() == 1 {
+                    "damping.zeta".to_string()
+                } else {
+                    format!("damping.zeta[{j}]")
+                };
+                check_f64(
+                    &field,
+                    z,
+                    (0.0..=Self::MAX_ZETA).contains(&z),
+                    "0 <= zeta <= 4 (a damping ratio)",
+                )?;
+            }
             return Ok(());
         }
         for (p, v) in self.params() {
@@ -268,41 +384,56 @@ impl Damping {
         Ok(())
     }
 
+    /// The most modal damping ratios a model holds (one per mode; the last
+    /// applies to every higher mode).
+    pub const MAX_RATIOS: usize = 10_000;
+
     /// The largest modal damping ratio accepted.
     pub const MAX_ZETA: f64 = 4.0;
 
     /// The model as the tridiagonal `K(s) = M s^2 + C s + K` of a chain with
-    /// undamped frequencies `omegas` can hold it: itself, except `modal`,
-    /// whose full `C` is replaced by the Rayleigh damping `a M + b K` whose
-    /// ratio `a / (2 omega) + b omega / 2` is closest to `zeta` over
-    /// `omegas` (least squares, `a, b >= 0`). Only the fit's Laplace
-    /// screens use that stand-in; every response of a modal chain is its
-    /// exact modal sum.
+    /// undamped frequencies `omegas` (ascending) can hold it: itself, except
+    /// `modal`, whose full `C` is replaced by the Rayleigh damping
+    /// `a M + b K` whose ratio `a / (2 omega) + b omega / 2` is closest to
+    /// each mode's `zeta_j` over `omegas` (least squares, `a, b >= 0`, each
+    /// mode weighted by `1 / omega_j^3`, as its share of a displacement
+    /// record after a blow: amplitude `1 / omega_j`, ringing time
+    /// `1 / (zeta_j omega_j)`; with a ratio per mode, an unweighted fit
+    /// followed the many high modes and the screens lost the true defects).
+    /// Only the fit's Laplace screens use that stand-in; every response of
+    /// a modal chain is its exact modal sum.
     ///
     /// ```
     /// use springmass::chain::Damping;
-    /// let Damping::Rayleigh { a, b } = Damping::Modal { zeta: 0.02 }.tridiagonal(&[1.0]) else {
+    /// let Damping::Rayleigh { a, b } = Damping::modal(0.02).tridiagonal(&[1.0]) else {
     ///     unreachable!()
     /// };
     /// assert!((a / 2.0 + b / 2.0 - 0.02).abs() < 1e-15);
     /// ```
     pub fn tridiagonal(&self, omegas: &[f64]) -> Damping {
-        let Damping::Modal { zeta } = *self else {
-            return *self;
-        };
-        let w: Vec<f64> = omegas.iter().copied().filter(|w| *w > 0.0).collect();
-        if w.is_empty() || zeta == 0.0 {
+        if !self.is_modal() {
+            return self.clone();
+        }
+        // (omega, its target ratio), the rigid-body modes left out
+        let w: Vec<(f64, f64)> = omegas
+            .iter()
+            .enumerate()
+            .filter(|(_, w)| **w > 0.0)
+            .map(|(j, &w)| (w, self.modal_ratio(j)))
+            .collect();
+        if w.is_empty() || w.iter().all(|p| p.1 == 0.0) {
             return Damping::Rayleigh { a: 0.0, b: 0.0 };
         }
-        // ratio(w) = a u + b v, u = 1 / (2 w), v = w / 2
+        // ratio(w) = a u + b v, u = 1 / (2 w), v = w / 2, weight q = 1 / w^3
         let (mut uu, mut uv, mut vv, mut uz, mut vz) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        for &x in &w {
+        for &(x, zeta) in &w {
             let (u, v) = (0.5 / x, 0.5 * x);
-            uu += u * u;
-            uv += u * v;
-            vv += v * v;
-            uz += u * zeta;
-            vz += v * zeta;
+            let q = 1.0 / (x * x * x);
+            uu += q * u * u;
+            uv += q * u * v;
+            vv += q * v * v;
+            uz += q * u * zeta;
+            vz += q * v * zeta;
         }
         let det = uu * vv - uv * uv;
         let (a, b) = if det > 1e-12 * uu * vv {
@@ -314,10 +445,10 @@ impl Damping {
             return Damping::Rayleigh { a, b };
         }
         // one term alone: the better of mass- and stiffness-proportional
-        let (a1, b1) = (uz / uu, vz / vv);
+        let (a1, b1) = ((uz / uu).max(0.0), (vz / vv).max(0.0));
         let err = |a: f64, b: f64| -> f64 {
             w.iter()
-                .map(|x| (a * 0.5 / x + b * 0.5 * x - zeta).powi(2))
+                .map(|&(x, zeta)| (a * 0.5 / x + b * 0.5 * x - zeta).powi(2) / (x * x * x))
                 .sum()
         };
         if err(a1, 0.0) <= err(0.0, b1) {
@@ -348,7 +479,7 @@ impl Chain {
         if self.damping.is_modal() {
             self.damping.tridiagonal(&self.uniform_omegas())
         } else {
-            self.damping
+            self.damping.clone()
         }
     }
 }
@@ -388,12 +519,120 @@ impl std::str::FromStr for Damping {
             "grounded" | "ground" => Ok(Damping::Grounded),
             "between" | "interstorey" | "spring-parallel" => Ok(Damping::Between { c: 0.0 }),
             "rayleigh" => Ok(Damping::Rayleigh { a: 0.0, b: 0.0 }),
-            "modal" => Ok(Damping::Modal { zeta: 0.0 }),
+            "modal" => Ok(Damping::modal(0.0)),
             _ => Err(Error::invalid(
                 "damping",
                 s,
                 "grounded, between, rayleigh or modal",
             )),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_ratio_per_mode_is_parsed_checked_and_written() {
+        let (d, missing) = Damping::parse_spec("modal:0.01, 0.05,0.02").unwrap();
+        assert!(missing.is_empty());
+        assert_eq!(
+            d,
+            Damping::Modal {
+                zeta: vec![0.01, 0.05, 0.02]
+            }
+        );
+        // the last ratio for every higher mode; other models none
+        assert_eq!(
+            (0..5).map(|j| d.modal_ratio(j)).collect::<Vec<_>>(),
+            [0.01, 0.05, 0.02, 0.02, 0.02]
+        );
+        assert_eq!(Damping::Between { c: 1.0 }.modal_ratio(0), 0.0);
+        // ranks by frequency whatever the order of the frequencies
+        assert_eq!(
+            d.modal_ratios_of(&[9.0, 1.0, 16.0, 4.0]),
+            [0.02, 0.01, 0.02, 0.05]
+        );
+        let names: Vec<String> = d.params().into_iter().map(|p| p.0).collect();
+        assert_eq!(names, ["zeta_1", "zeta_2", "zeta_3"]);
+        assert_eq!(Damping::modal(0.02).params(), [("zeta".to_string(), 0.02)]);
+        assert_eq!(
+            d.to_string(),
+            "modal (zeta_1 = 0.01, zeta_2 = 0.05, zeta_3 = 0.02)"
+        );
+        // more values than ratios: the model takes them all
+        assert_eq!(
+            Damping::modal(0.02).with_params(&[0.1, 0.2]).params().len(),
+            2
+        );
+        // a bad ratio names its place; a bad list the format
+        match Damping::parse_complete("modal:0.01,7") {
+            Err(Error::InvalidParameter { field, allowed, .. }) => {
+                assert_eq!(field, "damping.zeta[1]");
+                assert!(allowed.contains("0 <= zeta <= 4"), "{allowed}");
+            }
+            other => panic!("{other:?}"),
+        }
+        for bad in ["modal:0.01,,0.02", "modal:0.01:0.02", "modal:a,b"] {
+            match Damping::parse_complete(bad) {
+                Err(Error::InvalidParameter { field, .. }) => assert_eq!(field, "damping", "{bad}"),
+                Err(Error::Parse { what, .. }) => assert_eq!(what, "damping", "{bad}"),
+                other => panic!("{bad}: {other:?}"),
+            }
+        }
+        assert!(Damping::Modal { zeta: vec![] }.check().is_err());
+    }
+
+    #[test]
+    fn a_ratio_per_mode_reads_from_tables_and_round_trips() {
+        #[derive(Deserialize)]
+        struct Scene {
+            damping: Damping,
+        }
+        let one: Scene = toml::from_str("damping = { model = \"modal\", zeta = 0.02 }").unwrap();
+        assert_eq!(one.damping, Damping::modal(0.02));
+        let many: Scene =
+            toml::from_str("damping = { model = \"modal\", zeta = [0.01, 0.03] }").unwrap();
+        let text: Scene = toml::from_str("damping = \"modal:0.01,0.03\"").unwrap();
+        assert_eq!(many.damping, text.damping);
+        assert!(
+            toml::from_str::<Scene>("damping = { model = \"modal\", zeta = [0.01, -1] }").is_err()
+        );
+        // JSON: one ratio a number, several a list
+        let json = serde_json::to_string(&many.damping).unwrap();
+        assert_eq!(json, r#"{"model":"modal","zeta":[0.01,0.03]}"#);
+        assert_eq!(
+            serde_json::to_string(&one.damping).unwrap(),
+            r#"{"model":"modal","zeta":0.02}"#
+        );
+        assert_eq!(
+            serde_json::from_str::<Damping>(&json).unwrap(),
+            many.damping
+        );
+    }
+
+    #[test]
+    fn the_stand_in_follows_each_modes_ratio() {
+        // ratios that a Rayleigh damping holds exactly are kept exactly
+        let omegas = [0.5, 1.0, 2.0, 3.0];
+        let (a, b) = (0.02, 0.01);
+        let zeta: Vec<f64> = omegas.iter().map(|w| a / (2.0 * w) + b * w / 2.0).collect();
+        let Damping::Rayleigh { a: ga, b: gb } = Damping::Modal { zeta }.tridiagonal(&omegas)
+        else {
+            panic!("a Rayleigh stand-in")
+        };
+        assert!(
+            (ga - a).abs() < 1e-14 && (gb - b).abs() < 1e-14,
+            "{ga} {gb}"
+        );
+        // ratios falling with frequency: mass-proportional alone
+        let Damping::Rayleigh { a, b } = Damping::Modal {
+            zeta: vec![0.08, 0.04, 0.02, 0.0],
+        }
+        .tridiagonal(&omegas) else {
+            panic!("a Rayleigh stand-in")
+        };
+        assert!(a > 0.0 && b == 0.0, "{a} {b}");
     }
 }

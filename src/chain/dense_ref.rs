@@ -37,7 +37,7 @@ pub fn assemble(chain: &Chain) -> Dense {
     let mut grounds = vec![0.0; n];
     let mut grounded = vec![chain.d(); n];
     let between_c = match chain.damping() {
-        Damping::Between { c } => c,
+        Damping::Between { c } => *c,
         _ => 0.0,
     };
     let mut links = vec![between_c; n + 1];
@@ -83,14 +83,21 @@ pub fn assemble(chain: &Chain) -> Dense {
                 add_link(&mut c, n, j, v);
             }
         }
-        Damping::Rayleigh { a, b } => c += &m * a + &k * b,
+        Damping::Rayleigh { a, b } => c += &m * *a + &k * *b,
         Damping::Modal { zeta } => {
             // M^-1/2 K M^-1/2 = Q diag(omega^2) Q^T, Phi = M^-1/2 Q:
-            // C = M Phi diag(2 zeta omega) Phi^T M
+            // C = M Phi diag(2 zeta_j omega_j) Phi^T M, zeta_j by the rank of
+            // omega_j (the last ratio for every higher mode)
             let mh = DMatrix::from_diagonal(&m.diagonal().map(|v| 1.0 / v.sqrt()));
             let eig = (&mh * &k * &mh).symmetric_eigen();
             let phi = &mh * &eig.eigenvectors;
-            let w = eig.eigenvalues.map(|l| 2.0 * zeta * l.max(0.0).sqrt());
+            let mut order: Vec<usize> = (0..n).collect();
+            order.sort_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]));
+            let mut w = eig.eigenvalues.clone();
+            for (rank, &i) in order.iter().enumerate() {
+                let z = zeta[rank.min(zeta.len() - 1)];
+                w[i] = 2.0 * z * eig.eigenvalues[i].max(0.0).sqrt();
+            }
             c += &m * &phi * DMatrix::from_diagonal(&w) * phi.transpose() * &m;
         }
     }
@@ -160,13 +167,14 @@ pub fn model_chains() -> Vec<Chain> {
 }
 
 /// Modally damped chains (`zeta = 0.03`, `d = 0`) with a mass, a spring and
-/// a ground defect, `n = 8`, fixed-fixed and free-fixed; the last with a
-/// grounded `d` proportional to the masses beside the modes' damping.
+/// a ground defect, `n = 8`, fixed-fixed and free-fixed; one with a
+/// grounded `d` proportional to the masses beside the modes' damping; one
+/// with a ratio per mode.
 pub fn modal_chains() -> Vec<Chain> {
     use super::Boundary;
     let base = crate::scenes::paper_with(8, "mass:3:2 spring:5:1.5 ground:6:0.4")
         .and_then(|c| c.with_d(0.0))
-        .and_then(|c| c.with_damping(Damping::Modal { zeta: 0.03 }))
+        .and_then(|c| c.with_damping(Damping::modal(0.03)))
         .expect("a valid chain");
     let mut out: Vec<Chain> = [
         (Boundary::Fixed, Boundary::Fixed),
@@ -178,7 +186,16 @@ pub fn modal_chains() -> Vec<Chain> {
     out.push(
         crate::scenes::paper_with(8, "spring:5:1.5")
             .and_then(|c| c.with_d(0.02))
-            .and_then(|c| c.with_damping(Damping::Modal { zeta: 0.05 }))
+            .and_then(|c| c.with_damping(Damping::modal(0.05)))
+            .expect("a valid chain"),
+    );
+    // one ratio per mode, not in the order of the modes, the last for
+    // modes 4 to 8
+    out.push(
+        base.clone()
+            .with_damping(Damping::Modal {
+                zeta: vec![0.01, 0.06, 0.002, 0.03],
+            })
             .expect("a valid chain"),
     );
     out

@@ -110,15 +110,15 @@ impl Chain {
             .with_mass(self.mass * ms)?
             .with_gamma(self.gamma)?
             .with_boundaries(self.left, self.right)?
-            .with_damping(match self.damping {
+            .with_damping(match &self.damping {
                 Damping::Grounded => Damping::Grounded,
                 Damping::Between { c } => Damping::Between { c: c * ds },
                 Damping::Rayleigh { a, b } => Damping::Rayleigh {
                     a: a * ds / ms,
                     b: b * ds / ks,
                 },
-                // a ratio: the same in every unit system
-                Damping::Modal { zeta } => Damping::Modal { zeta },
+                // ratios: the same in every unit system
+                modal @ Damping::Modal { .. } => modal.clone(),
             })?;
         match &self.baseline {
             Some(b) => chain
@@ -186,7 +186,7 @@ impl ChainSpec {
             .with_gamma(self.gamma)?
             .with_mass(self.mass)?
             .with_boundaries(self.left, self.right)?
-            .with_damping(self.damping)?;
+            .with_damping(self.damping.clone())?;
         let chain = match &self.baseline {
             Some(spec) => {
                 let b = spec.load()?;
@@ -210,7 +210,7 @@ impl From<&Chain> for ChainSpec {
             defects: c.defects.clone(),
             left: c.left,
             right: c.right,
-            damping: c.damping,
+            damping: c.damping.clone(),
             baseline: c.baseline.as_deref().cloned().map(BaselineSpec::Table),
         }
     }

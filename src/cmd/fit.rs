@@ -217,8 +217,9 @@ pub struct Args {
     /// Damping model: grounded (a damper from every mass to the ground, the
     /// paper's), between[:C] (dampers parallel to the springs, as between
     /// storeys), rayleigh[:A:B] (C = A M + B K), modal[:ZETA] (one damping
-    /// ratio for every mode). Parameters not given are
-    /// fitted with --fit d. Default: grounded; with --fit d every model is
+    /// ratio for every mode) or modal:Z1,Z2,.. (a ratio per mode, the last
+    /// for every higher mode; with --fit d these are the starting values of
+    /// the fitted ratios). Parameters not given are fitted with --fit d. Default: grounded; with --fit d every model is
     /// fitted and BIC chooses. --d is then the extra grounded damping (default 0).
     #[arg(long, requires = "input", value_name = "MODEL[:P1[:P2]]")]
     pub damping: Option<String>,

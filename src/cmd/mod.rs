@@ -47,7 +47,8 @@ pub struct ChainArgs {
     pub scene: Option<PathBuf>,
     /// Damping model: grounded (the paper's: d on every mass), between:C
     /// (a damper C parallel to every spring), rayleigh:A:B (C = A M + B K),
-    /// modal:ZETA (every mode damped with the ratio ZETA).
+    /// modal:ZETA (every mode damped with the ratio ZETA) or modal:Z1,Z2,..
+    /// (a ratio per mode in the order of frequency, the last for every higher mode).
     /// With another model than grounded, --d is an extra grounded damping [default 0].
     #[arg(long, value_name = "MODEL[:P1[:P2]]")]
     pub damping: Option<String>,

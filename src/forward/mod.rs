@@ -591,7 +591,7 @@ pub fn woodbury<T: Scalar>(
 ///
 /// ```
 /// use springmass::{Chain, chain::Damping, forward::response};
-/// let c = Chain::paper(1)?.with_d(0.0)?.with_damping(Damping::Modal { zeta: 0.1 })?;
+/// let c = Chain::paper(1)?.with_d(0.0)?.with_damping(Damping::modal(0.1))?;
 /// // one mass, two unit springs: omega^2 = 2
 /// let s = 0.7_f64;
 /// let want = 1.0 / (s * s + 2.0 * 0.1 * 2f64.sqrt() * s + 2.0);

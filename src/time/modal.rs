@@ -518,8 +518,9 @@ enum Inner {
     Prop {
         alpha: f64,
         beta: f64,
-        /// the modal model's ratio: mode k's damping adds 2 zeta omega_k
-        zeta: f64,
+        /// the modal model's ratios, one per entry of `omega2` (empty for
+        /// another model): mode k's damping adds 2 zeta_k omega_k
+        zeta: Vec<f64>,
         omega2: Vec<f64>,
         q: Option<DMatrix<f64>>,
     },
@@ -567,7 +568,7 @@ impl Modes {
     }
 
     /// The proportional-damping path; also the `modal` damping model's
-    /// (every undamped mode damped with its ratio `zeta`, plus grounded
+    /// (every undamped mode damped with its ratio `zeta_j`, plus grounded
     /// dampers proportional to the masses, if any).
     ///
     /// # Errors
@@ -575,8 +576,8 @@ impl Modes {
     /// non-uniform chain.
     pub fn proportional(chain: &Chain) -> Result<Modes> {
         let n = chain.n();
-        let (alpha, beta, zeta) = match chain.damping() {
-            Damping::Modal { zeta } => {
+        let (alpha, beta, modal) = match chain.damping() {
+            Damping::Modal { .. } => {
                 let grounded = chain.clone().with_damping(Damping::Grounded)?;
                 let alpha = proportional_alpha(&grounded).ok_or_else(|| {
                     Error::invalid(
@@ -585,7 +586,7 @@ impl Modes {
                         "0 (or dampers proportional to the masses) beside the modal damping model",
                     )
                 })?;
-                (alpha, 0.0, zeta)
+                (alpha, 0.0, true)
             }
             _ => {
                 let (alpha, beta) = proportional_damping(chain).ok_or_else(|| {
@@ -595,7 +596,14 @@ impl Modes {
                         "C = alpha M + beta K (use the quadratic path)",
                     )
                 })?;
-                (alpha, beta, 0.0)
+                (alpha, beta, false)
+            }
+        };
+        let ratios = |omega2: &[f64]| {
+            if modal {
+                chain.damping().modal_ratios_of(omega2)
+            } else {
+                Vec::new()
             }
         };
         let masses = chain.masses();
@@ -607,12 +615,13 @@ impl Modes {
         let uniform_k = (lo..=hi).all(|j| springs[j] == chain.k());
         if uniform_m && uniform_k {
             let (k, m) = (chain.k(), masses[0]);
-            let omega2 = (1..=n)
+            let omega2: Vec<f64> = (1..=n)
                 .map(|j| {
                     let s = (0.5 * closed_theta(ends, n, j)).sin();
                     4.0 * k / m * s * s
                 })
                 .collect();
+            let zeta = ratios(&omega2);
             return Ok(Modes {
                 n,
                 ends,
@@ -641,7 +650,7 @@ impl Modes {
             inner: Inner::Prop {
                 alpha,
                 beta,
-                zeta,
+                zeta: ratios(eig.eigenvalues.as_slice()),
                 omega2: eig.eigenvalues.iter().copied().collect(),
                 q: Some(eig.eigenvectors),
             },
@@ -752,8 +761,8 @@ impl Modes {
                     } else {
                         0.5 * (alpha + beta * w.max(0.0))
                     };
-                    if *zeta != 0.0 {
-                        a += zeta * w.max(0.0).sqrt();
+                    if let Some(z) = zeta.get(kk).filter(|z| **z != 0.0) {
+                        a += z * w.max(0.0).sqrt();
                     }
                     let (qi, qj) = match q {
                         Some(q) => (q[(i0, kk)], q[(j0, kk)]),
@@ -1454,8 +1463,8 @@ pub fn undamped_modes(chain: &Chain) -> Result<UndampedModes> {
 /// # Ok::<(), springmass::Error>(())
 /// ```
 pub fn natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
-    if let Damping::Modal { zeta } = chain.damping() {
-        return modal_natural_modes(chain, zeta);
+    if chain.damping().is_modal() {
+        return modal_natural_modes(chain);
     }
     let n = chain.n();
     let masses = chain.masses();
@@ -1529,13 +1538,14 @@ pub fn natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
 }
 
 /// [`natural_modes`] of a chain with modal damping: every mode's ratio is
-/// `zeta`, beside the grounded dampers' own.
-fn modal_natural_modes(chain: &Chain, zeta: f64) -> Result<Vec<NaturalMode>> {
+/// its `zeta_j`, beside the grounded dampers' own.
+fn modal_natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
     let grounded = chain.clone().with_damping(Damping::Grounded)?;
     Ok(natural_modes(&grounded)?
         .into_iter()
-        .map(|m| NaturalMode {
-            zeta: m.zeta.map(|z| z + zeta),
+        .enumerate()
+        .map(|(j, m)| NaturalMode {
+            zeta: m.zeta.map(|z| z + chain.damping().modal_ratio(j)),
             ..m
         })
         .collect())
@@ -2316,20 +2326,20 @@ mod damping_tests {
                     assert!((h - v).norm() <= 1e-12 * v.norm(), "{s} {o}");
                 }
             }
-            // every mode's ratio is zeta (plus d's alpha / (2 omega))
-            let zeta = match chain.damping() {
-                Damping::Modal { zeta } => zeta,
-                _ => unreachable!(),
+            // every mode's ratio is its zeta_j (plus d's alpha / (2 omega))
+            let Damping::Modal { zeta } = chain.damping() else {
+                unreachable!()
             };
-            for m in natural_modes(&chain).unwrap() {
+            for (j, m) in natural_modes(&chain).unwrap().iter().enumerate() {
                 let extra = chain.d() / (2.0 * m.omega);
-                assert!((m.zeta.unwrap() - zeta - extra).abs() < 1e-12, "{m:?}");
+                let want = zeta[j.min(zeta.len() - 1)];
+                assert!((m.zeta.unwrap() - want - extra).abs() < 1e-12, "{m:?}");
             }
         }
         // grounded dampers not proportional to the masses: refused, typed
         let bad = crate::scenes::paper_with(6, "mass:2:3")
             .unwrap()
-            .with_damping(Damping::Modal { zeta: 0.02 })
+            .with_damping(Damping::modal(0.02))
             .unwrap();
         match Modes::new(&bad) {
             Err(Error::InvalidParameter { field, .. }) => assert_eq!(field, "d"),

@@ -611,17 +611,20 @@ struct System<'a> {
 
 impl<'a> System<'a> {
     fn new(chain: &Chain, forcing: &'a Forcing, opts: &SimOptions) -> Result<System<'a>> {
-        // the modal model's C is full: M^-1 C = Phi diag(2 zeta omega) Phi^T M
+        // the modal model's C is full: M^-1 C = Phi diag(2 zeta_j omega_j) Phi^T M
         // (mass-normalised shapes), the grounded dampers stay tridiagonal
         let grounded;
         let (chain, modal) = match chain.damping() {
-            Damping::Modal { zeta } => {
+            damping @ Damping::Modal { .. } => {
+                // the modes in the order of their frequencies
                 let modes = super::modal::undamped_modes(chain)?;
                 let m = chain.masses();
                 let phi = &modes.shapes;
                 let mut scaled = phi.clone();
                 for (j, w) in modes.omega.iter().enumerate() {
-                    scaled.column_mut(j).scale_mut(2.0 * zeta * w);
+                    scaled
+                        .column_mut(j)
+                        .scale_mut(2.0 * damping.modal_ratio(j) * w);
                 }
                 let mut a = scaled * phi.transpose();
                 for (i, mi) in m.iter().enumerate() {

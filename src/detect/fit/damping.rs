@@ -84,9 +84,7 @@ pub fn start(chain: &Chain, name: &str) -> Result<Damping> {
         Damping::Between { .. } => Damping::Between {
             c: d * k / (m * w2),
         },
-        Damping::Modal { .. } => Damping::Modal {
-            zeta: d / (2.0 * m * w2.sqrt()),
-        },
+        Damping::Modal { .. } => Damping::modal(d / (2.0 * m * w2.sqrt())),
         _ => Damping::Rayleigh {
             a: d / (2.0 * m),
             b: d / (2.0 * m * w2),
@@ -108,7 +106,12 @@ fn params_of(d: &Damping) -> Vec<Param> {
         Damping::Grounded => vec![],
         Damping::Between { .. } => vec![Param::C],
         Damping::Rayleigh { .. } => vec![Param::A, Param::B],
-        Damping::Modal { .. } => vec![Param::Zeta],
+        Damping::Modal { zeta } => (0..zeta.len())
+            .map(|index| Param::Zeta {
+                index,
+                of: zeta.len(),
+            })
+            .collect(),
     }
 }
 
@@ -116,7 +119,7 @@ fn params_of(d: &Damping) -> Vec<Param> {
 /// docs); `None` for any other parameter or when the chain has no
 /// vibrating mode.
 pub fn bounds(chain: &Chain, p: Param) -> Option<(f64, f64)> {
-    if p == Param::Zeta {
+    if matches!(p, Param::Zeta { .. }) {
         return Some((0.0, 1.0));
     }
     if !matches!(p, Param::C | Param::A | Param::B) {
@@ -168,9 +171,9 @@ impl DampingEstimate {
     pub fn of(report: &FitReport, model: &Model) -> DampingEstimate {
         let chain = model.chain();
         let damping = chain.damping();
-        let mut names: Vec<(&str, f64)> = damping.params();
+        let mut names: Vec<(String, f64)> = damping.params();
         if damping.is_grounded() {
-            names = vec![("d", chain.d())];
+            names = vec![("d".into(), chain.d())];
         }
         let mut values = BTreeMap::new();
         let mut se = BTreeMap::new();

@@ -196,7 +196,7 @@ impl Model {
                     },
                     missing.join(" and "),
                     if missing.len() > 1 { "them" } else { "it" },
-                    match damping {
+                    match &damping {
                         Damping::Between { .. } => "between:C",
                         Damping::Modal { .. } => "modal:ZETA",
                         _ => "rayleigh:A:B",
@@ -209,14 +209,16 @@ impl Model {
             return Ok(self);
         }
         let start = crate::detect::fit::damping::start(&self.chain, damping.name())?;
-        let given = damping.params();
-        let values: Vec<f64> = start
+        // the given values, a missing one from the start (a modal model
+        // keeps as many ratios as given)
+        let from_start = start.params();
+        let values: Vec<f64> = damping
             .params()
             .iter()
-            .zip(given.iter().map(Some).chain(std::iter::repeat(None)))
-            .map(|(s, g)| match g {
-                Some(g) if !missing.contains(&g.0) => g.1,
-                _ => s.1,
+            .enumerate()
+            .map(|(i, (name, v))| match from_start.get(i) {
+                Some(s) if missing.contains(&name.as_str()) => s.1,
+                _ => *v,
             })
             .collect();
         let d = d_extra.unwrap_or(0.0);

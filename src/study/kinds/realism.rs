@@ -38,7 +38,7 @@ pub const SUMMARY: &str = "Simulates a record of a reference system with a real 
 /// The scene fields.
 pub const FIELDS: &[FieldDoc] = &[
     FieldDoc::new("system", "string", "required", "S1, S2, S3, S4 (Table 1), C3a, C3b (three defects), k0..k3, or random:N (N masses, one or two mass defects at positions and factors drawn from the case's seed: factors in 0.5..0.8 or 1.25..2)."),
-    FieldDoc::new("deviation", "string", "\"none\"", "none, rayleigh, between, modal, ar1-0.9, ar1-0.99, offset-drift, pre-trigger, late-clock."),
+    FieldDoc::new("deviation", "string", "\"none\"", "none, rayleigh, between, modal, modal-modes, ar1-0.9, ar1-0.99, offset-drift, pre-trigger, late-clock."),
     FieldDoc::new("level", "float in [0, 1]", "required", "Noise standard deviation relative to the clean record's peak."),
     FieldDoc::new("t_end", "float > 0", "200", "Record length, in units of sqrt(mass / k)."),
     FieldDoc::new("dt", "float > 0", "0.2", "Sampling step, in units of sqrt(mass / k)."),

@@ -124,7 +124,7 @@ impl Hypothesis {
     pub fn to_chain(&self, base: &Chain) -> Result<Chain> {
         let mut c = base.uniform();
         for p in &self.chain {
-            c = chain_param(&p.name)?.set(&c, p.value)?;
+            c = chain_param(&p.name, &c)?.set(&c, p.value)?;
         }
         c.with_defects(self.defects.iter().copied())
     }
@@ -164,36 +164,48 @@ impl Hypothesis {
     }
 }
 
-/// The name of a uniform chain parameter (`d`, `gamma`, `k`, `mass`) as the
-/// fitted parameters carry it.
-pub fn param_name(p: &Param) -> &'static str {
+/// The name of a uniform chain parameter (`d`, `gamma`, `k`, `mass`, the
+/// damping model's `c`, `a`, `b`, `zeta` or `zeta_J`) as the fitted
+/// parameters carry it.
+pub fn param_name(p: &Param) -> String {
     match p {
-        Param::D => "d",
-        Param::Gamma => "gamma",
-        Param::K => "k",
-        Param::Mass => "mass",
-        Param::Defect(_) => "defect",
-        Param::C => "c",
-        Param::A => "a",
-        Param::B => "b",
-        Param::Zeta => "zeta",
+        Param::D => "d".into(),
+        Param::Gamma => "gamma".into(),
+        Param::K => "k".into(),
+        Param::Mass => "mass".into(),
+        Param::Defect(_) => "defect".into(),
+        Param::C => "c".into(),
+        Param::A => "a".into(),
+        Param::B => "b".into(),
+        Param::Zeta { index, of } => crate::chain::Damping::ratio_name(*index, *of),
     }
 }
 
-pub(super) fn chain_param(name: &str) -> Result<Param> {
-    match name {
-        "d" => Ok(Param::D),
-        "gamma" => Ok(Param::Gamma),
-        "k" => Ok(Param::K),
-        "mass" => Ok(Param::Mass),
-        "c" => Ok(Param::C),
-        "a" => Ok(Param::A),
-        "b" => Ok(Param::B),
-        "zeta" => Ok(Param::Zeta),
+/// The chain parameter `name` ([`param_name`]) of `chain` (whose damping
+/// model gives the number of modal ratios).
+pub(super) fn chain_param(name: &str, chain: &Chain) -> Result<Param> {
+    let of = match chain.damping() {
+        crate::chain::Damping::Modal { zeta } => zeta.len(),
+        _ => 1,
+    };
+    let ratio = name
+        .strip_prefix("zeta_")
+        .and_then(|j| j.parse::<usize>().ok())
+        .filter(|j| (1..=of).contains(j) && of > 1);
+    match (name, ratio) {
+        ("d", _) => Ok(Param::D),
+        ("gamma", _) => Ok(Param::Gamma),
+        ("k", _) => Ok(Param::K),
+        ("mass", _) => Ok(Param::Mass),
+        ("c", _) => Ok(Param::C),
+        ("a", _) => Ok(Param::A),
+        ("b", _) => Ok(Param::B),
+        ("zeta", _) if of == 1 => Ok(Param::Zeta { index: 0, of }),
+        (_, Some(j)) => Ok(Param::Zeta { index: j - 1, of }),
         _ => Err(Error::invalid(
             "param",
             name,
-            "d, gamma, k, mass, c, a, b or zeta",
+            "d, gamma, k, mass, c, a, b, zeta or zeta_J (a modal ratio of the chain's model)",
         )),
     }
 }
