@@ -10,6 +10,7 @@ use nalgebra::{DMatrix, DVector};
 use springmass::detect::data::observations::{Observations, Series};
 use springmass::detect::fit::fit;
 use springmass::detect::fit::options::FitSpec;
+use springmass::detect::fit::report::Status;
 use springmass::noise::{add_noise, NoiseLevel};
 
 /// The generator's damping models.
@@ -237,5 +238,37 @@ fn larger_grid_of_seeds() {
             check(20, &paper, Model::Between(0.05), level, 100 + seed, None);
             check(20, &paper, Model::Modal(0.02), level, 200 + seed, None);
         }
+    }
+}
+
+/// A Rayleigh-damped record fitted with the between-storey model given:
+/// the residual of the wrong model took the largest AR noise model, whose
+/// coefficients never settled, and the report said `converged` at wrong
+/// positions (8 and 13). It must not be called converged or resolved.
+#[test]
+fn a_wrong_damping_model_given_is_not_called_converged() {
+    let paper = [(8, 5.0), (15, 2.0)];
+    for seed in [1, 2] {
+        let obs = record(
+            20,
+            &paper,
+            Model::Rayleigh(0.05, 0.01),
+            (0.5, 401),
+            1e-2,
+            seed,
+        );
+        let spec = FitSpec {
+            fit: Some("d".into()),
+            damping: Some("between".into()),
+            defects: Some("2".into()),
+            ..FitSpec::new(20)
+        };
+        let (m, opts) = spec.build().unwrap();
+        let r = fit(&obs, &m, &opts).unwrap();
+        let at: Vec<usize> = r.found().iter().map(|d| d.at()).collect();
+        let what = format!("seed {seed}: {at:?}\n{}", r.summary());
+        assert!(!r.resolved, "{what}");
+        assert_eq!(r.status, Status::ModelMismatch, "{what}");
+        assert!(r.message.contains("did not settle"), "{what}");
     }
 }

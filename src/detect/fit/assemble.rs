@@ -52,8 +52,11 @@ impl Engine<'_> {
         let sensors = self.sensor_estimates(f, sigma, estimated);
         let disagree = self.disagreeing(&sensors);
         let (fits_data, p) = goodness_of_fit(f, chi2_final, estimated);
-        let fits_data = fits_data && disagree.is_none();
-        let hint = disagree.or_else(|| (!fits_data).then(|| self.mismatch_hint(f)).flatten());
+        let unsettled = self.record.unsettled();
+        let fits_data = fits_data && disagree.is_none() && unsettled.is_none();
+        let hint = disagree
+            .or(unsettled)
+            .or_else(|| (!fits_data).then(|| self.mismatch_hint(f)).flatten());
         let unseen = self.unseen_of(f, best, scale);
         let k_margin = self
             .k_margin(&rows, f.k, &criterion)

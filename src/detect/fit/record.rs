@@ -179,6 +179,23 @@ impl RecordModel {
         self.noise.is_white() && self.nuisance == Nuisance::None
     }
 
+    /// Why the coloured noise model is not noise: its AR coefficients were
+    /// still moving after the last of [`MAX_REFITS`] refits, which genuine
+    /// coloured noise does not do (an AR(1) of rho 0.9 or 0.99 settles in
+    /// one or two) and the residual of a model that misses the record's
+    /// structure does (a wrong damping model took AR(8) and never settled,
+    /// and was reported `converged` at wrong positions). `None` for white
+    /// noise or settled coefficients.
+    pub fn unsettled(&self) -> Option<String> {
+        (!self.noise.is_white() && !self.converged).then(|| {
+            format!(
+                "colour that the AR({}) noise model did not settle on (its coefficients still moved after {} refits): structure that the chain, damping or record model misses rather than noise (another damping model: try --fit d)",
+                self.noise.order(),
+                self.iterations
+            )
+        })
+    }
+
     /// Samples the whitened residual loses: the AR order plus the nuisances.
     pub fn lost(&self) -> usize {
         self.noise.order() + self.nuisance.count()
