@@ -30,7 +30,10 @@
 //! chain parameters), with every candidate's value in `damping.candidates`.
 
 use crate::chain::{Chain, Damping};
+use crate::detect::data::nuisance::Nuisance;
 use crate::detect::fit::model::Model;
+use crate::detect::fit::options::FitOptions;
+use crate::detect::fit::record::{NoiseModelChoice, NuisanceChoice};
 use crate::detect::fit::report::FitReport;
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
@@ -134,7 +137,8 @@ pub fn bounds(chain: &Chain, p: Param) -> Option<(f64, f64)> {
     }
 }
 
-/// One candidate model of a fit that chose the damping model.
+/// One candidate model of a fit that chose the damping model, as its
+/// screening fit ([`screen_options`]) left it.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct DampingCandidate {
     /// `grounded`, `between` or `rayleigh`.
@@ -244,17 +248,36 @@ pub fn criterion(report: &FitReport) -> f64 {
     n * (rss / n).ln() + p * n.ln()
 }
 
+/// The options the candidates of a damping choice are fitted with: white
+/// noise, and no nuisance unless one was given. The [`criterion`] is the
+/// raw residual's, which a white fit minimises; a coloured noise model
+/// (chosen when the white residual fails the whiteness test) refits every
+/// shortlisted set under it, and on the wrong models, whose residual is
+/// never white, that was most of the choice's cost.
+pub fn screen_options(opts: &FitOptions) -> FitOptions {
+    let mut o = opts.clone();
+    o.noise_model = NoiseModelChoice::White;
+    if o.nuisance == NuisanceChoice::Auto {
+        o.nuisance = NuisanceChoice::Fixed(Nuisance::None);
+    }
+    o
+}
+
 /// Fit every damping model with `fit_one` and return the report of the one
-/// with the smallest [`criterion`], its `damping` entry listing every
-/// candidate; evaluations are the sum over the candidates, the wall time
-/// that of the whole choice (a candidate's own clock may include work
+/// with the smallest [`criterion`] (refitted with `refit` when given: the
+/// options asked for, where the candidates were fitted with
+/// [`screen_options`]), its `damping` entry listing every candidate as
+/// `fit_one` fitted it; evaluations are the sum over the fits, the wall
+/// time that of the whole choice (a candidate's own clock may include work
 /// shared with the others, so their sum would overstate it).
 ///
 /// # Errors
-/// The first candidate's error when every candidate fails; a cancellation.
+/// The first candidate's error when every candidate fails; the refit's
+/// error; a cancellation.
 pub fn fit_choosing(
     model: &Model,
     fit_one: impl Fn(&Model) -> Result<FitReport>,
+    refit: Option<impl Fn(&Model) -> Result<FitReport>>,
 ) -> Result<FitReport> {
     let mut best: Option<(f64, FitReport, Model)> = None;
     let mut candidates = Vec::new();
@@ -293,6 +316,10 @@ pub fn fit_choosing(
         return Err(first_err
             .unwrap_or_else(|| Error::invalid("damping", "none", "a damping model that fits")));
     };
+    if let Some(refit) = refit {
+        report = refit(&m)?;
+        evaluations += report.evaluations;
+    }
     let mut est = DampingEstimate::of(&report, &m);
     est.candidates = candidates;
     report.damping = Some(est);

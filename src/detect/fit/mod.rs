@@ -147,7 +147,15 @@ fn fit_with(
     // the damping model: chosen among every model, or reported when not
     // the paper's ([`damping`])
     if model.chooses_damping() && given.is_none() {
-        return damping::fit_choosing(model, |m| fit_with(obs, m, opts, None));
+        // the candidates screened with white noise (the criterion is the
+        // raw residual's), the chosen one fitted as asked
+        let screen = damping::screen_options(opts);
+        let refit = screen.noise_model != opts.noise_model || screen.nuisance != opts.nuisance;
+        return damping::fit_choosing(
+            model,
+            |m| fit_with(obs, m, &screen, None),
+            refit.then_some(|m: &Model| fit_with(obs, m, opts, None)),
+        );
     }
     if !model.chain().damping().is_grounded() {
         let mut r = fit_with_model(obs, model, opts, given)?;
