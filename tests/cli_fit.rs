@@ -536,36 +536,30 @@ fn fit_data_of_several_records() {
 #[test]
 fn fit_data_with_modal_damping() {
     let dir = temp_dir("modal");
-    let sim = bin()
-        .args([
-            "simulate",
-            "--n",
-            "5",
-            "--defect",
-            "mass:2:3",
-            "--defect",
-            "mass:4:0.5",
-            "--damping",
-            "modal:0.03",
-            "--t-end",
-            "120",
-            "--dt",
-            "0.5",
-            "--noise",
-            "rel:1e-2",
-            "--seed",
-            "3",
-            "--out",
-            "x1.csv",
-        ])
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        sim.status.success(),
-        "{}",
-        String::from_utf8_lossy(&sim.stderr)
-    );
+    // System {2: 3, 4: 0.5} of 5 masses, modally damped, into `out`
+    let simulate = |damping: &str, noise: &str, seed: &str, out: &str| {
+        let sim = bin()
+            .args([
+                "simulate",
+                "--n",
+                "5",
+                "--defect",
+                "mass:2:3",
+                "--defect",
+                "mass:4:0.5",
+            ])
+            .args(["--damping", damping, "--t-end", "120", "--dt", "0.5"])
+            .args(["--noise", noise, "--seed", seed, "--out", out])
+            .current_dir(&dir)
+            .output()
+            .unwrap();
+        assert!(
+            sim.status.success(),
+            "{}",
+            String::from_utf8_lossy(&sim.stderr)
+        );
+    };
+    simulate("modal:0.03", "rel:1e-2", "3", "x1.csv");
     let fit = [
         "fit",
         "--data",
@@ -617,32 +611,7 @@ fn fit_data_with_modal_damping() {
         "damping.zeta[1]",
     );
     // a ratio per mode (modes 1, 2 and the rest), fitted from 3% each
-    let sim = bin()
-        .args([
-            "simulate",
-            "--n",
-            "5",
-            "--defect",
-            "mass:2:3",
-            "--defect",
-            "mass:4:0.5",
-            "--damping",
-            "modal:0.01,0.05,0.02",
-            "--t-end",
-            "120",
-            "--dt",
-            "0.5",
-            "--noise",
-            "rel:1e-3",
-            "--seed",
-            "4",
-            "--out",
-            "x2.csv",
-        ])
-        .current_dir(&dir)
-        .output()
-        .unwrap();
-    assert!(sim.status.success());
+    simulate("modal:0.01,0.05,0.02", "rel:1e-3", "4", "x2.csv");
     let mut per_mode = fit.to_vec();
     per_mode[2] = "x2.csv";
     per_mode[6] = "modal:0.03,0.03,0.03";
