@@ -576,31 +576,10 @@ impl Modes {
     /// non-uniform chain.
     pub fn proportional(chain: &Chain) -> Result<Modes> {
         let n = chain.n();
-        let (alpha, beta, modal) = match chain.damping() {
-            Damping::Modal { .. } => {
-                let grounded = chain.clone().with_damping(Damping::Grounded)?;
-                let alpha = proportional_alpha(&grounded).ok_or_else(|| {
-                    Error::invalid(
-                        "d",
-                        chain.d(),
-                        "0 (or dampers proportional to the masses) beside the modal damping model",
-                    )
-                })?;
-                (alpha, 0.0, true)
-            }
-            _ => {
-                let (alpha, beta) = proportional_damping(chain).ok_or_else(|| {
-                    Error::invalid(
-                        "chain",
-                        "damping not proportional",
-                        "C = alpha M + beta K (use the quadratic path)",
-                    )
-                })?;
-                (alpha, beta, false)
-            }
-        };
+        let (alpha, beta) = proportional_coefficients(chain)?;
+        // the modal model's ratio of each mode (none for another model)
         let ratios = |omega2: &[f64]| {
-            if modal {
+            if chain.damping().is_modal() {
                 chain.damping().modal_ratios_of(omega2)
             } else {
                 Vec::new()
@@ -1549,6 +1528,34 @@ fn modal_natural_modes(chain: &Chain) -> Result<Vec<NaturalMode>> {
             ..m
         })
         .collect())
+}
+
+/// `(alpha, beta)` of [`Modes::proportional`]: of `C = alpha M + beta K`,
+/// or for the modal model the grounded dampers' `alpha` (the modes' own
+/// damping apart).
+///
+/// # Errors
+/// Damping not proportional (field `chain`); grounded dampers beside the
+/// modal model not proportional to the masses (field `d`).
+fn proportional_coefficients(chain: &Chain) -> Result<(f64, f64)> {
+    if chain.damping().is_modal() {
+        let grounded = chain.clone().with_damping(Damping::Grounded)?;
+        let alpha = proportional_alpha(&grounded).ok_or_else(|| {
+            Error::invalid(
+                "d",
+                chain.d(),
+                "0 (or dampers proportional to the masses) beside the modal damping model",
+            )
+        })?;
+        return Ok((alpha, 0.0));
+    }
+    proportional_damping(chain).ok_or_else(|| {
+        Error::invalid(
+            "chain",
+            "damping not proportional",
+            "C = alpha M + beta K (use the quadratic path)",
+        )
+    })
 }
 
 /// `Some((alpha, beta))` when `C = alpha M + beta K`: `beta = c_j / k_j`
