@@ -23,11 +23,15 @@
 //! # Choosing the model
 //!
 //! With `--fit d` and no `--damping`, every model is fitted (its parameters
-//! in place of `d`) and the one with the smallest
-//! `BIC = N ln(RSS / N) + p ln N` is reported (`RSS` the residual sum of
+//! in place of `d`; with white noise and no nuisance unless one was given,
+//! [`screen_options`]: the screening fit) and the one with the smallest
+//! `BIC = N ln(RSS / N) + p ln N` is chosen (`RSS` the residual sum of
 //! squares of the `N` samples, `p` the free parameters: defect values and
 //! positions as the number-of-defects criterion counts them, plus the
 //! chain parameters), with every candidate's value in `damping.candidates`.
+//! The chosen model is then fitted again with the options asked for (the
+//! default noise model `auto` takes a coloured-noise model when its
+//! residual is not white); that fit is the report.
 
 use crate::chain::{Chain, Damping};
 use crate::detect::data::nuisance::Nuisance;
