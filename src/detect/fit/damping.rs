@@ -29,9 +29,10 @@
 //! squares of the `N` samples, `p` the free parameters: defect values and
 //! positions as the number-of-defects criterion counts them, plus the
 //! chain parameters), with every candidate's value in `damping.candidates`.
-//! The chosen model is then fitted again with the options asked for (the
-//! default noise model `auto` takes a coloured-noise model when its
-//! residual is not white); that fit is the report.
+//! When the chosen model's screening residual is not noise, it is fitted
+//! again with the options asked for (the default noise model `auto` takes a
+//! coloured-noise model then); otherwise its screening fit is the report,
+//! as `auto` would keep it.
 
 use crate::chain::{Chain, Damping};
 use crate::detect::data::nuisance::Nuisance;
@@ -268,9 +269,9 @@ pub fn screen_options(opts: &FitOptions) -> FitOptions {
 }
 
 /// Fit every damping model with `fit_one` and return the report of the one
-/// with the smallest [`criterion`] (refitted with `refit` when given: the
-/// options asked for, where the candidates were fitted with
-/// [`screen_options`]), its `damping` entry listing every candidate as
+/// with the smallest [`criterion`] (refitted with `refit` when given and
+/// its screening fit does not fit the data: the options asked for, where
+/// the candidates were fitted with [`screen_options`]), its `damping` entry listing every candidate as
 /// `fit_one` fitted it; evaluations are the sum over the fits, the wall
 /// time that of the whole choice (a candidate's own clock may include work
 /// shared with the others, so their sum would overstate it).
@@ -320,7 +321,9 @@ pub fn fit_choosing(
         return Err(first_err
             .unwrap_or_else(|| Error::invalid("damping", "none", "a damping model that fits")));
     };
-    if let Some(refit) = refit {
+    // a white residual: the options asked for (`auto`) would keep the
+    // white fit, so the screening fit is the answer
+    if let Some(refit) = refit.filter(|_| !report.fits_data) {
         report = refit(&m)?;
         evaluations += report.evaluations;
     }
