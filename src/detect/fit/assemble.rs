@@ -50,13 +50,7 @@ impl Engine<'_> {
             .map(|h| Alternative::new(h.defects.clone(), h.chi2, best.chi2))
             .collect();
         let sensors = self.sensor_estimates(f, sigma, estimated);
-        let disagree = self.disagreeing(&sensors);
-        let (fits_data, p) = goodness_of_fit(f, chi2_final, estimated);
-        let unsettled = self.record.unsettled();
-        let fits_data = fits_data && disagree.is_none() && unsettled.is_none();
-        let hint = disagree
-            .or(unsettled)
-            .or_else(|| (!fits_data).then(|| self.mismatch_hint(f)).flatten());
+        let (fits_data, p, hint) = self.data_fit(f, chi2_final, estimated, &sensors);
         let unseen = self.unseen_of(f, best, scale);
         let k_margin = self
             .k_margin(&rows, f.k, &criterion)
@@ -216,6 +210,28 @@ impl Engine<'_> {
                 }
             })
             .collect()
+    }
+
+    /// Whether the answer explains the data, the goodness-of-fit p-value,
+    /// and the mismatch message's hint: the residual is noise
+    /// ([`goodness_of_fit`]), every sensor or record agrees
+    /// ([`Engine::disagreeing`]) and a coloured noise model settled
+    /// ([`RecordModel::unsettled`](super::record::RecordModel::unsettled)).
+    fn data_fit(
+        &self,
+        f: &KFit,
+        chi2_final: f64,
+        estimated: bool,
+        sensors: &[SensorEstimate],
+    ) -> (bool, f64, Option<String>) {
+        let disagree = self.disagreeing(sensors);
+        let (fits_data, p) = goodness_of_fit(f, chi2_final, estimated);
+        let unsettled = self.record.unsettled();
+        let fits_data = fits_data && disagree.is_none() && unsettled.is_none();
+        let hint = disagree
+            .or(unsettled)
+            .or_else(|| (!fits_data).then(|| self.mismatch_hint(f)).flatten());
+        (fits_data, p, hint)
     }
 
     /// The sensors or records of a joint fit whose own residual is not
