@@ -67,3 +67,21 @@ def s1_record():
     t = np.arange(0, 150, 0.25)
     x = springmass.simulate(t=t, noise="rel:1e-3", seed=11, **s1.chain())
     return t, x
+
+
+@pytest.fixture
+def ctrl_c():
+    """Python's own Ctrl-C handler for the length of a test.
+
+    A process started in the background by a shell without job control
+    inherits SIGINT ignored, and Python then installs no handler: a SIGINT
+    sent to it does nothing. The interrupt tests install the handler an
+    interactive session has (and restore the one they found).
+    """
+    import signal
+
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)

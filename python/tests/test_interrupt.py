@@ -14,7 +14,7 @@ import springmass
 
 
 @pytest.mark.skipif(not hasattr(signal, "SIGINT"), reason="needs SIGINT")
-def test_ctrl_c_interrupts_a_long_fit():
+def test_ctrl_c_interrupts_a_long_fit(ctrl_c):
     # System 3 (n = 20) searched for three defects of any kind: about 10^5
     # position sets, many minutes of work; SIGINT after one second
     s3 = springmass.scene("S3")

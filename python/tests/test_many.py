@@ -73,7 +73,7 @@ def test_csv_paths(tmp_path):
 
 
 @pytest.mark.skipif(not hasattr(signal, "SIGINT"), reason="needs SIGINT")
-def test_ctrl_c_stops_every_worker():
+def test_ctrl_c_stops_every_worker(ctrl_c):
     # System 3 searched for three defects of any kind: minutes of work per
     # record; SIGINT after one second
     s3 = springmass.scene("S3")
