@@ -172,6 +172,119 @@ fn one_weak_storey_of_an_8_mass_chain_is_found_from_three_displacement_channels(
     }
 }
 
+/// A record of `samples` at step `dt` under a band-limited force on mass 1:
+/// a flat spectrum over `0..w_b` and none above, made as a sum of cosines
+/// at every `dw = 2 pi / (record length)` below `w_b` with random phases
+/// (a stationary Gaussian process to the record's resolution), held over
+/// each of the `sub` exact sub-steps per sample (zero-order hold:
+/// `z <- Phi z + A^-1 (Phi - I) B f`); displacement channels at `observe`
+/// plus white sensor noise of `noise` times each channel's std.
+fn generate_band_limited(
+    chain: &Chain,
+    observe: &[usize],
+    w_b: f64,
+    (dt, sub, samples): (f64, usize, usize),
+    noise: f64,
+    seed: u64,
+) -> AmbientRecord {
+    let n = chain.n();
+    let (a, b) = state_space(chain, &[1]);
+    let h = dt / sub as f64;
+    let phi = (&a * h).exp();
+    let ident = DMatrix::<f64>::identity(2 * n, 2 * n);
+    let gamma = a.clone().lu().solve(&((&phi - ident) * &b)).unwrap();
+    let settle = 400.0;
+    let length = settle + samples as f64 * dt;
+    let dw = 2.0 * std::f64::consts::PI / length;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let tones: Vec<(f64, f64)> = (0..)
+        .map(|j| (j as f64 + 0.5) * dw)
+        .take_while(|&w| w < w_b)
+        .map(|w| {
+            let u: f64 = rand::Rng::random(&mut rng);
+            (w, 2.0 * std::f64::consts::PI * u)
+        })
+        .collect();
+    let amp = (2.0 * dw).sqrt();
+    let force = |t: f64| -> f64 { tones.iter().map(|&(w, p)| amp * (w * t + p).cos()).sum() };
+    let mut z = nalgebra::DVector::<f64>::zeros(2 * n);
+    let mut t = 0.0;
+    let settle_steps = (settle / h).round() as usize;
+    for _ in 0..settle_steps {
+        z = &phi * &z + &gamma * force(t + 0.5 * h);
+        t += h;
+    }
+    let mut ch = vec![Vec::with_capacity(samples); observe.len()];
+    for _ in 0..samples {
+        for _ in 0..sub {
+            z = &phi * &z + &gamma * force(t + 0.5 * h);
+            t += h;
+        }
+        for (c, &o) in ch.iter_mut().zip(observe) {
+            c.push(z[o - 1]);
+        }
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
+    for c in &mut ch {
+        let mean = c.iter().sum::<f64>() / c.len() as f64;
+        let sd = (c.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / c.len() as f64).sqrt();
+        for v in c.iter_mut() {
+            let e: f64 = StandardNormal.sample(&mut rng);
+            *v += noise * sd * e;
+        }
+    }
+    AmbientRecord::new(dt, observe.to_vec(), Observable::Displacement, ch).unwrap()
+}
+
+#[test]
+fn a_band_limited_force_is_modelled_when_its_band_is_given() {
+    // an 8-mass chain (modes at 0.35, 0.68, 1.00, 1.29, .., 1.97 rad/time)
+    // shaken on mass 1 by a force flat up to 1.15 and absent above: only
+    // the first three modes are excited
+    let nominal = Chain::paper(8).unwrap();
+    let truth = nominal
+        .clone()
+        .with_defect(Defect::Spring { at: 3, k: 0.8 })
+        .unwrap();
+    let rec = generate_band_limited(&truth, &[1, 5, 8], 1.15, (0.5, 2, 6000), 0.05, 5);
+    let band = AmbientOptions {
+        ambient_on: Some(vec![1]),
+        force_band: Some((0.0, 1.15)),
+        target: AmbientTarget::Defects { k_min: 0, k_max: 1 },
+        ..AmbientOptions::default()
+    };
+    let r = fit_ambient(&nominal, &rec, &band).unwrap();
+    assert_eq!(r.status, "converged", "{}", r.summary());
+    assert_eq!(r.k, 1, "{}", r.summary());
+    let f = &r.factors[0];
+    assert_eq!((f.kind, f.at), ("spring", 3), "{}", r.summary());
+    assert!(
+        (f.factor - 0.8).abs() < 3.0 * f.se.unwrap(),
+        "{}",
+        r.summary()
+    );
+    assert_eq!(r.force_band, Some((0.0, 1.15)));
+    assert!(r.summary().contains("force band"), "{}", r.summary());
+    // the same record taken for white forces: the unexcited modes are
+    // predicted where the record shows only the sensors' noise, and the
+    // fit says that it does not explain the record
+    let white = AmbientOptions {
+        force_band: None,
+        ..band.clone()
+    };
+    let w = fit_ambient(&nominal, &rec, &white).unwrap();
+    assert!(!w.resolved && w.status != "converged", "{}", w.summary());
+    // a band outside every used bin, or upside down, names the field
+    for bad in [(2.0, 1.0), (-1.0, 1.0), (1.0, f64::NAN), (100.0, 200.0)] {
+        let opts = AmbientOptions {
+            force_band: Some(bad),
+            ..band.clone()
+        };
+        let e = fit_ambient(&nominal, &rec, &opts).unwrap_err().to_string();
+        assert!(e.contains("ambient_band"), "{bad:?}: {e}");
+    }
+}
+
 /// The nominal 30-mass chain of the acceptance case.
 fn thirty() -> Chain {
     Chain::new(30).unwrap().with_d(0.02).unwrap()
@@ -384,26 +497,33 @@ fn the_cli_fits_an_ambient_record() {
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("ambient.csv");
     write_csv(&rec, &path);
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_springmass"))
-        .args(["fit", "--data"])
-        .arg(&path)
-        .args([
-            "--n",
-            "8",
-            "--observe",
-            "1,5,8",
-            "--observe-kind",
-            "velocity",
-            "--excitation",
-            "ambient",
-            "--defects",
-            "auto:1",
-            "--fit",
-            "d",
-            "--json",
-        ])
-        .output()
-        .unwrap();
+    let run = |extra: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_springmass"))
+            .args(["fit", "--data"])
+            .arg(&path)
+            .args([
+                "--n",
+                "8",
+                "--observe",
+                "1,5,8",
+                "--observe-kind",
+                "velocity",
+                "--excitation",
+                "ambient",
+                "--defects",
+                "auto:1",
+                "--fit",
+                "d",
+                "--json",
+            ])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let out = run(&[]);
+    // a force band over every fitted frequency: the white model's answer
+    let banded = run(&["--ambient-band", "0:10"]);
+    let bad = run(&["--ambient-band", "1"]);
     let _ = std::fs::remove_dir_all(&dir);
     assert!(
         out.status.success(),
@@ -414,6 +534,16 @@ fn the_cli_fits_an_ambient_record() {
     assert_eq!(v["status"], "converged", "{v}");
     assert_eq!(v["factors"][0]["at"], 3, "{v}");
     assert_eq!(v["factors"][0]["kind"], "spring", "{v}");
+    assert!(v.get("force_band").is_none(), "{v}");
+    let b: serde_json::Value = serde_json::from_slice(&banded.stdout).unwrap();
+    assert_eq!(b["force_band"], serde_json::json!([0.0, 10.0]), "{b}");
+    assert_eq!(b["factors"], v["factors"]);
+    assert!(!bad.status.success());
+    assert!(
+        String::from_utf8_lossy(&bad.stderr).contains("ambient_band"),
+        "{}",
+        String::from_utf8_lossy(&bad.stderr)
+    );
 }
 
 /// Write the guide's 30-mass record (the acceptance case, seed 1) to the

@@ -1904,6 +1904,7 @@ def update_from_modes(
         starts=_count("starts", starts),
         seed=_count("seed", seed),
         baseline=_baseline(baseline),
+        ambient_band=None if ambient_band is None else _band(ambient_band),
     )
     out = json.loads(raw["report"])
     out["summary"] = raw["summary"]
@@ -1926,6 +1927,7 @@ def fit_ambient(
     kinds: str = "springs",
     profile: bool = False,
     baseline: Any = None,
+    ambient_band: Optional[Tuple[float, float]] = None,
 ) -> Dict[str, Any]:
     """Output-only (ambient) fit: which storey changed, from response records
     under an unknown broadband force.
@@ -1954,6 +1956,11 @@ def fit_ambient(
         ``"fixed"`` or ``"free"`` ends.
     ambient_on : sequence of int, optional
         The masses the white forces act on (default every mass).
+    ambient_band : (float, float), optional
+        Band-limited forces: a flat spectrum of the fitted level over
+        ``(lo, hi)`` (angular frequencies, rad per unit time, as the report's
+        ``band``) and none outside it (default: white). As
+        ``--ambient-band LO:HI``.
     defects : "auto", "auto:K" or int
         The number of changed elements (default ``0..=2`` by BIC).
     kinds : str
@@ -2011,10 +2018,20 @@ def fit_ambient(
         profile=bool(profile),
         fit_d=d is None,
         baseline=_baseline(baseline),
+        ambient_band=None if ambient_band is None else _band(ambient_band),
     )
     out = json.loads(raw["report"])
     out["summary"] = raw["summary"]
     return out
+
+
+def _band(band: Any) -> Tuple[float, float]:
+    """A ``(lo, hi)`` pair of reals (the fit checks the range)."""
+    try:
+        lo, hi = band
+    except (TypeError, ValueError):
+        raise _invalid("ambient_band", band, "a pair (lo, hi) of angular frequencies") from None
+    return _real("ambient_band", lo), _real("ambient_band", hi)
 
 
 # ---------------------------------------------------------------- files

@@ -914,7 +914,7 @@ fn fit_modes<'py>(
 /// its text summary.
 #[pyfunction]
 #[pyo3(signature = (t, channels, *, observe, observe_kind, n, mass, k, d, left, right,
-    ambient_on, k_min, k_max, kinds, profile, fit_d, baseline=None))]
+    ambient_on, k_min, k_max, kinds, profile, fit_d, baseline=None, ambient_band=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit_ambient<'py>(
     py: Python<'py>,
@@ -935,6 +935,7 @@ fn fit_ambient<'py>(
     profile: bool,
     fit_d: bool,
     baseline: Option<BaselineArg>,
+    ambient_band: Option<(f64, f64)>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use springmass::detect::data::ambient::AmbientRecord;
     use springmass::detect::fit::ambient::{fit_ambient, AmbientOptions, AmbientTarget};
@@ -949,6 +950,7 @@ fn fit_ambient<'py>(
         let rec = AmbientRecord::from_series(&ts, observe, observe_kind.parse()?)?;
         let opts = AmbientOptions {
             ambient_on,
+            force_band: ambient_band,
             fit_d,
             target: if profile {
                 AmbientTarget::Profile

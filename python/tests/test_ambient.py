@@ -40,3 +40,18 @@ def test_a_constant_channel_names_the_field():
     t = np.arange(3000) * 0.5
     with pytest.raises(ValueError, match="channel 2"):
         springmass.fit_ambient((t, [np.sin(t), np.ones_like(t)]), observe=[1, 4], n=4)
+
+
+def test_a_force_band_is_passed_to_the_fit_and_checked():
+    t, channels = _record()
+    white = springmass.fit_ambient((t, channels), observe=[1, 4], n=4, defects="auto:1")
+    # a band over every fitted frequency models the same white forces
+    banded = springmass.fit_ambient(
+        (t, channels), observe=[1, 4], n=4, defects="auto:1", ambient_band=(0.0, 20.0)
+    )
+    assert banded["force_band"] == [0.0, 20.0]
+    assert banded["factors"] == white["factors"]
+    assert "force band" in banded["summary"]
+    for bad in [(2.0, 1.0), (0.0, float("nan")), "ab", 3.0]:
+        with pytest.raises(ValueError, match="ambient_band"):
+            springmass.fit_ambient((t, channels), observe=[1, 4], n=4, ambient_band=bad)

@@ -145,6 +145,16 @@ pub struct Args {
     /// [default: every mass].
     #[arg(long, requires = "excitation", value_delimiter = ',')]
     pub ambient_on: Vec<usize>,
+    /// With --excitation ambient: band-limited forces, a flat spectrum of the
+    /// fitted level over LO:HI (angular frequencies, rad per unit of the
+    /// record's time, as the report's band) and none outside [default: white].
+    #[arg(
+        long,
+        requires = "excitation",
+        value_name = "LO:HI",
+        allow_hyphen_values = true
+    )]
+    pub ambient_band: Option<String>,
     /// A measured force on mass 1 instead of the impulse: this column of --data
     /// (with --force FILE: of that file) [hammer test].
     #[arg(long, requires = "data")]

@@ -95,5 +95,23 @@ fn options(a: &Args) -> anyhow::Result<AmbientOptions> {
     if !a.ambient_on.is_empty() {
         opts.ambient_on = Some(a.ambient_on.clone());
     }
+    if let Some(text) = &a.ambient_band {
+        opts.force_band = Some(parse_band(text)?);
+    }
     Ok(opts)
+}
+
+/// `LO:HI` of --ambient-band (the fit checks the range).
+fn parse_band(text: &str) -> springmass::Result<(f64, f64)> {
+    let bad = || {
+        springmass::Error::invalid(
+            "ambient_band",
+            text,
+            "LO:HI, two numbers with 0 <= LO < HI (rad per unit time)",
+        )
+    };
+    let (lo, hi) = text.split_once(':').ok_or_else(bad)?;
+    let lo: f64 = lo.trim().parse().map_err(|_| bad())?;
+    let hi: f64 = hi.trim().parse().map_err(|_| bad())?;
+    Ok((lo, hi))
 }

@@ -1,7 +1,9 @@
 //! Output-only (ambient) fits: which storey changed, or every storey's
 //! factor, from response channels under an unknown broadband force
 //! ([`AmbientMisfit`]: least squares on the Welch cross-spectral matrix,
-//! the force level and sensor-noise floors profiled out).
+//! the force level and sensor-noise floors profiled out). The forces are
+//! white, or band-limited to [`AmbientOptions::force_band`] (flat inside,
+//! none outside).
 //!
 //! # Method
 //!
@@ -58,6 +60,10 @@ pub enum AmbientTarget {
 pub struct AmbientOptions {
     /// Masses (1-based) the white forces act on; `None`: every mass.
     pub ambient_on: Option<Vec<usize>>,
+    /// The forces' band `[w_a, w_b]` (rad per unit time): a flat spectrum
+    /// of the fitted level inside it, none outside; `None` (default):
+    /// white over every frequency.
+    pub force_band: Option<(f64, f64)>,
     /// Fit the uniform damper `d` too (default true: ambient damping is
     /// rarely known).
     pub fit_d: bool,
@@ -79,6 +85,7 @@ impl Default for AmbientOptions {
     fn default() -> AmbientOptions {
         AmbientOptions {
             ambient_on: None,
+            force_band: None,
             fit_d: true,
             target: AmbientTarget::Defects { k_min: 0, k_max: 2 },
             kinds: ProfileMode::Springs,
@@ -122,8 +129,12 @@ pub struct AmbientReport {
     pub factors: Vec<FactorEstimate>,
     /// The fitted uniform damper `d` and its standard error.
     pub d: (f64, Option<f64>),
-    /// The white force level per mass (two-sided density).
+    /// The force level per mass (two-sided density; inside `force_band`
+    /// when the forces are band-limited).
     pub force_level: f64,
+    /// The forces' band (rad per unit time) when band-limited.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub force_band: Option<(f64, f64)>,
     /// Sensor-noise floor per channel.
     pub noise_floor: Vec<f64>,
     /// Chi-square of the answer.
@@ -297,6 +308,7 @@ pub fn fit_ambient(
         factors: estimates(&p, &answer.fit, cov.as_ref(), opts.bounds),
         d: damper(&p, &answer.fit, cov.as_ref(), nominal),
         force_level: nuisance.force_level,
+        force_band: opts.force_band,
         noise_floor: nuisance.noise_floor,
         chi2: answer.fit.chi2,
         dof: misfit.dof(),
@@ -443,7 +455,10 @@ fn build_misfit(nominal: &Chain, rec: &AmbientRecord, opts: &AmbientOptions) -> 
         .ambient_on
         .clone()
         .unwrap_or_else(|| (1..=nominal.n()).collect());
-    let misfit = AmbientMisfit::new(&spec, rec.observe.clone(), rec.kind, on, band)?;
+    let mut misfit = AmbientMisfit::new(&spec, rec.observe.clone(), rec.kind, on, band)?;
+    if let Some(fb) = opts.force_band {
+        misfit = misfit.with_force_band(fb)?;
+    }
     let bins = misfit.bins();
     Ok((misfit, (spec.segments, seg, bins), band))
 }
@@ -793,9 +808,12 @@ impl AmbientReport {
             .iter()
             .map(|v| format!("{v:.3e}"))
             .collect();
+        let band = self.force_band.map_or(String::new(), |(a, b)| {
+            format!(" in the force band {a:.4}..{b:.4} rad/time")
+        });
         let _ = writeln!(
             out,
-            "force level {:.4e}, sensor-noise floors [{}]",
+            "force level {:.4e}{band}, sensor-noise floors [{}]",
             self.force_level,
             floors.join(", ")
         );

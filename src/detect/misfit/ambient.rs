@@ -5,7 +5,10 @@
 //! # Model
 //!
 //! Independent white forces of one unknown level `q` on the masses of the
-//! `ambient_on` set, channels observing masses `o_1..o_p` (displacement,
+//! `ambient_on` set (or band-limited: a flat spectrum of level `q` inside a
+//! given band `[w_a, w_b]` and none outside it,
+//! [`AmbientMisfit::with_force_band`]; `A` below is then zero outside the
+//! band), channels observing masses `o_1..o_p` (displacement,
 //! velocity or acceleration: `(i w)^P`), white sensor noise of unknown level
 //! `nu_c` per channel:
 //!
@@ -75,6 +78,8 @@ pub struct AmbientMisfit {
     p: usize,
     /// The Welch estimate at the used bins.
     g_hat: Vec<DMatrix<Complex64>>,
+    /// The force's band (rad per unit time); `None`: white.
+    force_band: Option<(f64, f64)>,
 }
 
 /// The fitted nuisance of one evaluation: the force level and the noise floors.
@@ -130,8 +135,40 @@ impl AmbientMisfit {
             taps,
             p,
             g_hat: g_hat.clone(),
+            force_band: None,
         };
         empty.with_weights(&g_hat)
+    }
+
+    /// The same data, with forces whose spectrum is flat inside `band`
+    /// (`[w_a, w_b]`, rad per unit time) and zero outside it (the window's
+    /// smoothing of the edges is modelled as for the resonances).
+    ///
+    /// # Errors
+    /// A band that is not `0 <= w_a < w_b` and finite, or that holds fewer
+    /// than two of the used bins (field `ambient_band`).
+    pub fn with_force_band(mut self, band: (f64, f64)) -> Result<AmbientMisfit> {
+        let (a, b) = band;
+        if !(a >= 0.0 && b > a && b.is_finite()) {
+            return Err(Error::invalid(
+                "ambient_band",
+                format!("{a}:{b}"),
+                "LO:HI with 0 <= LO < HI, finite (rad per unit time)",
+            ));
+        }
+        let inside = self.fine.iter().filter(|&&w| w >= a && w <= b).count();
+        if inside < 2 * PER_BIN {
+            return Err(Error::invalid(
+                "ambient_band",
+                format!("{a}:{b}"),
+                format!(
+                    "a band over at least two of the spectrum's bins inside the fitted band (the bins are {:.4e} rad per unit time apart)",
+                    self.fine.get(PER_BIN).map_or(0.0, |w| w - self.fine[0])
+                ),
+            ));
+        }
+        self.force_band = Some(band);
+        Ok(self)
     }
 
     /// The same data weighted by `weights` (one Hermitian positive definite
@@ -222,6 +259,10 @@ impl AmbientMisfit {
         let mut out = vec![zero; self.fine.len() * p * p];
         let mut rows: Vec<Vec<Complex64>> = Vec::with_capacity(p);
         for (f, &w) in self.fine.iter().enumerate() {
+            let share = self.band_share(w);
+            if share == 0.0 {
+                continue; // no force there: A = 0
+            }
             let s = Complex64::new(0.0, w);
             let diag: Vec<Complex64> = (0..n).map(|i| s * s * c.m[i] + s * dd[i] + kd[i]).collect();
             let off: Vec<Complex64> = (1..n).map(|i| -(s * c.c[i] + c.k[i])).collect();
@@ -241,13 +282,36 @@ impl AmbientMisfit {
                         .on
                         .iter()
                         .map(|&j| rows[x][j] * rows[y][j].conj())
-                        .sum();
+                        .sum::<Complex64>()
+                        * share;
                     a[x * p + y] = v;
                     a[y * p + x] = v.conj();
                 }
             }
         }
         Ok(out)
+    }
+
+    /// The share of the fine grid's cell around `w` (half a step either
+    /// side) inside the force band: 1 for white forces; a band edge inside
+    /// the cell weights it by the part inside, so that the kernel's
+    /// quadrature places the edge where it is, not at the nearest grid
+    /// point. The two-sided spectrum is even in `w` (the kernel's lowest
+    /// taps lie at negative frequencies), and a band from 0 has no lower
+    /// edge.
+    fn band_share(&self, w: f64) -> f64 {
+        let Some((a, b)) = self.force_band else {
+            return 1.0;
+        };
+        let step = self.fine[1] - self.fine[0];
+        let (lo, hi) = (w.abs() - 0.5 * step, w.abs() + 0.5 * step);
+        let upper = ((b - lo) / step).clamp(0.0, 1.0);
+        let lower = if a > 0.0 {
+            ((hi - a) / step).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        upper * lower
     }
 
     /// The window-smoothed `A` at every used bin.
