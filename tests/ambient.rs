@@ -109,15 +109,7 @@ fn generate(
             });
         }
     }
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
-    for c in &mut ch {
-        let mean = c.iter().sum::<f64>() / c.len() as f64;
-        let sd = (c.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / c.len() as f64).sqrt();
-        for v in c.iter_mut() {
-            let e: f64 = StandardNormal.sample(&mut rng);
-            *v += noise * sd * e;
-        }
-    }
+    add_sensor_noise(&mut ch, noise, seed);
     AmbientRecord::new(dt, observe.to_vec(), kind, ch).unwrap()
 }
 
@@ -169,6 +161,19 @@ fn one_weak_storey_of_an_8_mass_chain_is_found_from_three_displacement_channels(
             "{}",
             r.summary()
         );
+    }
+}
+
+/// White sensor noise of `noise` times each channel's standard deviation.
+fn add_sensor_noise(ch: &mut [Vec<f64>], noise: f64, seed: u64) {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
+    for c in ch.iter_mut() {
+        let mean = c.iter().sum::<f64>() / c.len() as f64;
+        let sd = (c.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / c.len() as f64).sqrt();
+        for v in c.iter_mut() {
+            let e: f64 = StandardNormal.sample(&mut rng);
+            *v += noise * sd * e;
+        }
     }
 }
 
@@ -224,15 +229,7 @@ fn generate_band_limited(
             c.push(z[o - 1]);
         }
     }
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
-    for c in &mut ch {
-        let mean = c.iter().sum::<f64>() / c.len() as f64;
-        let sd = (c.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / c.len() as f64).sqrt();
-        for v in c.iter_mut() {
-            let e: f64 = StandardNormal.sample(&mut rng);
-            *v += noise * sd * e;
-        }
-    }
+    add_sensor_noise(&mut ch, noise, seed);
     AmbientRecord::new(dt, observe.to_vec(), Observable::Displacement, ch).unwrap()
 }
 
