@@ -543,6 +543,98 @@ fn the_cli_fits_an_ambient_record() {
     );
 }
 
+#[test]
+fn monitor_flags_the_output_only_records_after_a_storey_weakened() {
+    // a 6-mass chain in service: a reference record, then 8 records of
+    // which the last 3 have spring 3 at 0.85 (the test's own generator)
+    let nominal = Chain::paper(6).unwrap();
+    let weak = nominal
+        .clone()
+        .with_defect(Defect::Spring { at: 3, k: 0.85 })
+        .unwrap();
+    let dir = std::env::temp_dir().join(format!("springmass-ambient-mon-{}", std::process::id()));
+    let records = dir.join("records");
+    std::fs::create_dir_all(&records).unwrap();
+    let record = |chain: &Chain, seed: u64| {
+        generate(
+            chain,
+            &[1, 4, 6],
+            Observable::Displacement,
+            0.5,
+            2,
+            4000,
+            0.05,
+            seed,
+        )
+    };
+    write_csv(&record(&nominal, 100), &dir.join("base.csv"));
+    for r in 0..8u64 {
+        let chain = if r >= 5 { &weak } else { &nominal };
+        write_csv(
+            &record(chain, 200 + r),
+            &records.join(format!("day-{r}.csv")),
+        );
+    }
+    let cli = || std::process::Command::new(env!("CARGO_BIN_EXE_springmass"));
+    let common = ["--n", "6", "--observe", "1,4,6", "--excitation", "ambient"];
+    let base = cli()
+        .args(["fit", "--data"])
+        .arg(dir.join("base.csv"))
+        .args(common)
+        .args(["--profile", "springs", "--json"])
+        .output()
+        .unwrap();
+    assert!(
+        base.status.success(),
+        "{}",
+        String::from_utf8_lossy(&base.stderr)
+    );
+    let base_json = dir.join("base.json");
+    std::fs::write(&base_json, &base.stdout).unwrap();
+    let table = dir.join("trend.jsonl");
+    let out = cli()
+        .arg("monitor")
+        .arg("--baseline")
+        .arg(&base_json)
+        .args(common)
+        .arg(&records)
+        .arg("--jsonl")
+        .arg(&table)
+        .output()
+        .unwrap();
+    let text = std::fs::read_to_string(&table).unwrap_or_default();
+    // an impulse monitor given several sensors is refused naming the field
+    let bad = cli()
+        .args(["monitor", "--baseline"])
+        .arg(&base_json)
+        .args(["--n", "6", "--observe", "1,4,6"])
+        .arg(&records)
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(rows.len(), 8, "{text}");
+    for (r, row) in rows.iter().enumerate() {
+        if r < 5 {
+            assert_eq!(row["status"], "ok", "record {r}: {row}");
+        } else {
+            assert_eq!(row["status"], "changed", "record {r}: {row}");
+            assert_eq!(row["changed"][0], "spring 3", "record {r}: {row}");
+        }
+    }
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("observe"), "{err}");
+}
+
 /// Write the guide's 30-mass record (the acceptance case, seed 1) to the
 /// path in `AMBIENT_CSV`: `AMBIENT_CSV=ambient.csv cargo test --test all
 /// ambient::write_the_guide_record -- --ignored`.

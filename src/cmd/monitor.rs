@@ -15,7 +15,10 @@ use std::path::{Path, PathBuf};
 #[derive(ClapArgs, Debug)]
 #[command(
     after_help = "springmass fit --data day0.csv --n 8 --profile springs --json > base.json\n\
-springmass monitor --baseline base.json --n 8 records/ --out trend.csv --plot trend.svg"
+springmass monitor --baseline base.json --n 8 records/ --out trend.csv --plot trend.svg\n\n\
+Output-only records (the same flags as fit --excitation ambient):\n\
+springmass fit --data day0.csv --n 12 --observe 1,6,12 --excitation ambient --profile springs --json > base.json\n\
+springmass monitor --baseline base.json --n 12 --observe 1,6,12 --excitation ambient records/"
 )]
 pub struct Args {
     /// The records: CSV files, folders (their *.csv) or a pattern with * and
@@ -60,9 +63,15 @@ pub struct Args {
     /// Right end: fixed or free [default: fixed].
     #[arg(long)]
     pub right: Option<String>,
-    /// The observed mass [default: 1].
+    /// The observed mass [default: 1]; with --excitation ambient the
+    /// observed masses, one per value column in order (1,6,12).
+    #[arg(long, value_delimiter = ',')]
+    pub observe: Vec<usize>,
+    /// ambient: output-only records (an unknown broadband force, as `fit
+    /// --excitation ambient`), each fitted as an output-only profile; the
+    /// baseline is then the JSON of `fit --excitation ambient --profile MODE`.
     #[arg(long)]
-    pub observe: Option<usize>,
+    pub excitation: Option<String>,
     /// displacement, velocity or acceleration [default: displacement].
     #[arg(long)]
     pub observe_kind: Option<String>,
@@ -117,6 +126,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     )?;
     let spec = fit_spec(&a)?;
     spec.build()?; // every option checked before the first fit
+                   // output-only records: the channels' masses
+    let channels = ambient(&a)?.then(|| {
+        if a.observe.is_empty() {
+            vec![1]
+        } else {
+            a.observe.clone()
+        }
+    });
     springmass::io::check_outputs(
         a.out
             .iter()
@@ -126,7 +143,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     )?;
     let rows: Vec<Row> = records
         .par_iter()
-        .map(|(path, time)| record_row(path, time, &spec, mode, &base, a.alarm_rate))
+        .map(|(path, time)| {
+            let how = (&spec, mode, channels.as_deref());
+            record_row(path, time, how, &base, a.alarm_rate)
+        })
         .collect();
     if let Some(out) = &a.out {
         write_csv(out, &base, &rows)?;
@@ -183,7 +203,16 @@ fn fit_spec(a: &Args) -> anyhow::Result<FitSpec> {
         fit: a.fit.clone(),
         left: a.left.clone(),
         right: a.right.clone(),
-        observe: a.observe,
+        observe: match a.observe.as_slice() {
+            [] => None,
+            [one] => Some(*one),
+            more if !ambient(a)? => anyhow::bail!(springmass::Error::invalid(
+                "observe",
+                format!("{more:?}"),
+                "one mass (several sensors with --excitation ambient)"
+            )),
+            _ => None,
+        },
         observe_kind: a.observe_kind.clone(),
         noise: a.noise.clone(),
         baseline: a
@@ -194,9 +223,27 @@ fn fit_spec(a: &Args) -> anyhow::Result<FitSpec> {
     })
 }
 
-/// The profile mode the baseline was fitted with (its JSON's `mode`).
+/// Whether the records are output-only (`--excitation ambient`).
+fn ambient(a: &Args) -> anyhow::Result<bool> {
+    match a.excitation.as_deref().map(str::trim) {
+        None => Ok(false),
+        Some("ambient") => Ok(true),
+        Some(other) => anyhow::bail!(springmass::Error::invalid(
+            "excitation",
+            other,
+            "ambient (an impulse needs no --excitation)"
+        )),
+    }
+}
+
+/// The profile mode the baseline was fitted with (its JSON's `mode`; an
+/// output-only profile's: the kind of its factors).
 fn baseline_mode(text: &str) -> anyhow::Result<ProfileMode> {
     let v: serde_json::Value = serde_json::from_str(text)?;
+    if v["target"] == "profile" && v["mode"].is_null() {
+        let kind = v["factors"][0]["kind"].as_str().unwrap_or("(none)");
+        return Ok(ProfileMode::parse(&format!("{kind}s"))?);
+    }
     let m = v["mode"].as_str().unwrap_or("(none)");
     Ok(ProfileMode::parse(m)?)
 }
@@ -205,8 +252,7 @@ fn baseline_mode(text: &str) -> anyhow::Result<ProfileMode> {
 fn record_row(
     path: &Path,
     time: &Option<String>,
-    spec: &FitSpec,
-    mode: ProfileMode,
+    how: How<'_>,
     base: &Snapshot,
     alarm_rate: f64,
 ) -> Row {
@@ -220,7 +266,7 @@ fn record_row(
         test: None,
         changed: Vec::new(),
     };
-    let snap = match fit_record(path, spec, mode) {
+    let snap = match fit_record(path, how) {
         Ok((snap, status)) => {
             row.fit_status = status;
             snap
@@ -243,15 +289,33 @@ fn record_row(
     row
 }
 
+/// How every record is fitted: the chain and options, the profile mode,
+/// and for output-only records the channels' masses.
+type How<'a> = (&'a FitSpec, ProfileMode, Option<&'a [usize]>);
+
 /// The profile fit of one record, as a snapshot, and the fit's status.
-fn fit_record(
-    path: &Path,
-    spec: &FitSpec,
-    mode: ProfileMode,
-) -> anyhow::Result<(Snapshot, String)> {
+fn fit_record(path: &Path, (spec, mode, channels): How<'_>) -> anyhow::Result<(Snapshot, String)> {
     use springmass::detect::data::observations::{Observations, Series};
     use springmass::series::TimeSeries;
     let (model, opts) = spec.build()?;
+    if let Some(observe) = channels {
+        use springmass::detect::data::ambient::AmbientRecord;
+        use springmass::detect::fit::ambient::{fit_ambient, AmbientOptions, AmbientTarget};
+        let kind = spec
+            .observe_kind
+            .as_deref()
+            .unwrap_or("displacement")
+            .parse()?;
+        let rec = AmbientRecord::read_csv(path, observe.to_vec(), kind)?;
+        let opts = AmbientOptions {
+            target: AmbientTarget::Profile,
+            kinds: mode,
+            fit_d: spec.d.is_none() || spec.fit.as_deref().is_some_and(|f| f.contains('d')),
+            ..AmbientOptions::default()
+        };
+        let r = fit_ambient(model.chain(), &rec, &opts)?;
+        return Ok((Snapshot::from_ambient(&r)?, r.status.clone()));
+    }
     let sensor = spec.measurement(None)?;
     let table = TimeSeries::read_csv(path)?;
     let fitted = table.names().first().cloned().unwrap_or_default();

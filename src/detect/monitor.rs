@@ -1,7 +1,8 @@
 //! Monitoring over time: has a structure changed since its baseline fit?
 //!
 //! Every record is fitted the same way (a whole-profile inversion,
-//! [`crate::detect::fit::fit_profile`]); each fit is a [`Snapshot`]: a
+//! [`crate::detect::fit::fit_profile`], or for output-only records
+//! [`crate::detect::fit::ambient::fit_ambient`]'s profile); each fit is a [`Snapshot`]: a
 //! factor per element (fitted value over the nominal one) with the
 //! covariance of the factors. [`change_test`] compares a record's snapshot
 //! with the baseline's:
@@ -115,9 +116,29 @@ impl Snapshot {
         from_rows(&rows, &r.covariance)
     }
 
+    /// The snapshot of an output-only profile fit: its factors and their
+    /// covariance.
+    ///
+    /// # Errors
+    /// A report without its covariance (field `snapshot`).
+    pub fn from_ambient(r: &crate::detect::fit::ambient::AmbientReport) -> Result<Snapshot> {
+        let rows: Vec<Row> = r
+            .factors
+            .iter()
+            .map(|f| Row {
+                label: format!("{} {}", f.kind, f.at),
+                value: f.factor,
+                uniform: 1.0,
+            })
+            .collect();
+        from_rows(&rows, &r.covariance)
+    }
+
     /// The snapshot of the JSON a `springmass fit --profile MODE --json`
     /// wrote (its `elements` with `kind`, `at`, `value`, `uniform`, and its
-    /// `covariance`; a missing value is `null`).
+    /// `covariance`; a missing value is `null`), or an output-only profile's
+    /// (`--excitation ambient --profile MODE`: its `factors` and their
+    /// `covariance`).
     ///
     /// # Errors
     /// Not that JSON (field `baseline`).
@@ -130,8 +151,11 @@ impl Snapshot {
             )
         };
         let v: serde_json::Value = serde_json::from_str(text).map_err(|e| bad(&e.to_string()))?;
-        let elems = v["elements"].as_array().ok_or_else(|| bad("no elements"))?;
         let num = |x: &serde_json::Value| x.as_f64().unwrap_or(f64::NAN);
+        if v["target"] == "profile" && v["elements"].is_null() {
+            return from_ambient_json(&v);
+        }
+        let elems = v["elements"].as_array().ok_or_else(|| bad("no elements"))?;
         let mut rows = Vec::with_capacity(elems.len());
         for e in elems {
             let kind = e["kind"]
@@ -222,6 +246,42 @@ struct Row {
     label: String,
     value: f64,
     uniform: f64,
+}
+
+/// The snapshot of an output-only profile's JSON (`springmass fit
+/// --excitation ambient --profile MODE --json`: its `factors` with `kind`,
+/// `at`, `factor`, and the factors' `covariance`).
+fn from_ambient_json(v: &serde_json::Value) -> Result<Snapshot> {
+    let bad = |why: &str| {
+        Error::invalid(
+            "baseline",
+            why,
+            "the JSON of `springmass fit --excitation ambient --profile MODE --json` (factors and covariance)",
+        )
+    };
+    let num = |x: &serde_json::Value| x.as_f64().unwrap_or(f64::NAN);
+    let factors = v["factors"].as_array().ok_or_else(|| bad("no factors"))?;
+    let mut rows = Vec::with_capacity(factors.len());
+    for f in factors {
+        let kind = f["kind"]
+            .as_str()
+            .ok_or_else(|| bad("a factor without kind"))?;
+        let at = f["at"].as_u64().ok_or_else(|| bad("a factor without at"))?;
+        rows.push(Row {
+            label: format!("{kind} {at}"),
+            value: num(&f["factor"]),
+            uniform: 1.0,
+        });
+    }
+    let cov = v["covariance"]
+        .as_array()
+        .filter(|c| !c.is_empty())
+        .ok_or_else(|| bad("no covariance"))?
+        .iter()
+        .map(|row| row.as_array().map(|r| r.iter().map(num).collect()))
+        .collect::<Option<Vec<Vec<f64>>>>()
+        .ok_or_else(|| bad("a covariance row that is not a list"))?;
+    from_rows(&rows, &cov)
 }
 
 /// Factors and their covariance from values over uniform values.

@@ -127,6 +127,10 @@ pub struct AmbientReport {
     pub k: usize,
     /// The changed elements (defect search) or every element (profile).
     pub factors: Vec<FactorEstimate>,
+    /// Covariance of the factors, in their order (Gauss-Newton's; empty
+    /// when it could not be formed): what `springmass monitor` compares
+    /// records with.
+    pub covariance: Vec<Vec<f64>>,
     /// The fitted uniform damper `d` and its standard error.
     pub d: (f64, Option<f64>),
     /// The force level per mass (two-sided density; inside `force_band`
@@ -306,6 +310,12 @@ pub fn fit_ambient(
         },
         k: answer.idx.len(),
         factors: estimates(&p, &answer.fit, cov.as_ref(), opts.bounds),
+        covariance: cov.as_ref().map_or_else(Vec::new, |c| {
+            let m = p.elements.len();
+            (0..m)
+                .map(|i| (0..m).map(|j| c[(i, j)]).collect())
+                .collect()
+        }),
         d: damper(&p, &answer.fit, cov.as_ref(), nominal),
         force_level: nuisance.force_level,
         force_band: opts.force_band,
