@@ -1904,7 +1904,6 @@ def update_from_modes(
         starts=_count("starts", starts),
         seed=_count("seed", seed),
         baseline=_baseline(baseline),
-        ambient_band=None if ambient_band is None else _band(ambient_band),
     )
     out = json.loads(raw["report"])
     out["summary"] = raw["summary"]

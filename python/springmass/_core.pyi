@@ -7,7 +7,7 @@ stated; options arrive in the text forms of the command line.
 """
 
 from os import PathLike
-from typing import Any, Dict, List, Optional, Union
+from typing import Any, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -174,6 +174,7 @@ def fit_ambient(
     profile: bool,
     fit_d: bool,
     baseline: Any = None,
+    ambient_band: Optional[Tuple[float, float]] = None,
 ) -> Dict[str, Any]:
     """{"report": JSON text, "summary": text}."""
 

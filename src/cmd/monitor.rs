@@ -126,7 +126,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     )?;
     let spec = fit_spec(&a)?;
     spec.build()?; // every option checked before the first fit
-                   // output-only records: the channels' masses
+
+    // output-only records: the channels' masses
     let channels = ambient(&a)?.then(|| {
         if a.observe.is_empty() {
             vec![1]
