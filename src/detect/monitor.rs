@@ -170,13 +170,13 @@ impl Snapshot {
                 uniform: num(&e["uniform"]),
             });
         }
-        let cov = v["covariance"]
-            .as_array()
-            .ok_or_else(|| bad("no covariance (written by an older springmass?)"))?
-            .iter()
-            .map(|row| row.as_array().map(|r| r.iter().map(num).collect()))
-            .collect::<Option<Vec<Vec<f64>>>>()
-            .ok_or_else(|| bad("a covariance row that is not a list"))?;
+        let cov = covariance(&v).map_err(|why| {
+            bad(if why == "no covariance" {
+                "no covariance (written by an older springmass?)"
+            } else {
+                why
+            })
+        })?;
         from_rows(&rows, &cov)
     }
 
@@ -273,15 +273,29 @@ fn from_ambient_json(v: &serde_json::Value) -> Result<Snapshot> {
             uniform: 1.0,
         });
     }
-    let cov = v["covariance"]
+    // an output-only report writes an empty list when it has none
+    let cov = covariance(v)
+        .and_then(|c| {
+            if c.is_empty() {
+                Err("no covariance")
+            } else {
+                Ok(c)
+            }
+        })
+        .map_err(bad)?;
+    from_rows(&rows, &cov)
+}
+
+/// The `covariance` rows of a fit's JSON (`null` entries NaN), or why not.
+fn covariance(v: &serde_json::Value) -> std::result::Result<Vec<Vec<f64>>, &'static str> {
+    let num = |x: &serde_json::Value| x.as_f64().unwrap_or(f64::NAN);
+    v["covariance"]
         .as_array()
-        .filter(|c| !c.is_empty())
-        .ok_or_else(|| bad("no covariance"))?
+        .ok_or("no covariance")?
         .iter()
         .map(|row| row.as_array().map(|r| r.iter().map(num).collect()))
         .collect::<Option<Vec<Vec<f64>>>>()
-        .ok_or_else(|| bad("a covariance row that is not a list"))?;
-    from_rows(&rows, &cov)
+        .ok_or("a covariance row that is not a list")
 }
 
 /// Factors and their covariance from values over uniform values.

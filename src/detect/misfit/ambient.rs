@@ -78,8 +78,9 @@ pub struct AmbientMisfit {
     p: usize,
     /// The Welch estimate at the used bins.
     g_hat: Vec<DMatrix<Complex64>>,
-    /// The force's band (rad per unit time); `None`: white.
-    force_band: Option<(f64, f64)>,
+    /// The share of each fine frequency's cell inside the force's band
+    /// ([`band_share`]); empty for white forces (every share 1).
+    band_shares: Vec<f64>,
 }
 
 /// The fitted nuisance of one evaluation: the force level and the noise floors.
@@ -135,7 +136,7 @@ impl AmbientMisfit {
             taps,
             p,
             g_hat: g_hat.clone(),
-            force_band: None,
+            band_shares: Vec::new(),
         };
         empty.with_weights(&g_hat)
     }
@@ -167,7 +168,12 @@ impl AmbientMisfit {
                 ),
             ));
         }
-        self.force_band = Some(band);
+        let step = self.fine[1] - self.fine[0];
+        self.band_shares = self
+            .fine
+            .iter()
+            .map(|&w| band_share(w, step, band))
+            .collect();
         Ok(self)
     }
 
@@ -259,7 +265,7 @@ impl AmbientMisfit {
         let mut out = vec![zero; self.fine.len() * p * p];
         let mut rows: Vec<Vec<Complex64>> = Vec::with_capacity(p);
         for (f, &w) in self.fine.iter().enumerate() {
-            let share = self.band_share(w);
+            let share = self.band_shares.get(f).copied().unwrap_or(1.0);
             if share == 0.0 {
                 continue; // no force there: A = 0
             }
@@ -290,28 +296,6 @@ impl AmbientMisfit {
             }
         }
         Ok(out)
-    }
-
-    /// The share of the fine grid's cell around `w` (half a step either
-    /// side) inside the force band: 1 for white forces; a band edge inside
-    /// the cell weights it by the part inside, so that the kernel's
-    /// quadrature places the edge where it is, not at the nearest grid
-    /// point. The two-sided spectrum is even in `w` (the kernel's lowest
-    /// taps lie at negative frequencies), and a band from 0 has no lower
-    /// edge.
-    fn band_share(&self, w: f64) -> f64 {
-        let Some((a, b)) = self.force_band else {
-            return 1.0;
-        };
-        let step = self.fine[1] - self.fine[0];
-        let (lo, hi) = (w.abs() - 0.5 * step, w.abs() + 0.5 * step);
-        let upper = ((b - lo) / step).clamp(0.0, 1.0);
-        let lower = if a > 0.0 {
-            ((hi - a) / step).clamp(0.0, 1.0)
-        } else {
-            1.0
-        };
-        upper * lower
     }
 
     /// The window-smoothed `A` at every used bin.
@@ -382,6 +366,23 @@ impl AmbientMisfit {
         }
         Ok((r, coef.iter().copied().collect()))
     }
+}
+
+/// The share of the fine grid's cell around `w` (half a `step` either
+/// side) inside the force band `(a, b)`: a band edge inside the cell weights
+/// it by the part inside, so that the kernel's quadrature places the edge
+/// where it is, not at the nearest grid point. The two-sided spectrum is
+/// even in `w` (the kernel's lowest taps lie at negative frequencies), and
+/// a band from 0 has no lower edge.
+fn band_share(w: f64, step: f64, (a, b): (f64, f64)) -> f64 {
+    let (lo, hi) = (w.abs() - 0.5 * step, w.abs() + 0.5 * step);
+    let upper = ((b - lo) / step).clamp(0.0, 1.0);
+    let lower = if a > 0.0 {
+        ((hi - a) / step).clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    upper * lower
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
