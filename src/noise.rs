@@ -24,6 +24,16 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
+/// SplitMix64 finaliser: spreads a 64-bit value over all bits (the
+/// seeds of independent noise streams: studies' cases, a scene's sensors
+/// and records).
+pub fn splitmix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
 /// How large the noise is.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum NoiseLevel {

@@ -70,6 +70,8 @@ mod real_setups;
 mod realistic_noise;
 #[path = "records.rs"]
 mod records;
+#[path = "scene_data.rs"]
+mod scene_data;
 #[path = "search.rs"]
 mod search;
 #[path = "sensors.rs"]

@@ -25,6 +25,13 @@ read_csv
     A measured series from a CSV file (the command line's reader).
 fit_many
     :func:`fit` or :func:`fit_profile` of many records on a thread pool.
+update_from_modes
+    Structural model updating from measured modes (frequencies, shapes).
+fit_ambient
+    Output-only fit of ambient records (several channels).
+fit_scene
+    A fit scene (TOML): several sensors, several records or modal data,
+    as ``springmass fit --scene``.
 
 Errors
 ------
@@ -88,6 +95,7 @@ __all__ = [
     "spectral",
     "SpectralResult",
     "update_from_modes",
+    "fit_scene",
     "fit_ambient",
     "searches",
 ]
@@ -1905,6 +1913,66 @@ def update_from_modes(
         seed=_count("seed", seed),
         baseline=_baseline(baseline),
     )
+    out = json.loads(raw["report"])
+    out["summary"] = raw["summary"]
+    return out
+
+
+def fit_scene(scene: Any) -> Dict[str, Any]:
+    """Fit a scene: the same as ``springmass fit --scene FILE --json``.
+
+    A scene (TOML) names the true chain, the data (``exact``, ``simulated``,
+    a ``series`` CSV, or ``modes``), the unknowns, the residual and the
+    search; its data may hold several sensors (``observe = [1, 30, 60]``,
+    one ``column`` each), several records (``path = ["hit1.csv",
+    "hit2.csv"]``, or ``records = 3`` simulated) or measured modes (a modes
+    CSV as ``path``, or ``modes``, ``floors``, ``frequency_noise`` and
+    ``shape_noise`` simulated). Relative paths in the scene are taken from
+    the working directory.
+
+    Parameters
+    ----------
+    scene : str or path
+        A scene file, or the scene's TOML text.
+
+    Returns
+    -------
+    dict
+        The report (``status``, ``message``, ``defects``, ``std_errors``,
+        ``runners_up``, ...) and ``summary``, its text.
+
+    Examples
+    --------
+    >>> import springmass
+    >>> r = springmass.fit_scene('''
+    ... [truth]
+    ... n = 6
+    ... right = "free"
+    ... defects = [{ kind = "spring", at = 3, k = 0.7 }]
+    ... [data]
+    ... source = "modes"
+    ... modes = 3
+    ... floors = [2, 4, 6]
+    ... [unknowns]
+    ... kind = "spring"
+    ... ''')
+    >>> r["status"], r["defects"][0]["at"]
+    ('converged', 3)
+    """
+    if isinstance(scene, os.PathLike) or (
+        isinstance(scene, str) and "\n" not in scene and scene.strip().endswith(".toml")
+    ):
+        path = os.fspath(scene)
+        try:
+            with open(path, encoding="utf-8") as f:
+                text = f.read()
+        except OSError as e:
+            raise _invalid("scene", path, f"a readable scene file ({e.strerror})") from None
+    elif isinstance(scene, str):
+        text = scene
+    else:
+        raise _invalid("scene", _short(scene), "a scene file or the scene's TOML text")
+    raw = _core.fit_scene(text)
     out = json.loads(raw["report"])
     out["summary"] = raw["summary"]
     return out

@@ -155,6 +155,9 @@ def fit_modes(
 ) -> Dict[str, Any]:
     """{"report": JSON text, "summary": text}."""
 
+def fit_scene(text: str) -> Dict[str, Any]:
+    """{"report": JSON text, "summary": text}."""
+
 def fit_ambient(
     t: List[float],
     channels: List[List[float]],

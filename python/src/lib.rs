@@ -909,6 +909,19 @@ fn fit_modes<'py>(
     report_dict(py, &report, report.summary(), "modal update")
 }
 
+/// A fit scene (`springmass fit --scene`, `springmass::detect::fit::paper::fit_scene`):
+/// `text` is the scene's TOML (its data exact, simulated, series with one
+/// or several sensors and records, or modes). Returns the report as the
+/// CLI's JSON and its text summary.
+#[pyfunction]
+fn fit_scene<'py>(py: Python<'py>, text: String) -> PyResult<Bound<'py, PyDict>> {
+    let report = interruptible(py, move || -> Result<_> {
+        let scene = springmass::detect::scene::FitScene::from_toml(&text)?;
+        springmass::detect::fit::paper::fit_scene(&scene)
+    })?;
+    report_dict(py, &report, report.summary(), "scene fit")
+}
+
 /// Output-only (ambient) fit (`springmass::detect::fit::ambient`): `t` and
 /// one channel per observed mass. Returns the report as the CLI's JSON and
 /// its text summary.
@@ -1065,6 +1078,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(spectral, m)?)?;
     m.add_function(wrap_pyfunction!(fit_profile, m)?)?;
     m.add_function(wrap_pyfunction!(fit_modes, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_scene, m)?)?;
     m.add_function(wrap_pyfunction!(fit_ambient, m)?)?;
     m.add_function(wrap_pyfunction!(searches, m)?)?;
     m.add_function(wrap_pyfunction!(cancel, m)?)?;

@@ -5,7 +5,7 @@
 use anyhow::Context;
 use clap::Args as ClapArgs;
 use springmass::detect::fit::identify::Identifiability;
-use springmass::detect::fit::paper::{fit, SceneReport};
+use springmass::detect::fit::paper::{fit_scene, SceneReport};
 use springmass::detect::fit::FitMethod;
 use springmass::detect::scene::FitScene;
 use std::path::PathBuf;
@@ -288,6 +288,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(mode) = scene.profile.requested() {
         let mode = springmass::detect::fit::profile::ProfileMode::parse(mode)?;
         scene.profile.check()?;
+        if scene.data.source == springmass::detect::scene::DataSourceKind::Modes {
+            return super::fit_modes::run_scene(&a, &scene, mode);
+        }
         let truth = scene.truth()?;
         let model = springmass::detect::fit::Model::from_chain(&truth.uniform());
         let (obs, sigma) = scene.observations().context("in [data]")?;
@@ -309,8 +312,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             "--data FILE, or a profile (--profile or the scene's [profile] table)"
         ));
     }
-    let data = scene.data().context("in [data]")?;
-    let report = fit(&scene, &data, &scene.options())?;
+    let report = fit_scene(&scene)?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -1026,6 +1028,7 @@ fn print_identifiability(id: &Identifiability) {
 /// truth it is scored against, how it was found and how far to trust it.
 fn print_text(scene: &FitScene, r: &SceneReport) {
     let general = !r.std_errors.is_empty();
+    println!("status     {} - {}", r.status.name(), r.message);
     print_answer(r, general);
     let truth: Vec<springmass::Defect> = scene.chain.defects.clone();
     if !truth.is_empty() {

@@ -40,6 +40,30 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A `modes` scene with a `[profile]` (or `--profile`): every element of
+/// the mode's kind updated from the scene's measured modes, against the
+/// scene's uniform chain.
+pub fn run_scene(
+    a: &Args,
+    scene: &springmass::detect::scene::FitScene,
+    mode: ProfileMode,
+) -> anyhow::Result<()> {
+    let opts = ModalUpdateOptions {
+        mode,
+        seed: a.seed.unwrap_or(0),
+        ..ModalUpdateOptions::default()
+    };
+    opts.check()?;
+    let modes = scene.measured_modes().context("in [data]")?;
+    let report = update_from_modes(&scene.truth()?.uniform(), modes, &opts)?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", report.summary());
+    }
+    Ok(())
+}
+
 /// `--defects`: which elements changed.
 fn run_locate(a: &Args, n: usize) -> anyhow::Result<()> {
     use springmass::detect::fit::modal_locate::{locate_from_modes, ModalLocateOptions};

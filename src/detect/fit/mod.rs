@@ -80,6 +80,7 @@ pub mod intervals;
 pub mod judge;
 mod local;
 pub mod modal_locate;
+pub mod modal_scene;
 pub mod modal_update;
 pub mod model;
 pub mod noise;

@@ -37,6 +37,7 @@ use crate::detect::fit::modal_update::{
     elements, on_bound, FactorEstimate, FactorProblem, ASSUMED_NOTE,
 };
 use crate::detect::fit::profile::ProfileMode;
+use crate::detect::fit::report::Status;
 use crate::detect::fit::select::chi2_sf;
 use crate::detect::misfit::modal::{ModalMisfit, ModalWeights};
 use crate::detect::model::MeasurementModel;
@@ -91,7 +92,7 @@ pub struct KRow {
 #[derive(Clone, Debug, Serialize)]
 pub struct ModalLocateReport {
     /// `converged`, `model-mismatch` or `not-identifiable`.
-    pub status: String,
+    pub status: Status,
     /// Whether the answer stands (fits, and no other set within the margin).
     pub resolved: bool,
     /// One sentence on the status.
@@ -112,6 +113,9 @@ pub struct ModalLocateReport {
     pub k_selection: Vec<KRow>,
     /// The runner-up set at the chosen `k` and its chi-square gap.
     pub runner_up: Option<(Vec<String>, f64)>,
+    /// The runner-up set's fitted defects (the scene report's alternative).
+    #[serde(skip)]
+    pub runner_up_defects: Vec<Defect>,
     /// Position sets fitted.
     pub sets: usize,
     /// The chain with the defects.
@@ -122,7 +126,7 @@ impl ModalLocateReport {
     /// The report as text: status, defects, the evidence for every `k`.
     pub fn summary(&self) -> String {
         use std::fmt::Write;
-        let mut out = format!("status: {} - {}\n", self.status, self.message);
+        let mut out = format!("status: {} - {}\n", self.status.name(), self.message);
         if self.defects.is_empty() {
             out.push_str("no changed element\n");
         }
@@ -218,8 +222,25 @@ pub fn locate_from_modes(
         prior: None,
     };
     let chain = problem.chain(&answer.fit.theta)?;
+    let runner_up_defects = match second {
+        Some(s) => {
+            let elements: Vec<Defect> = s.idx.iter().map(|&i| els[i]).collect();
+            let fitted = FactorProblem {
+                elements: &elements,
+                ..problem
+            }
+            .chain(&s.fit.theta)?;
+            fitted
+                .defects()
+                .iter()
+                .filter(|d| elements.iter().any(|e| e.site() == d.site()))
+                .copied()
+                .collect()
+        }
+        None => Vec::new(),
+    };
     let report = ModalLocateReport {
-        status: String::new(),
+        status: Status::Converged,
         resolved: false,
         message: String::new(),
         k: best[chosen].0.idx.len(),
@@ -232,6 +253,7 @@ pub fn locate_from_modes(
         runner_up: second
             .as_ref()
             .map(|s| (label(&s.idx), s.fit.chi2 - answer.fit.chi2)),
+        runner_up_defects,
         sets,
         chain,
     };
@@ -418,23 +440,23 @@ fn judge(mut r: ModalLocateReport) -> ModalLocateReport {
             r.chi2,
             ASSUMED_NOTE.filter(|_| !r.errors_given).unwrap_or("")
         );
-        ("model-mismatch".into(), false, msg)
+        (Status::ModelMismatch, false, msg)
     } else if let Some(gain) = marginal {
         let msg = format!(
             "the modes barely ask for defect {} (BIC better by only {gain:.3} than with {}): it may be noise; {weights}",
             r.k,
             r.k - 1
         );
-        ("not-identifiable".into(), false, msg)
+        (Status::NotIdentifiable, false, msg)
     } else if let Some((set, gap)) = close {
         let msg = format!(
             "the modes do not tell this set from {} (chi-square worse by only {gap:.3}); {weights}",
             set.join(", ")
         );
-        ("not-identifiable".into(), false, msg)
+        (Status::NotIdentifiable, false, msg)
     } else if r.defects.iter().any(|d| !d.determined) {
         (
-            "not-identifiable".into(),
+            Status::NotIdentifiable,
             false,
             format!(
                 "a defect's value is not determined (on a bound or no standard error); {weights}"
@@ -446,7 +468,7 @@ fn judge(mut r: ModalLocateReport) -> ModalLocateReport {
         } else {
             "every defect identifiable"
         };
-        ("converged".into(), true, format!("{what}; {weights}"))
+        (Status::Converged, true, format!("{what}; {weights}"))
     };
     r
 }

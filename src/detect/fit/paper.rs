@@ -73,7 +73,7 @@ use crate::detect::data::exact::Data;
 use crate::detect::data::observations::{LaplaceValues, Observations};
 use crate::detect::fit::general::FittedParam;
 use crate::detect::misfit::MisfitKind;
-use crate::detect::scene::{FitScene, SceneOptions};
+use crate::detect::scene::{DataSourceKind, FitScene, SceneOptions};
 use crate::detect::search::{registry, FitMethod};
 use crate::error::{Error, Result};
 use num_complex::Complex64;
@@ -149,13 +149,70 @@ pub struct SceneReport {
     pub identifiability: Option<crate::detect::fit::identify::Identifiability>,
 }
 
-/// Fit the scene's unknowns to `data`.
+impl SceneReport {
+    /// The report as text: status and message, the defects with their
+    /// standard errors, the residual and the runners-up.
+    pub fn summary(&self) -> String {
+        use std::fmt::Write;
+        let mut out = format!("status: {} - {}\n", self.status.name(), self.message);
+        if self.defects.is_empty() {
+            out.push_str("no defect\n");
+        }
+        for (i, d) in self.defects.iter().enumerate() {
+            let se = self
+                .std_errors
+                .get(i)
+                .or(self.error_bars.get(i))
+                .map_or("-".into(), |s| format!("{s:.4e}"));
+            let _ = writeln!(out, "{} at {}: {:.6} +- {se}", d.kind(), d.at(), d.value());
+        }
+        let _ = writeln!(
+            out,
+            "residual {:.6e} ({}, {} terms)",
+            self.residual, self.misfit, self.nodes
+        );
+        for alt in &self.runners_up {
+            let set: Vec<String> = alt
+                .defects
+                .iter()
+                .map(|d| format!("{} {}", d.kind(), d.at()))
+                .collect();
+            let _ = writeln!(
+                out,
+                "runner-up: {} (worse by {:.4e})",
+                set.join(", "),
+                alt.gap
+            );
+        }
+        out
+    }
+}
+
+/// Fit the scene's unknowns to the scene's own data ([`FitScene::data`],
+/// or its measured modes for `source = "modes"`), with the options of its
+/// `[search]`.
+///
+/// # Errors
+/// As [`FitScene::data`] and [`fit`].
+pub fn fit_scene(scene: &FitScene) -> Result<SceneReport> {
+    if scene.data.source == DataSourceKind::Modes {
+        return crate::detect::fit::modal_scene::fit_modal_scene(scene);
+    }
+    fit(scene, &scene.data()?, &scene.options())
+}
+
+/// Fit the scene's unknowns to `data` (a `modes` scene: to its measured
+/// modes, `data` unused).
 ///
 /// # Errors
 /// Invalid chain, unknowns or misfit in the scene (typed, naming the field);
 /// a stochastic method for unknowns that are not interchangeable, or on the
 /// general path (`search.method`).
 pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<SceneReport> {
+    if scene.data.source == DataSourceKind::Modes {
+        // modal data are not a record: the modal defect search
+        return crate::detect::fit::modal_scene::fit_modal_scene(scene);
+    }
     if scene.is_general() || options.method == FitMethod::Greedy {
         // the greedy search runs on the general hypothesis fits
         return fit_general_scene(scene, data, options);
@@ -359,11 +416,17 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
     // noise, or the Laplace values' own errors; else estimated)
     let (obs, sigma) = scene.observations_of(data)?;
     let noise = sigma.map_or(NoiseSpec::Auto, NoiseSpec::Sigma);
+    // several sensors or records are one joint time-domain fit: the
+    // default real-axis residual means the time misfit there
+    let misfit = match scene.misfit.kind {
+        MisfitKind::RealAxis if scene.data.is_joint() => MisfitKind::Time,
+        kind => kind,
+    };
     let opts = FitOptions {
         defects: DefectCount::Exactly(kinds.len()),
         slot_kinds: kinds,
         noise,
-        misfit: Some(scene.misfit.kind),
+        misfit: Some(misfit),
         method: options.method,
         alternatives: options.enumerate.keep.saturating_sub(1).max(1),
         parallel: options.enumerate.parallel,

@@ -22,7 +22,7 @@
 
 use super::case::{chain_problems, num, CaseOutput, KindScene};
 use crate::chain::Defect;
-use crate::detect::fit::paper::{fit, SceneReport};
+use crate::detect::fit::paper::{fit_scene, SceneReport};
 
 use crate::detect::scene::{DataSourceKind, FitScene};
 use crate::error::{check_f64, Error, Result};
@@ -50,16 +50,21 @@ pub const FIELDS: &[FieldDoc] = &[
     FieldDoc::new("chain.defects[].k", "float > 0", "required for spring", "The stiffness."),
     FieldDoc::new("chain.defects[].d", "float >= 0", "required for damper", "The damping."),
     FieldDoc::new("data", "table", "{}", "The data."),
-    FieldDoc::new("data.source", "\"exact\" | \"simulated\" | \"series\"", "\"exact\"", "Closed-form model of the chain; a simulation Laplace-transformed (the paper's pipeline); or a measured CSV series."),
-    FieldDoc::new("data.path", "string", "none", "CSV series (source `series`)."),
-    FieldDoc::new("data.column", "string", "\"x1\"", "Column of the CSV series."),
+    FieldDoc::new("data.source", "\"exact\" | \"simulated\" | \"series\" | \"modes\"", "\"exact\"", "Closed-form model of the chain; a simulation Laplace-transformed (the paper's pipeline); a measured CSV series; or measured modes (a modes CSV, or the chain's lowest undamped modes with noise), fitted by the modal defect search."),
+    FieldDoc::new("data.path", "string or array of strings", "none", "CSV series (source `series`; a list: several records of the same chain, fitted jointly); the modes CSV (source `modes`)."),
+    FieldDoc::new("data.column", "string or array of strings", "\"x1\" (several sensors: \"x{mass}\")", "Column of the CSV series; a list: one per `observe` mass."),
     FieldDoc::new("data.noise", "float >= 0", "0", "`exact`: relative Laplace-domain noise; `simulated`: absolute noise on the samples; `series`: the samples' known noise."),
     FieldDoc::new("data.seed", "integer", "the case's seed", "Noise seed (in a study: derived from the case unless given)."),
     FieldDoc::new("data.relative", "bool", "false", "`simulated`/`series`: `noise` is relative to the largest |x_1|."),
     FieldDoc::new("data.t_end", "float", "300", "`simulated`: end of the record."),
     FieldDoc::new("data.dt", "float", "0.05", "`simulated`: sampling step."),
-    FieldDoc::new("data.observe", "integer in 1..=n", "1", "`simulated`/`series`: the observed mass."),
-    FieldDoc::new("data.observe_kind", "string", "\"displacement\"", "`simulated`/`series`: \"displacement\", \"velocity\" or \"acceleration\"."),
+    FieldDoc::new("data.observe", "integer in 1..=n, or an array of them", "1", "`simulated`/`series`: the observed mass; a list: several sensors of one test, one joint fit (each sensor with its own noise stream and level)."),
+    FieldDoc::new("data.observe_kind", "string or array of strings", "\"displacement\"", "`simulated`/`series`: \"displacement\", \"velocity\" or \"acceleration\"; a list: one per `observe` mass."),
+    FieldDoc::new("data.records", "integer in 1..=1000", "1", "`simulated`: records of the same chain (hammer hits, each with its own noise stream), one joint fit; not with several sensors."),
+    FieldDoc::new("data.modes", "integer in 1..=n", "3", "`modes` (simulated): the number of lowest undamped modes measured."),
+    FieldDoc::new("data.floors", "array of integers in 1..=n", "every mass", "`modes` (simulated): the masses whose mode-shape components are measured."),
+    FieldDoc::new("data.frequency_noise", "float >= 0", "0", "`modes` (simulated): relative noise of the frequencies (and their stated standard error)."),
+    FieldDoc::new("data.shape_noise", "float >= 0", "0", "`modes` (simulated): noise of the shape components, relative to the mode's largest measured component (and their stated standard error)."),
     FieldDoc::new("data.hammer_width", "float > 0", "none", "`simulated`: a half-sine hammer blow of this width (unit impulse times gamma) on mass 1 instead of the ideal impulse; the fit uses its samples."),
     FieldDoc::new("data.force_column", "string", "none", "`series`: the CSV column of the measured force on mass 1 (a hammer test)."),
     FieldDoc::new("unknowns", "table", "{}", "The unknowns."),
@@ -223,6 +228,16 @@ pub fn seeded(value: &toml::Value, seed: u64) -> toml::Value {
 /// The problems of `[unknowns]` against the chain's n and defects, and of
 /// the search method and data source they allow.
 fn unknowns_problems(scene: &FitScene, out: &mut Vec<Error>) {
+    if scene.data.source == DataSourceKind::Modes {
+        let modal = scene
+            .unknowns()
+            .and_then(|_| crate::detect::fit::modal_scene::modal_kinds(scene))
+            .and_then(|_| crate::detect::fit::modal_scene::check_method(scene));
+        if let Err(e) = modal {
+            out.push(e);
+        }
+        return;
+    }
     if scene.is_general() {
         if let Err(e) = scene.unknowns() {
             out.push(e);
@@ -295,6 +310,13 @@ fn data_problems(d: &crate::detect::scene::DataSpec, out: &mut Vec<Error>) {
             "(none)",
             "a CSV file for source = \"series\"",
         ));
+    }
+    if let Err(e) = d
+        .sensors()
+        .and_then(|_| d.columns())
+        .and_then(|_| d.record_count())
+    {
+        out.push(e);
     }
 }
 
@@ -440,8 +462,7 @@ pub fn run(value: &toml::Value, seed: u64) -> Result<CaseOutput> {
             "\"none\" in a `fit` study (profile studies use the `noise` kind's `profile` field)",
         ));
     }
-    let data = s.data()?;
-    let r = fit(&s, &data, &s.options())?;
+    let r = fit_scene(&s)?;
     let truth = positions(s.truth()?.defects());
     let mut out = CaseOutput::default();
     outcome_metrics(&truth, &r, &mut out.metrics);

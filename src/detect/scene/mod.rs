@@ -82,6 +82,8 @@ use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+mod modes;
+
 /// Where the data of a scene come from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -96,7 +98,42 @@ pub enum DataSourceKind {
     /// A measured CSV series (`path`, `column`), Laplace-transformed; `noise`
     /// is the samples' known standard deviation (error estimate only).
     Series,
+    /// Measured modes: a modes CSV (`path`, see
+    /// [`crate::detect::data::modes`]) or the lowest `modes` undamped modes
+    /// of `[chain]` seen at `floors`, with `frequency_noise` and
+    /// `shape_noise`; fitted by the modal defect search
+    /// ([`crate::detect::fit::modal_locate`]).
+    Modes,
 }
+
+/// One value or a list of them: `observe = 1` or `observe = [1, 30, 60]`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum OneOrMany<T> {
+    /// One value.
+    One(T),
+    /// A list.
+    Many(Vec<T>),
+}
+
+impl<T: Clone> OneOrMany<T> {
+    /// The values as a list.
+    pub fn to_vec(&self) -> Vec<T> {
+        match self {
+            OneOrMany::One(v) => vec![v.clone()],
+            OneOrMany::Many(v) => v.clone(),
+        }
+    }
+}
+
+impl<T> From<T> for OneOrMany<T> {
+    fn from(v: T) -> Self {
+        OneOrMany::One(v)
+    }
+}
+
+/// Most records a scene simulates or reads.
+pub const MAX_RECORDS: usize = 1000;
 
 /// The `[data]` table.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
@@ -104,10 +141,12 @@ pub enum DataSourceKind {
 pub struct DataSpec {
     /// `exact` (default), `simulated` or `series`.
     pub source: DataSourceKind,
-    /// Path of the CSV series (for `series`).
-    pub path: Option<PathBuf>,
-    /// Column of the CSV series (default `x1`).
-    pub column: Option<String>,
+    /// Path of the CSV series (for `series`; a list: several records of
+    /// the same chain, fitted jointly), or of the modes CSV (for `modes`).
+    pub path: Option<OneOrMany<PathBuf>>,
+    /// Column of the CSV series (default `x1`); a list with several
+    /// `observe` masses, one per mass (default `x{mass}`).
+    pub column: Option<OneOrMany<String>>,
     /// `exact`: relative Laplace-domain noise; `simulated`: absolute noise
     /// on the samples; `series`: the samples' known noise (default 0).
     pub noise: f64,
@@ -120,11 +159,26 @@ pub struct DataSpec {
     /// `simulated` and `series`: `noise` is relative to the largest `|x_1|` of
     /// the record (default false: absolute).
     pub relative: bool,
-    /// `simulated` and `series`: the observed mass (default 1).
-    pub observe: Option<usize>,
+    /// `simulated` and `series`: the observed mass (default 1); a list:
+    /// several sensors of one test, fitted jointly (each with its own
+    /// noise stream when simulated, and its own noise level).
+    pub observe: Option<OneOrMany<usize>>,
     /// `simulated` and `series`: `displacement` (default), `velocity` or
-    /// `acceleration`.
-    pub observe_kind: Option<Observable>,
+    /// `acceleration`; a list: one per `observe` mass.
+    pub observe_kind: Option<OneOrMany<Observable>>,
+    /// `simulated`: the number of records of the same chain (hammer hits,
+    /// each with its own noise stream), fitted jointly (default 1).
+    pub records: Option<usize>,
+    /// `modes` (simulated): the number of lowest modes measured (default 3).
+    pub modes: Option<usize>,
+    /// `modes` (simulated): the masses whose mode-shape components are
+    /// measured (default every mass).
+    pub floors: Option<Vec<usize>>,
+    /// `modes` (simulated): the frequencies' relative noise (default 0).
+    pub frequency_noise: Option<f64>,
+    /// `modes` (simulated): the shapes' noise, relative to each mode's
+    /// largest measured component (default 0).
+    pub shape_noise: Option<f64>,
     /// `simulated`: a hammer's half-sine blow of this width (unit impulse,
     /// times `gamma`) on mass 1 instead of the ideal impulse; the record
     /// keeps the force's samples and the fit uses them.
@@ -135,18 +189,156 @@ pub struct DataSpec {
 }
 
 impl DataSpec {
-    /// The sensor of `[data]` (default: the displacement of mass 1).
+    /// The (first) sensor of `[data]` (default: the displacement of mass 1).
     pub fn sensor(&self) -> Sensor {
-        Sensor {
-            at: self.observe.unwrap_or(1),
-            kind: self.observe_kind.unwrap_or_default(),
+        let at = self
+            .observe
+            .as_ref()
+            .and_then(|o| o.to_vec().first().copied())
+            .unwrap_or(1);
+        let kind = self
+            .observe_kind
+            .as_ref()
+            .and_then(|k| k.to_vec().first().copied())
+            .unwrap_or_default();
+        Sensor { at, kind }
+    }
+
+    /// Every sensor of `[data]`: the `observe` masses, each with its
+    /// `observe_kind` (one kind for all, or one per mass).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `data.observe` (an empty list) or
+    /// `data.observe_kind` (a list of another length).
+    pub fn sensors(&self) -> Result<Vec<Sensor>> {
+        let at = self.observe.as_ref().map_or(vec![1], OneOrMany::to_vec);
+        if at.is_empty() {
+            return Err(Error::invalid(
+                "data.observe",
+                "[]",
+                "a mass or a list of masses",
+            ));
+        }
+        let kinds = self
+            .observe_kind
+            .as_ref()
+            .map_or(vec![Observable::default()], OneOrMany::to_vec);
+        if kinds.len() != 1 && kinds.len() != at.len() {
+            return Err(Error::invalid(
+                "data.observe_kind",
+                format!("{} kinds", kinds.len()),
+                format!("one kind, or one per observe mass ({})", at.len()),
+            ));
+        }
+        Ok(at
+            .iter()
+            .enumerate()
+            .map(|(i, &at)| Sensor {
+                at,
+                kind: kinds[i.min(kinds.len() - 1)],
+            })
+            .collect())
+    }
+
+    /// The CSV files of `[data]` (`series`: one per record; `modes`: one).
+    pub fn paths(&self) -> Vec<PathBuf> {
+        self.path.as_ref().map_or(Vec::new(), OneOrMany::to_vec)
+    }
+
+    /// The CSV column of each sensor (`series`): `column` (one per sensor),
+    /// by default `x1` for one sensor and `x{mass}` for several.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `data.column`: a list of another
+    /// length than `observe`.
+    pub fn columns(&self) -> Result<Vec<String>> {
+        let sensors = self.sensors()?;
+        match &self.column {
+            None if sensors.len() == 1 => Ok(vec!["x1".into()]),
+            None => Ok(sensors.iter().map(|s| format!("x{}", s.at)).collect()),
+            Some(c) => {
+                let c = c.to_vec();
+                if c.len() != sensors.len() {
+                    return Err(Error::invalid(
+                        "data.column",
+                        format!("{} columns", c.len()),
+                        format!("one column per observe mass ({})", sensors.len()),
+                    ));
+                }
+                Ok(c)
+            }
         }
     }
 
+    /// The number of records: the `series` files, or `records` simulated
+    /// ones (default 1).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `data.records` (0, more than
+    /// [`MAX_RECORDS`], given for a `series` or `exact` source, or with
+    /// several sensors: several sensors and several records are not fitted
+    /// together) or `data.path` (more files than [`MAX_RECORDS`]).
+    pub fn record_count(&self) -> Result<usize> {
+        let several_sensors = self.observe.as_ref().is_some_and(|o| o.to_vec().len() > 1);
+        let count = match (self.source, self.records) {
+            (DataSourceKind::Series, Some(r)) => {
+                return Err(Error::invalid(
+                    "data.records",
+                    r,
+                    "`simulated` only (a `series` scene lists one path per record)",
+                ))
+            }
+            (DataSourceKind::Series, None) => self.paths().len().max(1),
+            (DataSourceKind::Simulated, r) => r.unwrap_or(1),
+            (_, Some(r)) if r != 1 => {
+                return Err(Error::invalid(
+                    "data.records",
+                    r,
+                    "`simulated` only (several records are sampled series)",
+                ))
+            }
+            _ => 1,
+        };
+        if count == 0 || count > MAX_RECORDS {
+            return Err(Error::invalid(
+                if self.records.is_some() {
+                    "data.records"
+                } else {
+                    "data.path"
+                },
+                count,
+                format!("1..={MAX_RECORDS} records"),
+            ));
+        }
+        if count > 1 && several_sensors {
+            return Err(Error::invalid(
+                if self.records.is_some() {
+                    "data.records"
+                } else {
+                    "data.path"
+                },
+                count,
+                "1 with several observe masses (several sensors and several records are not fitted together)",
+            ));
+        }
+        Ok(count)
+    }
+
+    /// Whether `[data]` holds several sensors or several records.
+    pub fn is_joint(&self) -> bool {
+        self.observe.as_ref().is_some_and(|o| o.to_vec().len() > 1)
+            || self.records.is_some_and(|r| r > 1)
+            || self.paths().len() > 1
+    }
+
     /// Whether `[data]` is the paper's measurement: the displacement of
-    /// mass 1 after the ideal impulse.
+    /// mass 1 after the ideal impulse, one record.
     pub fn is_paper(&self) -> bool {
-        self.sensor() == Sensor::PAPER && self.hammer_width.is_none() && self.force_column.is_none()
+        matches!(self.sensors().as_deref(), Ok([s]) if *s == Sensor::PAPER)
+            && self.hammer_width.is_none()
+            && self.force_column.is_none()
+            && !self.is_joint()
+            && self.source != DataSourceKind::Modes
     }
 }
 
@@ -352,8 +544,17 @@ impl FitScene {
     /// # Errors
     /// Invalid chain or noise; `series` (not available yet).
     pub fn data(&self) -> Result<Data> {
+        if self.data.source == DataSourceKind::Modes {
+            return Err(Error::invalid(
+                "data.source",
+                "modes",
+                "a record source (modal data are read by FitScene::measured_modes)",
+            ));
+        }
         if !self.data.is_paper() {
-            // another observable or a force: the general path fits the record
+            // another observable, a force, several sensors or records: the
+            // general path fits the (first) record, the others join it in
+            // FitScene::observations_of
             let rec = self.measured_record()?;
             let sigma = rec.sigma();
             return Data::from_samples(
@@ -374,10 +575,9 @@ impl FitScene {
                 self.noise_sigma()?,
                 self.data.seed,
             ),
+            DataSourceKind::Modes => unreachable!("refused above"),
             DataSourceKind::Series => {
-                let path = self.data.path.as_ref().ok_or_else(|| {
-                    Error::invalid("data.path", "(none)", "a CSV file for source = \"series\"")
-                })?;
+                let path = self.series_path(0)?;
                 crate::error::check_f64(
                     "data.noise",
                     self.data.noise,
@@ -387,7 +587,7 @@ impl FitScene {
                 let sigma = self.noise_sigma()?;
                 Data::from_csv(
                     path,
-                    self.data.column.as_deref().unwrap_or("x1"),
+                    &self.data.columns()?[0],
                     (sigma > 0.0).then_some(sigma),
                 )
             }
@@ -414,10 +614,18 @@ impl FitScene {
     /// As [`FitScene::observations`].
     pub fn observations_of(&self, data: &Data) -> Result<(Observations, Option<f64>)> {
         if let Some((t, x)) = data.samples() {
+            let joint = self.data.is_joint();
             let sigma = self.noise_sigma()?;
-            let sg = (sigma > 0.0).then_some(sigma);
+            // several sensors or records with noise relative to each one's
+            // own peak: each has its own level, estimated by the fit
+            let sg = (sigma > 0.0 && !(joint && self.data.relative)).then_some(sigma);
             let series =
                 Series::new(t.to_vec(), x.to_vec(), sg)?.with_measurement(self.measurement(t)?)?;
+            let series = if joint {
+                self.joined(series, sg)?
+            } else {
+                series
+            };
             return Ok((Observations::Series(series), sg));
         }
         if self.misfit.kind == MisfitKind::Time {
@@ -434,6 +642,30 @@ impl FitScene {
             Observations::Laplace(LaplaceValues::new(s, sm.values, Some(sigma))?),
             Some(1.0),
         ))
+    }
+
+    /// `first` (the first sensor's record) joined by the scene's further
+    /// sensors ([`Series::with_sensors`]) or further records
+    /// ([`Series::with_records`]), each at the noise level `sigma` (`None`:
+    /// estimated per sensor or record).
+    fn joined(&self, first: Series, sigma: Option<f64>) -> Result<Series> {
+        let one = |sensor: usize, record: usize| -> Result<Series> {
+            let rec = self.record_of(sensor, record)?;
+            Series::new(rec.t().to_vec(), rec.y().to_vec(), sigma)?
+                .with_measurement(rec.measurement().clone())
+        };
+        let sensors = self.data.sensors()?.len();
+        if sensors > 1 {
+            let others = (1..sensors)
+                .map(|j| one(j, 0))
+                .collect::<Result<Vec<_>>>()?;
+            first.with_sensors(others)
+        } else {
+            let others = (1..self.data.record_count()?)
+                .map(|r| one(0, r))
+                .collect::<Result<Vec<_>>>()?;
+            first.with_records(others)
+        }
     }
 
     /// The Laplace nodes of the misfit's rule: `sigma + i w` on the
@@ -463,7 +695,7 @@ impl FitScene {
         }
         let level = crate::noise::NoiseLevel::RelativeMax(d.noise);
         match d.source {
-            DataSourceKind::Exact => Ok(d.noise),
+            DataSourceKind::Exact | DataSourceKind::Modes => Ok(d.noise),
             DataSourceKind::Simulated if !d.is_paper() => Ok(self.measured_record()?.sigma()),
             DataSourceKind::Simulated => Ok(TimeData::simulate(
                 &self.truth()?,
@@ -474,33 +706,50 @@ impl FitScene {
             )?
             .sigma()),
             DataSourceKind::Series => {
-                let ts = self.series()?;
-                level.sigma(ts.require(self.data.column.as_deref().unwrap_or("x1"))?)
+                let ts = self.series_of(0)?;
+                level.sigma(ts.require(&self.data.columns()?[0])?)
             }
         }
     }
 
-    /// The record of a non-paper `[data]`: simulated as its sensor sees the
-    /// truth (hammer or impulse), or read from the CSV, with its measurement.
+    /// The (first) record of a non-paper `[data]`: simulated as its sensor
+    /// sees the truth (hammer or impulse), or read from the CSV, with its
+    /// measurement.
     fn measured_record(&self) -> Result<TimeData> {
+        self.record_of(0, 0)
+    }
+
+    /// The record of sensor `sensor` in record `record` of `[data]`:
+    /// simulated (each sensor and record with its own noise stream, the
+    /// first with `seed` itself; `relative` noise of its own peak), or read
+    /// from the record's CSV, with its measurement.
+    ///
+    /// # Errors
+    /// As [`FitScene::data`]; `data.observe`, `data.observe_kind`,
+    /// `data.column`, `data.records` or `data.path` as
+    /// [`DataSpec::sensors`], [`DataSpec::columns`],
+    /// [`DataSpec::record_count`].
+    pub fn record_of(&self, sensor: usize, record: usize) -> Result<TimeData> {
         let d = &self.data;
         crate::error::check_f64("data.noise", d.noise, d.noise >= 0.0, ">= 0 and finite")?;
+        d.record_count()?;
+        let sensors = d.sensors()?;
+        let s = sensors[sensor];
+        s.check(self.chain.n).map_err(|_| {
+            Error::invalid(
+                "data.observe",
+                s.at,
+                format!("a mass of the chain, 1..={}", self.chain.n),
+            )
+        })?;
         match d.source {
-            DataSourceKind::Exact => Err(Error::invalid(
+            DataSourceKind::Exact | DataSourceKind::Modes => Err(Error::invalid(
                 "data.source",
-                "exact",
-                "\"simulated\" or \"series\" for another observable or a force",
+                if d.source == DataSourceKind::Exact { "exact" } else { "modes" },
+                "\"simulated\" or \"series\" for another observable, a force, several sensors or records",
             )),
             DataSourceKind::Simulated => {
                 let truth = self.truth()?;
-                let sensor = d.sensor();
-                sensor.check(truth.n()).map_err(|_| {
-                    Error::invalid(
-                        "data.observe",
-                        sensor.at,
-                        format!("a mass of the chain, 1..={}", truth.n()),
-                    )
-                })?;
                 let force = match d.hammer_width {
                     Some(w) => Some(hammer(w, 1.0)?),
                     None => None,
@@ -510,35 +759,57 @@ impl FitScene {
                 } else {
                     crate::noise::NoiseLevel::Absolute(d.noise)
                 };
+                let seed = if sensor == 0 && record == 0 {
+                    d.seed
+                } else {
+                    crate::noise::splitmix64(
+                        d.seed ^ crate::noise::splitmix64(((record as u64) << 32) | sensor as u64),
+                    )
+                };
                 let rec = TimeData::simulate_measured(
                     &truth,
                     d.t_end.unwrap_or(300.0),
                     d.dt.unwrap_or(0.05),
-                    sensor,
+                    s,
                     force,
                     level,
-                    d.seed,
+                    seed,
                 )?;
-                let m = self.measurement(rec.t())?;
+                let m = self.measurement_of(rec.t(), sensor, record)?;
                 rec.with_measurement(m)
             }
             DataSourceKind::Series => {
-                let rec = TimeData::from_series(
-                    &self.series()?,
-                    self.data.column.as_deref().unwrap_or("x1"),
-                    self.noise_sigma()?,
-                )?;
-                let m = self.measurement(rec.t())?;
+                let table = self.series_of(record)?;
+                let column = &d.columns()?[sensor];
+                if table.column(column).is_none() {
+                    return Err(Error::invalid(
+                        "data.column",
+                        column,
+                        format!("one of the file's columns: {}", table.names().join(", ")),
+                    ));
+                }
+                let sigma = if d.relative && d.noise > 0.0 {
+                    crate::noise::NoiseLevel::RelativeMax(d.noise).sigma(table.require(column)?)?
+                } else {
+                    d.noise
+                };
+                let rec = TimeData::from_series(&table, column, sigma)?;
+                let m = self.measurement_of(rec.t(), sensor, record)?;
                 rec.with_measurement(m)
             }
         }
     }
 
-    fn series(&self) -> Result<crate::series::TimeSeries> {
-        let path = self.data.path.as_ref().ok_or_else(|| {
+    /// The path of record `record`'s CSV.
+    fn series_path(&self, record: usize) -> Result<PathBuf> {
+        self.data.paths().get(record).cloned().ok_or_else(|| {
             Error::invalid("data.path", "(none)", "a CSV file for source = \"series\"")
-        })?;
-        crate::series::TimeSeries::read_csv(path)
+        })
+    }
+
+    /// The table of record `record`'s CSV.
+    fn series_of(&self, record: usize) -> Result<crate::series::TimeSeries> {
+        crate::series::TimeSeries::read_csv(self.series_path(record)?)
     }
 
     /// The sampled series of `[data]` with its noise level, for the
@@ -553,9 +824,13 @@ impl FitScene {
         }
         let sigma = self.noise_sigma()?;
         match self.data.source {
-            DataSourceKind::Exact => Err(Error::invalid(
+            DataSourceKind::Exact | DataSourceKind::Modes => Err(Error::invalid(
                 "data.source",
-                "exact",
+                if self.data.source == DataSourceKind::Exact {
+                    "exact"
+                } else {
+                    "modes"
+                },
                 "\"simulated\" or \"series\" (the time misfit needs a sampled series)",
             )),
             DataSourceKind::Simulated => TimeData::simulate(
@@ -565,11 +840,9 @@ impl FitScene {
                 crate::noise::NoiseLevel::Absolute(sigma),
                 self.data.seed,
             ),
-            DataSourceKind::Series => TimeData::from_series(
-                &self.series()?,
-                self.data.column.as_deref().unwrap_or("x1"),
-                sigma,
-            ),
+            DataSourceKind::Series => {
+                TimeData::from_series(&self.series_of(0)?, &self.data.columns()?[0], sigma)
+            }
         }
     }
 
@@ -595,15 +868,26 @@ impl FitScene {
     /// a missing column, other times than the record's), `data.observe`
     /// (not a mass of the chain).
     pub fn measurement(&self, t: &[f64]) -> Result<Measurement> {
+        self.measurement_of(t, 0, 0)
+    }
+
+    /// [`FitScene::measurement`] of sensor `sensor` in record `record`
+    /// (the force column of that record's file).
+    ///
+    /// # Errors
+    /// As [`FitScene::measurement`]; as [`DataSpec::sensors`].
+    pub fn measurement_of(&self, t: &[f64], sensor: usize, record: usize) -> Result<Measurement> {
         let d = &self.data;
-        d.sensor().check(self.chain.n).map_err(|_| {
+        let sensors = d.sensors()?;
+        let s = sensors[sensor];
+        s.check(self.chain.n).map_err(|_| {
             Error::invalid(
                 "data.observe",
-                d.sensor().at,
+                s.at,
                 format!("a mass of the chain, 1..={}", self.chain.n),
             )
         })?;
-        let m = Measurement::paper().with_sensor(d.sensor());
+        let m = Measurement::paper().with_sensor(s);
         match (&d.hammer_width, &d.force_column) {
             (Some(_), Some(_)) => Err(Error::invalid(
                 "data.force_column",
@@ -629,7 +913,7 @@ impl FitScene {
                         "source = \"series\" only (a simulated blow is hammer_width)",
                     ));
                 }
-                let ts = self.series()?;
+                let ts = self.series_of(record)?;
                 let f = ts.column(c).ok_or_else(|| {
                     Error::invalid(
                         "data.force_column",
@@ -692,15 +976,15 @@ mod tests {
 
     #[test]
     fn example_config_parses() {
-        let text = include_str!("../../configs/scenes/table1-system3.toml");
+        let text = include_str!("../../../configs/scenes/table1-system3.toml");
         let s = FitScene::from_toml(text).unwrap();
         assert_eq!(s.chain.n, 20);
         assert_eq!(s.unknowns().unwrap().k(), 2);
         s.data().unwrap();
         for text in [
-            include_str!("../../configs/scenes/table1-system3-series.toml"),
-            include_str!("../../configs/scenes/figure16.toml"),
-            include_str!("../../configs/scenes/figure17.toml"),
+            include_str!("../../../configs/scenes/table1-system3-series.toml"),
+            include_str!("../../../configs/scenes/figure16.toml"),
+            include_str!("../../../configs/scenes/figure17.toml"),
         ] {
             let s = FitScene::from_toml(text).unwrap();
             s.unknowns().unwrap();
@@ -750,8 +1034,8 @@ mod tests {
     #[test]
     fn general_scenes_parse_and_errors_name_fields() {
         for text in [
-            include_str!("../../configs/scenes/fit-spring.toml"),
-            include_str!("../../configs/scenes/fit-any.toml"),
+            include_str!("../../../configs/scenes/fit-spring.toml"),
+            include_str!("../../../configs/scenes/fit-any.toml"),
         ] {
             let s = FitScene::from_toml(text).unwrap();
             assert!(s.is_general());
@@ -759,7 +1043,8 @@ mod tests {
             assert_eq!(u.slots().len(), 2);
             assert!(u.to_mass().is_err(), "the mass-only kernel refuses");
         }
-        let s = FitScene::from_toml(include_str!("../../configs/scenes/fit-spring.toml")).unwrap();
+        let s =
+            FitScene::from_toml(include_str!("../../../configs/scenes/fit-spring.toml")).unwrap();
         assert_eq!(s.unknowns().unwrap().hypotheses(1000).unwrap().len(), 110);
         assert_eq!(
             s.unknowns.start_chain(&s.truth().unwrap()).unwrap().d(),
