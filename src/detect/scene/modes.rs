@@ -211,6 +211,17 @@ mod tests {
     }
 
     #[test]
+    fn shipped_scenes_of_several_sensors_and_of_modes_parse() {
+        let modal =
+            FitScene::from_toml(include_str!("../../../configs/scenes/modal-frame.toml")).unwrap();
+        assert_eq!(modal.measured_modes().unwrap().len(), 3);
+        let three = FitScene::from_toml(include_str!("../../../configs/scenes/three-sensors.toml"))
+            .unwrap();
+        assert_eq!(three.data.sensors().unwrap().len(), 3);
+        assert!(three.data.is_joint() && !three.data.is_paper());
+    }
+
+    #[test]
     fn noise_is_seeded_and_stated() {
         let a = scene("modes = 2\nfrequency_noise = 0.01\nshape_noise = 0.05\nseed = 3\n");
         let (x, y) = (a.measured_modes().unwrap(), a.measured_modes().unwrap());
