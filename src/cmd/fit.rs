@@ -253,38 +253,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ));
     };
     let mut scene = FitScene::load(&scene_path)?;
-    if let Some(m) = &a.method {
-        scene.search.method = FitMethod::parse(m)?;
-    }
-    if let Some(s) = a.seed {
-        scene.search.seed = s;
-    }
-    if let Some(x) = &a.noise {
-        let v: f64 = x.parse().map_err(|_| {
-            springmass::Error::invalid(
-                "noise",
-                x,
-                "a number >= 0 (the synthetic data's noise level)",
-            )
-        })?;
-        springmass::error::check_f64("noise", v, v >= 0.0, ">= 0 and finite")?;
-        scene.data.noise = v;
-    }
-    if let Some(m) = a.max_evals {
-        scene.search.max_evals = m;
-    }
-    if a.trace {
-        scene.search.trace = true;
-    }
-    if let Some(m) = &a.profile {
-        scene.profile.mode = Some(m.clone());
-    }
-    if let Some(c) = a.profile_change {
-        scene.profile.change = Some(c);
-    }
-    if let Some(w) = a.penalty {
-        scene.profile.penalty = Some(w);
-    }
+    apply_flags(&a, &mut scene)?;
     if let Some(mode) = scene.profile.requested() {
         let mode = springmass::detect::fit::profile::ProfileMode::parse(mode)?;
         scene.profile.check()?;
@@ -317,6 +286,45 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         print_text(&scene, &report);
+    }
+    Ok(())
+}
+
+/// The command line's flags that override a scene's fields: `--method`,
+/// `--seed`, `--noise`, `--max-evals`, `--trace`, `--profile`,
+/// `--profile-change`, `--penalty`.
+fn apply_flags(a: &Args, scene: &mut FitScene) -> anyhow::Result<()> {
+    if let Some(m) = &a.method {
+        scene.search.method = FitMethod::parse(m)?;
+    }
+    if let Some(s) = a.seed {
+        scene.search.seed = s;
+    }
+    if let Some(x) = &a.noise {
+        let v: f64 = x.parse().map_err(|_| {
+            springmass::Error::invalid(
+                "noise",
+                x,
+                "a number >= 0 (the synthetic data's noise level)",
+            )
+        })?;
+        springmass::error::check_f64("noise", v, v >= 0.0, ">= 0 and finite")?;
+        scene.data.noise = v;
+    }
+    if let Some(m) = a.max_evals {
+        scene.search.max_evals = m;
+    }
+    if a.trace {
+        scene.search.trace = true;
+    }
+    if let Some(m) = &a.profile {
+        scene.profile.mode = Some(m.clone());
+    }
+    if let Some(c) = a.profile_change {
+        scene.profile.change = Some(c);
+    }
+    if let Some(w) = a.penalty {
+        scene.profile.penalty = Some(w);
     }
     Ok(())
 }

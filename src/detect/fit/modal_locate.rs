@@ -223,20 +223,7 @@ pub fn locate_from_modes(
     };
     let chain = problem.chain(&answer.fit.theta)?;
     let runner_up_defects = match second {
-        Some(s) => {
-            let elements: Vec<Defect> = s.idx.iter().map(|&i| els[i]).collect();
-            let fitted = FactorProblem {
-                elements: &elements,
-                ..problem
-            }
-            .chain(&s.fit.theta)?;
-            fitted
-                .defects()
-                .iter()
-                .filter(|d| elements.iter().any(|e| e.site() == d.site()))
-                .copied()
-                .collect()
-        }
+        Some(s) => fitted_defects(&problem, &els, s)?,
         None => Vec::new(),
     };
     let report = ModalLocateReport {
@@ -258,6 +245,23 @@ pub fn locate_from_modes(
         chain,
     };
     Ok(judge(report))
+}
+
+/// The defects of the set `fit` of `els`, fitted (the chain of `problem`
+/// with that set's elements scaled by its factors).
+fn fitted_defects(problem: &FactorProblem, els: &[Defect], fit: &SetFit) -> Result<Vec<Defect>> {
+    let elements: Vec<Defect> = fit.idx.iter().map(|&i| els[i]).collect();
+    let chain = FactorProblem {
+        elements: &elements,
+        ..*problem
+    }
+    .chain(&fit.fit.theta)?;
+    Ok(chain
+        .defects()
+        .iter()
+        .filter(|d| elements.iter().any(|e| e.site() == d.site()))
+        .copied()
+        .collect())
 }
 
 /// Refuse a search too large to be exhaustive.
