@@ -506,3 +506,118 @@ fn cli_finds_the_changed_storey_and_says_mismatch_when_none_explains() {
         assert!(!ok && err.contains(field), "{err}");
     }
 }
+
+/// The modal dynamic residual (`--modal-residual dynamic`): the second
+/// measurement model of modal data. On exact modes of a nonuniform frame
+/// seen at half its floors it recovers every storey; on SMU's frame it
+/// predicts the held-out modes as the property difference does.
+#[test]
+fn the_dynamic_residual_updates_a_frame_and_smu() {
+    use springmass::detect::fit::modal_update::ModalFormulation;
+    let nominal = Chain::new(6)
+        .unwrap()
+        .with_boundaries(Boundary::Fixed, Boundary::Free)
+        .unwrap();
+    let truth = nominal
+        .clone()
+        .with_defects([
+            Defect::Spring { at: 0, k: 1.2 },
+            Defect::Spring { at: 3, k: 0.7 },
+            Defect::Spring { at: 5, k: 0.9 },
+        ])
+        .unwrap();
+    let m = undamped_modes(&truth).unwrap();
+    let exact: Vec<MeasuredMode> = (0..4)
+        .map(|j| MeasuredMode {
+            frequency: m.omega[j] / TAU,
+            frequency_se: None,
+            damping: None,
+            shape: [2, 4, 6]
+                .iter()
+                .map(|&i| ShapeEntry {
+                    mass: i,
+                    value: -2.0 * m.shapes[(i - 1, j)],
+                    se: None,
+                })
+                .collect(),
+        })
+        .collect();
+    let opts = ModalUpdateOptions {
+        formulation: ModalFormulation::DynamicResidual,
+        ..Default::default()
+    };
+    let r = update_from_modes(&nominal, MeasuredModes::new(exact).unwrap(), &opts).unwrap();
+    assert_eq!(r.formulation, ModalFormulation::DynamicResidual);
+    assert_eq!(r.dof, 12);
+    let want = [1.2, 1.0, 1.0, 0.7, 1.0, 0.9];
+    for (f, w) in r.factors.iter().zip(want) {
+        assert!((f.factor - w).abs() < 1e-6, "{:?}", r.factors);
+    }
+    assert!(r.chi2 < 1e-10, "{}", r.chi2);
+    // SMU: modes 1 and 2 at floors 1-3, modes 3 and 4 predicted
+    let modes = MeasuredModes::new(vec![
+        smu_mode(&SMU_MODES[0], 3),
+        smu_mode(&SMU_MODES[1], 3),
+        smu_mode(&SMU_MODES[2], 4),
+        smu_mode(&SMU_MODES[3], 4),
+    ])
+    .unwrap();
+    let opts = ModalUpdateOptions {
+        hold_out: vec![3, 4],
+        ..opts
+    };
+    let r = update_from_modes(&smu_nominal(), modes, &opts).unwrap();
+    for (held, measured) in [(2usize, SMU_MODES[2][0]), (3, SMU_MODES[3][0])] {
+        let m = r.modes.iter().find(|m| m.paired == Some(held)).unwrap();
+        let err = (m.frequency / measured - 1.0).abs();
+        assert!(
+            err < 0.025,
+            "mode {}: {} Hz vs {measured} Hz",
+            held + 1,
+            m.frequency
+        );
+    }
+}
+
+#[test]
+fn cli_takes_the_dynamic_residual_and_refuses_an_unknown_one() {
+    let dir = temp_dir("mdr");
+    let file = smu_file(&dir);
+    let base = [
+        "--n",
+        "4",
+        "--mass",
+        "0.0312364",
+        "--k",
+        "10",
+        "--right",
+        "free",
+        "--hold-out",
+        "3,4",
+    ];
+    let (ok, stdout, err) = fit_modes(
+        &file,
+        &[&base[..], &["--modal-residual", "dynamic", "--json"]].concat(),
+    );
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&stdout).unwrap();
+    assert_eq!(v["formulation"], "dynamic-residual");
+    assert_eq!(v["dof"], 8); // modes 1 and 2 at four floors
+                             // the defect search takes it too
+    let (ok, stdout, err) = fit_modes(
+        &file,
+        &[
+            &base[..2],
+            &base[4..8],
+            &["--defects", "1", "--modal-residual", "mdr"],
+        ]
+        .concat(),
+    );
+    assert!(ok, "{err}");
+    assert!(String::from_utf8_lossy(&stdout).contains("status"));
+    let (ok, _, err) = fit_modes(
+        &file,
+        &[&base[..], &["--modal-residual", "energy"]].concat(),
+    );
+    assert!(!ok && err.contains("modal_residual"), "{err}");
+}

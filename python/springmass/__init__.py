@@ -1852,6 +1852,7 @@ def update_from_modes(
     starts: int = 20,
     seed: int = 1,
     baseline: Any = None,
+    modal_residual: str = "property",
 ) -> Dict[str, Any]:
     """Update the storey springs (or masses) of a nominal chain from measured modes.
 
@@ -1881,6 +1882,11 @@ def update_from_modes(
     baseline : str, path or dict, optional
         A measured or design profile as the nominal chain (as in
         :func:`fit`); the factors multiply its values, and ``n`` must agree.
+    modal_residual : str
+        ``"property"`` (the modal-property difference: frequencies and
+        MAC-paired shapes) or ``"dynamic"`` (the modal dynamic residual:
+        the equations of motion at the measured frequencies, the unmeasured
+        shape components profiled out); ``--modal-residual`` of the CLI.
 
     Returns
     -------
@@ -1912,6 +1918,7 @@ def update_from_modes(
         starts=_count("starts", starts),
         seed=_count("seed", seed),
         baseline=_baseline(baseline),
+        modal_residual=_text("modal_residual", modal_residual),
     )
     out = json.loads(raw["report"])
     out["summary"] = raw["summary"]

@@ -152,6 +152,7 @@ def fit_modes(
     starts: int,
     seed: int,
     baseline: Any = None,
+    modal_residual: Optional[str] = None,
 ) -> Dict[str, Any]:
     """{"report": JSON text, "summary": text}."""
 

@@ -876,7 +876,7 @@ fn spectral<'py>(
 /// its text summary.
 #[pyfunction]
 #[pyo3(signature = (modes, *, n, mass, k, d, left, right, profile, hold_out, starts, seed,
-    baseline=None))]
+    baseline=None, modal_residual=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit_modes<'py>(
     py: Python<'py>,
@@ -892,8 +892,11 @@ fn fit_modes<'py>(
     starts: usize,
     seed: u64,
     baseline: Option<BaselineArg>,
+    modal_residual: Option<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    use springmass::detect::fit::modal_update::{update_from_modes, ModalUpdateOptions};
+    use springmass::detect::fit::modal_update::{
+        update_from_modes, ModalFormulation, ModalUpdateOptions,
+    };
     let spec = nominal_spec(n, mass, k, d, left, right, baseline)?;
     let report = interruptible(py, move || -> Result<_> {
         let data = springmass::detect::data::modes::MeasuredModes::from_csv_str(&modes)?;
@@ -902,6 +905,10 @@ fn fit_modes<'py>(
             hold_out,
             starts,
             seed,
+            formulation: match &modal_residual {
+                Some(f) => ModalFormulation::parse(f)?,
+                None => ModalFormulation::default(),
+            },
             ..Default::default()
         };
         update_from_modes(spec.model()?.chain(), data, &opts)

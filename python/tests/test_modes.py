@@ -32,6 +32,25 @@ def test_smu_frame_predicts_the_held_out_modes():
     assert all(f["determined"] for f in r["factors"])
 
 
+@pytest.mark.parametrize("residual", ["property", "dynamic"])
+def test_both_modal_residuals_predict_smu_and_a_bad_name_is_refused(residual):
+    modes = []
+    for j, (f, phi) in enumerate(SMU):
+        floors = 3 if j < 2 else 4
+        modes.append({"frequency": f, "phi": {i + 1: phi[i] for i in range(floors)}})
+    r = springmass.update_from_modes(
+        modes, n=4, mass=12.06 / 386.088, k=10.0, right="free", hold_out=[3, 4],
+        modal_residual=residual,
+    )
+    assert r["formulation"] == {"property": "property-difference", "dynamic": "dynamic-residual"}[residual]
+    for m in r["modes"]:
+        if m["held_out"]:
+            assert abs(m["frequency"] / m["measured_frequency"] - 1) < 0.025
+    with pytest.raises(ValueError) as e:
+        springmass.update_from_modes(modes, n=4, right="free", modal_residual="energy")
+    assert e.value.field == "modal_residual"
+
+
 def test_a_csv_path_and_a_dict_baseline_give_the_same_answer(tmp_path):
     # exact modes of a 3-mass nonuniform chain, nominal = its baseline
     m = np.array([2.0, 1.0, 1.5])

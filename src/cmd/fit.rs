@@ -47,6 +47,13 @@ pub struct Args {
     /// Random starts of the modal update beside the nominal one [default: 20].
     #[arg(long, requires = "modes")]
     pub starts: Option<usize>,
+    /// How --modes are compared with the chain: property (the modal-property
+    /// difference: frequencies and MAC-paired shapes) or dynamic (the modal
+    /// dynamic residual: the equations of motion at the measured
+    /// frequencies, the unmeasured shape components profiled out)
+    /// [default: property].
+    #[arg(long, requires = "modes", value_name = "property|dynamic")]
+    pub modal_residual: Option<String>,
     /// The column of --data to fit [default: the first after t]; with
     /// several --observe masses one column per mass, in order: a,b,c
     /// [default: the value columns in order, the force column left out].

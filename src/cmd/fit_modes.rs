@@ -27,6 +27,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if let Some(h) = &a.hold_out {
         opts.hold_out = parse_list(h)?;
     }
+    if let Some(f) = &a.modal_residual {
+        opts.formulation = springmass::detect::fit::modal_update::ModalFormulation::parse(f)?;
+    }
     opts.check()?;
     let nominal = nominal_chain(a, n)?;
     let modes = MeasuredModes::read_csv(&path)?;
@@ -71,6 +74,9 @@ fn run_locate(a: &Args, n: usize) -> anyhow::Result<()> {
     let mut opts = ModalLocateOptions::default();
     let text = a.defects.as_deref().unwrap_or("auto");
     (opts.k_min, opts.k_max) = parse_defects(text)?;
+    if let Some(f) = &a.modal_residual {
+        opts.formulation = springmass::detect::fit::modal_update::ModalFormulation::parse(f)?;
+    }
     if let Some(kinds) = &a.kinds {
         opts.kinds = match kinds.as_str() {
             "spring" | "springs" => ProfileMode::Springs,

@@ -36,6 +36,7 @@ use crate::detect::data::modes::MeasuredModes;
 use crate::detect::fit::modal_update::{
     elements, on_bound, FactorEstimate, FactorProblem, ASSUMED_NOTE,
 };
+use crate::detect::fit::modal_update::{modal_model, ModalFormulation};
 use crate::detect::fit::profile::ProfileMode;
 use crate::detect::fit::report::Status;
 use crate::detect::fit::select::chi2_sf;
@@ -61,6 +62,9 @@ pub struct ModalLocateOptions {
     pub bounds: (f64, f64),
     /// Standard errors assumed where the table gives none.
     pub weights: ModalWeights,
+    /// The measurement model: the modal-property difference (default) or
+    /// the modal dynamic residual.
+    pub formulation: ModalFormulation,
 }
 
 impl Default for ModalLocateOptions {
@@ -71,6 +75,7 @@ impl Default for ModalLocateOptions {
             k_max: 2,
             bounds: (0.05, 20.0),
             weights: ModalWeights::default(),
+            formulation: ModalFormulation::default(),
         }
     }
 }
@@ -182,7 +187,9 @@ pub fn locate_from_modes(
     modes: MeasuredModes,
     opts: &ModalLocateOptions,
 ) -> Result<ModalLocateReport> {
-    let misfit = ModalMisfit::new(modes, nominal.n(), opts.weights)?;
+    let errors_given = ModalMisfit::new(modes.clone(), nominal.n(), opts.weights)?.errors_given();
+    let model = modal_model(modes, nominal.n(), opts.weights, opts.formulation)?;
+    let misfit = model.as_ref();
     let els = elements(nominal, opts.kinds);
     check_size(els.len(), opts.k_max)?;
     let n_data = misfit.dof() as f64;
@@ -196,7 +203,7 @@ pub fn locate_from_modes(
         ));
     }
     for k in opts.k_min..=opts.k_max {
-        let (first, second, count) = best_sets(nominal, &els, &misfit, k, opts)?;
+        let (first, second, count) = best_sets(nominal, &els, misfit, k, opts)?;
         sets += count;
         best.push((first, second));
     }
@@ -218,7 +225,7 @@ pub fn locate_from_modes(
     let problem = FactorProblem {
         nominal,
         elements: &answer.idx.iter().map(|&i| els[i]).collect::<Vec<_>>(),
-        misfit: &misfit,
+        misfit,
         prior: None,
     };
     let chain = problem.chain(&answer.fit.theta)?;
@@ -235,7 +242,7 @@ pub fn locate_from_modes(
         chi2: answer.fit.chi2,
         dof: misfit.dof(),
         p_value: None,
-        errors_given: misfit.errors_given(),
+        errors_given,
         k_selection,
         runner_up: second
             .as_ref()
@@ -305,7 +312,7 @@ fn name(d: &Defect) -> String {
 fn best_sets(
     nominal: &Chain,
     els: &[Defect],
-    misfit: &ModalMisfit,
+    misfit: &dyn MeasurementModel,
     k: usize,
     opts: &ModalLocateOptions,
 ) -> Result<(SetFit, Option<SetFit>, usize)> {
@@ -353,7 +360,7 @@ pub(super) fn next_combination(idx: &mut [usize], n: usize) -> bool {
 fn fit_set(
     nominal: &Chain,
     els: &[Defect],
-    misfit: &ModalMisfit,
+    misfit: &dyn MeasurementModel,
     idx: &[usize],
     opts: &ModalLocateOptions,
 ) -> Result<Option<LmFit>> {

@@ -31,6 +31,7 @@ use crate::detect::fit::identifiable::{determined_combinations, Combination};
 use crate::detect::fit::profile::ProfileMode;
 use crate::detect::fit::select::chi2_sf;
 use crate::detect::misfit::modal::{mac, ModalMisfit, ModalWeights};
+use crate::detect::misfit::modal_dynamic::ModalDynamicResidual;
 use crate::detect::model::MeasurementModel;
 use crate::detect::search::lsq::{covariance, levenberg_marquardt, LeastSquares, LmFit, LmOptions};
 use crate::error::{Error, Result};
@@ -58,6 +59,50 @@ pub struct ModalUpdateOptions {
     /// Modes (1-based, increasing frequency) kept out of the fit and only
     /// predicted.
     pub hold_out: Vec<usize>,
+    /// The measurement model: the modal-property difference (default) or
+    /// the modal dynamic residual.
+    pub formulation: ModalFormulation,
+}
+
+/// How the chain is compared with the measured modes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ModalFormulation {
+    /// Frequencies and MAC-paired shapes of the chain's eigen-solve against
+    /// the measured ones ([`ModalMisfit`]).
+    #[default]
+    PropertyDifference,
+    /// The equations of motion at the measured frequencies, the unmeasured
+    /// shape components profiled out
+    /// ([`crate::detect::misfit::modal_dynamic::ModalDynamicResidual`]).
+    DynamicResidual,
+}
+
+impl ModalFormulation {
+    /// `property` (or `property-difference`, `mpd`) or `dynamic` (or
+    /// `dynamic-residual`, `mdr`).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `modal_residual`.
+    pub fn parse(text: &str) -> Result<ModalFormulation> {
+        match text.trim().to_ascii_lowercase().as_str() {
+            "property" | "property-difference" | "mpd" => Ok(ModalFormulation::PropertyDifference),
+            "dynamic" | "dynamic-residual" | "mdr" => Ok(ModalFormulation::DynamicResidual),
+            other => Err(Error::invalid(
+                "modal_residual",
+                other,
+                "property (the modal-property difference) or dynamic (the modal dynamic residual)",
+            )),
+        }
+    }
+
+    /// `property-difference` or `dynamic-residual`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ModalFormulation::PropertyDifference => "property-difference",
+            ModalFormulation::DynamicResidual => "dynamic-residual",
+        }
+    }
 }
 
 impl Default for ModalUpdateOptions {
@@ -69,6 +114,7 @@ impl Default for ModalUpdateOptions {
             bounds: (0.05, 20.0),
             weights: ModalWeights::default(),
             hold_out: Vec::new(),
+            formulation: ModalFormulation::default(),
         }
     }
 }
@@ -91,6 +137,25 @@ impl ModalUpdateOptions {
         }
         self.weights.check()
     }
+}
+
+/// The measurement model of `formulation` for `modes` against `n`-mass
+/// chains.
+///
+/// # Errors
+/// As [`ModalMisfit::new`] and [`ModalDynamicResidual::new`].
+pub fn modal_model(
+    modes: MeasuredModes,
+    n: usize,
+    weights: ModalWeights,
+    formulation: ModalFormulation,
+) -> Result<Box<dyn MeasurementModel>> {
+    Ok(match formulation {
+        ModalFormulation::PropertyDifference => Box::new(ModalMisfit::new(modes, n, weights)?),
+        ModalFormulation::DynamicResidual => {
+            Box::new(ModalDynamicResidual::new(modes, n, weights)?)
+        }
+    })
 }
 
 /// One fitted element.
@@ -180,6 +245,8 @@ pub struct ModalUpdateReport {
     pub p_value: Option<f64>,
     /// Whether the standard errors came from the table.
     pub errors_given: bool,
+    /// The measurement model fitted.
+    pub formulation: ModalFormulation,
     /// Width of the prior on the factors, when one was needed.
     pub prior_width: Option<f64>,
     /// The combinations of factors the modes determine (a 10% change at
@@ -205,7 +272,13 @@ impl ModalUpdateReport {
         let p = self
             .p_value
             .map_or(String::new(), |p| format!(", p = {p:.3}"));
-        let _ = writeln!(out, "chi2 {:.4} on {} data{p}", self.chi2, self.dof);
+        let _ = writeln!(
+            out,
+            "chi2 {:.4} on {} data{p} ({})",
+            self.chi2,
+            self.dof,
+            self.formulation.name()
+        );
         if let Some(w) = self.prior_width {
             let _ = writeln!(
                 out,
@@ -292,7 +365,7 @@ impl ModalUpdateReport {
 pub(crate) struct FactorProblem<'a> {
     pub(crate) nominal: &'a Chain,
     pub(crate) elements: &'a [Defect],
-    pub(crate) misfit: &'a ModalMisfit,
+    pub(crate) misfit: &'a dyn MeasurementModel,
     pub(crate) prior: Option<f64>,
 }
 
@@ -365,12 +438,16 @@ pub fn update_from_modes(
 ) -> Result<ModalUpdateReport> {
     opts.check()?;
     let (fitted, held) = modes.split(&opts.hold_out)?;
-    let misfit = ModalMisfit::new(fitted.clone(), nominal.n(), opts.weights)?;
+    // the property difference pairs and predicts the modes in the report
+    // whichever model is fitted
+    let pairing = ModalMisfit::new(fitted.clone(), nominal.n(), opts.weights)?;
+    let model = modal_model(fitted.clone(), nominal.n(), opts.weights, opts.formulation)?;
+    let misfit = model.as_ref();
     let els = elements(nominal, opts.mode);
     let mut problem = FactorProblem {
         nominal,
         elements: &els,
-        misfit: &misfit,
+        misfit,
         prior: None,
     };
     let (mut best, mut evaluations) = best_of_starts(&problem, opts)?;
@@ -388,14 +465,14 @@ pub fn update_from_modes(
         &problem,
         chi2,
         misfit.dof(),
-        misfit.errors_given(),
+        pairing.errors_given(),
         opts,
     );
     let combinations = match problem.prior {
-        Some(_) => combinations(&best, &misfit, &chain, chi2, misfit.errors_given())?,
+        Some(_) => combinations(&best, misfit, &chain, chi2, pairing.errors_given())?,
         None => Vec::new(),
     };
-    let predicted = predict(&chain, &misfit, &fitted, &held)?;
+    let predicted = predict(&chain, &pairing, &fitted, &held)?;
     Ok(judge(ModalUpdateReport {
         status: String::new(),
         resolved: false,
@@ -404,7 +481,8 @@ pub fn update_from_modes(
         chi2,
         dof: misfit.dof(),
         p_value: None,
-        errors_given: misfit.errors_given(),
+        errors_given: pairing.errors_given(),
+        formulation: opts.formulation,
         prior_width: problem.prior,
         combinations,
         modes: predicted,
@@ -502,7 +580,7 @@ const COMBINATION_SE: f64 = 0.05;
 /// the fit's Jacobian, without the prior's).
 fn combinations(
     fit: &LmFit,
-    misfit: &ModalMisfit,
+    misfit: &dyn MeasurementModel,
     chain: &Chain,
     chi2: f64,
     given: bool,

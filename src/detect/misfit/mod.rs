@@ -43,6 +43,7 @@
 pub mod ambient;
 pub mod laplace_sets;
 pub mod modal;
+pub mod modal_dynamic;
 pub mod quadrature;
 mod set;
 mod spec;
