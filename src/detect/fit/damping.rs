@@ -42,6 +42,7 @@ use crate::detect::fit::record::{NoiseModelChoice, NuisanceChoice};
 use crate::detect::fit::report::FitReport;
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
+use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -281,7 +282,7 @@ pub fn screen_options(opts: &FitOptions) -> FitOptions {
 /// error; a cancellation.
 pub fn fit_choosing(
     model: &Model,
-    fit_one: impl Fn(&Model) -> Result<FitReport>,
+    fit_one: impl Fn(&Model) -> Result<FitReport> + Sync,
     refit: Option<impl Fn(&Model) -> Result<FitReport>>,
 ) -> Result<FitReport> {
     let mut best: Option<(f64, FitReport, Model)> = None;
@@ -289,9 +290,24 @@ pub fn fit_choosing(
     let mut first_err = None;
     let started = std::time::Instant::now();
     let mut evaluations = 0;
-    for name in Damping::MODELS {
-        let m = model.candidate(name)?;
-        let r = match fit_one(&m) {
+    // the candidates are independent fits of a second or more each: fitted
+    // side by side, taken in the models' order (the same choice whatever
+    // the thread count)
+    let fitted: Vec<(&str, Result<(Model, Result<FitReport>)>)> = Damping::MODELS
+        .par_iter()
+        .map(|&name| {
+            (
+                name,
+                model.candidate(name).map(|m| {
+                    let r = fit_one(&m);
+                    (m, r)
+                }),
+            )
+        })
+        .collect();
+    for (name, fit) in fitted {
+        let (m, r) = fit?;
+        let r = match r {
             Ok(r) => r,
             Err(Error::Cancelled) => return Err(Error::Cancelled),
             Err(e) => {
