@@ -269,6 +269,9 @@ pub fn screen_options(opts: &FitOptions) -> FitOptions {
     o
 }
 
+/// A candidate damping model and its fit.
+type Candidate = (Model, Result<FitReport>);
+
 /// Fit every damping model with `fit_one` and return the report of the one
 /// with the smallest [`criterion`] (refitted with `refit` when given and
 /// its screening fit does not fit the data: the options asked for, where
@@ -293,7 +296,7 @@ pub fn fit_choosing(
     // the candidates are independent fits of a second or more each: fitted
     // side by side, taken in the models' order (the same choice whatever
     // the thread count)
-    let fitted: Vec<(&str, Result<(Model, Result<FitReport>)>)> = Damping::MODELS
+    let fitted: Vec<(&str, Result<Candidate>)> = Damping::MODELS
         .par_iter()
         .map(|&name| {
             (
