@@ -475,12 +475,35 @@ impl Chain {
     /// over [`Chain::uniform_omegas`]).
     pub fn tridiagonal_damping(&self) -> Damping {
         // the frequencies only for the modal model: `site` and `dampers`
-        // call this on every chain, in the fit's inner loops
-        if self.damping.is_modal() {
-            self.damping.tridiagonal(&self.uniform_omegas())
-        } else {
-            self.damping.clone()
+        // call this on every chain, in the fit's inner loops, where the
+        // uniform part (hence the stand-in) rarely changes: the last one
+        // computed on this thread is kept
+        if !self.damping.is_modal() {
+            return self.damping.clone();
         }
+        type Key = (usize, u64, u64, Boundary, Boundary, Damping);
+        thread_local! {
+            static LAST: std::cell::RefCell<Option<(Key, Damping)>> =
+                const { std::cell::RefCell::new(None) };
+        }
+        let key: Key = (
+            self.n,
+            self.k.to_bits(),
+            self.mass.to_bits(),
+            self.left,
+            self.right,
+            self.damping.clone(),
+        );
+        LAST.with(|last| {
+            if let Some((k, d)) = last.borrow().as_ref() {
+                if *k == key {
+                    return d.clone();
+                }
+            }
+            let d = self.damping.tridiagonal(&self.uniform_omegas());
+            *last.borrow_mut() = Some((key, d.clone()));
+            d
+        })
     }
 }
 
