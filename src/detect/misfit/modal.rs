@@ -82,11 +82,13 @@ impl ModalWeights {
 
 /// One measured mode with its standard errors resolved.
 #[derive(Clone, Debug)]
-struct Target {
-    frequency: f64,
-    frequency_se: f64,
+pub(crate) struct Target {
+    /// Frequency (Hz).
+    pub(crate) frequency: f64,
+    /// Its standard error.
+    pub(crate) frequency_se: f64,
     /// `(0-based mass, value, se)`.
-    shape: Vec<(usize, f64, f64)>,
+    pub(crate) shape: Vec<(usize, f64, f64)>,
 }
 
 impl Target {
@@ -136,6 +138,38 @@ pub fn mac(a: &[f64], b: &[f64]) -> f64 {
     }
 }
 
+/// The measured modes of `data` with their standard errors resolved, and
+/// whether the table gave every one; checked against `n`-mass chains.
+///
+/// # Errors
+/// A shape at a mass beyond `n` (field `modes.phi_J`); more modes than
+/// the chain has (field `modes`); bad `weights`.
+pub(crate) fn targets(
+    data: &MeasuredModes,
+    n: usize,
+    weights: ModalWeights,
+) -> Result<(Vec<Target>, bool)> {
+    weights.check()?;
+    data.check_chain(n)?;
+    if data.len() > n {
+        return Err(Error::invalid(
+            "modes",
+            format!("{} modes", data.len()),
+            format!("at most n = {n} (an n-mass chain has n modes)"),
+        ));
+    }
+    let given_errors = data
+        .modes()
+        .iter()
+        .all(|m| m.frequency_se.is_some() && m.shape.iter().all(|e| e.se.is_some()));
+    let targets = data
+        .modes()
+        .iter()
+        .map(|m| Target::new(m, &weights))
+        .collect();
+    Ok((targets, given_errors))
+}
+
 /// Measured modes as a [`MeasurementModel`] (see the module docs).
 #[derive(Clone, Debug)]
 pub struct ModalMisfit {
@@ -151,25 +185,9 @@ impl ModalMisfit {
     /// A shape at a mass beyond `n` (field `modes.phi_J`); more modes than
     /// the chain has (field `modes`); bad `weights`.
     pub fn new(data: MeasuredModes, n: usize, weights: ModalWeights) -> Result<ModalMisfit> {
-        weights.check()?;
-        data.check_chain(n)?;
-        if data.len() > n {
-            return Err(Error::invalid(
-                "modes",
-                format!("{} modes", data.len()),
-                format!("at most n = {n} (an n-mass chain has n modes)"),
-            ));
-        }
-        let given_errors = data
-            .modes()
-            .iter()
-            .all(|m| m.frequency_se.is_some() && m.shape.iter().all(|e| e.se.is_some()));
+        let (targets, given_errors) = targets(&data, n, weights)?;
         Ok(ModalMisfit {
-            targets: data
-                .modes()
-                .iter()
-                .map(|m| Target::new(m, &weights))
-                .collect(),
+            targets,
             n,
             given_errors,
         })

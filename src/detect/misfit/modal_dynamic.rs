@@ -44,21 +44,12 @@
 
 use crate::chain::Chain;
 use crate::detect::data::modes::MeasuredModes;
-use crate::detect::misfit::modal::ModalWeights;
+use crate::detect::misfit::modal::{targets, ModalWeights, Target};
 use crate::detect::model::MeasurementModel;
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use nalgebra::{DMatrix, DVector};
 use std::f64::consts::TAU;
-
-/// One measured mode: circular frequency and its error, the measured
-/// components `(0-based mass, value, se)`.
-#[derive(Clone, Debug)]
-struct Target {
-    omega: f64,
-    omega_se: f64,
-    shape: Vec<(usize, f64, f64)>,
-}
 
 /// Measured modes as the modal dynamic residual (see the module docs).
 #[derive(Clone, Debug)]
@@ -77,46 +68,14 @@ impl ModalDynamicResidual {
     /// (field `modes[i].phi`: the dynamic residual needs the shape); bad
     /// `weights`.
     pub fn new(data: MeasuredModes, n: usize, weights: ModalWeights) -> Result<Self> {
-        weights.check()?;
-        data.check_chain(n)?;
-        if data.len() > n {
-            return Err(Error::invalid(
-                "modes",
-                format!("{} modes", data.len()),
-                format!("at most n = {n} (an n-mass chain has n modes)"),
-            ));
-        }
-        if let Some(i) = data.modes().iter().position(|m| m.shape.is_empty()) {
+        let (targets, given_errors) = targets(&data, n, weights)?;
+        if let Some(i) = targets.iter().position(|t| t.shape.is_empty()) {
             return Err(Error::invalid(
                 format!("modes[{i}].phi"),
                 "no shape component",
                 "at least one measured component per mode for the dynamic residual (the property difference takes frequencies alone)",
             ));
         }
-        let given_errors = data
-            .modes()
-            .iter()
-            .all(|m| m.frequency_se.is_some() && m.shape.iter().all(|e| e.se.is_some()));
-        let targets = data
-            .modes()
-            .iter()
-            .map(|m| {
-                let top = m.shape.iter().map(|e| e.value.abs()).fold(0.0, f64::max);
-                let shape_se = weights.shape_rel * if top > 0.0 { top } else { 1.0 };
-                let f_se = m
-                    .frequency_se
-                    .unwrap_or(weights.frequency_rel * m.frequency);
-                Target {
-                    omega: TAU * m.frequency,
-                    omega_se: TAU * f_se,
-                    shape: m
-                        .shape
-                        .iter()
-                        .map(|e| (e.mass - 1, e.value, e.se.unwrap_or(shape_se)))
-                        .collect(),
-                }
-            })
-            .collect();
         Ok(ModalDynamicResidual {
             targets,
             n,
@@ -156,7 +115,8 @@ fn stiffness_and_masses(chain: &Chain) -> (DMatrix<f64>, Vec<f64>) {
 /// The whitened residual of one mode (see the module docs), appended to `out`.
 fn mode_residuals(k: &DMatrix<f64>, mass: &[f64], t: &Target, out: &mut Vec<f64>) -> Result<()> {
     let n = mass.len();
-    let w2 = t.omega * t.omega;
+    let (omega, omega_se) = (TAU * t.frequency, TAU * t.frequency_se);
+    let w2 = omega * omega;
     let a = DMatrix::from_fn(n, n, |i, j| {
         k[(i, j)] - if i == j { w2 * mass[i] } else { 0.0 }
     });
@@ -202,8 +162,8 @@ fn mode_residuals(k: &DMatrix<f64>, mass: &[f64], t: &Target, out: &mut Vec<f64>
     // the least-squares residual A phi = (I - P_u) A_m b
     let r = &q * &v;
     // the frequency's effect: d/dw of -(w^2) M phi
-    let g = DVector::from_iterator(n, (0..n).map(|i| 2.0 * t.omega * mass[i] * phi[i]));
-    x += (&g * g.transpose()) * (t.omega_se * t.omega_se);
+    let g = DVector::from_iterator(n, (0..n).map(|i| 2.0 * omega * mass[i] * phi[i]));
+    x += (&g * g.transpose()) * (omega_se * omega_se);
     let c = &q * x * &q;
     let rank = n - u.len();
     let alpha = (c.trace() / rank.max(1) as f64).max(f64::MIN_POSITIVE);

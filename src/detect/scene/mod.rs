@@ -73,7 +73,7 @@
 
 use crate::chain::{Chain, ChainSpec};
 use crate::detect::data::exact::Data;
-use crate::detect::data::measurement::{hammer, Measurement};
+use crate::detect::data::measurement::{hammer, Measurement, Sensor};
 use crate::detect::data::observations::{LaplaceValues, Observations, Series};
 use crate::detect::data::series::TimeData;
 use crate::detect::misfit::{MisfitKind, MisfitSpec};
@@ -481,15 +481,7 @@ impl FitScene {
         let d = &self.data;
         crate::error::check_f64("data.noise", d.noise, d.noise >= 0.0, ">= 0 and finite")?;
         d.record_count()?;
-        let sensors = d.sensors()?;
-        let s = sensors[sensor];
-        s.check(self.chain.n).map_err(|_| {
-            Error::invalid(
-                "data.observe",
-                s.at,
-                format!("a mass of the chain, 1..={}", self.chain.n),
-            )
-        })?;
+        let s = self.sensor_of(sensor)?;
         match d.source {
             DataSourceKind::Exact | DataSourceKind::Modes => Err(Error::invalid(
                 "data.source",
@@ -546,6 +538,22 @@ impl FitScene {
                 rec.with_measurement(m)
             }
         }
+    }
+
+    /// Sensor `sensor` of `[data]`, checked against the chain.
+    ///
+    /// # Errors
+    /// As [`DataSpec::sensors`]; `data.observe` naming a mass outside the chain.
+    fn sensor_of(&self, sensor: usize) -> Result<Sensor> {
+        let s = self.data.sensors()?[sensor];
+        s.check(self.chain.n).map_err(|_| {
+            Error::invalid(
+                "data.observe",
+                s.at,
+                format!("a mass of the chain, 1..={}", self.chain.n),
+            )
+        })?;
+        Ok(s)
     }
 
     /// The path of record `record`'s CSV.
@@ -626,15 +634,7 @@ impl FitScene {
     /// As [`FitScene::measurement`]; as [`DataSpec::sensors`].
     pub fn measurement_of(&self, t: &[f64], sensor: usize, record: usize) -> Result<Measurement> {
         let d = &self.data;
-        let sensors = d.sensors()?;
-        let s = sensors[sensor];
-        s.check(self.chain.n).map_err(|_| {
-            Error::invalid(
-                "data.observe",
-                s.at,
-                format!("a mass of the chain, 1..={}", self.chain.n),
-            )
-        })?;
+        let s = self.sensor_of(sensor)?;
         let m = Measurement::paper().with_sensor(s);
         match (&d.hammer_width, &d.force_column) {
             (Some(_), Some(_)) => Err(Error::invalid(
