@@ -229,6 +229,21 @@ fn a_modes_scene_locates_a_storey_from_a_modes_file_and_in_a_study() {
         "{:?}",
         r.defects
     );
+    // the modal dynamic residual gives the same storey and value
+    let dynamic = FitScene::from_toml(&scene.replace(
+        "source = \"modes\"",
+        "source = \"modes\"\nmodal_residual = \"dynamic\"",
+    ))
+    .unwrap();
+    let rd = fit_scene(&dynamic).unwrap();
+    assert_eq!(rd.defects.len(), 1);
+    assert_eq!(rd.defects[0].at(), 4);
+    assert!(
+        (rd.defects[0].value() - 0.75).abs() < 1e-8,
+        "{:?}",
+        rd.defects
+    );
+    assert!(rd.misfit.contains("dynamic-residual"), "{}", rd.misfit);
     // a study case of kind `fit` scores the modal answer like a record's
     let value: toml::Value = toml::from_str(&scene.replace("[truth]", "[chain]")).unwrap();
     let out = Kind::Fit.run(&value, 0).unwrap();
@@ -286,6 +301,11 @@ fn bad_scene_data_forms_name_their_field() {
         "data.records"
     );
     let modes = "[truth]\nn = 4\nright = \"free\"\n[data]\nsource = \"modes\"\n[unknowns]\nkind = \"spring\"\nk = 1\n[search]\nmethod = \"ga\"\n";
+    let energy = "[truth]\nn = 4\nright = \"free\"\n[data]\nsource = \"modes\"\nmodal_residual = \"energy\"\n[unknowns]\nkind = \"spring\"\nk = 1\n";
+    assert_eq!(
+        field_of(fit_scene(&FitScene::from_toml(energy).unwrap()).unwrap_err()),
+        "data.modal_residual"
+    );
     assert_eq!(
         field_of(fit_scene(&FitScene::from_toml(modes).unwrap()).unwrap_err()),
         "search.method"

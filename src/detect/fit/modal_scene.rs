@@ -27,6 +27,7 @@
 
 use crate::chain::Defect;
 use crate::detect::fit::modal_locate::{locate_from_modes, ModalLocateOptions};
+use crate::detect::fit::modal_update::ModalFormulation;
 use crate::detect::fit::paper::SceneReport;
 use crate::detect::fit::profile::ProfileMode;
 use crate::detect::fit::report::{Alternative, Status};
@@ -54,6 +55,23 @@ pub fn modal_kinds(scene: &FitScene) -> Result<ProfileMode> {
             scene.unknowns.kind.name(),
             "mass, spring or any with modal data (undamped modes see masses and springs)",
         )),
+    }
+}
+
+/// The scene's `data.modal_residual` (default: the property difference).
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming `data.modal_residual`.
+pub fn formulation(scene: &FitScene) -> Result<ModalFormulation> {
+    match &scene.data.modal_residual {
+        None => Ok(ModalFormulation::default()),
+        Some(text) => ModalFormulation::parse(text).map_err(|_| {
+            Error::invalid(
+                "data.modal_residual",
+                text,
+                "property (the modal-property difference) or dynamic (the modal dynamic residual)",
+            )
+        }),
     }
 }
 
@@ -89,6 +107,7 @@ pub fn fit_modal_scene(scene: &FitScene) -> Result<SceneReport> {
         kinds,
         k_min: k,
         k_max: k,
+        formulation: formulation(scene)?,
         ..ModalLocateOptions::default()
     };
     let setup = t0.elapsed().as_secs_f64();
@@ -133,7 +152,8 @@ pub fn fit_modal_scene(scene: &FitScene) -> Result<SceneReport> {
         setup_time_s: setup,
         trace: Vec::new(),
         misfit: format!(
-            "modal ({} weights)",
+            "modal {} ({} weights)",
+            opts.formulation.name(),
             if r.errors_given { "given" } else { "assumed" }
         ),
         nodes: r.dof,

@@ -103,6 +103,9 @@ pub struct DataSpec {
     /// `modes` (simulated): the shapes' noise, relative to each mode's
     /// largest measured component (default 0).
     pub shape_noise: Option<f64>,
+    /// `modes`: the measurement model, `property` (the modal-property
+    /// difference, default) or `dynamic` (the modal dynamic residual).
+    pub modal_residual: Option<String>,
     /// `simulated`: a hammer's half-sine blow of this width (unit impulse,
     /// times `gamma`) on mass 1 instead of the ideal impulse; the record
     /// keeps the force's samples and the fit uses them.

@@ -65,6 +65,7 @@ pub const FIELDS: &[FieldDoc] = &[
     FieldDoc::new("data.floors", "array of integers in 1..=n", "every mass", "`modes` (simulated): the masses whose mode-shape components are measured."),
     FieldDoc::new("data.frequency_noise", "float >= 0", "0", "`modes` (simulated): relative noise of the frequencies (and their stated standard error)."),
     FieldDoc::new("data.shape_noise", "float >= 0", "0", "`modes` (simulated): noise of the shape components, relative to the mode's largest measured component (and their stated standard error)."),
+    FieldDoc::new("data.modal_residual", "\"property\" | \"dynamic\"", "\"property\"", "`modes`: the measurement model, the modal-property difference or the modal dynamic residual."),
     FieldDoc::new("data.hammer_width", "float > 0", "none", "`simulated`: a half-sine hammer blow of this width (unit impulse times gamma) on mass 1 instead of the ideal impulse; the fit uses its samples."),
     FieldDoc::new("data.force_column", "string", "none", "`series`: the CSV column of the measured force on mass 1 (a hammer test)."),
     FieldDoc::new("unknowns", "table", "{}", "The unknowns."),
@@ -232,7 +233,8 @@ fn unknowns_problems(scene: &FitScene, out: &mut Vec<Error>) {
         let modal = scene
             .unknowns()
             .and_then(|_| crate::detect::fit::modal_scene::modal_kinds(scene))
-            .and_then(|_| crate::detect::fit::modal_scene::check_method(scene));
+            .and_then(|_| crate::detect::fit::modal_scene::check_method(scene))
+            .and_then(|_| crate::detect::fit::modal_scene::formulation(scene).map(|_| ()));
         if let Err(e) = modal {
             out.push(e);
         }
