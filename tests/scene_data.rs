@@ -245,7 +245,7 @@ fn a_modes_scene_locates_a_storey_from_a_modes_file_and_in_a_study() {
     );
     assert!(rd.misfit.contains("dynamic-residual"), "{}", rd.misfit);
     // a study case of kind `fit` scores the modal answer like a record's
-    let value: toml::Value = toml::from_str(&scene.replace("[truth]", "[chain]")).unwrap();
+    let value: toml::Value = toml::from_str(&scene).unwrap(); // `[truth]` as in a scene file
     let out = Kind::Fit.run(&value, 0).unwrap();
     assert_eq!(out.metrics["success"], true, "{:?}", out.metrics);
     assert_eq!(out.metrics["found"], "spring:4");
@@ -311,7 +311,7 @@ fn bad_scene_data_forms_name_their_field() {
         "search.method"
     );
     // `config check` lists the problem of a study scene too
-    let value: toml::Value = toml::from_str(&sim.replace("[truth]", "[chain]")).unwrap();
+    let value: toml::Value = toml::from_str(sim).unwrap();
     assert_eq!(
         field_of(Kind::Fit.run(&value, 0).unwrap_err()),
         "data.records"

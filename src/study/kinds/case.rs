@@ -45,6 +45,12 @@ pub trait KindScene: DeserializeOwned {
     /// Every failed range check, each naming its field.
     fn problems(&self) -> Vec<Error>;
 
+    /// The scene with its aliases resolved to the schema's names (the
+    /// scene as written by default).
+    fn canonical(value: &toml::Value) -> toml::Value {
+        value.clone()
+    }
+
     /// The first of [`KindScene::problems`].
     ///
     /// # Errors
@@ -61,7 +67,7 @@ pub trait KindScene: DeserializeOwned {
     /// # Errors
     /// [`Error::InvalidParameter`] naming the field.
     fn from_value(value: &toml::Value) -> Result<Self> {
-        let scene: Self = from_scene(value, Self::FIELDS)?;
+        let scene: Self = from_scene(&Self::canonical(value), Self::FIELDS)?;
         scene.check()?;
         Ok(scene)
     }
@@ -72,7 +78,7 @@ pub trait KindScene: DeserializeOwned {
     /// standing in); then [`KindScene::problems`] of what remains. Empty
     /// exactly when [`KindScene::from_value`] succeeds.
     fn all_problems(value: &toml::Value) -> Vec<Error> {
-        let (mut out, clean) = unknown_errors(value, Self::FIELDS);
+        let (mut out, clean) = unknown_errors(&Self::canonical(value), Self::FIELDS);
         let (typed, scene) = typed_scene::<Self>(clean);
         out.extend(typed);
         if let Some(scene) = scene {

@@ -329,6 +329,20 @@ fn data_problems(d: &crate::detect::scene::DataSpec, out: &mut Vec<Error>) {
 impl KindScene for FitScene {
     const FIELDS: &'static [FieldDoc] = FIELDS;
 
+    /// `[truth]`, the fit scene's other name of `[chain]` (as
+    /// `springmass fit --scene` reads it), is `chain`.
+    fn canonical(value: &toml::Value) -> toml::Value {
+        let mut v = value.clone();
+        if let Some(t) = v.as_table_mut() {
+            if !t.contains_key("chain") {
+                if let Some(truth) = t.remove("truth") {
+                    t.insert("chain".into(), truth);
+                }
+            }
+        }
+        v
+    }
+
     fn problems(&self) -> Vec<Error> {
         let mut out = chain_problems(&self.chain);
         // the unknowns need only n (and the number of mass defects)
