@@ -12,7 +12,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use springmass::chain::Boundary;
-use springmass::detect::fit::paper::fit_scene;
+use springmass::detect::fit::fit_scene;
 use springmass::detect::fit::Status;
 use springmass::detect::scene::FitScene;
 use springmass::study::kinds::Kind;

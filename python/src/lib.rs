@@ -916,7 +916,7 @@ fn fit_modes<'py>(
     report_dict(py, &report, report.summary(), "modal update")
 }
 
-/// A fit scene (`springmass fit --scene`, `springmass::detect::fit::paper::fit_scene`):
+/// A fit scene (`springmass fit --scene`, `springmass::detect::fit::fit_scene`):
 /// `text` is the scene's TOML (its data exact, simulated, series with one
 /// or several sensors and records, or modes). Returns the report as the
 /// CLI's JSON and its text summary.
@@ -924,7 +924,7 @@ fn fit_modes<'py>(
 fn fit_scene<'py>(py: Python<'py>, text: String) -> PyResult<Bound<'py, PyDict>> {
     let report = interruptible(py, move || -> Result<_> {
         let scene = springmass::detect::scene::FitScene::from_toml(&text)?;
-        springmass::detect::fit::paper::fit_scene(&scene)
+        springmass::detect::fit::fit_scene(&scene)
     })?;
     report_dict(py, &report, report.summary(), "scene fit")
 }

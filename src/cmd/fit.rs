@@ -4,8 +4,9 @@
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
+use springmass::detect::fit::fit_scene;
 use springmass::detect::fit::identify::Identifiability;
-use springmass::detect::fit::paper::{fit_scene, SceneReport};
+use springmass::detect::fit::paper::SceneReport;
 use springmass::detect::fit::FitMethod;
 use springmass::detect::scene::FitScene;
 use std::path::PathBuf;

@@ -91,6 +91,7 @@ pub mod profile;
 pub mod record;
 mod record_report;
 pub mod report;
+pub mod scene_fit;
 pub mod select;
 pub mod setup;
 pub mod spectral;
@@ -106,6 +107,7 @@ pub use report::{
     Alternative, DefectEstimate, FitReport, KRow, ModeEstimate, ParamEstimate, Predicted,
     SensorEstimate, Status,
 };
+pub use scene_fit::fit_scene;
 pub use select::Criterion;
 
 use crate::detect::data::observations::Observations;

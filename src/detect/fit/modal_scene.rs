@@ -6,7 +6,7 @@
 //!
 //! ```
 //! use springmass::detect::scene::FitScene;
-//! use springmass::detect::fit::paper::fit_scene;
+//! use springmass::detect::fit::fit_scene;
 //! let scene = FitScene::from_toml(r#"
 //!     [chain]
 //!     n = 6

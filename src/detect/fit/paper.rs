@@ -188,21 +188,8 @@ impl SceneReport {
     }
 }
 
-/// Fit the scene's unknowns to the scene's own data ([`FitScene::data`],
-/// or its measured modes for `source = "modes"`), with the options of its
-/// `[search]`.
-///
-/// # Errors
-/// As [`FitScene::data`] and [`fit`].
-pub fn fit_scene(scene: &FitScene) -> Result<SceneReport> {
-    if scene.data.source == DataSourceKind::Modes {
-        return crate::detect::fit::modal_scene::fit_modal_scene(scene);
-    }
-    fit(scene, &scene.data()?, &scene.options())
-}
-
-/// Fit the scene's unknowns to `data` (a `modes` scene: to its measured
-/// modes, `data` unused).
+/// Fit the scene's unknowns to `data` (a record or Laplace values; a
+/// `modes` scene is fitted by [`crate::detect::fit::fit_scene`]).
 ///
 /// # Errors
 /// Invalid chain, unknowns or misfit in the scene (typed, naming the field);
@@ -210,8 +197,11 @@ pub fn fit_scene(scene: &FitScene) -> Result<SceneReport> {
 /// general path (`search.method`).
 pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<SceneReport> {
     if scene.data.source == DataSourceKind::Modes {
-        // modal data are not a record: the modal defect search
-        return crate::detect::fit::modal_scene::fit_modal_scene(scene);
+        return Err(Error::invalid(
+            "data.source",
+            "modes",
+            "a record source here (a modes scene is fitted by detect::fit::fit_scene)",
+        ));
     }
     if scene.is_general() || options.method == FitMethod::Greedy {
         // the greedy search runs on the general hypothesis fits

@@ -22,7 +22,8 @@
 
 use super::case::{chain_problems, num, CaseOutput, KindScene};
 use crate::chain::Defect;
-use crate::detect::fit::paper::{fit_scene, SceneReport};
+use crate::detect::fit::fit_scene;
+use crate::detect::fit::paper::SceneReport;
 
 use crate::detect::scene::{DataSourceKind, FitScene};
 use crate::error::{check_f64, Error, Result};
