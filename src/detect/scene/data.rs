@@ -226,24 +226,22 @@ impl DataSpec {
             }
             _ => 1,
         };
+        // the field that set the count
+        let field = if self.records.is_some() {
+            "data.records"
+        } else {
+            "data.path"
+        };
         if count == 0 || count > MAX_RECORDS {
             return Err(Error::invalid(
-                if self.records.is_some() {
-                    "data.records"
-                } else {
-                    "data.path"
-                },
+                field,
                 count,
                 format!("1..={MAX_RECORDS} records"),
             ));
         }
         if count > 1 && several_sensors {
             return Err(Error::invalid(
-                if self.records.is_some() {
-                    "data.records"
-                } else {
-                    "data.path"
-                },
+                field,
                 count,
                 "1 with several observe masses (several sensors and several records are not fitted together)",
             ));
