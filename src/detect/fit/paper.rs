@@ -207,6 +207,12 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
         // the greedy search runs on the general hypothesis fits
         return fit_general_scene(scene, data, options);
     }
+    fit_mass_scene(scene, data, options)
+}
+
+/// The mass path of [`fit`]: the paper's residual on the rule's nodes with
+/// the mass-only kernel, judged against the data's floor.
+fn fit_mass_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<SceneReport> {
     let t0 = Instant::now();
     scene
         .truth()?
@@ -238,18 +244,7 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
         .map(|(w, e)| w * e * e)
         .sum();
     let obs = Observations::Laplace(LaplaceValues::new(s, values, Some(pseudo))?);
-    let opts = FitOptions {
-        defects: DefectCount::Exactly(unknowns.k()),
-        noise: NoiseSpec::Sigma(1.0),
-        misfit: Some(scene.misfit.kind),
-        method: options.method,
-        seed: options.seed,
-        max_evals: options.max_evals,
-        alternatives: options.enumerate.keep.saturating_sub(1),
-        parallel: options.enumerate.parallel,
-        max_sets: options.enumerate.max_sets,
-        ..FitOptions::default()
-    };
+    let opts = mass_options(scene, unknowns.k(), options);
     let given = Given {
         unknowns,
         enumerate: options.enumerate.clone(),
@@ -294,6 +289,55 @@ pub fn fit(scene: &FitScene, data: &Data, options: &SceneOptions) -> Result<Scen
         chain_params: Vec::new(),
         identifiability: None,
     })
+}
+
+/// The general path's model: the uniform part of `start` with the wholly
+/// known defects in it and the unknowns' chain parameters fitted, and the
+/// kinds of the free slots.
+///
+/// # Errors
+/// A slot known in only one of position and value (field
+/// `unknowns.defects`); as [`Model::with_known`] and [`Model::fitting`].
+fn general_model(
+    start: &crate::chain::Chain,
+    unknowns: &crate::detect::unknowns::Unknowns,
+) -> Result<(Model, Vec<crate::detect::unknowns::KindChoice>)> {
+    let mut model = Model::from_chain(&start.uniform());
+    let mut kinds = Vec::new();
+    for slot in unknowns.slots() {
+        match (slot.at, slot.known) {
+            (Some(at), Some(v)) => {
+                let kind = slot.kind.kinds()[0];
+                model = model.with_known(kind.defect(at, v))?;
+            }
+            (None, None) => kinds.push(slot.kind),
+            _ => {
+                return Err(Error::invalid(
+                    "unknowns.defects",
+                    "a known position with a free value, or a known value at a free position",
+                    "the general fit takes defects that are either wholly known or wholly free",
+                ))
+            }
+        }
+    }
+    Ok((model.fitting(unknowns.chain())?, kinds))
+}
+
+/// The data-first fit's options on the mass path: `k` defects, the
+/// residual's unit weights, the scene's misfit and search.
+fn mass_options(scene: &FitScene, k: usize, options: &SceneOptions) -> FitOptions {
+    FitOptions {
+        defects: DefectCount::Exactly(k),
+        noise: NoiseSpec::Sigma(1.0),
+        misfit: Some(scene.misfit.kind),
+        method: options.method,
+        seed: options.seed,
+        max_evals: options.max_evals,
+        alternatives: options.enumerate.keep.saturating_sub(1),
+        parallel: options.enumerate.parallel,
+        max_sets: options.enumerate.max_sets,
+        ..FitOptions::default()
+    }
 }
 
 /// The scene's data at the rule's nodes: the Laplace variables, the values
@@ -383,25 +427,7 @@ fn fit_general_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> R
     scene
         .truth()?
         .require_uniform("the scene path's locator model (fit a simulated record with --data)")?;
-    let mut model = Model::from_chain(&start.uniform());
-    let mut kinds = Vec::new();
-    for slot in unknowns.slots() {
-        match (slot.at, slot.known) {
-            (Some(at), Some(v)) => {
-                let kind = slot.kind.kinds()[0];
-                model = model.with_known(kind.defect(at, v))?;
-            }
-            (None, None) => kinds.push(slot.kind),
-            _ => {
-                return Err(Error::invalid(
-                    "unknowns.defects",
-                    "a known position with a free value, or a known value at a free position",
-                    "the general fit takes defects that are either wholly known or wholly free",
-                ))
-            }
-        }
-    }
-    model = model.fitting(unknowns.chain())?;
+    let (model, kinds) = general_model(&start, &unknowns)?;
     // the data given, as the pipeline's observations (the samples' known
     // noise, or the Laplace values' own errors; else estimated)
     let (obs, sigma) = scene.observations_of(data)?;

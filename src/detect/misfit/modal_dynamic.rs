@@ -48,6 +48,7 @@ use crate::detect::misfit::modal::{targets, ModalWeights, Target};
 use crate::detect::model::MeasurementModel;
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
+use crate::time::modal::MAX_N_SYMMETRIC;
 use nalgebra::{DMatrix, DVector};
 use std::f64::consts::TAU;
 
@@ -63,11 +64,21 @@ impl ModalDynamicResidual {
     /// The residual of `data` against `n`-mass chains.
     ///
     /// # Errors
-    /// A shape at a mass beyond `n` (field `modes.phi_J`); more modes than
+    /// `n` above [`MAX_N_SYMMETRIC`] (field `n`); a shape at a mass beyond
+    /// `n` (field `modes.phi_J`); more modes than
     /// the chain has (field `modes`); a mode without any shape component
     /// (field `modes[i].phi`: the dynamic residual needs the shape); bad
     /// `weights`.
     pub fn new(data: MeasuredModes, n: usize, weights: ModalWeights) -> Result<Self> {
+        if n > MAX_N_SYMMETRIC {
+            return Err(Error::invalid(
+                "n",
+                n,
+                format!(
+                    "n <= {MAX_N_SYMMETRIC} for the modal dynamic residual (dense n x n solves)"
+                ),
+            ));
+        }
         let (targets, given_errors) = targets(&data, n, weights)?;
         if let Some(i) = targets.iter().position(|t| t.shape.is_empty()) {
             return Err(Error::invalid(
@@ -89,26 +100,19 @@ impl ModalDynamicResidual {
     }
 }
 
-/// The chain's stiffness matrix (springs and grounds) and masses.
+/// The chain's stiffness matrix (springs and grounds; spring `i` joins
+/// masses `i` and `i + 1`, the walls at `0` and `n + 1`) and masses.
 fn stiffness_and_masses(chain: &Chain) -> (DMatrix<f64>, Vec<f64>) {
-    let n = chain.n();
-    let mut k = DMatrix::<f64>::zeros(n, n);
-    // spring j joins masses j and j + 1 (1-based; 0 and n + 1 are walls)
-    for (j, &kj) in chain.springs().iter().enumerate() {
-        if j >= 1 {
-            k[(j - 1, j - 1)] += kj;
+    let (springs, grounds) = (chain.springs(), chain.grounds());
+    let k = DMatrix::from_fn(chain.n(), chain.n(), |i, j| {
+        if i == j {
+            grounds[i] + springs[i] + springs[i + 1]
+        } else if i.abs_diff(j) == 1 {
+            -springs[i.max(j)]
+        } else {
+            0.0
         }
-        if j < n {
-            k[(j, j)] += kj;
-        }
-        if (1..n).contains(&j) {
-            k[(j - 1, j)] -= kj;
-            k[(j, j - 1)] -= kj;
-        }
-    }
-    for (i, g) in chain.grounds().iter().enumerate() {
-        k[(i, i)] += g;
-    }
+    });
     (k, chain.masses())
 }
 
@@ -355,5 +359,14 @@ mod tests {
         let data = measured(&truth, &[0], &[2], None);
         let mdr = ModalDynamicResidual::new(data, 6, ModalWeights::default()).unwrap();
         assert!(mdr.residuals(&Chain::new(5).unwrap()).is_err());
+        let data = measured(&truth, &[0], &[2], None);
+        assert_eq!(
+            field(ModalDynamicResidual::new(
+                data,
+                1_000_000,
+                ModalWeights::default()
+            )),
+            "n"
+        );
     }
 }
