@@ -15,11 +15,18 @@
 //! The ratio `auto / given` of each case is printed after its group.
 //! The Python peer (`benches/scipy_peer.py`) compares the command line
 //! with scipy's least_squares and differential evolution.
+//!
+//! Defect kind unknown (`cpu/kinds/<case>/mass` against `.../any`, the
+//! defaults with `kinds` mass or any; issue 30 item 2b, at most 3x): n = 12
+//! on `[0, 200]`, `dt = 0.05`, 1% noise, seed 1, with a mass (2 at 4) and a
+//! spring (0.5 at 8) (`mixed`), or three masses (2 at 2, 0.6 at 6, 1.8 at
+//! 9) (`masses`). The ratio `any / mass` is printed after each group.
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use springmass::detect::data::observations::{Observations, Series};
 use springmass::detect::data::series::TimeData;
 use springmass::detect::fit::{fit, DefectCount, FitOptions, Model};
+use springmass::detect::unknowns::KindChoice;
 use springmass::noise::NoiseLevel;
 use springmass::{Chain, Defect};
 use std::time::{Duration, Instant};
@@ -93,9 +100,62 @@ fn bench_kauto(c: &mut Criterion<CpuTime>) {
     }
 }
 
+fn bench_kinds(c: &mut Criterion<CpuTime>) {
+    let twelve = |defects: Vec<Defect>| {
+        let truth = Chain::paper(12).unwrap().with_defects(defects).unwrap();
+        let d = TimeData::simulate(&truth, 200.0, 0.05, NoiseLevel::RelativeMax(1e-2), 1).unwrap();
+        Observations::Series(Series::new(d.t().to_vec(), d.y().to_vec(), None).unwrap())
+    };
+    let cases = [
+        (
+            "mixed",
+            twelve(vec![
+                Defect::Mass { at: 4, m: 2.0 },
+                Defect::Spring { at: 8, k: 0.5 },
+            ]),
+        ),
+        (
+            "masses",
+            twelve(vec![
+                Defect::Mass { at: 2, m: 2.0 },
+                Defect::Mass { at: 6, m: 0.6 },
+                Defect::Mass { at: 9, m: 1.8 },
+            ]),
+        ),
+    ];
+    let model = Model::new(12).unwrap();
+    for (name, obs) in &cases {
+        let with = |kinds| FitOptions {
+            kinds,
+            parallel: false,
+            ..FitOptions::default()
+        };
+        let (mass, any) = (with(KindChoice::Mass), with(KindChoice::Any));
+        let mut grp = c.benchmark_group(format!("cpu/kinds/{name}"));
+        grp.sample_size(10).measurement_time(Duration::from_secs(5));
+        grp.bench_function("mass", |b| {
+            b.iter(|| fit(black_box(obs), &model, &mass).unwrap())
+        });
+        grp.bench_function("any", |b| {
+            b.iter(|| fit(black_box(obs), &model, &any).unwrap())
+        });
+        grp.finish();
+        let tm = mean_s(3, || {
+            fit(obs, &model, &mass).unwrap();
+        });
+        let ta = mean_s(3, || {
+            fit(obs, &model, &any).unwrap();
+        });
+        println!(
+            "{name}: kinds any {ta:.3} s, kinds mass {tm:.3} s, ratio {:.1}x (wall, one thread, mean of 3)",
+            ta / tm
+        );
+    }
+}
+
 criterion_group! {
     name = benches_kauto;
     config = Criterion::default().with_measurement(CpuTime);
-    targets = bench_kauto
+    targets = bench_kauto, bench_kinds
 }
 criterion_main!(benches_kauto);

@@ -47,6 +47,8 @@ mod hardening_fuzz;
 mod inverse;
 #[path = "k_auto.rs"]
 mod k_auto;
+#[path = "kinds_any.rs"]
+mod kinds_any;
 #[cfg(feature = "bigfloat")]
 #[path = "locate.rs"]
 mod locate;

@@ -154,7 +154,8 @@ fn green_every_boundary_matches_dense_lu() {
 /// Column 1 of every boundary's Green's function against the O(n) solver,
 /// n up to 1e5.
 #[test]
-fn green_every_boundary_matches_tridiagonal_large_n() {
+#[ignore = "heavy (long chains): run by .ci/run; cargo test --test all -- --ignored heavy"]
+fn heavy_green_every_boundary_matches_tridiagonal_large_n() {
     for (left, right) in ENDS {
         let mut tally = Tally::default();
         for &n in &[1usize, 7, 1000, 100_000] {

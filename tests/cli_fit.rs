@@ -450,7 +450,8 @@ fn fit_scene_profile_of_every_mass() {
 /// up to four positions would pass `max_sets`, so the greedy search is
 /// chosen (and named); both defects are found within 3 SE.
 #[test]
-fn fit_data_of_a_long_chain_with_the_defaults_searches_greedily() {
+#[ignore = "heavy (long chains): run by .ci/run; cargo test --test all -- --ignored heavy"]
+fn heavy_fit_data_of_a_long_chain_with_the_defaults_searches_greedily() {
     let dir = temp_dir("long");
     let truth = Chain::paper(1000)
         .unwrap()

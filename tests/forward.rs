@@ -260,7 +260,8 @@ fn woodbury_undamped_complex() {
 
 /// n = 10^6: Woodbury (O(1) in n) against the O(n) solver at a few points.
 #[test]
-fn woodbury_matches_tridiagonal_million() {
+#[ignore = "heavy (long chains): run by .ci/run; cargo test --test all -- --ignored heavy"]
+fn heavy_woodbury_matches_tridiagonal_million() {
     let n = 1_000_000;
     let chain = Chain::paper(n)
         .unwrap()

@@ -36,7 +36,8 @@ fn laplace_values(
 
 /// n = 100, noise-free: every mass within 1e-6 relative.
 #[test]
-fn profile_of_100_masses_from_exact_values() {
+#[ignore = "heavy (long chains): run by .ci/run; cargo test --test all -- --ignored heavy"]
+fn heavy_profile_of_100_masses_from_exact_values() {
     let n = 100;
     let m = scenes::mass_profile(n);
     let truth = scenes::profile_chain(n, 0.01).unwrap();
@@ -67,7 +68,8 @@ fn profile_of_100_masses_from_exact_values() {
 /// little; measured 92.5% of 385 over twelve),
 /// and the deep masses the damping hides are reported as not visible.
 #[test]
-fn profile_of_100_masses_at_1e_3_noise_has_calibrated_errors() {
+#[ignore = "heavy (long chains): run by .ci/run; cargo test --test all -- --ignored heavy"]
+fn heavy_profile_of_100_masses_at_1e_3_noise_has_calibrated_errors() {
     let n = 100;
     let m = scenes::mass_profile(n);
     let truth = scenes::profile_chain(n, 0.1).unwrap();

@@ -1091,7 +1091,7 @@ fn print_text(scene: &FitScene, r: &SceneReport) {
         .map(|s| format!(", {s} position sets"))
         .unwrap_or_default();
     let beam = match r.exhaustive {
-        Some(false) => " (beam search)",
+        Some(false) => " (not every set ranked: see the method)",
         _ => "",
     };
     println!("evaluations {}{sets}{beam}", r.evaluations);

@@ -827,6 +827,10 @@ pub struct Unknowns {
     slots: Vec<Slot>,
     chain: Vec<Param>,
     bounds: KindBounds,
+    /// The `(kind, position)` pairs the defects of unknown position may
+    /// take (`None`: every pair their kinds allow); see
+    /// [`Unknowns::among`].
+    candidates: Option<Vec<(DefectKind, usize)>>,
 }
 
 impl Unknowns {
@@ -872,6 +876,7 @@ impl Unknowns {
             slots,
             chain,
             bounds,
+            candidates: None,
         })
     }
 
@@ -947,6 +952,22 @@ impl Unknowns {
         &self.bounds
     }
 
+    /// The same unknowns with the defects of unknown position restricted to
+    /// the `(kind, position)` pairs `pairs` (the narrowed search over every
+    /// kind, `detect::fit::narrow`); defects of known position are not
+    /// restricted. [`Unknowns::hypotheses`] draws from these pairs only.
+    pub fn among(&self, pairs: Vec<(DefectKind, usize)>) -> Unknowns {
+        Unknowns {
+            candidates: Some(pairs),
+            ..self.clone()
+        }
+    }
+
+    /// The pairs of [`Unknowns::among`], if restricted.
+    pub fn candidates(&self) -> Option<&[(DefectKind, usize)]> {
+        self.candidates.as_deref()
+    }
+
     /// Bounds of slot `i` as kind `kind`.
     pub fn bounds(&self, i: usize, kind: DefectKind) -> (f64, f64) {
         self.slots[i].bounds.unwrap_or(self.bounds.of(kind))
@@ -975,7 +996,12 @@ impl Unknowns {
                 let mut cands: KindPositions = Vec::new();
                 for &k in s.kind.kinds() {
                     for at in k.positions(self.n) {
-                        if s.at.is_none_or(|a| a == at) {
+                        let allowed = match (s.at, &self.candidates) {
+                            (Some(a), _) => a == at,
+                            (None, Some(c)) => c.contains(&(k, at)),
+                            (None, None) => true,
+                        };
+                        if allowed {
                             cands.push((k, at));
                         }
                     }

@@ -23,6 +23,7 @@ use crate::detect::unknowns::{DefectKind, KindBounds, KindChoice, MassUnknowns, 
 use crate::error::{Error, Result};
 
 mod kernel;
+mod nested;
 
 /// Stop the `auto` loop when two more defects in a row have not lowered the
 /// time-domain residual by more than noise would (a BIC step of `2 ln N`
@@ -340,94 +341,79 @@ impl Engine<'_> {
         Ok(self.unknowns(k)?.map_or(1.0, |u| set_count(&u)))
     }
 
-    pub(super) fn fit_k(&self, k: usize, sigma: f64) -> Result<KFit> {
+    /// The fit of `k` defects at noise level `sigma`; `previous` is the fit
+    /// at `k - 1`, whose answers narrow a search over every kind
+    /// ([`super::narrow`]).
+    pub(super) fn fit_k(&self, k: usize, sigma: f64, previous: Option<&KFit>) -> Result<KFit> {
         let (coarse, fine, misfit_name, setup) = self.prepared(sigma)?;
-        let found = match self.unknowns(k)? {
-            None => {
-                let (ranked, evaluations) = self.fit_uniform(&coarse, fine.as_ref())?;
-                Found::new(ranked, evaluations, 1, self.opts.method.name())
+        let narrowed = match (previous, self.unknowns(k)?) {
+            (Some(p), Some(u))
+                if self.given.is_none() && self.opts.method == FitMethod::Enumerate =>
+            {
+                super::narrow::narrow(self.model.chain(), &u, &p.ranked, &coarse)?
             }
-            Some(unknowns) => {
-                // a small fit runs on one thread (search::parallel)
-                let large = set_count(&unknowns) >= MIN_SETS as f64;
-                let gopts = GeneralOptions {
-                    parallel: self.opts.parallel && large,
-                    max_sets: self.opts.max_sets,
-                    ..GeneralOptions::default()
-                };
-                let mut setup = setup;
-                setup.shortlist = setup.shortlist.max(self.opts.alternatives + 1);
-                let inputs = Inputs {
-                    coarse: &coarse,
-                    fine: fine.as_ref(),
-                    setup: &setup,
-                    gopts: &gopts,
-                };
-                self.search(&unknowns, k, sigma, &inputs)?
+            _ => None,
+        };
+        let found = match narrowed {
+            Some(nw) => {
+                let mut found =
+                    self.search_prepared(k, sigma, &nw.unknowns, &coarse, fine.as_ref(), setup)?;
+                found.evaluations += nw.evaluations;
+                found.exhaustive = false;
+                found.method_name = format!(
+                    "{} (kinds narrowed per position: {} of {} pairs)",
+                    found.method_name, nw.kept.0, nw.kept.1
+                );
+                found
             }
+            None => self.found_k(k, sigma, &coarse, fine.as_ref(), setup)?,
         };
         self.measured(k, sigma, found, &coarse, fine.as_ref(), misfit_name)
     }
 
-    /// The fit of `next.k = prev.k + 1` defects made no worse than `prev`'s:
-    /// when its best residual exceeds `prev`'s (a search that missed what
-    /// `prev` found), `prev`'s best answer is extended by one defect of
-    /// vanishing size at each new `(kind, position)` of `next`'s best
-    /// [`EXTENSIONS`] answers and refitted from there, every value and
-    /// chain parameter free ([`general::fit_pairs_from`]: its residual
-    /// cannot exceed the start's, which is `prev`'s); the best of them
-    /// joins `next`'s ranking. A fit that is not worse is returned as it is,
-    /// so the chi-square is non-increasing in `k` and the noise estimate
-    /// does not depend on how far `k` was raised.
-    ///
-    /// # Errors
-    /// As the observations' preparation and [`Self::measured`].
-    pub(super) fn monotone(&self, prev: &KFit, next: KFit, sigma: f64) -> Result<KFit> {
-        if next.k != prev.k + 1 || next.rss <= prev.rss || self.given.is_some() {
-            return Ok(next);
-        }
-        let (Some(base), Some(unknowns)) = (prev.ranked.first(), self.unknowns(next.k)?) else {
-            return Ok(next);
-        };
-        let (coarse, fine, misfit_name, _) = self.prepared(sigma)?;
-        let obs: &dyn MeasurementModel = match fine.as_ref() {
-            Some(t) => t,
-            None => &coarse,
-        };
-        let start = base.to_chain(self.model.chain())?.uniform();
-        let (mut best, mut spent, mut tried): (Option<Hypothesis>, usize, usize) = (None, 0, 0);
-        for (kind, at) in extensions(base, &next.ranked) {
-            let mut pairs = base.key();
-            pairs.push((kind, at));
-            let mut values = base.masses();
-            values.push(kind.uniform(&start));
-            tried += 1;
-            if let Ok((h, e)) =
-                general::fit_pairs_from(&start, &unknowns, &pairs, &values, obs, 100)
-            {
-                spent += e;
-                if best.as_ref().is_none_or(|b| h.chi2 < b.chi2) {
-                    best = Some(h);
-                }
+    /// What the search finds for `k` defects (the uniform chain for none).
+    fn found_k(
+        &self,
+        k: usize,
+        sigma: f64,
+        coarse: &LaplaceObs,
+        fine: Option<&TimeMisfit>,
+        setup: Setup,
+    ) -> Result<Found> {
+        Ok(match self.unknowns(k)? {
+            None => {
+                let (ranked, evaluations) = self.fit_uniform(coarse, fine)?;
+                Found::new(ranked, evaluations, 1, self.opts.method.name())
             }
-        }
-        let Some(h) = best else {
-            return Ok(next);
+            Some(unknowns) => self.search_prepared(k, sigma, &unknowns, coarse, fine, setup)?,
+        })
+    }
+
+    /// [`Self::search`] for `unknowns` on the prepared observations.
+    fn search_prepared(
+        &self,
+        k: usize,
+        sigma: f64,
+        unknowns: &Unknowns,
+        coarse: &LaplaceObs,
+        fine: Option<&TimeMisfit>,
+        mut setup: Setup,
+    ) -> Result<Found> {
+        // a small fit runs on one thread (search::parallel)
+        let large = set_count(unknowns) >= MIN_SETS as f64;
+        let gopts = GeneralOptions {
+            parallel: self.opts.parallel && large,
+            max_sets: self.opts.max_sets,
+            ..GeneralOptions::default()
         };
-        let mut ranked = next.ranked.clone();
-        ranked.push(h);
-        let (ranked, _) = self.ranked(ranked, 0)?;
-        let found = Found {
-            ranked,
-            evaluations: next.evaluations + spent,
-            hypotheses: next.hypotheses + tried,
-            method_name: next.method_name.clone(),
-            exhaustive: next.exhaustive,
-            budget_exhausted: next.budget_exhausted,
-            trace: next.trace.clone(),
+        setup.shortlist = setup.shortlist.max(self.opts.alternatives + 1);
+        let inputs = Inputs {
+            coarse,
+            fine,
+            setup: &setup,
+            gopts: &gopts,
         };
-        let f = self.measured(next.k, sigma, found, &coarse, fine.as_ref(), misfit_name)?;
-        Ok(if f.rss < next.rss { f } else { next })
+        self.search(unknowns, k, sigma, &inputs)
     }
 
     /// Run the options' search for the unknowns of `k` defects.
@@ -857,29 +843,16 @@ impl Engine<'_> {
 fn set_count(unknowns: &Unknowns) -> f64 {
     let slots = unknowns.slots();
     let free: Vec<&Slot> = slots.iter().filter(|s| s.at.is_none()).collect();
+    if let Some(c) = unknowns.candidates() {
+        let m = c.len() as f64;
+        return (0..free.len())
+            .fold(1.0, |c, i| c * (m - i as f64) / (i + 1) as f64)
+            .max(0.0);
+    }
     let open = unknowns.n().saturating_sub(slots.len() - free.len()) as f64;
     let kinds: f64 = free.iter().map(|s| s.kind.kinds().len() as f64).product();
     let places = (0..free.len()).fold(1.0, |c, i| c * (open - i as f64) / (i + 1) as f64);
     places.max(0.0) * kinds
-}
-
-/// How many of the next fit's best answers propose the new defect of
-/// [`Engine::monotone`]'s extensions.
-const EXTENSIONS: usize = 3;
-
-/// The `(kind, position)` pairs of the best [`EXTENSIONS`] hypotheses of
-/// `next` at positions that `base` does not hold, in order, each once.
-fn extensions(base: &Hypothesis, next: &[Hypothesis]) -> Vec<(DefectKind, usize)> {
-    let held = base.positions();
-    let mut out: Vec<(DefectKind, usize)> = Vec::new();
-    for h in next.iter().take(EXTENSIONS) {
-        for pair in h.key() {
-            if !held.contains(&pair.1) && !out.contains(&pair) {
-                out.push(pair);
-            }
-        }
-    }
-    out
 }
 
 /// The position set a stochastic search found (`positions` of the unknowns'
@@ -981,8 +954,8 @@ mod tests {
             record: Default::default(),
         };
         let sigma = 1e-3 * rec.y().iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        let prev = engine.fit_k(1, sigma).unwrap();
-        let good = engine.fit_k(2, sigma).unwrap();
+        let prev = engine.fit_k(1, sigma, None).unwrap();
+        let good = engine.fit_k(2, sigma, None).unwrap();
         assert!(good.rss <= prev.rss);
         let (rss, sets) = (good.rss, good.hypotheses);
         let kept = engine.monotone(&prev, good, sigma).unwrap();
@@ -1049,7 +1022,7 @@ mod tests {
                     support: std::sync::Mutex::new(None),
                     record: Default::default(),
                 };
-                let fast = engine.fit_k(2, sigma).unwrap();
+                let fast = engine.fit_k(2, sigma, None).unwrap();
                 let (coarse, fine, _, mut setup) = engine.prepared(sigma).unwrap();
                 setup.shortlist = setup.shortlist.max(5);
                 let unknowns = engine.unknowns(2).unwrap().unwrap();

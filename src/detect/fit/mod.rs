@@ -83,6 +83,7 @@ pub mod modal_locate;
 pub mod modal_scene;
 pub mod modal_update;
 pub mod model;
+mod narrow;
 pub mod noise;
 pub mod options;
 pub mod paper;
@@ -270,7 +271,7 @@ fn fit_every_k(
     let mut evaluations = 0;
     let mut fits: Vec<KFit> = Vec::with_capacity(ks.len());
     for &k in &ks {
-        let f = crate::cancel::checked(engine.fit_k(k, sigma))?;
+        let f = crate::cancel::checked(engine.fit_k(k, sigma, fits.last()))?;
         let f = match fits.last() {
             Some(prev) => engine.monotone(prev, f, sigma)?,
             None => f,
@@ -283,13 +284,14 @@ fn fit_every_k(
             }
         }
     }
+    evaluations += backward_pass(engine, &mut fits, sigma)?;
     if estimated {
         let s_hat = fits.last().expect("at least one k").sigma_hat;
         if s_hat > 0.0 && !(0.5..=2.0).contains(&(s_hat / sigma)) {
             sigma = s_hat;
             let mut refit = Vec::with_capacity(fits.len());
             for f in &fits {
-                let g = crate::cancel::checked(engine.fit_k(f.k, sigma))?;
+                let g = crate::cancel::checked(engine.fit_k(f.k, sigma, refit.last()))?;
                 let g = match refit.last() {
                     Some(prev) => engine.monotone(prev, g, sigma)?,
                     None => g,
@@ -297,6 +299,7 @@ fn fit_every_k(
                 evaluations += g.evaluations;
                 refit.push(g);
             }
+            evaluations += backward_pass(engine, &mut refit, sigma)?;
             fits = refit;
         }
         sigma = fits
@@ -306,6 +309,20 @@ fn fit_every_k(
             .max(f64::MIN_POSITIVE);
     }
     Ok((fits, sigma, evaluations))
+}
+
+/// Every fit made no worse than the next one's best answer with a defect
+/// dropped ([`Engine::backward`]), from the largest `k` down. Returns the
+/// evaluations spent.
+fn backward_pass(engine: &Engine, fits: &mut [KFit], sigma: f64) -> Result<usize> {
+    let mut spent = 0;
+    for i in (1..fits.len()).rev() {
+        if let Some(f) = engine.backward(&fits[i - 1], &fits[i], sigma)? {
+            spent += f.evaluations.saturating_sub(fits[i - 1].evaluations);
+            fits[i - 1] = f;
+        }
+    }
+    Ok(spent)
 }
 
 /// The number of defects: the only fit, or the criterion's choice. Returns

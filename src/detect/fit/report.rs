@@ -247,7 +247,9 @@ pub struct FitReport {
     /// Position (and kind) sets fitted for the chosen number of defects.
     pub sets_fitted: usize,
     /// Whether every position set was ranked (false: the Woodbury kernel's
-    /// beam search, for more sets than `max_sets`).
+    /// beam search, for more sets than `max_sets`; or a search over every
+    /// kind whose kinds per position were narrowed, `detect::fit::narrow`,
+    /// which `method` then names).
     pub exhaustive: bool,
     /// `(evaluations, best cost)` per iteration of a stochastic search, when
     /// traced (`Given::trace`, the scene's `[search] trace`); the cost is the

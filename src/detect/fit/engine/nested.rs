@@ -1,0 +1,171 @@
+//! The fits at neighbouring numbers of defects made consistent with each
+//! other: the fit at `k + 1` is never worse than the fit at `k` (it is
+//! extended from it when its search missed, [`Engine::monotone`]), and the
+//! fit at `k` is never worse than the best answer at `k + 1` with one defect
+//! dropped ([`Engine::backward`]: a search that did not rank every set,
+//! such as the kinds narrowed per position of `detect::fit::narrow`, can
+//! miss at `k` what it finds at `k + 1`).
+
+use super::{Engine, Found, KFit};
+use crate::detect::fit::general::{self, Hypothesis};
+use crate::detect::model::MeasurementModel;
+use crate::detect::unknowns::DefectKind;
+use crate::error::Result;
+
+impl Engine<'_> {
+    /// The fit of `next.k = prev.k + 1` defects made no worse than `prev`'s:
+    /// when its best residual exceeds `prev`'s (a search that missed what
+    /// `prev` found), `prev`'s best answer is extended by one defect of
+    /// vanishing size at each new `(kind, position)` of `next`'s best
+    /// [`EXTENSIONS`] answers and refitted from there, every value and
+    /// chain parameter free ([`general::fit_pairs_from`]: its residual
+    /// cannot exceed the start's, which is `prev`'s); the best of them
+    /// joins `next`'s ranking. A fit that is not worse is returned as it is,
+    /// so the chi-square is non-increasing in `k` and the noise estimate
+    /// does not depend on how far `k` was raised.
+    ///
+    /// # Errors
+    /// As the observations' preparation and [`Self::measured`].
+    pub(in crate::detect::fit) fn monotone(
+        &self,
+        prev: &KFit,
+        next: KFit,
+        sigma: f64,
+    ) -> Result<KFit> {
+        if next.k != prev.k + 1 || next.rss <= prev.rss || self.given.is_some() {
+            return Ok(next);
+        }
+        let (Some(base), Some(unknowns)) = (prev.ranked.first(), self.unknowns(next.k)?) else {
+            return Ok(next);
+        };
+        let (coarse, fine, misfit_name, _) = self.prepared(sigma)?;
+        let obs: &dyn MeasurementModel = match fine.as_ref() {
+            Some(t) => t,
+            None => &coarse,
+        };
+        let start = base.to_chain(self.model.chain())?.uniform();
+        let (mut best, mut spent, mut tried): (Option<Hypothesis>, usize, usize) = (None, 0, 0);
+        for (kind, at) in extensions(base, &next.ranked) {
+            let mut pairs = base.key();
+            pairs.push((kind, at));
+            let mut values = base.masses();
+            values.push(kind.uniform(&start));
+            tried += 1;
+            if let Ok((h, e)) =
+                general::fit_pairs_from(&start, &unknowns, &pairs, &values, obs, 100)
+            {
+                spent += e;
+                if best.as_ref().is_none_or(|b| h.chi2 < b.chi2) {
+                    best = Some(h);
+                }
+            }
+        }
+        let Some(h) = best else {
+            return Ok(next);
+        };
+        let mut ranked = next.ranked.clone();
+        ranked.push(h);
+        let (ranked, _) = self.ranked(ranked, 0)?;
+        let found = Found {
+            ranked,
+            evaluations: next.evaluations + spent,
+            hypotheses: next.hypotheses + tried,
+            method_name: next.method_name.clone(),
+            exhaustive: next.exhaustive,
+            budget_exhausted: next.budget_exhausted,
+            trace: next.trace.clone(),
+        };
+        let f = self.measured(next.k, sigma, found, &coarse, fine.as_ref(), misfit_name)?;
+        Ok(if f.rss < next.rss { f } else { next })
+    }
+
+    /// The fit of `prev.k = next.k - 1` defects made no worse than `next`'s
+    /// best answer with one defect of unknown position dropped: each such
+    /// subset is refitted from `next`'s values (every value and chain
+    /// parameter free, [`general::fit_pairs_from`]) and the best joins
+    /// `prev`'s ranking when it beats `prev`'s best. Only where `prev`'s
+    /// search did not rank every set (`exhaustive` false): an exhaustive
+    /// search has already fitted every subset. Returns `None` when `prev`
+    /// stands.
+    ///
+    /// # Errors
+    /// As the observations' preparation and [`Self::measured`].
+    pub(in crate::detect::fit) fn backward(
+        &self,
+        prev: &KFit,
+        next: &KFit,
+        sigma: f64,
+    ) -> Result<Option<KFit>> {
+        if prev.exhaustive || next.k != prev.k + 1 || prev.k == 0 || self.given.is_some() {
+            return Ok(None);
+        }
+        let (Some(top), Some(unknowns)) = (next.ranked.first(), self.unknowns(prev.k)?) else {
+            return Ok(None);
+        };
+        let known = self.model.chain().defects().len();
+        let (pairs, values) = (top.key(), top.masses());
+        if pairs.len() != known + next.k {
+            return Ok(None);
+        }
+        let (coarse, fine, misfit_name, _) = self.prepared(sigma)?;
+        let obs: &dyn MeasurementModel = match fine.as_ref() {
+            Some(t) => t,
+            None => &coarse,
+        };
+        let start = top.to_chain(self.model.chain())?.uniform();
+        let (mut best, mut spent): (Option<Hypothesis>, usize) = (None, 0);
+        for drop in known..pairs.len() {
+            let (mut p, mut v) = (pairs.clone(), values.clone());
+            p.remove(drop);
+            v.remove(drop);
+            if prev.ranked.iter().any(|h| h.key() == p) {
+                continue;
+            }
+            if let Ok((h, e)) = general::fit_pairs_from(&start, &unknowns, &p, &v, obs, 100) {
+                spent += e;
+                if best.as_ref().is_none_or(|b| h.chi2 < b.chi2) {
+                    best = Some(h);
+                }
+            }
+        }
+        let Some(h) = best else {
+            return Ok(None);
+        };
+        if prev.ranked.first().is_some_and(|b| b.chi2 <= h.chi2) {
+            return Ok(None);
+        }
+        let mut ranked = prev.ranked.clone();
+        ranked.push(h);
+        let (ranked, _) = self.ranked(ranked, 0)?;
+        let found = Found {
+            ranked,
+            evaluations: prev.evaluations + spent,
+            hypotheses: prev.hypotheses + 1,
+            method_name: prev.method_name.clone(),
+            exhaustive: false,
+            budget_exhausted: prev.budget_exhausted,
+            trace: prev.trace.clone(),
+        };
+        let f = self.measured(prev.k, sigma, found, &coarse, fine.as_ref(), misfit_name)?;
+        Ok((f.rss < prev.rss).then_some(f))
+    }
+}
+
+/// How many of the next fit's best answers propose the new defect of
+/// [`Engine::monotone`]'s extensions.
+const EXTENSIONS: usize = 3;
+
+/// The `(kind, position)` pairs of the best [`EXTENSIONS`] hypotheses of
+/// `next` at positions that `base` does not hold, in order, each once.
+fn extensions(base: &Hypothesis, next: &[Hypothesis]) -> Vec<(DefectKind, usize)> {
+    let held = base.positions();
+    let mut out: Vec<(DefectKind, usize)> = Vec::new();
+    for h in next.iter().take(EXTENSIONS) {
+        for pair in h.key() {
+            if !held.contains(&pair.1) && !out.contains(&pair) {
+                out.push(pair);
+            }
+        }
+    }
+    out
+}
