@@ -65,6 +65,7 @@
 //! | [`scenes`] | the reference scenes (the paper's P1-P4 and Table 1's S1-S4, the noise study's C3a, C3b, k0-k3), shared by tests, benches and configs |
 //! | [`scalar`], [`precision`], [`linalg`] | number types (`f64`, `Complex64`, extended precision) and the small pivoted solve |
 //! | [`green`] | closed-form Green's function, overflow-free for every `n` and `s` |
+//! | [`observable`] | what a sensor measures at a mass: displacement, velocity or acceleration |
 //! | [`forward`] | Woodbury response; [`forward::tridiag`] the O(n) reference |
 //! | [`sensitivity`] | derivatives of X_o(s) with respect to every parameter (reciprocity) |
 //! | [`time`] | simulation ([`time::simulate`]), exact ([`time::modal`]) and numerical ([`time::inverse`]) inverse Laplace transforms, transform of sampled series ([`time::series`]) |
@@ -95,6 +96,7 @@ pub mod green;
 pub mod io;
 pub mod linalg;
 pub mod noise;
+pub mod observable;
 pub mod plot;
 pub mod precision;
 pub mod scalar;

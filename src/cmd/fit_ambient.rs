@@ -1,7 +1,7 @@
 //! `springmass fit --data FILE --excitation ambient --observe 1,15,30`:
 //! output-only fits (`springmass::detect::fit::ambient`).
 
-use super::fit::Args;
+use super::fit_args::Args;
 use anyhow::Context;
 use springmass::detect::data::ambient::AmbientRecord;
 use springmass::detect::fit::ambient::{fit_ambient, AmbientOptions, AmbientTarget};
@@ -31,7 +31,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             "one --data file with --excitation ambient"
         )),
     };
-    let n = super::fit::chain_size(a)?;
+    let n = super::fit_args::chain_size(a)?;
     let opts = options(a)?;
     let kind: Observable = a
         .observe_kind

@@ -1,7 +1,7 @@
 //! `springmass fit --modes FILE`: structural model updating from measured
 //! modes (`springmass::detect::fit::modal_update`).
 
-use super::fit::Args;
+use super::fit_args::Args;
 use anyhow::Context;
 use springmass::detect::data::modes::MeasuredModes;
 use springmass::detect::fit::modal_update::{update_from_modes, ModalUpdateOptions};
@@ -10,7 +10,7 @@ use springmass::detect::fit::profile::ProfileMode;
 /// Read the modes, build the nominal chain, update it, print the report.
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let path = a.modes.clone().expect("checked by the caller");
-    let n = super::fit::chain_size(a)?;
+    let n = super::fit_args::chain_size(a)?;
     if a.defects.is_some() {
         return run_locate(a, n);
     }
@@ -125,7 +125,7 @@ pub(crate) fn nominal_chain(a: &Args, n: usize) -> anyhow::Result<springmass::Ch
         left: a.left.clone(),
         right: a.right.clone(),
         damping: a.damping.clone(),
-        baseline: super::fit::baseline_spec(a),
+        baseline: super::fit_args::baseline_spec(a),
         ..springmass::detect::fit::options::FitSpec::new(n)
     };
     Ok(spec.model()?.chain().clone())

@@ -3,6 +3,7 @@
 pub mod config;
 pub mod fit;
 pub mod fit_ambient;
+pub mod fit_args;
 pub mod fit_modes;
 pub mod laplace;
 pub mod locate;

@@ -59,7 +59,7 @@
 
 use crate::chain::{closed_theta, Boundary, Chain, Damping};
 use crate::error::{Error, Result};
-use crate::forward::Observable;
+use crate::observable::Observable;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 

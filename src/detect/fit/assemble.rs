@@ -265,7 +265,7 @@ impl Engine<'_> {
         if s.others().is_empty() {
             return Vec::new();
         }
-        let levels = super::stages::sensor_levels(f);
+        let levels = f.sensor_levels();
         s.sensors()
             .enumerate()
             .map(|(j, o)| {

@@ -148,7 +148,7 @@ pub fn default_bounds(chain: &Chain, params: &[Param]) -> Vec<(f64, f64)> {
         .iter()
         .map(|p| {
             let v = p.get(chain).unwrap_or(1.0);
-            if let Some(b) = crate::detect::fit::damping::bounds(chain, *p) {
+            if let Some(b) = crate::detect::fit::damping_scales::bounds(chain, *p) {
                 return b;
             }
             match p {

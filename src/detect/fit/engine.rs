@@ -110,6 +110,22 @@ pub(super) struct Given {
 }
 
 impl KFit {
+    /// Each sensor's noise level from its residual at the answer,
+    /// `sqrt(RSS_j / (N_j (1 - p / N)))` with `N` the samples of every sensor
+    /// and `p` the fit's parameters (empty for one sensor).
+    pub(super) fn sensor_levels(&self) -> Vec<f64> {
+        let total: usize = self.sensors.iter().map(|s| s.1).sum();
+        let keep = 1.0 - self.params as f64 / total.max(1) as f64;
+        self.sensors
+            .iter()
+            .map(|&(rss, n, _)| {
+                (rss / (n as f64 * keep.max(1e-12)))
+                    .sqrt()
+                    .max(f64::MIN_POSITIVE)
+            })
+            .collect()
+    }
+
     /// The chi-square used to compare numbers of defects: the time-domain
     /// `RSS / sigma^2` for series data, the misfit's own otherwise.
     pub(super) fn chi2_at(&self, sigma: f64, estimated: bool) -> f64 {

@@ -208,7 +208,7 @@ impl Model {
         if damping.is_grounded() {
             return Ok(self);
         }
-        let start = crate::detect::fit::damping::start(&self.chain, damping.name())?;
+        let start = crate::detect::fit::damping_scales::start(&self.chain, damping.name())?;
         // the given values, a missing one from the start (a modal model
         // keeps as many ratios as given)
         let from_start = start.params();
@@ -252,7 +252,7 @@ impl Model {
         if name == "grounded" {
             return Ok(m);
         }
-        let start = crate::detect::fit::damping::start(&self.chain, name)?;
+        let start = crate::detect::fit::damping_scales::start(&self.chain, name)?;
         m.with_d(0.0)?.with_damping(start)
     }
 

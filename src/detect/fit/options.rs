@@ -175,7 +175,7 @@ pub struct FitOptions {
     pub level: f64,
     /// The prior of the probabilities over hypotheses
     /// ([`super::posterior`]).
-    pub prior: super::posterior::Prior,
+    pub prior: super::prior::Prior,
     /// Compute the intervals and the probabilities over hypotheses
     /// (default true).
     pub uncertainty: bool,
@@ -559,7 +559,7 @@ impl FitSpec {
             opts.level = super::intervals::check_level(l)?;
         }
         opts.prior =
-            super::posterior::Prior::parse(self.prior_k.as_deref(), self.prior_range.as_deref())?;
+            super::prior::Prior::parse(self.prior_k.as_deref(), self.prior_range.as_deref())?;
         if let Some(u) = self.uncertainty {
             opts.uncertainty = u;
         }

@@ -188,7 +188,7 @@ fn rescaled(mut stage: Stage<'_>, sigma0: f64, estimated: bool) -> Result<Stage<
     let (obs, model, opts) = (stage.engine.obs, stage.engine.model, stage.engine.opts);
     let mut refits = 0;
     while estimated && refits < MAX_REFITS {
-        let levels = sensor_levels(stage.best());
+        let levels = stage.best().sensor_levels();
         let scales: Vec<f64> = levels.iter().skip(1).map(|s| s / levels[0]).collect();
         let old = &stage.engine.record.scales;
         let moved = scales
@@ -214,22 +214,6 @@ fn rescaled(mut stage: Stage<'_>, sigma0: f64, estimated: bool) -> Result<Stage<
 /// The largest ratio between a sensor's relative noise level estimated
 /// from the residuals and the one a fit used before it is refitted.
 pub const SCALE_TOLERANCE: f64 = 1.25;
-
-/// Each sensor's noise level from its residual at `f`'s answer,
-/// `sqrt(RSS_j / (N_j (1 - p / N)))` with `N` the samples of every sensor
-/// and `p` the fit's parameters (empty for one sensor).
-pub(super) fn sensor_levels(f: &KFit) -> Vec<f64> {
-    let total: usize = f.sensors.iter().map(|s| s.1).sum();
-    let keep = 1.0 - f.params as f64 / total.max(1) as f64;
-    f.sensors
-        .iter()
-        .map(|&(rss, n, _)| {
-            (rss / (n as f64 * keep.max(1e-12)))
-                .sqrt()
-                .max(f64::MIN_POSITIVE)
-        })
-        .collect()
-}
 
 /// The further sensors' noise levels relative to the first's to start
 /// from: 1 (a given level holds for every sensor), or the ratios of the

@@ -26,50 +26,15 @@
 use crate::chain::Chain;
 use crate::detect::data::observations::{Observations, Series};
 use crate::detect::data::trigger::{detect_onset, TriggerSpec};
-use crate::detect::fit::report::fmt_g;
+pub use crate::detect::fit::report::trigger::TriggerEstimate;
 use crate::detect::fit::{FitReport, Model};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use crate::time::modal::ModalResponse;
 use nalgebra::DMatrix;
-use serde::Serialize;
 
 /// Largest chain whose blow time is refined and given a standard error.
 pub const MAX_N_REFINE: usize = 100;
-
-/// The blow's time as the report gives it.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct TriggerEstimate {
-    /// The blow's time on the record's own axis.
-    pub time: f64,
-    /// Its standard error (NaN where not computed, see the module docs).
-    pub se: f64,
-    /// Samples before the blow, left out of the fit.
-    pub dropped: usize,
-    /// Detected from the record (`false`: given by the user).
-    pub detected: bool,
-    /// Refits at a refined time (0 or 1).
-    pub refits: usize,
-}
-
-impl TriggerEstimate {
-    /// One line for the report: `blow at t = 10.07 +- 2e-4 on the record's
-    /// axis (detected; 51 samples before it left out)`.
-    pub fn line(&self) -> String {
-        format!(
-            "blow at t = {} +- {} on the record's axis ({}; {} samples before it left out{})",
-            fmt_g(self.time),
-            fmt_g(self.se),
-            if self.detected { "detected" } else { "given" },
-            self.dropped,
-            if self.refits > 0 {
-                ", refitted at the refined time"
-            } else {
-                ""
-            },
-        )
-    }
-}
 
 /// The time (on `obs`'s own re-based axis, [`Series::t`]) to re-time the
 /// record to, or `None` for the paper's record that starts with the blow.

@@ -27,6 +27,7 @@ use super::chainfit::ChainProblem;
 use super::engine::{Engine, KFit};
 use super::general::Hypothesis;
 use super::options::DefectCount;
+pub use super::report::unseen::{Unseen, UnseenElement, Z};
 use super::Model;
 use crate::chain::Chain;
 use crate::detect::model::MeasurementModel;
@@ -35,12 +36,6 @@ use crate::detect::unknowns::DefectKind;
 use crate::error::Result;
 use crate::sensitivity::Param;
 use nalgebra::DVector;
-use serde::Serialize;
-
-/// Standard errors a change must span to count as seen: it must move
-/// `chi^2` by at least `Z^2 = 4` (the report's visibility line uses the same
-/// two standard errors).
-pub const Z: f64 = 2.0;
 
 /// The relative change the check is stated for: the element halved, and
 /// doubled (the smaller of the two moves counts).
@@ -49,55 +44,6 @@ pub const CHANGE: f64 = 0.5;
 /// Most elements probed (two residual evaluations each); a longer chain is
 /// probed at this many evenly spaced elements.
 pub const MAX_PROBES: usize = 120;
-
-/// One element whose halving or doubling the data would not show.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-pub struct UnseenElement {
-    /// `mass` or `spring`.
-    pub kind: &'static str,
-    /// Its position (a mass `1..=n`, a spring `0..=n`).
-    pub at: usize,
-}
-
-/// The check's result: the elements whose halving or doubling the data
-/// would not show (the report's JSON field `unseen`).
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Unseen {
-    /// Each such element, masses first, by position.
-    pub elements: Vec<UnseenElement>,
-    /// The elements probed.
-    pub checked: usize,
-    /// The elements the answer leaves unchanged (more than `checked` on a
-    /// chain longer than [`MAX_PROBES`]).
-    pub of: usize,
-}
-
-impl Unseen {
-    /// One line for the report's message.
-    pub fn line(&self) -> String {
-        let mut parts = Vec::new();
-        for kind in DefectKind::ALL {
-            let at: Vec<usize> = self
-                .elements
-                .iter()
-                .filter(|e| e.kind == kind.name())
-                .map(|e| e.at)
-                .collect();
-            if !at.is_empty() {
-                parts.push(format!("{} {}", kind.name(), ranges(&at)));
-            }
-        }
-        let sampled = if self.checked < self.of {
-            format!(" ({} of {} elements probed)", self.checked, self.of)
-        } else {
-            String::new()
-        };
-        format!(
-            "the data would not show a further defect halving or doubling {}{sampled} (less than {Z} standard errors): the answer is the best fit, but the record does not rule out more defects there",
-            parts.join(", ")
-        )
-    }
-}
 
 impl Engine<'_> {
     /// [`unseen`] for the answer `best` of `f` (`scale`: the final noise
@@ -121,25 +67,6 @@ impl Engine<'_> {
         .ok()
         .flatten()
     }
-}
-
-/// `1-3, 7, 9-12`.
-fn ranges(at: &[usize]) -> String {
-    let mut out: Vec<String> = Vec::new();
-    let mut i = 0;
-    while i < at.len() {
-        let mut j = i;
-        while j + 1 < at.len() && at[j + 1] == at[j] + 1 {
-            j += 1;
-        }
-        out.push(if j > i {
-            format!("{}-{}", at[i], at[j])
-        } else {
-            at[i].to_string()
-        });
-        i = j + 1;
-    }
-    out.join(", ")
 }
 
 /// The elements of `kinds` (masses and springs; other kinds have no
@@ -255,12 +182,6 @@ fn spaced<T: Copy>(v: Vec<T>, max: usize) -> Vec<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn ranges_join_runs() {
-        assert_eq!(ranges(&[1, 2, 3, 7, 9, 10]), "1-3, 7, 9-10");
-        assert_eq!(ranges(&[4]), "4");
-    }
 
     #[test]
     fn spacing_keeps_the_ends_and_the_count() {

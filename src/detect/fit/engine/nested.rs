@@ -7,9 +7,10 @@
 //! miss at `k` what it finds at `k + 1`).
 
 use super::{Engine, Found, KFit};
+use crate::chain::Chain;
 use crate::detect::fit::general::{self, Hypothesis};
 use crate::detect::model::MeasurementModel;
-use crate::detect::unknowns::DefectKind;
+use crate::detect::unknowns::{DefectKind, KindPositions};
 use crate::error::Result;
 
 impl Engine<'_> {
@@ -35,48 +36,25 @@ impl Engine<'_> {
         if next.k != prev.k + 1 || next.rss <= prev.rss || self.given.is_some() {
             return Ok(next);
         }
-        let (Some(base), Some(unknowns)) = (prev.ranked.first(), self.unknowns(next.k)?) else {
+        let Some(base) = prev.ranked.first() else {
             return Ok(next);
-        };
-        let (coarse, fine, misfit_name, _) = self.prepared(sigma)?;
-        let obs: &dyn MeasurementModel = match fine.as_ref() {
-            Some(t) => t,
-            None => &coarse,
         };
         let start = base.to_chain(self.model.chain())?.uniform();
-        let (mut best, mut spent, mut tried): (Option<Hypothesis>, usize, usize) = (None, 0, 0);
-        for (kind, at) in extensions(base, &next.ranked) {
-            let mut pairs = base.key();
-            pairs.push((kind, at));
-            let mut values = base.masses();
-            values.push(kind.uniform(&start));
-            tried += 1;
-            if let Ok((h, e)) =
-                general::fit_pairs_from(&start, &unknowns, &pairs, &values, obs, 100)
-            {
-                spent += e;
-                if best.as_ref().is_none_or(|b| h.chi2 < b.chi2) {
-                    best = Some(h);
-                }
-            }
-        }
-        let Some(h) = best else {
-            return Ok(next);
-        };
-        let mut ranked = next.ranked.clone();
-        ranked.push(h);
-        let (ranked, _) = self.ranked(ranked, 0)?;
-        let found = Found {
-            ranked,
-            evaluations: next.evaluations + spent,
-            hypotheses: next.hypotheses + tried,
-            method_name: next.method_name.clone(),
-            exhaustive: next.exhaustive,
-            budget_exhausted: next.budget_exhausted,
-            trace: next.trace.clone(),
-        };
-        let f = self.measured(next.k, sigma, found, &coarse, fine.as_ref(), misfit_name)?;
-        Ok(if f.rss < next.rss { f } else { next })
+        let starts = extensions(base, &next.ranked)
+            .into_iter()
+            .map(|(kind, at)| {
+                let (mut pairs, mut values) = (base.key(), base.masses());
+                pairs.push((kind, at));
+                values.push(kind.uniform(&start));
+                (pairs, values)
+            });
+        let exhaustive = next.exhaustive;
+        Ok(
+            match self.joined(&next, &start, starts.collect(), exhaustive, sigma)? {
+                Some(f) if f.rss < next.rss => f,
+                _ => next,
+            },
+        )
     }
 
     /// The fit of `prev.k = next.k - 1` defects made no worse than `next`'s
@@ -99,7 +77,7 @@ impl Engine<'_> {
         if prev.exhaustive || next.k != prev.k + 1 || prev.k == 0 || self.given.is_some() {
             return Ok(None);
         }
-        let (Some(top), Some(unknowns)) = (next.ranked.first(), self.unknowns(prev.k)?) else {
+        let Some(top) = next.ranked.first() else {
             return Ok(None);
         };
         let known = self.model.chain().defects().len();
@@ -107,21 +85,49 @@ impl Engine<'_> {
         if pairs.len() != known + next.k {
             return Ok(None);
         }
+        let start = top.to_chain(self.model.chain())?.uniform();
+        let starts: Vec<_> = (known..pairs.len())
+            .map(|drop| {
+                let (mut p, mut v) = (pairs.clone(), values.clone());
+                p.remove(drop);
+                v.remove(drop);
+                (p, v)
+            })
+            .filter(|(p, _)| prev.ranked.iter().all(|h| h.key() != *p))
+            .collect();
+        Ok(self
+            .joined(prev, &start, starts, false, sigma)?
+            .filter(|f| f.rss < prev.rss))
+    }
+
+    /// The best of `starts` (each a `(kind, position)` set of `into.k`
+    /// defects with its starting values) refitted from `start`'s chain
+    /// parameters ([`general::fit_pairs_from`]: every value and chain
+    /// parameter free, never worse than the start), joined to `into`'s
+    /// ranking and measured against the data; `None` when none could be
+    /// fitted or the best does not beat `into`'s best.
+    ///
+    /// # Errors
+    /// As the observations' preparation and [`Self::measured`].
+    fn joined(
+        &self,
+        into: &KFit,
+        start: &Chain,
+        starts: Vec<(KindPositions, Vec<f64>)>,
+        exhaustive: bool,
+        sigma: f64,
+    ) -> Result<Option<KFit>> {
+        let Some(unknowns) = self.unknowns(into.k)? else {
+            return Ok(None);
+        };
         let (coarse, fine, misfit_name, _) = self.prepared(sigma)?;
         let obs: &dyn MeasurementModel = match fine.as_ref() {
             Some(t) => t,
             None => &coarse,
         };
-        let start = top.to_chain(self.model.chain())?.uniform();
         let (mut best, mut spent): (Option<Hypothesis>, usize) = (None, 0);
-        for drop in known..pairs.len() {
-            let (mut p, mut v) = (pairs.clone(), values.clone());
-            p.remove(drop);
-            v.remove(drop);
-            if prev.ranked.iter().any(|h| h.key() == p) {
-                continue;
-            }
-            if let Ok((h, e)) = general::fit_pairs_from(&start, &unknowns, &p, &v, obs, 100) {
+        for (pairs, values) in &starts {
+            if let Ok((h, e)) = general::fit_pairs_from(start, &unknowns, pairs, values, obs, 100) {
                 spent += e;
                 if best.as_ref().is_none_or(|b| h.chi2 < b.chi2) {
                     best = Some(h);
@@ -131,23 +137,23 @@ impl Engine<'_> {
         let Some(h) = best else {
             return Ok(None);
         };
-        if prev.ranked.first().is_some_and(|b| b.chi2 <= h.chi2) {
+        if into.ranked.first().is_some_and(|b| b.chi2 <= h.chi2) {
             return Ok(None);
         }
-        let mut ranked = prev.ranked.clone();
+        let mut ranked = into.ranked.clone();
         ranked.push(h);
         let (ranked, _) = self.ranked(ranked, 0)?;
         let found = Found {
             ranked,
-            evaluations: prev.evaluations + spent,
-            hypotheses: prev.hypotheses + 1,
-            method_name: prev.method_name.clone(),
-            exhaustive: false,
-            budget_exhausted: prev.budget_exhausted,
-            trace: prev.trace.clone(),
+            evaluations: into.evaluations + spent,
+            hypotheses: into.hypotheses + starts.len(),
+            method_name: into.method_name.clone(),
+            exhaustive,
+            budget_exhausted: into.budget_exhausted,
+            trace: into.trace.clone(),
         };
-        let f = self.measured(prev.k, sigma, found, &coarse, fine.as_ref(), misfit_name)?;
-        Ok((f.rss < prev.rss).then_some(f))
+        let f = self.measured(into.k, sigma, found, &coarse, fine.as_ref(), misfit_name)?;
+        Ok(Some(f))
     }
 }
 

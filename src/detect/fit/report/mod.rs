@@ -7,6 +7,16 @@ use crate::detect::fit::identify::Identifiability;
 use crate::detect::unknowns::DefectKind;
 use serde::Serialize;
 
+pub mod damping;
+pub mod posterior;
+pub mod trigger;
+pub mod unseen;
+
+pub use damping::{DampingCandidate, DampingEstimate};
+pub use posterior::Posterior;
+pub use trigger::TriggerEstimate;
+pub use unseen::{Unseen, UnseenElement};
+
 /// How the fit ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -272,7 +282,7 @@ pub struct FitReport {
     /// further defect could hide there; see [`crate::detect::fit::unseen`]);
     /// `None` when the check was not made.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub unseen: Option<crate::detect::fit::unseen::Unseen>,
+    pub unseen: Option<Unseen>,
     /// Natural frequencies and damping ratios of the fitted chain (its
     /// units: rad/s and Hz when the data and the chain are in SI units);
     /// empty for a non-uniform chain of more than 400 masses (the dense
@@ -282,7 +292,7 @@ pub struct FitReport {
     /// to it ([`crate::detect::fit::trigger`]; absent for a record that
     /// starts with the blow, and for Laplace values).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub trigger: Option<crate::detect::fit::trigger::TriggerEstimate>,
+    pub trigger: Option<TriggerEstimate>,
     /// The record's noise model (a series fitted by the time misfit):
     /// `white`, or `ar` with its order, coefficients, innovation sigma and
     /// refits ([`crate::detect::fit::record`]).
@@ -299,7 +309,7 @@ pub struct FitReport {
     /// The damping model with its parameters and standard errors (absent
     /// for the grounded model chosen by the user, the paper's).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub damping: Option<crate::detect::fit::damping::DampingEstimate>,
+    pub damping: Option<DampingEstimate>,
     /// The measured profile the defects are relative to (its file, or
     /// `inline`); absent for the uniform chain.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -311,7 +321,7 @@ pub struct FitReport {
     /// `pruned_bound`, ...; [`crate::detect::fit::posterior`]); absent
     /// when it could not be computed.
     #[serde(flatten, skip_serializing_if = "Option::is_none")]
-    pub posterior: Option<crate::detect::fit::posterior::Posterior>,
+    pub posterior: Option<Posterior>,
 }
 
 /// One natural mode of the fitted chain

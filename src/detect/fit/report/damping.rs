@@ -1,0 +1,94 @@
+//! The report's damping model and its parameters (the model chosen by
+//! [`crate::detect::fit::damping`]).
+
+use super::FitReport;
+use crate::detect::fit::model::Model;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// One candidate model of a fit that chose the damping model, as its
+/// screening fit ([`crate::detect::fit::damping::screen_options`]) left it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DampingCandidate {
+    /// `grounded`, `between` or `rayleigh`.
+    pub model: String,
+    /// Its criterion value (smaller is better; `NaN` when its fit failed).
+    pub criterion: f64,
+    /// Its number of defects.
+    pub k: usize,
+    /// Its positions.
+    pub positions: Vec<usize>,
+}
+
+/// The damping model of a fit and its parameters with standard errors:
+/// JSON `{"model": "rayleigh", "a": .., "b": .., "se": {"a": .., "b": ..},
+/// "fitted": true, "candidates": [..]}`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DampingEstimate {
+    /// `grounded`, `between` or `rayleigh`.
+    pub model: String,
+    /// Its parameters (`d` for grounded; `c`; `a`, `b`).
+    #[serde(flatten)]
+    pub values: BTreeMap<String, f64>,
+    /// Their standard errors (0 for a parameter not fitted).
+    pub se: BTreeMap<String, f64>,
+    /// Whether they were fitted.
+    pub fitted: bool,
+    /// Every model fitted when the fit chose the model (empty otherwise).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub candidates: Vec<DampingCandidate>,
+}
+
+impl DampingEstimate {
+    /// The entry of a report fitted with `model`'s damping model.
+    pub fn of(report: &FitReport, model: &Model) -> DampingEstimate {
+        let chain = model.chain();
+        let damping = chain.damping();
+        let mut names: Vec<(String, f64)> = damping.params();
+        if damping.is_grounded() {
+            names = vec![("d".into(), chain.d())];
+        }
+        let mut values = BTreeMap::new();
+        let mut se = BTreeMap::new();
+        let mut fitted = false;
+        for (name, v) in names {
+            match report.params.iter().find(|p| p.name == name) {
+                Some(p) => {
+                    values.insert(name.to_string(), p.value);
+                    se.insert(name.to_string(), p.se);
+                    fitted = true;
+                }
+                None => {
+                    values.insert(name.to_string(), v);
+                    se.insert(name.to_string(), 0.0);
+                }
+            }
+        }
+        DampingEstimate {
+            model: damping.name().to_string(),
+            values,
+            se,
+            fitted,
+            candidates: Vec::new(),
+        }
+    }
+
+    /// One line for the text report.
+    pub fn line(&self) -> String {
+        let vals: Vec<String> = self
+            .values
+            .iter()
+            .map(|(k, v)| format!("{k} = {v:.4e} +- {:.2e}", self.se.get(k).unwrap_or(&0.0)))
+            .collect();
+        let mut out = format!("damping model: {} ({})", self.model, vals.join(", "));
+        if !self.candidates.is_empty() {
+            let c: Vec<String> = self
+                .candidates
+                .iter()
+                .map(|c| format!("{} {:.1}", c.model, c.criterion))
+                .collect();
+            out.push_str(&format!("; chosen by BIC among {}", c.join(", ")));
+        }
+        out
+    }
+}
