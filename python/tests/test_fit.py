@@ -290,3 +290,23 @@ def test_a_ratio_per_mode_is_simulated_and_fitted():
         assert abs(r.damping[name] - z) < 3 * r.damping["se"][name], r.damping
     with pytest.raises(ValueError, match=r"damping.zeta\[1\]"):
         springmass.simulate(5, t=t, damping="modal:0.01,-1")
+
+
+def test_any_kind_is_searched_with_the_kinds_narrowed_per_position():
+    # n = 12, a mass (2 at 4) and a spring (0.5 at 8), 1% noise: with the
+    # kind unknown and k left to BIC, the search from k = 2 on takes its
+    # kinds per position from the sensitivities at k - 1 (the report says
+    # so), and its answer is the full product's at the same k
+    t = np.arange(0.0, 200.0, 0.1)
+    defects = [("mass", 4, 2.0), ("spring", 8, 0.5)]
+    x = springmass.simulate(12, t=t, defects=defects, noise="rel:0.01", seed=3)
+    r = springmass.fit(t, x, n=12, kinds="any")
+    assert [(e.kind, e.at) for e in r.defects] == [("mass", 4), ("spring", 8)], r.summary
+    assert r.status == "converged", r.summary
+    assert "kinds narrowed per position" in r.method, r.method
+    assert not r.to_dict()["exhaustive"]
+    full = springmass.fit(t, x, n=12, kinds="any", defects=2)
+    assert "narrowed" not in full.method and full.to_dict()["exhaustive"]
+    assert [(e.kind, e.at) for e in full.defects] == [(e.kind, e.at) for e in r.defects]
+    for a, b in zip(r.defects, full.defects):
+        assert abs(a.value - b.value) <= 0.01 * b.se, (a, b)
