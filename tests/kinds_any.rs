@@ -104,3 +104,23 @@ fn narrowed_kinds_agree_with_the_full_product() {
     // every record with two defects or more went through the narrowing
     assert_eq!(narrowed, 6);
 }
+
+/// Near a wall a spring and a mass change the record alike: the right
+/// wall's spring is kept beside the last mass's best kind (without it the
+/// narrowing kept a mass at 12 here, and the answer was a model mismatch).
+#[test]
+fn the_right_wall_spring_is_kept_beside_the_last_mass() {
+    let truth = scenes::paper_with(12, "mass:1:0.5 spring:8:2 spring:12:0.5").unwrap();
+    let r = fit_any(
+        &record(&truth, 1e-3, 17),
+        12,
+        DefectCount::Auto { k_max: 4 },
+    );
+    assert_eq!(
+        key(&r),
+        vec![("mass", 1), ("spring", 8), ("spring", 12)],
+        "{}",
+        r.summary()
+    );
+    assert!(r.method.contains("kinds narrowed"), "{}", r.method);
+}

@@ -12,6 +12,8 @@
 //! from
 //!
 //! * at each position, the kind that reached the lowest chi-square there;
+//! * the right wall's spring (position `n`) beside the last mass's best
+//!   kind: near the wall a spring and a mass change the record alike;
 //! * the [`EXTRA_PAIRS`] pairs of lowest chi-square overall (the other kinds
 //!   where the data point, e.g. a mass and its neighbouring spring);
 //! * every pair of the [`KEEP_PREVIOUS`] best answers at `k - 1` (so an
@@ -147,6 +149,10 @@ fn kept_pairs(
             Some(best) if best.1.is_finite() => keep.push(best.0),
             _ => keep.extend(here.iter().map(|s| s.0)),
         }
+    }
+    // the right wall's spring (the left wall's, position 0, has no other kind)
+    if scored.iter().any(|s| s.0 == (DefectKind::Spring, n)) {
+        keep.push((DefectKind::Spring, n));
     }
     let mut order: Vec<&((DefectKind, usize), f64)> =
         scored.iter().filter(|s| s.1.is_finite()).collect();
