@@ -92,7 +92,13 @@ impl Param {
 
     /// The parameters of `chain`'s damping model (none for `grounded`).
     pub fn damping(chain: &Chain) -> Vec<Param> {
-        match chain.damping() {
+        Param::of_damping(chain.damping())
+    }
+
+    /// The parameters of the damping model `d`, in the order of
+    /// [`Damping::params`] (none for `grounded`).
+    pub fn of_damping(d: &Damping) -> Vec<Param> {
+        match d {
             Damping::Grounded => vec![],
             Damping::Between { .. } => vec![Param::C],
             Damping::Rayleigh { .. } => vec![Param::A, Param::B],

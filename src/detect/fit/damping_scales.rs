@@ -81,25 +81,10 @@ pub fn start(chain: &Chain, name: &str) -> Result<Damping> {
     let values: Vec<f64> = out
         .params()
         .iter()
-        .zip(params_of(&out))
+        .zip(Param::of_damping(&out))
         .map(|((_, v), p)| bounds(chain, p).map_or(*v, |(lo, hi)| v.clamp(lo, 0.5 * hi)))
         .collect();
     Ok(out.with_params(&values))
-}
-
-/// The fitted parameters of a model, in the order of [`Damping::params`].
-fn params_of(d: &Damping) -> Vec<Param> {
-    match d {
-        Damping::Grounded => vec![],
-        Damping::Between { .. } => vec![Param::C],
-        Damping::Rayleigh { .. } => vec![Param::A, Param::B],
-        Damping::Modal { zeta } => (0..zeta.len())
-            .map(|index| Param::Zeta {
-                index,
-                of: zeta.len(),
-            })
-            .collect(),
-    }
 }
 
 /// The bounds of a damping model's parameter `p` for `chain` (module
