@@ -6,7 +6,9 @@
 use super::chainfit::default_bounds;
 use super::engine::{Engine, KFit, MODES_MAX_N};
 use super::general::{self, identify_general, Hypothesis};
+use super::identify::Identifiability;
 use super::judge::{judge, Bar, Evidence};
+use super::report::Unseen;
 use super::report::{
     Alternative, DefectEstimate, FitReport, KRow, ModeEstimate, ParamEstimate, Predicted,
     SensorEstimate,
@@ -44,21 +46,11 @@ impl Engine<'_> {
         let ident = identify_general(&ranked, self.model.chain(), sigma, None).ok();
         let defects = self.defect_estimates(best, ident.as_ref());
         let params = self.param_estimates(best);
-        let alternatives: Vec<Alternative> = ranked[1..]
-            .iter()
-            .take(self.opts.alternatives)
-            .map(|h| Alternative::new(h.defects.clone(), h.chi2, best.chi2))
-            .collect();
+        let alternatives = self.alternatives_of(&ranked);
         let sensors = self.sensor_estimates(f, sigma, estimated);
         let (fits_data, p, hint) = self.data_fit(f, chi2_final, estimated, &sensors);
         let unseen = self.unseen_of(f, best, scale);
-        let k_margin = self
-            .k_margin(&rows, f.k, &criterion)
-            .or_else(|| self.k_at_limit(&rows, f.k))
-            .or_else(|| {
-                let u = unseen.as_ref()?;
-                (!u.elements.is_empty()).then(|| u.line())
-            });
+        let k_margin = self.k_caveat(&rows, f.k, &criterion, unseen.as_ref());
         let verdict = judge(
             &Evidence {
                 k: f.k,
@@ -66,15 +58,7 @@ impl Engine<'_> {
                 converged: best.converged,
                 at_bound: defects.iter().any(|d| d.at_bound) || params.iter().any(|p| p.at_bound),
                 all_identifiable: defects.iter().all(|d| d.identifiable) && k_margin.is_none(),
-                unidentified: ident
-                    .as_ref()
-                    .and_then(|r| {
-                        r.defects
-                            .iter()
-                            .find(|d| !d.identifiable)
-                            .map(|d| d.reason.as_str())
-                    })
-                    .or(k_margin.as_deref()),
+                unidentified: first_unidentified(ident.as_ref()).or(k_margin.as_deref()),
                 runner_up_gap: alternatives.first().map(|a| a.gap),
                 fits_data,
                 mismatch_hint: hint.as_deref(),
@@ -125,6 +109,34 @@ impl Engine<'_> {
             level: self.opts.level,
             posterior: None,
         })
+    }
+
+    /// The runners-up of `ranked` (after its best), at most the options'
+    /// count, with their gaps to the best.
+    fn alternatives_of(&self, ranked: &[Hypothesis]) -> Vec<Alternative> {
+        ranked[1..]
+            .iter()
+            .take(self.opts.alternatives)
+            .map(|h| Alternative::new(h.defects.clone(), h.chi2, ranked[0].chi2))
+            .collect()
+    }
+
+    /// Why the number of defects `k` is not settled, if it is not: the
+    /// criterion's margin, the largest count searched chosen, or a further
+    /// defect the data would not show ([`Unseen`]).
+    fn k_caveat(
+        &self,
+        rows: &[KRow],
+        k: usize,
+        criterion: &str,
+        unseen: Option<&Unseen>,
+    ) -> Option<String> {
+        self.k_margin(rows, k, criterion)
+            .or_else(|| self.k_at_limit(rows, k))
+            .or_else(|| {
+                let u = unseen?;
+                (!u.elements.is_empty()).then(|| u.line())
+            })
     }
 
     /// When the criterion chose the largest number of defects searched
@@ -399,4 +411,14 @@ fn fitted_modes(best: &Hypothesis, base: &Chain) -> Vec<ModeEstimate> {
                 .collect()
         })
         .unwrap_or_default()
+}
+
+/// The reason of the first defect the identifiability report flags.
+fn first_unidentified(ident: Option<&Identifiability>) -> Option<&str> {
+    ident.and_then(|r| {
+        r.defects
+            .iter()
+            .find(|d| !d.identifiable)
+            .map(|d| d.reason.as_str())
+    })
 }

@@ -362,16 +362,17 @@ impl Engine<'_> {
     /// ([`super::narrow`]).
     pub(super) fn fit_k(&self, k: usize, sigma: f64, previous: Option<&KFit>) -> Result<KFit> {
         let (coarse, fine, misfit_name, setup) = self.prepared(sigma)?;
-        let narrowed = match (previous, self.unknowns(k)?) {
+        let unknowns = self.unknowns(k)?;
+        let narrowed = match (previous, &unknowns) {
             (Some(p), Some(u))
                 if self.given.is_none() && self.opts.method == FitMethod::Enumerate =>
             {
-                super::narrow::narrow(self.model.chain(), &u, &p.ranked, &coarse)?
+                super::narrow::narrow(self.model.chain(), u, &p.ranked, &coarse)?
             }
             _ => None,
         };
-        let found = match narrowed {
-            Some(nw) => {
+        let found = match (narrowed, unknowns) {
+            (Some(nw), _) => {
                 let mut found =
                     self.search_prepared(k, sigma, &nw.unknowns, &coarse, fine.as_ref(), setup)?;
                 found.evaluations += nw.evaluations;
@@ -382,27 +383,13 @@ impl Engine<'_> {
                 );
                 found
             }
-            None => self.found_k(k, sigma, &coarse, fine.as_ref(), setup)?,
-        };
-        self.measured(k, sigma, found, &coarse, fine.as_ref(), misfit_name)
-    }
-
-    /// What the search finds for `k` defects (the uniform chain for none).
-    fn found_k(
-        &self,
-        k: usize,
-        sigma: f64,
-        coarse: &LaplaceObs,
-        fine: Option<&TimeMisfit>,
-        setup: Setup,
-    ) -> Result<Found> {
-        Ok(match self.unknowns(k)? {
-            None => {
-                let (ranked, evaluations) = self.fit_uniform(coarse, fine)?;
+            (None, Some(u)) => self.search_prepared(k, sigma, &u, &coarse, fine.as_ref(), setup)?,
+            (None, None) => {
+                let (ranked, evaluations) = self.fit_uniform(&coarse, fine.as_ref())?;
                 Found::new(ranked, evaluations, 1, self.opts.method.name())
             }
-            Some(unknowns) => self.search_prepared(k, sigma, &unknowns, coarse, fine, setup)?,
-        })
+        };
+        self.measured(k, sigma, found, &coarse, fine.as_ref(), misfit_name)
     }
 
     /// [`Self::search`] for `unknowns` on the prepared observations.

@@ -87,25 +87,18 @@ pub(super) fn narrow(
         .iter()
         .flat_map(|&kind| kind.positions(n).map(move |at| (kind, at)))
         .collect();
-    let one_kind = choose(n, free.len());
-    if free.len() < 2 || choose(pairs.len(), free.len()) <= NARROW_ABOVE * one_kind {
-        return Ok(None);
-    }
-    if incumbent.key().len() + 1 != unknowns.k() {
+    let held = incumbent.key();
+    if free.len() < 2
+        || held.len() + 1 != unknowns.k()
+        || choose(pairs.len(), free.len()) <= NARROW_ABOVE * choose(n, free.len())
+    {
         return Ok(None);
     }
     let start = incumbent.to_chain(base)?.uniform();
-    let held = incumbent.key();
     let mut evaluations = 0;
     let mut scored: Vec<((DefectKind, usize), f64)> = Vec::with_capacity(pairs.len());
-    for &(kind, at) in &pairs {
-        if held.contains(&(kind, at)) {
-            continue;
-        }
-        let mut with = held.clone();
-        with.push((kind, at));
-        let mut values = incumbent.masses();
-        values.push(kind.base_at(&start, at));
+    for &pair in pairs.iter().filter(|p| !held.contains(p)) {
+        let (with, values) = incumbent.extended(pair, &start);
         let chi2 = match general::fit_pairs_from(
             &start,
             unknowns,
@@ -120,7 +113,7 @@ pub(super) fn narrow(
             }
             Err(_) => f64::INFINITY,
         };
-        scored.push(((kind, at), chi2));
+        scored.push((pair, chi2));
     }
     let kept = kept_pairs(&scored, previous, n);
     let total = pairs.len();

@@ -42,12 +42,7 @@ impl Engine<'_> {
         let start = base.to_chain(self.model.chain())?.uniform();
         let starts = extensions(base, &next.ranked)
             .into_iter()
-            .map(|(kind, at)| {
-                let (mut pairs, mut values) = (base.key(), base.masses());
-                pairs.push((kind, at));
-                values.push(kind.uniform(&start));
-                (pairs, values)
-            });
+            .map(|pair| base.extended(pair, &start));
         let exhaustive = next.exhaustive;
         Ok(
             match self.joined(&next, &start, starts.collect(), exhaustive, sigma)? {

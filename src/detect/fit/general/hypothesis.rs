@@ -111,6 +111,20 @@ impl Hypothesis {
             .collect()
     }
 
+    /// The start of a fit of one defect more: this hypothesis's pairs and
+    /// values, then `(kind, at)` at its value in `start` (a defect of
+    /// vanishing size: the uniform value, or the baseline's there).
+    pub fn extended(
+        &self,
+        (kind, at): (DefectKind, usize),
+        start: &Chain,
+    ) -> (KindPositions, Vec<f64>) {
+        let (mut pairs, mut values) = (self.key(), self.masses());
+        pairs.push((kind, at));
+        values.push(kind.base_at(start, at));
+        (pairs, values)
+    }
+
     /// The fitted chain parameter `name` (`d`, `gamma`, `k`, `mass`).
     pub fn param(&self, name: &str) -> Option<&FittedParam> {
         self.chain.iter().find(|p| p.name == name)

@@ -385,6 +385,43 @@ impl FitReport {
         if let Some(b) = &self.baseline {
             out.push_str(&format!("baseline: {b} (values relative to its profile)\n"));
         }
+        self.answer_lines(&mut out);
+        out.push_str(&format!(
+            "status: {} - {}\nnoise sigma {} ({}), chi2 {} on {} dof, fits the data: {} (p = {:.3})\n",
+            self.status.name(),
+            self.message,
+            fmt_g(self.noise_sigma),
+            if self.noise_estimated { "estimated" } else { "given" },
+            fmt_g(self.chi2),
+            self.dof,
+            if self.fits_data { "yes" } else { "NO" },
+            self.fit_p_value
+        ));
+        self.sensor_lines(&mut out);
+        if let Some(t) = &self.trigger {
+            out.push_str(&format!("{}\n", t.line()));
+        }
+        if let Some(v) = &self.visibility {
+            out.push_str(&format!("visibility: {}\n", v.line()));
+        }
+        self.record_lines(&mut out);
+        if let Some(d) = &self.damping {
+            out.push_str(&format!("{}\n", d.line()));
+        }
+        self.evidence_lines(&mut out);
+        if let Some(p) = &self.posterior {
+            out.push_str(&p.lines());
+        }
+        self.modes_line(&mut out);
+        out.push_str(&format!(
+            "{}\nmisfit {}, method {}, {} evaluations, {:.2} s\n",
+            self.setup, self.misfit, self.method, self.evaluations, self.wall_time_s
+        ));
+        out
+    }
+
+    /// The defects and the fitted chain parameters, a line each.
+    fn answer_lines(&self, out: &mut String) {
         for d in &self.defects {
             out.push_str(&format!(
                 "{} at {}: {} +- {}{}{}{}{}{}\n",
@@ -412,17 +449,10 @@ impl FitReport {
                 interval_text(p.interval, p.interval_method, self.level)
             ));
         }
-        out.push_str(&format!(
-            "status: {} - {}\nnoise sigma {} ({}), chi2 {} on {} dof, fits the data: {} (p = {:.3})\n",
-            self.status.name(),
-            self.message,
-            fmt_g(self.noise_sigma),
-            if self.noise_estimated { "estimated" } else { "given" },
-            fmt_g(self.chi2),
-            self.dof,
-            if self.fits_data { "yes" } else { "NO" },
-            self.fit_p_value
-        ));
+    }
+
+    /// The noise level of each sensor (or record) of several, one line.
+    fn sensor_lines(&self, out: &mut String) {
         if !self.sensors.is_empty() {
             let records = self.sensors[0].record > 0;
             let s: Vec<String> = self
@@ -450,20 +480,10 @@ impl FitReport {
             let label = if records { "records" } else { "sensors" };
             out.push_str(&format!("{label}: {}\n", s.join("; ")));
         }
-        if let Some(t) = &self.trigger {
-            out.push_str(&format!("{}\n", t.line()));
-        }
-        if let Some(v) = &self.visibility {
-            out.push_str(&format!("visibility: {}\n", v.line()));
-        }
-        self.record_lines(&mut out);
-        if let Some(d) = &self.damping {
-            out.push_str(&format!("{}\n", d.line()));
-        }
-        self.evidence_lines(&mut out);
-        if let Some(p) = &self.posterior {
-            out.push_str(&p.lines());
-        }
+    }
+
+    /// The fitted chain's lowest natural frequencies, one line.
+    fn modes_line(&self, out: &mut String) {
         if !self.modes.is_empty() {
             let shown: Vec<String> = self
                 .modes
@@ -477,11 +497,6 @@ impl FitReport {
                 if self.modes.len() > 6 { ", ..." } else { "" }
             ));
         }
-        out.push_str(&format!(
-            "{}\nmisfit {}, method {}, {} evaluations, {:.2} s\n",
-            self.setup, self.misfit, self.method, self.evaluations, self.wall_time_s
-        ));
-        out
     }
 }
 
