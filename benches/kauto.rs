@@ -20,7 +20,8 @@
 //! defaults with `kinds` mass or any; issue 30 item 2b, at most 3x): n = 12
 //! on `[0, 200]`, `dt = 0.05`, 1% noise, seed 1, with a mass (2 at 4) and a
 //! spring (0.5 at 8) (`mixed`), or three masses (2 at 2, 0.6 at 6, 1.8 at
-//! 9) (`masses`). The ratio `any / mass` is printed after each group.
+//! 9) (`masses`); and the records `s3` and `n37` above. The ratio
+//! `any / mass` is printed after each group.
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use springmass::detect::data::observations::{Observations, Series};
@@ -109,6 +110,7 @@ fn bench_kinds(c: &mut Criterion<CpuTime>) {
     let cases = [
         (
             "mixed",
+            12,
             twelve(vec![
                 Defect::Mass { at: 4, m: 2.0 },
                 Defect::Spring { at: 8, k: 0.5 },
@@ -116,15 +118,18 @@ fn bench_kinds(c: &mut Criterion<CpuTime>) {
         ),
         (
             "masses",
+            12,
             twelve(vec![
                 Defect::Mass { at: 2, m: 2.0 },
                 Defect::Mass { at: 6, m: 0.6 },
                 Defect::Mass { at: 9, m: 1.8 },
             ]),
         ),
+        ("s3", 20, record(20, &[(8, 5.0), (15, 2.0)])),
+        ("n37", 37, record(37, &[(10, 3.0), (25, 2.0)])),
     ];
-    let model = Model::new(12).unwrap();
-    for (name, obs) in &cases {
+    for (name, n, obs) in &cases {
+        let model = Model::new(*n).unwrap();
         let with = |kinds| FitOptions {
             kinds,
             parallel: false,

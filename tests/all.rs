@@ -62,6 +62,8 @@ mod mismatch;
 mod modal_update;
 #[path = "monitor.rs"]
 mod monitor;
+#[path = "nested_k.rs"]
+mod nested_k;
 #[path = "noise.rs"]
 mod noise;
 #[path = "observables.rs"]

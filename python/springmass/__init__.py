@@ -684,6 +684,7 @@ def fit(
     prior_k: Optional[str] = None,
     prior_range: Optional[str] = None,
     uncertainty: bool = True,
+    exhaustive: bool = False,
     records: Sequence[Any] = (),
 ) -> FitResult:
     """Fit defects to a measured series of mass 1's displacement.
@@ -811,6 +812,12 @@ def fit(
         replaces (default: the search range of its kind).
     uncertainty : bool, default True
         Compute the intervals and the probabilities (False: faster, without).
+    exhaustive : bool, default False
+        With ``defects="auto"``, search every position (and kind) set at
+        every number of defects. By default the search at three defects and
+        more is nested in the best answers at one defect fewer, and
+        ``kinds="any"`` tries at each position the kinds the data point to
+        (much faster; the report's ``to_dict()["exhaustive"]`` is then False).
 
     Returns
     -------
@@ -891,6 +898,7 @@ def fit(
         prior_k=None if prior_k is None else _text("prior_k", prior_k),
         prior_range=None if prior_range is None else _text("prior_range", prior_range),
         uncertainty=bool(uncertainty),
+        exhaustive=bool(exhaustive),
     )
     return FitResult._from_core(raw)
 

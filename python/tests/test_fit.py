@@ -310,3 +310,21 @@ def test_any_kind_is_searched_with_the_kinds_narrowed_per_position():
     assert [(e.kind, e.at) for e in full.defects] == [(e.kind, e.at) for e in r.defects]
     for a, b in zip(r.defects, full.defects):
         assert abs(a.value - b.value) <= 0.01 * b.se, (a, b)
+
+
+def test_searches_from_three_defects_are_nested_unless_exhaustive():
+    # n = 14, three masses, 0.1% noise: with k left to BIC the searches at
+    # k = 3 and 4 extend the best answers at one defect fewer (the report
+    # says so); exhaustive=True searches every set and finds the same
+    t = np.arange(0.0, 150.0, 0.25)
+    defects = [("mass", 2, 1.6), ("mass", 7, 0.6), ("mass", 11, 2.5)]
+    x = springmass.simulate(14, t=t, defects=defects, noise="rel:0.001", seed=5)
+    quick = springmass.fit(t, x, n=14, uncertainty=False)
+    every = springmass.fit(t, x, n=14, uncertainty=False, exhaustive=True)
+    assert [(e.kind, e.at) for e in quick.defects] == [("mass", 2), ("mass", 7), ("mass", 11)], quick.summary
+    assert "nested in the best" in quick.method, quick.method
+    assert not quick.to_dict()["exhaustive"]
+    assert every.to_dict()["exhaustive"] and "nested" not in every.method, every.method
+    assert [(e.kind, e.at) for e in every.defects] == [(e.kind, e.at) for e in quick.defects]
+    for a, b in zip(quick.defects, every.defects):
+        assert abs(a.value - b.value) <= 0.05 * b.se, (a, b)

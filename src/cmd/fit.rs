@@ -255,6 +255,7 @@ fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
         prior_k: a.prior_k.clone(),
         prior_range: a.prior_range.clone(),
         uncertainty: a.no_uncertainty.then_some(false),
+        exhaustive: a.exhaustive.then_some(true),
         ..springmass::detect::fit::options::FitSpec::new(n)
     }
 }

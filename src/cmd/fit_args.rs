@@ -189,6 +189,13 @@ pub struct Args {
     /// Leave out the intervals and the hypotheses' probabilities (faster).
     #[arg(long, requires = "data")]
     pub no_uncertainty: bool,
+    /// With --defects auto, search every position (and kind) set at every
+    /// number of defects. By default the search at 3 defects and more is
+    /// nested in the best answers at one defect fewer, and --kinds any
+    /// tries at each position the kinds the data point to (much faster;
+    /// the report then says `exhaustive: false`).
+    #[arg(long, requires = "data")]
+    pub exhaustive: bool,
     /// Write t, observed, model, residual to this CSV (--data; with a
     /// profile, the profile's values, also for --scene).
     #[arg(long)]

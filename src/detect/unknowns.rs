@@ -831,6 +831,10 @@ pub struct Unknowns {
     /// take (`None`: every pair their kinds allow); see
     /// [`Unknowns::among`].
     candidates: Option<Vec<(DefectKind, usize)>>,
+    /// The hypotheses themselves, when the search is nested in the answers
+    /// of one defect fewer (`None`: every set of the candidates); see
+    /// [`Unknowns::within`].
+    sets: Option<Vec<KindPositions>>,
 }
 
 impl Unknowns {
@@ -877,6 +881,7 @@ impl Unknowns {
             chain,
             bounds,
             candidates: None,
+            sets: None,
         })
     }
 
@@ -968,6 +973,82 @@ impl Unknowns {
         self.candidates.as_deref()
     }
 
+    /// The same unknowns with the hypotheses given: `sets`, each a
+    /// `(kind, position)` pair per slot, sorted by position then kind (the
+    /// order of [`Unknowns::hypotheses`]), each once (the search nested in
+    /// the best answers of one defect fewer, `detect::fit::narrow`). Only
+    /// for unknowns whose every slot is free and alike.
+    ///
+    /// # Errors
+    /// Slots of known position or unlike slots (field `unknowns.defects`);
+    /// a set of another size, a pair no slot may take, a pair twice, or
+    /// unsorted (field `sets`).
+    pub fn within(&self, mut sets: Vec<KindPositions>) -> Result<Unknowns> {
+        let first = self.slots[0];
+        if self.slots.iter().any(|s| s.at.is_some() || *s != first) {
+            return Err(Error::invalid(
+                "unknowns.defects",
+                "known positions or unlike slots",
+                "free slots, all alike, for a nested search",
+            ));
+        }
+        let allowed = |&(kind, at): &(DefectKind, usize)| {
+            first.kind.kinds().contains(&kind)
+                && kind.positions(self.n).contains(&at)
+                && self
+                    .candidates
+                    .as_ref()
+                    .is_none_or(|c| c.contains(&(kind, at)))
+        };
+        for set in &sets {
+            let sorted = set.windows(2).all(|w| (w[0].1, w[0].0) < (w[1].1, w[1].0));
+            if set.len() != self.slots.len() || !sorted || !set.iter().all(allowed) {
+                return Err(Error::invalid(
+                    "sets",
+                    format!("{set:?}"),
+                    format!(
+                        "{} distinct (kind, position) pairs the slots allow, sorted by position then kind",
+                        self.slots.len()
+                    ),
+                ));
+            }
+        }
+        sets.sort();
+        sets.dedup();
+        Ok(Unknowns {
+            sets: Some(sets),
+            ..self.clone()
+        })
+    }
+
+    /// Whether the search of these unknowns ranks the set `set` of
+    /// `(kind, position)` pairs of free defects (in any order): one of the
+    /// sets of [`Unknowns::within`], or every pair among the candidates of
+    /// [`Unknowns::among`] and as many pairs as free slots.
+    pub fn admits(&self, set: &[(DefectKind, usize)]) -> bool {
+        let mut key = set.to_vec();
+        key.sort_by_key(|&(kind, at)| (at, kind));
+        if let Some(sets) = &self.sets {
+            return sets.contains(&key);
+        }
+        let free: Vec<&Slot> = self.slots.iter().filter(|s| s.at.is_none()).collect();
+        key.len() == free.len()
+            && key.windows(2).all(|w| w[0] != w[1])
+            && key.iter().all(|&(kind, at)| {
+                free.iter().any(|s| s.kind.kinds().contains(&kind))
+                    && kind.positions(self.n).contains(&at)
+                    && self
+                        .candidates
+                        .as_ref()
+                        .is_none_or(|c| c.contains(&(kind, at)))
+            })
+    }
+
+    /// The hypotheses of [`Unknowns::within`], if given.
+    pub fn sets(&self) -> Option<&[KindPositions]> {
+        self.sets.as_deref()
+    }
+
     /// Bounds of slot `i` as kind `kind`.
     pub fn bounds(&self, i: usize, kind: DefectKind) -> (f64, f64) {
         self.slots[i].bounds.unwrap_or(self.bounds.of(kind))
@@ -977,11 +1058,22 @@ impl Unknowns {
     /// description are interchangeable (their `(kind, position)` pairs form a
     /// set, drawn by [`subsets`] from the
     /// candidates ordered by position then kind); no `(kind, position)`
-    /// twice. Stops with an error beyond `max` hypotheses.
+    /// twice; or the sets of [`Unknowns::within`]. Stops with an error
+    /// beyond `max` hypotheses.
     ///
     /// # Errors
     /// More than `max` hypotheses (field `search.max_sets`).
     pub fn hypotheses(&self, max: usize) -> Result<Vec<KindPositions>> {
+        if let Some(sets) = &self.sets {
+            return match sets.len() > max {
+                true => Err(Error::invalid(
+                    "search.max_sets",
+                    max,
+                    format!("at least {} hypotheses (a larger max_sets)", sets.len()),
+                )),
+                false => Ok(sets.clone()),
+            };
+        }
         // groups of identical slots, in order of first appearance
         let mut groups: Vec<(Slot, Vec<usize>)> = Vec::new();
         for (i, s) in self.slots.iter().enumerate() {

@@ -19,7 +19,9 @@ use crate::detect::search::FitMethod;
 use crate::detect::search::{
     minimize, Candidate, MisfitObjective, Objective, SearchOptions, SearchResult, Space,
 };
-use crate::detect::unknowns::{DefectKind, KindBounds, KindChoice, MassUnknowns, Slot, Unknowns};
+use crate::detect::unknowns::{
+    DefectKind, KindBounds, KindChoice, KindPositions, MassUnknowns, Slot, Unknowns,
+};
 use crate::error::{Error, Result};
 
 mod kernel;
@@ -81,6 +83,12 @@ pub(super) struct KFit {
     pub(super) whitened: Option<Vec<f64>>,
     /// Every position set was ranked (false: the Woodbury kernel's beam search).
     pub(super) exhaustive: bool,
+    /// The narrowed unknowns whose every set the search ranked, when it
+    /// was narrowed from the fit at `k - 1` ([`super::narrow`]).
+    pub(super) searched: Option<Unknowns>,
+    /// The Laplace ranking's best sets before the time-domain refits, best
+    /// first (empty where the search does not keep one).
+    pub(super) shortlist: Vec<KindPositions>,
     /// The stochastic search's trace, when asked for.
     pub(super) trace: Option<Vec<(usize, f64)>>,
     /// Per sensor of a record of several: the residual sum of squares at
@@ -147,6 +155,10 @@ struct Found {
     method_name: String,
     /// Every position set was ranked (false: the Woodbury kernel's beam search).
     exhaustive: bool,
+    /// The narrowed unknowns the search ranked ([`KFit::searched`]).
+    searched: Option<Unknowns>,
+    /// [`KFit::shortlist`].
+    shortlist: Vec<KindPositions>,
     budget_exhausted: bool,
     trace: Option<Vec<(usize, f64)>>,
 }
@@ -159,6 +171,8 @@ impl Found {
             hypotheses,
             method_name: method.to_string(),
             exhaustive: true,
+            searched: None,
+            shortlist: Vec::new(),
             budget_exhausted: false,
             trace: None,
         }
@@ -358,37 +372,55 @@ impl Engine<'_> {
     }
 
     /// The fit of `k` defects at noise level `sigma`; `previous` is the fit
-    /// at `k - 1`, whose answers narrow a search over every kind
-    /// ([`super::narrow`]).
+    /// at `k - 1`, whose answers narrow the kinds of a search over every
+    /// kind and, from three defects on, nest its sets ([`super::narrow`];
+    /// not with `FitOptions::exhaustive`, a scene's unknowns or another
+    /// search than enumeration).
     pub(super) fn fit_k(&self, k: usize, sigma: f64, previous: Option<&KFit>) -> Result<KFit> {
         let (coarse, fine, misfit_name, setup) = self.prepared(sigma)?;
-        let unknowns = self.unknowns(k)?;
-        let narrowed = match (previous, &unknowns) {
-            (Some(p), Some(u))
-                if self.given.is_none() && self.opts.method == FitMethod::Enumerate =>
+        let Some(unknowns) = self.unknowns(k)? else {
+            let (ranked, evaluations) = self.fit_uniform(&coarse, fine.as_ref())?;
+            let found = Found::new(ranked, evaluations, 1, self.opts.method.name());
+            return self.measured(k, sigma, found, &coarse, fine.as_ref(), misfit_name);
+        };
+        // narrowed from the answers at k - 1: the kinds per position, then
+        // the sets nested in the best answers ([`super::narrow`])
+        let from = previous.filter(|_| {
+            self.given.is_none()
+                && self.opts.method == FitMethod::Enumerate
+                && !self.opts.exhaustive
+        });
+        let (mut unknowns, mut notes, mut spent) = (unknowns, Vec::new(), 0);
+        if let Some(p) = from {
+            if let Some(nw) =
+                super::narrow::narrow(self.model.chain(), &unknowns, &p.ranked, &coarse)?
             {
-                super::narrow::narrow(self.model.chain(), u, &p.ranked, &coarse)?
+                notes.push(format!(
+                    "kinds narrowed per position: {} of {} pairs",
+                    nw.kept.0, nw.kept.1
+                ));
+                spent += nw.evaluations;
+                unknowns = nw.unknowns;
             }
-            _ => None,
-        };
-        let found = match (narrowed, unknowns) {
-            (Some(nw), _) => {
-                let mut found =
-                    self.search_prepared(k, sigma, &nw.unknowns, &coarse, fine.as_ref(), setup)?;
-                found.evaluations += nw.evaluations;
-                found.exhaustive = false;
-                found.method_name = format!(
-                    "{} (kinds narrowed per position: {} of {} pairs)",
-                    found.method_name, nw.kept.0, nw.kept.1
-                );
-                found
+            if self.woodbury(&unknowns)?.is_none() {
+                let answers = super::narrow::previous_sets(&p.ranked, &p.shortlist);
+                if let Some((nested, (sets, full))) = super::narrow::nest(&unknowns, &answers)? {
+                    notes.push(format!(
+                        "nested in the best {} answers at k = {}: {sets} of {full} sets",
+                        answers.len(),
+                        k - 1
+                    ));
+                    unknowns = nested;
+                }
             }
-            (None, Some(u)) => self.search_prepared(k, sigma, &u, &coarse, fine.as_ref(), setup)?,
-            (None, None) => {
-                let (ranked, evaluations) = self.fit_uniform(&coarse, fine.as_ref())?;
-                Found::new(ranked, evaluations, 1, self.opts.method.name())
-            }
-        };
+        }
+        let mut found = self.search_prepared(k, sigma, &unknowns, &coarse, fine.as_ref(), setup)?;
+        if !notes.is_empty() {
+            found.evaluations += spent;
+            found.exhaustive = false;
+            found.searched = Some(unknowns);
+            found.method_name = format!("{} ({})", found.method_name, notes.join("; "));
+        }
         self.measured(k, sigma, found, &coarse, fine.as_ref(), misfit_name)
     }
 
@@ -463,12 +495,9 @@ impl Engine<'_> {
             x.setup,
             x.gopts,
         )?;
-        Ok(Found::new(
-            g.ranked,
-            g.evaluations,
-            g.hypotheses,
-            "enumerate",
-        ))
+        let mut found = Found::new(g.ranked, g.evaluations, g.hypotheses, "enumerate");
+        found.shortlist = g.shortlist;
+        Ok(found)
     }
 
     /// The continuous relaxation's support seeds the discrete fit: the f
@@ -603,6 +632,8 @@ impl Engine<'_> {
             predicted,
             whitened,
             exhaustive: found.exhaustive,
+            searched: found.searched,
+            shortlist: found.shortlist,
             trace: found.trace,
             sensors,
         })
@@ -846,6 +877,9 @@ impl Engine<'_> {
 fn set_count(unknowns: &Unknowns) -> f64 {
     let slots = unknowns.slots();
     let free: Vec<&Slot> = slots.iter().filter(|s| s.at.is_none()).collect();
+    if let Some(sets) = unknowns.sets() {
+        return sets.len() as f64;
+    }
     if let Some(c) = unknowns.candidates() {
         let m = c.len() as f64;
         return (0..free.len())

@@ -213,6 +213,7 @@ fn fit_record(
         stage.evaluations,
         t0,
     )?;
+    note_narrowed(&mut report, &stage.fits);
     // how deep the data see (mass defects of a user's data; not the
     // scene path, whose data are the model's own)
     let one_sensor = match obs {
@@ -226,6 +227,26 @@ fn fit_record(
         add_uncertainty(&mut report, &stage)?;
     }
     Ok(report)
+}
+
+/// The report's search is exhaustive only when every `k`'s was: where the
+/// answer's own search ranked every set but another `k`'s was narrowed
+/// from one defect fewer ([`narrow`]), the method says which.
+fn note_narrowed(report: &mut FitReport, fits: &[KFit]) {
+    let narrowed: Vec<String> = fits
+        .iter()
+        .filter(|f| f.searched.is_some())
+        .map(|f| f.k.to_string())
+        .collect();
+    if narrowed.is_empty() || !report.exhaustive {
+        return;
+    }
+    report.exhaustive = false;
+    report.method = format!(
+        "{} (the searches at k = {} narrowed from the answers at one defect fewer)",
+        report.method,
+        narrowed.join(", ")
+    );
 }
 
 /// The misfit: the options' (time by default) for a series; for Laplace
@@ -260,11 +281,14 @@ fn first_sigma(obs: &Observations, opts: &FitOptions) -> (f64, bool) {
 /// when `auto`); with an estimated noise level, refitted at the largest
 /// model's estimate when it differs by more than a factor 2, and the final
 /// level read from the largest model fitted (it holds every defect the
-/// others hold). Returns the fits, the final level and the evaluations.
+/// others hold). With `narrowed`, each search may be narrowed from the fit
+/// at one defect fewer ([`narrow`]); without, every set is searched.
+/// Returns the fits, the final level and the evaluations.
 fn fit_every_k(
     engine: &Engine,
     mut sigma: f64,
     estimated: bool,
+    narrowed: bool,
 ) -> Result<(Vec<KFit>, f64, usize)> {
     let ks: Vec<usize> = match engine.opts.defects {
         DefectCount::Exactly(k) => vec![k],
@@ -273,7 +297,8 @@ fn fit_every_k(
     let mut evaluations = 0;
     let mut fits: Vec<KFit> = Vec::with_capacity(ks.len());
     for &k in &ks {
-        let f = crate::cancel::checked(engine.fit_k(k, sigma, fits.last()))?;
+        let from = fits.last().filter(|_| narrowed);
+        let f = crate::cancel::checked(engine.fit_k(k, sigma, from))?;
         let f = match fits.last() {
             Some(prev) => engine.monotone(prev, f, sigma)?,
             None => f,
@@ -293,7 +318,8 @@ fn fit_every_k(
             sigma = s_hat;
             let mut refit = Vec::with_capacity(fits.len());
             for f in &fits {
-                let g = crate::cancel::checked(engine.fit_k(f.k, sigma, refit.last()))?;
+                let from = refit.last().filter(|_| narrowed);
+                let g = crate::cancel::checked(engine.fit_k(f.k, sigma, from))?;
                 let g = match refit.last() {
                     Some(prev) => engine.monotone(prev, g, sigma)?,
                     None => g,

@@ -1,15 +1,16 @@
-//! A search over every defect kind (`--kinds any`) at the cost of one kind:
-//! the kinds tried at each position are chosen from the data's sensitivity
-//! at the previous number of defects, not taken as a product over every set.
+//! The search at `k` defects narrowed from the answers at `k - 1`, when the
+//! number of defects is left to the criterion: the kinds tried at each
+//! position ([`narrow`]) and, from [`NEST_FROM`] defects on, the sets
+//! themselves ([`nest`]). `FitOptions::exhaustive` turns both off.
 //!
-//! With `k` defects each free to be a mass, a spring or a damper, the
-//! enumeration has `C(3n + 1, k)` sets against `C(n, k)` for one kind: for
-//! `n = 12`, `k = 4`, 66 045 against 495 (9.8 s against 0.4 s). Before the
-//! search at `k` (`k >= 2`), the best answer at `k - 1` (the incumbent) is
-//! extended by each `(kind, position)` pair in turn and refitted on the
-//! coarse (Laplace) misfit from there, every value free: the chi-square each
-//! pair reaches is its sensitivity. The search at `k` then draws its sets
-//! from
+//! **Kinds** (`--kinds any`, at the cost of one kind). With `k` defects
+//! each free to be a mass, a spring or a damper, the enumeration has
+//! `C(3n + 1, k)` sets against `C(n, k)` for one kind: for `n = 12`,
+//! `k = 4`, 66 045 against 495 (9.8 s against 0.4 s). Before the search at
+//! `k` (`k >= 2`), the best answer at `k - 1` (the incumbent) is extended
+//! by each `(kind, position)` pair in turn and refitted on the coarse
+//! (Laplace) misfit from there, every value free: the chi-square each pair
+//! reaches is its sensitivity. The search at `k` then draws its sets from
 //!
 //! * at each position, the kind that reached the lowest chi-square there;
 //! * the right wall's spring (position `n`) beside the last mass's best
@@ -19,16 +20,24 @@
 //! * every pair of the [`KEEP_PREVIOUS`] best answers at `k - 1` (so an
 //!   incumbent that holds a wrong kind can still be replaced).
 //!
-//! That is about `n + 8` pairs instead of `3n + 1`. The search is then no
-//! longer exhaustive, and the report says so (`exhaustive: false`, the
-//! method names the narrowing). Measured against the full product on the
-//! test suite's mixed-kind records (`tests/kinds_any.rs`), the answers agree
-//! in positions and kinds.
+//! That is about `n + 8` pairs instead of `3n + 1`. Measured against the
+//! full product on the test suite's mixed-kind records
+//! (`tests/kinds_any.rs`), the answers agree in positions and kinds.
+//!
+//! **Sets** (from `k = 3`). The search at `k` takes only the sets made of
+//! one of the best [`NEST_PREVIOUS`] answers at `k - 1` and one more pair:
+//! about `8 (n - k)` sets instead of `C(n, k)` (System 3 at `k = 4`: 118 of
+//! 4 845). One more defect usually explains what the best `k - 1` left,
+//! and the criterion only needs each `k`'s best fit; measured against the
+//! exhaustive search on random records (`tests/nested_k.rs`).
+//!
+//! Either way the search is no longer exhaustive, and the report says so
+//! (`exhaustive: false`, the method names the narrowing).
 
 use super::general::{self, Hypothesis};
 use crate::chain::Chain;
 use crate::detect::model::MeasurementModel;
-use crate::detect::unknowns::{DefectKind, Unknowns};
+use crate::detect::unknowns::{DefectKind, KindPositions, Unknowns};
 use crate::error::Result;
 
 /// Narrow only when the full product holds more than this many times the
@@ -41,6 +50,107 @@ pub const EXTRA_PAIRS: usize = 2;
 pub const KEEP_PREVIOUS: usize = 2;
 /// Levenberg-Marquardt iterations of each sensitivity fit.
 const SENSITIVITY_ITER: usize = 40;
+
+/// The search at `k` is nested from this many defects on.
+pub const NEST_FROM: usize = 3;
+/// The best answers at `k - 1` whose every extension by one pair is a set
+/// of the nested search at `k`.
+pub const NEST_PREVIOUS: usize = 8;
+/// Nest only when the full search holds more than this many times the
+/// nested one's sets.
+const NEST_ABOVE: f64 = 2.0;
+
+/// The answers at `k - 1` a nested search at `k` extends: the
+/// `(kind, position)` sets of `ranked` (the answers refitted to the end,
+/// best first), then those of `shortlist` (the Laplace ranking's best
+/// before the time-domain refits dropped some), each once, at most
+/// [`NEST_PREVIOUS`].
+pub(super) fn previous_sets(
+    ranked: &[Hypothesis],
+    shortlist: &[KindPositions],
+) -> Vec<KindPositions> {
+    let mut out: Vec<KindPositions> = Vec::new();
+    let sorted = |mut key: KindPositions| {
+        key.sort_by_key(|&(kind, at)| (at, kind));
+        key
+    };
+    let keys = ranked
+        .iter()
+        .map(Hypothesis::key)
+        .chain(shortlist.iter().cloned());
+    for key in keys.map(sorted) {
+        if out.len() < NEST_PREVIOUS && !out.contains(&key) {
+            out.push(key);
+        }
+    }
+    out
+}
+
+/// The unknowns of the search at `k` nested in the answers at `k - 1`:
+/// every set made of one of `previous` ([`previous_sets`]) and one more
+/// `(kind, position)` pair of the unknowns' candidates, with the number of
+/// these sets and of the full search's. `None` when nesting does not apply:
+/// fewer than [`NEST_FROM`] defects, slots of known position or unlike
+/// slots, answers at `k - 1` of another size (known defects), or a full
+/// search at most [`NEST_ABOVE`] times larger.
+///
+/// A search so nested finds the best set at `k` whenever it holds one of
+/// the best answers at `k - 1`: the usual case, where one more defect
+/// explains what the best `k - 1` left. It can miss a set at `k` none of
+/// whose subsets ranked among them; the report then says the search was
+/// not exhaustive, and the fit at `k - 1` is made no worse than the answer
+/// at `k` with a defect dropped (the engine's backward rule).
+/// `FitOptions::exhaustive` searches every set.
+pub(super) fn nest(
+    unknowns: &Unknowns,
+    previous: &[KindPositions],
+) -> Result<Option<(Unknowns, (usize, usize))>> {
+    let k = unknowns.k();
+    let first = unknowns.slots()[0];
+    if k < NEST_FROM
+        || previous.is_empty()
+        || unknowns.sets().is_some()
+        || unknowns
+            .slots()
+            .iter()
+            .any(|s| s.at.is_some() || *s != first)
+        || previous.iter().any(|h| h.len() + 1 != k)
+    {
+        return Ok(None);
+    }
+    let n = unknowns.n();
+    let pairs: Vec<(DefectKind, usize)> = match unknowns.candidates() {
+        Some(c) => c.to_vec(),
+        None => first
+            .kind
+            .kinds()
+            .iter()
+            .flat_map(|&kind| kind.positions(n).map(move |at| (kind, at)))
+            .collect(),
+    };
+    let mut sets: Vec<KindPositions> = Vec::new();
+    // answers holding a pair the kinds' narrowing dropped are not extended
+    // (the narrowing keeps every pair of the best two)
+    for held in previous
+        .iter()
+        .filter(|h| h.iter().all(|p| pairs.contains(p)))
+    {
+        for &pair in pairs.iter().filter(|p| !held.contains(p)) {
+            let mut set = held.clone();
+            set.push(pair);
+            set.sort_by_key(|&(kind, at)| (at, kind));
+            sets.push(set);
+        }
+    }
+    sets.sort();
+    sets.dedup();
+    let full = choose(pairs.len(), k);
+    if full <= NEST_ABOVE * sets.len() as f64 {
+        return Ok(None);
+    }
+    let count = sets.len();
+    Ok(Some((unknowns.within(sets)?, (count, full as usize))))
+}
 
 /// The narrowed unknowns and what the narrowing cost.
 pub(super) struct Narrowed {

@@ -162,6 +162,12 @@ pub struct FitOptions {
     pub parallel: bool,
     /// Largest number of hypotheses enumerated (default 200 000).
     pub max_sets: usize,
+    /// With the number of defects left to the criterion, search every set
+    /// at every `k` (default false: from `k = 3` the sets are nested in the
+    /// best answers of one defect fewer, and a search over every kind tries
+    /// the kinds each position's sensitivity points to;
+    /// `detect::fit::narrow`).
+    pub exhaustive: bool,
     /// The blow's time on a record's axis (default detected,
     /// [`crate::detect::data::trigger`]).
     pub trigger: TriggerSpec,
@@ -198,6 +204,7 @@ impl Default for FitOptions {
             alternatives: 5,
             parallel: true,
             max_sets: 200_000,
+            exhaustive: false,
             trigger: TriggerSpec::Auto,
             noise_model: Default::default(),
             nuisance: Default::default(),
@@ -480,6 +487,10 @@ pub struct FitSpec {
     /// Compute the intervals and the probabilities over hypotheses
     /// [default true].
     pub uncertainty: Option<bool>,
+    /// Search every set at every number of defects [default false: from
+    /// three defects on, the sets are nested in the best answers of one
+    /// fewer; see [`FitOptions::exhaustive`]].
+    pub exhaustive: Option<bool>,
 }
 
 impl FitSpec {
@@ -515,6 +526,9 @@ impl FitSpec {
         }
         if let Some(k) = &self.kinds {
             opts.kinds = parse_kinds(k)?;
+        }
+        if let Some(e) = self.exhaustive {
+            opts.exhaustive = e;
         }
         opts.slot_kinds = self
             .slot_kinds
@@ -776,13 +790,12 @@ impl FitSpec {
 /// Whether enumerating the position sets of the largest number of defects
 /// `opts` may try would exceed `opts.max_sets` (about `C(P, k)` sets for `P`
 /// positions of the allowed kinds), with one kind choice for every defect
-/// (what the greedy search needs).
+/// (what the greedy search needs). With every kind sought and the number
+/// of defects left to the criterion, the searches from
+/// `NEST_FROM` (3) defects on are nested in the answers at
+/// one fewer (unless `exhaustive`), so the largest enumerated in full is
+/// the one below.
 fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
-    let k = match opts.defects {
-        DefectCount::Exactly(k) => k,
-        DefectCount::Auto { k_max } => k_max,
-    };
-    let same_kinds = opts.slot_kinds.windows(2).all(|w| w[0] == w[1]);
     let per = opts
         .slot_kinds
         .first()
@@ -790,6 +803,14 @@ fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
         .unwrap_or(opts.kinds)
         .kinds()
         .len();
+    let k = match opts.defects {
+        DefectCount::Exactly(k) => k,
+        DefectCount::Auto { k_max } if per > 1 && !opts.exhaustive => {
+            k_max.min(super::narrow::NEST_FROM - 1)
+        }
+        DefectCount::Auto { k_max } => k_max,
+    };
+    let same_kinds = opts.slot_kinds.windows(2).all(|w| w[0] == w[1]);
     let positions = ((n + 1) * per) as f64;
     let sets = (0..k).fold(1.0, |c, i| c * (positions - i as f64) / (i + 1) as f64);
     same_kinds && sets > opts.max_sets as f64

@@ -26,6 +26,10 @@ pub(super) struct Stage<'a> {
     pub(super) chosen: usize,
     pub(super) rows: Vec<KRow>,
     pub(super) criterion: String,
+    /// The searches may be narrowed from the fits at one defect fewer: no
+    /// narrowed search has failed to explain the record (after one has,
+    /// the later stages search every set at once).
+    pub(super) narrow: bool,
 }
 
 impl Stage<'_> {
@@ -45,7 +49,9 @@ impl Stage<'_> {
     }
 }
 
-/// Fit with the record model `record` from noise level `sigma`.
+/// Fit with the record model `record` from noise level `sigma`; with
+/// `narrow`, the searches narrowed from the fits at one defect fewer first,
+/// every set searched when their choice does not explain the record.
 #[allow(clippy::too_many_arguments)]
 fn run<'a>(
     obs: &'a Observations,
@@ -55,6 +61,7 @@ fn run<'a>(
     record: RecordModel,
     sigma: f64,
     estimated: bool,
+    mut narrow: bool,
 ) -> Result<Stage<'a>> {
     let engine = Engine {
         obs,
@@ -66,8 +73,17 @@ fn run<'a>(
         support: std::sync::Mutex::new(None),
         record,
     };
-    let (fits, sigma, evaluations) = fit_every_k(&engine, sigma, estimated)?;
-    let (chosen, rows, criterion) = choose_k(&fits, sigma, estimated, opts.criterion)?;
+    let start = sigma;
+    let (mut fits, first, mut evaluations) = fit_every_k(&engine, start, estimated, narrow)?;
+    let (mut chosen, mut rows, mut criterion) = choose_k(&fits, first, estimated, opts.criterion)?;
+    let mut sigma = first;
+    if fits.iter().any(|f| f.searched.is_some()) && !fits_data(&fits[chosen], sigma, estimated) {
+        // the narrowed search did not explain the record: every set searched
+        narrow = false;
+        let (every, s, spent) = fit_every_k(&engine, start, estimated, false)?;
+        (chosen, rows, criterion) = choose_k(&every, s, estimated, opts.criterion)?;
+        (fits, sigma, evaluations) = (every, s, evaluations + spent);
+    }
     let chosen = without_null_defects(&fits, chosen, model.chain());
     let sigma = reported_sigma(obs, &fits[chosen], sigma, estimated);
     Ok(Stage {
@@ -79,6 +95,7 @@ fn run<'a>(
         chosen,
         rows,
         criterion,
+        narrow,
     })
 }
 
@@ -136,7 +153,7 @@ pub(super) fn fit_stages<'a>(
         scales: sensor_scales(obs, opts),
         ..RecordModel::default()
     };
-    let mut stage = run(obs, model, opts, given, first, sigma0, estimated)?;
+    let mut stage = run(obs, model, opts, given, first, sigma0, estimated, true)?;
     stage.engine.record.converged = true;
     let Observations::Series(series) = obs else {
         return Ok(stage);
@@ -204,7 +221,7 @@ fn rescaled(mut stage: Stage<'_>, sigma0: f64, estimated: bool) -> Result<Stage<
         };
         refits += 1;
         let evaluations = stage.evaluations;
-        stage = run(obs, model, opts, None, rec, sigma0, estimated)?;
+        stage = run(obs, model, opts, None, rec, sigma0, estimated, stage.narrow)?;
         stage.evaluations += evaluations;
         stage.engine.record.converged = true;
     }
@@ -248,7 +265,16 @@ fn refine<'a>(
     loop {
         rec.screen = screen_estimate(series, rec, &stage.chain()?, *sigma)?;
         rec.iterations += 1;
-        stage = run(obs, model, opts, None, rec.clone(), *sigma, estimated)?;
+        stage = run(
+            obs,
+            model,
+            opts,
+            None,
+            rec.clone(),
+            *sigma,
+            estimated,
+            stage.narrow,
+        )?;
         evaluations += stage.evaluations;
         let mut done = rec.noise.is_white();
         if !done {

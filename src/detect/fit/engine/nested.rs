@@ -57,9 +57,10 @@ impl Engine<'_> {
     /// subset is refitted from `next`'s values (every value and chain
     /// parameter free, [`general::fit_pairs_from`]) and the best joins
     /// `prev`'s ranking when it beats `prev`'s best. Only where `prev`'s
-    /// search did not rank every set (`exhaustive` false): an exhaustive
-    /// search has already fitted every subset. Returns `None` when `prev`
-    /// stands.
+    /// search did not rank every set (`exhaustive` false), and only the
+    /// subsets it did not rank (an exhaustive search has already fitted
+    /// every subset), of those only the ones within the slack of
+    /// [`Self::within_slack`]. Returns `None` when `prev` stands.
     ///
     /// # Errors
     /// As the observations' preparation and [`Self::measured`].
@@ -89,10 +90,56 @@ impl Engine<'_> {
                 (p, v)
             })
             .filter(|(p, _)| prev.ranked.iter().all(|h| h.key() != *p))
+            // a set the narrowed search ranked lost on its screen already
+            .filter(|(p, _)| {
+                !prev
+                    .searched
+                    .as_ref()
+                    .is_some_and(|u| u.admits(&p[known..]))
+            })
             .collect();
+        let starts = self.within_slack(prev, starts, sigma)?;
+        if starts.is_empty() {
+            return Ok(None);
+        }
         Ok(self
             .joined(prev, &start, starts, false, sigma)?
             .filter(|f| f.rss < prev.rss))
+    }
+
+    /// The `starts` of [`Self::backward`] that could beat `prev`'s best:
+    /// with a time misfit (whose fits cost a modal decomposition per
+    /// evaluation), each is first fitted on the coarse Laplace misfit
+    /// ([`SLACK_ITER`] iterations) and kept only when its chi-square there
+    /// is within the search's slack ([`general::Setup::time_slack`]) of
+    /// `prev`'s best answer's: the rule by which the search itself refits
+    /// its sets in the time domain. Every start is kept without a time
+    /// misfit.
+    ///
+    /// # Errors
+    /// As the observations' preparation.
+    fn within_slack(
+        &self,
+        prev: &KFit,
+        starts: Vec<(KindPositions, Vec<f64>)>,
+        sigma: f64,
+    ) -> Result<Vec<(KindPositions, Vec<f64>)>> {
+        let (coarse, fine, _, setup) = self.prepared(sigma)?;
+        let (Some(_), Some(best), Some(unknowns)) =
+            (fine, prev.ranked.first(), self.unknowns(prev.k)?)
+        else {
+            return Ok(starts);
+        };
+        let base = self.model.chain();
+        let floor = coarse.chi2(&best.to_chain(base)?)?;
+        let start = best.to_chain(base)?.uniform();
+        Ok(starts
+            .into_iter()
+            .filter(|(pairs, values)| {
+                general::fit_pairs_from(&start, &unknowns, pairs, values, &coarse, SLACK_ITER)
+                    .is_ok_and(|(h, _)| h.chi2 <= floor + setup.time_slack)
+            })
+            .collect())
     }
 
     /// The best of `starts` (each a `(kind, position)` set of `into.k`
@@ -144,6 +191,8 @@ impl Engine<'_> {
             hypotheses: into.hypotheses + starts.len(),
             method_name: into.method_name.clone(),
             exhaustive,
+            searched: into.searched.clone(),
+            shortlist: into.shortlist.clone(),
             budget_exhausted: into.budget_exhausted,
             trace: into.trace.clone(),
         };
@@ -151,6 +200,9 @@ impl Engine<'_> {
         Ok(Some(f))
     }
 }
+
+/// Levenberg-Marquardt iterations of [`Engine::within_slack`]'s coarse fits.
+const SLACK_ITER: usize = 40;
 
 /// How many of the next fit's best answers propose the new defect of
 /// [`Engine::monotone`]'s extensions.

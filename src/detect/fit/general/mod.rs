@@ -161,6 +161,9 @@ pub struct GeneralFit {
     pub ranked: Vec<Hypothesis>,
     /// Hypotheses of the coarse pass (per round).
     pub hypotheses: usize,
+    /// The coarse pass's best sets (the fine pass's shortlist, last round),
+    /// best first: the ranking before the time-domain refits dropped some.
+    pub shortlist: Vec<KindPositions>,
     /// Residual evaluations, all passes.
     pub evaluations: usize,
     /// Number of residuals of the final misfit (chi-square degrees of freedom
@@ -230,17 +233,18 @@ pub fn fit_general(
     };
     let mut current = base.uniform();
     let mut evaluations = 0;
-    let mut last: Option<(Vec<Hypothesis>, usize)> = None;
+    let mut last: Option<(Vec<Hypothesis>, usize, Vec<KindPositions>)> = None;
     for _ in 0..rounds {
-        let (ranked, m, spent) = passes.round(&current, &hyps)?;
+        let (ranked, m, spent, shortlist) = passes.round(&current, &hyps)?;
         evaluations += spent;
         current = ranked[0].to_chain(&current)?.uniform();
-        last = Some((ranked, m));
+        last = Some((ranked, m, shortlist));
     }
-    let (ranked, residuals) = last.expect("at least one round");
+    let (ranked, residuals, shortlist) = last.expect("at least one round");
     Ok(GeneralFit {
         ranked,
         hypotheses: hyps.len(),
+        shortlist,
         evaluations,
         residuals,
     })
@@ -261,13 +265,13 @@ struct Passes<'a> {
 impl Passes<'_> {
     /// One round from the chain-parameter values of `current`: screen,
     /// coarse pass, fine pass, then the time-domain refits. Returns the
-    /// fitted hypotheses ranked, the residual count of the final misfit and
-    /// the evaluations spent.
+    /// fitted hypotheses ranked, the residual count of the final misfit,
+    /// the evaluations spent and the coarse pass's shortlist.
     fn round(
         &self,
         current: &Chain,
         hyps: &[KindPositions],
-    ) -> Result<(Vec<Hypothesis>, usize, usize)> {
+    ) -> Result<(Vec<Hypothesis>, usize, usize, Vec<KindPositions>)> {
         let (pool, screened) = self.screen(current, hyps);
         let (ranked, spent) = coarse_pass(
             current,
@@ -283,13 +287,19 @@ impl Passes<'_> {
         let mut ranked: Vec<(Hypothesis, KindPositions)> =
             ranked.into_iter().map(|(h, p)| (h, p.clone())).collect();
         ranked.truncate(self.setup.shortlist);
+        let shortlist = ranked.iter().map(|(_, p)| p.clone()).collect();
         let laplace_fits = self.laplace_fits(current, &ranked);
         let (fine_fits, skipped) = match self.fine {
             None => (laplace_fits, 0),
             Some(t) => self.time_fits(current, t, &ranked, laplace_fits),
         };
         let (fitted, m, fine_spent) = collect_fits(fine_fits)?;
-        Ok((rank(fitted), m, screened + spent + skipped + fine_spent))
+        Ok((
+            rank(fitted),
+            m,
+            screened + spent + skipped + fine_spent,
+            shortlist,
+        ))
     }
 
     /// Every hypothesis on the screening nodes, the best `screen_keep` (at
