@@ -121,3 +121,22 @@ fn nested_search_chooses_what_the_exhaustive_search_chooses() {
         "{nested} nested, {searched_again} searched again"
     );
 }
+
+/// Where searching every set would pass `max_sets` (n = 18, every kind:
+/// C(57, 4) sets at k = 4), a nested answer that does not explain the
+/// record is kept and reported, not lost to an error: here the model's
+/// damping (0.3) is not the record's (0.1).
+#[test]
+fn a_nested_answer_is_kept_where_every_set_is_too_many() {
+    let obs = record(18, "mass:6:2", 1e-2, 7);
+    let model = Model::new(18).unwrap().with_d(0.3).unwrap();
+    let opts = FitOptions {
+        kinds: KindChoice::Any,
+        parallel: false,
+        uncertainty: false,
+        ..FitOptions::default()
+    };
+    let r = fit(&obs, &model, &opts).unwrap();
+    assert!(!r.exhaustive, "{}", r.method);
+    assert!(r.method.contains("narrowed"), "{}", r.method);
+}

@@ -791,10 +791,10 @@ impl FitSpec {
 /// `opts` may try would exceed `opts.max_sets` (about `C(P, k)` sets for `P`
 /// positions of the allowed kinds), with one kind choice for every defect
 /// (what the greedy search needs). With every kind sought and the number
-/// of defects left to the criterion, the searches from
-/// `NEST_FROM` (3) defects on are nested in the answers at
-/// one fewer (unless `exhaustive`), so the largest enumerated in full is
-/// the one below.
+/// of defects left to the criterion, the searches from `NEST_FROM` (3)
+/// defects on are nested in the answers at one fewer (unless
+/// `exhaustive`): such a search is enumerated where one kind's would be
+/// and its largest search in full stays within `max_sets`.
 fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
     let per = opts
         .slot_kinds
@@ -803,17 +803,22 @@ fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
         .unwrap_or(opts.kinds)
         .kinds()
         .len();
-    let k = match opts.defects {
-        DefectCount::Exactly(k) => k,
-        DefectCount::Auto { k_max } if per > 1 && !opts.exhaustive => {
-            k_max.min(super::narrow::NEST_FROM - 1)
-        }
-        DefectCount::Auto { k_max } => k_max,
-    };
     let same_kinds = opts.slot_kinds.windows(2).all(|w| w[0] == w[1]);
-    let positions = ((n + 1) * per) as f64;
-    let sets = (0..k).fold(1.0, |c, i| c * (positions - i as f64) / (i + 1) as f64);
-    same_kinds && sets > opts.max_sets as f64
+    let sets = |positions: usize, k: usize| {
+        (0..k).fold(1.0, |c, i| {
+            c * (positions as f64 - i as f64) / (i + 1) as f64
+        })
+    };
+    let max = opts.max_sets as f64;
+    let too_large = match opts.defects {
+        DefectCount::Exactly(k) => sets((n + 1) * per, k) > max,
+        DefectCount::Auto { k_max } if per > 1 && !opts.exhaustive => {
+            let full = k_max.min(super::narrow::NEST_FROM - 1);
+            sets(n + 1, k_max) > max || sets((n + 1) * per, full) > max
+        }
+        DefectCount::Auto { k_max } => sets((n + 1) * per, k_max) > max,
+    };
+    same_kinds && too_large
 }
 
 /// `mass`, `spring`, `damper` or `any` (surrounding blanks ignored).

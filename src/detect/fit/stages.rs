@@ -77,12 +77,21 @@ fn run<'a>(
     let (mut fits, first, mut evaluations) = fit_every_k(&engine, start, estimated, narrow)?;
     let (mut chosen, mut rows, mut criterion) = choose_k(&fits, first, estimated, opts.criterion)?;
     let mut sigma = first;
-    if fits.iter().any(|f| f.searched.is_some()) && !fits_data(&fits[chosen], sigma, estimated) {
-        // the narrowed search did not explain the record: every set searched
-        narrow = false;
-        let (every, s, spent) = fit_every_k(&engine, start, estimated, false)?;
-        (chosen, rows, criterion) = choose_k(&every, s, estimated, opts.criterion)?;
-        (fits, sigma, evaluations) = (every, s, evaluations + spent);
+    if fits.iter().any(|f| f.searched.is_some())
+        && !fits_data(&fits[chosen], sigma, estimated)
+        && every_set_fits(&engine, &fits)?
+    {
+        // the narrowed search did not explain the record: every set
+        // searched (the narrowed fits kept when that fails)
+        match fit_every_k(&engine, start, estimated, false) {
+            Ok((every, s, spent)) => {
+                narrow = false;
+                (chosen, rows, criterion) = choose_k(&every, s, estimated, opts.criterion)?;
+                (fits, sigma, evaluations) = (every, s, evaluations + spent);
+            }
+            Err(e @ crate::Error::Cancelled) => return Err(e),
+            Err(_) => {}
+        }
     }
     let chosen = without_null_defects(&fits, chosen, model.chain());
     let sigma = reported_sigma(obs, &fits[chosen], sigma, estimated);
@@ -134,6 +143,21 @@ fn without_null_defects(fits: &[KFit], mut chosen: usize, base: &Chain) -> usize
         }
     }
     chosen
+}
+
+/// Whether searching every set at each `k` of `fits` stays within the
+/// options' `max_sets` (the narrowed searches are kept otherwise).
+///
+/// # Errors
+/// As the unknowns' construction.
+fn every_set_fits(engine: &Engine<'_>, fits: &[KFit]) -> Result<bool> {
+    let max = engine.opts.max_sets as f64;
+    for f in fits {
+        if engine.space_size(f.k)? > max {
+            return Ok(false);
+        }
+    }
+    Ok(true)
 }
 
 /// Every stage of a fit (see the module docs); the last is the answer, its
