@@ -60,6 +60,7 @@ def fit(
     prior_k: Optional[str] = None,
     prior_range: Optional[str] = None,
     uncertainty: Optional[bool] = None,
+    exhaustive: Optional[bool] = None,
     sensors: List[int] = ...,
     sensor_kinds: List[str] = ...,
     more: List[npt.NDArray[np.float64]] = ...,
