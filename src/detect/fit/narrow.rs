@@ -121,12 +121,7 @@ pub(super) fn nest(
     let n = unknowns.n();
     let pairs: Vec<(DefectKind, usize)> = match unknowns.candidates() {
         Some(c) => c.to_vec(),
-        None => first
-            .kind
-            .kinds()
-            .iter()
-            .flat_map(|&kind| kind.positions(n).map(move |at| (kind, at)))
-            .collect(),
+        None => every_pair(first.kind.kinds(), n),
     };
     let mut sets: Vec<KindPositions> = Vec::new();
     // answers holding a pair the kinds' narrowing dropped are not extended
@@ -162,6 +157,15 @@ pub(super) struct Narrowed {
     pub evaluations: usize,
 }
 
+/// Every `(kind, position)` pair of `kinds` on a chain of `n` masses, by
+/// kind then position.
+fn every_pair(kinds: &[DefectKind], n: usize) -> Vec<(DefectKind, usize)> {
+    kinds
+        .iter()
+        .flat_map(|&kind| kind.positions(n).map(move |at| (kind, at)))
+        .collect()
+}
+
 /// `C(n, k)` as a float.
 fn choose(n: usize, k: usize) -> f64 {
     (0..k).fold(1.0, |c, i| {
@@ -193,10 +197,7 @@ pub(super) fn narrow(
         _ => return Ok(None),
     };
     let n = unknowns.n();
-    let pairs: Vec<(DefectKind, usize)> = kinds
-        .iter()
-        .flat_map(|&kind| kind.positions(n).map(move |at| (kind, at)))
-        .collect();
+    let pairs = every_pair(&kinds, n);
     let held = incumbent.key();
     if free.len() < 2
         || held.len() + 1 != unknowns.k()

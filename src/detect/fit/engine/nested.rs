@@ -131,8 +131,9 @@ impl Engine<'_> {
             return Ok(starts);
         };
         let base = self.model.chain();
-        let floor = coarse.chi2(&best.to_chain(base)?)?;
-        let start = best.to_chain(base)?.uniform();
+        let chain = best.to_chain(base)?;
+        let floor = coarse.chi2(&chain)?;
+        let start = chain.uniform();
         Ok(starts
             .into_iter()
             .filter(|(pairs, values)| {
