@@ -11,8 +11,10 @@
 //! * `n37`: the paper-sized n = 37 scene (masses 3 at 10 and 2 at 25).
 //!
 //! Benchmarks (this thread's CPU time, `parallel = false`):
-//! `cpu/kauto/<case>/given` (`--defects 2`) and `.../auto` (the defaults).
-//! The ratio `auto / given` of each case is printed after its group.
+//! `cpu/kauto/<case>/given` (`--defects 2`), `.../auto` (the defaults) and
+//! `.../auto-low` (the defaults at `--effort low`, issue 30 item 5). The
+//! ratios `auto / given` and `auto-low / given` of each case are printed
+//! after its group.
 //! The Python peer (`benches/scipy_peer.py`) compares the command line
 //! with scipy's least_squares and differential evolution.
 //!
@@ -26,6 +28,7 @@
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use springmass::detect::data::observations::{Observations, Series};
 use springmass::detect::data::series::TimeData;
+use springmass::detect::fit::effort::Effort;
 use springmass::detect::fit::{fit, DefectCount, FitOptions, Model};
 use springmass::detect::unknowns::KindChoice;
 use springmass::noise::NoiseLevel;
@@ -71,12 +74,18 @@ fn bench_kauto(c: &mut Criterion<CpuTime>) {
         let model = Model::new(*n).unwrap();
         let given = options(DefectCount::Exactly(2));
         let auto = options(FitOptions::default().defects);
+        let low = FitOptions {
+            effort: Effort::Low,
+            ..auto.clone()
+        };
         let a = fit(obs, &model, &auto).unwrap();
         let g = fit(obs, &model, &given).unwrap();
         let at = |r: &springmass::detect::fit::FitReport| -> Vec<usize> {
             r.defects.iter().map(|d| d.at).collect()
         };
         assert_eq!(at(&a), at(&g), "{name}: the defaults choose k = 2");
+        let l = fit(obs, &model, &low).unwrap();
+        assert_eq!(at(&l), at(&g), "{name}: effort low chooses k = 2");
         let mut grp = c.benchmark_group(format!("cpu/kauto/{name}"));
         grp.sample_size(10).measurement_time(Duration::from_secs(5));
         grp.bench_function("given", |b| {
@@ -85,6 +94,9 @@ fn bench_kauto(c: &mut Criterion<CpuTime>) {
         grp.bench_function("auto", |b| {
             b.iter(|| fit(black_box(obs), &model, &auto).unwrap())
         });
+        grp.bench_function("auto-low", |b| {
+            b.iter(|| fit(black_box(obs), &model, &low).unwrap())
+        });
         grp.finish();
         let tg = mean_s(3, || {
             fit(obs, &model, &given).unwrap();
@@ -92,11 +104,13 @@ fn bench_kauto(c: &mut Criterion<CpuTime>) {
         let ta = mean_s(3, || {
             fit(obs, &model, &auto).unwrap();
         });
+        let tl = mean_s(3, || {
+            fit(obs, &model, &low).unwrap();
+        });
         println!(
-            "{name}: defaults {:.3} s, k given {:.3} s, ratio {:.1}x (wall, one thread, mean of 3)",
-            ta,
-            tg,
-            ta / tg
+            "{name}: defaults {ta:.3} s, effort low {tl:.3} s, k given {tg:.3} s, ratios {:.1}x and {:.1}x (wall, one thread, mean of 3)",
+            ta / tg,
+            tl / tg
         );
     }
 }

@@ -140,3 +140,63 @@ fn a_nested_answer_is_kept_where_every_set_is_too_many() {
     assert!(!r.exhaustive, "{}", r.method);
     assert!(r.method.contains("narrowed"), "{}", r.method);
 }
+
+/// The speed-accuracy knob (`FitOptions::effort`, issue 30 item 5): every
+/// level finds the truth of these records; `high` searches every set at
+/// every `k` (as `exhaustive`, with the same answer) and `low` says its
+/// level; more effort never fits fewer hypotheses.
+#[test]
+fn every_effort_finds_these_records_and_more_effort_searches_more() {
+    use springmass::detect::fit::effort::Effort;
+    use KindChoice::{Any, Mass};
+    let cases = [
+        (12, "mass:3:0.5 mass:9:2", 1e-2, Mass),
+        (14, "mass:2:1.6 mass:7:0.6 mass:11:2.5", 1e-3, Mass),
+        (8, "spring:2:0.5 mass:5:2 damper:7:0.8", 1e-3, Any),
+    ];
+    for (i, (n, defects, level, kinds)) in cases.into_iter().enumerate() {
+        let obs = record(n, defects, level, 60 + i as u64);
+        let name = format!("n = {n}, {defects:?}, noise {level}");
+        let at = |effort: Effort| {
+            let opts = FitOptions {
+                kinds,
+                effort,
+                parallel: false,
+                uncertainty: false,
+                ..FitOptions::default()
+            };
+            fit(&obs, &Model::new(n).unwrap(), &opts).unwrap()
+        };
+        let runs: Vec<FitReport> = [Effort::Low, Effort::Normal, Effort::High]
+            .into_iter()
+            .map(at)
+            .collect();
+        for r in &runs {
+            assert_eq!(key(r), truth(defects), "{name}: {}", r.summary());
+        }
+        let (low, normal, high) = (&runs[0], &runs[1], &runs[2]);
+        assert!(
+            low.method.contains("[effort low]"),
+            "{name}: {}",
+            low.method
+        );
+        assert!(
+            !normal.method.contains("effort"),
+            "{name}: {}",
+            normal.method
+        );
+        assert!(
+            high.exhaustive && high.method.contains("[effort high]"),
+            "{name}: {}",
+            high.method
+        );
+        assert_eq!(key(high), key(&fit_auto(&obs, n, kinds, true)), "{name}");
+        assert!(
+            low.evaluations <= normal.evaluations && normal.evaluations <= high.evaluations,
+            "{name}: evaluations {} {} {}",
+            low.evaluations,
+            normal.evaluations,
+            high.evaluations
+        );
+    }
+}

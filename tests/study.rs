@@ -788,3 +788,23 @@ proptest! {
         prop_assert!(problems.iter().any(|p| p.path == format!("scene.chain.{name}")), "{:?}", problems);
     }
 }
+
+/// Every study and scene shipped in `configs/` passes `springmass config
+/// check` (the checks of the study engine and of every kind's scene).
+#[test]
+fn every_shipped_study_and_scene_checks() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs");
+    let mut seen = 0;
+    for dir in ["studies", "scenes"] {
+        for entry in std::fs::read_dir(root.join(dir)).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                let text = std::fs::read_to_string(&path).unwrap();
+                let (_, problems) = springmass::study::check::check_file(&text);
+                assert!(problems.is_empty(), "{}: {problems:?}", path.display());
+                seen += 1;
+            }
+        }
+    }
+    assert!(seen >= 20, "{seen} files");
+}

@@ -685,6 +685,7 @@ def fit(
     prior_range: Optional[str] = None,
     uncertainty: bool = True,
     exhaustive: bool = False,
+    effort: str = "normal",
     records: Sequence[Any] = (),
 ) -> FitResult:
     """Fit defects to a measured series of mass 1's displacement.
@@ -818,6 +819,14 @@ def fit(
         more is nested in the best answers at one defect fewer, and
         ``kinds="any"`` tries at each position the kinds the data point to
         (much faster; the report's ``to_dict()["exhaustive"]`` is then False).
+    effort : {"low", "normal", "high"}, default "normal"
+        Speed against accuracy of the search: ``"low"`` refits fewer sets
+        in the time domain and, with ``defects="auto"``, nests the searches
+        from two defects and stops raising the number of defects as soon as
+        one more does not help; ``"high"`` refits every shortlisted set and,
+        with ``defects="auto"``, searches every set at every number of
+        defects up to the largest (where there are at most 200 000). The
+        report's ``method`` names a level other than normal.
 
     Returns
     -------
@@ -899,6 +908,7 @@ def fit(
         prior_range=None if prior_range is None else _text("prior_range", prior_range),
         uncertainty=bool(uncertainty),
         exhaustive=bool(exhaustive),
+        effort=str(effort),
     )
     return FitResult._from_core(raw)
 

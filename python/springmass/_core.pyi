@@ -61,6 +61,7 @@ def fit(
     prior_range: Optional[str] = None,
     uncertainty: Optional[bool] = None,
     exhaustive: Optional[bool] = None,
+    effort: Optional[str] = None,
     sensors: List[int] = ...,
     sensor_kinds: List[str] = ...,
     more: List[npt.NDArray[np.float64]] = ...,

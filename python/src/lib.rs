@@ -235,7 +235,7 @@ fn with_records(
     kinds=None, slot_kinds=Vec::new(), noise=None, misfit=None, method=None, criterion=None,
     seed=None, max_evals=None, k=None, mass=None, left=None, right=None, observe=None,
     observe_kind=None, force=None, trigger=None, noise_model=None, nuisance=None, damping=None, force_window=None,
-    baseline=None, level=None, prior_k=None, prior_range=None, uncertainty=None, exhaustive=None,
+    baseline=None, level=None, prior_k=None, prior_range=None, uncertainty=None, exhaustive=None, effort=None,
     sensors=Vec::new(), sensor_kinds=Vec::new(), more=Vec::new(), record_t=Vec::new(),
     record_x=Vec::new(), record_force=Vec::new()))]
 #[allow(clippy::too_many_arguments)]
@@ -275,6 +275,7 @@ fn fit<'py>(
     prior_range: Option<String>,
     uncertainty: Option<bool>,
     exhaustive: Option<bool>,
+    effort: Option<String>,
     sensors: Vec<usize>,
     sensor_kinds: Vec<String>,
     more: Vec<PyReadonlyArray1<'py, f64>>,
@@ -291,6 +292,7 @@ fn fit<'py>(
         prior_range,
         uncertainty,
         exhaustive,
+        effort,
         d,
         k,
         mass,

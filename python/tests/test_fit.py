@@ -328,3 +328,22 @@ def test_searches_from_three_defects_are_nested_unless_exhaustive():
     assert [(e.kind, e.at) for e in every.defects] == [(e.kind, e.at) for e in quick.defects]
     for a, b in zip(quick.defects, every.defects):
         assert abs(a.value - b.value) <= 0.05 * b.se, (a, b)
+
+
+def test_effort_trades_the_search_for_time_and_names_its_level():
+    # the same record at the three levels of effort: the same answer here;
+    # the report's method names a level other than normal, and high
+    # searches every set (exhaustive); a level outside the three is refused
+    t = np.arange(0.0, 150.0, 0.25)
+    defects = [("mass", 3, 0.5), ("mass", 9, 2.0)]
+    x = springmass.simulate(12, t=t, defects=defects, noise="rel:0.01", seed=7)
+    runs = {e: springmass.fit(t, x, n=12, uncertainty=False, effort=e) for e in ("low", "normal", "high")}
+    for e, r in runs.items():
+        assert [(d.kind, d.at) for d in r.defects] == [("mass", 3), ("mass", 9)], (e, r.summary)
+    assert "[effort low]" in runs["low"].method, runs["low"].method
+    assert "effort" not in runs["normal"].method, runs["normal"].method
+    assert "[effort high]" in runs["high"].method and runs["high"].to_dict()["exhaustive"]
+    ev = [runs[e].to_dict()["evaluations"] for e in ("low", "normal", "high")]
+    assert ev[0] <= ev[1] <= ev[2], ev
+    with pytest.raises(ValueError, match="effort"):
+        springmass.fit(t, x, n=12, effort="max")

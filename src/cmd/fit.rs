@@ -256,6 +256,7 @@ fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
         prior_range: a.prior_range.clone(),
         uncertainty: a.no_uncertainty.then_some(false),
         exhaustive: a.exhaustive.then_some(true),
+        effort: a.effort.clone(),
         ..springmass::detect::fit::options::FitSpec::new(n)
     }
 }

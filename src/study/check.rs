@@ -513,11 +513,16 @@ impl FileKind {
     }
 }
 
-/// What `text` is: a fit scene when it has a top-level `[chain]` table and
-/// no `[study]` table, a study file otherwise (also when it does not parse).
+/// What `text` is: a fit scene when it has a top-level `[chain]` (or
+/// `[truth]`) table and no `[study]` table, a study file otherwise (also
+/// when it does not parse).
 pub fn file_kind(text: &str) -> FileKind {
     match toml::from_str::<toml::Table>(text) {
-        Ok(t) if t.contains_key("chain") && !t.contains_key("study") => FileKind::FitScene,
+        Ok(t)
+            if (t.contains_key("chain") || t.contains_key("truth")) && !t.contains_key("study") =>
+        {
+            FileKind::FitScene
+        }
         _ => FileKind::Study,
     }
 }
@@ -547,8 +552,17 @@ pub fn check_file(text: &str) -> (FileKind, Vec<Problem>) {
 /// [`crate::detect::scene::FitScene::from_toml`] and building its truth and
 /// unknowns, in case those refuse what the checks let through.
 pub fn check_fit_scene(text: &str) -> Vec<Problem> {
-    let value = match parse_table(text) {
-        Ok(v) => toml::Value::Table(v),
+    let (value, truth) = match parse_table(text) {
+        // `[truth]` is the other name of `[chain]`: checked as `chain`,
+        // reported under the file's name
+        Ok(mut v) => {
+            let truth = !v.contains_key("chain") && v.contains_key("truth");
+            if truth {
+                let t = v.remove("truth").expect("checked above");
+                v.insert("chain".into(), t);
+            }
+            (toml::Value::Table(v), truth)
+        }
         Err(p) => return p,
     };
     let locate = Locator::new(text);
@@ -564,7 +578,10 @@ pub fn check_fit_scene(text: &str) -> Vec<Problem> {
     errors
         .iter()
         .map(|e| {
-            let (path, message) = plain_message(e, Some(&value), Kind::Fit.schema());
+            let (mut path, message) = plain_message(e, Some(&value), Kind::Fit.schema());
+            if truth && (path == "chain" || path.starts_with("chain.")) {
+                path = format!("truth{}", &path["chain".len()..]);
+            }
             Problem {
                 line: locate.line(&path),
                 path,
@@ -688,6 +705,12 @@ values = [5, 10]
         assert_eq!(k, FileKind::FitScene);
         assert_eq!(p.len(), 1, "{p:?}");
         assert_eq!(p[0].path, "chain.n");
+        assert_eq!(p[0].line, Some(2));
+        // `[truth]`, the other name of `[chain]`, is reported by its name
+        let (k, p) = check_file("[truth]\nn = 0\n");
+        assert_eq!(k, FileKind::FitScene);
+        assert_eq!(p.len(), 1, "{p:?}");
+        assert_eq!(p[0].path, "truth.n");
         assert_eq!(p[0].line, Some(2));
     }
 }

@@ -182,6 +182,10 @@ pub struct Axis {
     /// Column name of the axis in tables and plots (default: `path`).
     #[serde(default)]
     pub name: Option<String>,
+    /// Leave the axis out of the case seeds (default false): every value
+    /// of it sees the same records, a paired comparison of settings.
+    #[serde(default)]
+    pub paired: bool,
 }
 
 impl Axis {
@@ -450,6 +454,7 @@ pub const STUDY_FIELDS: &[FieldDoc] = &[
     FieldDoc::new("sweep[].range.integer", "bool", "false", "Round every point to the nearest integer and drop repeats; required for integer fields such as `chain.n`."),
     FieldDoc::new("sweep[].labels", "array of strings", "the values", "Names of the values in tables and plots; as many as there are values."),
     FieldDoc::new("sweep[].name", "string", "the path", "Column name of the axis in `summary.csv`, tables and plots."),
+    FieldDoc::new("sweep[].paired", "bool", "false", "Leave the axis out of the case seeds: every value of it sees the same records and noise (a paired comparison of methods or settings)."),
     FieldDoc::new("part", "array of tables", "[]", "Further parts `[[part]]` of the study, each with its own kind, base scene and axes, run, resumed, sharded and reported with the main part. With parts, every case has a `part` column (`main` for the cases of `[scene]` and `[[sweep]]`), and tables, plots and heatmaps can be restricted to one part with `part = \"<name>\"`."),
     FieldDoc::new("part[].name", "string", "required", "Name of the part (letters, digits, `-`, `_`, `.`; not `main`; unique): its label in the `part` column."),
     FieldDoc::new("part[].kind", "string", "required", "What one case of the part does (`forward`, `suppress`, `fit`, `locate`)."),
@@ -466,6 +471,7 @@ pub const STUDY_FIELDS: &[FieldDoc] = &[
     FieldDoc::new("part[].sweep[].range.integer", "bool", "false", "As `sweep[].range.integer`."),
     FieldDoc::new("part[].sweep[].labels", "array of strings", "the values", "As `sweep[].labels`."),
     FieldDoc::new("part[].sweep[].name", "string", "the path", "As `sweep[].name`; an axis column may be shared by several parts."),
+    FieldDoc::new("part[].sweep[].paired", "bool", "false", "As `sweep[].paired`."),
     FieldDoc::new("report", "table", "{}", "What `report.md` shows besides the case list."),
     FieldDoc::new("report.max_case_rows", "integer", "200", "Largest number of cases listed one per row in `report.md` (`summary.csv` always has every case)."),
     FieldDoc::new("report.table", "array of tables", "one table by every axis", "Aggregated tables `[[report.table]]`: one row per combination of the `rows` axes."),

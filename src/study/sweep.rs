@@ -10,7 +10,9 @@
 //!   (the axis values and the repeat), and
 //! - the seed `splitmix64(study.seed ^ key)`: a function of what the case *is*,
 //!   not of when or where it runs, so it is the same for any thread count,
-//!   completion order or shard.
+//!   completion order or shard. An axis marked `paired = true` is left out
+//!   of the seed (not of the key): its values see the same records, for a
+//!   paired comparison of settings.
 //!
 //! ```
 //! use springmass::study::{config::parse, sweep::expand};
@@ -71,6 +73,9 @@ pub struct Param {
     pub value: serde_json::Value,
     /// The label (the axis `labels` entry, or the value as text).
     pub label: String,
+    /// The axis is left out of the seed (`sweep[].paired`).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub paired: bool,
 }
 
 impl Case {
@@ -277,6 +282,7 @@ pub fn expand(file: &StudyFile) -> Result<Vec<Case>> {
             column: PART_COLUMN.to_string(),
             value: serde_json::Value::String(l.to_string()),
             label: l.to_string(),
+            paired: false,
         });
         for (params, repeat, scene) in expand_part(scene, sweep, repeats, &prefix, head)? {
             all.push((kind, params, repeat, scene));
@@ -294,16 +300,24 @@ pub fn expand(file: &StudyFile) -> Result<Vec<Case>> {
         .into_iter()
         .enumerate()
         .map(|(index, (kind, params, repeat, scene))| {
-            let content = serde_json::json!({
-                "params": params.iter().map(|p| (p.column.clone(), p.value.clone())).collect::<Vec<_>>(),
-                "repeat": repeat,
-            });
-            let key = fnv1a(content.to_string().as_bytes());
+            let hash = |all: bool| {
+                let content = serde_json::json!({
+                    "params": params
+                        .iter()
+                        .filter(|p| all || !p.paired)
+                        .map(|p| (p.column.clone(), p.value.clone()))
+                        .collect::<Vec<_>>(),
+                    "repeat": repeat,
+                });
+                fnv1a(content.to_string().as_bytes())
+            };
+            // the key names the case; the seed leaves paired axes out
+            let (key, seeded) = (hash(true), hash(false));
             Case {
                 index,
                 id: format!("c{index:0width$}"),
                 key: format!("{key:016x}"),
-                seed: splitmix64(file.study.seed ^ key),
+                seed: splitmix64(file.study.seed ^ seeded),
                 repeat,
                 params,
                 scene,
@@ -367,6 +381,7 @@ fn expand_part(
                 column: axis.column().to_string(),
                 value: to_json(v),
                 label: label.clone(),
+                paired: axis.paired,
             });
         }
         cases.push((params, repeat, scene));
@@ -484,5 +499,36 @@ mod tests {
         let mut seeds: Vec<u64> = c.iter().map(|c| c.seed).collect();
         seeds.dedup();
         assert_eq!(seeds.len(), 6);
+    }
+
+    #[test]
+    fn a_paired_axis_shares_the_seeds_of_its_values_not_their_keys() {
+        let text = r#"
+            [study]
+            name = "t"
+            kind = "forward"
+            seed = 11
+            repeats = 2
+            [scene]
+            chain = { n = 5 }
+            [[sweep]]
+            path = "chain.n"
+            values = [5, 6]
+            [[sweep]]
+            path = "chain.d"
+            values = [0.1, 0.2]
+            paired = true
+        "#;
+        let c = expand(&parse(text, "t").unwrap()).unwrap();
+        // order: n slowest, then d, repeats innermost
+        assert_eq!(c[0].seed, c[2].seed); // n = 5, repeat 0, d = 0.1 and 0.2
+        assert_eq!(c[1].seed, c[3].seed);
+        assert_ne!(c[0].seed, c[1].seed); // repeats differ
+        assert_ne!(c[0].seed, c[4].seed); // n differs
+        assert_ne!(c[0].key, c[2].key); // the cases stay distinct
+                                        // without `paired`, the seeds are those of any axis
+        let plain = expand(&parse(&text.replace("paired = true", ""), "t").unwrap()).unwrap();
+        assert_ne!(plain[0].seed, plain[2].seed);
+        assert_eq!(plain[0].key, c[0].key);
     }
 }

@@ -3,6 +3,7 @@
 //! ([`KFit`]), and the report built from the chosen one.
 
 use super::chainfit::{default_bounds, fit_chain};
+use super::effort::Effort;
 use super::general::{self, fit_general, laplace_obs, GeneralOptions, Hypothesis, Setup};
 use super::model::Model;
 use super::options::FitOptions;
@@ -27,20 +28,23 @@ use crate::error::{Error, Result};
 mod kernel;
 mod nested;
 
-/// Stop the `auto` loop when two more defects in a row have not lowered the
-/// time-domain residual by more than noise would (a BIC step of `2 ln N`
-/// per defect at the current noise estimate).
-pub(super) fn stop_early(fits: &[KFit], n: usize) -> bool {
-    if fits.len() < 3 {
+/// Stop the `auto` loop when more defects have not lowered the time-domain
+/// residual by more than noise would (a BIC step of `2 ln N` per defect at
+/// the current noise estimate), in as many steps in a row as `effort` asks
+/// (two by default; never at effort high).
+pub(super) fn stop_early(fits: &[KFit], n: usize, effort: Effort) -> bool {
+    let Some(steps) = effort.stop_after() else {
+        return false;
+    };
+    if fits.len() < steps + 1 {
         return false;
     }
     let s = fits[fits.len() - 1].sigma_hat.max(f64::MIN_POSITIVE);
     let pen = 2.0 * (n as f64).ln();
     let c = |f: &KFit| f.rss / (s * s);
-    let a = &fits[fits.len() - 3];
-    let b = &fits[fits.len() - 2];
-    let l = &fits[fits.len() - 1];
-    c(a) - c(b) < pen && c(b) - c(l) < pen
+    fits[fits.len() - steps - 1..]
+        .windows(2)
+        .all(|w| c(&w[0]) - c(&w[1]) < pen)
 }
 
 pub(super) fn krow(f: &KFit, sigma: f64, estimated: bool, criterion: f64) -> KRow {
@@ -290,6 +294,7 @@ impl Engine<'_> {
                             .collect::<Result<_>>()?,
                     ),
                 };
+                self.opts.effort.adjust(&mut setup);
                 self.record.widen(&mut setup);
                 let name = self.misfit_name(&td, s.separate_records(), &coarse, &setup);
                 let fine = match self.misfit {
@@ -374,8 +379,9 @@ impl Engine<'_> {
     /// The fit of `k` defects at noise level `sigma`; `previous` is the fit
     /// at `k - 1`, whose answers narrow the kinds of a search over every
     /// kind and, from three defects on, nest its sets ([`super::narrow`];
-    /// not with `FitOptions::exhaustive`, a scene's unknowns or another
-    /// search than enumeration).
+    /// not with `FitOptions::exhaustive`, at effort high where every set
+    /// is within `max_sets`, with a scene's unknowns or another search than
+    /// enumeration).
     pub(super) fn fit_k(&self, k: usize, sigma: f64, previous: Option<&KFit>) -> Result<KFit> {
         let (coarse, fine, misfit_name, setup) = self.prepared(sigma)?;
         let Some(unknowns) = self.unknowns(k)? else {
@@ -385,10 +391,10 @@ impl Engine<'_> {
         };
         // narrowed from the answers at k - 1: the kinds per position, then
         // the sets nested in the best answers ([`super::narrow`])
+        let every_set = self.opts.exhaustive
+            || (self.opts.effort.every_set() && set_count(&unknowns) <= self.opts.max_sets as f64);
         let from = previous.filter(|_| {
-            self.given.is_none()
-                && self.opts.method == FitMethod::Enumerate
-                && !self.opts.exhaustive
+            self.given.is_none() && self.opts.method == FitMethod::Enumerate && !every_set
         });
         let (mut unknowns, mut notes, mut spent) = (unknowns, Vec::new(), 0);
         if let Some(p) = from {
@@ -403,8 +409,12 @@ impl Engine<'_> {
                 unknowns = nw.unknowns;
             }
             if self.woodbury(&unknowns)?.is_none() {
-                let answers = super::narrow::previous_sets(&p.ranked, &p.shortlist);
-                if let Some((nested, (sets, full))) = super::narrow::nest(&unknowns, &answers)? {
+                let effort = self.opts.effort;
+                let answers =
+                    super::narrow::previous_sets(&p.ranked, &p.shortlist, effort.nest_previous());
+                if let Some((nested, (sets, full))) =
+                    super::narrow::nest(&unknowns, &answers, effort.nest_from())?
+                {
                     notes.push(format!(
                         "nested in the best {} answers at k = {}: {sets} of {full} sets",
                         answers.len(),

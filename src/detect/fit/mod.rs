@@ -72,6 +72,7 @@ mod assemble;
 pub mod chainfit;
 pub mod damping;
 pub mod damping_scales;
+pub mod effort;
 mod engine;
 pub mod general;
 pub mod greedy;
@@ -214,6 +215,9 @@ fn fit_record(
         t0,
     )?;
     note_narrowed(&mut report, &stage.fits);
+    if opts.effort != effort::Effort::Normal {
+        report.method = format!("{} [effort {}]", report.method, opts.effort.name());
+    }
     // how deep the data see (mass defects of a user's data; not the
     // scene path, whose data are the model's own)
     let one_sensor = match obs {
@@ -306,7 +310,7 @@ fn fit_every_k(
         evaluations += f.evaluations;
         fits.push(f);
         if let DefectCount::Auto { .. } = engine.opts.defects {
-            if stop_early(&fits, engine.obs.len()) {
+            if stop_early(&fits, engine.obs.len(), engine.opts.effort) {
                 break;
             }
         }

@@ -1,7 +1,8 @@
 //! The search at `k` defects narrowed from the answers at `k - 1`, when the
 //! number of defects is left to the criterion: the kinds tried at each
-//! position ([`narrow`]) and, from [`NEST_FROM`] defects on, the sets
-//! themselves ([`nest`]). `FitOptions::exhaustive` turns both off.
+//! position ([`narrow`]) and, from three defects on (two at effort low),
+//! the sets themselves ([`nest`]). `FitOptions::exhaustive` and effort
+//! high turn both off ([`super::effort`]).
 //!
 //! **Kinds** (`--kinds any`, at the cost of one kind). With `k` defects
 //! each free to be a mass, a spring or a damper, the enumeration has
@@ -25,7 +26,7 @@
 //! (`tests/kinds_any.rs`), the answers agree in positions and kinds.
 //!
 //! **Sets** (from `k = 3`). The search at `k` takes only the sets made of
-//! one of the best [`NEST_PREVIOUS`] answers at `k - 1` and one more pair:
+//! one of the best 8 answers at `k - 1` (4 at effort low) and one more pair:
 //! about `8 (n - k)` sets instead of `C(n, k)` (System 3 at `k = 4`: 118 of
 //! 4 845). One more defect usually explains what the best `k - 1` left,
 //! and the criterion only needs each `k`'s best fit; measured against the
@@ -51,11 +52,6 @@ pub const KEEP_PREVIOUS: usize = 2;
 /// Levenberg-Marquardt iterations of each sensitivity fit.
 const SENSITIVITY_ITER: usize = 40;
 
-/// The search at `k` is nested from this many defects on.
-pub const NEST_FROM: usize = 3;
-/// The best answers at `k - 1` whose every extension by one pair is a set
-/// of the nested search at `k`.
-pub const NEST_PREVIOUS: usize = 8;
 /// Nest only when the full search holds more than this many times the
 /// nested one's sets.
 const NEST_ABOVE: f64 = 2.0;
@@ -64,10 +60,11 @@ const NEST_ABOVE: f64 = 2.0;
 /// `(kind, position)` sets of `ranked` (the answers refitted to the end,
 /// best first), then those of `shortlist` (the Laplace ranking's best
 /// before the time-domain refits dropped some), each once, at most
-/// [`NEST_PREVIOUS`].
+/// `count` ([`super::effort::Effort::nest_previous`]: 8 by default).
 pub(super) fn previous_sets(
     ranked: &[Hypothesis],
     shortlist: &[KindPositions],
+    count: usize,
 ) -> Vec<KindPositions> {
     let mut out: Vec<KindPositions> = Vec::new();
     let sorted = |mut key: KindPositions| {
@@ -79,7 +76,7 @@ pub(super) fn previous_sets(
         .map(Hypothesis::key)
         .chain(shortlist.iter().cloned());
     for key in keys.map(sorted) {
-        if out.len() < NEST_PREVIOUS && !out.contains(&key) {
+        if out.len() < count && !out.contains(&key) {
             out.push(key);
         }
     }
@@ -90,7 +87,8 @@ pub(super) fn previous_sets(
 /// every set made of one of `previous` ([`previous_sets`]) and one more
 /// `(kind, position)` pair of the unknowns' candidates, with the number of
 /// these sets and of the full search's. `None` when nesting does not apply:
-/// fewer than [`NEST_FROM`] defects, slots of known position or unlike
+/// fewer than `from` defects ([`super::effort::Effort::nest_from`]: 3 by
+/// default), slots of known position or unlike
 /// slots, answers at `k - 1` of another size (known defects), or a full
 /// search at most [`NEST_ABOVE`] times larger.
 ///
@@ -104,10 +102,11 @@ pub(super) fn previous_sets(
 pub(super) fn nest(
     unknowns: &Unknowns,
     previous: &[KindPositions],
+    from: usize,
 ) -> Result<Option<(Unknowns, (usize, usize))>> {
     let k = unknowns.k();
     let first = unknowns.slots()[0];
-    if k < NEST_FROM
+    if k < from
         || previous.is_empty()
         || unknowns.sets().is_some()
         || unknowns

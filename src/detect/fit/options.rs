@@ -168,6 +168,10 @@ pub struct FitOptions {
     /// the kinds each position's sensitivity points to;
     /// `detect::fit::narrow`).
     pub exhaustive: bool,
+    /// How hard the search for an unknown number of defects works (default
+    /// normal; [`super::effort`]): `high` also searches every set at each
+    /// `k` where there are at most `max_sets`.
+    pub effort: super::effort::Effort,
     /// The blow's time on a record's axis (default detected,
     /// [`crate::detect::data::trigger`]).
     pub trigger: TriggerSpec,
@@ -205,6 +209,7 @@ impl Default for FitOptions {
             parallel: true,
             max_sets: 200_000,
             exhaustive: false,
+            effort: Default::default(),
             trigger: TriggerSpec::Auto,
             noise_model: Default::default(),
             nuisance: Default::default(),
@@ -491,6 +496,9 @@ pub struct FitSpec {
     /// three defects on, the sets are nested in the best answers of one
     /// fewer; see [`FitOptions::exhaustive`]].
     pub exhaustive: Option<bool>,
+    /// `low`, `normal` or `high`: the search's speed against its accuracy
+    /// [default normal; see [`super::effort`]].
+    pub effort: Option<String>,
 }
 
 impl FitSpec {
@@ -529,6 +537,9 @@ impl FitSpec {
         }
         if let Some(e) = self.exhaustive {
             opts.exhaustive = e;
+        }
+        if let Some(e) = &self.effort {
+            opts.effort = super::effort::Effort::parse(e)?;
         }
         opts.slot_kinds = self
             .slot_kinds
@@ -791,9 +802,9 @@ impl FitSpec {
 /// `opts` may try would exceed `opts.max_sets` (about `C(P, k)` sets for `P`
 /// positions of the allowed kinds), with one kind choice for every defect
 /// (what the greedy search needs). With every kind sought and the number
-/// of defects left to the criterion, the searches from `NEST_FROM` (3)
-/// defects on are nested in the answers at one fewer (unless
-/// `exhaustive`): such a search is enumerated where one kind's would be
+/// of defects left to the criterion, the searches from three defects on
+/// (two at effort low) are nested in the answers at one fewer (unless
+/// `exhaustive`; effort high nests only searches beyond `max_sets`): such a search is enumerated where one kind's would be
 /// and its largest search in full stays within `max_sets`.
 fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
     let per = opts
@@ -813,7 +824,7 @@ fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
     let too_large = match opts.defects {
         DefectCount::Exactly(k) => sets((n + 1) * per, k) > max,
         DefectCount::Auto { k_max } if per > 1 && !opts.exhaustive => {
-            let full = k_max.min(super::narrow::NEST_FROM - 1);
+            let full = k_max.min(opts.effort.nest_from() - 1);
             sets(n + 1, k_max) > max || sets((n + 1) * per, full) > max
         }
         DefectCount::Auto { k_max } => sets((n + 1) * per, k_max) > max,
