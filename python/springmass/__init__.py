@@ -822,8 +822,8 @@ def fit(
     effort : {"low", "normal", "high"}, default "normal"
         Speed against accuracy of the search: ``"low"`` refits fewer sets
         in the time domain and, with ``defects="auto"``, nests the searches
-        from two defects and stops raising the number of defects as soon as
-        one more does not help; ``"high"`` refits every shortlisted set and,
+        from three defects in 4 answers at one fewer (not 8) and stops
+        raising the number of defects as soon as one more does not help; ``"high"`` refits every shortlisted set and,
         with ``defects="auto"``, searches every set at every number of
         defects up to the largest (where there are at most 200 000). The
         report's ``method`` names a level other than normal.

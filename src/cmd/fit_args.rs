@@ -197,11 +197,11 @@ pub struct Args {
     #[arg(long, requires = "data")]
     pub exhaustive: bool,
     /// Speed against accuracy of the search: low (fewer time-domain
-    /// refits; with --defects auto, searches nested from 2 defects and k
-    /// raised while one more defect helps), normal, or high (every
-    /// shortlisted set refitted; with --defects auto, every set at every
-    /// number of defects up to the largest where there are at most
-    /// 200 000) [default: normal].
+    /// refits; with --defects auto, searches from 3 defects nested in 4
+    /// answers at one fewer, not 8, and k raised while one more defect
+    /// helps), normal, or high (every shortlisted set refitted; with
+    /// --defects auto, every set at every number of defects up to the
+    /// largest where there are at most 200 000) [default: normal].
     #[arg(long, requires = "data", value_name = "LEVEL", value_parser = ["low", "normal", "high"])]
     pub effort: Option<String>,
     /// Write t, observed, model, residual to this CSV (--data; with a

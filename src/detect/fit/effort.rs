@@ -4,8 +4,8 @@
 //!
 //! | level | searches at `k` | time-domain refits | `k` raised until |
 //! |---|---|---|---|
-//! | `low` | nested from `k = 2` in the best 4 answers at `k - 1` | sets within 9 of the Bromwich line's best (3 sigma) | one more defect does not help |
-//! | `normal` (default) | nested from `k = 3` in the best 8 answers | within 25 (5 sigma) | two more in a row do not help |
+//! | `low` | from `k = 3` nested in the best 4 answers at `k - 1` | sets within 9 of the Bromwich line's best (3 sigma) | one more defect does not help |
+//! | `normal` (default) | from `k = 3` nested in the best 8 answers | within 25 (5 sigma) | two more in a row do not help |
 //! | `high` | every set at every `k` (as `exhaustive`) where there are at most `max_sets`, else as normal | every set of the shortlist | `k_max` (no early stop) |
 //!
 //! "Does not help": the step lowers the time-domain chi-square by less
@@ -86,15 +86,6 @@ impl Effort {
         }
     }
 
-    /// The number of defects from which a search is nested in the answers
-    /// at one fewer.
-    pub fn nest_from(self) -> usize {
-        match self {
-            Effort::Low => 2,
-            _ => 3,
-        }
-    }
-
     /// The answers at `k - 1` a nested search extends.
     pub fn nest_previous(self) -> usize {
         match self {
@@ -146,7 +137,6 @@ mod tests {
                 p.adjust(&mut sp);
                 assert!(s.time_slack >= sp.time_slack);
                 assert!(e.stop_after().unwrap_or(usize::MAX) >= p.stop_after().unwrap());
-                assert!(e.nest_from() >= p.nest_from());
                 assert!(e.nest_previous() >= p.nest_previous());
             }
             last = Some(e);

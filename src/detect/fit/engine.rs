@@ -398,8 +398,26 @@ impl Engine<'_> {
         });
         let (mut unknowns, mut notes, mut spent) = (unknowns, Vec::new(), 0);
         if let Some(p) = from {
-            if let Some(nw) =
-                super::narrow::narrow(self.model.chain(), &unknowns, &p.ranked, &coarse)?
+            let effort = self.opts.effort;
+            let answers =
+                super::narrow::previous_sets(&p.ranked, &p.shortlist, effort.nest_previous());
+            // nested over every (kind, position) pair where it applies
+            // (from three defects on, the general search); the kinds
+            // narrowed per position otherwise, keeping every pair of the
+            // best answers at k - 1
+            let nested = match self.woodbury(&unknowns)? {
+                None => super::narrow::nest(&unknowns, &answers)?,
+                Some(_) => None,
+            };
+            if let Some((nested, (sets, full))) = nested {
+                notes.push(format!(
+                    "nested in the best {} answers at k = {}: {sets} of {full} sets",
+                    answers.len(),
+                    k - 1
+                ));
+                unknowns = nested;
+            } else if let Some(nw) =
+                super::narrow::narrow(self.model.chain(), &unknowns, &p.ranked, &answers, &coarse)?
             {
                 notes.push(format!(
                     "kinds narrowed per position: {} of {} pairs",
@@ -407,21 +425,6 @@ impl Engine<'_> {
                 ));
                 spent += nw.evaluations;
                 unknowns = nw.unknowns;
-            }
-            if self.woodbury(&unknowns)?.is_none() {
-                let effort = self.opts.effort;
-                let answers =
-                    super::narrow::previous_sets(&p.ranked, &p.shortlist, effort.nest_previous());
-                if let Some((nested, (sets, full))) =
-                    super::narrow::nest(&unknowns, &answers, effort.nest_from())?
-                {
-                    notes.push(format!(
-                        "nested in the best {} answers at k = {}: {sets} of {full} sets",
-                        answers.len(),
-                        k - 1
-                    ));
-                    unknowns = nested;
-                }
             }
         }
         let mut found = self.search_prepared(k, sigma, &unknowns, &coarse, fine.as_ref(), setup)?;

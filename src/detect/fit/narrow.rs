@@ -1,17 +1,27 @@
 //! The search at `k` defects narrowed from the answers at `k - 1`, when the
-//! number of defects is left to the criterion: the kinds tried at each
-//! position ([`narrow`]) and, from three defects on (two at effort low),
-//! the sets themselves ([`nest`]). `FitOptions::exhaustive` and effort
-//! high turn both off ([`super::effort`]).
+//! number of defects is left to the criterion: from three defects on, the
+//! sets themselves ([`nest`]); below, or where nesting does not apply, the
+//! kinds tried at each position of a search over several kinds
+//! ([`narrow`]). `FitOptions::exhaustive` turns both off, and effort high
+//! where every set can be searched ([`super::effort`]).
 //!
-//! **Kinds** (`--kinds any`, at the cost of one kind). With `k` defects
-//! each free to be a mass, a spring or a damper, the enumeration has
-//! `C(3n + 1, k)` sets against `C(n, k)` for one kind: for `n = 12`,
-//! `k = 4`, 66 045 against 495 (9.8 s against 0.4 s). Before the search at
-//! `k` (`k >= 2`), the best answer at `k - 1` (the incumbent) is extended
-//! by each `(kind, position)` pair in turn and refitted on the coarse
-//! (Laplace) misfit from there, every value free: the chi-square each pair
-//! reaches is its sensitivity. The search at `k` then draws its sets from
+//! **Sets** (from `k = 3`). The search at `k` takes only the sets made of
+//! one of the best 8 answers at `k - 1` (4 at effort low) and one more
+//! `(kind, position)` pair, any kind the unknowns allow: about
+//! `8 (P - k)` sets for `P` pairs instead of `C(P, k)` (System 3 at
+//! `k = 4`: 118 of 4 845; System C3b with every kind sought at `k = 3`:
+//! 444 of 35 990). One more defect usually explains what the best `k - 1`
+//! left, and the criterion only needs each `k`'s best fit; measured against
+//! the exhaustive search on random records (`tests/nested_k.rs`).
+//!
+//! **Kinds** (`--kinds any` at two defects, at the cost of one kind). With
+//! `k` defects each free to be a mass, a spring or a damper, the
+//! enumeration has `C(3n + 1, k)` sets against `C(n, k)` for one kind.
+//! Before the search at `k = 2` (or any `k` that is not nested), the best
+//! answer at `k - 1` (the incumbent) is extended by each `(kind, position)`
+//! pair in turn and refitted on the coarse (Laplace) misfit from there,
+//! every value free: the chi-square each pair reaches is its sensitivity.
+//! The search at `k` then draws its sets from
 //!
 //! * at each position, the kind that reached the lowest chi-square there;
 //! * the right wall's spring (position `n`) beside the last mass's best
@@ -19,18 +29,18 @@
 //! * the [`EXTRA_PAIRS`] pairs of lowest chi-square overall (the other kinds
 //!   where the data point, e.g. a mass and its neighbouring spring);
 //! * every pair of the [`KEEP_PREVIOUS`] best answers at `k - 1` (so an
-//!   incumbent that holds a wrong kind can still be replaced).
+//!   incumbent that holds a wrong kind can still be replaced), and of the
+//!   best answers a nested search would extend ([`previous_sets`]).
 //!
 //! That is about `n + 8` pairs instead of `3n + 1`. Measured against the
 //! full product on the test suite's mixed-kind records
-//! (`tests/kinds_any.rs`), the answers agree in positions and kinds.
-//!
-//! **Sets** (from `k = 3`). The search at `k` takes only the sets made of
-//! one of the best 8 answers at `k - 1` (4 at effort low) and one more pair:
-//! about `8 (n - k)` sets instead of `C(n, k)` (System 3 at `k = 4`: 118 of
-//! 4 845). One more defect usually explains what the best `k - 1` left,
-//! and the criterion only needs each `k`'s best fit; measured against the
-//! exhaustive search on random records (`tests/nested_k.rs`).
+//! (`tests/kinds_any.rs`), the answers agree in positions and kinds. The
+//! sets at `k >= 3` were first nested within these pairs too; the kinds
+//! then followed the incumbent alone, and where it held a wrong kind (a
+//! spring for the mass at 2 of System C3a) its sensitivities called the
+//! other true masses springs or dampers: with `--kinds any` at 1% noise
+//! C3b's three masses were found in 6 of 20 records, and 20 of 20 nested
+//! over every kind (`configs/studies/effort.toml`).
 //!
 //! Either way the search is no longer exhaustive, and the report says so
 //! (`exhaustive: false`, the method names the narrowing).
@@ -52,6 +62,8 @@ pub const KEEP_PREVIOUS: usize = 2;
 /// Levenberg-Marquardt iterations of each sensitivity fit.
 const SENSITIVITY_ITER: usize = 40;
 
+/// The search at `k` is nested from this many defects on.
+pub const NEST_FROM: usize = 3;
 /// Nest only when the full search holds more than this many times the
 /// nested one's sets.
 const NEST_ABOVE: f64 = 2.0;
@@ -87,8 +99,7 @@ pub(super) fn previous_sets(
 /// every set made of one of `previous` ([`previous_sets`]) and one more
 /// `(kind, position)` pair of the unknowns' candidates, with the number of
 /// these sets and of the full search's. `None` when nesting does not apply:
-/// fewer than `from` defects ([`super::effort::Effort::nest_from`]: 3 by
-/// default), slots of known position or unlike
+/// fewer than [`NEST_FROM`] defects, slots of known position or unlike
 /// slots, answers at `k - 1` of another size (known defects), or a full
 /// search at most [`NEST_ABOVE`] times larger.
 ///
@@ -102,11 +113,10 @@ pub(super) fn previous_sets(
 pub(super) fn nest(
     unknowns: &Unknowns,
     previous: &[KindPositions],
-    from: usize,
 ) -> Result<Option<(Unknowns, (usize, usize))>> {
     let k = unknowns.k();
     let first = unknowns.slots()[0];
-    if k < from
+    if k < NEST_FROM
         || previous.is_empty()
         || unknowns.sets().is_some()
         || unknowns
@@ -175,9 +185,11 @@ fn choose(n: usize, k: usize) -> f64 {
 /// The narrowed unknowns of a search over several kinds (see the module
 /// docs), or `None` when narrowing would not pay: fewer than two defects of
 /// unknown position, one kind each, or a product small enough.
-/// `previous` are the ranked answers at `k - 1` (the best first), `base`
-/// the model's chain (with its known defects and the fitted chain
-/// parameters' starting values), `obs` the coarse misfit.
+/// `previous` are the ranked answers at `k - 1` (the best first), `nested`
+/// the best answers at `k - 1` ([`previous_sets`], those a nested search
+/// at `k` extends: every pair of theirs is kept), `base` the
+/// model's chain (with its known defects and the fitted chain parameters'
+/// starting values), `obs` the coarse misfit.
 ///
 /// # Errors
 /// As [`Hypothesis::to_chain`].
@@ -185,6 +197,7 @@ pub(super) fn narrow(
     base: &Chain,
     unknowns: &Unknowns,
     previous: &[Hypothesis],
+    nested: &[KindPositions],
     obs: &dyn MeasurementModel,
 ) -> Result<Option<Narrowed>> {
     let free: Vec<_> = unknowns.slots().iter().filter(|s| s.at.is_none()).collect();
@@ -225,7 +238,15 @@ pub(super) fn narrow(
         };
         scored.push((pair, chi2));
     }
-    let kept = kept_pairs(&scored, previous, n);
+    let mut kept = kept_pairs(&scored, previous, n);
+    // an answer a nested search extends keeps its kinds (a mass the
+    // incumbent's sensitivities would call a damper)
+    for &pair in nested.iter().flatten() {
+        if !kept.contains(&pair) {
+            kept.push(pair);
+        }
+    }
+    kept.sort_by_key(|&(kind, at)| (at, kind));
     let total = pairs.len();
     Ok(Some(Narrowed {
         kept: (kept.len(), total),

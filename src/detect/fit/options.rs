@@ -803,7 +803,7 @@ impl FitSpec {
 /// positions of the allowed kinds), with one kind choice for every defect
 /// (what the greedy search needs). With every kind sought and the number
 /// of defects left to the criterion, the searches from three defects on
-/// (two at effort low) are nested in the answers at one fewer (unless
+/// are nested in the answers at one fewer (unless
 /// `exhaustive`; effort high nests only searches beyond `max_sets`): such a search is enumerated where one kind's would be
 /// and its largest search in full stays within `max_sets`.
 fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
@@ -824,7 +824,7 @@ fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
     let too_large = match opts.defects {
         DefectCount::Exactly(k) => sets((n + 1) * per, k) > max,
         DefectCount::Auto { k_max } if per > 1 && !opts.exhaustive => {
-            let full = k_max.min(opts.effort.nest_from() - 1);
+            let full = k_max.min(super::narrow::NEST_FROM - 1);
             sets(n + 1, k_max) > max || sets((n + 1) * per, full) > max
         }
         DefectCount::Auto { k_max } => sets((n + 1) * per, k_max) > max,
