@@ -627,3 +627,41 @@ fn fit_data_with_modal_damping() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A fit whose best model by the criterion holds a defect at the uniform
+/// value is stepped down to one defect fewer; where that smaller answer is
+/// not the rest of the larger one, the answer is not called `converged`
+/// (n = 23, masses 2.787 at 3, 2.949 at 4, 0.471 at 9 and 0.57 at 18, 1%
+/// noise: the nested search's best four were 3, 4, 6 and 9 with 6 null,
+/// and the answer 3, 4, 6 came back `converged` without the intervals).
+#[test]
+fn a_step_down_past_a_null_defect_to_another_answer_is_not_converged() {
+    let dir = temp_dir("null-step");
+    let csv = dir.join("r.csv");
+    let mut sim = bin();
+    sim.args(["simulate", "--n", "23", "--t-end", "200", "--dt", "0.2"])
+        .args(["--noise", "0.01", "--seed", "4522"])
+        .args(["--defect", "mass:3:2.787", "--defect", "mass:4:2.949"])
+        .args(["--defect", "mass:9:0.471", "--defect", "mass:18:0.570"])
+        .arg("--out")
+        .arg(&csv);
+    assert!(sim.output().unwrap().status.success());
+    let r = json_of(bin().args(["fit", "--data"]).arg(&csv).args([
+        "--n",
+        "23",
+        "--no-uncertainty",
+        "--json",
+        "--threads",
+        "1",
+    ]));
+    assert_eq!(positions(&r), vec![3, 4, 6], "{r}");
+    assert_eq!(r["status"], "not-identifiable", "{r}");
+    assert_eq!(r["resolved"], false, "{r}");
+    let msg = r["message"].as_str().unwrap();
+    assert!(msg.contains("mass@6 at the uniform value"), "{msg}");
+    assert!(
+        msg.contains("the rest of it (mass@3, mass@4, mass@9)"),
+        "{msg}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

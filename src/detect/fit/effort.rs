@@ -10,13 +10,16 @@
 //!
 //! "Does not help": the step lowers the time-domain chi-square by less
 //! than noise would (a BIC step of `2 ln N` per defect,
-//! [`stop_early`](super::engine::stop_early)). Every level keeps the
+//! the `auto` loop's stop rule). Every level keeps the
 //! checks that make an answer honest: the backward rule, the hidden-defect
 //! check, the whole search again when a narrowed answer does not explain
 //! the record, the status. What `low` gives up: a defect whose first
 //! extension does not lower the criterion but whose second does (two
-//! defects that mask each other), and a set whose Laplace misfit is more
-//! than 3 sigma behind the best but whose time misfit is better. What
+//! defects that mask each other), a set at `k` none of whose subsets is
+//! among the best 4 at `k - 1`, and a set whose Laplace misfit is more
+//! than 3 sigma behind the best but whose time misfit is better (measured:
+//! one record of 420 on masses; with every kind sought, 11 of 120, most of
+//! them three defects found together). What
 //! `high` buys: the answer exhaustive selection gives, at every `k` up to
 //! `k_max`, where every set can be searched; beyond (every kind sought at
 //! four defects on a chain of 17 masses or more) the search at that `k`

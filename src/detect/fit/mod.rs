@@ -215,6 +215,15 @@ fn fit_record(
         t0,
     )?;
     note_narrowed(&mut report, &stage.fits);
+    if let Some(why) = stage
+        .doubt
+        .as_ref()
+        .filter(|_| report.status == Status::Converged)
+    {
+        report.status = Status::NotIdentifiable;
+        report.resolved = false;
+        report.message = why.clone();
+    }
     if opts.effort != effort::Effort::Normal {
         report.method = format!("{} [effort {}]", report.method, opts.effort.name());
     }

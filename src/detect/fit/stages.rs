@@ -13,6 +13,7 @@ use crate::chain::Chain;
 use crate::detect::data::nuisance::Nuisance;
 use crate::detect::data::observations::{Observations, Series};
 use crate::detect::misfit::MisfitKind;
+use crate::detect::unknowns::DefectKind;
 use crate::error::Result;
 
 /// One stage: the engine it ran on, its fits of every k, the final noise
@@ -30,6 +31,10 @@ pub(super) struct Stage<'a> {
     /// narrowed search has failed to explain the record (after one has,
     /// the later stages search every set at once).
     pub(super) narrow: bool,
+    /// Why the answer is doubtful when the criterion's choice was stepped
+    /// down past a null defect to an answer that is not the rest of it
+    /// ([`without_null_defects`]).
+    pub(super) doubt: Option<String>,
 }
 
 impl Stage<'_> {
@@ -93,7 +98,7 @@ fn run<'a>(
             Err(_) => {}
         }
     }
-    let chosen = without_null_defects(&fits, chosen, model.chain());
+    let (chosen, doubt) = without_null_defects(&fits, chosen, model.chain());
     let sigma = reported_sigma(obs, &fits[chosen], sigma, estimated);
     Ok(Stage {
         engine,
@@ -105,6 +110,7 @@ fn run<'a>(
         rows,
         criterion,
         narrow,
+        doubt,
     })
 }
 
@@ -123,26 +129,67 @@ fn reported_sigma(obs: &Observations, chosen: &KFit, sigma: f64, estimated: bool
 /// The criterion's choice, stepped down while the chosen fit holds a free
 /// defect whose value equals the uniform value within its standard error
 /// or `1e-9` relative (on an exact record the chi-square keeps falling with
-/// rounding, and such a "defect" is none).
-fn without_null_defects(fits: &[KFit], mut chosen: usize, base: &Chain) -> usize {
+/// rounding, and such a "defect" is none). With the doubt to report when
+/// the larger fit without its null defects is not the smaller answer (a
+/// weak defect more, and the null one fitted where it is not: a nested
+/// search of a record with a deep fourth mass gave masses 3, 4, 6 and 9
+/// with 6 null, and then the three-defect answer 3, 4, 6 as `converged`,
+/// where the truth was 3, 4, 9 and 18).
+fn without_null_defects(fits: &[KFit], mut chosen: usize, base: &Chain) -> (usize, Option<String>) {
     let known = base.defects().len();
-    let null = |f: &KFit| {
+    let nulls = |f: &KFit| -> Vec<(DefectKind, usize)> {
         let h = &f.ranked[0];
-        h.defects.iter().zip(&h.std_errors).any(|(d, se)| {
-            let u = d.base_value(base);
-            let free = !base.defects().contains(d);
-            let gap = (d.value() - u).abs();
-            free && (gap <= 1e-9 * u.abs() || gap <= *se)
-        })
+        h.defects
+            .iter()
+            .zip(&h.std_errors)
+            .filter(|(d, se)| {
+                let u = d.base_value(base);
+                let free = !base.defects().contains(d);
+                let gap = (d.value() - u).abs();
+                free && (gap <= 1e-9 * u.abs() || gap <= **se)
+            })
+            .map(|(d, _)| (DefectKind::of(d), d.at()))
+            .collect()
     };
-    while fits[chosen].k > 0 && fits[chosen].ranked[0].defects.len() > known && null(&fits[chosen])
-    {
-        match fits.iter().position(|f| f.k + 1 == fits[chosen].k) {
-            Some(i) => chosen = i,
-            None => break,
+    let mut doubt = None;
+    while fits[chosen].k > 0 && fits[chosen].ranked[0].defects.len() > known {
+        let null = nulls(&fits[chosen]);
+        if null.is_empty() {
+            break;
         }
+        let Some(i) = fits.iter().position(|f| f.k + 1 == fits[chosen].k) else {
+            break;
+        };
+        // the rest of the larger answer should be the smaller one
+        let sorted = |mut v: Vec<(DefectKind, usize)>| {
+            v.sort_by_key(|&(kind, at)| (at, kind));
+            v
+        };
+        let rest = sorted(
+            fits[chosen].ranked[0]
+                .key()
+                .into_iter()
+                .filter(|p| !null.contains(p))
+                .collect(),
+        );
+        let smaller = sorted(fits[i].ranked[0].key());
+        if doubt.is_none() && rest != smaller {
+            let names = |v: &[(DefectKind, usize)]| {
+                v.iter()
+                    .map(|(kind, at)| format!("{}@{at}", kind.name()))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            };
+            doubt = Some(format!(
+                "the criterion's best fit has {} defects, with {} at the uniform value within its standard error; the rest of it ({}) is not this answer: the data cannot tell these hypotheses apart",
+                fits[chosen].k,
+                names(&null),
+                names(&rest)
+            ));
+        }
+        chosen = i;
     }
-    chosen
+    (chosen, doubt)
 }
 
 /// Whether searching every set at each `k` of `fits` stays within the
