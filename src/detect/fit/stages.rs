@@ -151,7 +151,7 @@ fn without_null_defects(fits: &[KFit], mut chosen: usize, base: &Chain) -> (usiz
             .map(|(d, _)| (DefectKind::of(d), d.at()))
             .collect()
     };
-    let mut doubt = None;
+    let (mut doubt, first) = (None, chosen);
     while fits[chosen].k > 0 && fits[chosen].ranked[0].defects.len() > known {
         let null = nulls(&fits[chosen]);
         if null.is_empty() {
@@ -173,7 +173,7 @@ fn without_null_defects(fits: &[KFit], mut chosen: usize, base: &Chain) -> (usiz
                 .collect(),
         );
         let smaller = sorted(fits[i].ranked[0].key());
-        if doubt.is_none() && rest != smaller {
+        if chosen == first && rest != smaller {
             let names = |v: &[(DefectKind, usize)]| {
                 v.iter()
                     .map(|(kind, at)| format!("{}@{at}", kind.name()))
