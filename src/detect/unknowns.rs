@@ -773,6 +773,12 @@ impl Slot {
 /// A hypothesis of a general fit: `(kind, position)` per slot.
 pub type KindPositions = Vec<(DefectKind, usize)>;
 
+/// Put a set of `(kind, position)` pairs in the order hypotheses are keyed
+/// by: position, then kind.
+pub fn by_position(set: &mut [(DefectKind, usize)]) {
+    set.sort_by_key(|&(kind, at)| (at, kind));
+}
+
 /// The checks of slot `i` of `slots` (see [`Unknowns::new`]): its known
 /// position distinct and of its kind, its known value in the kind's range,
 /// its bounds.
@@ -1027,7 +1033,7 @@ impl Unknowns {
     /// [`Unknowns::among`] and as many pairs as free slots.
     pub fn admits(&self, set: &[(DefectKind, usize)]) -> bool {
         let mut key = set.to_vec();
-        key.sort_by_key(|&(kind, at)| (at, kind));
+        by_position(&mut key);
         if let Some(sets) = &self.sets {
             return sets.contains(&key);
         }

@@ -215,14 +215,8 @@ fn fit_record(
         t0,
     )?;
     note_narrowed(&mut report, &stage.fits);
-    if let Some(why) = stage
-        .doubt
-        .as_ref()
-        .filter(|_| report.status == Status::Converged)
-    {
-        report.status = Status::NotIdentifiable;
-        report.resolved = false;
-        report.message = why.clone();
+    if let Some(why) = &stage.doubt {
+        doubt_converged(&mut report, why.clone());
     }
     if opts.effort != effort::Effort::Normal {
         report.method = format!("{} [effort {}]", report.method, opts.effort.name());
@@ -486,7 +480,7 @@ fn doubt_improbable_answer(report: &mut FitReport) {
     let Some(post) = &report.posterior else {
         return;
     };
-    if post.answer_probability >= ANSWER_PROBABILITY_MIN || report.status != Status::Converged {
+    if post.answer_probability >= ANSWER_PROBABILITY_MIN {
         return;
     }
     let top = post.hypotheses.first().map_or("another".to_string(), |h| {
@@ -501,12 +495,21 @@ fn doubt_improbable_answer(report: &mut FitReport) {
             d.join(", ")
         }
     });
-    report.status = Status::NotIdentifiable;
-    report.resolved = false;
-    report.message = format!(
+    let why = format!(
         "the answer has probability {:.2} only (most probable: {top}); the data cannot tell these hypotheses apart",
         post.answer_probability
     );
+    doubt_converged(report, why);
+}
+
+/// A `converged` answer becomes `not-identifiable`, not resolved, for the
+/// reason `why` (any other status already says the answer is not sure).
+fn doubt_converged(report: &mut FitReport, why: String) {
+    if report.status == Status::Converged {
+        report.status = Status::NotIdentifiable;
+        report.resolved = false;
+        report.message = why;
+    }
 }
 
 /// Each interval on its defect (by kind and position) or chain parameter

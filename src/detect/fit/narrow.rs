@@ -28,9 +28,9 @@
 //!   kind: near the wall a spring and a mass change the record alike;
 //! * the [`EXTRA_PAIRS`] pairs of lowest chi-square overall (the other kinds
 //!   where the data point, e.g. a mass and its neighbouring spring);
-//! * every pair of the [`KEEP_PREVIOUS`] best answers at `k - 1` (so an
-//!   incumbent that holds a wrong kind can still be replaced), and of the
-//!   best answers a nested search would extend ([`previous_sets`]).
+//! * every pair of the best answers at `k - 1` ([`previous_sets`], the
+//!   answers a nested search would extend), so an incumbent that holds a
+//!   wrong kind can still be replaced.
 //!
 //! That is about `n + 8` pairs instead of `3n + 1`. Measured against the
 //! full product on the test suite's mixed-kind records
@@ -48,7 +48,7 @@
 use super::general::{self, Hypothesis};
 use crate::chain::Chain;
 use crate::detect::model::MeasurementModel;
-use crate::detect::unknowns::{DefectKind, KindPositions, Unknowns};
+use crate::detect::unknowns::{by_position, DefectKind, KindPositions, Unknowns};
 use crate::error::Result;
 
 /// Narrow only when the full product holds more than this many times the
@@ -57,8 +57,6 @@ const NARROW_ABOVE: f64 = 3.0;
 /// Pairs kept beyond the best kind of every position: the lowest
 /// chi-squares overall.
 pub const EXTRA_PAIRS: usize = 2;
-/// The best answers at `k - 1` whose every pair is kept.
-pub const KEEP_PREVIOUS: usize = 2;
 /// Levenberg-Marquardt iterations of each sensitivity fit.
 const SENSITIVITY_ITER: usize = 40;
 
@@ -80,7 +78,7 @@ pub(super) fn previous_sets(
 ) -> Vec<KindPositions> {
     let mut out: Vec<KindPositions> = Vec::new();
     let sorted = |mut key: KindPositions| {
-        key.sort_by_key(|&(kind, at)| (at, kind));
+        by_position(&mut key);
         key
     };
     let keys = ranked
@@ -142,7 +140,7 @@ pub(super) fn nest(
         for &pair in pairs.iter().filter(|p| !held.contains(p)) {
             let mut set = held.clone();
             set.push(pair);
-            set.sort_by_key(|&(kind, at)| (at, kind));
+            by_position(&mut set);
             sets.push(set);
         }
     }
@@ -185,9 +183,9 @@ fn choose(n: usize, k: usize) -> f64 {
 /// The narrowed unknowns of a search over several kinds (see the module
 /// docs), or `None` when narrowing would not pay: fewer than two defects of
 /// unknown position, one kind each, or a product small enough.
-/// `previous` are the ranked answers at `k - 1` (the best first), `nested`
-/// the best answers at `k - 1` ([`previous_sets`], those a nested search
-/// at `k` extends: every pair of theirs is kept), `base` the
+/// `previous` are the ranked answers at `k - 1` (the best first: the
+/// incumbent), `answers` the best answers at `k - 1` ([`previous_sets`],
+/// which start with `previous`'s: every pair of theirs is kept), `base` the
 /// model's chain (with its known defects and the fitted chain parameters'
 /// starting values), `obs` the coarse misfit.
 ///
@@ -197,7 +195,7 @@ pub(super) fn narrow(
     base: &Chain,
     unknowns: &Unknowns,
     previous: &[Hypothesis],
-    nested: &[KindPositions],
+    answers: &[KindPositions],
     obs: &dyn MeasurementModel,
 ) -> Result<Option<Narrowed>> {
     let free: Vec<_> = unknowns.slots().iter().filter(|s| s.at.is_none()).collect();
@@ -238,15 +236,7 @@ pub(super) fn narrow(
         };
         scored.push((pair, chi2));
     }
-    let mut kept = kept_pairs(&scored, previous, n);
-    // an answer a nested search extends keeps its kinds (a mass the
-    // incumbent's sensitivities would call a damper)
-    for &pair in nested.iter().flatten() {
-        if !kept.contains(&pair) {
-            kept.push(pair);
-        }
-    }
-    kept.sort_by_key(|&(kind, at)| (at, kind));
+    let kept = kept_pairs(&scored, answers, n);
     let total = pairs.len();
     Ok(Some(Narrowed {
         kept: (kept.len(), total),
@@ -257,12 +247,13 @@ pub(super) fn narrow(
 
 /// The pairs kept from the sensitivities `scored` (see the module docs):
 /// the best kind at every position (every kind where none could be fitted),
-/// the [`EXTRA_PAIRS`] best overall and the pairs of the best
-/// [`KEEP_PREVIOUS`] answers in `previous`; in the order of the full list,
-/// each once.
+/// the [`EXTRA_PAIRS`] best overall and every pair of the best answers at
+/// `k - 1` (`answers`, [`previous_sets`]: an answer keeps its kinds, a mass
+/// the incumbent's sensitivities would call a damper); sorted by position
+/// then kind, each once.
 fn kept_pairs(
     scored: &[((DefectKind, usize), f64)],
-    previous: &[Hypothesis],
+    answers: &[KindPositions],
     n: usize,
 ) -> Vec<(DefectKind, usize)> {
     let mut keep: Vec<(DefectKind, usize)> = Vec::new();
@@ -282,10 +273,8 @@ fn kept_pairs(
         scored.iter().filter(|s| s.1.is_finite()).collect();
     order.sort_by(|a, b| a.1.total_cmp(&b.1).then_with(|| a.0.cmp(&b.0)));
     keep.extend(order.iter().take(EXTRA_PAIRS).map(|s| s.0));
-    for h in previous.iter().take(KEEP_PREVIOUS) {
-        keep.extend(h.key());
-    }
-    keep.sort_by_key(|&(kind, at)| (at, kind));
+    keep.extend(answers.iter().flatten());
+    by_position(&mut keep);
     keep.dedup();
     keep
 }

@@ -803,9 +803,10 @@ impl FitSpec {
 /// positions of the allowed kinds), with one kind choice for every defect
 /// (what the greedy search needs). With every kind sought and the number
 /// of defects left to the criterion, the searches from three defects on
-/// are nested in the answers at one fewer (unless
-/// `exhaustive`; effort high nests only searches beyond `max_sets`): such a search is enumerated where one kind's would be
-/// and its largest search in full stays within `max_sets`.
+/// are nested in the answers at one fewer (unless `exhaustive`; effort
+/// high nests only searches beyond `max_sets`): such a search is enumerated
+/// where one kind's would be and its largest search in full stays within
+/// `max_sets`.
 fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
     let per = opts
         .slot_kinds

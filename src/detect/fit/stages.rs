@@ -13,7 +13,7 @@ use crate::chain::Chain;
 use crate::detect::data::nuisance::Nuisance;
 use crate::detect::data::observations::{Observations, Series};
 use crate::detect::misfit::MisfitKind;
-use crate::detect::unknowns::DefectKind;
+use crate::detect::unknowns::{by_position, DefectKind};
 use crate::error::Result;
 
 /// One stage: the engine it ran on, its fits of every k, the final noise
@@ -161,18 +161,14 @@ fn without_null_defects(fits: &[KFit], mut chosen: usize, base: &Chain) -> (usiz
             break;
         };
         // the rest of the larger answer should be the smaller one
-        let sorted = |mut v: Vec<(DefectKind, usize)>| {
-            v.sort_by_key(|&(kind, at)| (at, kind));
-            v
-        };
-        let rest = sorted(
-            fits[chosen].ranked[0]
-                .key()
-                .into_iter()
-                .filter(|p| !null.contains(p))
-                .collect(),
-        );
-        let smaller = sorted(fits[i].ranked[0].key());
+        let mut rest: Vec<_> = fits[chosen].ranked[0]
+            .key()
+            .into_iter()
+            .filter(|p| !null.contains(p))
+            .collect();
+        let mut smaller = fits[i].ranked[0].key();
+        by_position(&mut rest);
+        by_position(&mut smaller);
         if chosen == first && rest != smaller {
             let names = |v: &[(DefectKind, usize)]| {
                 v.iter()
