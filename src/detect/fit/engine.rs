@@ -71,7 +71,8 @@ pub(super) struct KFit {
     pub(super) n_data: usize,
     /// Free parameters (2 per defect of unknown position, 1 per known position, chain parameters).
     pub(super) params: usize,
-    /// `sqrt(rss / (n_data - params))`.
+    /// `sqrt(rss / (n_data - params))`, for a series at least
+    /// [`super::SIGMA_FLOOR`] times its largest `|x|`.
     pub(super) sigma_hat: f64,
     /// The misfit's own chi-square and dof at the sigma of the fit.
     pub(super) chi2: f64,
@@ -626,7 +627,13 @@ impl Engine<'_> {
                 (rss, m, None, best.chi2, m.saturating_sub(params), None)
             }
         };
-        let sigma_hat = (rss / (n_data.saturating_sub(params).max(1)) as f64).sqrt();
+        let floor = match self.obs {
+            Observations::Series(s) => super::SIGMA_FLOOR * s.max_abs(),
+            Observations::Laplace(_) => 0.0,
+        };
+        let sigma_hat = (rss / (n_data.saturating_sub(params).max(1)) as f64)
+            .sqrt()
+            .max(floor);
         Ok(KFit {
             k,
             hypotheses: found.hypotheses,

@@ -271,6 +271,15 @@ fn misfit_of(obs: &Observations, opts: &FitOptions) -> MisfitKind {
     }
 }
 
+/// The smallest noise level a record's estimate may take, relative to its
+/// largest `|x|`: the precision of the fitted model's own response (modal
+/// sums and the generators it is checked against agree to about this). On
+/// a record noise-free to that precision the residuals at every `k` are
+/// rounding, whose differences would otherwise read as overwhelming
+/// evidence for more defects (an exact System 2 record had its answer's
+/// probability below 0.001 and a "defect" more at the uniform value).
+pub(super) const SIGMA_FLOOR: f64 = 1e-12;
+
 /// The noise level to start from, and whether it is estimated: given, or a
 /// first guess from the record's finest scales (1 for Laplace values).
 fn first_sigma(obs: &Observations, opts: &FitOptions) -> (f64, bool) {
@@ -278,7 +287,7 @@ fn first_sigma(obs: &Observations, opts: &FitOptions) -> (f64, bool) {
         (_, NoiseSpec::Sigma(s)) => (s, false),
         (Observations::Series(s), NoiseSpec::Auto) => {
             let hf = noise::high_frequency_sigma(s.x());
-            (hf.max(1e-12 * s.max_abs()).max(1e-300), true)
+            (hf.max(SIGMA_FLOOR * s.max_abs()).max(1e-300), true)
         }
         (Observations::Laplace(_), NoiseSpec::Auto) => (1.0, true),
     }

@@ -134,7 +134,8 @@ fn reported_sigma(obs: &Observations, chosen: &KFit, sigma: f64, estimated: bool
 /// weak defect more, and the null one fitted where it is not: a nested
 /// search of a record with a deep fourth mass gave masses 3, 4, 6 and 9
 /// with 6 null, and then the three-defect answer 3, 4, 6 as `converged`,
-/// where the truth was 3, 4, 9 and 18).
+/// where the truth was 3, 4, 9 and 18). Every null defect is dropped at
+/// once: the rest is compared with the fit of its own size.
 fn without_null_defects(fits: &[KFit], mut chosen: usize, base: &Chain) -> (usize, Option<String>) {
     let known = base.defects().len();
     let nulls = |f: &KFit| -> Vec<(DefectKind, usize)> {
@@ -157,7 +158,11 @@ fn without_null_defects(fits: &[KFit], mut chosen: usize, base: &Chain) -> (usiz
         if null.is_empty() {
             break;
         }
-        let Some(i) = fits.iter().position(|f| f.k + 1 == fits[chosen].k) else {
+        // the fit without every null defect, else with one fewer
+        let k = fits[chosen].k;
+        let Some(i) = (fits.iter().position(|f| f.k + null.len() == k))
+            .or_else(|| fits.iter().position(|f| f.k + 1 == k))
+        else {
             break;
         };
         // the rest of the larger answer should be the smaller one
