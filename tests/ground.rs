@@ -1,7 +1,7 @@
 //! The ground spring (`Defect::Ground`: a spring from one mass to the
 //! ground), the kind added to show what a new defect kind costs: its
 //! physics is one `Site` in `src/chain.rs` and its fitting table one entry of
-//! `DefectKind` in `src/detect/unknowns.rs`. Here every path that reads it
+//! `DefectKind` in `src/detect/unknowns/mod.rs`. Here every path that reads it
 //! is checked against references written out in this file: a dense solve of
 //! `(M s^2 + D s + K) x = gamma e_1` assembled by hand, the identity with a
 //! wall spring at mass 1, finite differences of the response, the modal sum

@@ -68,7 +68,7 @@
 //! | file | what the kind needs there |
 //! |---|---|
 //! | `src/chain.rs` | the `Defect` variant: its name, position, value, site (`e_j`, power 0), uniform value (0), value range |
-//! | `src/detect/unknowns.rs` | `DefectKind` and `KindChoice` entries (name, starting values, bounds) |
+//! | `src/detect/unknowns/mod.rs` | `DefectKind` and `KindChoice` entries (name, starting values, bounds) |
 //!
 //! and its name in three help or schema texts (`src/cmd/fit.rs`,
 //! `src/detect/fit/mod.rs`, `src/study/kinds/fit.rs`), the README and the
