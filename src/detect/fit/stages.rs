@@ -1,7 +1,9 @@
 //! The fit's stages over record models ([`super::record`]): the white fit,
 //! then, when its residual is not white (or a record model is asked for),
 //! the refits with the criterion's noise model and nuisances until the AR
-//! coefficients stop moving.
+//! coefficients stop moving. When a narrowed search's answer does not
+//! explain the record, every set is searched once, in the last stage (the
+//! white fit's, when no record model follows it).
 
 use super::assemble::fits_data;
 use super::engine::{Engine, Given, KFit};
@@ -35,6 +37,11 @@ pub(super) struct Stage<'a> {
     /// down past a null defect to an answer that is not the rest of it
     /// ([`without_null_defects`]).
     pub(super) doubt: Option<String>,
+    /// The noise level the stage's fits started from.
+    start: f64,
+    /// Whether the criterion's choice (before any step down past null
+    /// defects) explains the record.
+    explained: bool,
 }
 
 impl Stage<'_> {
@@ -56,7 +63,9 @@ impl Stage<'_> {
 
 /// Fit with the record model `record` from noise level `sigma`; with
 /// `narrow`, the searches narrowed from the fits at one defect fewer first,
-/// every set searched when their choice does not explain the record.
+/// and with `widen`, every set searched when their choice does not explain
+/// the record ([`widened`]; a stage that a record model may follow leaves
+/// that to the last stage).
 #[allow(clippy::too_many_arguments)]
 fn run<'a>(
     obs: &'a Observations,
@@ -66,7 +75,8 @@ fn run<'a>(
     record: RecordModel,
     sigma: f64,
     estimated: bool,
-    mut narrow: bool,
+    narrow: bool,
+    widen: bool,
 ) -> Result<Stage<'a>> {
     let engine = Engine {
         obs,
@@ -78,28 +88,31 @@ fn run<'a>(
         support: std::sync::Mutex::new(None),
         record,
     };
-    let start = sigma;
-    let (mut fits, first, mut evaluations) = fit_every_k(&engine, start, estimated, narrow)?;
-    let (mut chosen, mut rows, mut criterion) = choose_k(&fits, first, estimated, opts.criterion)?;
-    let mut sigma = first;
-    if fits.iter().any(|f| f.searched.is_some())
-        && !fits_data(&fits[chosen], sigma, estimated)
-        && every_set_fits(&engine, &fits)?
-    {
-        // the narrowed search did not explain the record: every set
-        // searched (the narrowed fits kept when that fails)
-        match fit_every_k(&engine, start, estimated, false) {
-            Ok((every, s, spent)) => {
-                narrow = false;
-                (chosen, rows, criterion) = choose_k(&every, s, estimated, opts.criterion)?;
-                (fits, sigma, evaluations) = (every, s, evaluations + spent);
-            }
-            Err(e @ crate::Error::Cancelled) => return Err(e),
-            Err(_) => {}
-        }
+    let (fits, first, evaluations) = fit_every_k(&engine, sigma, estimated, narrow)?;
+    let stage = finish(engine, fits, [sigma, first], estimated, evaluations, narrow)?;
+    match widen {
+        true => widened(stage),
+        false => Ok(stage),
     }
-    let (chosen, doubt) = without_null_defects(&fits, chosen, model.chain());
-    let sigma = reported_sigma(obs, &fits[chosen], sigma, estimated);
+}
+
+/// The stage of `fits` made from noise level `start` to `level`: the
+/// criterion's choice of `k`, stepped down past null defects.
+///
+/// # Errors
+/// As [`choose_k`].
+fn finish<'a>(
+    engine: Engine<'a>,
+    fits: Vec<KFit>,
+    [start, level]: [f64; 2],
+    estimated: bool,
+    evaluations: usize,
+    narrow: bool,
+) -> Result<Stage<'a>> {
+    let (chosen, rows, criterion) = choose_k(&fits, level, estimated, engine.opts.criterion)?;
+    let explained = fits_data(&fits[chosen], level, estimated);
+    let (chosen, doubt) = without_null_defects(&fits, chosen, engine.model.chain());
+    let sigma = reported_sigma(engine.obs, &fits[chosen], level, estimated);
     Ok(Stage {
         engine,
         fits,
@@ -111,7 +124,37 @@ fn run<'a>(
         criterion,
         narrow,
         doubt,
+        start,
+        explained,
     })
+}
+
+/// `stage` again with every set searched when a narrowed search's answer
+/// does not explain the record (the narrowed fits kept when that fails).
+///
+/// # Errors
+/// Only [`crate::Error::Cancelled`].
+fn widened(stage: Stage<'_>) -> Result<Stage<'_>> {
+    let narrowed = stage.fits.iter().any(|f| f.searched.is_some());
+    if !narrowed || stage.explained || !every_set_fits(&stage.engine, &stage.fits)? {
+        return Ok(stage);
+    }
+    let (start, estimated) = (stage.start, stage.estimated);
+    match fit_every_k(&stage.engine, start, estimated, false) {
+        Ok((every, level, spent)) => {
+            let evaluations = stage.evaluations + spent;
+            finish(
+                stage.engine,
+                every,
+                [start, level],
+                estimated,
+                evaluations,
+                false,
+            )
+        }
+        Err(e @ crate::Error::Cancelled) => Err(e),
+        Err(_) => Ok(stage),
+    }
 }
 
 /// The noise level of the report: for a record with an estimated level,
@@ -225,7 +268,30 @@ pub(super) fn fit_stages<'a>(
         scales: sensor_scales(obs, opts),
         ..RecordModel::default()
     };
-    let mut stage = run(obs, model, opts, given, first, sigma0, estimated, true)?;
+    // a known sigma is of white noise: AR only when asked for
+    let noise_choice = match (opts.noise, opts.noise_model) {
+        (NoiseSpec::Sigma(_), record::NoiseModelChoice::Auto) => record::NoiseModelChoice::White,
+        (_, c) => c,
+    };
+    // a record model may follow the white fit: searching every set when
+    // the white answer does not explain the record is then left to the
+    // last stage (coloured noise or a sensor's drift, not a missed set, is
+    // the usual cause, and each stage would search every set again)
+    let record_may_follow = matches!(obs, Observations::Series(s) if s.others().is_empty())
+        && !scene
+        && misfit_of(obs, opts) == MisfitKind::Time
+        && record::open(noise_choice, opts.nuisance);
+    let mut stage = run(
+        obs,
+        model,
+        opts,
+        given,
+        first,
+        sigma0,
+        estimated,
+        true,
+        !record_may_follow,
+    )?;
     stage.engine.record.converged = true;
     let Observations::Series(series) = obs else {
         return Ok(stage);
@@ -233,20 +299,15 @@ pub(super) fn fit_stages<'a>(
     if !series.others().is_empty() {
         return rescaled(stage, sigma0, estimated);
     }
-    // a known sigma is of white noise: AR only when asked for
-    let noise_choice = match (opts.noise, opts.noise_model) {
-        (NoiseSpec::Sigma(_), record::NoiseModelChoice::Auto) => record::NoiseModelChoice::White,
-        (_, c) => c,
-    };
-    let applies = !scene
-        && misfit_of(obs, opts) == MisfitKind::Time
-        && record::open(noise_choice, opts.nuisance);
-    let forced = record::forced(noise_choice, opts.nuisance);
-    if !applies || (!forced && fits_data(stage.best(), stage.sigma, estimated)) {
+    if !record_may_follow {
         return Ok(stage);
     }
+    let forced = record::forced(noise_choice, opts.nuisance);
+    if !forced && fits_data(stage.best(), stage.sigma, estimated) {
+        return widened(stage);
+    }
     let Some(r) = stage.residual() else {
-        return Ok(stage);
+        return widened(stage);
     };
     let choice = record::select_record(r, series.t(), noise_choice, opts.nuisance)?;
     let mut rec = RecordModel {
@@ -255,14 +316,15 @@ pub(super) fn fit_stages<'a>(
         ..RecordModel::default()
     };
     if rec.is_plain() {
-        return Ok(stage);
+        return widened(stage);
     }
     let mut sigma = if estimated {
         choice.innovation_var.sqrt().max(f64::MIN_POSITIVE)
     } else {
         sigma0
     };
-    refine(series, stage, &mut rec, &mut sigma, estimated, noise_choice)
+    let stage = refine(series, stage, &mut rec, &mut sigma, estimated, noise_choice)?;
+    widened(stage)
 }
 
 /// Refits after the first fit of a record of several sensors with an
@@ -293,7 +355,17 @@ fn rescaled(mut stage: Stage<'_>, sigma0: f64, estimated: bool) -> Result<Stage<
         };
         refits += 1;
         let evaluations = stage.evaluations;
-        stage = run(obs, model, opts, None, rec, sigma0, estimated, stage.narrow)?;
+        stage = run(
+            obs,
+            model,
+            opts,
+            None,
+            rec,
+            sigma0,
+            estimated,
+            stage.narrow,
+            true,
+        )?;
         stage.evaluations += evaluations;
         stage.engine.record.converged = true;
     }
@@ -346,6 +418,7 @@ fn refine<'a>(
             *sigma,
             estimated,
             stage.narrow,
+            false,
         )?;
         evaluations += stage.evaluations;
         let mut done = rec.noise.is_white();

@@ -1,0 +1,109 @@
+//! The cost of a real test's deviations (issue 27): the defaults on a
+//! record with one deviation against the same fit of the same chain's
+//! record without it, as ratios measured in one run.
+//!
+//! `cargo bench --bench realism -- --warm-up-time 1 --measurement-time 5`
+//!
+//! Records: the realism study's generator (`springmass::study::realistic`,
+//! a dense state space independent of the fit's model), `x_1` on
+//! `[0, 200]` at `dt = 0.2`, 1% noise of the clean peak, seed 1, told what
+//! the study tells the fit (n and the uniform chain).
+//!
+//! * `cpu/realism/S3/<deviation>`: System 3 (n = 20, masses 5 at 8 and 2
+//!   at 15) with the defaults, for `none`, `ar1-0.9`, `ar1-0.99`,
+//!   `offset-drift`, `pre-trigger` and `late-clock`;
+//! * `cpu/realism/S1-fit-d/<deviation>`: System 1 (n = 5, masses 3 at 2 and
+//!   0.5 at 4) with the damping unknown (`--fit d`: every damping model
+//!   screened, the criterion's kept), for `none` (the paper's grounded
+//!   damping), `rayleigh`, `between` and `modal`.
+//!
+//! Every fit runs on this thread (`parallel = false`); the benchmarks take
+//! this thread's CPU time. After each group, the ratio of each deviation to
+//! `none` (mean wall time of 2 fits, one thread) is printed.
+
+use criterion::{black_box, criterion_group, criterion_main, Criterion};
+use springmass::detect::data::observations::{Observations, Series};
+use springmass::detect::fit::options::FitSpec;
+use springmass::detect::fit::{fit, FitOptions, Model};
+use springmass::study::realistic::{record, Deviations};
+use std::time::{Duration, Instant};
+
+#[path = "common/cputime.rs"]
+mod cputime;
+use cputime::CpuTime;
+
+/// The record of `system` with `deviation`, and the model and options the
+/// study's user gives (`fit_d`: the damping unknown).
+fn case(system: &str, deviation: &str, fit_d: bool) -> (Observations, Model, FitOptions) {
+    let truth = springmass::scenes::by_name(system).unwrap();
+    let dev = Deviations::named(deviation, 1.0).unwrap();
+    let (t, x) = record(&truth, &dev, 200.0, 0.2, 1e-2, 1).unwrap();
+    let obs = Observations::Series(Series::new(t, x, None).unwrap());
+    let spec = FitSpec {
+        fit: fit_d.then(|| "d".to_string()),
+        d: Some(truth.d()),
+        ..FitSpec::new(truth.n())
+    };
+    let (model, mut opts) = spec.build().unwrap();
+    opts.parallel = false;
+    (obs, model, opts)
+}
+
+/// Mean wall time of `runs` fits.
+fn mean_s(runs: usize, f: impl Fn()) -> f64 {
+    let t = Instant::now();
+    for _ in 0..runs {
+        f();
+    }
+    t.elapsed().as_secs_f64() / runs as f64
+}
+
+fn group(c: &mut Criterion<CpuTime>, name: &str, system: &str, fit_d: bool, deviations: &[&str]) {
+    let cases: Vec<_> = deviations
+        .iter()
+        .map(|d| (*d, case(system, d, fit_d)))
+        .collect();
+    let mut g = c.benchmark_group(format!("cpu/realism/{name}"));
+    g.sample_size(10).measurement_time(Duration::from_secs(5));
+    for (dev, (obs, model, opts)) in &cases {
+        g.bench_function(*dev, |b| {
+            b.iter(|| fit(black_box(obs), model, opts).unwrap())
+        });
+    }
+    g.finish();
+    let times: Vec<f64> = cases
+        .iter()
+        .map(|(_, (obs, model, opts))| {
+            mean_s(2, || {
+                fit(obs, model, opts).unwrap();
+            })
+        })
+        .collect();
+    for ((dev, _), t) in cases.iter().zip(&times) {
+        println!(
+            "{name}/{dev}: {t:.3} s, {:.2}x the record without a deviation (wall, one thread, mean of 2)",
+            t / times[0]
+        );
+    }
+}
+
+fn bench(c: &mut Criterion<CpuTime>) {
+    let record_deviations = [
+        "none",
+        "ar1-0.9",
+        "ar1-0.99",
+        "offset-drift",
+        "pre-trigger",
+        "late-clock",
+    ];
+    group(c, "S3", "S3", false, &record_deviations);
+    let damping = ["none", "rayleigh", "between", "modal"];
+    group(c, "S1-fit-d", "S1", true, &damping);
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().with_measurement(CpuTime);
+    targets = bench
+}
+criterion_main!(benches);
