@@ -310,9 +310,11 @@ pub const ANCHOR: usize = 64;
 pub const DERIVATIVE_ANCHOR: usize = 256;
 
 /// The step `dt` when `ts` is uniform to rounding: every
-/// `|t_i - (t_0 + i dt)| <= 8 eps max(|t_i|, dt)` with
+/// `|t_i - (t_0 + i dt)| <= 8 eps max(|t_0|, |t_last|, dt)` with
 /// `dt = (t_last - t_0) / (N - 1) > 0`; `None` otherwise or for fewer than
-/// 3 times.
+/// 3 times. The rounding is that of the grid's largest time: a record's
+/// axis shifted to its blow (`t_i - t_blow`) keeps the rounding of `t_i`
+/// in its samples near zero.
 fn uniform_step(ts: &[f64]) -> Option<f64> {
     let n = ts.len();
     if n < 3 {
@@ -323,9 +325,10 @@ fn uniform_step(ts: &[f64]) -> Option<f64> {
     if !(dt > 0.0 && dt.is_finite()) {
         return None;
     }
+    let tol = 8.0 * f64::EPSILON * t0.abs().max(t1.abs()).max(dt);
     ts.iter()
         .enumerate()
-        .all(|(i, &t)| (t - (t0 + i as f64 * dt)).abs() <= 8.0 * f64::EPSILON * t.abs().max(dt))
+        .all(|(i, &t)| (t - (t0 + i as f64 * dt)).abs() <= tol)
         .then_some(dt)
 }
 
@@ -445,6 +448,16 @@ impl ModalResponse {
             return 0.0;
         }
         self.terms.iter().map(|m| m.eval(t)).sum()
+    }
+    /// The response to a blow at `time` at the times `ts` (ascending): zero
+    /// up to `time`, `x(t - time)` after it, by [`ModalResponse::eval_many`]
+    /// (the shifted times of a uniform grid are one).
+    pub fn eval_after(&self, ts: &[f64], time: f64) -> Vec<f64> {
+        let first = ts.partition_point(|&t| t <= time);
+        let shifted: Vec<f64> = ts[first..].iter().map(|&t| t - time).collect();
+        let mut out = vec![0.0; first];
+        out.extend(self.eval_many(&shifted));
+        out
     }
     /// `x(t)` at many times. On a uniform grid `t_i = t_0 + i dt` (to
     /// rounding, as a sampled record's times are) each oscillating or
@@ -2053,6 +2066,28 @@ mod tests {
             for i in [1, c.n() / 2, c.n()] {
                 check_laplace(c, i, 1e-11);
             }
+        }
+    }
+
+    #[test]
+    fn a_grid_shifted_to_its_blow_is_still_uniform_and_eval_after_matches_eval() {
+        // a pre-trigger record's axis, shifted to the blow: samples near
+        // zero carry the rounding of the original times
+        let ts: Vec<f64> = (0..1000).map(|i| -10.0 + 0.2 * i as f64).collect();
+        let blow = 10.13;
+        let shifted: Vec<f64> = ts.iter().map(|t| t - blow).collect();
+        assert_eq!(
+            uniform_step(&shifted).map(|d| (d - 0.2).abs() < 1e-12),
+            Some(true)
+        );
+        assert!(uniform_step(&[0.0, 0.2, 0.41, 0.6]).is_none());
+        let c = crate::scenes::paper_with(20, "mass:8:5 mass:15:2").unwrap();
+        let x1 = ModalResponse::impulse(&c, 1).unwrap();
+        let got = x1.eval_after(&ts, blow);
+        let peak = got.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        for (&t, g) in ts.iter().zip(&got) {
+            let want = if t > blow { x1.eval(t - blow) } else { 0.0 };
+            assert!((g - want).abs() <= 1e-12 * peak, "t = {t}: {g} vs {want}");
         }
     }
 

@@ -217,11 +217,7 @@ struct Window<'a> {
 impl Window<'_> {
     /// `min over (b, A) of sum (x_i - b - A u(t_i - t0))^2`.
     fn chi2(&self, t0: f64) -> f64 {
-        let m: Vec<f64> = self
-            .t
-            .iter()
-            .map(|&v| if v > t0 { self.u.eval(v - t0) } else { 0.0 })
-            .collect();
+        let m = self.u.eval_after(self.t, t0);
         let n = self.t.len() as f64;
         let (sm, sx) = (m.iter().sum::<f64>(), self.x.iter().sum::<f64>());
         let smm: f64 = m.iter().map(|v| v * v).sum();

@@ -160,13 +160,10 @@ impl<'a> Record<'a> {
     /// Whitened residuals of the response `u` to a blow at `time` (zero
     /// before it).
     fn residuals(&self, u: &ModalResponse, time: f64) -> Vec<f64> {
-        self.t
+        u.eval_after(self.t, time)
             .iter()
             .zip(self.y)
-            .map(|(&t, &y)| {
-                let m = if t > time { u.eval(t - time) } else { 0.0 };
-                (m - y) * self.inv_sigma
-            })
+            .map(|(m, &y)| (m - y) * self.inv_sigma)
             .collect()
     }
 }
