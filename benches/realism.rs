@@ -9,18 +9,21 @@
 //! `[0, 200]` at `dt = 0.2`, 1% noise of the clean peak, seed 1, told what
 //! the study tells the fit (n and the uniform chain).
 //!
-//! * `cpu/realism/S3/<deviation>`: System 3 (n = 20, masses 5 at 8 and 2
+//! * `realism/S3/<deviation>`: System 3 (n = 20, masses 5 at 8 and 2
 //!   at 15) with the defaults, for `none`, `ar1-0.9`, `ar1-0.99`,
 //!   `offset-drift`, `pre-trigger` and `late-clock`;
-//! * `cpu/realism/S1-fit-d/<deviation>`: System 1 (n = 5, masses 3 at 2 and
+//! * `realism/S1-fit-d/<deviation>`: System 1 (n = 5, masses 3 at 2 and
 //!   0.5 at 4) with the damping unknown (`--fit d`: every damping model
 //!   screened, the criterion's kept), for `none` (the paper's grounded
 //!   damping), `rayleigh`, `between` and `modal`.
 //!
-//! Every fit runs on this thread (`parallel = false`); the benchmarks take
-//! this thread's CPU time. After each group, the ratio of each deviation to
-//! `none` (mean wall time of 2 fits, one thread) is printed.
+//! The `S3` group runs every fit on this thread (`parallel = false`) and
+//! takes this thread's CPU time; the `S1-fit-d` group takes wall time (the
+//! damping models are screened side by side on other threads). After each
+//! group, the ratio of each deviation to `none` (mean wall time of 2 fits)
+//! is printed.
 
+use criterion::measurement::Measurement;
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use springmass::detect::data::observations::{Observations, Series};
 use springmass::detect::fit::options::FitSpec;
@@ -58,12 +61,18 @@ fn mean_s(runs: usize, f: impl Fn()) -> f64 {
     t.elapsed().as_secs_f64() / runs as f64
 }
 
-fn group(c: &mut Criterion<CpuTime>, name: &str, system: &str, fit_d: bool, deviations: &[&str]) {
+fn group<M: Measurement>(
+    c: &mut Criterion<M>,
+    name: &str,
+    system: &str,
+    fit_d: bool,
+    deviations: &[&str],
+) {
     let cases: Vec<_> = deviations
         .iter()
         .map(|d| (*d, case(system, d, fit_d)))
         .collect();
-    let mut g = c.benchmark_group(format!("cpu/realism/{name}"));
+    let mut g = c.benchmark_group(format!("realism/{name}"));
     g.sample_size(10).measurement_time(Duration::from_secs(5));
     for (dev, (obs, model, opts)) in &cases {
         g.bench_function(*dev, |b| {
@@ -87,8 +96,8 @@ fn group(c: &mut Criterion<CpuTime>, name: &str, system: &str, fit_d: bool, devi
     }
 }
 
-fn bench(c: &mut Criterion<CpuTime>) {
-    let record_deviations = [
+fn records(c: &mut Criterion<CpuTime>) {
+    let deviations = [
         "none",
         "ar1-0.9",
         "ar1-0.99",
@@ -96,14 +105,18 @@ fn bench(c: &mut Criterion<CpuTime>) {
         "pre-trigger",
         "late-clock",
     ];
-    group(c, "S3", "S3", false, &record_deviations);
-    let damping = ["none", "rayleigh", "between", "modal"];
-    group(c, "S1-fit-d", "S1", true, &damping);
+    group(c, "S3", "S3", false, &deviations);
+}
+
+fn damping(c: &mut Criterion) {
+    let deviations = ["none", "rayleigh", "between", "modal"];
+    group(c, "S1-fit-d", "S1", true, &deviations);
 }
 
 criterion_group! {
-    name = benches;
+    name = cpu;
     config = Criterion::default().with_measurement(CpuTime);
-    targets = bench
+    targets = records
 }
-criterion_main!(benches);
+criterion_group!(wall, damping);
+criterion_main!(cpu, wall);
