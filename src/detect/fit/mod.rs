@@ -294,17 +294,19 @@ fn first_sigma(obs: &Observations, opts: &FitOptions) -> (f64, bool) {
 }
 
 /// Every number of defects asked for, fitted at `sigma` (stopping early
-/// when `auto`); with an estimated noise level, refitted at the largest
-/// model's estimate when it differs by more than a factor 2, and the final
-/// level read from the largest model fitted (it holds every defect the
-/// others hold). With `narrowed`, each search may be narrowed from the fit
-/// at one defect fewer ([`narrow`]); without, every set is searched.
-/// Returns the fits, the final level and the evaluations.
+/// when `auto`); with an estimated noise level and `settle`, refitted at
+/// the largest model's estimate when it differs by more than a factor 2
+/// ([`settle_sigma`]), and the final level read from the largest model
+/// fitted (it holds every defect the others hold). With `narrowed`, each
+/// search may be narrowed from the fit at one defect fewer ([`narrow`]);
+/// without, every set is searched. Returns the fits, the final level and
+/// the evaluations.
 fn fit_every_k(
     engine: &Engine,
-    mut sigma: f64,
+    sigma: f64,
     estimated: bool,
     narrowed: bool,
+    settle: bool,
 ) -> Result<(Vec<KFit>, f64, usize)> {
     let ks: Vec<usize> = match engine.opts.defects {
         DefectCount::Exactly(k) => vec![k],
@@ -328,31 +330,47 @@ fn fit_every_k(
         }
     }
     evaluations += backward_pass(engine, &mut fits, sigma)?;
-    if estimated {
-        let s_hat = fits.last().expect("at least one k").sigma_hat;
-        if s_hat > 0.0 && !(0.5..=2.0).contains(&(s_hat / sigma)) {
-            sigma = s_hat;
-            let mut refit = Vec::with_capacity(fits.len());
-            for f in &fits {
-                let from = refit.last().filter(|_| narrowed);
-                let g = crate::cancel::checked(engine.fit_k(f.k, sigma, from))?;
-                let g = match refit.last() {
-                    Some(prev) => engine.monotone(prev, g, sigma)?,
-                    None => g,
-                };
-                evaluations += g.evaluations;
-                refit.push(g);
-            }
-            evaluations += backward_pass(engine, &mut refit, sigma)?;
-            fits = refit;
-        }
-        sigma = fits
-            .last()
-            .expect("at least one k")
-            .sigma_hat
-            .max(f64::MIN_POSITIVE);
+    if !estimated {
+        return Ok((fits, sigma, evaluations));
     }
-    Ok((fits, sigma, evaluations))
+    if settle {
+        let (settled, spent) = settle_sigma(engine, fits, sigma, narrowed)?;
+        (fits, evaluations) = (settled, evaluations + spent);
+    }
+    let level = fits.last().expect("at least one k").sigma_hat;
+    Ok((fits, level.max(f64::MIN_POSITIVE), evaluations))
+}
+
+/// `fits` made at the noise level `sigma`, refitted (the same numbers of
+/// defects) at the largest model's estimate when it differs from `sigma` by
+/// more than a factor 2. Returns the fits and the evaluations spent.
+///
+/// # Errors
+/// As [`Engine::fit_k`].
+fn settle_sigma(
+    engine: &Engine,
+    fits: Vec<KFit>,
+    sigma: f64,
+    narrowed: bool,
+) -> Result<(Vec<KFit>, usize)> {
+    let s_hat = fits.last().expect("at least one k").sigma_hat;
+    if !(s_hat > 0.0 && !(0.5..=2.0).contains(&(s_hat / sigma))) {
+        return Ok((fits, 0));
+    }
+    let (sigma, mut evaluations) = (s_hat, 0);
+    let mut refit: Vec<KFit> = Vec::with_capacity(fits.len());
+    for f in &fits {
+        let from = refit.last().filter(|_| narrowed);
+        let g = crate::cancel::checked(engine.fit_k(f.k, sigma, from))?;
+        let g = match refit.last() {
+            Some(prev) => engine.monotone(prev, g, sigma)?,
+            None => g,
+        };
+        evaluations += g.evaluations;
+        refit.push(g);
+    }
+    evaluations += backward_pass(engine, &mut refit, sigma)?;
+    Ok((refit, evaluations))
 }
 
 /// Every fit made no worse than the next one's best answer with a defect

@@ -9,7 +9,7 @@ use super::assemble::fits_data;
 use super::engine::{Engine, Given, KFit};
 use super::record::{self, RecordModel, MAX_REFITS};
 use super::report::KRow;
-use super::{choose_k, first_sigma, fit_every_k, misfit_of, Model};
+use super::{choose_k, first_sigma, fit_every_k, misfit_of, settle_sigma, Model};
 use super::{FitOptions, NoiseSpec};
 use crate::chain::Chain;
 use crate::detect::data::nuisance::Nuisance;
@@ -42,6 +42,10 @@ pub(super) struct Stage<'a> {
     /// Whether the criterion's choice (before any step down past null
     /// defects) explains the record.
     explained: bool,
+    /// Whether an estimated noise level has been settled (the fits refitted
+    /// at the largest model's estimate when it differs by more than a
+    /// factor 2, [`super::settle_sigma`]).
+    settled: bool,
 }
 
 impl Stage<'_> {
@@ -63,9 +67,10 @@ impl Stage<'_> {
 
 /// Fit with the record model `record` from noise level `sigma`; with
 /// `narrow`, the searches narrowed from the fits at one defect fewer first,
-/// and with `widen`, every set searched when their choice does not explain
-/// the record ([`widened`]; a stage that a record model may follow leaves
-/// that to the last stage).
+/// and with `last`, the noise level settled and every set searched when
+/// their choice does not explain the record ([`settled`], [`widened`]; a
+/// stage that a record model may follow leaves both until it is known to
+/// be the last).
 #[allow(clippy::too_many_arguments)]
 fn run<'a>(
     obs: &'a Observations,
@@ -76,7 +81,7 @@ fn run<'a>(
     sigma: f64,
     estimated: bool,
     narrow: bool,
-    widen: bool,
+    last: bool,
 ) -> Result<Stage<'a>> {
     let engine = Engine {
         obs,
@@ -88,12 +93,50 @@ fn run<'a>(
         support: std::sync::Mutex::new(None),
         record,
     };
-    let (fits, first, evaluations) = fit_every_k(&engine, sigma, estimated, narrow)?;
-    let stage = finish(engine, fits, [sigma, first], estimated, evaluations, narrow)?;
-    match widen {
+    let (fits, first, evaluations) = fit_every_k(&engine, sigma, estimated, narrow, last)?;
+    let mut stage = finish(engine, fits, [sigma, first], estimated, evaluations, narrow)?;
+    stage.settled = last;
+    match last {
         true => widened(stage),
         false => Ok(stage),
     }
+}
+
+/// The last stage: [`settled`], then [`widened`].
+///
+/// # Errors
+/// As [`settle_sigma`] and [`widened`].
+fn last(stage: Stage<'_>) -> Result<Stage<'_>> {
+    widened(settled(stage)?)
+}
+
+/// `stage` with its estimated noise level settled, if it was not.
+///
+/// # Errors
+/// As [`settle_sigma`].
+fn settled(stage: Stage<'_>) -> Result<Stage<'_>> {
+    if stage.settled || !stage.estimated {
+        return Ok(stage);
+    }
+    let Stage {
+        engine,
+        fits,
+        start,
+        narrow,
+        evaluations,
+        ..
+    } = stage;
+    let (fits, spent) = settle_sigma(&engine, fits, start, narrow)?;
+    let level = fits.last().expect("at least one k").sigma_hat;
+    let level = level.max(f64::MIN_POSITIVE);
+    finish(
+        engine,
+        fits,
+        [start, level],
+        true,
+        evaluations + spent,
+        narrow,
+    )
 }
 
 /// The stage of `fits` made from noise level `start` to `level`: the
@@ -126,6 +169,7 @@ fn finish<'a>(
         doubt,
         start,
         explained,
+        settled: true,
     })
 }
 
@@ -140,7 +184,7 @@ fn widened(stage: Stage<'_>) -> Result<Stage<'_>> {
         return Ok(stage);
     }
     let (start, estimated) = (stage.start, stage.estimated);
-    match fit_every_k(&stage.engine, start, estimated, false) {
+    match fit_every_k(&stage.engine, start, estimated, false, true) {
         Ok((every, level, spent)) => {
             let evaluations = stage.evaluations + spent;
             finish(
@@ -273,10 +317,12 @@ pub(super) fn fit_stages<'a>(
         (NoiseSpec::Sigma(_), record::NoiseModelChoice::Auto) => record::NoiseModelChoice::White,
         (_, c) => c,
     };
-    // a record model may follow the white fit: searching every set when
-    // the white answer does not explain the record is then left to the
-    // last stage (coloured noise or a sensor's drift, not a missed set, is
-    // the usual cause, and each stage would search every set again)
+    // a record model may follow the white fit: refitting at the settled
+    // noise level, and searching every set when the white answer does not
+    // explain the record, are then left to the last stage (coloured noise
+    // or a sensor's drift, not a missed set, is the usual cause; and
+    // coloured noise's level is off the first estimate from the finest
+    // scales, so each stage would be fitted twice)
     let record_may_follow = matches!(obs, Observations::Series(s) if s.others().is_empty())
         && !scene
         && misfit_of(obs, opts) == MisfitKind::Time
@@ -304,10 +350,10 @@ pub(super) fn fit_stages<'a>(
     }
     let forced = record::forced(noise_choice, opts.nuisance);
     if !forced && fits_data(stage.best(), stage.sigma, estimated) {
-        return widened(stage);
+        return last(stage);
     }
     let Some(r) = stage.residual() else {
-        return widened(stage);
+        return last(stage);
     };
     let choice = record::select_record(r, series.t(), noise_choice, opts.nuisance)?;
     let mut rec = RecordModel {
@@ -316,7 +362,7 @@ pub(super) fn fit_stages<'a>(
         ..RecordModel::default()
     };
     if rec.is_plain() {
-        return widened(stage);
+        return last(stage);
     }
     let mut sigma = if estimated {
         choice.innovation_var.sqrt().max(f64::MIN_POSITIVE)
@@ -324,7 +370,7 @@ pub(super) fn fit_stages<'a>(
         sigma0
     };
     let stage = refine(series, stage, &mut rec, &mut sigma, estimated, noise_choice)?;
-    widened(stage)
+    last(stage)
 }
 
 /// Refits after the first fit of a record of several sensors with an
