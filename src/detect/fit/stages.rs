@@ -1,9 +1,10 @@
 //! The fit's stages over record models ([`super::record`]): the white fit,
 //! then, when its residual is not white (or a record model is asked for),
 //! the refits with the criterion's noise model and nuisances until the AR
-//! coefficients stop moving. When a narrowed search's answer does not
-//! explain the record, every set is searched once, in the last stage (the
-//! white fit's, when no record model follows it).
+//! coefficients stop moving. The last stage only (the white fit's, when no
+//! record model follows it) is refitted at its settled noise level and,
+//! when a narrowed search's answer does not explain the record, searched
+//! over every set.
 
 use super::assemble::fits_data;
 use super::engine::{Engine, Given, KFit};
