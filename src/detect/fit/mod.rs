@@ -354,7 +354,8 @@ fn settle_sigma(
     narrowed: bool,
 ) -> Result<(Vec<KFit>, usize)> {
     let s_hat = fits.last().expect("at least one k").sigma_hat;
-    if !(s_hat > 0.0 && !(0.5..=2.0).contains(&(s_hat / sigma))) {
+    let moved = s_hat > 0.0 && !(0.5..=2.0).contains(&(s_hat / sigma));
+    if !moved {
         return Ok((fits, 0));
     }
     let (sigma, mut evaluations) = (s_hat, 0);
