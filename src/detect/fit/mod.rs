@@ -114,7 +114,7 @@ pub use report::{
 pub use scene_fit::fit_scene;
 pub use select::Criterion;
 
-use crate::detect::data::observations::Observations;
+use crate::detect::data::observations::{Observations, Series};
 use crate::detect::misfit::MisfitKind;
 use crate::error::Result;
 use engine::{krow, stop_early, Engine, KFit};
@@ -280,15 +280,21 @@ fn misfit_of(obs: &Observations, opts: &FitOptions) -> MisfitKind {
 /// probability below 0.001 and a "defect" more at the uniform value).
 pub(super) const SIGMA_FLOOR: f64 = 1e-12;
 
+/// A series' first noise level: the level of its finest scales
+/// ([`noise::high_frequency_sigma`]), at least [`SIGMA_FLOOR`] times its
+/// largest `|x|`.
+fn first_guess(s: &Series) -> f64 {
+    noise::high_frequency_sigma(s.x())
+        .max(SIGMA_FLOOR * s.max_abs())
+        .max(1e-300)
+}
+
 /// The noise level to start from, and whether it is estimated: given, or a
 /// first guess from the record's finest scales (1 for Laplace values).
 fn first_sigma(obs: &Observations, opts: &FitOptions) -> (f64, bool) {
     match (obs, opts.noise) {
         (_, NoiseSpec::Sigma(s)) => (s, false),
-        (Observations::Series(s), NoiseSpec::Auto) => {
-            let hf = noise::high_frequency_sigma(s.x());
-            (hf.max(SIGMA_FLOOR * s.max_abs()).max(1e-300), true)
-        }
+        (Observations::Series(s), NoiseSpec::Auto) => (first_guess(s), true),
         (Observations::Laplace(_), NoiseSpec::Auto) => (1.0, true),
     }
 }
@@ -312,24 +318,8 @@ fn fit_every_k(
         DefectCount::Exactly(k) => vec![k],
         DefectCount::Auto { k_max } => (0..=k_max).collect(),
     };
-    let mut evaluations = 0;
-    let mut fits: Vec<KFit> = Vec::with_capacity(ks.len());
-    for &k in &ks {
-        let from = fits.last().filter(|_| narrowed);
-        let f = crate::cancel::checked(engine.fit_k(k, sigma, from))?;
-        let f = match fits.last() {
-            Some(prev) => engine.monotone(prev, f, sigma)?,
-            None => f,
-        };
-        evaluations += f.evaluations;
-        fits.push(f);
-        if let DefectCount::Auto { .. } = engine.opts.defects {
-            if stop_early(&fits, engine.obs.len(), engine.opts.effort) {
-                break;
-            }
-        }
-    }
-    evaluations += backward_pass(engine, &mut fits, sigma)?;
+    let auto = matches!(engine.opts.defects, DefectCount::Auto { .. });
+    let (mut fits, mut evaluations) = fit_ks(engine, &ks, sigma, narrowed, auto)?;
     if !estimated {
         return Ok((fits, sigma, evaluations));
     }
@@ -337,8 +327,15 @@ fn fit_every_k(
         let (settled, spent) = settle_sigma(engine, fits, sigma, narrowed)?;
         (fits, evaluations) = (settled, evaluations + spent);
     }
-    let level = fits.last().expect("at least one k").sigma_hat;
-    Ok((fits, level.max(f64::MIN_POSITIVE), evaluations))
+    let level = estimated_level(&fits);
+    Ok((fits, level, evaluations))
+}
+
+/// The noise level estimated from `fits`: the largest model's (it holds
+/// every defect the others hold).
+fn estimated_level(fits: &[KFit]) -> f64 {
+    let last = fits.last().expect("at least one k");
+    last.sigma_hat.max(f64::MIN_POSITIVE)
 }
 
 /// `fits` made at the noise level `sigma`, refitted (the same numbers of
@@ -358,20 +355,42 @@ fn settle_sigma(
     if !moved {
         return Ok((fits, 0));
     }
-    let (sigma, mut evaluations) = (s_hat, 0);
-    let mut refit: Vec<KFit> = Vec::with_capacity(fits.len());
-    for f in &fits {
-        let from = refit.last().filter(|_| narrowed);
-        let g = crate::cancel::checked(engine.fit_k(f.k, sigma, from))?;
-        let g = match refit.last() {
-            Some(prev) => engine.monotone(prev, g, sigma)?,
-            None => g,
+    let ks: Vec<usize> = fits.iter().map(|f| f.k).collect();
+    fit_ks(engine, &ks, s_hat, narrowed, false)
+}
+
+/// The fits with each number of defects of `ks` at noise level `sigma`,
+/// each at least as good as the one before ([`Engine::monotone`]; with
+/// `narrowed`, searched from it), then the backward pass; with `stop`, the
+/// loop ends early where more defects do not help ([`stop_early`]).
+/// Returns the fits and the evaluations spent.
+///
+/// # Errors
+/// As [`Engine::fit_k`].
+fn fit_ks(
+    engine: &Engine,
+    ks: &[usize],
+    sigma: f64,
+    narrowed: bool,
+    stop: bool,
+) -> Result<(Vec<KFit>, usize)> {
+    let mut evaluations = 0;
+    let mut fits: Vec<KFit> = Vec::with_capacity(ks.len());
+    for &k in ks {
+        let from = fits.last().filter(|_| narrowed);
+        let f = crate::cancel::checked(engine.fit_k(k, sigma, from))?;
+        let f = match fits.last() {
+            Some(prev) => engine.monotone(prev, f, sigma)?,
+            None => f,
         };
-        evaluations += g.evaluations;
-        refit.push(g);
+        evaluations += f.evaluations;
+        fits.push(f);
+        if stop && stop_early(&fits, engine.obs.len(), engine.opts.effort) {
+            break;
+        }
     }
-    evaluations += backward_pass(engine, &mut refit, sigma)?;
-    Ok((refit, evaluations))
+    evaluations += backward_pass(engine, &mut fits, sigma)?;
+    Ok((fits, evaluations))
 }
 
 /// Every fit made no worse than the next one's best answer with a defect

@@ -10,7 +10,7 @@ use super::assemble::fits_data;
 use super::engine::{Engine, Given, KFit};
 use super::record::{self, RecordModel, MAX_REFITS};
 use super::report::KRow;
-use super::{choose_k, first_sigma, fit_every_k, misfit_of, settle_sigma, Model};
+use super::{choose_k, estimated_level, first_sigma, fit_every_k, misfit_of, settle_sigma, Model};
 use super::{FitOptions, NoiseSpec};
 use crate::chain::Chain;
 use crate::detect::data::nuisance::Nuisance;
@@ -128,8 +128,7 @@ fn settled(stage: Stage<'_>) -> Result<Stage<'_>> {
         ..
     } = stage;
     let (fits, spent) = settle_sigma(&engine, fits, start, narrow)?;
-    let level = fits.last().expect("at least one k").sigma_hat;
-    let level = level.max(f64::MIN_POSITIVE);
+    let level = estimated_level(&fits);
     finish(
         engine,
         fits,
@@ -425,18 +424,16 @@ pub const SCALE_TOLERANCE: f64 = 1.25;
 
 /// The further sensors' noise levels relative to the first's to start
 /// from: 1 (a given level holds for every sensor), or the ratios of the
-/// levels of their finest scales ([`super::noise::high_frequency_sigma`]).
+/// levels of their finest scales ([`super::first_guess`]).
 fn sensor_scales(obs: &Observations, opts: &FitOptions) -> Vec<f64> {
     let (Observations::Series(s), NoiseSpec::Auto) = (obs, opts.noise) else {
         return Vec::new();
     };
-    let level = |o: &Series| {
-        super::noise::high_frequency_sigma(o.x())
-            .max(1e-12 * o.max_abs())
-            .max(1e-300)
-    };
-    let first = level(s);
-    s.others().iter().map(|o| level(o) / first).collect()
+    let first = super::first_guess(s);
+    s.others()
+        .iter()
+        .map(|o| super::first_guess(o) / first)
+        .collect()
 }
 
 /// The refits with the record model `rec` until the criterion's AR order

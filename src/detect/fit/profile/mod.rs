@@ -90,7 +90,6 @@ use crate::detect::data::observations::{Observations, Series};
 use crate::detect::fit::chainfit::fit_chain;
 use crate::detect::fit::general::{laplace_obs, Setup};
 use crate::detect::fit::model::Model;
-use crate::detect::fit::noise::high_frequency_sigma;
 use crate::detect::fit::options::{FitOptions, NoiseSpec};
 use crate::detect::fit::report::FitReport;
 use crate::detect::fit::select::chi2_sf;
@@ -602,9 +601,7 @@ fn start_sigma(obs: &Observations, opts: &ProfileOptions) -> (f64, bool) {
     };
     let sigma = match (obs, given_sigma) {
         (_, Some(s)) => s,
-        (Observations::Series(s), None) => high_frequency_sigma(s.x())
-            .max(1e-12 * s.max_abs())
-            .max(1e-300),
+        (Observations::Series(s), None) => super::first_guess(s),
         (Observations::Laplace(_), None) => 1.0,
     };
     (sigma, given_sigma.is_none())
