@@ -620,12 +620,56 @@ impl SeriesTransform {
             add_model_error(&mut c, s, &stacked_rows(s), &model);
             return Ok((values, c));
         }
+        self.weighted_with_covariance(s, None)
+    }
+
+    /// [`SeriesTransform::eval_with_covariance`] for coloured noise: the
+    /// noise covariance is `sigma^2 R R^T` (`sigma` the options'
+    /// `noise_sigma`), given `root_t(a) = R^T a` of a real weight vector
+    /// over the samples (for AR noise, `NoiseModel::covariance_root_t` of
+    /// the fit's noise models).
+    /// Every node's weights are formed (the periodic sums assume white
+    /// noise); the noise variance of each value and the noise part of its
+    /// discretisation estimate use the mapped weights too.
+    ///
+    /// # Errors
+    /// As [`SeriesTransform::eval_many`] (the first failing `s`).
+    pub fn eval_with_coloured_covariance(
+        &self,
+        s: &[Complex64],
+        root_t: &RootT<'_>,
+    ) -> Result<(Vec<LaplaceValue>, DMatrix<f64>)> {
+        self.weighted_with_covariance(s, Some(root_t))
+    }
+
+    /// The values and covariance from every node's weight vector, mapped
+    /// by `root_t` (white noise when `None`).
+    fn weighted_with_covariance(
+        &self,
+        s: &[Complex64],
+        root_t: Option<&RootT<'_>>,
+    ) -> Result<(Vec<LaplaceValue>, DMatrix<f64>)> {
+        let sigma = self.opts.noise_sigma.unwrap_or(0.0);
+        let map = |w: Vec<Complex64>| -> Vec<Complex64> {
+            match root_t {
+                None => w,
+                Some(f) => {
+                    let re = f(&w.iter().map(|z| z.re).collect::<Vec<_>>());
+                    let im = f(&w.iter().map(|z| z.im).collect::<Vec<_>>());
+                    re.into_iter()
+                        .zip(im)
+                        .map(|(a, b)| Complex64::new(a, b))
+                        .collect()
+                }
+            }
+        };
         let mut b = WeightRows::new(s, self.t.len());
         let mut values = Vec::with_capacity(s.len());
         let mut model = Vec::with_capacity(s.len());
         for (q, &z) in s.iter().enumerate() {
             check_node(z)?;
             let (q_hi, sum_abs, w_hi) = self.hi.apply_and_weights(&self.t, &self.x, z);
+            let w_hi = map(w_hi);
             let sum_w2 = if self.opts.noise_sigma.is_some() {
                 sum_sq(&w_hi)
             } else {
@@ -634,7 +678,7 @@ impl SeriesTransform {
             let v = if sigma > 0.0 {
                 let (q_lo, _, w_lo) = self.lo.apply_and_weights(&self.t, &self.x, z);
                 let v = self.value_of(z, q_hi, sum_abs, q_lo, sum_w2)?;
-                model.push(model_error_with(&v, sigma, diff_sum_sq(&w_hi, &w_lo)));
+                model.push(model_error_with(&v, sigma, diff_sum_sq(&w_hi, &map(w_lo))));
                 v
             } else {
                 let (q_lo, _) = self
@@ -652,6 +696,10 @@ impl SeriesTransform {
         Ok((values, c))
     }
 }
+
+/// `a -> R^T a` of a real weight vector, `sigma^2 R R^T` the noise
+/// covariance ([`SeriesTransform::eval_with_coloured_covariance`]).
+pub type RootT<'a> = dyn Fn(&[f64]) -> Vec<f64> + 'a;
 
 /// `s` finite (every evaluation checks it first).
 fn check_node(s: Complex64) -> Result<()> {

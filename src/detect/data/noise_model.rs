@@ -123,6 +123,45 @@ impl NoiseModel {
         out
     }
 
+    /// `h = D^{1/2} L^{-T} a` of a weight vector `a` over the samples, so
+    /// that the covariance of two weighted sums of the stationary noise is
+    /// `cov(a . n, b . n) = sigma_e^2 h_a . h_b` (`a` itself for white
+    /// noise). Here `L` is the exact whitening of the stationary process,
+    /// the prediction-error filter of order `min(t, p)` at sample `t` (the
+    /// step-down recursion's lower orders for the first `p` samples), and
+    /// `D` the variances of those prediction errors over `sigma_e^2` (1
+    /// from sample `p` on): the innovations form `Gamma = sigma_e^2 L^{-1}
+    /// D L^{-T}` of the noise covariance. `O(N p)`, by back substitution.
+    pub fn covariance_root_t(&self, a: &[f64]) -> Vec<f64> {
+        let p = self.order();
+        if p == 0 {
+            return a.to_vec();
+        }
+        let Some((orders, d)) = innovations(self.coefficients()) else {
+            return vec![f64::NAN; a.len()];
+        };
+        let n = a.len();
+        let mut y = a.to_vec();
+        for j in (0..n).rev() {
+            let mut v = a[j];
+            for k in 1..=p {
+                let i = j + k;
+                if i >= n {
+                    break;
+                }
+                let coeffs = &orders[i.min(p)];
+                if k <= coeffs.len() {
+                    v += coeffs[k - 1] * y[i];
+                }
+            }
+            y[j] = v;
+        }
+        for (j, v) in y.iter_mut().enumerate().take(p) {
+            *v *= d[j].sqrt();
+        }
+        y
+    }
+
     /// The process variance over the innovation variance,
     /// `1 / prod_i (1 - kappa_i^2)` with `kappa` the reflection
     /// coefficients (1 for white noise): the marginal standard deviation of
@@ -150,6 +189,30 @@ fn reflection(phi: &[f64]) -> Option<Vec<f64>> {
         a = (0..m).map(|i| (a[i] + k * a[m - 1 - i]) / d).collect();
     }
     Some(kappa)
+}
+
+/// The prediction-error filters of orders `0..=p` of the stationary AR
+/// process `phi` (by the step-down recursion; order `m` at index `m`), and
+/// the variances of the first `p` samples' prediction errors over the
+/// innovation variance, `1 / prod_{j > t} (1 - kappa_j^2)`. `None` when the
+/// process is not stationary.
+fn innovations(phi: &[f64]) -> Option<(Vec<Vec<f64>>, Vec<f64>)> {
+    let p = phi.len();
+    let kappa = reflection(phi)?;
+    let mut orders = vec![Vec::new(); p + 1];
+    orders[p] = phi.to_vec();
+    for m in (1..=p).rev() {
+        let a = &orders[m];
+        let k = a[m - 1];
+        let den = 1.0 - k * k;
+        orders[m - 1] = (0..m - 1)
+            .map(|i| (a[i] + k * a[m - 2 - i]) / den)
+            .collect();
+    }
+    let d = (0..p)
+        .map(|t| 1.0 / kappa[t..].iter().map(|x| 1.0 - x * x).product::<f64>())
+        .collect();
+    Some((orders, d))
 }
 
 /// An AR fit of a series.
@@ -292,6 +355,52 @@ mod tests {
             assert_eq!(w.nrows(), e.len());
             assert!((w[(5, 1)] - 2.0 * e[5]).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn covariance_root_gives_the_stationary_covariance_of_weighted_sums() {
+        // the autocovariance from the MA(infinity) weights, independently
+        for phi in [
+            vec![0.7],
+            vec![-0.95],
+            vec![1.2, -0.5],
+            vec![0.5, 0.2, -0.3],
+        ] {
+            let mut psi = vec![1.0f64];
+            for j in 1..4000 {
+                let v: f64 = (1..=phi.len().min(j))
+                    .map(|k| phi[k - 1] * psi[j - k])
+                    .sum();
+                psi.push(v);
+            }
+            let gamma = |h: usize| -> f64 { psi.iter().zip(&psi[h..]).map(|(a, b)| a * b).sum() };
+            let n = 13;
+            let a: Vec<f64> = (0..n).map(|i| ((i * 7 + 3) % 5) as f64 - 1.7).collect();
+            let b: Vec<f64> = (0..n).map(|i| (0.3 * i as f64).cos()).collect();
+            let mut exact = 0.0;
+            for (i, ai) in a.iter().enumerate() {
+                for (j, bj) in b.iter().enumerate() {
+                    exact += ai * bj * gamma(i.abs_diff(j));
+                }
+            }
+            let m = NoiseModel::ar(phi.clone()).unwrap();
+            let (ha, hb) = (m.covariance_root_t(&a), m.covariance_root_t(&b));
+            let got: f64 = ha.iter().zip(&hb).map(|(x, y)| x * y).sum();
+            assert!(
+                (got - exact).abs() < 1e-9 * exact.abs().max(1.0),
+                "{phi:?}: {got} vs {exact}"
+            );
+            // the variance of one sample is the process variance
+            let mut e0 = vec![0.0; n];
+            e0[4] = 1.0;
+            let h = m.covariance_root_t(&e0);
+            let var: f64 = h.iter().map(|x| x * x).sum();
+            assert!((var - m.variance_ratio()).abs() < 1e-9 * var, "{phi:?}");
+        }
+        assert_eq!(
+            NoiseModel::White.covariance_root_t(&[1.0, 2.0]),
+            vec![1.0, 2.0]
+        );
     }
 
     #[test]

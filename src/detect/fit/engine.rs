@@ -4,7 +4,9 @@
 
 use super::chainfit::{default_bounds, fit_chain};
 use super::effort::Effort;
-use super::general::{self, fit_general, laplace_obs, GeneralOptions, Hypothesis, Setup};
+use super::general::{
+    self, fit_general, laplace_obs, laplace_obs_under, GeneralOptions, Hypothesis, Setup,
+};
 use super::model::Model;
 use super::options::FitOptions;
 use super::report::KRow;
@@ -282,7 +284,9 @@ impl Engine<'_> {
                     laplace => laplace,
                 };
                 let coarse = match self.record.screen_data(&td)? {
-                    Some(screen) => laplace_obs(&screen, coarse_kind, &setup)?,
+                    Some(screen) => {
+                        laplace_obs_under(&screen, coarse_kind, &setup, &self.record.noise)?
+                    }
                     None => laplace_obs(&td, coarse_kind, &setup)?,
                 };
                 // further sensors: each sensor's transform at its own level
@@ -296,7 +300,6 @@ impl Engine<'_> {
                     ),
                 };
                 self.opts.effort.adjust(&mut setup);
-                self.record.widen(&mut setup);
                 let name = self.misfit_name(&td, s.separate_records(), &coarse, &setup);
                 let fine = match self.misfit {
                     MisfitKind::Time => Some(self.record.misfit(td)?),

@@ -16,7 +16,6 @@
 //! [`PHI_TOL`] (at most [`MAX_REFITS`] refits; the report says how many).
 
 use super::noise::ljung_box;
-use super::setup::Setup;
 use crate::chain::Chain;
 use crate::detect::data::noise_model::{burg, ArFit, NoiseModel, P_MAX};
 use crate::detect::data::nuisance::Nuisance;
@@ -31,10 +30,6 @@ pub const MAX_REFITS: usize = 3;
 
 /// The AR coefficients have converged when none moves by more than this.
 pub const PHI_TOL: f64 = 0.01;
-
-/// The Laplace screen's shortlist is this many times longer under a
-/// coloured noise model.
-pub const SHORTLIST_FACTOR: usize = 2;
 
 /// Ljung-Box lags of the whiteness tests.
 pub const LB_LAGS: usize = 20;
@@ -222,8 +217,9 @@ impl RecordModel {
     }
 
     /// The record the Laplace screen sees: the first nuisance estimate
-    /// subtracted, at the noise's marginal level (`sigma` is the innovation
-    /// sd); `None` for the plain record.
+    /// subtracted, at the innovation level (its transform's covariance is
+    /// that of [`RecordModel::noise`]: [`super::setup::laplace_obs_under`]);
+    /// `None` for the plain record.
     ///
     /// # Errors
     /// As [`TimeData::new`].
@@ -244,20 +240,10 @@ impl RecordModel {
             .zip(td.y())
             .map(|(&t, y)| y - trend(t))
             .collect();
-        let sigma = td.sigma() * self.noise.variance_ratio().sqrt();
         Ok(Some(
-            TimeData::new(td.t().to_vec(), y, sigma)?.with_measurement(td.measurement().clone())?,
+            TimeData::new(td.t().to_vec(), y, td.sigma())?
+                .with_measurement(td.measurement().clone())?,
         ))
-    }
-
-    /// With coloured noise the screen's covariance is wrong (it assumes
-    /// white noise): every shortlisted set is refitted in the time domain
-    /// (no slack) and the shortlist is doubled.
-    pub fn widen(&self, setup: &mut Setup) {
-        if !self.noise.is_white() {
-            setup.time_slack = f64::INFINITY;
-            setup.shortlist *= SHORTLIST_FACTOR;
-        }
     }
 
     /// The misfit line's note on the record model (empty when plain).

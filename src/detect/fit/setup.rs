@@ -19,6 +19,7 @@
 
 use crate::chain::Chain;
 use crate::detect::data::laplace::LaplaceObs;
+use crate::detect::data::noise_model::NoiseModel;
 use crate::detect::data::series::TimeData;
 use crate::detect::misfit::quadrature::Rule;
 #[cfg(doc)]
@@ -202,6 +203,23 @@ fn screen_obs(
 /// # Errors
 /// [`Error::InvalidParameter`] for [`MisfitKind::Time`]; as [`SeriesTransform`].
 pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result<LaplaceObs> {
+    laplace_obs_under(data, choice, setup, &NoiseModel::White)
+}
+
+/// [`laplace_obs`] when the record's noise follows `noise` (`data`'s
+/// sigma its innovation standard deviation): the values' covariance is
+/// that of the coloured noise ([`NoiseModel::covariance_root_t`]), so the
+/// whitened Laplace chi-square is a chi-square under the record model and
+/// the time-domain refits keep their slack ([`Setup::time_slack`]).
+///
+/// # Errors
+/// As [`laplace_obs`].
+pub fn laplace_obs_under(
+    data: &TimeData,
+    choice: MisfitKind,
+    setup: &Setup,
+    noise: &NoiseModel,
+) -> Result<LaplaceObs> {
     let (s, w) = choice
         .laplace_nodes(&setup.real_rule, setup.bromwich_sigma, &setup.bromwich_rule)
         .ok_or_else(|| {
@@ -218,7 +236,10 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result
     let tr = SeriesTransform::new(data.t(), data.y(), &opts)?;
     let whitened = setup.weighting == crate::detect::data::whiten::Weighting::Whitened;
     // whitened: the values and their covariance from one pass of the weights
-    let (vals, cov) = if whitened {
+    let (vals, cov) = if !noise.is_white() {
+        let (v, c) = tr.eval_with_coloured_covariance(&s, &|a| noise.covariance_root_t(a))?;
+        (v, whitened.then_some(c))
+    } else if whitened {
         let (v, c) = tr.eval_with_covariance(&s)?;
         (v, Some(c))
     } else {

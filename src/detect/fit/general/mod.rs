@@ -85,7 +85,7 @@ use serde::Serialize;
 mod hypothesis;
 mod sets;
 
-pub use super::setup::{laplace_obs, Setup};
+pub use super::setup::{laplace_obs, laplace_obs_under, Setup};
 use hypothesis::rank;
 pub use hypothesis::{param_name, FittedParam, Hypothesis};
 use sets::{better, fit_pairs, fit_pairs_coarse, fit_pairs_fast, starts, Fitted, Tol};
