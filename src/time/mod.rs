@@ -5,5 +5,6 @@
 
 pub mod inverse;
 pub mod modal;
+pub(crate) mod qep_roots;
 pub mod series;
 pub mod simulate;

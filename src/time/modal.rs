@@ -677,7 +677,7 @@ impl Modes {
             g: &g,
             c: &c,
         };
-        let ev = schur_poles(chain, &qep)?;
+        let ev = poles(chain, &qep)?;
         // near-double pole pairs: one second-order term each, fitted per
         // response (see `Modes::response`)
         let (used, mut clusters) = near_double_pairs(&ev);
@@ -1063,6 +1063,28 @@ impl DoublePoleSum {
             })
             .sum()
     }
+}
+
+/// The `2n` poles of the chain: by the Aberth iteration from the undamped
+/// modes ([`super::qep_roots`], `O(n^2)`) when it is sure of them and they
+/// hold no near-double pair, otherwise (and for a free-free chain's
+/// rigid-body pole) by the Schur form ([`schur_poles`]).
+fn poles(chain: &Chain, qep: &Qep) -> Result<Vec<Complex64>> {
+    if !chain.is_free_free() {
+        let tri = super::qep_roots::Tridiagonal {
+            m: qep.m,
+            k: qep.k,
+            d: qep.d,
+            g: qep.g,
+            c: qep.c,
+        };
+        if let Some(ev) = super::qep_roots::aberth_poles(&tri) {
+            if near_double_pairs(&ev).1.is_empty() {
+                return Ok(ev);
+            }
+        }
+    }
+    schur_poles(chain, qep)
 }
 
 /// The `2n` poles of the chain: the eigenvalues of the symmetrised
@@ -1606,6 +1628,11 @@ pub fn proportional_alpha(chain: &Chain) -> Option<f64> {
         .then_some(a0)
 }
 
+/// `|re| + |im|`.
+fn l1(z: Complex64) -> f64 {
+    z.re.abs() + z.im.abs()
+}
+
 /// The tridiagonal quadratic eigenproblem `(M s^2 + D s + K) v = 0`.
 struct Qep<'a> {
     m: &'a [f64],
@@ -1658,7 +1685,7 @@ impl Qep<'_> {
         let mut x = b.to_vec();
         let tiny = f64::EPSILON * (p.norm_sqr() * self.m.iter().cloned().fold(0.0, f64::max) + 4.0);
         let nz = |z: Complex64| {
-            if z.norm() == 0.0 {
+            if z.re == 0.0 && z.im == 0.0 {
                 Complex64::new(tiny, 0.0)
             } else {
                 z
@@ -1668,7 +1695,8 @@ impl Qep<'_> {
             return vec![x[0] / nz(dg[0])];
         }
         for i in 0..n - 1 {
-            if dg[i].norm() >= dl[i].norm() {
+            // partial pivoting by the l1 modulus (no hypot per row)
+            if l1(dg[i]) >= l1(dl[i]) {
                 let piv = nz(dg[i]);
                 dg[i] = piv;
                 let fact = dl[i] / piv;
@@ -1745,8 +1773,13 @@ impl Qep<'_> {
         w2.is_finite().then_some(w2)
     }
 
+    /// `v` over its largest component's max-modulus `max(|re|, |im|)`
+    /// (a scale: every use of a mode shape is invariant to it).
     fn normalise(v: &mut [Complex64]) {
-        let s = v.iter().map(|z| z.norm()).fold(0.0, f64::max);
+        let s = v
+            .iter()
+            .map(|z| z.re.abs().max(z.im.abs()))
+            .fold(0.0, f64::max);
         if s > 0.0 && s.is_finite() {
             for z in v.iter_mut() {
                 *z /= s;
