@@ -188,7 +188,26 @@ fn fit_with_model(
     match (retime, obs) {
         (Some(t0), Observations::Series(rec)) => {
             let auto = opts.trigger == options::TriggerSpec::Auto;
-            trigger::fit_retimed(rec, model, t0, auto, |o| fit_record(o, model, opts, None))
+            // the time is refined with the white fit's chain (a record
+            // model left to the final fit at the refined time)
+            let white = FitOptions {
+                noise_model: match opts.noise_model {
+                    record::NoiseModelChoice::Auto => record::NoiseModelChoice::White,
+                    c => c,
+                },
+                nuisance: match opts.nuisance {
+                    record::NuisanceChoice::Auto => {
+                        record::NuisanceChoice::Fixed(crate::detect::data::nuisance::Nuisance::None)
+                    }
+                    c => c,
+                },
+                ..opts.clone()
+            };
+            let first = |o: &Observations| fit_record(o, model, &white, None);
+            let first: Option<&trigger::FitRun<'_>> = (white != *opts).then_some(&first);
+            trigger::fit_retimed(rec, model, t0, auto, first, |o| {
+                fit_record(o, model, opts, None)
+            })
         }
         _ => fit_record(obs, model, opts, given),
     }

@@ -10,11 +10,15 @@
 //!   the last digit.
 //! * **Refinement** (`auto` only): the blow's time and the fitted values
 //!   (defects and chain parameters) fitted jointly by bounded
-//!   Levenberg-Marquardt from the fit at the detected time, the time within
+//!   Levenberg-Marquardt from the fit at the detected time (with the white
+//!   noise model and no sensor nuisance: a record model would only fit the
+//!   misfit of a time off by a fraction of a sample), the time within
 //!   a step of it (a defect near the sensor can stand in for a time error:
-//!   fitting both lets the data choose); the record is then refitted (the
-//!   number and places of the defects chosen again) at the refined time
-//!   when it moved by more than its standard error (or 5% of a step).
+//!   fitting both lets the data choose); the record is then refitted with
+//!   the full options (the number and places of the defects chosen again)
+//!   at the refined time when it moved by more than its standard error (or
+//!   5% of a step), or at the detected time when that fit did not explain
+//!   the record.
 //! * **Standard error**: `sigma^2 (J^T J)^{-1}` of the time and every fitted
 //!   defect value and chain parameter, `J` by central differences, so that
 //!   the time's correlation with the impulse and the first masses is in it.
@@ -32,6 +36,9 @@ use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use crate::time::modal::ModalResponse;
 use nalgebra::DMatrix;
+
+/// A fit of a record (re-timed observations to a report).
+pub(super) type FitRun<'a> = dyn Fn(&Observations) -> Result<FitReport> + 'a;
 
 /// Largest chain whose blow time is refined and given a standard error.
 pub const MAX_N_REFINE: usize = 100;
@@ -74,19 +81,33 @@ pub(super) fn plan(obs: &Observations, model: &Model, spec: TriggerSpec) -> Resu
 /// `refine`), and put the time and its standard error in the report; the
 /// predicted series is given on the record's own axis.
 ///
+/// The chain the time is refined with comes from `first` when given (a
+/// cheaper fit: at a detected time that is off by a fraction of a sample
+/// the residual of a quiet record is not noise, and the full defaults
+/// would fit a record model to that misfit before the refined time
+/// removes it); the answer is `run`'s, or `first`'s when the time stays
+/// and `first`'s answer explains the record (`fits_data`: the defaults
+/// would keep the white model).
+///
 /// # Errors
-/// As [`Series::shifted`] and `run`.
+/// As [`Series::shifted`], `first` and `run`.
 pub(super) fn fit_retimed(
     rec: &Series,
     model: &Model,
     t0: f64,
     refine: bool,
+    first: Option<&FitRun<'_>>,
     run: impl Fn(&Observations) -> Result<FitReport>,
 ) -> Result<FitReport> {
     let (shifted, mut dropped) = rec.shifted(t0)?;
-    let mut report = run(&Observations::Series(shifted))?;
-    let (mut time, mut refits) = (t0, 0);
     let small = model.n() < MAX_N_REFINE;
+    let (mut time, mut refits) = (t0, 0);
+    let shifted = Observations::Series(shifted);
+    let mut report = match first {
+        Some(f) if refine && small => f(&shifted)?,
+        _ => run(&shifted)?,
+    };
+    let mut final_fit = !(refine && small && first.is_some());
     if refine && small {
         let chain = fitted_chain(&report, model)?;
         let step = step_near(rec.t(), t0);
@@ -94,8 +115,14 @@ pub(super) fn fit_retimed(
         if (better - t0).abs() > se.min(0.05 * step) {
             let (again, d) = rec.shifted(better)?;
             report = run(&Observations::Series(again))?;
-            (time, dropped, refits) = (better, d, 1);
+            (time, dropped, refits, final_fit) = (better, d, 1, true);
         }
+    }
+    // the white fit at an unmoved time is the answer when it explains the
+    // record (the defaults would keep the white model); otherwise the full
+    // defaults at that time
+    if !final_fit && !report.fits_data {
+        report = run(&shifted)?;
     }
     let se = if small {
         standard_error(rec, &report, model, time)?
