@@ -90,6 +90,52 @@ fn bromwich_whitened_is_a_calibrated_chi_square() {
 }
 
 #[test]
+fn bromwich_whitened_under_ar_noise_is_a_calibrated_chi_square() {
+    // S3 at the true chain with stationary AR(1) noise (rho 0.9, drawn here
+    // by its own recursion): under the AR model's covariance
+    // (`laplace_obs_under`) chi2/dof ~ 1; under white noise of the same
+    // marginal level it is far off, so the test can fail
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+    use springmass::detect::data::noise_model::NoiseModel;
+    use springmass::detect::fit::general::laplace_obs_under;
+    let s3 = &s3();
+    let traj = simulate(s3, &SimOptions::new(T_END, DT)).unwrap();
+    let x = traj.x(1).unwrap();
+    let peak = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let rho = 0.9;
+    let innovation = 1e-3 * peak;
+    let model = NoiseModel::ar(vec![rho]).unwrap();
+    let setup = Setup::new().unwrap();
+    let (mut red, mut red_white) = (Vec::new(), Vec::new());
+    for r in 0..30 {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9_000 + r);
+        let z0: f64 = StandardNormal.sample(&mut rng);
+        let mut e: f64 = innovation / (1.0f64 - rho * rho).sqrt() * z0;
+        let y: Vec<f64> = x
+            .iter()
+            .map(|v: &f64| {
+                let out = v + e;
+                let z: f64 = StandardNormal.sample(&mut rng);
+                e = rho * e + innovation * z;
+                out
+            })
+            .collect();
+        let data = TimeData::new(traj.t.clone(), y.clone(), innovation).unwrap();
+        let obs = laplace_obs_under(&data, MisfitKind::Bromwich, &setup, &model).unwrap();
+        red.push(obs.chi2(s3).unwrap() / obs.dof() as f64);
+        let marginal = innovation / (1.0f64 - rho * rho).sqrt();
+        let white = TimeData::new(traj.t.clone(), y, marginal).unwrap();
+        let obs_w = laplace_obs(&white, MisfitKind::Bromwich, &setup).unwrap();
+        red_white.push(obs_w.chi2(s3).unwrap() / obs_w.dof() as f64);
+    }
+    let (m, mw) = (mean(&red), mean(&red_white));
+    eprintln!("bromwich under AR(0.9): mean chi2/dof {m:.4}; as white noise {mw:.4}");
+    assert!((0.85..=1.15).contains(&m), "mean chi2/dof {m}");
+    assert!(!(0.7..=1.3).contains(&mw), "white covariance: {mw}");
+}
+
+#[test]
 fn real_axis_noise_whitening_is_calibrated_and_has_few_dof() {
     // noise-only covariance on the real-axis nodes: about 24 independent data
     // out of 80 nodes; chi2/dof of the transformed noise ~ 1
