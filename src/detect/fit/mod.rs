@@ -188,23 +188,15 @@ fn fit_with_model(
     match (retime, obs) {
         (Some(t0), Observations::Series(rec)) => {
             let auto = opts.trigger == options::TriggerSpec::Auto;
-            // the time is refined with the white fit's chain (a record
-            // model left to the final fit at the refined time)
-            let white = FitOptions {
-                noise_model: match opts.noise_model {
-                    record::NoiseModelChoice::Auto => record::NoiseModelChoice::White,
-                    c => c,
-                },
-                nuisance: match opts.nuisance {
-                    record::NuisanceChoice::Auto => {
-                        record::NuisanceChoice::Fixed(crate::detect::data::nuisance::Nuisance::None)
-                    }
-                    c => c,
-                },
-                ..opts.clone()
-            };
+            // the time is refined with the white fit's chain (the record
+            // model left to the fit at the refined time); that white fit is
+            // the answer when the time stays and it explains the record,
+            // unless a record model was asked for
+            let white = damping::screen_options(opts);
             let first = |o: &Observations| fit_record(o, model, &white, None);
-            let first: Option<&trigger::FitRun<'_>> = (white != *opts).then_some(&first);
+            let keeps = !record::forced(opts.noise_model, opts.nuisance);
+            let first: Option<(&trigger::FitRun<'_>, bool)> =
+                (white != *opts).then_some((&first, keeps));
             let mut report = trigger::fit_retimed(rec, model, t0, auto, first, |o| {
                 fit_record(o, model, opts, None)
             })?;

@@ -288,13 +288,23 @@ pub fn laplace_obs_under(
             None => obs,
         });
     }
-    let mut values = Vec::with_capacity(s.len());
-    let mut weights = Vec::with_capacity(s.len());
-    for (v, wq) in vals.iter().zip(&w) {
-        let var = v.noise_var.unwrap_or(0.0) + v.err * v.err;
-        let var = var.max((1e-15 * v.value.norm()).powi(2)).max(1e-300);
-        values.push(v.value);
-        weights.push(wq / var);
-    }
+    let (values, weights) = diagonal_weights(&vals, &w);
     LaplaceObs::new(s, values, weights)?.with_measurement(m.sensor(), force_hat)
+}
+
+/// The values and their diagonal weights `w_q / v_q` (the rule's weight
+/// over the node's noise and error variance, floored at the value's
+/// rounding).
+fn diagonal_weights(
+    vals: &[crate::time::series::LaplaceValue],
+    w: &[f64],
+) -> (Vec<num_complex::Complex64>, Vec<f64>) {
+    vals.iter()
+        .zip(w)
+        .map(|(v, wq)| {
+            let var = v.noise_var.unwrap_or(0.0) + v.err * v.err;
+            let var = var.max((1e-15 * v.value.norm()).powi(2)).max(1e-300);
+            (v.value, wq / var)
+        })
+        .unzip()
 }

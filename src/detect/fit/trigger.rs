@@ -82,12 +82,13 @@ pub(super) fn plan(obs: &Observations, model: &Model, spec: TriggerSpec) -> Resu
 /// predicted series is given on the record's own axis.
 ///
 /// The chain the time is refined with comes from `first` when given (a
-/// cheaper fit: at a detected time that is off by a fraction of a sample
+/// white fit: at a detected time that is off by a fraction of a sample
 /// the residual of a quiet record is not noise, and the full defaults
 /// would fit a record model to that misfit before the refined time
-/// removes it); the answer is `run`'s, or `first`'s when the time stays
-/// and `first`'s answer explains the record (`fits_data`: the defaults
-/// would keep the white model).
+/// removes it); the answer is `run`'s, or `first`'s when the time stays,
+/// `first`'s answer explains the record (`fits_data`) and its flag says
+/// the full options would keep the white model there (no record model
+/// asked for).
 ///
 /// # Errors
 /// As [`Series::shifted`], `first` and `run`.
@@ -96,18 +97,17 @@ pub(super) fn fit_retimed(
     model: &Model,
     t0: f64,
     refine: bool,
-    first: Option<&FitRun<'_>>,
+    first: Option<(&FitRun<'_>, bool)>,
     run: impl Fn(&Observations) -> Result<FitReport>,
 ) -> Result<FitReport> {
     let (shifted, mut dropped) = rec.shifted(t0)?;
     let small = model.n() < MAX_N_REFINE;
     let (mut time, mut refits) = (t0, 0);
     let shifted = Observations::Series(shifted);
-    let mut report = match first {
-        Some(f) if refine && small => f(&shifted)?,
-        _ => run(&shifted)?,
+    let (mut report, mut final_fit, keeps) = match first {
+        Some((f, keeps)) if refine && small => (f(&shifted)?, false, keeps),
+        _ => (run(&shifted)?, true, false),
     };
-    let mut final_fit = !(refine && small && first.is_some());
     if refine && small {
         let chain = fitted_chain(&report, model)?;
         let step = step_near(rec.t(), t0);
@@ -121,7 +121,8 @@ pub(super) fn fit_retimed(
     // the white fit at an unmoved time is the answer when it explains the
     // record (the defaults would keep the white model); otherwise the full
     // defaults at that time
-    if !final_fit && !report.fits_data {
+    let done = final_fit || (keeps && report.fits_data);
+    if !done {
         report = run(&shifted)?;
     }
     let se = if small {
