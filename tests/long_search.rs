@@ -338,3 +338,56 @@ fn scene_searches_never_call_a_wrong_set_converged() {
         }
     }
 }
+
+/// The scene path's default on a long chain (issue 30): from three defects
+/// on 40 masses or more, the beam search's answer is kept when its residual
+/// is at the data's error floor (no set can do better than 0), and is the
+/// exhaustive enumeration's; `search.exhaustive` ranks every set; an answer
+/// that does not fit (a spring changed, masses sought) is never certified
+/// and every set is ranked.
+#[test]
+fn the_scene_default_certifies_the_beam_answer_in_a_long_chain() {
+    use springmass::detect::fit::{paper, Status};
+    use springmass::detect::scene::FitScene;
+    let masses = [
+        Defect::Mass { at: 9, m: 2.5 },
+        Defect::Mass { at: 23, m: 0.5 },
+        Defect::Mass { at: 35, m: 1.8 },
+    ];
+    let truth = Chain::paper(40).unwrap().with_defects(masses).unwrap();
+    let mut scene = FitScene::synthetic(&truth);
+    let data = scene.data().unwrap();
+    let quick = paper::fit(&scene, &data, &scene.options()).unwrap();
+    let at = |r: &paper::SceneReport| r.defects.iter().map(|d| d.at()).collect::<Vec<_>>();
+    assert!(quick.certified, "{}", quick.message);
+    assert_eq!(at(&quick), [9, 23, 35], "{}", quick.message);
+    assert_eq!(quick.status, Status::Converged, "{}", quick.message);
+    assert!(quick.message.contains("certified"), "{}", quick.message);
+    assert!(quick.sets.unwrap() < 9880 / 4, "{:?} sets", quick.sets);
+    scene.search.exhaustive = true;
+    let all = paper::fit(&scene, &data, &scene.options()).unwrap();
+    assert!(!all.certified && all.exhaustive == Some(true));
+    assert_eq!(all.sets, Some(9880));
+    assert_eq!(at(&all), at(&quick));
+    for (d, e) in quick.defects.iter().zip(&all.defects) {
+        assert!((d.value() - e.value()).abs() < 1e-8, "{d:?} {e:?}");
+    }
+    // a spring changed: no mass set explains the data, nothing is certified
+    let spring = Chain::paper(40)
+        .unwrap()
+        .with_defects([
+            Defect::Mass { at: 9, m: 2.5 },
+            Defect::Spring { at: 5, k: 0.5 },
+            Defect::Mass { at: 30, m: 0.7 },
+        ])
+        .unwrap();
+    let scene = FitScene::synthetic(&spring);
+    let data = scene.data().unwrap();
+    let r = paper::fit(&scene, &data, &scene.options()).unwrap();
+    assert!(!r.certified && r.exhaustive == Some(true), "{}", r.message);
+    assert!(
+        !r.fits_data && r.status == Status::ModelMismatch,
+        "{}",
+        r.message
+    );
+}

@@ -79,3 +79,22 @@ def test_a_scene_that_is_neither_file_nor_text_is_refused(tmp_path):
     with pytest.raises(ValueError) as e:
         springmass.fit_scene(tmp_path / "missing.toml")
     assert e.value.field == "scene"
+
+
+LONG = """
+[truth]
+n = 40
+defects = [{ kind = "mass", at = 9, m = 2.5 }, { kind = "mass", at = 23, m = 0.5 }, { kind = "mass", at = 35, m = 1.8 }]
+[unknowns]
+k = 3
+"""
+
+
+def test_a_long_chain_scene_is_certified_without_ranking_every_set():
+    r = springmass.fit_scene(LONG)
+    assert r["certified"] and r["status"] == "converged", r["summary"]
+    assert [d["at"] for d in r["defects"]] == [9, 23, 35]
+    assert r["sets"] < 9880 and r["exhaustive"] is False
+    every = springmass.fit_scene(LONG + "[search]\nexhaustive = true\n")
+    assert not every["certified"] and every["exhaustive"] and every["sets"] == 9880
+    assert [d["at"] for d in every["defects"]] == [9, 23, 35]

@@ -76,6 +76,9 @@ fn apply_flags(a: &Args, scene: &mut FitScene) -> anyhow::Result<()> {
     if let Some(s) = a.seed {
         scene.search.seed = s;
     }
+    if a.exhaustive {
+        scene.search.exhaustive = true;
+    }
     if let Some(x) = &a.noise {
         let v: f64 = x.parse().map_err(|_| {
             springmass::Error::invalid(
@@ -841,6 +844,9 @@ fn print_text(scene: &FitScene, r: &SceneReport) {
         .map(|s| format!(", {s} position sets"))
         .unwrap_or_default();
     let beam = match r.exhaustive {
+        _ if r.certified => {
+            " (not every set ranked: the answer is certified, see the message; --exhaustive ranks them all)"
+        }
         Some(false) => " (not every set ranked: see the method)",
         _ => "",
     };

@@ -193,8 +193,11 @@ pub struct Args {
     /// number of defects. By default the search at 3 defects and more is
     /// nested in the best answers at one defect fewer, and --kinds any
     /// tries at each position the kinds the data point to (much faster;
-    /// the report then says `exhaustive: false`).
-    #[arg(long, requires = "data")]
+    /// the report then says `exhaustive: false`). With --scene: rank every
+    /// position set (`search.exhaustive`; by default, from 3 defects on
+    /// chains of 40 masses or more, a greedy answer whose residual is at
+    /// the data's error floor is kept without enumerating: `certified`).
+    #[arg(long)]
     pub exhaustive: bool,
     /// Speed against accuracy of the search: low (fewer time-domain
     /// refits; with --defects auto, searches from 3 defects nested in 4

@@ -113,6 +113,7 @@ pub(super) type SensorRss = (f64, usize, f64);
 /// `[unknowns]` (known positions with free values and per-defect bounds,
 /// which a [`Model`] and [`FitOptions`] do not describe), the enumeration's
 /// tuning of its `[search]` (starts, beam) and whether to trace the search.
+#[derive(Clone)]
 pub(super) struct Given {
     /// The unknowns, used for every k (the caller fits one k).
     pub(super) unknowns: Unknowns,

@@ -162,6 +162,7 @@ pub fn fit_modal_scene(scene: &FitScene) -> Result<SceneReport> {
         message: r.message,
         resolved: r.resolved,
         fits_data,
+        certified: false,
         std_errors,
         chain_params: Vec::new(),
         identifiability: None,

@@ -523,13 +523,13 @@ impl Folded {
 
 /// Pivoted `k x k` solve for the per-node capacitance systems of
 /// [`Gathered::eval_general`]: the same elimination as
-/// [`crate::linalg::solve_in_place`] (same pivots, same result for finite
-/// entries), kept separate because it is the inner loop of every residual
-/// with `k >= 3` or on the Bromwich line: over [`Num`] (`Copy`, squared
-/// modulus for the pivot search, no zero-multiplier branch) it is faster
-/// than the shared `Scalar` version (`cargo bench --bench fit --
-/// residual_general`: thread CPU time 2.83 us here against 3.26 us with
-/// `solve_in_place`, +14%).
+/// [`crate::linalg::solve_in_place`] (same pivots; the result agrees to
+/// rounding, each pivot being divided once and its reciprocal multiplied),
+/// kept separate because it is the inner loop of every residual with
+/// `k >= 3` or on the Bromwich line: over [`Num`] (`Copy`, squared modulus
+/// for the pivot search, no zero-multiplier branch, one complex division
+/// per pivot instead of one per row) it is faster than the shared `Scalar`
+/// version (`cargo bench --bench fit -- residual_general`).
 fn small_solve<T: Num>(a: &mut [T], b: &mut [T], k: usize) -> bool {
     for col in 0..k {
         let mut piv = col;
@@ -550,9 +550,12 @@ fn small_solve<T: Num>(a: &mut [T], b: &mut [T], k: usize) -> bool {
             }
             b.swap(col, piv);
         }
-        let p = a[col * k + col];
+        // one division per pivot: its reciprocal serves the rows below and
+        // the back substitution (the diagonal then holds it)
+        let inv = T::re(1.0) / a[col * k + col];
+        a[col * k + col] = inv;
         for r in col + 1..k {
-            let f = a[r * k + col] / p;
+            let f = a[r * k + col] * inv;
             for c in col + 1..k {
                 let v = a[col * k + c];
                 a[r * k + c] = a[r * k + c] - f * v;
@@ -566,7 +569,7 @@ fn small_solve<T: Num>(a: &mut [T], b: &mut [T], k: usize) -> bool {
         for c in row + 1..k {
             acc = acc - a[row * k + c] * b[c];
         }
-        b[row] = acc / a[row * k + row];
+        b[row] = acc * a[row * k + row];
     }
     true
 }

@@ -118,6 +118,12 @@ pub struct SearchSpec {
     /// Use all cores (default true).
     #[serde(default = "default_true")]
     pub parallel: bool,
+    /// Enumeration: rank every position set (default false: from three
+    /// defects on chains of 40 masses or more, the greedy search runs first
+    /// and its answer is kept when its residual is at the data's error
+    /// floor, which no set can beat; `SceneReport::certified`).
+    #[serde(default)]
+    pub exhaustive: bool,
     /// Record the optimizer's trace (default false).
     #[serde(default)]
     pub trace: bool,
@@ -153,6 +159,7 @@ impl Default for SearchSpec {
             max_sets: default_max_sets(),
             beam: default_beam(),
             parallel: true,
+            exhaustive: false,
             trace: false,
         }
     }
@@ -172,6 +179,9 @@ pub struct SceneOptions {
     pub trace: bool,
     /// Enumeration options (`keep` also sets the number of hypotheses reported).
     pub enumerate: EnumerateOptions,
+    /// Rank every position set, with no certified greedy search first
+    /// (`search.exhaustive`).
+    pub exhaustive: bool,
 }
 
 impl Default for SceneOptions {
@@ -714,6 +724,7 @@ impl FitScene {
                 parallel: s.parallel,
                 ..EnumerateOptions::default()
             },
+            exhaustive: s.exhaustive,
         }
     }
 }

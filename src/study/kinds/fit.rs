@@ -99,6 +99,7 @@ pub const FIELDS: &[FieldDoc] = &[
     FieldDoc::new("search.starts", "integer", "2", "Enumeration: starting values per unknown mass."),
     FieldDoc::new("search.max_sets", "integer", "200000", "Enumeration: largest exhaustive set count before the beam search."),
     FieldDoc::new("search.beam", "integer", "16", "Enumeration: beam width."),
+    FieldDoc::new("search.exhaustive", "bool", "false", "Enumeration: rank every position set (false: from 3 defects on chains of 40 masses or more the beam search runs first, and its answer is kept when certified: its residual at the data's error floor, which no set can beat)."),
     FieldDoc::new("search.parallel", "bool", "true", "Parallel residual evaluations (on the study's thread pool)."),
     FieldDoc::new("search.trace", "bool", "false", "Record the optimizer's trace."),
     FieldDoc::new("profile.mode", "\"none\" | \"masses\" | \"springs\" | \"both\"", "\"none\"", "`springmass fit --scene`: fit every mass (spring, both) of the chain instead of the defects (the whole-profile inversion). Studies profile through the `noise` kind's `profile` field; a `fit` study refuses it."),

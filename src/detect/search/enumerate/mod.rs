@@ -38,7 +38,8 @@
 //! each of the `beam` best partial hypotheses, and keep the `beam` best. Cost
 //! `about beam * p * a` set fits instead of `C(a, p)`, followed by up to
 //! `refine_sweeps` sweeps of single-position moves (`p * a` set fits each)
-//! from the four best hypotheses; it is exact when every
+//! from the four best hypotheses (none when the beam's best is below
+//! `stop_below`); it is exact when every
 //! prefix of the truth ranks within the beam (true when the defects are
 //! ordered by their effect on `X_1`, which falls like `s^{-4(j-1)}` with depth
 //! `j`), and is not guaranteed otherwise.
@@ -98,6 +99,11 @@ pub struct EnumerateOptions {
     /// Beam search: refinement sweeps (one position moved at a time over all
     /// allowed places, masses refitted) from the 4 best hypotheses (default 4).
     pub refine_sweeps: usize,
+    /// Beam search: skip the refinement when the beam's best residual is
+    /// at most this (default `None`: always refine). A caller that knows
+    /// the data's error floor sets it: no set can beat such an answer by
+    /// more than the data's error.
+    pub stop_below: Option<f64>,
 }
 
 impl Default for EnumerateOptions {
@@ -110,6 +116,7 @@ impl Default for EnumerateOptions {
             beam: 16,
             parallel: true,
             refine_sweeps: 4,
+            stop_below: None,
         }
     }
 }
@@ -303,9 +310,12 @@ fn beam(misfit: &Misfit, unknowns: &MassUnknowns, opts: &EnumerateOptions) -> Re
         last = scored;
     }
     let mut pool = last;
-    let (s, e) = refine(misfit, unknowns, opts, &allowed, &mut pool);
-    sets += s;
-    evaluations += e;
+    let settled = matches!((opts.stop_below, pool.first()), (Some(bar), Some(b)) if b.2 <= bar);
+    if !settled {
+        let (s, e) = refine(misfit, unknowns, opts, &allowed, &mut pool);
+        sets += s;
+        evaluations += e;
+    }
     pool.sort_by(|a, b| a.2.total_cmp(&b.2).then_with(|| a.0.cmp(&b.0)));
     pool.truncate(opts.keep);
     let fitted = pool.into_iter().map(|(_, d, r)| (d, r, 0)).collect();
