@@ -349,12 +349,7 @@ fn scene_searches_never_call_a_wrong_set_converged() {
 fn the_scene_default_certifies_the_beam_answer_in_a_long_chain() {
     use springmass::detect::fit::{paper, Status};
     use springmass::detect::scene::FitScene;
-    let masses = [
-        Defect::Mass { at: 9, m: 2.5 },
-        Defect::Mass { at: 23, m: 0.5 },
-        Defect::Mass { at: 35, m: 1.8 },
-    ];
-    let truth = Chain::paper(40).unwrap().with_defects(masses).unwrap();
+    let truth = springmass::scenes::paper_with(40, "mass:9:2.5 mass:23:0.5 mass:35:1.8").unwrap();
     let mut scene = FitScene::synthetic(&truth);
     let data = scene.data().unwrap();
     let quick = paper::fit(&scene, &data, &scene.options()).unwrap();
@@ -373,14 +368,7 @@ fn the_scene_default_certifies_the_beam_answer_in_a_long_chain() {
         assert!((d.value() - e.value()).abs() < 1e-8, "{d:?} {e:?}");
     }
     // a spring changed: no mass set explains the data, nothing is certified
-    let spring = Chain::paper(40)
-        .unwrap()
-        .with_defects([
-            Defect::Mass { at: 9, m: 2.5 },
-            Defect::Spring { at: 5, k: 0.5 },
-            Defect::Mass { at: 30, m: 0.7 },
-        ])
-        .unwrap();
+    let spring = springmass::scenes::paper_with(40, "mass:9:2.5 spring:5:0.5 mass:30:0.7").unwrap();
     let scene = FitScene::synthetic(&spring);
     let data = scene.data().unwrap();
     let r = paper::fit(&scene, &data, &scene.options()).unwrap();
