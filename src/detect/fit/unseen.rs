@@ -15,6 +15,13 @@
 //! chain, noise model and nuisances included), and the part the answer's
 //! parameters can absorb is removed to first order (projection off the
 //! columns of their Jacobian): `dchi^2 = |P (r(changed) - r(answer))|^2`.
+//! Each probe's residuals come from the model's
+//! [`MeasurementModel::near`]: the time misfit of a long chain simulates
+//! the answer once, keeping its states, and resumes each probe's
+//! simulation where the impulse's front first reaches the changed element
+//! (`time_screen::Saved`; the same record to rounding, and deep probes of
+//! a short record cost nothing: n = 1000, 120 probes, the fit 10.1 s wall
+//! against 12.5 s before, the same report).
 //! The exact change matters: behind a heavy mass or over a long record a
 //! linearized error is optimistic by a factor of several (System 3 under
 //! AR(0.9) noise: mass 15 doubled moves `chi^2` by about 6, its linearized
@@ -106,8 +113,11 @@ pub fn unseen(
     };
     let q = (own.ncols() > 0).then(|| own.qr().q());
     let r0 = DVector::from_vec(data.residuals(&answer)?);
+    // each probe differs from the answer in one element: the model's
+    // residuals of nearby chains (a long record resumed where it differs)
+    let near = data.near(&answer)?;
     let shown = |c: &Chain| -> Result<f64> {
-        let d = DVector::from_vec(data.residuals(c)?) - &r0;
+        let d = DVector::from_vec(near(c)?) - &r0;
         let rest = match &q {
             Some(q) => &d - q * (q.transpose() * &d),
             None => d,

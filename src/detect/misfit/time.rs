@@ -30,7 +30,7 @@ use crate::chain::Chain;
 use crate::detect::data::noise_model::NoiseModel;
 use crate::detect::data::nuisance::{Nuisance, Projector};
 use crate::detect::data::series::TimeData;
-use crate::detect::misfit::time_screen::{simulate, TimeGrid};
+use crate::detect::misfit::time_screen::{simulate, Saved, TimeGrid};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use crate::time::modal::Modes;
@@ -412,7 +412,11 @@ impl TimeMisfit {
 
     /// [`TimeMisfit::residuals`] of this sensor alone.
     pub fn channel_residuals(&self, chain: &Chain) -> Result<Vec<f64>> {
-        let x = self.model(chain)?;
+        self.residuals_of(&self.model(chain)?)
+    }
+
+    /// This sensor's residuals of the model record `x`.
+    fn residuals_of(&self, x: &[f64]) -> Result<Vec<f64>> {
         let r: Vec<f64> = x
             .iter()
             .zip(self.data.y())
@@ -454,6 +458,28 @@ impl crate::detect::model::MeasurementModel for TimeMisfit {
     }
     fn jacobian(&self, chain: &Chain, params: &[Param]) -> Result<Option<DMatrix<f64>>> {
         TimeMisfit::jacobian(self, chain, params)
+    }
+    fn near<'a>(&'a self, base: &Chain) -> Result<crate::detect::model::Near<'a>> {
+        // one sensor on mass 1 of a long chain that is simulated: the
+        // saved states of base's simulation ([`Saved`])
+        let stepped = self.others.is_empty()
+            && self.modal_mass().is_none_or(|at| at == 1)
+            && self.data.measurement().is_paper()
+            && simulated(base);
+        let grid = TimeGrid::new(self.data.t(), base).filter(|_| stepped);
+        let Some(grid) = grid else {
+            return Ok(Box::new(move |c: &Chain| self.residuals(c)));
+        };
+        let saved = Saved::new(base, &grid)?;
+        Ok(Box::new(move |c: &Chain| {
+            let grid = simulated(c)
+                .then(|| TimeGrid::new(self.data.t(), c))
+                .flatten();
+            match grid {
+                Some(g) => self.residuals_of(&saved.resume(c, &g)?),
+                None => self.residuals(c),
+            }
+        }))
     }
 }
 

@@ -119,6 +119,11 @@ impl TimeGrid {
         self.first + (self.samples - 1) * self.sub + 1
     }
 
+    /// Whether internal step `j` is a record sample.
+    pub fn is_sample(&self, j: usize) -> bool {
+        j >= self.first && (j - self.first).is_multiple_of(self.sub)
+    }
+
     /// Internal index of sample `i`.
     pub fn index(&self, i: usize) -> usize {
         self.first + i * self.sub
@@ -187,37 +192,19 @@ pub fn simulate(chain: &Chain, grid: &TimeGrid, masses: &[usize]) -> Result<Run>
         slot[p - 1] = Some(c);
     }
     let mut st = Stepper::new(chain);
-    // in the energy norm A is skew (norm omega_max) plus the damping
-    let (m, d) = (chain.masses(), chain.dampers());
-    let norm = omega_max(chain) + (0..n).map(|i| d[i] / m[i]).fold(0.0, f64::max);
-    let inner = ((grid.dt * norm / THETA).ceil() as usize).max(1);
-    let h = grid.dt / inner as f64;
     let mut xs = vec![0.0; masses.len() * steps];
     let mut vs = vec![0.0; masses.len() * steps];
     let mut x1 = Vec::with_capacity(grid.samples);
-    let mut next_sample = grid.first;
-    for j in 0..steps {
-        if j > 0 {
-            for _ in 0..inner {
-                st.sub_step(h);
-            }
-        }
+    advance(&mut st, chain, grid, 0, |j, st| {
         for (c, &p) in masses.iter().enumerate() {
             xs[c * steps + j] = st.x[p];
             vs[c * steps + j] = st.v[p];
         }
-        if j == next_sample {
+        if grid.is_sample(j) {
             x1.push(st.x[1]);
-            next_sample += grid.sub;
         }
-    }
-    if x1.iter().chain(&xs).chain(&vs).any(|a| !a.is_finite()) {
-        return Err(Error::invalid(
-            "chain",
-            "an unstable simulation",
-            "a finite response",
-        ));
-    }
+    });
+    finite(x1.iter().chain(&xs).chain(&vs))?;
     Ok(Run {
         x1,
         xs,
@@ -225,6 +212,141 @@ pub fn simulate(chain: &Chain, grid: &TimeGrid, masses: &[usize]) -> Result<Run>
         slot,
         steps,
     })
+}
+
+/// Step `st` (the state of `chain` at internal step `from` of `grid`) to
+/// the grid's last step, sub-steps with `h ||A|| <= THETA`; `each(j, st)`
+/// at every internal step `j >= from`, `from` included.
+fn advance(
+    st: &mut Stepper,
+    chain: &Chain,
+    grid: &TimeGrid,
+    from: usize,
+    mut each: impl FnMut(usize, &Stepper),
+) {
+    // in the energy norm A is skew (norm omega_max) plus the damping
+    let (m, d) = (chain.masses(), chain.dampers());
+    let norm = omega_max(chain) + (0..chain.n()).map(|i| d[i] / m[i]).fold(0.0, f64::max);
+    let inner = ((grid.dt * norm / THETA).ceil() as usize).max(1);
+    let h = grid.dt / inner as f64;
+    for j in from..grid.steps() {
+        if j > from {
+            for _ in 0..inner {
+                st.sub_step(h);
+            }
+        }
+        each(j, st);
+    }
+}
+
+/// A non-finite value (an unstable simulation) as an error (field `chain`).
+fn finite<'a>(mut values: impl Iterator<Item = &'a f64>) -> Result<()> {
+    if values.any(|a| !a.is_finite()) {
+        return Err(Error::invalid(
+            "chain",
+            "an unstable simulation",
+            "a finite response",
+        ));
+    }
+    Ok(())
+}
+
+/// A simulation of `x_1` that keeps its state at every
+/// [`SAVED_EVERY`]-th part of the record, so that a chain differing from
+/// it only deep in the chain is simulated from the last saved state the
+/// difference could not yet have reached ([`Saved::resume`]): before the
+/// impulse's front (the masses whose state is above 1e-30 of the largest,
+/// plus the stepping's spread) reaches a changed mass, the two chains'
+/// states are the same, so the resumed record equals a whole simulation to
+/// rounding. The hidden-defect check's probes of a long chain use it
+/// ([`crate::detect::fit::unseen`]): a deep probe is stepped only from the
+/// time the front reaches it.
+#[derive(Clone, Debug)]
+pub struct Saved {
+    /// The simulated chain's stepping rows and initial velocity.
+    rows: Stepper,
+    /// `x_1` at the record's samples.
+    pub x1: Vec<f64>,
+    marks: Vec<Mark>,
+}
+
+/// One saved state of [`Saved`].
+#[derive(Clone, Debug)]
+struct Mark {
+    /// The record sample it was saved at.
+    sample: usize,
+    x: Vec<f64>,
+    v: Vec<f64>,
+    reach: usize,
+    /// The largest stepping row used up to this sample.
+    touched: usize,
+}
+
+/// Saved states per record (at most; one per sample of a shorter record).
+pub const SAVED_EVERY: usize = 64;
+
+impl Saved {
+    /// Simulate `chain` on `grid` as [`simulate`] does (`x_1` only),
+    /// keeping the states.
+    ///
+    /// # Errors
+    /// As [`simulate`].
+    pub fn new(chain: &Chain, grid: &TimeGrid) -> Result<Saved> {
+        require_grounded(chain)?;
+        let mut st = Stepper::new(chain);
+        let rows = st.clone();
+        let every = grid.samples.div_ceil(SAVED_EVERY).max(1);
+        let mut x1 = Vec::with_capacity(grid.samples);
+        let mut marks = Vec::new();
+        advance(&mut st, chain, grid, 0, |j, st| {
+            if grid.is_sample(j) {
+                let sample = x1.len();
+                x1.push(st.x[1]);
+                if sample.is_multiple_of(every) && st.touched < st.n {
+                    marks.push(Mark {
+                        sample,
+                        x: st.x.clone(),
+                        v: st.v.clone(),
+                        reach: st.reach,
+                        touched: st.touched,
+                    });
+                }
+            }
+        });
+        finite(x1.iter())?;
+        Ok(Saved { rows, x1, marks })
+    }
+
+    /// `x_1` of `changed` on `grid` (its own grid: [`TimeGrid::new`] of
+    /// the record's times for `changed`), from the last saved state
+    /// before the front reached the first stepping row in which `changed`
+    /// differs from the saved chain; a whole simulation when there is none.
+    ///
+    /// # Errors
+    /// As [`simulate`].
+    pub fn resume(&self, changed: &Chain, grid: &TimeGrid) -> Result<Vec<f64>> {
+        require_grounded(changed)?;
+        let mut st = Stepper::new(changed);
+        let Some(first) = self.rows.first_difference(&st) else {
+            return Ok(self.x1.clone());
+        };
+        let Some(mark) = self.marks.iter().rev().find(|m| m.touched < first) else {
+            return Ok(simulate(changed, grid, &[])?.x1);
+        };
+        st.x.clone_from(&mark.x);
+        st.v.clone_from(&mark.v);
+        st.reach = mark.reach;
+        st.touched = mark.touched;
+        let mut x1 = self.x1[..=mark.sample].to_vec();
+        let from = grid.index(mark.sample);
+        advance(&mut st, changed, grid, from, |j, st| {
+            if j > from && grid.is_sample(j) {
+                x1.push(st.x[1]);
+            }
+        });
+        finite(x1.iter())?;
+        Ok(x1)
+    }
 }
 
 /// Each Taylor term spreads the state by one mass; a sub-step works on the
@@ -235,6 +357,7 @@ const SPREAD: usize = 48;
 /// The state of [`simulate`]'s sparse Taylor stepping, padded with a zero
 /// at each end (index `i + 1` for mass `i + 1`), and the rows of
 /// `M^-1 (-K x - D v)`.
+#[derive(Clone, Debug)]
 struct Stepper {
     n: usize,
     lo: Vec<f64>,
@@ -250,6 +373,9 @@ struct Stepper {
     /// The masses the impulse has reached: beyond `reach` the state is
     /// below 1e-30 of its largest value (exactly 0 at first).
     reach: usize,
+    /// The largest row a sub-step has used so far (its coefficients and
+    /// state; beyond it every state is exactly 0).
+    touched: usize,
 }
 
 impl Stepper {
@@ -273,6 +399,7 @@ impl Stepper {
             nx: vec![0.0; n + 2],
             nv: vec![0.0; n + 2],
             reach: 1,
+            touched: 1,
         };
         for i in 0..n {
             st.lo[i + 1] = k[i] / m[i];
@@ -291,6 +418,7 @@ impl Stepper {
     fn sub_step(&mut self, h: f64) {
         let n = self.n;
         let hi = (self.reach + SPREAD).min(n);
+        self.touched = self.touched.max(hi);
         self.tx[..=hi + 1].copy_from_slice(&self.x[..=hi + 1]);
         self.tv[..=hi + 1].copy_from_slice(&self.v[..=hi + 1]);
         let scale = self.x[1..=hi]
@@ -340,6 +468,24 @@ impl Stepper {
         nvw.iter()
             .chain(nxw.iter())
             .fold(0.0f64, |m, &a| if a.abs() > m { a.abs() } else { m })
+    }
+
+    /// The first row (1-based) in which `other`'s stepping differs from
+    /// this one's (its coefficients or its initial velocity); `None` for
+    /// the same chain, `Some(0)` for chains of other sizes.
+    fn first_difference(&self, other: &Stepper) -> Option<usize> {
+        if self.n != other.n {
+            return Some(0);
+        }
+        if self.v[1] != other.v[1] {
+            return Some(1);
+        }
+        (1..=self.n).find(|&i| {
+            self.lo[i] != other.lo[i]
+                || self.dg[i] != other.dg[i]
+                || self.up[i] != other.up[i]
+                || self.dd[i] != other.dd[i]
+        })
     }
 
     /// The new reach after a sub-step on `1..=hi`; what lies beyond is
@@ -798,6 +944,53 @@ mod tests {
                 assert!(err < tol, "{kind:?} {p}: relative error {err:.2e}");
             }
         }
+    }
+
+    /// A chain that differs from the saved one deep inside is resumed
+    /// where the front reaches it: the same record as a whole simulation
+    /// to rounding, and before that the saved chain's samples themselves;
+    /// a change at mass 1 or of another size is simulated whole.
+    #[test]
+    fn resumed_records_match_whole_simulations() {
+        let base = crate::scenes::paper_with(160, "mass:3:2")
+            .unwrap()
+            .with_d(0.02)
+            .unwrap();
+        let t: Vec<f64> = (0..1201).map(|i| 0.25 * i as f64).collect();
+        let g = TimeGrid::new(&t, &base).unwrap();
+        let saved = Saved::new(&base, &g).unwrap();
+        assert_eq!(saved.x1, simulate(&base, &g, &[]).unwrap().x1);
+        let scale = saved.x1.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+        for (change, resumed) in [
+            ("mass:120:0.5", true),
+            ("mass:60:2", true),
+            ("spring:90:0.5", true),
+            ("mass:1:2", false),
+        ] {
+            let c = base
+                .clone()
+                .with_defect(crate::chain::Defect::parse(change).unwrap())
+                .unwrap();
+            let gc = TimeGrid::new(&t, &c).unwrap();
+            let whole = simulate(&c, &gc, &[]).unwrap().x1;
+            let r = saved.resume(&c, &gc).unwrap();
+            assert_eq!(r.len(), whole.len(), "{change}");
+            let err = r
+                .iter()
+                .zip(&whole)
+                .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
+            assert!(err <= 1e-13 * scale, "{change}: {err:e}");
+            // the samples before the front reached the change are the
+            // saved chain's own (bit for bit) when it was resumed
+            let same = r.iter().zip(&saved.x1).take_while(|(p, q)| p == q).count();
+            assert_eq!(same > 100, resumed, "{change}: {same}");
+        }
+        let other = Chain::paper(150).unwrap();
+        let go = TimeGrid::new(&t, &other).unwrap();
+        assert_eq!(
+            saved.resume(&other, &go).unwrap(),
+            simulate(&other, &go, &[]).unwrap().x1
+        );
     }
 
     #[test]
