@@ -280,16 +280,7 @@ fn fit_mass_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> Resu
         rule.len()
     };
     let scale = (floor / terms.max(1) as f64).sqrt();
-    let (method, message) = match certified {
-        Some(bar) => (
-            format!("{}, beam search certified", r.method),
-            format!(
-                "{}; certified without ranking every set: the residual {residual:.3e} is at most {bar:.3e}, {FLOOR_FACTOR} times the data's error floor {floor:.3e}, and no position set's residual is below 0, so no set fits better by more than the data's error (--exhaustive ranks them all)",
-                verdict.message
-            ),
-        ),
-        None => (r.method.clone(), verdict.message),
-    };
+    let (method, message) = certified_lines(&r.method, verdict.message, certified, residual, floor);
     Ok(SceneReport {
         method,
         defects: r.defects.iter().map(|d| d.defect()).collect(),
@@ -314,6 +305,26 @@ fn fit_mass_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> Resu
         chain_params: Vec::new(),
         identifiability: None,
     })
+}
+
+/// The mass path's method and message, saying so when the answer was
+/// certified against the bar `certified` ([`search_mass_scene`]).
+fn certified_lines(
+    method: &str,
+    message: String,
+    certified: Option<f64>,
+    residual: f64,
+    floor: f64,
+) -> (String, String) {
+    match certified {
+        Some(bar) => (
+            format!("{method}, beam search certified"),
+            format!(
+                "{message}; certified without ranking every set: the residual {residual:.3e} is at most {bar:.3e}, {FLOOR_FACTOR} times the data's error floor {floor:.3e}, and no position set's residual is below 0, so no set fits better by more than the data's error (--exhaustive ranks them all)"
+            ),
+        ),
+        None => (method.to_string(), message),
+    }
 }
 
 /// The mass path's residual explains the data when it is at most this
