@@ -69,6 +69,21 @@ pub fn screen_options(opts: &FitOptions) -> FitOptions {
     o
 }
 
+/// The options a candidate is screened with: [`screen_options`] as a
+/// screening fit (no search of every set after a narrowed answer that does
+/// not explain the record, [`FitOptions::screen`]) without uncertainty: the
+/// choice compares criteria only, and the chosen model is fitted again
+/// with [`screen_options`]. On the wrong models, whose answers never
+/// explain the record, the search of every set was most of the choice's
+/// cost.
+pub fn candidate_options(opts: &FitOptions) -> FitOptions {
+    FitOptions {
+        screen: true,
+        uncertainty: false,
+        ..screen_options(opts)
+    }
+}
+
 /// A candidate damping model and its fit.
 type Candidate = (Model, Result<FitReport>);
 
@@ -86,6 +101,7 @@ type Candidate = (Model, Result<FitReport>);
 pub fn fit_choosing(
     model: &Model,
     fit_one: impl Fn(&Model) -> Result<FitReport> + Sync,
+    chosen: Option<impl Fn(&Model) -> Result<FitReport>>,
     refit: Option<impl Fn(&Model) -> Result<FitReport>>,
 ) -> Result<FitReport> {
     let mut best: Option<(f64, FitReport, Model)> = None;
@@ -140,6 +156,12 @@ pub fn fit_choosing(
         return Err(first_err
             .unwrap_or_else(|| Error::invalid("damping", "none", "a damping model that fits")));
     };
+    // the chosen model fitted in full (`chosen`: the candidates were
+    // screening fits)
+    if let Some(full) = chosen {
+        report = full(&m)?;
+        evaluations += report.evaluations;
+    }
     // a white residual: the options asked for (`auto`) would keep the
     // white fit, so the screening fit is the answer
     if let Some(refit) = refit.filter(|_| !report.fits_data) {

@@ -157,10 +157,12 @@ fn fit_with(
         // the candidates screened with white noise (the criterion is the
         // raw residual's), the chosen one fitted as asked
         let screen = damping::screen_options(opts);
+        let candidate = damping::candidate_options(opts);
         let refit = screen.noise_model != opts.noise_model || screen.nuisance != opts.nuisance;
         return damping::fit_choosing(
             model,
-            |m| fit_with(obs, m, &screen, None),
+            |m| fit_with(obs, m, &candidate, None),
+            Some(|m: &Model| fit_with(obs, m, &screen, None)),
             refit.then_some(|m: &Model| fit_with(obs, m, opts, None)),
         );
     }

@@ -189,6 +189,11 @@ pub struct FitOptions {
     /// Compute the intervals and the probabilities over hypotheses
     /// (default true).
     pub uncertainty: bool,
+    /// A screening fit, compared with others by its criterion only (the
+    /// damping choice's candidates, [`super::damping::fit_choosing`]): no
+    /// search of every set when the narrowed answer does not explain the
+    /// record (default false).
+    pub screen: bool,
 }
 
 impl Default for FitOptions {
@@ -216,6 +221,7 @@ impl Default for FitOptions {
             level: super::intervals::DEFAULT_LEVEL,
             prior: Default::default(),
             uncertainty: true,
+            screen: false,
         }
     }
 }

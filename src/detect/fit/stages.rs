@@ -180,7 +180,11 @@ fn finish<'a>(
 /// Only [`crate::Error::Cancelled`].
 fn widened(stage: Stage<'_>) -> Result<Stage<'_>> {
     let narrowed = stage.fits.iter().any(|f| f.searched.is_some());
-    if !narrowed || stage.explained || !every_set_fits(&stage.engine, &stage.fits)? {
+    if !narrowed
+        || stage.explained
+        || stage.engine.opts.screen
+        || !every_set_fits(&stage.engine, &stage.fits)?
+    {
         return Ok(stage);
     }
     let (start, estimated) = (stage.start, stage.estimated);
