@@ -860,13 +860,19 @@ mod tests {
 
     use crate::time::modal::Modes;
 
+    /// The paper's chain of `n` masses with `defects` and damping `d`, and
+    /// `samples` record times `0, 0.25, ...`.
+    fn chain_and_times(n: usize, defects: &str, d: f64, samples: usize) -> (Chain, Vec<f64>) {
+        let c = crate::scenes::paper_with(n, defects)
+            .unwrap()
+            .with_d(d)
+            .unwrap();
+        (c, (0..samples).map(|i| 0.25 * i as f64).collect())
+    }
+
     #[test]
     fn simulation_matches_the_modal_sum() {
-        let c = crate::scenes::paper_with(15, "mass:4:2.5 spring:9:0.4")
-            .unwrap()
-            .with_d(0.03)
-            .unwrap();
-        let t: Vec<f64> = (0..801).map(|i| 0.25 * i as f64).collect();
+        let (c, t) = chain_and_times(15, "mass:4:2.5 spring:9:0.4", 0.03, 801);
         let g = TimeGrid::new(&t, &c).unwrap();
         let run = simulate(&c, &g, &[]).unwrap();
         let exact = Modes::new(&c)
@@ -952,11 +958,7 @@ mod tests {
     /// a change at mass 1 or of another size is simulated whole.
     #[test]
     fn resumed_records_match_whole_simulations() {
-        let base = crate::scenes::paper_with(160, "mass:3:2")
-            .unwrap()
-            .with_d(0.02)
-            .unwrap();
-        let t: Vec<f64> = (0..1201).map(|i| 0.25 * i as f64).collect();
+        let (base, t) = chain_and_times(160, "mass:3:2", 0.02, 1201);
         let g = TimeGrid::new(&t, &base).unwrap();
         let saved = Saved::new(&base, &g).unwrap();
         assert_eq!(saved.x1, simulate(&base, &g, &[]).unwrap().x1);
