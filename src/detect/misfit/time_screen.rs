@@ -1022,6 +1022,41 @@ mod tests {
         );
     }
 
+    /// Candidates beyond the front of a short record's simulation score
+    /// exactly zero without a convolution, and the others score as when
+    /// they are screened alone.
+    #[test]
+    fn candidates_beyond_the_front_score_zero() {
+        use crate::detect::unknowns::DefectKind;
+        let (c, t) = chain_and_times(200, "mass:3:2", 0.05, 161);
+        let y: Vec<f64> = t.iter().map(|&x| 1e-3 * (0.3 * x).sin()).collect();
+        let screen = Screen::new(&t, &y, &c).unwrap();
+        let cands: Vec<Candidate> = (1..=200).map(|p| (DefectKind::Mass, p)).collect();
+        let (r, all) = screen.score(&c, &cands, false).unwrap();
+        let touched = simulate(&c, &screen.grid, &[]).unwrap().touched;
+        assert!(touched > 20 && touched < 150, "{touched}");
+        let live = touched.min(199);
+        for (p, s) in (1..=200).zip(&all) {
+            if p > touched {
+                assert_eq!((s.0.abs(), s.1), (0.0, 0.0), "mass {p}");
+            } else if p < touched - 60 {
+                assert!(s.1 > 0.0, "mass {p}");
+            }
+        }
+        let (r1, alone) = screen.score(&c, &cands[..live], false).unwrap();
+        assert_eq!(r, r1);
+        for (a, b) in alone.iter().zip(&all) {
+            assert!(
+                (a.0 - b.0).abs() <= 1e-12 * a.0.abs().max(1e-300),
+                "{a:?} {b:?}"
+            );
+            assert!(
+                (a.1 - b.1).abs() <= 1e-12 * a.1.abs().max(1e-300),
+                "{a:?} {b:?}"
+            );
+        }
+    }
+
     #[test]
     fn grids() {
         let c = Chain::paper(5).unwrap();
