@@ -87,10 +87,11 @@ pub fn candidate_options(opts: &FitOptions) -> FitOptions {
 /// A candidate damping model and its fit.
 type Candidate = (Model, Result<FitReport>);
 
-/// Fit every damping model with `fit_one` and return the report of the one
-/// with the smallest [`criterion`] (refitted with `refit` when given and
-/// its screening fit does not fit the data: the options asked for, where
-/// the candidates were fitted with [`screen_options`]), its `damping` entry listing every candidate as
+/// Fit every damping model with `fit_one` (screening fits,
+/// [`candidate_options`]) and return the report of the one with the
+/// smallest [`criterion`], fitted again with `chosen` ([`screen_options`])
+/// and then with `refit` when given and that fit does not fit the data
+/// (the options asked for), its `damping` entry listing every candidate as
 /// `fit_one` fitted it; evaluations are the sum over the fits, the wall
 /// time that of the whole choice (a candidate's own clock may include work
 /// shared with the others, so their sum would overstate it).
@@ -101,10 +102,10 @@ type Candidate = (Model, Result<FitReport>);
 pub fn fit_choosing(
     model: &Model,
     fit_one: impl Fn(&Model) -> Result<FitReport> + Sync,
-    chosen: Option<impl Fn(&Model) -> Result<FitReport>>,
+    chosen: impl Fn(&Model) -> Result<FitReport>,
     refit: Option<impl Fn(&Model) -> Result<FitReport>>,
 ) -> Result<FitReport> {
-    let mut best: Option<(f64, FitReport, Model)> = None;
+    let mut best: Option<(f64, Model)> = None;
     let mut candidates = Vec::new();
     let mut first_err = None;
     let started = std::time::Instant::now();
@@ -149,19 +150,16 @@ pub fn fit_choosing(
             positions: r.found().iter().map(|d| d.at()).collect(),
         });
         if best.as_ref().is_none_or(|(b, ..)| c < *b) {
-            best = Some((c, r, m));
+            best = Some((c, m));
         }
     }
-    let Some((_, mut report, m)) = best else {
+    let Some((_, m)) = best else {
         return Err(first_err
             .unwrap_or_else(|| Error::invalid("damping", "none", "a damping model that fits")));
     };
-    // the chosen model fitted in full (`chosen`: the candidates were
-    // screening fits)
-    if let Some(full) = chosen {
-        report = full(&m)?;
-        evaluations += report.evaluations;
-    }
+    // the chosen model fitted in full (the candidates were screening fits)
+    let mut report = chosen(&m)?;
+    evaluations += report.evaluations;
     // a white residual: the options asked for (`auto`) would keep the
     // white fit, so the screening fit is the answer
     if let Some(refit) = refit.filter(|_| !report.fits_data) {

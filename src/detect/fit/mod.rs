@@ -162,7 +162,7 @@ fn fit_with(
         return damping::fit_choosing(
             model,
             |m| fit_with(obs, m, &candidate, None),
-            Some(|m: &Model| fit_with(obs, m, &screen, None)),
+            |m: &Model| fit_with(obs, m, &screen, None),
             refit.then_some(|m: &Model| fit_with(obs, m, opts, None)),
         );
     }
