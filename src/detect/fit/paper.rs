@@ -241,16 +241,7 @@ fn fit_mass_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> Resu
             ),
         ));
     }
-    let (s, values, errors) = at_nodes(scene, data, &rule.nodes)?;
-    // the quadrature weights as inverse variances: the chi-square is the residual
-    let pseudo: Vec<f64> = rule.weights.iter().map(|w| 1.0 / w.sqrt()).collect();
-    let floor: f64 = rule
-        .weights
-        .iter()
-        .zip(&errors)
-        .map(|(w, e)| w * e * e)
-        .sum();
-    let obs = Observations::Laplace(LaplaceValues::new(s, values, Some(pseudo))?);
+    let (obs, floor) = residual_observations(scene, data, &rule)?;
     let opts = mass_options(scene, unknowns.k(), options);
     let given = Given {
         unknowns,
@@ -306,6 +297,29 @@ fn fit_mass_scene(scene: &FitScene, data: &Data, options: &SceneOptions) -> Resu
         chain_params: Vec::new(),
         identifiability: None,
     })
+}
+
+/// The scene's data at the rule's nodes as Laplace observations whose
+/// chi-square is the paper's residual (the quadrature weights as inverse
+/// variances), and the data's error floor on that residual.
+///
+/// # Errors
+/// As [`at_nodes`] and [`LaplaceValues::new`].
+fn residual_observations(
+    scene: &FitScene,
+    data: &Data,
+    rule: &crate::detect::misfit::quadrature::Rule,
+) -> Result<(Observations, f64)> {
+    let (s, values, errors) = at_nodes(scene, data, &rule.nodes)?;
+    let pseudo: Vec<f64> = rule.weights.iter().map(|w| 1.0 / w.sqrt()).collect();
+    let floor: f64 = rule
+        .weights
+        .iter()
+        .zip(&errors)
+        .map(|(w, e)| w * e * e)
+        .sum();
+    let obs = Observations::Laplace(LaplaceValues::new(s, values, Some(pseudo))?);
+    Ok((obs, floor))
 }
 
 /// The mass path's method and message, saying so when the answer was

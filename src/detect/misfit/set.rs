@@ -276,6 +276,53 @@ pub(super) struct Folded {
     c: Vec<f64>,
 }
 
+/// `G_11, G_1a, G_aa, G_1b, G_bb` per node for the positions `a` and `b`
+/// of a [`Folded`] set: slices of the tabled rows, else gathered from the
+/// table into `store`; the `b` columns zero for one defect.
+fn green_columns<'a>(
+    g: &GreenTable<f64>,
+    rows: Option<&'a Rows>,
+    a: usize,
+    b: Option<usize>,
+    store: &'a mut Vec<f64>,
+) -> [&'a [f64]; 5] {
+    let nq = g.len();
+    match rows {
+        Some(r) => {
+            let column = |j: usize| -> (&'a [f64], &'a [f64]) {
+                (&r.g1[(j - 1) * nq..j * nq], &r.gd[(j - 1) * nq..j * nq])
+            };
+            let (g11, _) = column(1);
+            let (g1a, gaa) = column(a);
+            let (g1b, gbb) = match b {
+                Some(b) => column(b),
+                None => {
+                    store.resize(nq, 0.0);
+                    let zeros: &'a Vec<f64> = store;
+                    (&zeros[..], &zeros[..])
+                }
+            };
+            [g11, g1a, gaa, g1b, gbb]
+        }
+        None => {
+            let col = |i: usize, j: usize| (0..nq).map(move |q| g.entry(q, i, j));
+            store.extend(col(1, 1));
+            store.extend(col(1, a));
+            store.extend(col(a, a));
+            match b {
+                Some(b) => {
+                    store.extend(col(1, b));
+                    store.extend(col(b, b));
+                }
+                None => store.resize(5 * nq, 0.0),
+            }
+            let v: &'a Vec<f64> = store;
+            let part = |i: usize| &v[i * nq..(i + 1) * nq];
+            [part(0), part(1), part(2), part(3), part(4)]
+        }
+    }
+}
+
 impl Folded {
     pub(super) fn new(
         g: &GreenTable<f64>,
@@ -293,43 +340,8 @@ impl Folded {
         let b = pos.get(1).copied();
         let obs_a = a == 1;
         let obs_b = b == Some(1);
-        // G_1j and G_jj per node: the tabled rows, else gathered from the
-        // table; the b columns zero for one defect
-        let gathered;
-        let column = |j: usize| -> (&[f64], &[f64]) {
-            let r = rows.expect("tabled rows");
-            (&r.g1[(j - 1) * nq..j * nq], &r.gd[(j - 1) * nq..j * nq])
-        };
-        let zeros = vec![0.0; if b.is_none() { 2 * nq } else { 0 }];
-        let ((g11, g1a, gaa), (g1b, gbb)) = match rows {
-            Some(_) => {
-                let (g11, _) = column(1);
-                let (g1a, gaa) = column(a);
-                let bb = match b {
-                    Some(b) => column(b),
-                    None => zeros.split_at(nq),
-                };
-                ((g11, g1a, gaa), bb)
-            }
-            None => {
-                let col = |i: usize, j: usize| (0..nq).map(move |q| g.entry(q, i, j));
-                let mut v: Vec<f64> = col(1, 1).collect();
-                v.extend(col(1, a));
-                v.extend(col(a, a));
-                match b {
-                    Some(b) => {
-                        v.extend(col(1, b));
-                        v.extend(col(b, b));
-                    }
-                    None => v.resize(5 * nq, 0.0),
-                }
-                gathered = v;
-                let (x, y) = gathered.split_at(3 * nq);
-                let (g11, x) = x.split_at(nq);
-                let (g1a, gaa) = x.split_at(nq);
-                ((g11, g1a, gaa), y.split_at(nq))
-            }
-        };
+        let mut store = Vec::new();
+        let [g11, g1a, gaa, g1b, gbb] = green_columns(g, rows, a, b, &mut store);
         let mut c = vec![0.0; ROWS * np];
         {
             let mut it = c.chunks_exact_mut(np).map(|r| &mut r[..nq]);
