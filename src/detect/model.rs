@@ -50,8 +50,15 @@ use crate::error::Result;
 use crate::sensitivity::Param;
 use nalgebra::DMatrix;
 
-/// The residual function of [`MeasurementModel::near`].
-pub type Near<'a> = Box<dyn Fn(&Chain) -> Result<Vec<f64>> + Sync + 'a>;
+/// The residual function of [`MeasurementModel::near`]: the residuals of a
+/// chain, or only their first rows once `enough` (asked with first rows
+/// from time to time, perhaps never) answered `true`.
+pub type Near<'a> = Box<dyn Fn(&Chain, Enough<'_>) -> Result<Vec<f64>> + Sync + 'a>;
+
+/// Asked by a [`Near`] function with the first rows of a chain's residuals
+/// (exactly the first rows of the whole vector): `true` when these are
+/// enough and the rest need not be computed.
+pub type Enough<'e> = &'e mut dyn FnMut(&[f64]) -> bool;
 
 /// A way of comparing a candidate chain with data (see the module docs).
 pub trait MeasurementModel: Sync + std::fmt::Debug {
@@ -81,13 +88,14 @@ pub trait MeasurementModel: Sync + std::fmt::Debug {
     /// (the hidden-defect check's probes): [`MeasurementModel::residuals`]
     /// to rounding, perhaps cheaper after work done once for `base` (the
     /// time misfit of a long chain resumes each chain's simulation where it
-    /// first differs from `base`'s). The default calls `residuals`.
+    /// first differs from `base`'s, and stops where the caller has seen
+    /// enough, see [`Enough`]). The default calls `residuals`.
     ///
     /// # Errors
     /// The forward model's errors for `base`.
     fn near<'a>(&'a self, base: &Chain) -> Result<Near<'a>> {
         let _ = base;
-        Ok(Box::new(move |c: &Chain| self.residuals(c)))
+        Ok(Box::new(move |c: &Chain, _: Enough<'_>| self.residuals(c)))
     }
 
     /// `chi^2 = |r|^2`.

@@ -31,6 +31,7 @@ use crate::detect::data::noise_model::NoiseModel;
 use crate::detect::data::nuisance::{Nuisance, Projector};
 use crate::detect::data::series::TimeData;
 use crate::detect::misfit::time_screen::{simulate, Saved, TimeGrid};
+use crate::detect::model::{Enough, Near};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use crate::time::modal::Modes;
@@ -459,7 +460,7 @@ impl crate::detect::model::MeasurementModel for TimeMisfit {
     fn jacobian(&self, chain: &Chain, params: &[Param]) -> Result<Option<DMatrix<f64>>> {
         TimeMisfit::jacobian(self, chain, params)
     }
-    fn near<'a>(&'a self, base: &Chain) -> Result<crate::detect::model::Near<'a>> {
+    fn near<'a>(&'a self, base: &Chain) -> Result<Near<'a>> {
         // one sensor on mass 1 of a long chain that is simulated: the
         // saved states of base's simulation ([`Saved`])
         let stepped = self.others.is_empty()
@@ -468,17 +469,23 @@ impl crate::detect::model::MeasurementModel for TimeMisfit {
             && simulated(base);
         let grid = TimeGrid::new(self.data.t(), base).filter(|_| stepped);
         let Some(grid) = grid else {
-            return Ok(Box::new(move |c: &Chain| self.residuals(c)));
+            return Ok(Box::new(move |c: &Chain, _: Enough<'_>| self.residuals(c)));
         };
         let saved = Saved::new(base, &grid)?;
-        Ok(Box::new(move |c: &Chain| {
+        // without nuisances (projected out over the whole record) the
+        // residuals of a record's first samples are the first residuals
+        let causal = self.projector.is_none();
+        Ok(Box::new(move |c: &Chain, enough: Enough<'_>| {
             let grid = simulated(c)
                 .then(|| TimeGrid::new(self.data.t(), c))
                 .flatten();
-            match grid {
-                Some(g) => self.residuals_of(&saved.resume(c, &g)?),
-                None => self.residuals(c),
-            }
+            let Some(g) = grid else {
+                return self.residuals(c);
+            };
+            let x1 = saved.resume(c, &g, |x1| {
+                causal && self.residuals_of(x1).is_ok_and(|r| enough(&r))
+            })?;
+            self.residuals_of(&x1)
         }))
     }
 }
@@ -542,6 +549,56 @@ mod tests {
         assert!(off.jacobian(&truth, &params).unwrap().is_none());
         assert!(misfit.jacobian(&truth, &[Param::D]).unwrap().is_none());
         assert!(misfit.jacobian(&truth, &[Param::Defect(9)]).is_err());
+    }
+
+    /// A long chain's nearby residuals stop at first rows once these are
+    /// enough, and those rows are the whole vector's; with nuisances
+    /// (projected over the whole record) they never stop.
+    #[test]
+    fn near_residuals_stop_where_enough_with_the_whole_vectors_first_rows() {
+        use crate::detect::data::{noise_model::NoiseModel, nuisance::Nuisance};
+        use crate::detect::model::MeasurementModel;
+        let base = crate::scenes::paper_with(120, "mass:3:2.0").unwrap();
+        let data =
+            TimeData::simulate(&base, 240.0, 0.25, NoiseLevel::RelativeMax(1e-3), 3).unwrap();
+        let deep = base
+            .clone()
+            .with_defect(crate::chain::Defect::parse("mass:60:2").unwrap())
+            .unwrap();
+        for (noise, nuisance, stops) in [
+            (NoiseModel::White, Nuisance::None, true),
+            (NoiseModel::ar(vec![0.5]).unwrap(), Nuisance::None, true),
+            (NoiseModel::White, Nuisance::Offset, false),
+        ] {
+            let misfit = TimeMisfit::new(data.clone())
+                .with_record_model(noise.clone(), nuisance)
+                .unwrap();
+            let near = misfit.near(&base).unwrap();
+            let whole = misfit.residuals(&deep).unwrap();
+            let all = near(&deep, &mut |_| false).unwrap();
+            let mut asked = 0;
+            let first = near(&deep, &mut |r| {
+                asked += 1;
+                r.len() >= 400
+            })
+            .unwrap();
+            let peak = whole.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+            assert_eq!(all.len(), whole.len());
+            assert!(all
+                .iter()
+                .zip(&whole)
+                .all(|(a, b)| (a - b).abs() <= 1e-12 * peak));
+            if stops {
+                assert!(first.len() >= 400 && first.len() < 500, "{}", first.len());
+                assert!(asked > 1);
+                assert!(first
+                    .iter()
+                    .zip(&whole)
+                    .all(|(a, b)| (a - b).abs() <= 1e-12 * peak));
+            } else {
+                assert_eq!((first.len(), asked), (whole.len(), 0), "{noise:?}");
+            }
+        }
     }
 
     #[test]

@@ -206,6 +206,7 @@ pub fn simulate(chain: &Chain, grid: &TimeGrid, masses: &[usize]) -> Result<Run>
         if grid.is_sample(j) {
             x1.push(st.x[1]);
         }
+        true
     });
     finite(x1.iter().chain(&xs).chain(&vs))?;
     Ok(Run {
@@ -220,13 +221,14 @@ pub fn simulate(chain: &Chain, grid: &TimeGrid, masses: &[usize]) -> Result<Run>
 
 /// Step `st` (the state of `chain` at internal step `from` of `grid`) to
 /// the grid's last step, sub-steps with `h ||A|| <= THETA`; `each(j, st)`
-/// at every internal step `j >= from`, `from` included.
+/// at every internal step `j >= from`, `from` included, until it returns
+/// `false`.
 fn advance(
     st: &mut Stepper,
     chain: &Chain,
     grid: &TimeGrid,
     from: usize,
-    mut each: impl FnMut(usize, &Stepper),
+    mut each: impl FnMut(usize, &Stepper) -> bool,
 ) {
     // in the energy norm A is skew (norm omega_max) plus the damping
     let (m, d) = (chain.masses(), chain.dampers());
@@ -239,7 +241,9 @@ fn advance(
                 st.sub_step(h);
             }
         }
-        each(j, st);
+        if !each(j, st) {
+            return;
+        }
     }
 }
 
@@ -316,6 +320,7 @@ impl Saved {
                     });
                 }
             }
+            true
         });
         finite(x1.iter())?;
         Ok(Saved { rows, x1, marks })
@@ -324,34 +329,51 @@ impl Saved {
     /// `x_1` of `changed` on `grid` (its own grid: [`TimeGrid::new`] of
     /// the record's times for `changed`), from the last saved state
     /// before the front reached the first stepping row in which `changed`
-    /// differs from the saved chain; a whole simulation when there is none.
+    /// differs from the saved chain (from rest when there is none). Every
+    /// [`ENOUGH_EVERY`]-th part of the record `enough` is asked with the
+    /// samples so far; when it answers `true` these first samples are
+    /// returned.
     ///
     /// # Errors
     /// As [`simulate`].
-    pub fn resume(&self, changed: &Chain, grid: &TimeGrid) -> Result<Vec<f64>> {
+    pub fn resume(
+        &self,
+        changed: &Chain,
+        grid: &TimeGrid,
+        mut enough: impl FnMut(&[f64]) -> bool,
+    ) -> Result<Vec<f64>> {
         require_grounded(changed)?;
         let mut st = Stepper::new(changed);
         let Some(first) = self.rows.first_difference(&st) else {
             return Ok(self.x1.clone());
         };
-        let Some(mark) = self.marks.iter().rev().find(|m| m.touched < first) else {
-            return Ok(simulate(changed, grid, &[])?.x1);
-        };
-        st.x.clone_from(&mark.x);
-        st.v.clone_from(&mark.v);
-        st.reach = mark.reach;
-        st.touched = mark.touched;
-        let mut x1 = self.x1[..=mark.sample].to_vec();
-        let from = grid.index(mark.sample);
-        advance(&mut st, changed, grid, from, |j, st| {
-            if j > from && grid.is_sample(j) {
-                x1.push(st.x[1]);
+        let (mut x1, from) = match self.marks.iter().rev().find(|m| m.touched < first) {
+            Some(mark) => {
+                st.x.clone_from(&mark.x);
+                st.v.clone_from(&mark.v);
+                st.reach = mark.reach;
+                st.touched = mark.touched;
+                (self.x1[..=mark.sample].to_vec(), grid.index(mark.sample))
             }
+            None => (Vec::with_capacity(grid.samples), 0),
+        };
+        let every = grid.samples.div_ceil(ENOUGH_EVERY).max(1);
+        advance(&mut st, changed, grid, from, |j, st| {
+            if (j > from || x1.is_empty()) && grid.is_sample(j) {
+                x1.push(st.x[1]);
+                let done = x1.len() == grid.samples;
+                return done || !x1.len().is_multiple_of(every) || !enough(&x1);
+            }
+            true
         });
         finite(x1.iter())?;
         Ok(x1)
     }
 }
+
+/// How often (parts of the record) [`Saved::resume`] asks whether the
+/// samples so far are enough.
+pub const ENOUGH_EVERY: usize = 64;
 
 /// Each Taylor term spreads the state by one mass; a sub-step works on the
 /// masses the impulse has reached plus this many, and sums at most this
@@ -1002,7 +1024,7 @@ mod tests {
                 .unwrap();
             let gc = TimeGrid::new(&t, &c).unwrap();
             let whole = simulate(&c, &gc, &[]).unwrap().x1;
-            let r = saved.resume(&c, &gc).unwrap();
+            let r = saved.resume(&c, &gc, |_| false).unwrap();
             assert_eq!(r.len(), whole.len(), "{change}");
             let err = r
                 .iter()
@@ -1017,7 +1039,7 @@ mod tests {
         let other = Chain::paper(150).unwrap();
         let go = TimeGrid::new(&t, &other).unwrap();
         assert_eq!(
-            saved.resume(&other, &go).unwrap(),
+            saved.resume(&other, &go, |_| false).unwrap(),
             simulate(&other, &go, &[]).unwrap().x1
         );
     }
