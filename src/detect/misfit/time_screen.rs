@@ -230,6 +230,35 @@ pub fn simulate(chain: &Chain, grid: &TimeGrid, masses: &[usize]) -> Result<Run>
     })
 }
 
+/// The internal steps per Taylor step of [`advance`] (internal steps of
+/// `theta = dt ||A||`) that cost least, from one to as many as keep `h ||A||
+/// <= BLOCK_THETA`: per internal step, a Taylor step's terms (tridiagonal
+/// products over up to `n` rows, about 6 operations a row) shared by its
+/// internal steps, and the same terms summed at each internal step inside
+/// for `x_1` and `tracked` masses' `x` and `v` (one operation each).
+fn block_size(theta: f64, n: usize, tracked: usize) -> usize {
+    let most = ((BLOCK_THETA / theta).floor() as usize).clamp(1, SPREAD);
+    let per_term = |b: usize| 6.0 * n as f64 / b as f64 + (1 + 2 * tracked) as f64;
+    (1..=most)
+        .min_by(|&a, &b| {
+            let ca = taylor_terms(a as f64 * theta) as f64 * per_term(a);
+            let cb = taylor_terms(b as f64 * theta) as f64 * per_term(b);
+            ca.total_cmp(&cb)
+        })
+        .unwrap_or(1)
+}
+
+/// Terms of the exponential's Taylor series at `theta` until one falls
+/// below `1.1e-16` (at most [`SPREAD`]).
+fn taylor_terms(theta: f64) -> usize {
+    let (mut m, mut t) = (0, 1.0f64);
+    while t > 1.1e-16 && m < SPREAD {
+        m += 1;
+        t *= theta / m as f64;
+    }
+    m
+}
+
 /// What [`advance`] knows at an internal step: `x_1`, `x` and `v` of the
 /// tracked masses (in their order), and the whole state where a Taylor
 /// step ends (and at the start).
@@ -262,7 +291,7 @@ fn advance(
     let block = if inner > 1 || !(theta > 0.0) {
         1
     } else {
-        ((BLOCK_THETA / theta).floor() as usize).clamp(1, SPREAD)
+        block_size(theta, chain.n(), tracked.len())
     };
     let h = grid.dt / inner as f64;
     let last = grid.steps() - 1;
