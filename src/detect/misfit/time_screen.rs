@@ -585,17 +585,22 @@ impl Stepper {
                 row[1 + nt + c] = self.v[p];
             }
         }
-        // (i / b)^term for the step i inside
+        // (i / b)^term for the step i inside, and the term's entries that
+        // are summed there
         let mut pw = vec![1.0; b - 1];
+        let mut entries = vec![0.0; w];
         let h = b as f64 * dt;
         for term in 1..=SPREAD {
             let big = self.term(h / term as f64, hi);
+            entries[0] = self.nx[1];
+            for &(c, p) in &live {
+                entries[1 + c] = self.nx[p];
+                entries[1 + nt + c] = self.nv[p];
+            }
             for (i, (row, f)) in between.chunks_mut(w).zip(pw.iter_mut()).enumerate() {
                 *f *= (i + 1) as f64 / b as f64;
-                row[0] += *f * self.nx[1];
-                for &(c, p) in &live {
-                    row[1 + c] += *f * self.nx[p];
-                    row[1 + nt + c] += *f * self.nv[p];
+                for (r, e) in row.iter_mut().zip(&entries) {
+                    *r += *f * e;
                 }
             }
             std::mem::swap(&mut self.tx, &mut self.nx);
