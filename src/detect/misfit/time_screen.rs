@@ -375,6 +375,7 @@ struct Mark {
     step: usize,
     /// The record samples up to that step (included).
     samples: usize,
+    /// The state up to the last row used (beyond it exactly 0).
     x: Vec<f64>,
     v: Vec<f64>,
     reach: usize,
@@ -408,8 +409,9 @@ impl Saved {
                 marks.push(Mark {
                     step: j,
                     samples: x1.len(),
-                    x: st.x.clone(),
-                    v: st.v.clone(),
+                    // beyond the rows used the state is exactly 0
+                    x: st.x[..=st.touched + 1].to_vec(),
+                    v: st.v[..=st.touched + 1].to_vec(),
                     reach: st.reach,
                     touched: st.touched,
                 });
@@ -444,8 +446,8 @@ impl Saved {
         };
         let (mut x1, from, fresh) = match self.marks.iter().rev().find(|m| m.touched < first) {
             Some(mark) => {
-                st.x.clone_from(&mark.x);
-                st.v.clone_from(&mark.v);
+                st.x[..mark.x.len()].copy_from_slice(&mark.x);
+                st.v[..mark.v.len()].copy_from_slice(&mark.v);
                 st.reach = mark.reach;
                 st.touched = mark.touched;
                 (self.x1[..mark.samples].to_vec(), mark.step, false)
