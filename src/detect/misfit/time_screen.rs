@@ -288,7 +288,7 @@ fn advance(
     let norm = omega_max(chain) + (0..chain.n()).map(|i| d[i] / m[i]).fold(0.0, f64::max);
     let theta = grid.dt * norm;
     let inner = ((theta / THETA).ceil() as usize).max(1);
-    let block = if inner > 1 || !(theta > 0.0) {
+    let block = if inner > 1 || theta.is_nan() || theta <= 0.0 {
         1
     } else {
         block_size(theta, chain.n(), tracked.len())
