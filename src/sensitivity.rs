@@ -668,28 +668,17 @@ pub fn defect_gradient<T: Scalar>(chain: &Chain, s: T) -> Result<Gradient<T>> {
 pub fn defect_gradient_with<T: Scalar>(fwd: &Forward, s: T) -> Result<Gradient<T>> {
     let chain = fwd.chain();
     let n = chain.n();
-    if !chain.damping().is_grounded() {
-        // one Green's function for every site
-        let mut sites: Vec<usize> = vec![1];
-        for d in chain.defects() {
-            sites.extend(chain.site(d).probe.entries(n).map(|(i, _)| i));
-        }
-        sites.sort_unstable();
-        sites.dedup();
-        let x = fwd.eval_many(s.clone(), &sites)?;
-        return defect_gradient_from(chain, &s, |i: usize| -> Result<T> {
-            Ok(sites.binary_search(&i).map_or(T::zero(), |j| x[j].clone()))
-        });
+    // every site at once: one Green's function for a damping model the
+    // transfer sweep does not take, one sweep for many sites, else each
+    let mut sites: Vec<usize> = vec![1];
+    for d in chain.defects() {
+        sites.extend(chain.site(d).probe.entries(n).map(|(i, _)| i));
     }
-    let value = fwd.eval(s.clone(), 1)?;
+    sites.sort_unstable();
+    sites.dedup();
+    let x = fwd.eval_many(s.clone(), &sites)?;
     defect_gradient_from(chain, &s, |i: usize| -> Result<T> {
-        if i == 0 || i > n {
-            Ok(T::zero())
-        } else if i == 1 {
-            Ok(value.clone())
-        } else {
-            fwd.eval(s.clone(), i)
-        }
+        Ok(sites.binary_search(&i).map_or(T::zero(), |j| x[j].clone()))
     })
 }
 

@@ -178,6 +178,14 @@ impl Transfer {
         self.eval_parts(s, o, self.gamma).0
     }
 
+    /// `X` at every index of `sites` (increasing, each in `1..=n`) in one
+    /// sweep, the powers computed as [`Transfer::eval`] computes them.
+    /// Unchecked, as [`Transfer::eval`].
+    pub fn eval_sites_direct<T: Scalar>(&self, s: &T, sites: &[usize], gamma: f64) -> Vec<T> {
+        let pw = Direct::new(s, self.k, self.mass, self.d);
+        self.sweep(s, &pw, sites, gamma).0
+    }
+
     /// `(X_o(s), Z_1(s))` for an impulse `gamma` on mass 1, where
     /// `Z_1 = D_1 - m_1 s^2 = d_1 s + kappa_0 + kappa_1 E_2 / (E_2 + kappa_1)` is
     /// the impedance mass 1 sees (its damper, its wall spring and the chain
