@@ -189,6 +189,16 @@ impl Bounds {
     fn shown(&self, r: &[f64], r0: &DVector<f64>) -> f64 {
         let m = r.len().min(r0.len());
         let d = DVector::from_iterator(m, r.iter().zip(r0.iter()).map(|(a, b)| a - b));
+        if self.own.ncols() == 0 {
+            // nothing of the answer's to absorb the change (an empty
+            // Jacobian may have no rows either)
+            return d.norm_squared();
+        }
+        if self.own.nrows() < m {
+            // a Jacobian shorter than the residuals: the absorbed part is
+            // unknown, so the change counts as not shown
+            return 0.0;
+        }
         let q = {
             let mut cache = self
                 .q
@@ -279,6 +289,12 @@ mod tests {
         }
         // fewer rows than parameters are fitted exactly
         assert_eq!(b.shown(&r[..2], &r0), 0.0);
+        // no parameters (an empty Jacobian, perhaps without rows): all of it
+        for empty in [DMatrix::zeros(0, 0), DMatrix::zeros(m, 0)] {
+            let none = Bounds::new(empty);
+            assert_eq!(none.shown(&r, &r0), d.norm_squared());
+            assert_eq!(none.shown(&r[..50], &r0), d.rows(0, 50).norm_squared());
+        }
     }
 
     #[test]
