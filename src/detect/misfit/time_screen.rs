@@ -539,21 +539,37 @@ impl Stepper {
     /// updated.
     #[inline]
     fn sub_step(&mut self, h: f64) {
-        let n = self.n;
-        let hi = (self.reach + SPREAD).min(n);
+        let (hi, scale) = self.begin();
+        self.series(h, hi, scale, |_| {});
+    }
+
+    /// The rows a Taylor step works on (the reach plus [`SPREAD`]), the
+    /// state copied as the first term, and the state's largest entry.
+    #[inline]
+    fn begin(&mut self) -> (usize, f64) {
+        let hi = (self.reach + SPREAD).min(self.n);
         self.touched = self.touched.max(hi);
         self.tx[..=hi + 1].copy_from_slice(&self.x[..=hi + 1]);
         self.tv[..=hi + 1].copy_from_slice(&self.v[..=hi + 1]);
         let scale = max_abs(&self.x[1..=hi], &self.v[1..=hi]).max(f64::MIN_POSITIVE);
+        (hi, scale)
+    }
+
+    /// The Taylor terms of a step `h` on rows `1..=hi` until they fall
+    /// below `2^-53` of `scale`, `each(self)` after each (the new term in
+    /// `nx`, `nv`), then the reach updated.
+    #[inline]
+    fn series(&mut self, h: f64, hi: usize, scale: f64, mut each: impl FnMut(&Stepper)) {
         for term in 1..=SPREAD {
             let big = self.term(h / term as f64, hi);
+            each(self);
             std::mem::swap(&mut self.tx, &mut self.nx);
             std::mem::swap(&mut self.tv, &mut self.nv);
             if big <= 1.1e-16 * scale {
                 break;
             }
         }
-        if self.reach < n {
+        if self.reach < self.n {
             self.trim(hi, scale);
         }
     }
@@ -563,12 +579,7 @@ impl Stepper {
     /// at the `b - 1` internal steps inside it, summed from the same terms:
     /// per step `x_1` then `x` and `v` of the masses `tracked`.
     fn block_step(&mut self, dt: f64, b: usize, tracked: &[usize], between: &mut Vec<f64>) {
-        let n = self.n;
-        let hi = (self.reach + SPREAD).min(n);
-        self.touched = self.touched.max(hi);
-        self.tx[..=hi + 1].copy_from_slice(&self.x[..=hi + 1]);
-        self.tv[..=hi + 1].copy_from_slice(&self.v[..=hi + 1]);
-        let scale = max_abs(&self.x[1..=hi], &self.v[1..=hi]).max(f64::MIN_POSITIVE);
+        let (hi, scale) = self.begin();
         // the masses tracked within reach (the state beyond stays 0)
         let live: Vec<(usize, usize)> = tracked
             .iter()
@@ -591,13 +602,11 @@ impl Stepper {
         // are summed there
         let mut pw = vec![1.0; b - 1];
         let mut entries = vec![0.0; w];
-        let h = b as f64 * dt;
-        for term in 1..=SPREAD {
-            let big = self.term(h / term as f64, hi);
-            entries[0] = self.nx[1];
+        self.series(b as f64 * dt, hi, scale, |st| {
+            entries[0] = st.nx[1];
             for &(c, p) in &live {
-                entries[1 + c] = self.nx[p];
-                entries[1 + nt + c] = self.nv[p];
+                entries[1 + c] = st.nx[p];
+                entries[1 + nt + c] = st.nv[p];
             }
             for (i, (row, f)) in between.chunks_mut(w).zip(pw.iter_mut()).enumerate() {
                 *f *= (i + 1) as f64 / b as f64;
@@ -605,15 +614,7 @@ impl Stepper {
                     *r += *f * e;
                 }
             }
-            std::mem::swap(&mut self.tx, &mut self.nx);
-            std::mem::swap(&mut self.tv, &mut self.nv);
-            if big <= 1.1e-16 * scale {
-                break;
-            }
-        }
-        if self.reach < n {
-            self.trim(hi, scale);
-        }
+        });
     }
 
     /// The next Taylor term `alpha A t` into `n*`, added to the state;
