@@ -652,7 +652,8 @@ pub fn observe_defect_gradient_with<T: Scalar>(
 
 /// `X_1(s)` and its derivatives with respect to every defect value of `chain`
 /// (in `chain.defects()` order), from `X` at the defect sites only: O(k) per
-/// site by the transfer sweep, O(k^2) per `s` whatever `n`.
+/// site by the transfer sweep, O(k^2) per `s` whatever `n`, and one sweep
+/// for every site from [`crate::forward::MANY_SITES`] sites on (O(k)).
 ///
 /// # Errors
 /// As [`Forward::eval`].

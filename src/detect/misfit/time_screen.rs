@@ -1086,6 +1086,18 @@ mod tests {
 
     use crate::time::modal::Modes;
 
+    /// The largest `|v|`.
+    fn peak(v: &[f64]) -> f64 {
+        v.iter().fold(0.0f64, |a, b| a.max(b.abs()))
+    }
+
+    /// The largest `|a_i - b_i|`.
+    fn max_diff(a: &[f64], b: &[f64]) -> f64 {
+        a.iter()
+            .zip(b)
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+    }
+
     /// The paper's chain of `n` masses with `defects` and damping `d`, and
     /// `samples` record times `0, 0.25, ...`.
     fn chain_and_times(n: usize, defects: &str, d: f64, samples: usize) -> (Chain, Vec<f64>) {
@@ -1106,13 +1118,8 @@ mod tests {
             .response(1, 1, 1.0)
             .unwrap()
             .eval_many(&t);
-        let big = exact.iter().fold(0.0f64, |a, b| a.max(b.abs()));
-        let err = run
-            .x1
-            .iter()
-            .zip(&exact)
-            .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
-        assert!(err < 1e-12 * big, "{err:e}");
+        let err = max_diff(&run.x1, &exact);
+        assert!(err < 1e-12 * peak(&exact), "{err:e}");
     }
 
     /// The lanes' maximum is the plain running maximum, whatever the
@@ -1170,29 +1177,19 @@ mod tests {
             let run = simulate(&c, &g, &tracked).unwrap();
             let modes = Modes::new(&c).unwrap();
             let x1 = modes.response(1, 1, 1.0).unwrap().eval_many(&t);
-            let peak = x1.iter().fold(0.0f64, |a, b| a.max(b.abs()));
-            let big = peak;
-            let err = run
-                .x1
-                .iter()
-                .zip(&x1)
-                .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+            let top = peak(&x1);
+            let err = max_diff(&run.x1, &x1);
             assert!(
-                err < 1e-11 * big,
-                "n = {n} dt = {dt}: x_1 {err:e} of {big:e}"
+                err < 1e-11 * top,
+                "n = {n} dt = {dt}: x_1 {err:e} of {top:e}"
             );
             let ti: Vec<f64> = (0..g.steps()).map(|j| g.dt * j as f64).collect();
             for &p in &tracked {
                 let xp = modes.response(p, 1, 1.0).unwrap().eval_many(&ti);
                 // rounding is relative to the whole state (a mass behind
                 // one of 1e6 moves 1e-6 as much)
-                let big = xp.iter().fold(peak, |a, b| a.max(b.abs()));
-                let err = run
-                    .x(p)
-                    .unwrap()
-                    .iter()
-                    .zip(&xp)
-                    .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+                let big = top.max(peak(&xp));
+                let err = max_diff(run.x(p).unwrap(), &xp);
                 assert!(
                     err < 1e-11 * big,
                     "n = {n} dt = {dt}: mass {p} {err:e} of {big:e}"
@@ -1274,7 +1271,7 @@ mod tests {
         let g = TimeGrid::new(&t, &base).unwrap();
         let saved = Saved::new(&base, &g).unwrap();
         assert_eq!(saved.x1, simulate(&base, &g, &[]).unwrap().x1);
-        let scale = saved.x1.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+        let scale = peak(&saved.x1);
         for (change, resumed) in [
             ("mass:120:0.5", true),
             ("mass:60:2", true),
@@ -1289,10 +1286,7 @@ mod tests {
             let whole = simulate(&c, &gc, &[]).unwrap().x1;
             let r = saved.resume(&c, &gc, |_| false).unwrap();
             assert_eq!(r.len(), whole.len(), "{change}");
-            let err = r
-                .iter()
-                .zip(&whole)
-                .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
+            let err = max_diff(&r, &whole);
             assert!(err <= 1e-13 * scale, "{change}: {err:e}");
             // the samples before the front reached the change are the
             // saved chain's own (bit for bit) when it was resumed
