@@ -542,6 +542,77 @@ impl<T: Scalar> Forms<'_, T> {
     }
 }
 
+/// `dK(s)/dtheta` of parameter `p` as weighted sites,
+/// `sum_r w_r p_r(s) u_r u_r^T` (`(site, w_r)`; `K(s) = M s^2 + D s + K`):
+/// the same terms [`gradient`]'s forms sum, for a kernel that needs them
+/// one by one ([`crate::time::modal::Modes::sites_derivative`]). A defect
+/// is its own site; `D`, `Mass`, `K` and `c` the sites of every element
+/// no defect takes (with the Rayleigh model's terms), `a` and `b` every
+/// mass and spring weighted by its value.
+///
+/// `Ok(None)` for `gamma` (not a stiffness) and for every parameter of the
+/// `modal` damping model (its damping matrix is not a sum of sites).
+///
+/// # Errors
+/// A defect index out of range; `c`, `a` or `b` of another damping model.
+pub fn stiffness_terms(chain: &Chain, p: &Param) -> Result<Option<Vec<(Site, f64)>>> {
+    if chain.damping().is_modal() {
+        return Ok(None);
+    }
+    let n = chain.n();
+    let sites = DefectSites::of(chain);
+    let rayleigh = match chain.damping() {
+        Damping::Rayleigh { a, b } => (*a, *b),
+        _ => (0.0, 0.0),
+    };
+    let site = |probe: Probe, power: u32, poly: [f64; 3]| Site { probe, power, poly };
+    let points = |taken: &[bool], power: u32, poly: [f64; 3]| -> Vec<(Site, f64)> {
+        (1..=n)
+            .filter(|&i| !taken[i])
+            .map(|i| (site(Probe::Point(i), power, poly), 1.0))
+            .collect()
+    };
+    let (lo, hi) = chain.spring_range();
+    let springs = |taken: &[bool], power: u32, poly: [f64; 3]| -> Vec<(Site, f64)> {
+        (lo..=hi)
+            .filter(|&j| !taken[j])
+            .map(|j| (site(Probe::Diff(j), power, poly), 1.0))
+            .collect()
+    };
+    let weighted = |w: &[f64]| -> Vec<(Site, f64)> {
+        w.iter()
+            .enumerate()
+            .filter(|(_, w)| **w != 0.0)
+            .map(|(i, &w)| (site(Probe::Point(i + 1), 1, [0.0, 1.0, 0.0]), w))
+            .collect()
+    };
+    let terms = match *p {
+        Param::Defect(i) => vec![(chain.site(p.defect(chain, i)?), 1.0)],
+        Param::Mass => points(&sites.mass, 2, [0.0, rayleigh.0, 1.0]),
+        Param::D => points(&sites.damp, 1, [0.0, 1.0, 0.0]),
+        Param::K => springs(&sites.spring, 0, [1.0, rayleigh.1, 0.0]),
+        Param::Gamma | Param::Zeta { .. } => return Ok(None),
+        Param::C | Param::A | Param::B => {
+            p.get(chain)?;
+            match p {
+                Param::C => springs(&sites.spring_damp, 1, [0.0, 1.0, 0.0]),
+                Param::A => weighted(&chain.masses()),
+                _ => {
+                    let mut t = weighted(&chain.grounds());
+                    let k = chain.springs();
+                    t.extend(
+                        (lo..=hi)
+                            .filter(|&j| k[j] != 0.0)
+                            .map(|j| (site(Probe::Diff(j), 1, [0.0, 1.0, 0.0]), k[j])),
+                    );
+                    t
+                }
+            }
+        }
+    };
+    Ok(Some(terms))
+}
+
 /// Does `param` change the mass of mass 1?
 fn moves_m1(chain: &Chain, param: &Param) -> bool {
     let m1 = Site::monomial(Probe::Point(1), 2);

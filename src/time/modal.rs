@@ -57,7 +57,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::chain::{closed_theta, Boundary, Chain, Damping};
+use crate::chain::{closed_theta, Boundary, Chain, Damping, Site};
 use crate::error::{Error, Result};
 use crate::observable::Observable;
 use nalgebra::DMatrix;
@@ -950,6 +950,210 @@ impl Modes {
             });
         }
         Ok(Some(DoublePoleSum { terms }))
+    }
+}
+
+/// One simple pole of a decomposition with its mode vector and norm:
+/// `X_ij(s) = sum_k v_k[i] v_k[j] / (nu_k (s - p_k))` over every pole,
+/// conjugates included ([`Modes::simple_poles`]).
+struct SimplePole {
+    p: Complex64,
+    v: Vec<Complex64>,
+    nu: Complex64,
+}
+
+impl Modes {
+    /// Every pole with its vector and norm, conjugates included; `None`
+    /// where the decomposition has no simple-pole form: near-double pole
+    /// pairs of the quadratic path; a proportional mode at (or within
+    /// `1e-8` of) critical damping or of zero frequency; the `modal`
+    /// damping model (whose damping matrix is not the chain's
+    /// tridiagonal one, so no stiffness change of it is a sum of sites).
+    ///
+    /// A proportional mode `q_m` (mass-normalised) of `s^2 + 2 a s + w^2`
+    /// gives the two poles `p, p' = -a +- sqrt(a^2 - w^2)` with the vector
+    /// `M^{-1/2} q_m` and the norms `p - p'` and `p' - p` (the partial
+    /// fractions of `1 / ((s - p)(s - p'))`).
+    fn simple_poles(&self) -> Option<Vec<SimplePole>> {
+        let n = self.n;
+        let mut out = Vec::with_capacity(2 * n);
+        match &self.inner {
+            Inner::Quad {
+                poles,
+                vecs,
+                norms,
+                clusters,
+                ..
+            } => {
+                if !clusters.is_empty() {
+                    return None;
+                }
+                for ((p, v), nu) in poles.iter().zip(vecs).zip(norms) {
+                    out.push(SimplePole {
+                        p: *p,
+                        v: v.clone(),
+                        nu: *nu,
+                    });
+                    if p.im != 0.0 {
+                        out.push(SimplePole {
+                            p: p.conj(),
+                            v: v.iter().map(|z| z.conj()).collect(),
+                            nu: nu.conj(),
+                        });
+                    }
+                }
+            }
+            Inner::Prop {
+                alpha,
+                beta,
+                zeta,
+                omega2,
+                q,
+            } => {
+                if !zeta.is_empty() {
+                    return None;
+                }
+                for (kk, &w) in omega2.iter().enumerate() {
+                    let a = if *beta == 0.0 {
+                        0.5 * alpha
+                    } else {
+                        0.5 * (alpha + beta * w.max(0.0))
+                    };
+                    let w2 = w - a * a;
+                    if w2.abs() <= 1e-8 * w.abs().max(a * a) {
+                        return None;
+                    }
+                    let v: Vec<Complex64> = (0..n)
+                        .map(|i0| {
+                            let qi = match q {
+                                Some(q) => q[(i0, kk)],
+                                None => closed_shape(self.ends, n, kk + 1, i0 + 1),
+                            };
+                            Complex64::new(qi / self.masses[i0].sqrt(), 0.0)
+                        })
+                        .collect();
+                    let r = w2.abs().sqrt();
+                    let (p, q2, nu) = if w2 > 0.0 {
+                        let p = Complex64::new(-a, r);
+                        (p, p.conj(), Complex64::new(0.0, 2.0 * r))
+                    } else {
+                        let (p1, p2) = (-a + r, -a - r);
+                        (
+                            Complex64::new(p1, 0.0),
+                            Complex64::new(p2, 0.0),
+                            Complex64::new(2.0 * r, 0.0),
+                        )
+                    };
+                    out.push(SimplePole {
+                        p: q2,
+                        v: v.clone(),
+                        nu: -nu,
+                    });
+                    out.push(SimplePole { p, v, nu });
+                }
+            }
+        }
+        Some(out)
+    }
+
+    /// The derivative of the response of mass `i` to an impulse `amp delta(t)`
+    /// on mass `j` with respect to a value `theta` whose dynamic stiffness
+    /// changes as a weighted sum of sites,
+    /// `dK(s)/dtheta = sum_r w_r p_r(s) u_r u_r^T` (`terms` as
+    /// `(site, w_r)`: a uniform chain parameter, see
+    /// [`crate::sensitivity::stiffness_terms`]), as an exact sum over the
+    /// poles. With `X_ij(s) = sum_k alpha_k beta_l ...` in the simple-pole
+    /// form (`alpha_k = v_k[i] / nu_k`, `beta_k = v_k[j] / nu_k`) and the
+    /// couplings `F_kl(s) = sum_r w_r p_r(s) (u_r.v_k)(u_r.v_l)`:
+    ///
+    /// ```text
+    /// dX_ij/dtheta = -amp sum_{k,l} alpha_k F_kl(s) beta_l / ((s - p_k)(s - p_l))
+    ///              = sum_k A_k / (s - p_k)^2 + B_k / (s - p_k),
+    /// A_k = -amp alpha_k beta_k F_kk(p_k),
+    /// B_k = -amp (alpha_k beta_k F'_kk(p_k)
+    ///             + sum_{l != k} (alpha_k beta_l + alpha_l beta_k) F_kl(p_k) / (p_k - p_l)),
+    /// ```
+    ///
+    /// [`Modes::value_derivative_poly`] for one site, and for the
+    /// proportional paths too. `O(R P^2)` for `R` sites and `P = 2n` poles.
+    ///
+    /// `Ok(None)` where the decomposition has no simple-pole form (see
+    /// `simple_poles` in the source) or two poles coincide.
+    ///
+    /// # Errors
+    /// `i` or `j` outside `1..=n` (fields `observe`, `excite`). A site's
+    /// entries outside `1..=n` are walls ([`crate::chain::Probe::entries`]).
+    pub fn sites_derivative(
+        &self,
+        i: usize,
+        j: usize,
+        amp: f64,
+        terms: &[(Site, f64)],
+    ) -> Result<Option<DoublePoleSum>> {
+        let n = self.n;
+        for (field, v) in [("observe", i), ("excite", j)] {
+            if v < 1 || v > n {
+                return Err(Error::invalid(field, v, format!("1 <= {field} <= {n}")));
+            }
+        }
+        let probes: Vec<Vec<(usize, f64)>> = terms
+            .iter()
+            .map(|(s, _)| s.probe.entries(n).collect())
+            .collect();
+        let Some(poles) = self.simple_poles() else {
+            return Ok(None);
+        };
+        let (i0, j0) = (i - 1, j - 1);
+        // (u_r . v_k) per pole, every site's in a row
+        let uv: Vec<Vec<Complex64>> = poles
+            .iter()
+            .map(|pk| {
+                probes
+                    .iter()
+                    .map(|u| u.iter().map(|&(at, c)| pk.v[at - 1] * c).sum())
+                    .collect()
+            })
+            .collect();
+        let alpha: Vec<Complex64> = poles.iter().map(|pk| pk.v[i0] / pk.nu).collect();
+        let beta: Vec<Complex64> = poles.iter().map(|pk| pk.v[j0] / pk.nu).collect();
+        let mut out = Vec::with_capacity(n);
+        let mut g = vec![Complex64::new(0.0, 0.0); terms.len()];
+        for (k, pk) in poles.iter().enumerate() {
+            let p = pk.p;
+            if p.im < 0.0 {
+                continue;
+            }
+            // g_r = w_r p_r(p_k) (u_r.v_k); F_kk and F'_kk
+            let (mut fkk, mut dfkk) = (Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0));
+            for ((gr, (site, w)), u) in g.iter_mut().zip(terms).zip(&uv[k]) {
+                let c = site.poly;
+                let f = p * p * c[2] + p * c[1] + c[0];
+                let df = p * (2.0 * c[2]) + c[1];
+                *gr = f * *w * u;
+                fkk += *gr * u;
+                dfkk += df * *w * u * u;
+            }
+            let mut cross = Complex64::new(0.0, 0.0);
+            for (l, pl) in poles.iter().enumerate() {
+                if l == k {
+                    continue;
+                }
+                let gap = p - pl.p;
+                if gap == Complex64::new(0.0, 0.0) {
+                    return Ok(None);
+                }
+                let fkl: Complex64 = g.iter().zip(&uv[l]).map(|(a, b)| a * b).sum();
+                cross += (alpha[k] * beta[l] + alpha[l] * beta[k]) * fkl / gap;
+            }
+            let ab = alpha[k] * beta[k];
+            out.push(DoubleTerm {
+                p,
+                a: -ab * fkk * amp,
+                b: -(ab * dfkk + cross) * amp,
+                twice: p.im != 0.0,
+            });
+        }
+        Ok(Some(DoublePoleSum { terms: out }))
     }
 }
 
@@ -2469,6 +2673,53 @@ mod damping_tests {
         for m in natural_modes(&s).unwrap() {
             let want = a / (2.0 * m.omega) + b * m.omega / 2.0;
             assert!((m.zeta.unwrap() - want).abs() < 1e-12);
+        }
+    }
+
+    /// One site's sum is [`Modes::value_derivative_poly`] on the quadratic
+    /// path (every kind, a Rayleigh site's polynomial, observed and excited
+    /// masses apart); masses outside the chain are typed errors.
+    #[test]
+    fn sites_derivative_of_one_site_is_the_value_derivative() {
+        let chains = [
+            crate::scenes::mixed(7).unwrap(),
+            crate::scenes::paper_with(6, "mass:2:1e3 spring:4:0.3")
+                .unwrap()
+                .with_damping(Damping::Rayleigh { a: 0.02, b: 0.01 })
+                .unwrap(),
+        ];
+        let t: Vec<f64> = (0..400).map(|i| 0.1 * i as f64).collect();
+        for c in &chains {
+            let m = Modes::quadratic(c).unwrap();
+            for d in c.defects() {
+                let site = c.site(d);
+                let u: Vec<(usize, f64)> = site.probe.entries(c.n()).collect();
+                for (i, j) in [(1, 1), (3, 2)] {
+                    let one = m
+                        .value_derivative_poly(i, j, 1.3, &u, site.poly)
+                        .unwrap()
+                        .unwrap();
+                    let sum = m
+                        .sites_derivative(i, j, 1.3, &[(site, 1.0)])
+                        .unwrap()
+                        .unwrap();
+                    let (a, b) = (one.eval_many(&t), sum.eval_many(&t));
+                    let peak = a.iter().fold(0.0f64, |p, v| p.max(v.abs()));
+                    let err = a
+                        .iter()
+                        .zip(&b)
+                        .fold(0.0f64, |e, (x, y)| e.max((x - y).abs()));
+                    assert!(
+                        err <= 1e-12 * peak,
+                        "{d:?} ({i}, {j}): {err:.2e} of {peak:.2e}"
+                    );
+                }
+            }
+            let site = c.site(&c.defects()[0]);
+            assert!(m.sites_derivative(0, 1, 1.0, &[(site, 1.0)]).is_err());
+            assert!(m
+                .sites_derivative(1, c.n() + 1, 1.0, &[(site, 1.0)])
+                .is_err());
         }
     }
 }

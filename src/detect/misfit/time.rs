@@ -254,12 +254,15 @@ impl TimeMisfit {
     /// The Jacobian of [`TimeMisfit::residuals`] with respect to `params` of
     /// `chain` (rows = samples), exact: defect values by
     /// [`Modes::value_derivative`] (the modal sum's derivative, double poles
-    /// included), `gamma` as `x_1 / gamma`; one modal decomposition for all
-    /// columns. `Ok(None)` where that does not apply (another measurement
-    /// than the paper's, a uniform chain parameter other than `gamma`, a
-    /// decomposition without simple poles, the analytic Jacobian switched
-    /// off, a chain of 100 masses or more whose modes this thread
-    /// has not decomposed): difference the residuals then.
+    /// included), the uniform chain parameters and the damping models'
+    /// (`d`, `k`, `mass`, `c`, `a`, `b`) by [`Modes::sites_derivative`] over
+    /// their sites ([`crate::sensitivity::stiffness_terms`]), `gamma` as
+    /// `x_1 / gamma`; one modal decomposition for all columns. `Ok(None)`
+    /// where that does not apply (another measurement than the paper's, the
+    /// `modal` damping model's ratios, a decomposition without simple
+    /// poles, the analytic Jacobian switched off, a chain of 100 masses or
+    /// more whose modes this thread has not decomposed): difference the
+    /// residuals then.
     ///
     /// # Errors
     /// A defect index out of range (field `params`); as [`Modes::new`].
@@ -297,11 +300,7 @@ impl TimeMisfit {
         let Some(at) = self.modal_mass() else {
             return Ok(None);
         };
-        if !self.analytic
-            || params
-                .iter()
-                .any(|p| !matches!(p, Param::Defect(_) | Param::Gamma))
-        {
+        if !self.analytic {
             return Ok(None);
         }
         // a long chain whose modes are not at hand: its record is simulated
@@ -338,11 +337,25 @@ impl TimeMisfit {
                     let u: Vec<(usize, f64)> = site.probe.entries(n).collect();
                     match modes.value_derivative_poly(at, 1, gamma, &u, site.poly)? {
                         Some(d) => d.eval_many(t),
+                        // the proportional paths
+                        None => match modes.sites_derivative(at, 1, gamma, &[(site, 1.0)])? {
+                            Some(d) => d.eval_many(t),
+                            None => return Ok(None),
+                        },
+                    }
+                }
+                Param::Gamma if gamma != 0.0 => modes.response(at, 1, 1.0)?.eval_many(t),
+                Param::Gamma => return Ok(None),
+                // a uniform chain parameter: the sum of its sites
+                _ => {
+                    let Some(terms) = crate::sensitivity::stiffness_terms(chain, p)? else {
+                        return Ok(None);
+                    };
+                    match modes.sites_derivative(at, 1, gamma, &terms)? {
+                        Some(d) => d.eval_many(t),
                         None => return Ok(None),
                     }
                 }
-                _ if gamma != 0.0 => modes.response(at, 1, 1.0)?.eval_many(t),
-                _ => return Ok(None),
             };
             for (o, v) in out.column_mut(c).iter_mut().zip(&col) {
                 *o = v * self.inv_sigma;
@@ -513,6 +526,16 @@ mod tests {
     /// Central differences (relative step 1e-5) of `misfit`'s residuals
     /// with respect to `params` at `truth`.
     fn differenced(misfit: &TimeMisfit, truth: &Chain, params: &[Param]) -> DMatrix<f64> {
+        differenced_by(misfit, truth, params, 1e-5)
+    }
+
+    /// [`differenced`] with the step `h`.
+    fn differenced_by(
+        misfit: &TimeMisfit,
+        truth: &Chain,
+        params: &[Param],
+        h: f64,
+    ) -> DMatrix<f64> {
         use crate::detect::search::lsq::{central_jacobian, LeastSquares};
         struct P<'a>(&'a TimeMisfit, &'a Chain, &'a [Param]);
         impl LeastSquares for P<'_> {
@@ -525,7 +548,7 @@ mod tests {
             }
         }
         let theta: Vec<f64> = params.iter().map(|p| p.get(truth).unwrap()).collect();
-        central_jacobian(&P(misfit, truth, params), &theta, 1e-5).unwrap()
+        central_jacobian(&P(misfit, truth, params), &theta, h).unwrap()
     }
 
     #[test]
@@ -547,8 +570,97 @@ mod tests {
         // switched off, or a parameter it does not cover: None
         let off = misfit.clone().with_analytic_jacobian(false);
         assert!(off.jacobian(&truth, &params).unwrap().is_none());
-        assert!(misfit.jacobian(&truth, &[Param::D]).unwrap().is_none());
         assert!(misfit.jacobian(&truth, &[Param::Defect(9)]).is_err());
+    }
+
+    /// The uniform chain parameters and the damping models' (their sites'
+    /// sums) beside the defect values, against central differences of the
+    /// modal sum: both modal paths (quadratic; proportional by the closed
+    /// form and by the symmetric eigenproblem), overdamped modes, a free
+    /// end, masses from 1e-3 to 1e3. The `modal` model's ratios are left
+    /// to differences.
+    #[test]
+    fn chain_parameter_jacobian_matches_central_differences_in_every_damping_model() {
+        use crate::chain::{Boundary, Damping};
+        let between = |c: f64| Damping::Between { c };
+        let rayleigh = Damping::Rayleigh { a: 0.05, b: 0.02 };
+        let cases: Vec<(&str, Chain, Vec<Param>)> = vec![
+            (
+                "grounded, defects",
+                crate::scenes::paper_with(7, "mass:3:2.0 spring:5:0.6").unwrap(),
+                vec![Param::D, Param::K, Param::Mass],
+            ),
+            (
+                "uniform (closed form)",
+                Chain::paper(6).unwrap(),
+                vec![Param::D, Param::K, Param::Mass],
+            ),
+            (
+                "overdamped, uniform",
+                Chain::paper(5).unwrap().with_d(2.5).unwrap(),
+                vec![Param::D, Param::K, Param::Mass],
+            ),
+            (
+                "between, a mass defect (proportional)",
+                crate::scenes::paper_with(7, "mass:4:2.0")
+                    .unwrap()
+                    .with_d(0.0)
+                    .unwrap()
+                    .with_damping(between(0.08))
+                    .unwrap(),
+                vec![Param::C, Param::K, Param::Mass],
+            ),
+            (
+                "between and grounded, a free end",
+                crate::scenes::paper_with(6, "spring:2:1.7 damper:3:0.2")
+                    .unwrap()
+                    .with_boundaries(Boundary::Fixed, Boundary::Free)
+                    .unwrap()
+                    .with_damping(between(0.05))
+                    .unwrap(),
+                vec![Param::C, Param::D, Param::K, Param::Mass],
+            ),
+            (
+                "rayleigh",
+                crate::scenes::paper_with(7, "mass:2:1e-3 mass:5:1e3")
+                    .unwrap()
+                    .with_d(0.0)
+                    .unwrap()
+                    .with_damping(rayleigh)
+                    .unwrap(),
+                vec![Param::A, Param::B, Param::K, Param::Mass],
+            ),
+        ];
+        for (name, truth, extra) in cases {
+            let data =
+                TimeData::simulate(&truth, 60.0, 0.1, NoiseLevel::RelativeMax(1e-3), 1).unwrap();
+            let misfit = TimeMisfit::new(data);
+            let mut params = Param::defects(&truth);
+            params.extend(extra);
+            // two steps: rounding limits the small one where a value is
+            // small (the 1e-3 mass), truncation the large one
+            let fds = [1e-5, 1e-3].map(|h| differenced_by(&misfit, &truth, &params, h));
+            let exact = misfit.jacobian(&truth, &params).unwrap();
+            let exact = exact.unwrap_or_else(|| panic!("{name}: no analytic Jacobian"));
+            for (c, p) in params.iter().enumerate() {
+                let err = fds
+                    .iter()
+                    .map(|fd| (exact.column(c) - fd.column(c)).norm() / fd.column(c).norm())
+                    .fold(f64::INFINITY, f64::min);
+                assert!(err < 1e-7, "{name}, {p:?}: relative error {err:.2e}");
+            }
+        }
+        let modal = Chain::paper(5)
+            .unwrap()
+            .with_d(0.0)
+            .unwrap()
+            .with_damping(Damping::Modal { zeta: vec![0.02] })
+            .unwrap();
+        let data = TimeData::simulate(&modal, 60.0, 0.1, NoiseLevel::RelativeMax(1e-3), 1).unwrap();
+        let misfit = TimeMisfit::new(data);
+        let zeta = Param::Zeta { index: 0, of: 1 };
+        assert!(misfit.jacobian(&modal, &[zeta]).unwrap().is_none());
+        assert!(misfit.jacobian(&modal, &[Param::K]).unwrap().is_none());
     }
 
     /// A long chain's nearby residuals stop at first rows once these are
