@@ -550,15 +550,15 @@ impl<T: Scalar> Forms<'_, T> {
 /// no defect takes (with the Rayleigh model's terms), `a` and `b` every
 /// mass and spring weighted by its value.
 ///
-/// `Ok(None)` for `gamma` (not a stiffness) and for every parameter of the
-/// `modal` damping model (its damping matrix is not a sum of sites).
+/// Under the `modal` damping model these are the changes of `M` and `K`
+/// alone: its damping matrix follows the modes, whose change
+/// [`crate::time::modal::Modes::modal_derivative`] takes from them.
+///
+/// `Ok(None)` for `gamma` (not a stiffness) and the modal model's ratios.
 ///
 /// # Errors
 /// A defect index out of range; `c`, `a` or `b` of another damping model.
 pub fn stiffness_terms(chain: &Chain, p: &Param) -> Result<Option<Vec<(Site, f64)>>> {
-    if chain.damping().is_modal() {
-        return Ok(None);
-    }
     let n = chain.n();
     let sites = DefectSites::of(chain);
     let rayleigh = match chain.damping() {

@@ -1157,6 +1157,187 @@ impl Modes {
     }
 }
 
+/// What changes in a [`Modes::modal_derivative`]: the chain's masses and
+/// springs by weighted sites (`(site, w_r)`, each of `p_r(s) = c_0 + c_1 s
+/// + c_2 s^2` read as `c_0 + c_2 s^2`: a stiffness or a mass, no damper;
+/// `c_1` is the model's tridiagonal stand-in's), or one ratio of the `modal`
+/// damping model (index `index` of its `of` ratios: the modes whose rank
+/// by frequency reads it, [`Damping::modal_ratio`]).
+#[derive(Clone, Copy, Debug)]
+pub enum ModalChange<'a> {
+    /// `dK/dtheta = sum_r w_r c_0r u_r u_r^T`, `dM/dtheta = sum_r w_r c_2r u_r u_r^T`.
+    Sites(&'a [(Site, f64)]),
+    /// The ratio `zeta[index]` of a model of `of` ratios.
+    Ratio {
+        /// 0-based.
+        index: usize,
+        /// How many ratios the model has (the last one is every higher mode's).
+        of: usize,
+    },
+}
+
+impl Modes {
+    /// The derivative of the response of mass `i` to an impulse `amp
+    /// delta(t)` on mass `j` under the `modal` damping model (every
+    /// undamped mode `phi_m` (`phi^T M phi = 1`) of `s^2 + 2 a_m s +
+    /// w_m^2`, `a_m = zeta_m w_m`), as an exact sum over its poles: with
+    /// `D_m(s) = s^2 + 2 a_m s + w_m^2`,
+    ///
+    /// ```text
+    /// dX_ij = amp sum_m d(phi_mi phi_mj) / D_m(s) - phi_mi phi_mj (2 da_m s + d(w_m^2)) / D_m(s)^2,
+    /// d(w_m^2) = phi_m^T (dK - w_m^2 dM) phi_m,          da_m = zeta_m dw_m + dzeta_m w_m,
+    /// dphi_m  = sum_{l != m} phi_l phi_l^T (dK - w_m^2 dM) phi_m / (w_m^2 - w_l^2) - phi_m (phi_m^T dM phi_m) / 2,
+    /// ```
+    ///
+    /// (the eigenvalue and eigenvector derivatives of `K phi = w^2 M phi`);
+    /// each `D_m` is `(s - p)(s - p')`, so the second term has double poles
+    /// (`A = N(p) / nu^2`, `B = N'(p) / nu^2 - 2 N(p) / nu^3` with `nu = p - p'`).
+    ///
+    /// `Ok(None)` for another damping model (see
+    /// [`Modes::sites_derivative`]), grounded dampers beside the ratios, a
+    /// damper's site, two modes of one frequency, a mode at zero
+    /// frequency or within `1e-8` of critical damping.
+    ///
+    /// # Errors
+    /// `i` or `j` outside `1..=n` (fields `observe`, `excite`).
+    pub fn modal_derivative(
+        &self,
+        i: usize,
+        j: usize,
+        amp: f64,
+        change: ModalChange<'_>,
+    ) -> Result<Option<DoublePoleSum>> {
+        let n = self.n;
+        for (field, v) in [("observe", i), ("excite", j)] {
+            if v < 1 || v > n {
+                return Err(Error::invalid(field, v, format!("1 <= {field} <= {n}")));
+            }
+        }
+        let Inner::Prop {
+            alpha,
+            beta,
+            zeta,
+            omega2,
+            q,
+        } = &self.inner
+        else {
+            return Ok(None);
+        };
+        if zeta.is_empty() || *alpha != 0.0 || *beta != 0.0 || omega2.iter().any(|w| *w <= 0.0) {
+            return Ok(None);
+        }
+        let (i0, j0) = (i - 1, j - 1);
+        // mass-normalised shapes, mode by mode
+        let phi: Vec<Vec<f64>> = (0..n)
+            .map(|m| {
+                (0..n)
+                    .map(|x| {
+                        let qx = match q {
+                            Some(q) => q[(x, m)],
+                            None => closed_shape(self.ends, n, m + 1, x + 1),
+                        };
+                        qx / self.masses[x].sqrt()
+                    })
+                    .collect()
+            })
+            .collect();
+        // per mode: d(w^2), d(zeta) and d(phi) at the two masses
+        let mut dw2 = vec![0.0; n];
+        let mut dzeta = vec![0.0; n];
+        let mut dphi = vec![(0.0, 0.0); n];
+        match change {
+            ModalChange::Ratio { index, of } => {
+                let mut order: Vec<usize> = (0..n).collect();
+                order.sort_by(|&a, &b| omega2[a].total_cmp(&omega2[b]));
+                for (rank, &m) in order.iter().enumerate() {
+                    if rank.min(of.max(1) - 1) == index {
+                        dzeta[m] = 1.0;
+                    }
+                }
+            }
+            ModalChange::Sites(terms) => {
+                // a site's damping term under this model is its tridiagonal
+                // stand-in's (the Laplace side's, [`Chain::site`]): here the
+                // modes carry the damping, so only a damper is refused
+                if terms.iter().any(|(s, _)| s.power == 1) {
+                    return Ok(None);
+                }
+                // u_r . phi_m
+                let uphi: Vec<Vec<f64>> = terms
+                    .iter()
+                    .map(|(s, _)| {
+                        let u: Vec<(usize, f64)> = s.probe.entries(n).collect();
+                        phi.iter()
+                            .map(|f| u.iter().map(|&(at, c)| f[at - 1] * c).sum())
+                            .collect()
+                    })
+                    .collect();
+                // phi_l^T (dK - w_m^2 dM) phi_m
+                let coupling = |l: usize, m: usize| -> f64 {
+                    terms
+                        .iter()
+                        .zip(&uphi)
+                        .map(|((s, w), u)| w * (s.poly[0] - omega2[m] * s.poly[2]) * u[l] * u[m])
+                        .sum()
+                };
+                for m in 0..n {
+                    dw2[m] = coupling(m, m);
+                    let mass: f64 = terms
+                        .iter()
+                        .zip(&uphi)
+                        .map(|((s, w), u)| w * s.poly[2] * u[m] * u[m])
+                        .sum();
+                    let (mut di, mut dj) = (-0.5 * mass * phi[m][i0], -0.5 * mass * phi[m][j0]);
+                    for l in (0..n).filter(|&l| l != m) {
+                        let gap = omega2[m] - omega2[l];
+                        if gap == 0.0 {
+                            return Ok(None);
+                        }
+                        let c = coupling(l, m) / gap;
+                        di += c * phi[l][i0];
+                        dj += c * phi[l][j0];
+                    }
+                    dphi[m] = (di, dj);
+                }
+            }
+        }
+        let mut out = Vec::with_capacity(2 * n);
+        for m in 0..n {
+            let w = omega2[m].sqrt();
+            let a = zeta[m] * w;
+            let w2 = omega2[m] - a * a;
+            if w2.abs() <= 1e-8 * omega2[m].max(a * a) {
+                return Ok(None);
+            }
+            let da = zeta[m] * dw2[m] / (2.0 * w) + dzeta[m] * w;
+            let pp = phi[m][i0] * phi[m][j0];
+            let dpp = dphi[m].0 * phi[m][j0] + phi[m][i0] * dphi[m].1;
+            // N(s) = -pp (2 da s + dw2)
+            let term = |p: Complex64, partner: Complex64, twice: bool| {
+                let nu = p - partner;
+                let np = -pp * (p * (2.0 * da) + dw2[m]);
+                let dn = -pp * 2.0 * da;
+                DoubleTerm {
+                    p,
+                    a: np / (nu * nu) * amp,
+                    b: ((dn - 2.0 * np / nu) / (nu * nu) + dpp / nu) * amp,
+                    twice,
+                }
+            };
+            let r = w2.abs().sqrt();
+            if w2 > 0.0 {
+                let p = Complex64::new(-a, r);
+                out.push(term(p, p.conj(), true));
+            } else {
+                let (p1, p2) = (Complex64::new(-a + r, 0.0), Complex64::new(-a - r, 0.0));
+                out.push(term(p1, p2, false));
+                out.push(term(p2, p1, false));
+            }
+        }
+        Ok(Some(DoublePoleSum { terms: out }))
+    }
+}
+
 /// One term `(a t + b) e^{p t}` of a [`DoublePoleSum`] (twice its real part
 /// for a pole of the upper half plane, whose conjugate term is implied).
 #[derive(Clone, Copy, Debug, PartialEq)]

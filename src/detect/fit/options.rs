@@ -192,7 +192,9 @@ pub struct FitOptions {
     /// A screening fit, compared with others by its criterion only (the
     /// damping choice's candidates, [`super::damping::fit_choosing`]): no
     /// search of every set when the narrowed answer does not explain the
-    /// record (default false).
+    /// record, and an estimated noise level not settled (the fits are not
+    /// made again at the largest model's estimate: the criterion is the
+    /// residual's, which the level does not enter) (default false).
     pub screen: bool,
 }
 

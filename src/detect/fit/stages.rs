@@ -94,7 +94,10 @@ fn run<'a>(
         support: std::sync::Mutex::new(None),
         record,
     };
-    let (fits, first, evaluations) = fit_every_k(&engine, sigma, estimated, narrow, last)?;
+    // a screening fit is compared by its residual's criterion, which the
+    // noise level does not enter: its level is not settled
+    let settle = last && !opts.screen;
+    let (fits, first, evaluations) = fit_every_k(&engine, sigma, estimated, narrow, settle)?;
     let mut stage = finish(engine, fits, [sigma, first], estimated, evaluations, narrow)?;
     stage.settled = last;
     match last {
@@ -116,7 +119,7 @@ fn last(stage: Stage<'_>) -> Result<Stage<'_>> {
 /// # Errors
 /// As [`settle_sigma`].
 fn settled(stage: Stage<'_>) -> Result<Stage<'_>> {
-    if stage.settled || !stage.estimated {
+    if stage.settled || !stage.estimated || stage.engine.opts.screen {
         return Ok(stage);
     }
     let Stage {

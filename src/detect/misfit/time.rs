@@ -34,7 +34,7 @@ use crate::detect::misfit::time_screen::{simulate, Saved, TimeGrid};
 use crate::detect::model::{Enough, Near};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
-use crate::time::modal::Modes;
+use crate::time::modal::{DoublePoleSum, ModalChange, Modes};
 
 /// Chains from this many masses have their record simulated by
 /// [`simulate`] (sparse stepping) unless their modes are already at hand.
@@ -46,6 +46,24 @@ thread_local! {
     /// fit asks for the residuals and then the Jacobian at the same point.
     static LAST_MODES: std::cell::RefCell<Option<(Chain, std::rc::Rc<Modes>)>> =
         const { std::cell::RefCell::new(None) };
+}
+
+/// The derivative of `x_at` over a change of the chain by weighted sites:
+/// [`Modes::sites_derivative`], or under the `modal` damping model
+/// [`Modes::modal_derivative`] (`None` where neither has a closed form).
+///
+/// # Errors
+/// As either.
+fn sites_column(
+    modes: &Modes,
+    at: usize,
+    gamma: f64,
+    terms: &[(crate::chain::Site, f64)],
+) -> Result<Option<DoublePoleSum>> {
+    match modes.sites_derivative(at, 1, gamma, terms)? {
+        Some(d) => Ok(Some(d)),
+        None => modes.modal_derivative(at, 1, gamma, ModalChange::Sites(terms)),
+    }
 }
 
 /// Whether `chain`'s record is simulated rather than summed over its
@@ -335,23 +353,30 @@ impl TimeMisfit {
                     })?;
                     let site = chain.site(d);
                     let u: Vec<(usize, f64)> = site.probe.entries(n).collect();
-                    match modes.value_derivative_poly(at, 1, gamma, &u, site.poly)? {
-                        Some(d) => d.eval_many(t),
+                    let one = match modes.value_derivative_poly(at, 1, gamma, &u, site.poly)? {
+                        Some(d) => Some(d),
                         // the proportional paths
-                        None => match modes.sites_derivative(at, 1, gamma, &[(site, 1.0)])? {
-                            Some(d) => d.eval_many(t),
-                            None => return Ok(None),
-                        },
+                        None => sites_column(modes, at, gamma, &[(site, 1.0)])?,
+                    };
+                    match one {
+                        Some(d) => d.eval_many(t),
+                        None => return Ok(None),
                     }
                 }
                 Param::Gamma if gamma != 0.0 => modes.response(at, 1, 1.0)?.eval_many(t),
                 Param::Gamma => return Ok(None),
+                Param::Zeta { index, of } => {
+                    match modes.modal_derivative(at, 1, gamma, ModalChange::Ratio { index, of })? {
+                        Some(d) => d.eval_many(t),
+                        None => return Ok(None),
+                    }
+                }
                 // a uniform chain parameter: the sum of its sites
                 _ => {
                     let Some(terms) = crate::sensitivity::stiffness_terms(chain, p)? else {
                         return Ok(None);
                     };
-                    match modes.sites_derivative(at, 1, gamma, &terms)? {
+                    match sites_column(modes, at, gamma, &terms)? {
                         Some(d) => d.eval_many(t),
                         None => return Ok(None),
                     }
@@ -577,13 +602,15 @@ mod tests {
     /// sums) beside the defect values, against central differences of the
     /// modal sum: both modal paths (quadratic; proportional by the closed
     /// form and by the symmetric eigenproblem), overdamped modes, a free
-    /// end, masses from 1e-3 to 1e3. The `modal` model's ratios are left
-    /// to differences.
+    /// end, masses from 1e-3 to 1e3; the `modal` model's ratios, masses
+    /// and springs (its modes' derivatives). Grounded dampers beside the
+    /// ratios are left to differences.
     #[test]
     fn chain_parameter_jacobian_matches_central_differences_in_every_damping_model() {
         use crate::chain::{Boundary, Damping};
         let between = |c: f64| Damping::Between { c };
         let rayleigh = Damping::Rayleigh { a: 0.05, b: 0.02 };
+        let modal = |zeta: Vec<f64>| Damping::Modal { zeta };
         let cases: Vec<(&str, Chain, Vec<Param>)> = vec![
             (
                 "grounded, defects",
@@ -630,6 +657,29 @@ mod tests {
                     .unwrap(),
                 vec![Param::A, Param::B, Param::K, Param::Mass],
             ),
+            (
+                "modal, one ratio, uniform (closed form)",
+                Chain::paper(6)
+                    .unwrap()
+                    .with_d(0.0)
+                    .unwrap()
+                    .with_damping(modal(vec![0.03]))
+                    .unwrap(),
+                vec![Param::Zeta { index: 0, of: 1 }, Param::K, Param::Mass],
+            ),
+            (
+                "modal, three ratios, defects, an overdamped mode",
+                crate::scenes::paper_with(7, "mass:2:1e-3 spring:5:0.6 mass:6:40")
+                    .unwrap()
+                    .with_d(0.0)
+                    .unwrap()
+                    .with_damping(modal(vec![1.4, 0.05, 0.02]))
+                    .unwrap(),
+                (0..3)
+                    .map(|index| Param::Zeta { index, of: 3 })
+                    .chain([Param::K, Param::Mass])
+                    .collect(),
+            ),
         ];
         for (name, truth, extra) in cases {
             let data =
@@ -637,9 +687,9 @@ mod tests {
             let misfit = TimeMisfit::new(data);
             let mut params = Param::defects(&truth);
             params.extend(extra);
-            // two steps: rounding limits the small one where a value is
-            // small (the 1e-3 mass), truncation the large one
-            let fds = [1e-5, 1e-3].map(|h| differenced_by(&misfit, &truth, &params, h));
+            // three steps: rounding limits the small ones where the modal
+            // sum is least precise (the 1e-3 mass), truncation the large one
+            let fds = [1e-5, 1e-4, 1e-3].map(|h| differenced_by(&misfit, &truth, &params, h));
             let exact = misfit.jacobian(&truth, &params).unwrap();
             let exact = exact.unwrap_or_else(|| panic!("{name}: no analytic Jacobian"));
             for (c, p) in params.iter().enumerate() {
@@ -650,9 +700,8 @@ mod tests {
                 assert!(err < 1e-7, "{name}, {p:?}: relative error {err:.2e}");
             }
         }
+        // grounded dampers beside the ratios: differences
         let modal = Chain::paper(5)
-            .unwrap()
-            .with_d(0.0)
             .unwrap()
             .with_damping(Damping::Modal { zeta: vec![0.02] })
             .unwrap();
