@@ -715,6 +715,30 @@ impl Modes {
         })
     }
 
+    /// `i` (field `observe`) and `j` (field `excite`) in `1..=n`.
+    fn check_masses(&self, i: usize, j: usize) -> Result<()> {
+        for (field, v) in [("observe", i), ("excite", j)] {
+            if v < 1 || v > self.n {
+                return Err(Error::invalid(
+                    field,
+                    v,
+                    format!("1 <= {field} <= {}", self.n),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Entry `x` (0-based) of the proportional path's mass-normalised mode
+    /// `m` (0-based) before the `M^{-1/2}` scaling: column `m` of `q`, or
+    /// the closed form's shape.
+    fn prop_entry(&self, q: Option<&DMatrix<f64>>, m: usize, x: usize) -> f64 {
+        match q {
+            Some(q) => q[(x, m)],
+            None => closed_shape(self.ends, self.n, m + 1, x + 1),
+        }
+    }
+
     /// The path used.
     pub fn path(&self) -> ModalPath {
         self.path
@@ -725,15 +749,7 @@ impl Modes {
     /// # Errors
     /// `i` or `j` outside `1..=n`.
     pub fn response(&self, i: usize, j: usize, amp: f64) -> Result<ModalResponse> {
-        for (field, v) in [("observe", i), ("excite", j)] {
-            if v < 1 || v > self.n {
-                return Err(Error::invalid(
-                    field,
-                    v,
-                    format!("1 <= {field} <= {}", self.n),
-                ));
-            }
-        }
+        self.check_masses(i, j)?;
         let (i0, j0) = (i - 1, j - 1);
         let mut terms = Vec::new();
         let mut pole_err = 0.0;
@@ -745,7 +761,6 @@ impl Modes {
                 omega2,
                 q,
             } => {
-                let n = self.n;
                 let scale = amp / (self.masses[i0] * self.masses[j0]).sqrt();
                 for (kk, &w) in omega2.iter().enumerate() {
                     let mut a = if *beta == 0.0 {
@@ -756,13 +771,10 @@ impl Modes {
                     if let Some(z) = zeta.get(kk).filter(|z| **z != 0.0) {
                         a += z * w.max(0.0).sqrt();
                     }
-                    let (qi, qj) = match q {
-                        Some(q) => (q[(i0, kk)], q[(j0, kk)]),
-                        None => (
-                            closed_shape(self.ends, n, kk + 1, i),
-                            closed_shape(self.ends, n, kk + 1, j),
-                        ),
-                    };
+                    let (qi, qj) = (
+                        self.prop_entry(q.as_ref(), kk, i0),
+                        self.prop_entry(q.as_ref(), kk, j0),
+                    );
                     let c = scale * qi * qj;
                     if c != 0.0 {
                         terms.push(Term::Osc {
@@ -889,15 +901,7 @@ impl Modes {
         u: &[(usize, f64)],
         poly: [f64; 3],
     ) -> Result<Option<DoublePoleSum>> {
-        for (field, v) in [("observe", i), ("excite", j)] {
-            if v < 1 || v > self.n {
-                return Err(Error::invalid(
-                    field,
-                    v,
-                    format!("1 <= {field} <= {}", self.n),
-                ));
-            }
-        }
+        self.check_masses(i, j)?;
         if let Some(&(at, _)) = u.iter().find(|(at, _)| *at < 1 || *at > self.n) {
             return Err(Error::invalid("u", at, format!("masses in 1..={}", self.n)));
         }
@@ -1025,10 +1029,7 @@ impl Modes {
                     }
                     let v: Vec<Complex64> = (0..n)
                         .map(|i0| {
-                            let qi = match q {
-                                Some(q) => q[(i0, kk)],
-                                None => closed_shape(self.ends, n, kk + 1, i0 + 1),
-                            };
+                            let qi = self.prop_entry(q.as_ref(), kk, i0);
                             Complex64::new(qi / self.masses[i0].sqrt(), 0.0)
                         })
                         .collect();
@@ -1091,11 +1092,7 @@ impl Modes {
         terms: &[(Site, f64)],
     ) -> Result<Option<DoublePoleSum>> {
         let n = self.n;
-        for (field, v) in [("observe", i), ("excite", j)] {
-            if v < 1 || v > n {
-                return Err(Error::invalid(field, v, format!("1 <= {field} <= {n}")));
-            }
-        }
+        self.check_masses(i, j)?;
         let probes: Vec<Vec<(usize, f64)>> = terms
             .iter()
             .map(|(s, _)| s.probe.entries(n).collect())
@@ -1208,11 +1205,7 @@ impl Modes {
         change: ModalChange<'_>,
     ) -> Result<Option<DoublePoleSum>> {
         let n = self.n;
-        for (field, v) in [("observe", i), ("excite", j)] {
-            if v < 1 || v > n {
-                return Err(Error::invalid(field, v, format!("1 <= {field} <= {n}")));
-            }
-        }
+        self.check_masses(i, j)?;
         let Inner::Prop {
             alpha,
             beta,
@@ -1231,13 +1224,7 @@ impl Modes {
         let phi: Vec<Vec<f64>> = (0..n)
             .map(|m| {
                 (0..n)
-                    .map(|x| {
-                        let qx = match q {
-                            Some(q) => q[(x, m)],
-                            None => closed_shape(self.ends, n, m + 1, x + 1),
-                        };
-                        qx / self.masses[x].sqrt()
-                    })
+                    .map(|x| self.prop_entry(q.as_ref(), m, x) / self.masses[x].sqrt())
                     .collect()
             })
             .collect();
