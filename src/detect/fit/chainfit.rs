@@ -5,9 +5,10 @@
 //! The data are any [`MeasurementModel`]; today two:
 //!
 //! * the time-domain chi-square ([`TimeMisfit`]); Jacobian
-//!   exact for defect values and `gamma` ([`TimeMisfit::jacobian`]: the modal
-//!   sum's derivative), by central differences of the exact modal sum
-//!   otherwise;
+//!   exact for defect values, `gamma` and the chain's uniform and damping
+//!   parameters ([`TimeMisfit::jacobian`]: the modal sum's derivative), by
+//!   central differences of the exact modal sum where it has none (grounded
+//!   dampers beside modal ratios, a long chain whose record is simulated);
 //! * [`LaplaceObs`]: values `d_q` at Laplace nodes `s_q` (real or complex)
 //!   with weights `w_q` (`chi^2 = sum_q w_q |X_1(s_q) - d_q|^2`, for example
 //!   quadrature weights over `sigma^2`), or with a whitening matrix `W`

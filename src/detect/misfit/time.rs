@@ -274,13 +274,15 @@ impl TimeMisfit {
     /// [`Modes::value_derivative`] (the modal sum's derivative, double poles
     /// included), the uniform chain parameters and the damping models'
     /// (`d`, `k`, `mass`, `c`, `a`, `b`) by [`Modes::sites_derivative`] over
-    /// their sites ([`crate::sensitivity::stiffness_terms`]), `gamma` as
-    /// `x_1 / gamma`; one modal decomposition for all columns. `Ok(None)`
-    /// where that does not apply (another measurement than the paper's, the
-    /// `modal` damping model's ratios, a decomposition without simple
-    /// poles, the analytic Jacobian switched off, a chain of 100 masses or
-    /// more whose modes this thread has not decomposed): difference the
-    /// residuals then.
+    /// their sites ([`crate::sensitivity::stiffness_terms`]), under the
+    /// `modal` damping model its ratios, masses and springs by
+    /// [`Modes::modal_derivative`], `gamma` as `x_1 / gamma`; one modal
+    /// decomposition for all columns. `Ok(None)` where that does not apply
+    /// (another measurement than the paper's, grounded dampers beside the
+    /// modal model's ratios, a decomposition without simple poles, the
+    /// analytic Jacobian switched off, a chain of 100 masses or more whose
+    /// modes this thread has not decomposed): difference the residuals
+    /// then.
     ///
     /// # Errors
     /// A defect index out of range (field `params`); as [`Modes::new`].
