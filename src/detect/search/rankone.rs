@@ -260,15 +260,9 @@ impl Target {
                 for (t, &(q, im)) in tmp.iter_mut().zip(&self.rows) {
                     *t = if im { z[q].im } else { z[q].re };
                 }
-                // out = W tmp, column by column (W is column-major)
-                out.iter_mut().for_each(|o| *o = 0.0);
-                for (c, &t) in tmp.iter().enumerate() {
-                    if t != 0.0 {
-                        for (o, wv) in out.iter_mut().zip(w.column(c).iter()) {
-                            *o += wv * t;
-                        }
-                    }
-                }
+                // out = W tmp: the register-blocked product, the same sums in
+                // the same order as column by column
+                out.copy_from_slice(&crate::detect::data::laplace::whiten(w, tmp, 1));
             }
         }
     }
