@@ -1228,66 +1228,10 @@ impl Modes {
                     .collect()
             })
             .collect();
-        // per mode: d(w^2), d(zeta) and d(phi) at the two masses
-        let mut dw2 = vec![0.0; n];
-        let mut dzeta = vec![0.0; n];
-        let mut dphi = vec![(0.0, 0.0); n];
-        match change {
-            ModalChange::Ratio { index, of } => {
-                let mut order: Vec<usize> = (0..n).collect();
-                order.sort_by(|&a, &b| omega2[a].total_cmp(&omega2[b]));
-                for (rank, &m) in order.iter().enumerate() {
-                    if rank.min(of.max(1) - 1) == index {
-                        dzeta[m] = 1.0;
-                    }
-                }
-            }
-            ModalChange::Sites(terms) => {
-                // a site's damping term under this model is its tridiagonal
-                // stand-in's (the Laplace side's, [`Chain::site`]): here the
-                // modes carry the damping, so only a damper is refused
-                if terms.iter().any(|(s, _)| s.power == 1) {
-                    return Ok(None);
-                }
-                // u_r . phi_m
-                let uphi: Vec<Vec<f64>> = terms
-                    .iter()
-                    .map(|(s, _)| {
-                        let u: Vec<(usize, f64)> = s.probe.entries(n).collect();
-                        phi.iter()
-                            .map(|f| u.iter().map(|&(at, c)| f[at - 1] * c).sum())
-                            .collect()
-                    })
-                    .collect();
-                // phi_l^T (dK - w_m^2 dM) phi_m
-                let coupling = |l: usize, m: usize| -> f64 {
-                    terms
-                        .iter()
-                        .zip(&uphi)
-                        .map(|((s, w), u)| w * (s.poly[0] - omega2[m] * s.poly[2]) * u[l] * u[m])
-                        .sum()
-                };
-                for m in 0..n {
-                    dw2[m] = coupling(m, m);
-                    let mass: f64 = terms
-                        .iter()
-                        .zip(&uphi)
-                        .map(|((s, w), u)| w * s.poly[2] * u[m] * u[m])
-                        .sum();
-                    let (mut di, mut dj) = (-0.5 * mass * phi[m][i0], -0.5 * mass * phi[m][j0]);
-                    for l in (0..n).filter(|&l| l != m) {
-                        let gap = omega2[m] - omega2[l];
-                        if gap == 0.0 {
-                            return Ok(None);
-                        }
-                        let c = coupling(l, m) / gap;
-                        di += c * phi[l][i0];
-                        dj += c * phi[l][j0];
-                    }
-                    dphi[m] = (di, dj);
-                }
-            }
-        }
+        let Some(ModeChanges { dw2, dzeta, dphi }) = mode_changes(change, omega2, &phi, i0, j0)
+        else {
+            return Ok(None);
+        };
         let mut out = Vec::with_capacity(2 * n);
         for m in 0..n {
             let w = omega2[m].sqrt();
@@ -1323,6 +1267,90 @@ impl Modes {
         }
         Ok(Some(DoublePoleSum { terms: out }))
     }
+}
+
+/// The change of each undamped mode in a [`Modes::modal_derivative`]:
+/// `d(w_m^2)`, `d(zeta_m)` and `d(phi_m)` at the observed and excited
+/// masses.
+struct ModeChanges {
+    dw2: Vec<f64>,
+    dzeta: Vec<f64>,
+    dphi: Vec<(f64, f64)>,
+}
+
+/// [`ModeChanges`] of `change` for the modes `phi` (mass-normalised, mode
+/// by mode) of squared frequencies `omega2`, at masses `i0` and `j0`
+/// (0-based); `None` for a damper's site or two modes of one frequency.
+fn mode_changes(
+    change: ModalChange<'_>,
+    omega2: &[f64],
+    phi: &[Vec<f64>],
+    i0: usize,
+    j0: usize,
+) -> Option<ModeChanges> {
+    let n = omega2.len();
+    let mut out = ModeChanges {
+        dw2: vec![0.0; n],
+        dzeta: vec![0.0; n],
+        dphi: vec![(0.0, 0.0); n],
+    };
+    let terms = match change {
+        ModalChange::Ratio { index, of } => {
+            let mut order: Vec<usize> = (0..n).collect();
+            order.sort_by(|&a, &b| omega2[a].total_cmp(&omega2[b]));
+            for (rank, &m) in order.iter().enumerate() {
+                if rank.min(of.max(1) - 1) == index {
+                    out.dzeta[m] = 1.0;
+                }
+            }
+            return Some(out);
+        }
+        ModalChange::Sites(terms) => terms,
+    };
+    // a site's damping term under this model is its tridiagonal stand-in's
+    // (the Laplace side's, [`Chain::site`]): here the modes carry the
+    // damping, so only a damper is refused
+    if terms.iter().any(|(s, _)| s.power == 1) {
+        return None;
+    }
+    // u_r . phi_m
+    let uphi: Vec<Vec<f64>> = terms
+        .iter()
+        .map(|(s, _)| {
+            let u: Vec<(usize, f64)> = s.probe.entries(n).collect();
+            phi.iter()
+                .map(|f| u.iter().map(|&(at, c)| f[at - 1] * c).sum())
+                .collect()
+        })
+        .collect();
+    // phi_l^T (dK - w_m^2 dM) phi_m
+    let coupling = |l: usize, m: usize| -> f64 {
+        terms
+            .iter()
+            .zip(&uphi)
+            .map(|((s, w), u)| w * (s.poly[0] - omega2[m] * s.poly[2]) * u[l] * u[m])
+            .sum()
+    };
+    for m in 0..n {
+        out.dw2[m] = coupling(m, m);
+        let mass: f64 = terms
+            .iter()
+            .zip(&uphi)
+            .map(|((s, w), u)| w * s.poly[2] * u[m] * u[m])
+            .sum();
+        let (mut di, mut dj) = (-0.5 * mass * phi[m][i0], -0.5 * mass * phi[m][j0]);
+        for l in (0..n).filter(|&l| l != m) {
+            let gap = omega2[m] - omega2[l];
+            if gap == 0.0 {
+                return None;
+            }
+            let c = coupling(l, m) / gap;
+            di += c * phi[l][i0];
+            dj += c * phi[l][j0];
+        }
+        out.dphi[m] = (di, dj);
+    }
+    Some(out)
 }
 
 /// One term `(a t + b) e^{p t}` of a [`DoublePoleSum`] (twice its real part
