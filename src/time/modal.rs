@@ -763,11 +763,7 @@ impl Modes {
             } => {
                 let scale = amp / (self.masses[i0] * self.masses[j0]).sqrt();
                 for (kk, &w) in omega2.iter().enumerate() {
-                    let mut a = if *beta == 0.0 {
-                        0.5 * alpha
-                    } else {
-                        0.5 * (alpha + beta * w.max(0.0))
-                    };
+                    let mut a = prop_rate(*alpha, *beta, w);
                     if let Some(z) = zeta.get(kk).filter(|z| **z != 0.0) {
                         a += z * w.max(0.0).sqrt();
                     }
@@ -960,10 +956,34 @@ impl Modes {
 /// One simple pole of a decomposition with its mode vector and norm:
 /// `X_ij(s) = sum_k v_k[i] v_k[j] / (nu_k (s - p_k))` over every pole,
 /// conjugates included ([`Modes::simple_poles`]).
-struct SimplePole {
+struct SimplePole<'a> {
     p: Complex64,
-    v: Vec<Complex64>,
+    /// The vector, read conjugated with `conj` (a conjugate pole of the
+    /// quadratic path borrows its partner's).
+    v: std::borrow::Cow<'a, [Complex64]>,
+    conj: bool,
     nu: Complex64,
+}
+
+impl SimplePole<'_> {
+    /// Entry `x` (0-based) of the vector.
+    fn at(&self, x: usize) -> Complex64 {
+        if self.conj {
+            self.v[x].conj()
+        } else {
+            self.v[x]
+        }
+    }
+}
+
+/// The damping rate `a` of a proportional mode of squared frequency `w`
+/// (`s^2 + 2 a s + w`): `(alpha + beta w) / 2`.
+fn prop_rate(alpha: f64, beta: f64, w: f64) -> f64 {
+    if beta == 0.0 {
+        0.5 * alpha
+    } else {
+        0.5 * (alpha + beta * w.max(0.0))
+    }
 }
 
 impl Modes {
@@ -978,7 +998,7 @@ impl Modes {
     /// gives the two poles `p, p' = -a +- sqrt(a^2 - w^2)` with the vector
     /// `M^{-1/2} q_m` and the norms `p - p'` and `p' - p` (the partial
     /// fractions of `1 / ((s - p)(s - p'))`).
-    fn simple_poles(&self) -> Option<Vec<SimplePole>> {
+    fn simple_poles(&self) -> Option<Vec<SimplePole<'_>>> {
         let n = self.n;
         let mut out = Vec::with_capacity(2 * n);
         match &self.inner {
@@ -993,15 +1013,18 @@ impl Modes {
                     return None;
                 }
                 for ((p, v), nu) in poles.iter().zip(vecs).zip(norms) {
+                    let v = std::borrow::Cow::Borrowed(v.as_slice());
                     out.push(SimplePole {
                         p: *p,
                         v: v.clone(),
+                        conj: false,
                         nu: *nu,
                     });
                     if p.im != 0.0 {
                         out.push(SimplePole {
                             p: p.conj(),
-                            v: v.iter().map(|z| z.conj()).collect(),
+                            v,
+                            conj: true,
                             nu: nu.conj(),
                         });
                     }
@@ -1018,16 +1041,12 @@ impl Modes {
                     return None;
                 }
                 for (kk, &w) in omega2.iter().enumerate() {
-                    let a = if *beta == 0.0 {
-                        0.5 * alpha
-                    } else {
-                        0.5 * (alpha + beta * w.max(0.0))
-                    };
+                    let a = prop_rate(*alpha, *beta, w);
                     let w2 = w - a * a;
                     if w2.abs() <= 1e-8 * w.abs().max(a * a) {
                         return None;
                     }
-                    let v: Vec<Complex64> = (0..n)
+                    let v: std::borrow::Cow<'_, [Complex64]> = (0..n)
                         .map(|i0| {
                             let qi = self.prop_entry(q.as_ref(), kk, i0);
                             Complex64::new(qi / self.masses[i0].sqrt(), 0.0)
@@ -1048,9 +1067,15 @@ impl Modes {
                     out.push(SimplePole {
                         p: q2,
                         v: v.clone(),
+                        conj: false,
                         nu: -nu,
                     });
-                    out.push(SimplePole { p, v, nu });
+                    out.push(SimplePole {
+                        p,
+                        v,
+                        conj: false,
+                        nu,
+                    });
                 }
             }
         }
@@ -1107,12 +1132,12 @@ impl Modes {
             .map(|pk| {
                 probes
                     .iter()
-                    .map(|u| u.iter().map(|&(at, c)| pk.v[at - 1] * c).sum())
+                    .map(|u| u.iter().map(|&(at, c)| pk.at(at - 1) * c).sum())
                     .collect()
             })
             .collect();
-        let alpha: Vec<Complex64> = poles.iter().map(|pk| pk.v[i0] / pk.nu).collect();
-        let beta: Vec<Complex64> = poles.iter().map(|pk| pk.v[j0] / pk.nu).collect();
+        let alpha: Vec<Complex64> = poles.iter().map(|pk| pk.at(i0) / pk.nu).collect();
+        let beta: Vec<Complex64> = poles.iter().map(|pk| pk.at(j0) / pk.nu).collect();
         let mut out = Vec::with_capacity(n);
         let mut g = vec![Complex64::new(0.0, 0.0); terms.len()];
         for (k, pk) in poles.iter().enumerate() {

@@ -622,11 +622,19 @@ impl LaplaceObs {
 /// same sums in the same order as nalgebra's product (`W[i][0] x_0`, then
 /// `+ W[i][j] x_j` for `j = 1, 2, ...`), so the same values.
 pub(crate) fn whiten(w: &DMatrix<f64>, x: &[f64], cols: usize) -> Vec<f64> {
+    let mut out = vec![0.0; w.nrows() * cols];
+    whiten_into(w, x, cols, &mut out);
+    out
+}
+
+/// [`whiten`] into `out` (`W.nrows() * cols` entries, every one written).
+pub(crate) fn whiten_into(w: &DMatrix<f64>, x: &[f64], cols: usize, out: &mut [f64]) {
     let (k, m) = w.shape();
     debug_assert_eq!(x.len(), m * cols);
-    let mut out = vec![0.0; k * cols];
+    debug_assert_eq!(out.len(), k * cols);
     if k == 0 || m == 0 {
-        return out;
+        out.fill(0.0);
+        return;
     }
     let ws = w.as_slice();
     // blocks of rows of W held in registers across all its columns (every
@@ -635,18 +643,18 @@ pub(crate) fn whiten(w: &DMatrix<f64>, x: &[f64], cols: usize) -> Vec<f64> {
     let mut i0 = 0;
     if cols == 1 {
         while i0 + 16 <= k {
-            whiten_block::<16, 1>(ws, k, m, x, &mut out, i0, 0);
+            whiten_block::<16, 1>(ws, k, m, x, out, i0, 0);
             i0 += 16;
         }
     }
     while i0 + 8 <= k {
         let mut c = 0;
         while c + 2 <= cols {
-            whiten_block::<8, 2>(ws, k, m, x, &mut out, i0, c);
+            whiten_block::<8, 2>(ws, k, m, x, out, i0, c);
             c += 2;
         }
         if c < cols {
-            whiten_block::<8, 1>(ws, k, m, x, &mut out, i0, c);
+            whiten_block::<8, 1>(ws, k, m, x, out, i0, c);
         }
         i0 += 8;
     }
@@ -668,7 +676,6 @@ pub(crate) fn whiten(w: &DMatrix<f64>, x: &[f64], cols: usize) -> Vec<f64> {
             }
         }
     }
-    out
 }
 
 /// Rows `i0..i0 + R` of `W X` for the columns `c0..c0 + C` of `X` (`W`

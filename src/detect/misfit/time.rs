@@ -355,34 +355,29 @@ impl TimeMisfit {
                     })?;
                     let site = chain.site(d);
                     let u: Vec<(usize, f64)> = site.probe.entries(n).collect();
-                    let one = match modes.value_derivative_poly(at, 1, gamma, &u, site.poly)? {
+                    match modes.value_derivative_poly(at, 1, gamma, &u, site.poly)? {
                         Some(d) => Some(d),
                         // the proportional paths
                         None => sites_column(modes, at, gamma, &[(site, 1.0)])?,
-                    };
-                    match one {
-                        Some(d) => d.eval_many(t),
-                        None => return Ok(None),
                     }
+                    .map(|d| d.eval_many(t))
                 }
-                Param::Gamma if gamma != 0.0 => modes.response(at, 1, 1.0)?.eval_many(t),
-                Param::Gamma => return Ok(None),
-                Param::Zeta { index, of } => {
-                    match modes.modal_derivative(at, 1, gamma, ModalChange::Ratio { index, of })? {
-                        Some(d) => d.eval_many(t),
-                        None => return Ok(None),
-                    }
-                }
+                Param::Gamma => (gamma != 0.0)
+                    .then(|| modes.response(at, 1, 1.0))
+                    .transpose()?
+                    .map(|r| r.eval_many(t)),
+                Param::Zeta { index, of } => modes
+                    .modal_derivative(at, 1, gamma, ModalChange::Ratio { index, of })?
+                    .map(|d| d.eval_many(t)),
                 // a uniform chain parameter: the sum of its sites
-                _ => {
-                    let Some(terms) = crate::sensitivity::stiffness_terms(chain, p)? else {
-                        return Ok(None);
-                    };
-                    match sites_column(modes, at, gamma, &terms)? {
-                        Some(d) => d.eval_many(t),
-                        None => return Ok(None),
-                    }
+                _ => match crate::sensitivity::stiffness_terms(chain, p)? {
+                    Some(terms) => sites_column(modes, at, gamma, &terms)?,
+                    None => None,
                 }
+                .map(|d| d.eval_many(t)),
+            };
+            let Some(col) = col else {
+                return Ok(None);
             };
             for (o, v) in out.column_mut(c).iter_mut().zip(&col) {
                 *o = v * self.inv_sigma;

@@ -262,7 +262,7 @@ impl Target {
                 }
                 // out = W tmp: the register-blocked product, the same sums in
                 // the same order as column by column
-                out.copy_from_slice(&crate::detect::data::laplace::whiten(w, tmp, 1));
+                crate::detect::data::laplace::whiten_into(w, tmp, 1, out);
             }
         }
     }
