@@ -24,11 +24,18 @@
 //! spring (0.5 at 8) (`mixed`), or three masses (2 at 2, 0.6 at 6, 1.8 at
 //! 9) (`masses`); and the records `s3` and `n37` above. The ratio
 //! `any / mass` is printed after each group.
+//!
+//! The damping fitted (`cpu/fit-d/<case>/fit-d`: `--fit d --damping
+//! grounded`) against the defaults told `d` (`.../given`), on `s3` and
+//! `n37` (issue 30: at most 2x); the ratio is printed after each group,
+//! with, on `s3`, the fit that also chooses the damping model (`--fit d`
+//! alone, one run).
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use springmass::detect::data::observations::{Observations, Series};
 use springmass::detect::data::series::TimeData;
 use springmass::detect::fit::effort::Effort;
+use springmass::detect::fit::options::FitSpec;
 use springmass::detect::fit::{fit, DefectCount, FitOptions, Model};
 use springmass::detect::unknowns::KindChoice;
 use springmass::noise::NoiseLevel;
@@ -172,9 +179,72 @@ fn bench_kinds(c: &mut Criterion<CpuTime>) {
     }
 }
 
+/// `--fit d` (the damping fitted, the grounded model given) against the
+/// defaults told `d` (issue 30: at most 2x), on the records `s3` and
+/// `n37`; the damping model's choice (`--fit d` alone) is timed once on
+/// `s3` and printed beside them.
+fn bench_fit_d(c: &mut Criterion<CpuTime>) {
+    let cases = [
+        ("s3", 20, record(20, &[(8, 5.0), (15, 2.0)])),
+        ("n37", 37, record(37, &[(10, 3.0), (25, 2.0)])),
+    ];
+    for (name, n, obs) in &cases {
+        let spec = |fit_d: bool, damping: Option<&str>| FitSpec {
+            fit: fit_d.then(|| "d".to_string()),
+            damping: damping.map(str::to_string),
+            ..FitSpec::new(*n)
+        };
+        let build = |s: FitSpec| {
+            let (model, opts) = s.build().unwrap();
+            let opts = FitOptions {
+                parallel: false,
+                ..opts
+            };
+            (model, opts)
+        };
+        let (model, given) = build(spec(false, None));
+        let (model_d, fit_d) = build(spec(true, Some("grounded")));
+        let at = |r: &springmass::detect::fit::FitReport| -> Vec<usize> {
+            r.defects.iter().map(|d| d.at).collect()
+        };
+        let g = fit(obs, &model, &given).unwrap();
+        let d = fit(obs, &model_d, &fit_d).unwrap();
+        assert_eq!(at(&g), at(&d), "{name}: --fit d finds the same masses");
+        assert!(d.params.iter().any(|p| p.name == "d"), "{name}: d fitted");
+        let mut grp = c.benchmark_group(format!("cpu/fit-d/{name}"));
+        grp.sample_size(10).measurement_time(Duration::from_secs(5));
+        grp.bench_function("given", |b| {
+            b.iter(|| fit(black_box(obs), &model, &given).unwrap())
+        });
+        grp.bench_function("fit-d", |b| {
+            b.iter(|| fit(black_box(obs), &model_d, &fit_d).unwrap())
+        });
+        grp.finish();
+        let tg = mean_s(3, || {
+            fit(obs, &model, &given).unwrap();
+        });
+        let td = mean_s(3, || {
+            fit(obs, &model_d, &fit_d).unwrap();
+        });
+        let choice = if *name == "s3" {
+            let (model_c, choose) = build(spec(true, None));
+            let tc = mean_s(1, || {
+                fit(obs, &model_c, &choose).unwrap();
+            });
+            format!(", the damping model chosen too {tc:.3} s ({:.1}x)", tc / tg)
+        } else {
+            String::new()
+        };
+        println!(
+            "{name}: --fit d {td:.3} s, d given {tg:.3} s, ratio {:.1}x{choice} (wall, one thread, mean of 3)",
+            td / tg
+        );
+    }
+}
+
 criterion_group! {
     name = benches_kauto;
     config = Criterion::default().with_measurement(CpuTime);
-    targets = bench_kauto, bench_kinds
+    targets = bench_kauto, bench_kinds, bench_fit_d
 }
 criterion_main!(benches_kauto);

@@ -74,6 +74,13 @@ pub struct Setup {
     /// Time-domain Jacobian exact where it applies
     /// ([`TimeMisfit::jacobian`]); `false`: central differences throughout.
     pub exact_time_jacobian: bool,
+    /// Fit every shortlisted set of the Laplace fine pass from its second
+    /// start too (default false: ahead of a time-domain refit, only where
+    /// the fit from the coarse values does not explain the whitened
+    /// values, a chi-square above `K + 3 sqrt(2 K)`; see `explained_chi2`
+    /// in [`fit_general`](crate::detect::fit::general::fit_general)'s
+    /// source).
+    pub every_second_start: bool,
 }
 
 impl Setup {
@@ -102,6 +109,7 @@ impl Setup {
             time_slack: 25.0,
             rational_sets: true,
             exact_time_jacobian: true,
+            every_second_start: false,
         })
     }
 
@@ -132,8 +140,8 @@ impl Setup {
     /// The earlier path, kept as a baseline for benchmarks and tests: no
     /// screen (every hypothesis through the full coarse pass), each set's
     /// model by transfer sweeps, every set of the shortlist refitted in the
-    /// time domain, time-domain Jacobians by central differences. The
-    /// defaults otherwise.
+    /// time domain, time-domain Jacobians by central differences, every
+    /// second start of the fine pass fitted. The defaults otherwise.
     ///
     /// # Errors
     /// As [`Setup::new`].
@@ -144,6 +152,7 @@ impl Setup {
             time_slack: f64::INFINITY,
             rational_sets: false,
             exact_time_jacobian: false,
+            every_second_start: true,
             ..Setup::new()?
         })
     }

@@ -278,6 +278,7 @@ pub(crate) fn fit_pairs_from(
 }
 
 /// One fitted hypothesis and what it cost.
+#[derive(Clone)]
 pub(super) struct Fitted {
     pub(super) hyp: Hypothesis,
     pub(super) evaluations: usize,
