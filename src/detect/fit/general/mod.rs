@@ -761,8 +761,7 @@ mod tests {
         let data =
             TimeData::simulate(&truth, 150.0, 0.25, NoiseLevel::RelativeMax(1e-3), 2).unwrap();
         let setup = Setup::new().unwrap();
-        let u = Unknowns::free(6, &[KindChoice::Mass; 2], &[crate::sensitivity::Param::D])
-            .unwrap();
+        let u = Unknowns::free(6, &[KindChoice::Mass; 2], &[crate::sensitivity::Param::D]).unwrap();
         // start from d = 0.1: the first round moves it
         let base = truth.uniform().with_d(0.1).unwrap();
         let rounds = |r: usize| GeneralOptions {
@@ -783,7 +782,11 @@ mod tests {
             let third = three.evaluations - two.evaluations;
             let second = two.evaluations - one.evaluations;
             assert!(third <= second, "{third} > {second}");
-            assert!(third < one.evaluations / 2, "{third} vs {}", one.evaluations);
+            assert!(
+                third < one.evaluations / 2,
+                "{third} vs {}",
+                one.evaluations
+            );
             let obs: &dyn crate::detect::model::MeasurementModel = match fine {
                 Some(t) => t,
                 None => &bromwich,
