@@ -72,6 +72,32 @@ fn mean_s(runs: usize, f: impl Fn()) -> f64 {
     t.elapsed().as_secs_f64() / runs as f64
 }
 
+/// Criterion's group `group` of the fits of `obs` by each `(label, model,
+/// options)`, then the mean wall time of three fits of each, in order (for
+/// the ratio line printed after the group).
+fn timed(
+    c: &mut Criterion<CpuTime>,
+    group: &str,
+    obs: &Observations,
+    fits: &[(&str, &Model, &FitOptions)],
+) -> Vec<f64> {
+    let mut grp = c.benchmark_group(group);
+    grp.sample_size(10).measurement_time(Duration::from_secs(5));
+    for &(label, model, opts) in fits {
+        grp.bench_function(label, |b| {
+            b.iter(|| fit(black_box(obs), model, opts).unwrap())
+        });
+    }
+    grp.finish();
+    fits.iter()
+        .map(|&(_, model, opts)| {
+            mean_s(3, || {
+                fit(obs, model, opts).unwrap();
+            })
+        })
+        .collect()
+}
+
 fn bench_kauto(c: &mut Criterion<CpuTime>) {
     let cases = [
         ("s3", 20, record(20, &[(8, 5.0), (15, 2.0)])),
@@ -93,27 +119,17 @@ fn bench_kauto(c: &mut Criterion<CpuTime>) {
         assert_eq!(at(&a), at(&g), "{name}: the defaults choose k = 2");
         let l = fit(obs, &model, &low).unwrap();
         assert_eq!(at(&l), at(&g), "{name}: effort low chooses k = 2");
-        let mut grp = c.benchmark_group(format!("cpu/kauto/{name}"));
-        grp.sample_size(10).measurement_time(Duration::from_secs(5));
-        grp.bench_function("given", |b| {
-            b.iter(|| fit(black_box(obs), &model, &given).unwrap())
-        });
-        grp.bench_function("auto", |b| {
-            b.iter(|| fit(black_box(obs), &model, &auto).unwrap())
-        });
-        grp.bench_function("auto-low", |b| {
-            b.iter(|| fit(black_box(obs), &model, &low).unwrap())
-        });
-        grp.finish();
-        let tg = mean_s(3, || {
-            fit(obs, &model, &given).unwrap();
-        });
-        let ta = mean_s(3, || {
-            fit(obs, &model, &auto).unwrap();
-        });
-        let tl = mean_s(3, || {
-            fit(obs, &model, &low).unwrap();
-        });
+        let t = timed(
+            c,
+            &format!("cpu/kauto/{name}"),
+            obs,
+            &[
+                ("given", &model, &given),
+                ("auto", &model, &auto),
+                ("auto-low", &model, &low),
+            ],
+        );
+        let (tg, ta, tl) = (t[0], t[1], t[2]);
         println!(
             "{name}: defaults {ta:.3} s, effort low {tl:.3} s, k given {tg:.3} s, ratios {:.1}x and {:.1}x (wall, one thread, mean of 3)",
             ta / tg,
@@ -157,21 +173,13 @@ fn bench_kinds(c: &mut Criterion<CpuTime>) {
             ..FitOptions::default()
         };
         let (mass, any) = (with(KindChoice::Mass), with(KindChoice::Any));
-        let mut grp = c.benchmark_group(format!("cpu/kinds/{name}"));
-        grp.sample_size(10).measurement_time(Duration::from_secs(5));
-        grp.bench_function("mass", |b| {
-            b.iter(|| fit(black_box(obs), &model, &mass).unwrap())
-        });
-        grp.bench_function("any", |b| {
-            b.iter(|| fit(black_box(obs), &model, &any).unwrap())
-        });
-        grp.finish();
-        let tm = mean_s(3, || {
-            fit(obs, &model, &mass).unwrap();
-        });
-        let ta = mean_s(3, || {
-            fit(obs, &model, &any).unwrap();
-        });
+        let t = timed(
+            c,
+            &format!("cpu/kinds/{name}"),
+            obs,
+            &[("mass", &model, &mass), ("any", &model, &any)],
+        );
+        let (tm, ta) = (t[0], t[1]);
         println!(
             "{name}: kinds any {ta:.3} s, kinds mass {tm:.3} s, ratio {:.1}x (wall, one thread, mean of 3)",
             ta / tm
@@ -211,21 +219,13 @@ fn bench_fit_d(c: &mut Criterion<CpuTime>) {
         let d = fit(obs, &model_d, &fit_d).unwrap();
         assert_eq!(at(&g), at(&d), "{name}: --fit d finds the same masses");
         assert!(d.params.iter().any(|p| p.name == "d"), "{name}: d fitted");
-        let mut grp = c.benchmark_group(format!("cpu/fit-d/{name}"));
-        grp.sample_size(10).measurement_time(Duration::from_secs(5));
-        grp.bench_function("given", |b| {
-            b.iter(|| fit(black_box(obs), &model, &given).unwrap())
-        });
-        grp.bench_function("fit-d", |b| {
-            b.iter(|| fit(black_box(obs), &model_d, &fit_d).unwrap())
-        });
-        grp.finish();
-        let tg = mean_s(3, || {
-            fit(obs, &model, &given).unwrap();
-        });
-        let td = mean_s(3, || {
-            fit(obs, &model_d, &fit_d).unwrap();
-        });
+        let t = timed(
+            c,
+            &format!("cpu/fit-d/{name}"),
+            obs,
+            &[("given", &model, &given), ("fit-d", &model_d, &fit_d)],
+        );
+        let (tg, td) = (t[0], t[1]);
         let choice = if *name == "s3" {
             let (model_c, choose) = build(spec(true, None));
             let tc = mean_s(1, || {
