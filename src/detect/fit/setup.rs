@@ -77,7 +77,8 @@ pub struct Setup {
     /// Fit every shortlisted set of the Laplace fine pass from its second
     /// start too (default false: ahead of a time-domain refit, only where
     /// the fit from the coarse values does not explain the whitened
-    /// values, a chi-square above `K + 3 sqrt(2 K)`; see `explained_chi2`
+    /// values, a chi-square above `K + 3 sqrt(2 K)` or below `K / 4`; see
+    /// `explained_chi2`
     /// in [`fit_general`](crate::detect::fit::general::fit_general)'s
     /// source).
     pub every_second_start: bool,
