@@ -342,8 +342,14 @@ impl TimeMisfit {
         let t = self.data.t();
         let n = chain.n();
         let gamma = chain.gamma();
-        let mut out = DMatrix::zeros(t.len(), params.len());
-        for (c, p) in params.iter().enumerate() {
+        // the derivatives over the modes first, then evaluated together
+        // (they share their poles: one pass over the samples)
+        enum Column {
+            Sum(DoublePoleSum),
+            Values(Vec<f64>),
+        }
+        let mut columns = Vec::with_capacity(params.len());
+        for p in params {
             let col = match *p {
                 Param::Defect(i) => {
                     let d = chain.defects().get(i).ok_or_else(|| {
@@ -360,26 +366,42 @@ impl TimeMisfit {
                         // the proportional paths
                         None => sites_column(modes, at, gamma, &[(site, 1.0)])?,
                     }
-                    .map(|d| d.eval_many(t))
+                    .map(Column::Sum)
                 }
                 Param::Gamma => (gamma != 0.0)
                     .then(|| modes.response(at, 1, 1.0))
                     .transpose()?
-                    .map(|r| r.eval_many(t)),
+                    .map(|r| Column::Values(r.eval_many(t))),
                 Param::Zeta { index, of } => modes
                     .modal_derivative(at, 1, gamma, ModalChange::Ratio { index, of })?
-                    .map(|d| d.eval_many(t)),
+                    .map(Column::Sum),
                 // a uniform chain parameter: the sum of its sites
                 _ => match crate::sensitivity::stiffness_terms(chain, p)? {
                     Some(terms) => sites_column(modes, at, gamma, &terms)?,
                     None => None,
                 }
-                .map(|d| d.eval_many(t)),
+                .map(Column::Sum),
             };
             let Some(col) = col else {
                 return Ok(None);
             };
-            for (o, v) in out.column_mut(c).iter_mut().zip(&col) {
+            columns.push(col);
+        }
+        let sums: Vec<&DoublePoleSum> = columns
+            .iter()
+            .filter_map(|c| match c {
+                Column::Sum(s) => Some(s),
+                Column::Values(_) => None,
+            })
+            .collect();
+        let mut evaluated = DoublePoleSum::eval_many_columns(&sums, t).into_iter();
+        let mut out = DMatrix::zeros(t.len(), params.len());
+        for (c, col) in columns.into_iter().enumerate() {
+            let values = match col {
+                Column::Sum(_) => evaluated.next().expect("one per sum"),
+                Column::Values(v) => v,
+            };
+            for (o, v) in out.column_mut(c).iter_mut().zip(&values) {
                 *o = v * self.inv_sigma;
             }
         }
