@@ -976,6 +976,29 @@ impl SimplePole<'_> {
     }
 }
 
+/// The poles of a proportional mode `s^2 + 2 a s + w` (`w` its squared
+/// frequency) and their difference: `(p, p', p - p')` with `p = -a + i
+/// sqrt(w - a^2)` and `p'` its conjugate when underdamped, `p, p' = -a +-
+/// sqrt(a^2 - w)` when overdamped; `None` at or within `1e-8` of critical
+/// damping.
+fn prop_pole_pair(a: f64, w: f64) -> Option<(Complex64, Complex64, Complex64)> {
+    let w2 = w - a * a;
+    if w2.abs() <= 1e-8 * w.abs().max(a * a) {
+        return None;
+    }
+    let r = w2.abs().sqrt();
+    Some(if w2 > 0.0 {
+        let p = Complex64::new(-a, r);
+        (p, p.conj(), Complex64::new(0.0, 2.0 * r))
+    } else {
+        (
+            Complex64::new(-a + r, 0.0),
+            Complex64::new(-a - r, 0.0),
+            Complex64::new(2.0 * r, 0.0),
+        )
+    })
+}
+
 /// The damping rate `a` of a proportional mode of squared frequency `w`
 /// (`s^2 + 2 a s + w`): `(alpha + beta w) / 2`.
 fn prop_rate(alpha: f64, beta: f64, w: f64) -> f64 {
@@ -1041,29 +1064,13 @@ impl Modes {
                     return None;
                 }
                 for (kk, &w) in omega2.iter().enumerate() {
-                    let a = prop_rate(*alpha, *beta, w);
-                    let w2 = w - a * a;
-                    if w2.abs() <= 1e-8 * w.abs().max(a * a) {
-                        return None;
-                    }
+                    let (p, q2, nu) = prop_pole_pair(prop_rate(*alpha, *beta, w), w)?;
                     let v: std::borrow::Cow<'_, [Complex64]> = (0..n)
                         .map(|i0| {
                             let qi = self.prop_entry(q.as_ref(), kk, i0);
                             Complex64::new(qi / self.masses[i0].sqrt(), 0.0)
                         })
                         .collect();
-                    let r = w2.abs().sqrt();
-                    let (p, q2, nu) = if w2 > 0.0 {
-                        let p = Complex64::new(-a, r);
-                        (p, p.conj(), Complex64::new(0.0, 2.0 * r))
-                    } else {
-                        let (p1, p2) = (-a + r, -a - r);
-                        (
-                            Complex64::new(p1, 0.0),
-                            Complex64::new(p2, 0.0),
-                            Complex64::new(2.0 * r, 0.0),
-                        )
-                    };
                     out.push(SimplePole {
                         p: q2,
                         v: v.clone(),
@@ -1261,16 +1268,14 @@ impl Modes {
         for m in 0..n {
             let w = omega2[m].sqrt();
             let a = zeta[m] * w;
-            let w2 = omega2[m] - a * a;
-            if w2.abs() <= 1e-8 * omega2[m].max(a * a) {
+            let Some((p, partner, nu)) = prop_pole_pair(a, omega2[m]) else {
                 return Ok(None);
-            }
+            };
             let da = zeta[m] * dw2[m] / (2.0 * w) + dzeta[m] * w;
             let pp = phi[m][i0] * phi[m][j0];
             let dpp = dphi[m].0 * phi[m][j0] + phi[m][i0] * dphi[m].1;
-            // N(s) = -pp (2 da s + dw2)
-            let term = |p: Complex64, partner: Complex64, twice: bool| {
-                let nu = p - partner;
+            // N(s) = -pp (2 da s + dw2), at p with nu = p - partner
+            let term = |p: Complex64, nu: Complex64, twice: bool| {
                 let np = -pp * (p * (2.0 * da) + dw2[m]);
                 let dn = -pp * 2.0 * da;
                 DoubleTerm {
@@ -1280,14 +1285,12 @@ impl Modes {
                     twice,
                 }
             };
-            let r = w2.abs().sqrt();
-            if w2 > 0.0 {
-                let p = Complex64::new(-a, r);
-                out.push(term(p, p.conj(), true));
+            if p.im != 0.0 {
+                // its conjugate term implied
+                out.push(term(p, nu, true));
             } else {
-                let (p1, p2) = (Complex64::new(-a + r, 0.0), Complex64::new(-a - r, 0.0));
-                out.push(term(p1, p2, false));
-                out.push(term(p2, p1, false));
+                out.push(term(p, nu, false));
+                out.push(term(partner, -nu, false));
             }
         }
         Ok(Some(DoublePoleSum { terms: out }))
