@@ -27,9 +27,9 @@
 //!
 //! The damping fitted (`cpu/fit-d/<case>/fit-d`: `--fit d --damping
 //! grounded`) against the defaults told `d` (`.../given`), on `s3` and
-//! `n37` (issue 30: at most 2x); the ratio is printed after each group,
-//! with, on `s3`, the fit that also chooses the damping model (`--fit d`
-//! alone, one run).
+//! `n37` (issue 30: at most 2x); the ratio is printed after each group.
+//! On `s3` also the fit that chooses the damping model too
+//! (`cpu/fit-d/s3/choice`: `--fit d` alone).
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use springmass::detect::data::observations::{Observations, Series};
@@ -189,8 +189,8 @@ fn bench_kinds(c: &mut Criterion<CpuTime>) {
 
 /// `--fit d` (the damping fitted, the grounded model given) against the
 /// defaults told `d` (issue 30: at most 2x), on the records `s3` and
-/// `n37`; the damping model's choice (`--fit d` alone) is timed once on
-/// `s3` and printed beside them.
+/// `n37`; the damping model's choice (`--fit d` alone) is timed on `s3`
+/// too (`cpu/fit-d/s3/choice`).
 fn bench_fit_d(c: &mut Criterion<CpuTime>) {
     let cases = [
         ("s3", 20, record(20, &[(8, 5.0), (15, 2.0)])),
@@ -219,21 +219,16 @@ fn bench_fit_d(c: &mut Criterion<CpuTime>) {
         let d = fit(obs, &model_d, &fit_d).unwrap();
         assert_eq!(at(&g), at(&d), "{name}: --fit d finds the same masses");
         assert!(d.params.iter().any(|p| p.name == "d"), "{name}: d fitted");
-        let t = timed(
-            c,
-            &format!("cpu/fit-d/{name}"),
-            obs,
-            &[("given", &model, &given), ("fit-d", &model_d, &fit_d)],
-        );
+        let (model_c, choose) = build(spec(true, None));
+        let mut runs = vec![("given", &model, &given), ("fit-d", &model_d, &fit_d)];
+        if *name == "s3" {
+            runs.push(("choice", &model_c, &choose));
+        }
+        let t = timed(c, &format!("cpu/fit-d/{name}"), obs, &runs);
         let (tg, td) = (t[0], t[1]);
-        let choice = if *name == "s3" {
-            let (model_c, choose) = build(spec(true, None));
-            let tc = mean_s(1, || {
-                fit(obs, &model_c, &choose).unwrap();
-            });
-            format!(", the damping model chosen too {tc:.3} s ({:.1}x)", tc / tg)
-        } else {
-            String::new()
+        let choice = match t.get(2) {
+            Some(tc) => format!(", the damping model chosen too {tc:.3} s ({:.1}x)", tc / tg),
+            None => String::new(),
         };
         println!(
             "{name}: --fit d {td:.3} s, d given {tg:.3} s, ratio {:.1}x{choice} (wall, one thread, mean of 3)",

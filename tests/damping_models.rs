@@ -10,12 +10,14 @@ use nalgebra::{DMatrix, DVector};
 use springmass::detect::data::observations::{Observations, Series};
 use springmass::detect::fit::fit;
 use springmass::detect::fit::options::FitSpec;
-use springmass::detect::fit::report::Status;
+use springmass::detect::fit::report::{FitReport, Status};
 use springmass::noise::{add_noise, NoiseLevel};
 
 /// The generator's damping models.
 #[derive(Clone, Copy, Debug)]
 enum Model {
+    /// `C = d I` (a damper `d` from every mass to the ground: the paper's).
+    Grounded(f64),
     /// `C = c Lap` (a damper `c` beside every spring, the walls' included).
     Between(f64),
     /// `C = a M + b K`.
@@ -41,6 +43,7 @@ fn matrices(n: usize, masses: &[(usize, f64)], model: Model) -> [DMatrix<f64>; 3
         _ => 0.0,
     });
     let c = match model {
+        Model::Grounded(d) => DMatrix::identity(n, n) * d,
         Model::Between(c) => &lap * c,
         Model::Rayleigh(a, b) => &m * a + &lap * b,
         Model::Modal(zeta) => modal_c(&m, &lap, [zeta; 3]),
@@ -102,7 +105,7 @@ fn check(
     level: f64,
     seed: u64,
     damping: Option<&str>,
-) {
+) -> FitReport {
     let grid = if n > 10 { (0.5, 401) } else { (0.5, 241) };
     let obs = record(n, masses, model, grid, level, seed);
     let spec = FitSpec {
@@ -121,12 +124,14 @@ fn check(
     }
     let est = r.damping.as_ref().expect("a damping entry");
     let truth: Vec<(&str, f64)> = match model {
+        Model::Grounded(d) => vec![("d", d)],
         Model::Between(c) => vec![("c", c)],
         Model::Rayleigh(a, b) => vec![("a", a), ("b", b)],
         Model::Modal(zeta) => vec![("zeta", zeta)],
         Model::ModalPerMode(z) => vec![("zeta_1", z[0]), ("zeta_2", z[1]), ("zeta_3", z[2])],
     };
     let name = match model {
+        Model::Grounded(_) => "grounded",
         Model::Between(_) => "between",
         Model::Rayleigh(..) => "rayleigh",
         Model::Modal(_) | Model::ModalPerMode(_) => "modal",
@@ -141,11 +146,66 @@ fn check(
         );
     }
     if damping.is_none() {
-        assert_eq!(est.candidates.len(), 4, "{what}");
+        chosen_as_every_model_searched(&obs, &r, &at, n, &what);
     }
+    r
+}
+
+/// The damping choice of `r` (`fit = d`): every model listed; a model
+/// fitted only at the chosen set (not searched) is fitted at the answer's
+/// positions and does no better there; and searching every model
+/// (`--effort high`) chooses the same model and set. The answer `at`.
+fn chosen_as_every_model_searched(
+    obs: &Observations,
+    r: &FitReport,
+    at: &[usize],
+    n: usize,
+    what: &str,
+) {
+    let est = r.damping.as_ref().unwrap();
+    assert_eq!(est.candidates.len(), 4, "{what}");
+    let chosen = est
+        .candidates
+        .iter()
+        .find(|c| c.model == est.model)
+        .unwrap();
+    assert!(chosen.searched, "{what}");
+    for c in est.candidates.iter().filter(|c| !c.searched) {
+        assert_eq!(c.positions, at, "{c:?}: {what}");
+        assert!(c.criterion >= chosen.criterion, "{c:?}: {what}");
+    }
+    let spec = FitSpec {
+        fit: Some("d".into()),
+        effort: Some("high".into()),
+        ..FitSpec::new(n)
+    };
+    let (m, opts) = spec.build().unwrap();
+    let every = fit(obs, &m, &opts).unwrap();
+    let e = every.damping.as_ref().unwrap();
+    assert!(e.candidates.iter().all(|c| c.searched), "{what}");
+    assert_eq!(e.model, est.model, "{what}\n{}", every.summary());
+    let at_every: Vec<usize> = every.found().iter().map(|d| d.at()).collect();
+    assert_eq!(at_every, at, "{what}\n{}", every.summary());
 }
 
 const SYSTEM: [(usize, f64); 2] = [(2, 3.0), (4, 0.5)];
+
+#[test]
+fn grounded_records_are_fitted_and_the_others_only_at_their_set() {
+    for (level, seed) in [(1e-3, 13), (1e-2, 15)] {
+        let r = check(5, &SYSTEM, Model::Grounded(0.1), level, seed, None);
+        // the first model searched explains the record: the others are
+        // fitted at its set only
+        let searched: Vec<bool> = r
+            .damping
+            .unwrap()
+            .candidates
+            .iter()
+            .map(|c| c.searched)
+            .collect();
+        assert_eq!(searched, [true, false, false, false]);
+    }
+}
 
 #[test]
 fn rayleigh_records_are_fitted_and_the_model_chosen() {

@@ -497,7 +497,9 @@ class FitResult:
         The damping model and its parameters with standard errors, e.g.
         ``{"model": "rayleigh", "a": ..., "b": ..., "se": {"a": ..., "b": ...},
         "fitted": True, "candidates": [...]}`` (``None`` for the default
-        grounded model not fitted).
+        grounded model not fitted); each candidate ``{"model", "criterion",
+        "k", "positions", "searched"}``, ``searched`` False for a model
+        fitted only at the chosen model's set.
     t, observed, predicted, residual : ndarray
         The data and the best fit's model on the same times.
     summary : str
@@ -825,8 +827,10 @@ def fit(
         from three defects in 4 answers at one fewer (not 8) and stops
         raising the number of defects as soon as one more does not help; ``"high"`` refits every shortlisted set and,
         with ``defects="auto"``, searches every set at every number of
-        defects up to the largest (where there are at most 200 000). The
-        report's ``method`` names a level other than normal.
+        defects up to the largest (where there are at most 200 000) and,
+        with ``fit=("d",)`` and no ``damping``, searches every damping model
+        (not only until one explains the record). The report's ``method``
+        names a level other than normal.
 
     Returns
     -------

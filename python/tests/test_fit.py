@@ -269,6 +269,17 @@ def test_modal_damping_is_simulated_fitted_and_chosen():
         assert r.damping["model"] == "modal", r.damping
         assert abs(r.damping["zeta"] - 0.03) < 3 * r.damping["se"]["zeta"], r.damping
     assert [c["model"] for c in chosen.damping["candidates"]] == ["grounded", "between", "rayleigh", "modal"]
+    # models fitted only at the chosen set do no better there; every model
+    # searched (effort="high") chooses the same
+    at = [e.at for e in chosen.defects]
+    best = next(c for c in chosen.damping["candidates"] if c["model"] == "modal")
+    assert best["searched"]
+    for c in chosen.damping["candidates"]:
+        if not c["searched"]:
+            assert c["positions"] == at and c["criterion"] >= best["criterion"], c
+    every = springmass.fit(t, x, n=5, fit=("d",), effort="high")
+    assert all(c["searched"] for c in every.damping["candidates"])
+    assert every.damping["model"] == "modal" and [e.at for e in every.defects] == at
     with pytest.raises(ValueError, match="damping.zeta"):
         springmass.simulate(5, t=t, damping="modal:7")
 

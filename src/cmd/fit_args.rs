@@ -204,7 +204,9 @@ pub struct Args {
     /// answers at one fewer, not 8, and k raised while one more defect
     /// helps), normal, or high (every shortlisted set refitted; with
     /// --defects auto, every set at every number of defects up to the
-    /// largest where there are at most 200 000) [default: normal].
+    /// largest where there are at most 200 000; with --fit d and no
+    /// --damping, every damping model searched, not only until one
+    /// explains the record) [default: normal].
     #[arg(long, requires = "data", value_name = "LEVEL", value_parser = ["low", "normal", "high"])]
     pub effort: Option<String>,
     /// Write t, observed, model, residual to this CSV (--data; with a

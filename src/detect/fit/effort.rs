@@ -2,11 +2,11 @@
 //! hard the search for an unknown number of defects works before it
 //! answers. The time-domain refits follow it for a given number too.
 //!
-//! | level | searches at `k` | time-domain refits | `k` raised until |
-//! |---|---|---|---|
-//! | `low` | from `k = 3` nested in the best 4 answers at `k - 1` | sets within 9 of the Bromwich line's best (3 sigma) | one more defect does not help |
-//! | `normal` (default) | from `k = 3` nested in the best 8 answers | within 25 (5 sigma) | two more in a row do not help |
-//! | `high` | every set at every `k` (as `exhaustive`) where there are at most `max_sets`, else as normal | every set of the shortlist | `k_max` (no early stop) |
+//! | level | searches at `k` | time-domain refits | `k` raised until | damping model chosen (`--fit d`) |
+//! |---|---|---|---|---|
+//! | `low` | from `k = 3` nested in the best 4 answers at `k - 1` | sets within 9 of the Bromwich line's best (3 sigma) | one more defect does not help | as normal |
+//! | `normal` (default) | from `k = 3` nested in the best 8 answers | within 25 (5 sigma) | two more in a row do not help | models searched until one explains the record, the rest fitted at its set ([`super::damping::fit_choosing`]) |
+//! | `high` | every set at every `k` (as `exhaustive`) where there are at most `max_sets`, else as normal | every set of the shortlist | `k_max` (no early stop) | every model searched |
 //!
 //! "Does not help": the step lowers the time-domain chi-square by less
 //! than noise would (a BIC step of `2 ln N` per defect,

@@ -238,7 +238,12 @@ impl Engine<'_> {
                 bounds: None,
             })
             .collect();
-        if self.opts.slot_kinds.len() == k && k > 0 {
+        if !self.opts.set.is_empty() {
+            slots.extend(self.opts.set.iter().map(|&(kind, at)| Slot {
+                at: Some(at),
+                ..Slot::free(KindChoice::from(kind))
+            }));
+        } else if self.opts.slot_kinds.len() == k && k > 0 {
             slots.extend(self.opts.slot_kinds.iter().map(|&kind| Slot::free(kind)));
         } else {
             slots.extend((0..k).map(|_| Slot::free(self.opts.kinds)));

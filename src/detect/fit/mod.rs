@@ -159,11 +159,25 @@ fn fit_with(
         let screen = damping::screen_options(opts);
         let candidate = damping::candidate_options(opts);
         let refit = screen.noise_model != opts.noise_model || screen.nuisance != opts.nuisance;
+        let at = |m: &Model, set: &damping::Set| {
+            let o = FitOptions {
+                defects: DefectCount::Exactly(set.len()),
+                set: set.to_vec(),
+                ..candidate.clone()
+            };
+            fit_with(obs, m, &o, None)
+        };
+        let asked = |m: &Model| fit_with(obs, m, opts, None);
         return damping::fit_choosing(
             model,
-            |m| fit_with(obs, m, &candidate, None),
-            |m: &Model| fit_with(obs, m, &screen, None),
-            refit.then_some(|m: &Model| fit_with(obs, m, opts, None)),
+            &damping::ChoiceFits {
+                candidate: &|m| fit_with(obs, m, &candidate, None),
+                at: &at,
+                chosen: &|m| fit_with(obs, m, &screen, None),
+                refit: refit.then_some(&asked as damping::FitOne<'_>),
+                every: opts.effort == effort::Effort::High,
+                parallel: opts.parallel,
+            },
         );
     }
     if !model.chain().damping().is_grounded() {

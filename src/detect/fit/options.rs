@@ -196,6 +196,12 @@ pub struct FitOptions {
     /// made again at the largest model's estimate: the criterion is the
     /// residual's, which the level does not enter) (default false).
     pub screen: bool,
+    /// Fit only this set: each defect's kind and position, its value
+    /// free, with `defects` the set's size (the damping choice's check of
+    /// the other models at the answer's positions,
+    /// [`super::damping::fit_choosing`]); empty (the default): search the
+    /// positions.
+    pub set: Vec<(DefectKind, usize)>,
 }
 
 impl Default for FitOptions {
@@ -224,6 +230,7 @@ impl Default for FitOptions {
             prior: Default::default(),
             uncertainty: true,
             screen: false,
+            set: Vec::new(),
         }
     }
 }
@@ -256,6 +263,7 @@ impl FitOptions {
                 "one kind per defect: as many kinds as defects, with a given number of defects",
             ));
         }
+        self.validate_set(n)?;
         let all_mass = self.kinds == KindChoice::Mass
             && self.slot_kinds.iter().all(|k| *k == KindChoice::Mass);
         if !matches!(
@@ -313,6 +321,34 @@ impl FitOptions {
 }
 
 impl FitOptions {
+    /// A given set ([`FitOptions::set`]): as many defects as its entries,
+    /// each position within the chain, no position of a kind twice.
+    fn validate_set(&self, n: usize) -> Result<()> {
+        if self.set.is_empty() {
+            return Ok(());
+        }
+        if self.defects != DefectCount::Exactly(self.set.len()) {
+            return Err(Error::invalid(
+                "defects",
+                format!("{:?}", self.defects),
+                format!("{} (the given set's size)", self.set.len()),
+            ));
+        }
+        for (i, &(kind, at)) in self.set.iter().enumerate() {
+            if !(1..=n).contains(&at) {
+                return Err(Error::invalid("set", at, format!("a position in 1..={n}")));
+            }
+            if self.set[..i].contains(&(kind, at)) {
+                return Err(Error::invalid(
+                    "set",
+                    format!("{} {at} twice", kind.name()),
+                    "each kind and position once",
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// The misfit the data and the model allow: the time misfit needs a
     /// sampled series; the modal damping model is fitted from a sampled
     /// record by the time misfit, by the enumeration or a stochastic search

@@ -18,6 +18,10 @@ pub struct DampingCandidate {
     pub k: usize,
     /// Its positions.
     pub positions: Vec<usize>,
+    /// Whether its positions were searched; `false`: fitted at the chosen
+    /// model's set only, which explains the record and where this model
+    /// does no better ([`crate::detect::fit::damping::fit_choosing`]).
+    pub searched: bool,
 }
 
 /// The damping model of a fit and its parameters with standard errors:
@@ -87,7 +91,14 @@ impl DampingEstimate {
                 .iter()
                 .map(|c| format!("{} {:.1}", c.model, c.criterion))
                 .collect();
-            out.push_str(&format!("; chosen by BIC among {}", c.join(", ")));
+            if self.candidates.iter().all(|c| c.searched) {
+                out.push_str(&format!("; chosen by BIC among {}", c.join(", ")));
+            } else {
+                out.push_str(&format!(
+                    "; chosen: it explains the record and no other model does better at its set (BIC {}; --effort high searches every model)",
+                    c.join(", ")
+                ));
+            }
         }
         out
     }
