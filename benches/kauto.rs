@@ -29,7 +29,9 @@
 //! grounded`) against the defaults told `d` (`.../given`), on `s3` and
 //! `n37` (issue 30: at most 2x); the ratio is printed after each group.
 //! On `s3` also the fit that chooses the damping model too
-//! (`cpu/fit-d/s3/choice`: `--fit d` alone).
+//! (`cpu/fit-d/s3/choice`: `--fit d` alone; with `parallel` false its
+//! candidates are fitted on the calling thread, so its thread CPU time is
+//! all of its work).
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use springmass::detect::data::observations::{Observations, Series};

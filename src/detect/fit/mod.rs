@@ -160,9 +160,11 @@ fn fit_with(
         let candidate = damping::candidate_options(opts);
         let refit = screen.noise_model != opts.noise_model || screen.nuisance != opts.nuisance;
         let at = |m: &Model, set: &damping::Set| {
+            // one set: nothing to search
             let o = FitOptions {
                 defects: DefectCount::Exactly(set.len()),
                 set: set.to_vec(),
+                method: FitMethod::Enumerate,
                 ..candidate.clone()
             };
             fit_with(obs, m, &o, None)

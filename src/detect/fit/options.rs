@@ -926,6 +926,38 @@ mod tests {
     }
 
     #[test]
+    fn a_given_set_is_checked() {
+        let model = Model::new(5).unwrap();
+        let t: Vec<f64> = (0..50).map(|i| 0.5 * i as f64).collect();
+        let x = t.iter().map(|t| (0.3 * t).sin()).collect();
+        let obs = Observations::Series(Series::new(t, x, None).unwrap());
+        let with = |defects, set: Vec<(DefectKind, usize)>| FitOptions {
+            defects,
+            set,
+            ..FitOptions::default()
+        };
+        let field = |o: FitOptions| match o.validate(&obs, &model) {
+            Err(Error::InvalidParameter { field, .. }) => field,
+            other => panic!("{other:?}"),
+        };
+        let two = vec![(DefectKind::Mass, 2), (DefectKind::Spring, 4)];
+        assert!(with(DefectCount::Exactly(2), two.clone())
+            .validate(&obs, &model)
+            .is_ok());
+        assert_eq!(field(with(DefectCount::Exactly(1), two)), "defects");
+        assert_eq!(
+            field(with(DefectCount::Exactly(1), vec![(DefectKind::Mass, 6)])),
+            "set"
+        );
+        assert_eq!(
+            field(with(DefectCount::Exactly(1), vec![(DefectKind::Mass, 0)])),
+            "set"
+        );
+        let twice = vec![(DefectKind::Mass, 2), (DefectKind::Mass, 2)];
+        assert_eq!(field(with(DefectCount::Exactly(2), twice)), "set");
+    }
+
+    #[test]
     fn the_default_number_of_defects_is_capped_at_n() {
         for n in 1..=5 {
             let opts = FitSpec::new(n).options().unwrap();
