@@ -91,6 +91,7 @@ impl Engine<'_> {
             exhaustive: f.exhaustive,
             trace: f.trace.clone(),
             wall_time_s: t0.elapsed().as_secs_f64(),
+            screened: false,
             predicted: self.predicted(f),
             modes: fitted_modes(best, self.model.chain()),
             trigger: None,

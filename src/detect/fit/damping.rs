@@ -19,7 +19,9 @@
 //! far explains the record (its residual is noise), each model not yet
 //! searched is fitted at its set alone, and if none does better there it
 //! is chosen ([`fit_choosing`]; `--effort high` searches every model).
-//! When the chosen model's screening residual is not noise, it is fitted
+//! The chosen model's screening fit is its answer when it explains the
+//! record (a screening fit is then finished as a full one). When the
+//! chosen model's screening residual is not noise, it is fitted
 //! again with the options asked for (the default noise model `auto` takes a
 //! coloured-noise model then); otherwise its screening fit is the report,
 //! as `auto` would keep it.
@@ -76,16 +78,15 @@ pub fn screen_options(opts: &FitOptions) -> FitOptions {
 }
 
 /// The options a candidate is screened with: [`screen_options`] as a
-/// screening fit (no search of every set after a narrowed answer that does
-/// not explain the record, [`FitOptions::screen`]) without uncertainty: the
-/// choice compares criteria only, and the chosen model is fitted again
-/// with [`screen_options`]. On the wrong models, whose answers never
-/// explain the record, the search of every set was most of the choice's
-/// cost.
+/// screening fit ([`FitOptions::screen`]: no search of every set after a
+/// narrowed answer that does not explain the record; such an answer's
+/// noise level is not settled, and it has no intervals). On the wrong
+/// models, whose answers never explain the record, the search of every set
+/// was most of the choice's cost. A candidate that explains the record is
+/// the fit [`screen_options`] gives, and is the answer when chosen.
 pub fn candidate_options(opts: &FitOptions) -> FitOptions {
     FitOptions {
         screen: true,
-        uncertainty: false,
         ..screen_options(opts)
     }
 }
@@ -142,9 +143,12 @@ pub struct ChoiceFits<'a> {
 /// does better there, that model is chosen and the others are listed as
 /// fitted at its set ([`DampingCandidate::searched`] false). Otherwise,
 /// and with [`ChoiceFits::every`] (every model searched side by side),
-/// the smallest criterion chooses. The chosen model is fitted again with
-/// [`ChoiceFits::chosen`], then with [`ChoiceFits::refit`] when given and
-/// that fit does not explain the record.
+/// the smallest criterion chooses. The chosen model's screening fit is the
+/// answer when it explains the record (it is then the fit
+/// [`ChoiceFits::chosen`] gives, [`FitReport::screened`]); otherwise the
+/// model is fitted again with [`ChoiceFits::chosen`]; then with
+/// [`ChoiceFits::refit`] when given and that fit does not explain the
+/// record.
 ///
 /// Why a model that explains the record is not searched against: its
 /// residual is already noise, so a model with more free parameters beats it
@@ -166,8 +170,7 @@ pub fn fit_choosing(model: &Model, fits: &ChoiceFits<'_>) -> Result<FitReport> {
     let started = std::time::Instant::now();
     if fits.every {
         let all = search(model, &Damping::MODELS, fits)?;
-        let (m, candidates, spent) = best_of(all)?;
-        return chosen(&m, candidates, spent, started, fits);
+        return chosen(best_of(all)?, started, fits);
     }
     let mut searched: Vec<Candidate<'_>> = Vec::new();
     let mut spent = 0;
@@ -179,22 +182,24 @@ pub fn fit_choosing(model: &Model, fits: &ChoiceFits<'_>) -> Result<FitReport> {
             .iter()
             .filter_map(|(_, m, r)| r.as_ref().ok().map(|r| (criterion(r), m, r)))
             .min_by(|a, b| a.0.total_cmp(&b.0));
-        let Some((bar, m, r)) = best.filter(|b| b.0.is_finite() && b.2.fits_data) else {
+        let Some((bar, _, r)) = best.filter(|b| b.0.is_finite() && b.2.fits_data) else {
             continue;
         };
         let rest = &ORDER[i + 1..];
         let (others, at_spent) = at_set(model, r, bar, rest, fits)?;
         spent += at_spent;
         if let Some(others) = others {
-            let m = m.clone();
-            let (_, mut candidates, s) = best_of(searched)?;
-            candidates.extend(others);
-            candidates.sort_by_key(|c| Damping::MODELS.iter().position(|n| *n == c.model));
-            return chosen(&m, candidates, spent + s, started, fits);
+            let mut best = best_of(searched)?;
+            best.candidates.extend(others);
+            best.candidates
+                .sort_by_key(|c| Damping::MODELS.iter().position(|n| *n == c.model));
+            best.evaluations += spent;
+            return chosen(best, started, fits);
         }
     }
-    let (m, candidates, s) = best_of(searched)?;
-    chosen(&m, candidates, spent + s, started, fits)
+    let mut best = best_of(searched)?;
+    best.evaluations += spent;
+    chosen(best, started, fits)
 }
 
 /// The screening fits of the models `names` side by side, in their order.
@@ -218,27 +223,47 @@ fn search<'n>(
     }
 }
 
-/// The report of the chosen model `m`: fitted with [`ChoiceFits::chosen`]
-/// (the candidates were screening fits), then with [`ChoiceFits::refit`]
-/// when given and that fit does not explain the record, its `damping`
-/// entry listing `candidates`; `evaluations` (those of the candidates)
-/// and the wall time from `started` include its own.
-fn chosen(
-    m: &Model,
+/// The chosen model: the searched candidate with the smallest criterion
+/// ([`best_of`]).
+struct Best {
+    /// The model.
+    model: Model,
+    /// Its screening fit.
+    report: FitReport,
+    /// Every candidate's entry.
     candidates: Vec<DampingCandidate>,
-    mut evaluations: usize,
-    started: std::time::Instant,
-    fits: &ChoiceFits<'_>,
-) -> Result<FitReport> {
-    let mut report = (fits.chosen)(m)?;
-    evaluations += report.evaluations;
+    /// The evaluations of every fit so far.
+    evaluations: usize,
+}
+
+/// The report of the chosen model: its screening fit where that is the
+/// fit [`ChoiceFits::chosen`] would give (it explains the record,
+/// [`FitReport::screened`] false), else fitted with [`ChoiceFits::chosen`];
+/// then with [`ChoiceFits::refit`] when given and that fit does not explain
+/// the record. Its `damping` entry lists the candidates; its evaluations
+/// are every fit's and its wall time that of the choice from `started`.
+fn chosen(best: Best, started: std::time::Instant, fits: &ChoiceFits<'_>) -> Result<FitReport> {
+    let Best {
+        model: m,
+        report,
+        candidates,
+        mut evaluations,
+    } = best;
+    let mut report = match report.screened {
+        false => report,
+        true => {
+            let r = (fits.chosen)(&m)?;
+            evaluations += r.evaluations;
+            r
+        }
+    };
     // a white residual: the options asked for (`auto`) would keep the
     // white fit, so the screening fit is the answer
     if let Some(refit) = fits.refit.filter(|_| !report.fits_data) {
-        report = refit(m)?;
+        report = refit(&m)?;
         evaluations += report.evaluations;
     }
-    let mut est = DampingEstimate::of(&report, m);
+    let mut est = DampingEstimate::of(&report, &m);
     est.candidates = candidates;
     report.damping = Some(est);
     report.evaluations = evaluations;
@@ -302,15 +327,15 @@ fn at_set(
 }
 
 /// The searched candidates' entries in the order of [`Damping::MODELS`],
-/// the model with the smallest [`criterion`] (the first in that order on a
+/// the one with the smallest [`criterion`] (the first in that order on a
 /// tie) and the evaluations of their fits.
 ///
 /// # Errors
 /// The first candidate's error (in that order) when every candidate
 /// failed; a cancellation.
-fn best_of(mut searched: Vec<Candidate<'_>>) -> Result<(Model, Vec<DampingCandidate>, usize)> {
+fn best_of(mut searched: Vec<Candidate<'_>>) -> Result<Best> {
     searched.sort_by_key(|c| Damping::MODELS.iter().position(|n| *n == c.0));
-    let mut best: Option<(f64, Model)> = None;
+    let mut best: Option<(f64, Model, FitReport)> = None;
     let mut candidates = Vec::new();
     let mut first_err = None;
     let mut evaluations = 0;
@@ -333,15 +358,20 @@ fn best_of(mut searched: Vec<Candidate<'_>>) -> Result<(Model, Vec<DampingCandid
         evaluations += r.evaluations;
         let c = candidate_of(name, &r, true);
         if best.as_ref().is_none_or(|(b, ..)| c.criterion < *b) {
-            best = Some((c.criterion, m));
+            best = Some((c.criterion, m, r));
         }
         candidates.push(c);
     }
-    let Some((_, m)) = best else {
+    let Some((_, model, report)) = best else {
         return Err(first_err
             .unwrap_or_else(|| Error::invalid("damping", "none", "a damping model that fits")));
     };
-    Ok((m, candidates, evaluations))
+    Ok(Best {
+        model,
+        report,
+        candidates,
+        evaluations,
+    })
 }
 
 #[cfg(test)]
@@ -383,6 +413,7 @@ mod tests {
     fn stub(base: &FitReport, (rss, fits): Outcome) -> FitReport {
         let mut r = base.clone();
         r.fits_data = fits;
+        r.screened = !fits;
         r.damping = None;
         for v in &mut r.predicted.as_mut().unwrap().residual {
             *v *= rss.sqrt();

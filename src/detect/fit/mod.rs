@@ -160,11 +160,12 @@ fn fit_with(
         let candidate = damping::candidate_options(opts);
         let refit = screen.noise_model != opts.noise_model || screen.nuisance != opts.nuisance;
         let at = |m: &Model, set: &damping::Set| {
-            // one set: nothing to search
+            // one set: nothing to search, and compared by its criterion only
             let o = FitOptions {
                 defects: DefectCount::Exactly(set.len()),
                 set: set.to_vec(),
                 method: FitMethod::Enumerate,
+                uncertainty: false,
                 ..candidate.clone()
             };
             fit_with(obs, m, &o, None)
@@ -261,7 +262,10 @@ fn fit_record(
     if !scene && one_sensor && report.defects.iter().all(|d| d.kind == "mass") {
         add_visibility(&mut report, engine, sigma)?;
     }
-    if opts.uncertainty {
+    // a screening fit is finished as a full one where it explains the
+    // record (settled, [`stages`]): it may then be the answer
+    report.screened = opts.screen && !stage.settled_and_explained();
+    if opts.uncertainty && !report.screened {
         add_uncertainty(&mut report, &stage)?;
     }
     Ok(report)

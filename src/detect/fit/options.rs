@@ -192,9 +192,13 @@ pub struct FitOptions {
     /// A screening fit, compared with others by its criterion only (the
     /// damping choice's candidates, [`super::damping::fit_choosing`]): no
     /// search of every set when the narrowed answer does not explain the
-    /// record, and an estimated noise level not settled (the fits are not
-    /// made again at the largest model's estimate: the criterion is the
-    /// residual's, which the level does not enter) (default false).
+    /// record, and, unless it explains the record, an estimated noise level
+    /// not settled (the fits are not made again at the largest model's
+    /// estimate: the criterion is the residual's, which the level does not
+    /// enter) and no intervals. A screening fit that explains the record is
+    /// the fit a full one would be, and may be the answer
+    /// ([`FitReport::screened`](super::FitReport::screened) false) (default
+    /// false).
     pub screen: bool,
     /// Fit only this set: each defect's kind and position, its value
     /// free, with `defects` the set's size (the damping choice's check of

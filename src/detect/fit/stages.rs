@@ -60,6 +60,12 @@ impl Stage<'_> {
         self.best().predicted.as_ref().map(|(_, r)| r.as_slice())
     }
 
+    /// Whether its noise level is settled and its answer explains the
+    /// record: a screening fit is then the fit a full one would be.
+    pub(super) fn settled_and_explained(&self) -> bool {
+        self.settled && self.explained
+    }
+
     /// The chosen fit's best chain.
     fn chain(&self) -> Result<Chain> {
         self.best().ranked[0].to_chain(self.engine.model.chain())
@@ -95,13 +101,15 @@ fn run<'a>(
         record,
     };
     // a screening fit is compared by its residual's criterion, which the
-    // noise level does not enter: its level is not settled
+    // noise level does not enter: its level is settled only when it
+    // explains the record (it may then be the answer, [`settled`])
     let settle = last && !opts.screen;
     let (fits, first, evaluations) = fit_every_k(&engine, sigma, estimated, narrow, settle)?;
     let mut stage = finish(engine, fits, [sigma, first], estimated, evaluations, narrow)?;
-    stage.settled = last;
+    // a known level needs no settling
+    stage.settled = settle || (last && !estimated);
     match last {
-        true => widened(stage),
+        true => widened(settled(stage)?),
         false => Ok(stage),
     }
 }
@@ -114,12 +122,17 @@ fn last(stage: Stage<'_>) -> Result<Stage<'_>> {
     widened(settled(stage)?)
 }
 
-/// `stage` with its estimated noise level settled, if it was not.
+/// `stage` with its estimated noise level settled, if it was not: a
+/// screening fit's only when it explains the record, so that it is then
+/// the fit a full one would be (the same fits at the same levels; a full
+/// one searches every set only where its answer does not explain the
+/// record, [`widened`]).
 ///
 /// # Errors
 /// As [`settle_sigma`].
 fn settled(stage: Stage<'_>) -> Result<Stage<'_>> {
-    if stage.settled || !stage.estimated || stage.engine.opts.screen {
+    let screened = stage.engine.opts.screen && !stage.explained;
+    if stage.settled || !stage.estimated || screened {
         return Ok(stage);
     }
     let Stage {

@@ -268,6 +268,12 @@ pub struct FitReport {
     pub trace: Option<Vec<(usize, f64)>>,
     /// Wall time, seconds.
     pub wall_time_s: f64,
+    /// A screening fit's answer that does not explain the record
+    /// ([`FitOptions::screen`](super::FitOptions::screen)): its noise level
+    /// not settled and no intervals, so not the fit a full one would be
+    /// (not written).
+    #[serde(skip)]
+    pub screened: bool,
     /// The predicted series (series data only).
     pub predicted: Option<Predicted>,
     /// The identifiability report of the best answer.
