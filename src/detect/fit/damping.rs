@@ -480,64 +480,99 @@ mod tests {
     #[test]
     fn the_first_model_that_explains_the_record_is_checked_at_its_set() {
         let (no, yes) = (false, true);
-        // grounded explains; the others do worse at its set: they are
-        // fitted there only
-        let (m, s, a, flags) = choose(
-            [(1.0, yes), (0.5, yes), (0.5, yes), (0.5, yes)],
-            [(9.0, no), (1.0, yes), (2.0, no), (3.0, no)],
-            false,
+        let every = ["between", "grounded", "modal", "rayleigh"];
+        // (searched, at a set, every, chosen, searched (sorted), fitted at
+        // a set (sorted), the candidates' flags in the order of MODELS:
+        // grounded, between, rayleigh, modal)
+        type Case<'a> = (
+            [Outcome; 4],
+            [Outcome; 4],
+            bool,
+            &'a str,
+            &'a [&'a str],
+            &'a [&'a str],
+            [bool; 4],
         );
-        assert_eq!((m.as_str(), s), ("grounded", vec!["grounded".to_string()]));
-        assert_eq!(a, ["between", "modal", "rayleigh"]);
-        assert_eq!(flags, [true, false, false, false]);
-        // rayleigh does better at grounded's set: it is searched, explains
-        // the record, and modal and between do no better at its set
-        let (m, s, a, flags) = choose(
-            [(1.0, yes), (0.5, yes), (0.9, yes), (0.5, yes)],
-            [(9.0, no), (2.0, no), (0.95, yes), (0.99, yes)],
-            false,
-        );
-        assert_eq!(m, "rayleigh");
-        assert_eq!(s, ["grounded", "rayleigh"]);
-        assert_eq!(a, ["between", "between", "modal", "modal", "rayleigh"]);
-        assert_eq!(flags, [true, false, true, false]);
-        // grounded and rayleigh do not explain the record, modal does:
-        // between is fitted at its set only
-        let (m, s, a, flags) = choose(
-            [(1.0, no), (0.65, yes), (0.9, no), (0.6, yes)],
-            [(1.0, no), (0.7, no), (1.0, no), (1.0, no)],
-            false,
-        );
-        assert_eq!(m, "modal");
-        assert_eq!(s, ["grounded", "modal", "rayleigh"]);
-        assert_eq!(a, ["between"]);
-        assert_eq!(flags, [true, false, true, true]);
-        // nothing explains the record: every model searched, the smallest
-        // criterion chosen
-        let (m, s, a, flags) = choose(
-            [(1.0, no), (0.8, no), (0.9, no), (0.7, no)],
-            [(1.0, yes); 4],
-            false,
-        );
-        assert_eq!(m, "modal");
-        assert_eq!(s, ["between", "grounded", "modal", "rayleigh"]);
-        assert!(a.is_empty());
-        assert_eq!(flags, [true; 4]);
-        // a model that explains the record but is beaten by one searched
-        // before it does not stop the search
-        let (m, s, _, _) = choose(
-            [(0.5, no), (0.8, no), (0.9, yes), (0.7, no)],
-            [(1.0, yes); 4],
-            false,
-        );
-        assert_eq!((m.as_str(), s.len()), ("grounded", 4));
-        // every model searched when asked, none at a set
-        let (m, s, a, flags) = choose(
-            [(1.0, yes), (0.5, yes), (0.9, yes), (0.6, yes)],
-            [(0.1, yes); 4],
-            true,
-        );
-        assert_eq!((m.as_str(), s.len(), a.len()), ("between", 4, 0));
-        assert_eq!(flags, [true; 4]);
+        let cases: [Case<'_>; 6] = [
+            // grounded explains; the others do no better at its set: they
+            // are fitted there only
+            (
+                [(1.0, yes), (0.5, yes), (0.5, yes), (0.5, yes)],
+                [(9.0, no), (1.0, yes), (2.0, no), (3.0, no)],
+                false,
+                "grounded",
+                &["grounded"],
+                &["between", "modal", "rayleigh"],
+                [true, false, false, false],
+            ),
+            // rayleigh does better at grounded's set: it is searched,
+            // explains the record, and modal and between do no better at
+            // its set
+            (
+                [(1.0, yes), (0.5, yes), (0.9, yes), (0.5, yes)],
+                [(9.0, no), (2.0, no), (0.95, yes), (0.99, yes)],
+                false,
+                "rayleigh",
+                &["grounded", "rayleigh"],
+                &["between", "between", "modal", "modal", "rayleigh"],
+                [true, false, true, false],
+            ),
+            // grounded and rayleigh do not explain the record, modal does:
+            // between is fitted at its set only
+            (
+                [(1.0, no), (0.65, yes), (0.9, no), (0.6, yes)],
+                [(1.0, no), (0.7, no), (1.0, no), (1.0, no)],
+                false,
+                "modal",
+                &["grounded", "modal", "rayleigh"],
+                &["between"],
+                [true, false, true, true],
+            ),
+            // nothing explains the record: every model searched, the
+            // smallest criterion chosen
+            (
+                [(1.0, no), (0.8, no), (0.9, no), (0.7, no)],
+                [(1.0, yes); 4],
+                false,
+                "modal",
+                &every,
+                &[],
+                [true; 4],
+            ),
+            // a model that explains the record but is beaten by one
+            // searched before it does not stop the search
+            (
+                [(0.5, no), (0.8, no), (0.9, yes), (0.7, no)],
+                [(1.0, yes); 4],
+                false,
+                "grounded",
+                &every,
+                &[],
+                [true; 4],
+            ),
+            // every model searched when asked, none at a set
+            (
+                [(1.0, yes), (0.5, yes), (0.9, yes), (0.6, yes)],
+                [(0.1, yes); 4],
+                true,
+                "between",
+                &every,
+                &[],
+                [true; 4],
+            ),
+        ];
+        for (i, (searched, at, all, model, s, a, flags)) in cases.into_iter().enumerate() {
+            let got = choose(searched, at, all);
+            assert_eq!(
+                got,
+                (
+                    model.to_string(),
+                    s.iter().map(|n| n.to_string()).collect(),
+                    a.iter().map(|n| n.to_string()).collect(),
+                    flags.to_vec()
+                ),
+                "case {i}"
+            );
+        }
     }
 }
