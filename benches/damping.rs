@@ -1,6 +1,7 @@
 //! Wall time of the damping model's choice (issue 27's cost): on a record
-//! of a Rayleigh-damped chain, the defaults with `--fit d` (every damping
-//! model screened, side by side, the chosen one kept) against the same fit
+//! of a Rayleigh-damped chain, the defaults with `--fit d` (the damping
+//! models screened cheapest first until one explains the record, the
+//! others fitted at its set) against the same fit
 //! told the model (`--damping rayleigh --fit d`), and against the defaults
 //! on a record of the paper's grounded damping of the same chain (the
 //! white-noise fit the issue measures the cost against). One run, so the
