@@ -39,13 +39,30 @@ use crate::detect::unknowns::DefectKind;
 use crate::error::{Error, Result};
 
 /// `N ln(RSS / N) + p ln N` of a report (module docs); `NaN` without a
-/// predicted series.
+/// predicted series. With several sensors or records, each its own noise
+/// level estimated from its own residual, `sum_j N_j ln(RSS_j / N_j) + p
+/// ln N` (`N` every sensor's samples): the log-likelihood with each
+/// sensor's variance profiled out, from the levels the report gives
+/// (`sigma_j^2 = RSS_j / (N_j (1 - p / N))`).
 pub fn criterion(report: &FitReport) -> f64 {
     let p = report
         .k_selection
         .iter()
         .find(|r| r.k == report.k)
         .map_or(report.params.len(), |r| r.params) as f64;
+    if !report.sensors.is_empty() && report.noise_estimated {
+        let n: f64 = report.sensors.iter().map(|s| s.samples as f64).sum();
+        let keep = 1.0 - p / n;
+        if !(keep > 0.0) || report.sensors.iter().any(|s| !(s.sigma > 0.0)) {
+            return f64::NAN;
+        }
+        let log_lik: f64 = report
+            .sensors
+            .iter()
+            .map(|s| s.samples as f64 * (s.sigma * s.sigma * keep).ln())
+            .sum();
+        return log_lik + p * n.ln();
+    }
     let (rss, n) = match &report.predicted {
         Some(pr) => (
             pr.residual.iter().map(|r| r * r).sum::<f64>(),
@@ -475,6 +492,35 @@ mod tests {
         s.sort();
         a.sort();
         (est.model, s, a, flags)
+    }
+
+    /// With several sensors the criterion is every sensor's log-likelihood
+    /// at its own level: a sensor fitted twice as badly (its level doubled)
+    /// raises it by `N_j ln 4`, and every sensor's samples count.
+    #[test]
+    fn the_criterion_of_several_sensors_counts_each_at_its_level() {
+        use crate::detect::fit::report::SensorEstimate;
+        let (mut r, _) = base();
+        let sensor = |samples, sigma| SensorEstimate {
+            record: 0,
+            at: 1,
+            kind: "displacement".into(),
+            samples,
+            sigma,
+            whiteness_p: 0.5,
+            fits_data: true,
+        };
+        r.noise_estimated = true;
+        r.sensors = vec![sensor(400, 1e-3), sensor(600, 2e-3)];
+        let p = r.k_selection.iter().find(|k| k.k == r.k).unwrap().params as f64;
+        let keep = 1.0 - p / 1000.0;
+        let want = 400.0 * (1e-6 * keep).ln() + 600.0 * (4e-6 * keep).ln() + p * 1000f64.ln();
+        let c = criterion(&r);
+        assert!((c - want).abs() < 1e-9 * want.abs(), "{c} {want}");
+        r.sensors[0].sigma = 2e-3;
+        assert!((criterion(&r) - c - 400.0 * 4f64.ln()).abs() < 1e-6);
+        r.sensors[1].sigma = 0.0;
+        assert!(criterion(&r).is_nan());
     }
 
     #[test]
