@@ -17,13 +17,13 @@
 //!   at 15) with the defaults, for `none`, `ar1-0.9`, `ar1-0.99`,
 //!   `offset-drift`, `pre-trigger` and `late-clock`;
 //! * `realism/S1-fit-d/<deviation>`: System 1 (n = 5, masses 3 at 2 and
-//!   0.5 at 4) with the damping unknown (`--fit d`: every damping model
+//!   0.5 at 4) with the damping unknown (`--fit d`: the damping models
 //!   screened, the criterion's kept), for `none` (the paper's grounded
 //!   damping), `rayleigh`, `between` and `modal`.
 //!
 //! The `S3` group runs every fit on this thread (`parallel = false`) and
 //! takes this thread's CPU time; the `S1-fit-d` group takes wall time (the
-//! damping models are screened side by side on other threads). After each
+//! damping models may be screened side by side on other threads). After each
 //! group, the ratio of each deviation to `none` (mean wall time of 2 fits)
 //! is printed.
 

@@ -784,8 +784,10 @@ def fit(
         (a ratio per mode, the last for every higher mode; with
         ``fit=("d",)`` the starting values of the fitted ratios, reported as
         ``zeta_1``, ``zeta_2``, ..); parameters not given are fitted with
-        ``fit=("d",)``. Default: grounded, or with
-        ``fit=("d",)`` every model, the BIC choosing (``FitResult.damping``).
+        ``fit=("d",)``. Default: grounded, or with ``fit=("d",)`` the
+        model the BIC chooses (``FitResult.damping``): the models searched
+        cheapest first until one explains the record, the others fitted at
+        its defects (``effort="high"`` searches every model).
     trigger : "auto" or float, default "auto"
         When the blow came on the record's time axis: ``"auto"`` detects a
         quiet pre-trigger segment or a clock that does not start at the blow

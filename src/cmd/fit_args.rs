@@ -250,8 +250,11 @@ pub struct Args {
     /// storeys), rayleigh[:A:B] (C = A M + B K), modal[:ZETA] (one damping
     /// ratio for every mode) or modal:Z1,Z2,.. (a ratio per mode, the last
     /// for every higher mode; with --fit d these are the starting values of
-    /// the fitted ratios). Parameters not given are fitted with --fit d. Default: grounded; with --fit d every model is
-    /// fitted and BIC chooses. --d is then the extra grounded damping (default 0).
+    /// the fitted ratios). Parameters not given are fitted with --fit d.
+    /// Default: grounded; with --fit d the models are searched cheapest
+    /// first until one explains the record, the others fitted at its
+    /// defects, and BIC chooses (--effort high searches every model). --d
+    /// is then the extra grounded damping (default 0).
     #[arg(long, requires = "input", value_name = "MODEL[:P1[:P2]]")]
     pub damping: Option<String>,
 }

@@ -13,8 +13,8 @@ pub struct Model {
     /// The chain parameters asked for (`D` standing for the damping model's
     /// parameters), before [`Model::fitted`]'s expansion.
     asked: Vec<Param>,
-    /// Fit every damping model and let the criterion choose (`--fit d`
-    /// without `--damping`: [`crate::detect::fit::damping`]).
+    /// Choose the damping model by the criterion (`--fit d` without
+    /// `--damping`: [`crate::detect::fit::damping`]).
     choose_damping: bool,
 }
 
@@ -227,9 +227,10 @@ impl Model {
         Ok(m)
     }
 
-    /// Fit every damping model (grounded, between, Rayleigh, modal) and report
-    /// the one the criterion prefers ([`crate::detect::fit::damping`]);
-    /// meaningful with `D` fitted.
+    /// Choose among the damping models (grounded, between, Rayleigh,
+    /// modal) and report the one the criterion prefers
+    /// ([`crate::detect::fit::damping::fit_choosing`]); meaningful with `D`
+    /// fitted.
     pub fn choosing_damping(mut self) -> Model {
         self.choose_damping = self.asked.contains(&Param::D);
         self
