@@ -53,7 +53,8 @@ pub fn criterion(report: &FitReport) -> f64 {
     if !report.sensors.is_empty() && report.noise_estimated {
         let n: f64 = report.sensors.iter().map(|s| s.samples as f64).sum();
         let keep = 1.0 - p / n;
-        if !(keep > 0.0) || report.sensors.iter().any(|s| !(s.sigma > 0.0)) {
+        let positive = |v: f64| v > 0.0;
+        if !positive(keep) || !report.sensors.iter().all(|s| positive(s.sigma)) {
             return f64::NAN;
         }
         let log_lik: f64 = report
