@@ -102,14 +102,16 @@ impl Engine<'_> {
             whiteness_p: self.whiteness_p(f),
             nuisance: self.nuisance_estimates(best, sigma).unwrap_or_default(),
             damping: None,
-            baseline: self
-                .model
-                .chain()
-                .baseline()
-                .map(|b| b.source().to_string()),
+            baseline: self.baseline_source(),
             level: self.opts.level,
             posterior: None,
         })
+    }
+
+    /// Where the model's measured baseline came from, if it has one.
+    fn baseline_source(&self) -> Option<String> {
+        let baseline = self.model.chain().baseline();
+        baseline.map(|b| b.source().to_string())
     }
 
     /// The runners-up of `ranked` (after its best), at most the options'

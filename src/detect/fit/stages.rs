@@ -109,7 +109,7 @@ fn run<'a>(
     // a known level needs no settling
     stage.settled = settle || (last && !estimated);
     match last {
-        true => widened(settled(stage)?),
+        true => self::last(stage),
         false => Ok(stage),
     }
 }
