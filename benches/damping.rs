@@ -52,6 +52,8 @@ fn bench(c: &mut Criterion) {
         fit: fit_d.then(|| "d".to_string()),
         damping: damping.map(str::to_string),
         d: Some(d),
+        // masses: the record's defects (every kind: `cpu/kinds` in kauto)
+        kinds: Some("mass".into()),
         ..FitSpec::new(5)
     };
     let cases = [

@@ -63,6 +63,8 @@ fn bench_cpu(c: &mut Criterion<CpuTime>) {
         let model = Model::new(n).unwrap();
         let opts = FitOptions {
             defects: DefectCount::Exactly(k),
+            // masses: the records' defects
+            kinds: KindChoice::Mass,
             parallel: false,
             ..FitOptions::default()
         };

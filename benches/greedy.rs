@@ -57,6 +57,7 @@ use springmass::detect::data::observations::{LaplaceValues, Observations, Series
 use springmass::detect::data::series::TimeData;
 use springmass::detect::fit::{fit, DefectCount, FitMethod, FitOptions, Model, NoiseSpec};
 use springmass::detect::misfit::quadrature::Rule;
+use springmass::detect::unknowns::KindChoice;
 use springmass::noise::NoiseLevel;
 use springmass::{Chain, Complex64, Defect};
 use std::time::Instant;
@@ -195,6 +196,7 @@ fn main() {
                 noise: NoiseSpec::Sigma(1e-12),
                 method: *m,
                 seed,
+                kinds: KindChoice::Mass,
                 ..FitOptions::default()
             };
             let t0 = Instant::now();
@@ -277,6 +279,7 @@ fn main() {
                 defects: DefectCount::Exactly(k),
                 noise: NoiseSpec::Sigma(1e-12),
                 method: FitMethod::Greedy,
+                kinds: KindChoice::Mass,
                 ..FitOptions::default()
             };
             let model = Model::new(n).and_then(|m| m.with_d(0.01)).expect("model");
@@ -405,6 +408,7 @@ fn noisy(first: u64, draws: u64, verbose: bool, no_fit: bool) {
             defects: DefectCount::Auto { k_max: k },
             method: FitMethod::Greedy,
             seed,
+            kinds: KindChoice::Mass,
             ..FitOptions::default()
         };
         let model = Model::new(n).and_then(|m| m.with_d(d)).expect("model");

@@ -57,9 +57,12 @@ fn record(n: usize, defects: &[(usize, f64)]) -> Observations {
     Observations::Series(Series::new(d.t().to_vec(), d.y().to_vec(), None).unwrap())
 }
 
+/// The records' defects are masses, sought as masses (every kind, the
+/// default: `cpu/kinds`).
 fn options(defects: DefectCount) -> FitOptions {
     FitOptions {
         defects,
+        kinds: KindChoice::Mass,
         parallel: false,
         ..FitOptions::default()
     }
@@ -202,6 +205,7 @@ fn bench_fit_d(c: &mut Criterion<CpuTime>) {
         let spec = |fit_d: bool, damping: Option<&str>| FitSpec {
             fit: fit_d.then(|| "d".to_string()),
             damping: damping.map(str::to_string),
+            kinds: Some("mass".into()),
             ..FitSpec::new(*n)
         };
         let build = |s: FitSpec| {

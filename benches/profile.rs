@@ -26,6 +26,7 @@ use springmass::detect::data::series::TimeData;
 use springmass::detect::fit::fit_profile;
 use springmass::detect::fit::profile::{ProfileMode, ProfileOptions, ProfileReport};
 use springmass::detect::fit::{fit, DefectCount, FitOptions, Model};
+use springmass::detect::unknowns::KindChoice;
 use springmass::forward::Observable;
 use springmass::noise::{add_noise, NoiseLevel};
 use springmass::{scenes, Chain, Complex64, Defect};
@@ -73,6 +74,7 @@ fn bench_cpu(c: &mut Criterion<CpuTime>) {
     check(&fit_profile(&obs, &model, &popts).unwrap(), &mass);
     let fopts = FitOptions {
         defects: DefectCount::Exactly(3),
+        kinds: KindChoice::Mass,
         parallel: false,
         ..FitOptions::default()
     };

@@ -54,6 +54,8 @@ fn case(
     let spec = FitSpec {
         fit: fit_d.then(|| "d".to_string()),
         d: Some(truth.d()),
+        // masses: the records' defects
+        kinds: Some("mass".into()),
         ..FitSpec::new(truth.n())
     };
     let (model, mut opts) = spec.build().unwrap();

@@ -17,6 +17,7 @@ use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use springmass::detect::data::observations::{Observations, Series};
 use springmass::detect::data::series::TimeData;
 use springmass::detect::fit::{fit, DefectCount, FitOptions, Model};
+use springmass::detect::unknowns::KindChoice;
 use springmass::noise::NoiseLevel;
 use springmass::{Chain, Defect};
 use std::time::{Duration, Instant};
@@ -56,6 +57,8 @@ fn bench_uncertainty(c: &mut Criterion<CpuTime>) {
         ] {
             let with = FitOptions {
                 defects,
+                // masses: the records' defects
+                kinds: KindChoice::Mass,
                 parallel: false,
                 ..FitOptions::default()
             };

@@ -649,6 +649,8 @@ fn a_step_down_past_a_null_defect_to_another_answer_is_not_converged() {
     let r = json_of(bin().args(["fit", "--data"]).arg(&csv).args([
         "--n",
         "23",
+        "--kinds",
+        "mass",
         "--no-uncertainty",
         "--json",
         "--threads",

@@ -97,6 +97,7 @@ fn bromwich_and_stochastic_methods_agree_on_system1() {
             &Model::new(5).unwrap(),
             &FitOptions {
                 defects: DefectCount::Exactly(2),
+                kinds: KindChoice::Mass,
                 misfit: Some(misfit),
                 method,
                 max_evals: 3000,
@@ -252,6 +253,8 @@ fn mass_defects_on_laplace_values_take_the_woodbury_kernel() {
         &Model::new(20).unwrap(),
         &FitOptions {
             defects: DefectCount::Exactly(2),
+            // masses: the Woodbury kernel's kind
+            kinds: KindChoice::Mass,
             // the errors are absolute (not rescaled by an estimate)
             noise: NoiseSpec::Sigma(1.0),
             ..FitOptions::default()

@@ -59,6 +59,7 @@ fn greedy(k: usize, seed: u64) -> FitOptions {
     FitOptions {
         defects: DefectCount::Exactly(k),
         noise: NoiseSpec::Sigma(1e-12),
+        kinds: KindChoice::Mass,
         method: FitMethod::Greedy,
         seed,
         ..FitOptions::default()
@@ -247,6 +248,7 @@ fn greedy_finds_a_defect_only_the_record_shows() {
     let model = Model::new(n).and_then(|m| m.with_d(0.01)).unwrap();
     let opts = FitOptions {
         defects: DefectCount::Auto { k_max: 3 },
+        kinds: KindChoice::Mass,
         method: FitMethod::Greedy,
         ..FitOptions::default()
     };
@@ -280,6 +282,7 @@ fn relax_seeds_the_discrete_fit_from_the_profile() {
     let rec = TimeData::simulate(&s3, 300.0, 0.1, NoiseLevel::RelativeMax(1e-3), 3).unwrap();
     let obs = Observations::Series(Series::new(rec.t().to_vec(), rec.y().to_vec(), None).unwrap());
     let opts = FitOptions {
+        kinds: KindChoice::Mass,
         method: FitMethod::Relax,
         ..FitOptions::default()
     };

@@ -205,7 +205,7 @@ fn a_deep_weak_defect_shares_its_probability_instead_of_being_declared() {
     let at8 = post
         .position_probability
         .iter()
-        .find(|p| p.at == 8)
+        .find(|p| p.at == 8 && p.kind == "mass")
         .unwrap();
     assert!(at8.probability > 0.99, "{at8:?}");
 }

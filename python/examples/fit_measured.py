@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--column", help="value column to fit (default: the first)")
     p.add_argument("--d", type=float, default=0.1, help="damping per mass (default 0.1)")
     p.add_argument("--defects", default="auto:3", help="auto, auto:KMAX or a number (default auto:3)")
-    p.add_argument("--kinds", default="mass", help="mass, spring, damper, ground or any (default mass)")
+    p.add_argument("--kinds", help="mass, spring, damper, ground or any (default any)")
     p.add_argument("--noise", default="auto", help="auto or the samples' standard deviation")
     p.add_argument("--plot", type=pathlib.Path, help="save the figure here (PNG, PDF, SVG)")
     a = p.parse_args(argv)

@@ -52,7 +52,7 @@ def test_n_zero_and_negative(record):
 def test_unknown_kind(record):
     t, x = record
     e = raises("kinds", springmass.fit, t, x, n=5, kinds="atom")
-    assert str(e) == "invalid kinds = atom: allowed mass, spring, damper, ground or any"
+    assert str(e) == "invalid kinds = atom: allowed mass, spring, damper, ground, any or mass-or-spring"
     raises("kinds", springmass.fit, t, x, n=5, defects=2, kinds=["mass", "atom"])
     e = raises("defect", springmass.simulate, 5, t=t, defects=[("atom", 2, 3.0)])
     assert "unknown kind" in str(e)

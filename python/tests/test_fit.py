@@ -32,9 +32,10 @@ def test_round_trip_recovers_system3_at_one_percent_noise():
     sigma_true = 0.01 * np.max(np.abs(clean))
     assert abs(r.sigma / sigma_true - 1) < 0.2, (r.sigma, sigma_true)
     assert r.status == "converged" and r.fits_data, r.summary
-    # every mass the answer leaves unchanged would show halved or doubled
+    # every mass and spring the answer leaves unchanged (every kind sought)
+    # would show halved or doubled
     assert r.unseen is not None and r.unseen["elements"] == [], r.unseen
-    assert (r.unseen["checked"], r.unseen["of"]) == (18, 18), r.unseen
+    assert (r.unseen["checked"], r.unseen["of"]) == (39, 39), r.unseen
     assert [row.k for row in r.k_selection] == [0, 1, 2, 3]
     assert min(r.k_selection, key=lambda row: row.criterion).k == 2
     assert r.predicted.shape == t.shape
@@ -316,6 +317,14 @@ def test_any_kind_is_searched_with_the_kinds_narrowed_per_position():
     assert r.status == "converged", r.summary
     assert "kinds narrowed per position" in r.method, r.method
     assert not r.to_dict()["exhaustive"]
+    # every kind is the default: the same fit; masses only is a mismatch,
+    # and a search that places masses only seeks masses by default
+    default = springmass.fit(t, x, n=12)
+    assert default.to_dict()["defects"] == r.to_dict()["defects"]
+    masses = springmass.fit(t, x, n=12, kinds="mass")
+    assert masses.status != "converged" and "--kinds any" in masses.message, masses.summary
+    ga = springmass.fit(t, x, n=12, defects=2, method="ga", max_evals=200)
+    assert {e.kind for e in ga.defects} == {"mass"}, ga.summary
     full = springmass.fit(t, x, n=12, kinds="any", defects=2)
     assert "narrowed" not in full.method and full.to_dict()["exhaustive"]
     assert [(e.kind, e.at) for e in full.defects] == [(e.kind, e.at) for e in r.defects]

@@ -78,7 +78,9 @@ pub struct Args {
     #[arg(long, requires = "data")]
     pub defects: Option<String>,
     /// Kinds of defect sought: mass, spring, damper, ground (a spring to the
-    /// ground) or any (mass, spring or damper) [default: mass].
+    /// ground) or any (mass, spring or damper) [default: any; mass with
+    /// another --method than enumerate, and in chains too long to
+    /// enumerate every kind (the search is then greedy)].
     #[arg(long, requires = "data")]
     pub kinds: Option<String>,
     /// Noise standard deviation of the samples: auto (estimated) or SIGMA [default: auto].

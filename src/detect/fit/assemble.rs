@@ -125,8 +125,8 @@ impl Engine<'_> {
     }
 
     /// Why the number of defects `k` is not settled, if it is not: the
-    /// criterion's margin, the largest count searched chosen, or a further
-    /// defect the data would not show ([`Unseen`]).
+    /// criterion's margin or the largest count searched chosen, and a
+    /// further defect the data would not show ([`Unseen`]).
     fn k_caveat(
         &self,
         rows: &[KRow],
@@ -134,12 +134,14 @@ impl Engine<'_> {
         criterion: &str,
         unseen: Option<&Unseen>,
     ) -> Option<String> {
-        self.k_margin(rows, k, criterion)
-            .or_else(|| self.k_at_limit(rows, k))
-            .or_else(|| {
-                let u = unseen?;
-                (!u.elements.is_empty()).then(|| u.line())
-            })
+        let first = self
+            .k_margin(rows, k, criterion)
+            .or_else(|| self.k_at_limit(rows, k));
+        let hidden = unseen.filter(|u| !u.elements.is_empty()).map(Unseen::line);
+        match (first, hidden) {
+            (Some(a), Some(b)) => Some(format!("{a}; {b}")),
+            (a, b) => a.or(b),
+        }
     }
 
     /// When the criterion chose the largest number of defects searched

@@ -243,10 +243,15 @@ impl Engine<'_> {
                 at: Some(at),
                 ..Slot::free(KindChoice::from(kind))
             }));
-        } else if self.opts.slot_kinds.len() == k && k > 0 {
-            slots.extend(self.opts.slot_kinds.iter().map(|&kind| Slot::free(kind)));
         } else {
-            slots.extend((0..k).map(|_| Slot::free(self.opts.kinds)));
+            // the kinds the damping model takes (no damper under modal damping)
+            let damping = self.model.chain().damping();
+            let free = |kind: KindChoice| Slot::free(kind.under(damping));
+            if self.opts.slot_kinds.len() == k && k > 0 {
+                slots.extend(self.opts.slot_kinds.iter().map(|&kind| free(kind)));
+            } else {
+                slots.extend((0..k).map(|_| free(self.opts.kinds)));
+            }
         }
         Ok(Some(Unknowns::new(
             self.model.n(),
@@ -1069,6 +1074,8 @@ mod tests {
         let model = Model::new(5).unwrap();
         let opts = FitOptions {
             defects: DefectCount::Exactly(2),
+            // masses: the Woodbury kernel's kind
+            kinds: KindChoice::Mass,
             alternatives: 4,
             parallel: false,
             ..FitOptions::default()

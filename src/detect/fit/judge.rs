@@ -58,7 +58,8 @@ pub struct Evidence<'a> {
     /// What a residual that is not noise suggests (a trend, colour, an
     /// early misfit), for the model-mismatch message.
     pub mismatch_hint: Option<&'a str>,
-    /// The search tried one defect kind only (the default: masses): a
+    /// The search tried one defect kind only (`--kinds mass`, or masses by
+    /// default with another search or in a long chain): a
     /// model mismatch or a value at a bound may be a defect of another
     /// kind, and their messages say how to search for it.
     pub one_kind: bool,

@@ -604,12 +604,15 @@ fn doubt_coloured_lead_in(report: &mut FitReport) {
 }
 
 /// A `converged` answer becomes `not-identifiable`, not resolved, for the
-/// reason `why` (any other status already says the answer is not sure).
+/// reason `why`; any other status already says the answer is not sure, and
+/// its message gains the reason.
 fn doubt_converged(report: &mut FitReport, why: String) {
     if report.status == Status::Converged {
         report.status = Status::NotIdentifiable;
         report.resolved = false;
         report.message = why;
+    } else if !report.message.contains(&why) {
+        report.message = format!("{}; {why}", report.message);
     }
 }
 

@@ -12,7 +12,7 @@
 //! | field | form | parsed by |
 //! |---|---|---|
 //! | `defects` | `auto`, `auto:KMAX`, `K` | [`DefectCount::parse`] |
-//! | `kinds` | `mass`, `spring`, `damper`, `any` | [`parse_kinds`] |
+//! | `kinds` | `mass`, `spring`, `damper`, `ground`, `any` (default), `mass-or-spring` | [`parse_kinds`] |
 //! | `slot_kinds` | one kind per defect | [`parse_kinds`] each |
 //! | `noise` | `auto` or a standard deviation | [`NoiseSpec::parse`] |
 //! | `misfit` | `time`, `bromwich`, `real-axis` | [`MisfitKind::parse`] |
@@ -136,7 +136,10 @@ impl NoiseSpec {
 pub struct FitOptions {
     /// Number of defects (default `auto`, `k_max = 4`).
     pub defects: DefectCount,
-    /// Their kinds (default mass).
+    /// Their kinds (default any: mass, spring or damper; the stochastic
+    /// searches and the relaxation take one kind; [`FitSpec`] seeks masses
+    /// with another search than the enumeration and in long chains when
+    /// no kind is asked for).
     pub kinds: KindChoice,
     /// One kind per free defect, overriding `kinds` (empty: every defect of
     /// kind `kinds`); needs `defects` = exactly that many.
@@ -214,7 +217,7 @@ impl Default for FitOptions {
             defects: DefectCount::Auto {
                 k_max: DEFAULT_K_MAX,
             },
-            kinds: KindChoice::Mass,
+            kinds: KindChoice::Any,
             slot_kinds: Vec::new(),
             noise: NoiseSpec::Auto,
             misfit: None,
@@ -491,7 +494,9 @@ pub struct FitSpec {
     pub known: Vec<String>,
     /// Number of defects: `auto`, `auto:KMAX` or `K` [default auto].
     pub defects: Option<String>,
-    /// Kind of every defect sought [default mass].
+    /// Kind of every defect sought [default any; mass with another search
+    /// than the enumeration, and where an enumeration of every kind would
+    /// pass `max_sets` (long chains)].
     pub kinds: Option<String>,
     /// One kind per defect (overrides `kinds`; needs `defects = K` with as many).
     pub slot_kinds: Vec<String>,
@@ -580,9 +585,14 @@ impl FitSpec {
                 k_max: DEFAULT_K_MAX.min(self.n),
             };
         }
-        if let Some(k) = &self.kinds {
-            opts.kinds = parse_kinds(k)?;
-        }
+        // not asked for: every kind with the enumeration, masses with
+        // another search ([`crate::detect::search::Search::default_kinds`])
+        // and where an enumeration of every kind would be too large
+        let asked = self.method.as_deref().map(FitMethod::parse).transpose()?;
+        opts.kinds = match &self.kinds {
+            Some(k) => parse_kinds(k)?,
+            None => asked.unwrap_or_default().search().default_kinds(),
+        };
         if let Some(e) = self.exhaustive {
             opts.exhaustive = e;
         }
@@ -600,8 +610,11 @@ impl FitSpec {
         if let Some(m) = &self.misfit {
             opts.misfit = Some(MisfitKind::parse(m)?);
         }
-        if let Some(m) = &self.method {
-            opts.method = FitMethod::parse(m)?;
+        if self.kinds.is_none() && asked.is_none() && enumeration_too_large(self.n, &opts) {
+            opts.kinds = KindChoice::Mass;
+        }
+        if let Some(m) = asked {
+            opts.method = m;
         } else if enumeration_too_large(self.n, &opts) && self.sensors.len() <= 1 {
             // not asked for: a chain too long to enumerate is searched
             // greedily (the report's method line says so; the greedy
@@ -896,11 +909,16 @@ fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
 pub fn parse_kinds(text: &str) -> Result<KindChoice> {
     match text.trim() {
         "any" => Ok(KindChoice::Any),
+        "mass-or-spring" => Ok(KindChoice::MassOrSpring),
         name => DefectKind::from_name(name)
             .map(KindChoice::from)
             .ok_or_else(|| {
                 let names: Vec<&str> = DefectKind::ALL.iter().map(|k| k.name()).collect();
-                Error::invalid("kinds", text, format!("{} or any", names.join(", ")))
+                Error::invalid(
+                    "kinds",
+                    text,
+                    format!("{}, any or mass-or-spring", names.join(", ")),
+                )
             }),
     }
 }
@@ -982,6 +1000,43 @@ mod tests {
             spec.options().unwrap().defects,
             DefectCount::Auto { k_max: 4 }
         );
+    }
+
+    /// Every kind by default where the enumeration can take it; masses with
+    /// another search, and where an enumeration of every kind would pass
+    /// `max_sets` (the search is then greedy, as for masses); a kind asked
+    /// for is kept.
+    #[test]
+    fn the_default_kinds_follow_the_search() {
+        let kinds = |n: usize, method: Option<&str>, kinds: Option<&str>| {
+            let o = FitSpec {
+                method: method.map(str::to_string),
+                kinds: kinds.map(str::to_string),
+                ..FitSpec::new(n)
+            }
+            .options()
+            .unwrap();
+            (o.kinds, o.method)
+        };
+        use FitMethod::*;
+        use KindChoice::{Any, Mass, Spring};
+        assert_eq!(kinds(20, None, None), (Any, Enumerate));
+        assert_eq!(kinds(47, None, None), (Any, Enumerate));
+        for m in ["greedy", "relax", "ga", "nelder-mead", "pso"] {
+            let method = FitMethod::parse(m).unwrap();
+            assert_eq!(kinds(20, Some(m), None), (Mass, method), "{m}");
+        }
+        assert_eq!(kinds(20, Some("greedy"), Some("any")), (Any, Greedy));
+        assert_eq!(kinds(20, None, Some("spring")), (Spring, Enumerate));
+        // four of n + 1 positions pass max_sets from n = 48 on: masses,
+        // greedily, as before every kind was the default
+        assert_eq!(kinds(48, None, None), (Mass, Greedy));
+        assert_eq!(kinds(48, None, Some("any")), (Any, Greedy));
+        assert_eq!(kinds(1000, None, None), (Mass, Greedy));
+        // every choice's name parses back to it
+        for k in [Any, Mass, Spring, KindChoice::MassOrSpring] {
+            assert_eq!(parse_kinds(k.name()).unwrap(), k);
+        }
     }
 
     #[test]

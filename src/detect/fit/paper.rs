@@ -456,6 +456,7 @@ fn general_model(
 fn mass_options(scene: &FitScene, k: usize, options: &SceneOptions) -> FitOptions {
     FitOptions {
         defects: DefectCount::Exactly(k),
+        kinds: crate::detect::unknowns::KindChoice::Mass,
         noise: NoiseSpec::Sigma(1.0),
         misfit: Some(scene.misfit.kind),
         method: options.method,

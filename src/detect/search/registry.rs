@@ -16,6 +16,7 @@
 //! ```
 
 use super::{genetic, nelder_mead, pso, SearchOptions, Tracked};
+use crate::detect::unknowns::KindChoice;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
@@ -91,6 +92,18 @@ impl Search {
     /// Whether it is a seeded stochastic optimizer (with an evaluation budget).
     pub fn stochastic(&self) -> bool {
         self.optimizer.is_some()
+    }
+
+    /// The defect kinds a data-first fit by this search seeks when none is
+    /// asked for: any kind with the enumeration, else masses (the
+    /// stochastic searches and the relaxation place one kind; the greedy
+    /// search over every kind misses where it finds masses, as on a record
+    /// of three masses in a chain of 120).
+    pub fn default_kinds(&self) -> KindChoice {
+        match (self.method, self.kinds) {
+            (FitMethod::Enumerate, Kinds::Every) => KindChoice::Any,
+            _ => KindChoice::Mass,
+        }
     }
 }
 

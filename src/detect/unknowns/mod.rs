@@ -416,6 +416,10 @@ pub enum KindChoice {
     Ground,
     /// Any of mass, spring and damper ([`DefectKind::ANY`]).
     Any,
+    /// A mass or a spring: `any` where the damping model takes no damper
+    /// defect (modal damping, [`KindChoice::under`]).
+    #[serde(rename = "mass-or-spring")]
+    MassOrSpring,
 }
 
 impl From<DefectKind> for KindChoice {
@@ -439,10 +443,22 @@ impl KindChoice {
             KindChoice::Damper => &[DefectKind::Damper],
             KindChoice::Ground => &[DefectKind::Ground],
             KindChoice::Any => &DefectKind::ANY,
+            KindChoice::MassOrSpring => &[DefectKind::Mass, DefectKind::Spring],
         }
     }
 
-    /// `mass`, `spring`, `damper`, `any`.
+    /// The choice a chain of damping model `damping` can take: `any`
+    /// without dampers under modal damping (its damping is a ratio per
+    /// mode, and a damper defect would make it non-modal); every other
+    /// choice as it is.
+    pub fn under(self, damping: &crate::chain::Damping) -> KindChoice {
+        match self {
+            KindChoice::Any if damping.is_modal() => KindChoice::MassOrSpring,
+            k => k,
+        }
+    }
+
+    /// `mass`, `spring`, `damper`, `ground`, `any`, `mass-or-spring`.
     pub fn name(self) -> &'static str {
         match self {
             KindChoice::Mass => "mass",
@@ -450,6 +466,7 @@ impl KindChoice {
             KindChoice::Damper => "damper",
             KindChoice::Ground => "ground",
             KindChoice::Any => "any",
+            KindChoice::MassOrSpring => "mass-or-spring",
         }
     }
 }
@@ -993,6 +1010,22 @@ pub(crate) fn check_chain_params(field: &str, params: &[Param]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `any` under modal damping is a mass or a spring (the model has no
+    /// dampers); every other choice and damping model as it is.
+    #[test]
+    fn every_kind_under_modal_damping_leaves_out_dampers() {
+        use crate::chain::Damping;
+        let modal = Damping::parse_complete("modal:0.02").unwrap();
+        let grounded = Damping::default();
+        assert_eq!(KindChoice::Any.under(&modal), KindChoice::MassOrSpring);
+        assert_eq!(KindChoice::Any.under(&grounded), KindChoice::Any);
+        assert_eq!(KindChoice::Damper.under(&modal), KindChoice::Damper);
+        assert_eq!(
+            KindChoice::MassOrSpring.kinds(),
+            &[DefectKind::Mass, DefectKind::Spring]
+        );
+    }
 
     fn field<T: std::fmt::Debug>(r: Result<T>) -> String {
         match r {

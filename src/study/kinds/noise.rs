@@ -232,7 +232,9 @@ pub fn score(rep: &FitReport, truth: &Chain) -> Score {
 /// the truth's), the number of defects when `s.defects = "given"`
 /// (otherwise chosen by BIC among `0..=min(4, n)`), the misfit, the true
 /// noise level when `s.noise = "given"`, and the chain parameters `s.fit`
-/// to fit. Sequential (studies run cases in parallel).
+/// to fit. The defects are sought as masses (the records' defects are
+/// masses; the study compares noise handling, not kinds). Sequential
+/// (studies run cases in parallel).
 ///
 /// # Errors
 /// As [`crate::detect::fit::fit`]; a bad `fit` or `d_start`.
@@ -253,6 +255,7 @@ pub fn fit_record(s: &Scene, truth: &Chain, data: &TimeData) -> Result<FitReport
                 k_max: DEFAULT_K_MAX.min(truth.n()),
             }
         },
+        kinds: crate::detect::unknowns::KindChoice::Mass,
         noise: sigma.map_or(NoiseSpec::Auto, NoiseSpec::Sigma),
         misfit,
         parallel: false,
