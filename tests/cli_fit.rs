@@ -629,11 +629,14 @@ fn fit_data_with_modal_damping() {
 }
 
 /// A fit whose best model by the criterion holds a defect at the uniform
-/// value is stepped down to one defect fewer; where that smaller answer is
-/// not the rest of the larger one, the answer is not called `converged`
-/// (n = 23, masses 2.787 at 3, 2.949 at 4, 0.471 at 9 and 0.57 at 18, 1%
-/// noise: the nested search's best four were 3, 4, 6 and 9 with 6 null,
-/// and the answer 3, 4, 6 came back `converged` without the intervals).
+/// value within its standard error is not called `converged` (n = 23,
+/// masses 2.787 at 3, 2.949 at 4, 0.471 at 9 and 0.57 at 18, 1% noise: the
+/// nested search's best four were 3, 4, 6 and 9 with 6 at 0.51 standard
+/// errors from 1, and the answer 3, 4, 6 came back `converged` without the
+/// intervals). The best three, 3, 4 and 6, have a chi-square 33.6 higher:
+/// dropping mass 6 costs far more than its error says, so the answer stays
+/// the four, with mass 6 flagged (a step down to another answer, with its
+/// doubt, is `stages::tests`).
 #[test]
 fn a_step_down_past_a_null_defect_to_another_answer_is_not_converged() {
     let dir = temp_dir("null-step");
@@ -656,14 +659,17 @@ fn a_step_down_past_a_null_defect_to_another_answer_is_not_converged() {
         "--threads",
         "1",
     ]));
-    assert_eq!(positions(&r), vec![3, 4, 6], "{r}");
+    assert_eq!(positions(&r), vec![3, 4, 6, 9], "{r}");
     assert_eq!(r["status"], "not-identifiable", "{r}");
     assert_eq!(r["resolved"], false, "{r}");
     let msg = r["message"].as_str().unwrap();
-    assert!(msg.contains("mass@6 at the uniform value"), "{msg}");
-    assert!(
-        msg.contains("the rest of it (mass@3, mass@4, mass@9)"),
-        "{msg}"
-    );
+    assert!(msg.contains("standard errors of the uniform 1"), "{msg}");
+    let six = r["defects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|d| d["at"] == 6)
+        .unwrap();
+    assert_eq!(six["identifiable"], false, "{r}");
     std::fs::remove_dir_all(&dir).ok();
 }
