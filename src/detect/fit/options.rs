@@ -585,14 +585,6 @@ impl FitSpec {
                 k_max: DEFAULT_K_MAX.min(self.n),
             };
         }
-        // not asked for: every kind with the enumeration, masses with
-        // another search ([`crate::detect::search::Search::default_kinds`])
-        // and where an enumeration of every kind would be too large
-        let asked = self.method.as_deref().map(FitMethod::parse).transpose()?;
-        opts.kinds = match &self.kinds {
-            Some(k) => parse_kinds(k)?,
-            None => asked.unwrap_or_default().search().default_kinds(),
-        };
         if let Some(e) = self.exhaustive {
             opts.exhaustive = e;
         }
@@ -610,18 +602,7 @@ impl FitSpec {
         if let Some(m) = &self.misfit {
             opts.misfit = Some(MisfitKind::parse(m)?);
         }
-        if self.kinds.is_none() && asked.is_none() && enumeration_too_large(self.n, &opts) {
-            opts.kinds = KindChoice::Mass;
-        }
-        if let Some(m) = asked {
-            opts.method = m;
-        } else if enumeration_too_large(self.n, &opts) && self.sensors.len() <= 1 {
-            // not asked for: a chain too long to enumerate is searched
-            // greedily (the report's method line says so; the greedy
-            // search reads one sensor: several are enumerated, or refused
-            // beyond `max_sets`)
-            opts.method = FitMethod::Greedy;
-        }
+        self.kinds_and_method(&mut opts)?;
         if let Some(c) = &self.criterion {
             opts.criterion = Criterion::parse(c)?;
         }
@@ -650,6 +631,36 @@ impl FitSpec {
             opts.uncertainty = u;
         }
         Ok(opts)
+    }
+
+    /// The kinds sought and the search, into `opts` (whose number of
+    /// defects, effort and exhaustiveness are set). Not asked for: every
+    /// kind with the enumeration, masses with another search
+    /// ([`crate::detect::search::Search::default_kinds`]) and where an
+    /// enumeration of every kind would pass `max_sets`; and the
+    /// enumeration, unless the chain is too long to enumerate.
+    ///
+    /// # Errors
+    /// The parse errors of `kinds` and `method`.
+    fn kinds_and_method(&self, opts: &mut FitOptions) -> Result<()> {
+        let asked = self.method.as_deref().map(FitMethod::parse).transpose()?;
+        opts.kinds = match &self.kinds {
+            Some(k) => parse_kinds(k)?,
+            None => asked.unwrap_or_default().search().default_kinds(),
+        };
+        if self.kinds.is_none() && asked.is_none() && enumeration_too_large(self.n, opts) {
+            opts.kinds = KindChoice::Mass;
+        }
+        if let Some(m) = asked {
+            opts.method = m;
+        } else if enumeration_too_large(self.n, opts) && self.sensors.len() <= 1 {
+            // not asked for: a chain too long to enumerate is searched
+            // greedily (the report's method line says so; the greedy
+            // search reads one sensor: several are enumerated, or refused
+            // beyond `max_sets`)
+            opts.method = FitMethod::Greedy;
+        }
+        Ok(())
     }
 
     /// The window of a measured force ([`ForceWindow::parse`]).
