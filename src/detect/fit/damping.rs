@@ -209,8 +209,7 @@ pub fn fit_choosing(model: &Model, fits: &ChoiceFits<'_>) -> Result<FitReport> {
         if let Some(others) = others {
             let mut best = best_of(searched)?;
             best.candidates.extend(others);
-            best.candidates
-                .sort_by_key(|c| Damping::MODELS.iter().position(|n| *n == c.model));
+            best.candidates.sort_by_key(|c| model_rank(&c.model));
             best.evaluations += spent;
             return chosen(best, started, fits);
         }
@@ -289,6 +288,12 @@ fn chosen(best: Best, started: std::time::Instant, fits: &ChoiceFits<'_>) -> Res
     Ok(report)
 }
 
+/// A damping model's place in [`Damping::MODELS`], the order of the
+/// report's candidates.
+fn model_rank(name: &str) -> Option<usize> {
+    Damping::MODELS.iter().position(|n| *n == name)
+}
+
 /// The candidate entry of a fit.
 fn candidate_of(name: &str, r: &FitReport, searched: bool) -> DampingCandidate {
     DampingCandidate {
@@ -314,11 +319,7 @@ fn at_set(
     names: &[&str],
     fits: &ChoiceFits<'_>,
 ) -> Result<(Option<Vec<DampingCandidate>>, usize)> {
-    let set: Vec<(DefectKind, usize)> = fit
-        .found()
-        .iter()
-        .map(|d| (DefectKind::of(d), d.at()))
-        .collect();
+    let set: Vec<(DefectKind, usize)> = fit.found().iter().map(DefectKind::key_of).collect();
     let fitted = parallel::map(names, fits.parallel, 2, |&name| {
         (
             name,
@@ -352,7 +353,7 @@ fn at_set(
 /// The first candidate's error (in that order) when every candidate
 /// failed; a cancellation.
 fn best_of(mut searched: Vec<Candidate<'_>>) -> Result<Best> {
-    searched.sort_by_key(|c| Damping::MODELS.iter().position(|n| *n == c.0));
+    searched.sort_by_key(|c| model_rank(c.0));
     let mut best: Option<(f64, Model, FitReport)> = None;
     let mut candidates = Vec::new();
     let mut first_err = None;

@@ -93,10 +93,7 @@ impl Local {
 
 /// `(kind, position)` of the defects `base` knows (not fitted).
 pub(super) fn known_keys(base: &Chain) -> Vec<(DefectKind, usize)> {
-    base.defects()
-        .iter()
-        .map(|d| (DefectKind::of(d), d.at()))
-        .collect()
+    base.defects().iter().map(DefectKind::key_of).collect()
 }
 
 /// The defects of `defects` that `base` does not know.
@@ -104,7 +101,7 @@ pub(super) fn free_of(defects: &[crate::chain::Defect], base: &Chain) -> Vec<cra
     let known = known_keys(base);
     defects
         .iter()
-        .filter(|d| !known.contains(&(DefectKind::of(d), d.at())))
+        .filter(|d| !known.contains(&DefectKind::key_of(d)))
         .copied()
         .collect()
 }

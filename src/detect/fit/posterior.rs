@@ -197,10 +197,7 @@ fn normalise(
 
 /// `(kind, position)` of `defects`, sorted.
 fn sorted_key(defects: &[Defect]) -> Vec<(DefectKind, usize)> {
-    let mut k: Vec<(DefectKind, usize)> = defects
-        .iter()
-        .map(|d| (DefectKind::of(d), d.at()))
-        .collect();
+    let mut k: Vec<(DefectKind, usize)> = defects.iter().map(DefectKind::key_of).collect();
     k.sort();
     k
 }

@@ -171,7 +171,7 @@ fn finish<'a>(
 ) -> Result<Stage<'a>> {
     let (chosen, rows, criterion) = choose_k(&fits, level, estimated, engine.opts.criterion)?;
     let explained = fits_data(&fits[chosen], level, estimated);
-    let best: Vec<Best<'_>> = fits
+    let best: Vec<KBest<'_>> = fits
         .iter()
         .map(|f| (f.k, &f.ranked[0], f.chi2_at(level, estimated)))
         .collect();
@@ -240,7 +240,7 @@ fn reported_sigma(obs: &Observations, chosen: &KFit, sigma: f64, estimated: bool
 
 /// A number of defects' best answer and its chi-square at the stage's
 /// level ([`without_null_defects`]).
-type Best<'h> = (usize, &'h Hypothesis, f64);
+type KBest<'h> = (usize, &'h Hypothesis, f64);
 
 /// The largest rise of the chi-square, per defect dropped, of a step down
 /// past defects null within their standard errors ([`without_null_defects`]):
@@ -265,7 +265,7 @@ const NULL_RISE: f64 = 4.0;
 /// noise, every kind sought: a spring at 3 within its error of 1, whose
 /// fit without it rose by 117 and did not explain the record).
 fn without_null_defects(
-    fits: &[Best<'_>],
+    fits: &[KBest<'_>],
     mut chosen: usize,
     base: &Chain,
 ) -> (usize, Option<String>) {
@@ -280,8 +280,7 @@ fn without_null_defects(
                 let free = !base.defects().contains(d);
                 let gap = (d.value() - u).abs();
                 let rounding = gap <= 1e-9 * u.abs();
-                (free && (rounding || gap <= *se))
-                    .then_some(((DefectKind::of(d), d.at()), rounding))
+                (free && (rounding || gap <= *se)).then_some((DefectKind::key_of(d), rounding))
             })
             .collect()
     };
@@ -583,7 +582,7 @@ mod tests {
         let rounding = answer(&[(3, 2.0, 0.01), (7, 1.0 + 1e-12, 0.0)]);
         let fits = |one: &'static str, two: &Hypothesis, rise: f64| -> (usize, Option<String>) {
             let h1 = if one == "rest" { &k1 } else { &other };
-            let best: Vec<Best<'_>> = vec![(1, h1, 100.0 + rise), (2, two, 100.0)];
+            let best: Vec<KBest<'_>> = vec![(1, h1, 100.0 + rise), (2, two, 100.0)];
             without_null_defects(&best, 1, &base)
         };
         assert_eq!(fits("rest", &null_at_7, 0.5), (0, None));

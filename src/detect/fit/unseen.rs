@@ -223,11 +223,7 @@ impl Bounds {
 /// `(kind, position, value)` of every mass and spring of `kinds` that
 /// `answer` leaves unchanged (its own value there).
 fn probes(answer: &Chain, kinds: &[DefectKind]) -> Vec<(DefectKind, usize, f64)> {
-    let taken: Vec<(DefectKind, usize)> = answer
-        .defects()
-        .iter()
-        .map(|d| (DefectKind::of(d), d.at()))
-        .collect();
+    let taken: Vec<(DefectKind, usize)> = answer.defects().iter().map(DefectKind::key_of).collect();
     let springs = answer.springs();
     let (lo, hi) = answer.spring_range();
     let mut out = Vec::new();

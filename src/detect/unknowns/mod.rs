@@ -312,6 +312,12 @@ impl DefectKind {
         }
     }
 
+    /// A defect's kind and position: its key in a hypothesis
+    /// ([`KindPositions`]).
+    pub fn key_of(d: &Defect) -> (DefectKind, usize) {
+        (DefectKind::of(d), d.at())
+    }
+
     /// `mass`, `spring`, `damper`.
     pub fn name(self) -> &'static str {
         match self {

@@ -105,10 +105,7 @@ impl Hypothesis {
 
     /// `(kind, position)` of every defect.
     pub fn key(&self) -> KindPositions {
-        self.defects
-            .iter()
-            .map(|d| (DefectKind::of(d), d.at()))
-            .collect()
+        self.defects.iter().map(DefectKind::key_of).collect()
     }
 
     /// The start of a fit of one defect more: this hypothesis's pairs and
@@ -166,11 +163,7 @@ impl Hypothesis {
 
     /// The same `(kind, position)` pairs as `truth`'s defects (in any order).
     pub fn positions_match(&self, truth: &Chain) -> bool {
-        let mut t: KindPositions = truth
-            .defects()
-            .iter()
-            .map(|d| (DefectKind::of(d), d.at()))
-            .collect();
+        let mut t: KindPositions = truth.defects().iter().map(DefectKind::key_of).collect();
         let mut h = self.key();
         t.sort_unstable();
         h.sort_unstable();
