@@ -60,7 +60,17 @@ impl Engine<'_> {
     /// search did not rank every set (`exhaustive` false), and only the
     /// subsets it did not rank (an exhaustive search has already fitted
     /// every subset), of those only the ones within the slack of
-    /// [`Self::within_slack`]. Returns `None` when `prev` stands.
+    /// [`Self::within_slack`]. With chain parameters fitted (`--fit d`, a
+    /// damping model's parameters, `k`, ...), every subset but `prev`'s
+    /// best is refitted, ranked or not: the search fits each set from the
+    /// chain's starting parameters, and from a start far from the record's
+    /// (the Rayleigh model's, scaled from the chain) its fit of the true
+    /// set can stop in another basin, while `next`'s values start it in
+    /// the right one (a
+    /// Rayleigh-damped System 1 record: the true two masses at chi-square
+    /// 1.3e5 from the start, about 1000 from the three-defect answer's
+    /// values, which had added a spurious spring). Returns `None` when
+    /// `prev` stands.
     ///
     /// # Errors
     /// As the observations' preparation and [`Self::measured`].
@@ -70,7 +80,9 @@ impl Engine<'_> {
         next: &KFit,
         sigma: f64,
     ) -> Result<Option<KFit>> {
-        if prev.exhaustive || next.k != prev.k + 1 || prev.k == 0 || self.given.is_some() {
+        let chain_fitted = !self.model.fitted().is_empty();
+        let every = prev.exhaustive && !chain_fitted;
+        if every || next.k != prev.k + 1 || prev.k == 0 || self.given.is_some() {
             return Ok(None);
         }
         let Some(top) = next.ranked.first() else {
@@ -89,27 +101,35 @@ impl Engine<'_> {
                 v.remove(drop);
                 (p, v)
             })
-            .filter(|(p, _)| prev.ranked.iter().all(|h| h.key() != *p))
+            // with chain parameters fitted, a ranked set but the best may
+            // have stopped in another basin (the best is where its start
+            // led, and the drop of `next`'s extra defect leads there too)
+            .filter(|(p, _)| match chain_fitted {
+                true => prev.ranked.first().is_none_or(|h| h.key() != *p),
+                false => prev.ranked.iter().all(|h| h.key() != *p),
+            })
             // a set the narrowed search ranked lost on its screen already
             .filter(|(p, _)| {
-                !prev
-                    .searched
-                    .as_ref()
-                    .is_some_and(|u| u.admits(&p[known..]))
+                chain_fitted
+                    || !prev
+                        .searched
+                        .as_ref()
+                        .is_some_and(|u| u.admits(&p[known..]))
             })
             .collect();
-        let starts = self.within_slack(prev, starts, sigma)?;
+        let starts = self.within_slack(prev, &start, starts, sigma)?;
         if starts.is_empty() {
             return Ok(None);
         }
         Ok(self
-            .joined(prev, &start, starts, false, sigma)?
+            .joined(prev, &start, starts, prev.exhaustive, sigma)?
             .filter(|f| f.rss < prev.rss))
     }
 
     /// The `starts` of [`Self::backward`] that could beat `prev`'s best:
     /// with a time misfit (whose fits cost a modal decomposition per
-    /// evaluation), each is first fitted on the coarse Laplace misfit
+    /// evaluation), each is first fitted from the chain parameters `start`
+    /// (`next`'s) on the coarse Laplace misfit
     /// ([`SLACK_ITER`] iterations) and kept only when its chi-square there
     /// is within the search's slack ([`general::Setup::time_slack`]) of
     /// `prev`'s best answer's: the rule by which the search itself refits
@@ -121,6 +141,7 @@ impl Engine<'_> {
     fn within_slack(
         &self,
         prev: &KFit,
+        start: &Chain,
         starts: Vec<(KindPositions, Vec<f64>)>,
         sigma: f64,
     ) -> Result<Vec<(KindPositions, Vec<f64>)>> {
@@ -133,11 +154,10 @@ impl Engine<'_> {
         let base = self.model.chain();
         let chain = best.to_chain(base)?;
         let floor = coarse.chi2(&chain)?;
-        let start = chain.uniform();
         Ok(starts
             .into_iter()
             .filter(|(pairs, values)| {
-                general::fit_pairs_from(&start, &unknowns, pairs, values, &coarse, SLACK_ITER)
+                general::fit_pairs_from(start, &unknowns, pairs, values, &coarse, SLACK_ITER)
                     .is_ok_and(|(h, _)| h.chi2 <= floor + setup.time_slack)
             })
             .collect())
@@ -183,7 +203,9 @@ impl Engine<'_> {
         if into.ranked.first().is_some_and(|b| b.chi2 <= h.chi2) {
             return Ok(None);
         }
+        // a set ranked before, from another start, gives way to its refit
         let mut ranked = into.ranked.clone();
+        ranked.retain(|r| r.key() != h.key());
         ranked.push(h);
         let (ranked, _) = self.ranked(ranked, 0)?;
         let found = Found {
