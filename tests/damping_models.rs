@@ -305,11 +305,10 @@ fn larger_grid_of_seeds() {
 /// the residual of the wrong model took the largest AR noise model, whose
 /// coefficients never settled, and the report said `converged` at wrong
 /// positions (8 and 13). It must not be called converged or resolved:
-/// two masses sought (a mismatch), or the defaults (every kind, their
-/// number by the criterion). Known limit: two defects of any kind given,
-/// seed 2's answer is a damper at 8 and a mass at 9 under an AR(4) noise
-/// model, `converged` (a damper defect and the noise model take up the
-/// wrong model's misfit).
+/// two masses sought (a mismatch, the AR model unsettled), two defects of
+/// any kind (a mismatch: the model given is checked against the others
+/// with white noise, and Rayleigh explains the record), or the defaults
+/// (every kind, their number by the criterion).
 #[test]
 fn a_wrong_damping_model_given_is_not_called_converged() {
     let paper = [(8, 5.0), (15, 2.0)];
@@ -322,7 +321,7 @@ fn a_wrong_damping_model_given_is_not_called_converged() {
             1e-2,
             seed,
         );
-        for (kinds, defects) in [("mass", Some("2")), ("any", None)] {
+        for (kinds, defects) in [("mass", Some("2")), ("any", Some("2")), ("any", None)] {
             let spec = FitSpec {
                 fit: Some("d".into()),
                 damping: Some("between".into()),
@@ -339,6 +338,22 @@ fn a_wrong_damping_model_given_is_not_called_converged() {
             if kinds == "mass" {
                 assert_eq!(r.status, Status::ModelMismatch, "{what}");
                 assert!(r.message.contains("did not settle"), "{what}");
+            }
+            // every kind sought with two defects: a damper beside a mass
+            // and an AR(4) noise model took up the wrong damping's misfit
+            // (a damper at 8 and a mass at 9, `converged`, for seed 2);
+            // the Rayleigh model explains the record with white noise
+            if kinds == "any" && defects.is_some() {
+                assert_eq!(r.status, Status::ModelMismatch, "{what}");
+                assert!(
+                    r.message.contains(
+                        "rayleigh damping explains it with white noise (defects mass@8, mass@15"
+                    ),
+                    "{what}"
+                );
+                let d = r.damping.as_ref().expect("the damping entry");
+                assert!(d.checked && d.model == "between", "{what}");
+                assert!(d.candidates.iter().any(|c| c.model == "rayleigh"), "{what}");
             }
         }
     }

@@ -148,6 +148,36 @@ fn offset_and_drift_at_one_percent() {
     );
 }
 
+/// The right damping model given (`--damping grounded --fit d`) on a
+/// record of genuinely coloured noise: the fit needs an AR model, so it is
+/// checked against the other damping models fitted with white noise; none
+/// explains the record, so the answer stands (right, not a mismatch), and
+/// the report lists the models checked.
+#[test]
+fn the_right_damping_model_given_survives_the_check_under_coloured_noise() {
+    let truth = system3();
+    let obs = record(&truth, 1e-3, Deviation::Ar(0.9), 1);
+    let spec = springmass::detect::fit::options::FitSpec {
+        fit: Some("d".into()),
+        damping: Some("grounded".into()),
+        ..springmass::detect::fit::options::FitSpec::new(20)
+    };
+    let (model, opts) = spec.build().unwrap();
+    let r = fit(&obs, &model, &opts).unwrap();
+    let case = r.summary();
+    assert!(right(&r, &truth).1, "{case}");
+    assert_ne!(r.status, Status::ModelMismatch, "{case}");
+    let d = r
+        .damping
+        .as_ref()
+        .expect("the damping entry of a checked fit");
+    assert!(d.checked, "{case}");
+    let mut checked: Vec<&str> = d.candidates.iter().map(|c| c.model.as_str()).collect();
+    checked.sort_unstable();
+    assert_eq!(checked, ["between", "modal", "rayleigh"], "{case}");
+    assert!(case.contains("given, and checked against"), "{case}");
+}
+
 #[test]
 fn spring_defect_under_ar_noise() {
     let truth = scenes::paper_with(10, "spring:4:0.5").unwrap();

@@ -239,6 +239,16 @@ def _modal_record(n, masses, zeta, t, level, seed):
     springs whose every mode has the damping ratio zeta (or, for a list,
     mode j the ratio zeta[j], the last for every higher mode): numpy's own
     modal sum (not the library's)."""
+    def ratios(w):
+        return np.array([np.atleast_1d(zeta)[min(j, np.size(zeta) - 1)] for j in range(w.size)])
+
+    return _modal_sum(n, masses, ratios, t, level, seed)
+
+
+def _modal_sum(n, masses, ratios, t, level, seed):
+    """The modal sum of _modal_record with the ratios ratios(w) of the
+    undamped frequencies w (ascending), plus white noise of level times the
+    peak."""
     m = np.ones(n)
     for at, v in masses:
         m[at - 1] = v
@@ -246,7 +256,7 @@ def _modal_record(n, masses, zeta, t, level, seed):
     mh = 1.0 / np.sqrt(m)
     w2, q = np.linalg.eigh(mh[:, None] * k * mh[None, :])
     w = np.sqrt(w2)  # ascending (eigh)
-    zeta = np.array([np.atleast_1d(zeta)[min(j, np.size(zeta) - 1)] for j in range(n)])
+    zeta = ratios(w)
     phi1 = mh[0] * q[0, :]
     wd = w * np.sqrt(1.0 - zeta**2)
     x = (phi1**2 * np.exp(-zeta * w * t[:, None]) * np.sin(wd * t[:, None]) / wd).sum(axis=1)
@@ -367,3 +377,29 @@ def test_effort_trades_the_search_for_time_and_names_its_level():
     assert ev[0] <= ev[1] <= ev[2], ev
     with pytest.raises(ValueError, match="effort"):
         springmass.fit(t, x, n=12, effort="max")
+
+
+def _rayleigh_record(n, masses, a, b, t, level, seed):
+    """x_1(t) of _modal_record's chain with the Rayleigh damping
+    C = a M + b K: its modes are the undamped ones with the ratios
+    a / (2 w) + b w / 2."""
+    return _modal_sum(n, masses, lambda w: a / (2.0 * w) + b * w / 2.0, t, level, seed)
+
+
+def test_a_wrong_damping_model_given_is_checked_against_the_others():
+    # a Rayleigh-damped record fitted with the between-storey model given:
+    # its fit needs coloured noise (AR(5), a damper at 8 beside a mass at
+    # 9), so the other models are fitted with white noise, and the Rayleigh
+    # model explains the record
+    t = np.arange(0.0, 200.5, 0.5)
+    masses = [(8, 5.0), (15, 2.0)]
+    x = _rayleigh_record(20, masses, 0.05, 0.01, t, 1e-2, 0)
+    r = springmass.fit(t, x, n=20, damping="between", fit=("d",), defects=2)
+    assert r.status == "model-mismatch" and not r.resolved, r.summary
+    assert "rayleigh damping explains it with white noise (defects mass@8, mass@15" in r.message, r.summary
+    assert r.damping["model"] == "between" and r.damping["checked"], r.damping
+    assert "rayleigh" in [c["model"] for c in r.damping["candidates"]], r.damping
+    # the right model given needs no check
+    right = springmass.fit(t, x, n=20, damping="rayleigh", fit=("d",), defects=2)
+    assert [(e.kind, e.at) for e in right.defects] == [("mass", 8), ("mass", 15)], right.summary
+    assert right.status == "converged" and "checked" not in right.damping, right.summary

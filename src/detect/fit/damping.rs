@@ -33,7 +33,7 @@ use crate::detect::data::nuisance::Nuisance;
 use crate::detect::fit::model::Model;
 use crate::detect::fit::options::FitOptions;
 use crate::detect::fit::record::{NoiseModelChoice, NuisanceChoice};
-use crate::detect::fit::report::FitReport;
+use crate::detect::fit::report::{FitReport, Status};
 use crate::detect::search::parallel;
 use crate::detect::unknowns::DefectKind;
 use crate::error::{Error, Result};
@@ -393,6 +393,115 @@ fn best_of(mut searched: Vec<Candidate<'_>>) -> Result<Best> {
     })
 }
 
+/// Whether a fit with its damping model given is checked against the other
+/// models ([`check_given`]): the damping parameters fitted (`--fit d`) and
+/// the model given (not chosen), the noise model left to the fit (`auto`)
+/// and taken coloured, and the answer not already a mismatch.
+pub fn checks_given(model: &Model, opts: &FitOptions, report: &FitReport) -> bool {
+    model.fits_damping()
+        && !model.chooses_damping()
+        && opts.noise_model == NoiseModelChoice::Auto
+        && report.noise_model.as_ref().is_some_and(|n| n.p > 0)
+        && report.status != Status::ModelMismatch
+}
+
+/// The options the other models are fitted with by [`check_given`]:
+/// [`candidate_options`] (white noise, a screening fit) at the number of
+/// defects of the given model's answer (`report.k`: the criterion's choice
+/// among `0..=4` cost three to five times the fit's own on the coloured
+/// records the check runs on; from three defects on, the criterion's
+/// choice up to `report.k`, whose nested searches cost less than ranking
+/// every set of `report.k`), and without intervals (only the criterion
+/// and the whiteness are read).
+pub fn check_options(opts: &FitOptions, report: &FitReport) -> FitOptions {
+    use crate::detect::fit::options::DefectCount;
+    let defects = match report.k {
+        k @ 0..=2 => DefectCount::Exactly(k),
+        k => DefectCount::Auto { k_max: k },
+    };
+    FitOptions {
+        defects,
+        uncertainty: false,
+        ..candidate_options(opts)
+    }
+}
+
+/// A damping model given, whose fit explains the record only with a
+/// coloured noise model, checked against the other models: each is fitted
+/// with white noise at the answer's number of defects ([`check_options`],
+/// by `fit`, in [`ORDER`]), and
+/// the first that explains the record with a smaller [`criterion`] makes
+/// the answer a `model-mismatch`, its message naming that model and its
+/// defects. The colour was then the wrong damping model's misfit, not
+/// noise: an AR model whitens a misfit made of the chain's own damped
+/// modes, and a defect of another kind (a damper beside a mass) takes up
+/// the rest, so the given model's answer can look sure at wrong positions
+/// (a Rayleigh record fitted as between-storey damping with every kind
+/// sought: a damper at 8 and a mass at 9, for masses at 8 and 15). The
+/// models checked are listed in the report's `damping.candidates`, not
+/// searched as a choice would, and their evaluations are added.
+///
+/// Genuinely coloured noise is left alone: no white fit of any model
+/// explains it.
+///
+/// # Errors
+/// A cancellation.
+pub fn check_given(model: &Model, report: &mut FitReport, fit: FitOne<'_>) -> Result<()> {
+    let given = model.chain().damping().name();
+    let bar = criterion(report);
+    let started = std::time::Instant::now();
+    let mut checked = Vec::new();
+    let mut better = None;
+    for name in ORDER.into_iter().filter(|n| *n != given) {
+        let r = match model.candidate(name).and_then(|m| fit(&m)) {
+            Ok(r) => r,
+            Err(Error::Cancelled) => return Err(Error::Cancelled),
+            Err(_) => continue,
+        };
+        report.evaluations += r.evaluations;
+        let c = candidate_of(name, &r, true);
+        // NaN (no residual to compare) does not stop the explanation
+        let smaller = c.criterion.partial_cmp(&bar).is_none_or(|o| o.is_lt());
+        let explains = r.fits_data && r.status != Status::ModelMismatch && smaller;
+        checked.push(c);
+        if explains {
+            better = Some(r);
+            break;
+        }
+    }
+    report.wall_time_s += started.elapsed().as_secs_f64();
+    let mut est = report
+        .damping
+        .take()
+        .unwrap_or_else(|| DampingEstimate::of(report, model));
+    est.candidates = checked;
+    est.checked = true;
+    report.damping = Some(est);
+    let Some(r) = better else {
+        return Ok(());
+    };
+    let other = r.damping.as_ref().map_or("grounded", |d| d.model.as_str());
+    let set: Vec<String> = r
+        .found()
+        .iter()
+        .map(|d| format!("{}@{}", d.kind(), d.at()))
+        .collect();
+    let noise = report.noise_model.as_ref().map_or(0, |n| n.p);
+    report.status = Status::ModelMismatch;
+    report.resolved = false;
+    report.fits_data = false;
+    report.message = format!(
+        "the damping model given ({given}) explains the record only with an AR({noise}) noise model, and {other} damping explains it with white noise (defects {}; criterion {:.4e} against {:.4e}): the colour is the misfit of a wrong damping model, not noise, and this answer may be wrong; fit without --damping to choose the model",
+        match set.is_empty() {
+            true => "none".to_string(),
+            false => set.join(", "),
+        },
+        criterion(&r),
+        bar
+    );
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -622,5 +731,50 @@ mod tests {
                 "case {i}"
             );
         }
+    }
+
+    #[test]
+    fn a_given_model_is_checked_only_when_its_fit_took_coloured_noise() {
+        use crate::detect::data::noise_model::NoiseModel;
+        use crate::detect::fit::record::NoiseModelReport;
+        let (white, choosing) = base();
+        let given = choosing.candidate("rayleigh").unwrap();
+        let opts = FitOptions::default();
+        let mut coloured = white.clone();
+        coloured.noise_model = Some(NoiseModelReport::new(
+            &NoiseModel::ar(vec![0.9]).unwrap(),
+            1e-3,
+            1,
+            true,
+        ));
+        // a model given, d fitted, auto noise that took AR(1)
+        assert!(checks_given(&given, &opts, &coloured));
+        // white noise; the model chosen; noise asked for; already a mismatch
+        assert!(!checks_given(&given, &opts, &white));
+        assert!(!checks_given(&choosing, &opts, &coloured));
+        let ar = FitOptions {
+            noise_model: NoiseModelChoice::Ar(None),
+            ..opts.clone()
+        };
+        assert!(!checks_given(&given, &ar, &coloured));
+        let mut mismatch = coloured.clone();
+        mismatch.status = Status::ModelMismatch;
+        assert!(!checks_given(&given, &opts, &mismatch));
+        // the other models are fitted at the answer's number of defects,
+        // with the criterion's choice from three on
+        assert_eq!(
+            check_options(&opts, &white).defects,
+            DefectCount::Exactly(white.k)
+        );
+        let mut three = white.clone();
+        three.k = 3;
+        assert_eq!(
+            check_options(&opts, &three).defects,
+            DefectCount::Auto { k_max: 3 }
+        );
+        assert_eq!(
+            check_options(&opts, &three).noise_model,
+            NoiseModelChoice::White
+        );
     }
 }

@@ -183,12 +183,18 @@ fn fit_with(
             },
         );
     }
+    let scene = given.is_some();
+    let mut r = fit_with_model(obs, model, opts, given)?;
     if !model.chain().damping().is_grounded() {
-        let mut r = fit_with_model(obs, model, opts, given)?;
         r.damping = Some(damping::DampingEstimate::of(&r, model));
-        return Ok(r);
     }
-    fit_with_model(obs, model, opts, given)
+    // a damping model given whose fit needed coloured noise: checked
+    // against the others with white noise
+    if !scene && damping::checks_given(model, opts, &r) {
+        let other = damping::check_options(opts, &r);
+        damping::check_given(model, &mut r, &|m| fit_with(obs, m, &other, None))?;
+    }
+    Ok(r)
 }
 
 /// [`fit_with`] for the model's damping model.

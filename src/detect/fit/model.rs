@@ -236,6 +236,11 @@ impl Model {
         self
     }
 
+    /// Whether the damping parameters are fitted (`d` asked for: `--fit d`).
+    pub fn fits_damping(&self) -> bool {
+        self.asked.contains(&Param::D)
+    }
+
     /// Whether the fit chooses the damping model.
     pub fn chooses_damping(&self) -> bool {
         self.choose_damping

@@ -38,9 +38,16 @@ pub struct DampingEstimate {
     pub se: BTreeMap<String, f64>,
     /// Whether they were fitted.
     pub fitted: bool,
-    /// Every model fitted when the fit chose the model (empty otherwise).
+    /// Every model fitted when the fit chose the model; with
+    /// [`DampingEstimate::checked`], the models a given one was checked
+    /// against; empty otherwise.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub candidates: Vec<DampingCandidate>,
+    /// The model was given, and its fit, which needed coloured noise, was
+    /// checked against the `candidates` fitted with white noise
+    /// ([`crate::detect::fit::damping::check_given`]).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub checked: bool,
 }
 
 impl DampingEstimate {
@@ -74,6 +81,7 @@ impl DampingEstimate {
             se,
             fitted,
             candidates: Vec::new(),
+            checked: false,
         }
     }
 
@@ -91,7 +99,12 @@ impl DampingEstimate {
                 .iter()
                 .map(|c| format!("{} {:.1}", c.model, c.criterion))
                 .collect();
-            if self.candidates.iter().all(|c| c.searched) {
+            if self.checked {
+                out.push_str(&format!(
+                    "; given, and checked against {} (BIC with white noise)",
+                    c.join(", ")
+                ));
+            } else if self.candidates.iter().all(|c| c.searched) {
                 out.push_str(&format!("; chosen by BIC among {}", c.join(", ")));
             } else {
                 out.push_str(&format!(
