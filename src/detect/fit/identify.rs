@@ -158,10 +158,13 @@ pub fn identify(
             let mut reasons = Vec::new();
             if let Some(g) = position_gap {
                 if g < t {
+                    // a rival with no position of its own has the same
+                    // positions but this one (another kind at one of them)
+                    let of = nearest_rival
+                        .map_or("an answer without it".into(), |q| format!("position {q}"));
                     reasons.push(format!(
-                        "position {} is within chi2 gap {g:.3} < {t} of position {}",
-                        d.at,
-                        nearest_rival.map_or("?".into(), |q| q.to_string())
+                        "position {} is within chi2 gap {g:.3} < {t} of {of}",
+                        d.at
                     ));
                 }
             }
@@ -245,5 +248,30 @@ mod tests {
         // no alternatives: only the value test
         let r = identify(&best[..1], 1.0, &[], 1e-3, None).unwrap();
         assert!(r.runner_up_gap.is_none() && r.all_identifiable());
+        // a rival close by without a position of its own (another kind at
+        // a position of the answer): named as such, not as a position
+        let close = [Alternative {
+            positions: vec![3],
+            chi2: 102.0,
+        }];
+        let r = identify(&best, 100.0, &close, 1e-3, None).unwrap();
+        assert_eq!(r.defects[1].nearest_rival, None);
+        assert!(
+            r.defects[1]
+                .reason
+                .starts_with("position 7 is within chi2 gap 2.000 < 9 of an answer without it"),
+            "{}",
+            r.defects[1].reason
+        );
+        let near = [Alternative {
+            positions: vec![3, 8],
+            chi2: 102.0,
+        }];
+        let r = identify(&best, 100.0, &near, 1e-3, None).unwrap();
+        assert!(
+            r.defects[1].reason.contains("of position 8"),
+            "{}",
+            r.defects[1].reason
+        );
     }
 }
