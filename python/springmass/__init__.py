@@ -499,7 +499,11 @@ class FitResult:
         "fitted": True, "candidates": [...]}`` (``None`` for the default
         grounded model not fitted); each candidate ``{"model", "criterion",
         "k", "positions", "searched"}``, ``searched`` False for a model
-        fitted only at the chosen model's set.
+        fitted only at the chosen model's set. With a model given
+        (``damping="between"``, ``fit=("d",)``) whose fit needed coloured
+        noise, ``"checked": True`` and the candidates are the other models
+        fitted with white noise; one that explains the record makes the
+        status ``model-mismatch``, its message naming it.
     t, observed, predicted, residual : ndarray
         The data and the best fit's model on the same times.
     summary : str
