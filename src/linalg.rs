@@ -5,6 +5,39 @@
 
 use crate::scalar::Scalar;
 
+/// Partial pivoting of column `col` of the row-major `k x k` system
+/// `(a, b)`: the row at or below `col` whose entry has the largest
+/// `magnitude` is swapped into row `col`. `false` when that magnitude is
+/// zero or not finite (the elimination stops).
+#[inline(always)]
+pub(crate) fn pivot<T>(
+    a: &mut [T],
+    b: &mut [T],
+    k: usize,
+    col: usize,
+    magnitude: impl Fn(&T) -> f64,
+) -> bool {
+    let mut piv = col;
+    let mut best = magnitude(&a[col * k + col]);
+    for r in col + 1..k {
+        let m = magnitude(&a[r * k + col]);
+        if m > best {
+            best = m;
+            piv = r;
+        }
+    }
+    if best == 0.0 || !best.is_finite() {
+        return false;
+    }
+    if piv != col {
+        for c in 0..k {
+            a.swap(col * k + c, piv * k + c);
+        }
+        b.swap(col, piv);
+    }
+    true
+}
+
 /// Solve `A x = b` in place for a row-major `k x k` matrix `a`; on return `b`
 /// holds `x`. Partial pivoting by modulus.
 ///
@@ -22,24 +55,8 @@ pub fn solve_in_place<T: Scalar>(a: &mut [T], b: &mut [T], k: usize) -> bool {
     debug_assert_eq!(a.len(), k * k);
     debug_assert_eq!(b.len(), k);
     for col in 0..k {
-        // pivot
-        let mut piv = col;
-        let mut best = a[col * k + col].magnitude();
-        for r in col + 1..k {
-            let m = a[r * k + col].magnitude();
-            if m > best {
-                best = m;
-                piv = r;
-            }
-        }
-        if best == 0.0 || !best.is_finite() {
+        if !pivot(a, b, k, col, T::magnitude) {
             return false;
-        }
-        if piv != col {
-            for c in 0..k {
-                a.swap(col * k + c, piv * k + c);
-            }
-            b.swap(col, piv);
         }
         let p = a[col * k + col].clone();
         for r in col + 1..k {

@@ -119,7 +119,7 @@ mod tests {
     use super::super::dense_ref::{self, baseline_chain};
     use super::*;
     use crate::forward::{tridiag, Forward};
-    use crate::time::simulate::{simulate, Method, SimOptions};
+    use crate::time::simulate::{matches_the_dense_reference, Method};
     use num_complex::Complex64;
 
     /// Baseline chains of every damping model and both end cases, with a
@@ -240,27 +240,12 @@ mod tests {
 
     #[test]
     fn simulations_match_the_matrix_exponential() {
-        let (dt, samples) = (0.2, 201);
         for chain in chains() {
             for method in [Method::Expm, Method::Rk, Method::Modal] {
                 if method == Method::Modal && !chain.damping().is_grounded() {
                     continue;
                 }
-                let opts = SimOptions::new(dt * (samples - 1) as f64, dt)
-                    .with_observe(vec![1, 6])
-                    .with_method(method);
-                let run = simulate(&chain, &opts).unwrap();
-                for o in [1, 6] {
-                    let want = dense_ref::impulse(&chain, o, dt, samples);
-                    let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-                    for (g, w) in run.x(o).unwrap().iter().zip(&want) {
-                        assert!(
-                            (g - w).abs() <= 1e-9 * scale,
-                            "{} {method}",
-                            chain.damping()
-                        );
-                    }
-                }
+                matches_the_dense_reference(&chain, method, 1e-9);
             }
         }
     }

@@ -5,11 +5,14 @@
 pub use super::fit_args::Args;
 use super::fit_args::{baseline_spec, chain_size};
 use anyhow::Context;
+use springmass::detect::data::observations::{Observations, Series};
 use springmass::detect::fit::fit_scene;
 use springmass::detect::fit::identify::Identifiability;
+use springmass::detect::fit::options::FitSpec;
 use springmass::detect::fit::paper::SceneReport;
 use springmass::detect::fit::FitMethod;
 use springmass::detect::scene::FitScene;
+use springmass::series::TimeSeries;
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     if a.modes.is_some() {
@@ -109,10 +112,7 @@ fn apply_flags(a: &Args, scene: &mut FitScene) -> anyhow::Result<()> {
 }
 
 /// The force column `name` of `table` (`None`: its first value column).
-fn force_column(
-    table: &springmass::series::TimeSeries,
-    name: Option<&str>,
-) -> springmass::Result<Vec<f64>> {
+fn force_column(table: &TimeSeries, name: Option<&str>) -> springmass::Result<Vec<f64>> {
     let col = match name {
         Some(c) => table.column(c).ok_or_else(|| {
             springmass::Error::invalid(
@@ -151,7 +151,7 @@ fn run_data(a: Args) -> anyhow::Result<()> {
     let report = with_spinner(a.json, "fitting", || dfit::fit(&obs, &model, &opts))?;
     if let Some(p) = &report.predicted {
         if let Some(out) = &a.out_csv {
-            springmass::series::TimeSeries::new(
+            TimeSeries::new(
                 p.t.clone(),
                 vec![
                     ("observed".into(), p.observed.clone()),
@@ -222,8 +222,8 @@ fn posterior_plot(
 }
 
 /// The options of a data-first fit as the library takes them.
-fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
-    springmass::detect::fit::options::FitSpec {
+fn data_spec(a: &Args, n: usize) -> FitSpec {
+    FitSpec {
         d: a.d,
         k: a.k,
         mass: a.mass,
@@ -260,7 +260,7 @@ fn data_spec(a: &Args, n: usize) -> springmass::detect::fit::options::FitSpec {
         uncertainty: a.no_uncertainty.then_some(false),
         exhaustive: a.exhaustive.then_some(true),
         effort: a.effort.clone(),
-        ..springmass::detect::fit::options::FitSpec::new(n)
+        ..FitSpec::new(n)
     }
 }
 
@@ -300,14 +300,9 @@ struct AxisNames {
 fn read_observations(
     a: &Args,
     path: &std::path::Path,
-    spec: &springmass::detect::fit::options::FitSpec,
+    spec: &FitSpec,
     opts: &springmass::detect::fit::FitOptions,
-) -> anyhow::Result<(
-    springmass::detect::data::observations::Observations,
-    AxisNames,
-)> {
-    use springmass::detect::data::observations::{Observations, Series};
-    use springmass::series::TimeSeries;
+) -> anyhow::Result<(Observations, AxisNames)> {
     if !spec.sensors.is_empty() {
         return read_sensors(a, path, spec, opts);
     }
@@ -359,14 +354,10 @@ fn read_observations(
 /// one record is, joined for one joint fit.
 fn read_records(
     a: &Args,
-    spec: &springmass::detect::fit::options::FitSpec,
+    spec: &FitSpec,
     opts: &springmass::detect::fit::FitOptions,
     profile: bool,
-) -> anyhow::Result<(
-    springmass::detect::data::observations::Observations,
-    AxisNames,
-)> {
-    use springmass::detect::data::observations::Observations;
+) -> anyhow::Result<(Observations, AxisNames)> {
     let refuse = |what: &str, value: String| -> anyhow::Result<()> {
         anyhow::bail!(springmass::Error::invalid(
             what,
@@ -411,14 +402,9 @@ fn read_records(
 fn read_sensors(
     a: &Args,
     path: &std::path::Path,
-    spec: &springmass::detect::fit::options::FitSpec,
+    spec: &FitSpec,
     opts: &springmass::detect::fit::FitOptions,
-) -> anyhow::Result<(
-    springmass::detect::data::observations::Observations,
-    AxisNames,
-)> {
-    use springmass::detect::data::observations::{Observations, Series};
-    use springmass::series::TimeSeries;
+) -> anyhow::Result<(Observations, AxisNames)> {
     // the sensors are checked before the data are read; the force is data
     let sensors = spec.measurements(None)?;
     let mut table = TimeSeries::read_csv(path)?;
@@ -471,7 +457,7 @@ fn read_sensors(
 
 /// The measured force: `--force FILE` (same times as the data) or a column
 /// of the data (`--force-column`).
-fn read_force(a: &Args, table: &springmass::series::TimeSeries) -> anyhow::Result<Vec<f64>> {
+fn read_force(a: &Args, table: &TimeSeries) -> anyhow::Result<Vec<f64>> {
     use springmass::series::TimeSeries;
     let Some(fpath) = &a.force else {
         return Ok(force_column(table, a.force_column.as_deref())?);

@@ -534,7 +534,8 @@ impl Folded {
 }
 
 /// Pivoted `k x k` solve for the per-node capacitance systems of
-/// [`Gathered::eval_general`]: the same elimination as
+/// [`Gathered::eval_general`]: the same elimination (and the same pivot
+/// step, `crate::linalg::pivot`) as
 /// [`crate::linalg::solve_in_place`] (same pivots; the result agrees to
 /// rounding, each pivot being divided once and its reciprocal multiplied),
 /// kept separate because it is the inner loop of every residual with
@@ -544,23 +545,8 @@ impl Folded {
 /// version (`cargo bench --bench fit -- residual_general`).
 fn small_solve<T: Num>(a: &mut [T], b: &mut [T], k: usize) -> bool {
     for col in 0..k {
-        let mut piv = col;
-        let mut best = a[col * k + col].norm2();
-        for r in col + 1..k {
-            let m = a[r * k + col].norm2();
-            if m > best {
-                best = m;
-                piv = r;
-            }
-        }
-        if best == 0.0 || !best.is_finite() {
+        if !crate::linalg::pivot(a, b, k, col, |v: &T| v.norm2()) {
             return false;
-        }
-        if piv != col {
-            for c in 0..k {
-                a.swap(col * k + c, piv * k + c);
-            }
-            b.swap(col, piv);
         }
         // one division per pivot: its reciprocal serves the rows below and
         // the back substitution (the diagonal then holds it)

@@ -223,19 +223,7 @@ pub(crate) fn fit_placed_from(
         method: "fit_placed_from".into(),
         reason: "no hypothesis".into(),
     })?;
-    let chain_bounds = crate::detect::fit::chainfit::default_bounds(base, unknowns.chain());
-    let f = fit_pairs(
-        &base.uniform(),
-        unknowns,
-        pairs,
-        values,
-        &chain_bounds,
-        true,
-        obs,
-        max_iter,
-        Tol::Full,
-    )?;
-    Ok((f.hyp, f.evaluations))
+    fit_pairs_from(&base.uniform(), unknowns, pairs, values, obs, max_iter)
 }
 
 /// Fit the `(kind, position)` pairs `pairs` of `unknowns` (one per slot, in
