@@ -105,9 +105,64 @@ impl Deviations {
     /// Time-like values are in units of `time_unit` (the period scale
     /// `sqrt(mass / k)` of the chain).
     ///
+    /// Several joined by `+` combine (`rayleigh+ar1-0.9+offset-drift`):
+    /// each part sets what it names, and no two parts may set the same
+    /// thing (the damping, the colour, the offset and drift, the blow).
+    ///
     /// # Errors
-    /// An unknown name (field `deviation`, listing the names).
+    /// An unknown name (field `deviation`, listing the names); two parts
+    /// that set the same thing (field `deviation`).
     pub fn named(name: &str, time_unit: f64) -> Result<Deviations> {
+        if name.contains('+') {
+            return Self::combined(name, time_unit);
+        }
+        Self::one(name.trim(), time_unit)
+    }
+
+    /// The parts of `name` joined by `+`, each set once.
+    fn combined(name: &str, time_unit: f64) -> Result<Deviations> {
+        let d = Deviations::default();
+        let mut out = d;
+        let mut set: Vec<(&str, &str)> = Vec::new();
+        for part in name.split('+').map(str::trim) {
+            let p = Self::one(part, time_unit)?;
+            let aspects = [
+                ("damping", p.damping != d.damping),
+                ("noise colour", p.colour != d.colour),
+                (
+                    "offset and drift",
+                    p.offset != d.offset || p.drift != d.drift,
+                ),
+                ("blow time", p.blow != d.blow || p.start != d.start),
+            ];
+            for (aspect, _) in aspects.iter().filter(|(_, on)| *on) {
+                if let Some((_, first)) = set.iter().find(|(a, _)| a == aspect) {
+                    return Err(Error::invalid(
+                        "deviation",
+                        name,
+                        format!("parts that set different things: {first} and {part} both set the {aspect}"),
+                    ));
+                }
+                set.push((aspect, part));
+            }
+            if p.damping != d.damping {
+                out.damping = p.damping;
+            }
+            if p.colour != d.colour {
+                out.colour = p.colour;
+            }
+            if p.offset != d.offset || p.drift != d.drift {
+                (out.offset, out.drift) = (p.offset, p.drift);
+            }
+            if p.blow != d.blow || p.start != d.start {
+                (out.blow, out.start) = (p.blow, p.start);
+            }
+        }
+        Ok(out)
+    }
+
+    /// One named deviation.
+    fn one(name: &str, time_unit: f64) -> Result<Deviations> {
         let d = Deviations::default();
         Ok(match name {
             "none" => d,
@@ -366,6 +421,22 @@ mod tests {
         let r1: f64 =
             e.windows(2).map(|w| w[0] * w[1]).sum::<f64>() / e.iter().map(|v| v * v).sum::<f64>();
         assert!((r1 - 0.9).abs() < 0.02, "{r1}");
+        // parts joined by `+` combine; two that set the same thing do not
+        let both = Deviations::named("rayleigh + ar1-0.9+offset-drift", 2.0).unwrap();
+        let ray = Deviations::named("rayleigh", 2.0).unwrap();
+        assert_eq!(both.damping, ray.damping);
+        assert_eq!(both.colour, Colour::Ar1(0.9));
+        assert_eq!((both.offset, both.drift), (od.offset, od.drift));
+        assert_eq!((both.blow, both.start), (0.0, 0.0));
+        let e = Deviations::named("rayleigh+modal", 1.0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("deviation") && e.contains("both set the damping"),
+            "{e}"
+        );
+        assert!(Deviations::named("pre-trigger+late-clock", 1.0).is_err());
+        assert!(Deviations::named("none+wobbly", 1.0).is_err());
         assert!(Deviations::named("wobbly", 1.0)
             .unwrap_err()
             .to_string()

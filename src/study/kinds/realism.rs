@@ -27,7 +27,7 @@ use crate::detect::data::observations::{Observations, Series};
 use crate::detect::fit::options::FitSpec;
 use crate::detect::fit::{fit, FitReport, Status};
 use crate::error::{check_f64, Error, Result};
-use crate::study::realistic::{record, Deviations, NAMES};
+use crate::study::realistic::{record, Deviations};
 use crate::study::schema::FieldDoc;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -38,7 +38,7 @@ pub const SUMMARY: &str = "Simulates a record of a reference system with a real 
 /// The scene fields.
 pub const FIELDS: &[FieldDoc] = &[
     FieldDoc::new("system", "string", "required", "S1, S2, S3, S4 (Table 1), C3a, C3b (three defects), k0..k3, or random:N (N masses, one or two mass defects at positions and factors drawn from the case's seed: factors in 0.5..0.8 or 1.25..2)."),
-    FieldDoc::new("deviation", "string", "\"none\"", "none, rayleigh, between, modal, modal-modes, ar1-0.9, ar1-0.99, offset-drift, pre-trigger, late-clock."),
+    FieldDoc::new("deviation", "string", "\"none\"", "none, rayleigh, between, modal, modal-modes, ar1-0.9, ar1-0.99, offset-drift, pre-trigger, late-clock, or several joined by + that set different things (rayleigh+ar1-0.9+offset-drift)."),
     FieldDoc::new("level", "float in [0, 1]", "required", "Noise standard deviation relative to the clean record's peak."),
     FieldDoc::new("t_end", "float > 0", "200", "Record length, in units of sqrt(mass / k)."),
     FieldDoc::new("dt", "float > 0", "0.2", "Sampling step, in units of sqrt(mass / k)."),
@@ -185,12 +185,8 @@ impl KindScene for Scene {
             }
             Err(e) => out.push(e),
         }
-        if !NAMES.contains(&self.deviation.as_str()) {
-            out.push(Error::invalid(
-                "deviation",
-                &self.deviation,
-                NAMES.join(", "),
-            ));
+        if let Err(e) = Deviations::named(&self.deviation, 1.0) {
+            out.push(e);
         }
         let checks = [
             (
