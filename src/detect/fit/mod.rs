@@ -222,7 +222,8 @@ fn fit_with_model(
             let keeps = !record::forced(opts.noise_model, opts.nuisance);
             let first: Option<(&trigger::FitRun<'_>, bool)> =
                 (white != *opts).then_some((&first, keeps));
-            let mut report = trigger::fit_retimed(rec, model, t0, auto, first, |o| {
+            let refine = (auto, opts.nuisance.widest());
+            let mut report = trigger::fit_retimed(rec, model, t0, refine, first, |o| {
                 fit_record(o, model, opts, None)
             })?;
             doubt_coloured_lead_in(&mut report);

@@ -101,6 +101,14 @@ pub enum NuisanceChoice {
 }
 
 impl NuisanceChoice {
+    /// The most nuisances the choice allows: `offset+drift` for `auto`.
+    pub fn widest(self) -> Nuisance {
+        match self {
+            NuisanceChoice::Auto => Nuisance::OffsetDrift,
+            NuisanceChoice::Fixed(n) => n,
+        }
+    }
+
     /// `auto`, `none`, `offset` or `offset+drift`.
     ///
     /// # Errors

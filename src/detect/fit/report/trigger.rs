@@ -14,7 +14,8 @@ pub struct TriggerEstimate {
     pub dropped: usize,
     /// Detected from the record (`false`: given by the user).
     pub detected: bool,
-    /// Refits at a refined time (0 or 1).
+    /// Refits at a refined time (0 to 3: the time is refined again with
+    /// each refit's chain until it stays within its standard error).
     pub refits: usize,
 }
 
@@ -28,10 +29,10 @@ impl TriggerEstimate {
             fmt_g(self.se),
             if self.detected { "detected" } else { "given" },
             self.dropped,
-            if self.refits > 0 {
-                ", refitted at the refined time"
-            } else {
-                ""
+            match self.refits {
+                0 => String::new(),
+                1 => ", refitted at the refined time".into(),
+                r => format!(", refitted {r} times as the time was refined with each fit's chain"),
             },
         )
     }
