@@ -232,7 +232,7 @@ impl Model {
     /// ([`crate::detect::fit::damping::fit_choosing`]); meaningful with `D`
     /// fitted.
     pub fn choosing_damping(mut self) -> Model {
-        self.choose_damping = self.asked.contains(&Param::D);
+        self.choose_damping = self.fits_damping();
         self
     }
 
