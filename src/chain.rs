@@ -296,6 +296,16 @@ impl Defect {
         }
     }
 
+    /// Kind and position, as reports name a defect: `mass@8`.
+    ///
+    /// ```
+    /// use springmass::Defect;
+    /// assert_eq!(Defect::Spring { at: 3, k: 0.5 }.place(), "spring@3");
+    /// ```
+    pub fn place(&self) -> String {
+        format!("{}@{}", self.kind(), self.at())
+    }
+
     /// The defect's value (mass, stiffness or damping).
     pub fn value(&self) -> f64 {
         match *self {

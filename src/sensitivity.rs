@@ -131,7 +131,7 @@ impl Param {
     pub fn name(&self, chain: &Chain) -> String {
         match *self {
             Param::Defect(i) => match chain.defects().get(i) {
-                Some(d) => format!("{}@{}", d.kind(), d.at()),
+                Some(d) => d.place(),
                 None => format!("defect[{i}]"),
             },
             Param::D => "d".into(),

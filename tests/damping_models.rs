@@ -269,11 +269,7 @@ fn a_given_model_fitted_from_a_start_far_from_the_record() {
     let (m, opts) = spec.build().unwrap();
     let r = fit(&obs, &m, &opts).unwrap();
     let what = r.summary();
-    let found: Vec<String> = r
-        .defects
-        .iter()
-        .map(|d| format!("{}@{}", d.kind, d.at))
-        .collect();
+    let found: Vec<String> = r.found().iter().map(springmass::Defect::place).collect();
     assert_eq!(found, ["mass@2", "mass@4"], "{what}");
     assert_eq!(r.status, Status::Converged, "{what}");
     for (d, &(_, v)) in r.defects.iter().zip(&SYSTEM) {

@@ -68,11 +68,7 @@ fn a_late_blow_with_a_sensor_offset_is_refined_with_the_answers_chain() {
     let (model, opts) = spec.build().unwrap();
     let r = fit(&obs, &model, &opts).unwrap();
     let what = r.summary();
-    let found: Vec<String> = r
-        .defects
-        .iter()
-        .map(|d| format!("{}@{}", d.kind, d.at))
-        .collect();
+    let found: Vec<String> = r.found().iter().map(springmass::Defect::place).collect();
     assert_eq!(found, ["mass@8", "mass@15"], "{what}");
     assert_eq!(r.status, Status::Converged, "{what}");
     let tr = r.trigger.expect("re-timed");

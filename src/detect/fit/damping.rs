@@ -481,11 +481,7 @@ pub fn check_given(model: &Model, report: &mut FitReport, fit: FitOne<'_>) -> Re
         return Ok(());
     };
     let other = r.damping.as_ref().map_or("grounded", |d| d.model.as_str());
-    let set: Vec<String> = r
-        .found()
-        .iter()
-        .map(|d| format!("{}@{}", d.kind(), d.at()))
-        .collect();
+    let set: Vec<String> = r.found().iter().map(crate::Defect::place).collect();
     let noise = report.noise_model.as_ref().map_or(0, |n| n.p);
     report.status = Status::ModelMismatch;
     report.resolved = false;

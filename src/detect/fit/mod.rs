@@ -573,11 +573,7 @@ fn doubt_improbable_answer(report: &mut FitReport) {
         return;
     }
     let top = post.hypotheses.first().map_or("another".to_string(), |h| {
-        let d: Vec<String> = h
-            .defects
-            .iter()
-            .map(|d| format!("{}@{}", d.kind(), d.at()))
-            .collect();
+        let d: Vec<String> = h.defects.iter().map(crate::Defect::place).collect();
         if d.is_empty() {
             "no defect".to_string()
         } else {

@@ -368,11 +368,7 @@ impl FitReport {
             }
         }
         for (i, a) in self.alternatives.iter().take(3).enumerate() {
-            let d: Vec<String> = a
-                .defects
-                .iter()
-                .map(|d| format!("{}@{}", d.kind(), d.at()))
-                .collect();
+            let d: Vec<String> = a.defects.iter().map(Defect::place).collect();
             out.push_str(&format!(
                 "alternative {}: {} (chi2 gap {})\n",
                 i + 1,

@@ -96,11 +96,7 @@ impl Posterior {
             .iter()
             .take(3)
             .map(|h| {
-                let d: Vec<String> = h
-                    .defects
-                    .iter()
-                    .map(|d| format!("{}@{}", d.kind(), d.at()))
-                    .collect();
+                let d: Vec<String> = h.defects.iter().map(Defect::place).collect();
                 let name = if d.is_empty() {
                     "no defect".to_string()
                 } else {
