@@ -306,6 +306,22 @@ impl Defect {
         format!("{}@{}", self.kind(), self.at())
     }
 
+    /// A set of defects as reports name it: `mass@8, mass@15`, or `no
+    /// defect`.
+    ///
+    /// ```
+    /// use springmass::Defect;
+    /// assert_eq!(Defect::places(&[Defect::Mass { at: 8, m: 5.0 }]), "mass@8");
+    /// assert_eq!(Defect::places(&[]), "no defect");
+    /// ```
+    pub fn places(defects: &[Defect]) -> String {
+        if defects.is_empty() {
+            return "no defect".into();
+        }
+        let d: Vec<String> = defects.iter().map(Defect::place).collect();
+        d.join(", ")
+    }
+
     /// The defect's value (mass, stiffness or damping).
     pub fn value(&self) -> f64 {
         match *self {

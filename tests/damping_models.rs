@@ -381,9 +381,8 @@ fn a_wrong_damping_model_given_is_not_called_converged() {
             if kinds == "any" && defects.is_some() {
                 assert_eq!(r.status, Status::ModelMismatch, "{what}");
                 assert!(
-                    r.message.contains(
-                        "rayleigh damping explains it with white noise (defects mass@8, mass@15"
-                    ),
+                    r.message
+                        .contains("rayleigh damping explains it with white noise (mass@8, mass@15"),
                     "{what}"
                 );
                 let d = r.damping.as_ref().expect("the damping entry");

@@ -396,7 +396,7 @@ def test_a_wrong_damping_model_given_is_checked_against_the_others():
     x = _rayleigh_record(20, masses, 0.05, 0.01, t, 1e-2, 0)
     r = springmass.fit(t, x, n=20, damping="between", fit=("d",), defects=2)
     assert r.status == "model-mismatch" and not r.resolved, r.summary
-    assert "rayleigh damping explains it with white noise (defects mass@8, mass@15" in r.message, r.summary
+    assert "rayleigh damping explains it with white noise (mass@8, mass@15" in r.message, r.summary
     assert r.damping["model"] == "between" and r.damping["checked"], r.damping
     assert "rayleigh" in [c["model"] for c in r.damping["candidates"]], r.damping
     # the right model given needs no check

@@ -481,17 +481,13 @@ pub fn check_given(model: &Model, report: &mut FitReport, fit: FitOne<'_>) -> Re
         return Ok(());
     };
     let other = r.damping.as_ref().map_or("grounded", |d| d.model.as_str());
-    let set: Vec<String> = r.found().iter().map(crate::Defect::place).collect();
+    let set = crate::Defect::places(&r.found());
     let noise = report.noise_model.as_ref().map_or(0, |n| n.p);
     report.status = Status::ModelMismatch;
     report.resolved = false;
     report.fits_data = false;
     report.message = format!(
-        "the damping model given ({given}) explains the record only with an AR({noise}) noise model, and {other} damping explains it with white noise (defects {}; criterion {:.4e} against {:.4e}): the colour is the misfit of a wrong damping model, not noise, and this answer may be wrong; fit without --damping to choose the model",
-        match set.is_empty() {
-            true => "none".to_string(),
-            false => set.join(", "),
-        },
+        "the damping model given ({given}) explains the record only with an AR({noise}) noise model, and {other} damping explains it with white noise ({set}; criterion {:.4e} against {:.4e}): the colour is the misfit of a wrong damping model, not noise, and this answer may be wrong; fit without --damping to choose the model",
         criterion(&r),
         bar
     );

@@ -572,14 +572,10 @@ fn doubt_improbable_answer(report: &mut FitReport) {
     if post.answer_probability >= ANSWER_PROBABILITY_MIN {
         return;
     }
-    let top = post.hypotheses.first().map_or("another".to_string(), |h| {
-        let d: Vec<String> = h.defects.iter().map(crate::Defect::place).collect();
-        if d.is_empty() {
-            "no defect".to_string()
-        } else {
-            d.join(", ")
-        }
-    });
+    let top = post
+        .hypotheses
+        .first()
+        .map_or("another".to_string(), |h| crate::Defect::places(&h.defects));
     let why = format!(
         "the answer has probability {:.2} only (most probable: {top}); the data cannot tell these hypotheses apart",
         post.answer_probability

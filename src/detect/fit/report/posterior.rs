@@ -96,12 +96,7 @@ impl Posterior {
             .iter()
             .take(3)
             .map(|h| {
-                let d: Vec<String> = h.defects.iter().map(Defect::place).collect();
-                let name = if d.is_empty() {
-                    "no defect".to_string()
-                } else {
-                    d.join(", ")
-                };
+                let name = Defect::places(&h.defects);
                 format!("{name} ({})", prob(h.probability))
             })
             .collect();
