@@ -32,15 +32,29 @@
 //! (`cpu/fit-d/s3/choice`: `--fit d` alone; with `parallel` false its
 //! candidates are fitted on the calling thread, so its thread CPU time is
 //! all of its work).
+//!
+//! The hidden-defect check that the defaults add to a fit
+//! (`cpu/unseen/<case>/stepped`: each probe's record resumed from the saved
+//! states of one simulation and stopped once it shows the change) against
+//! the same check with every probe summed over its modes
+//! (`.../summed`, the measurement model's default `near`), at the truth of
+//! `s3` and of `n60` (n = 60, masses 2.5 at 9 and 0.5 at 23); the ratio is
+//! printed after each group.
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use springmass::detect::data::observations::{Observations, Series};
 use springmass::detect::data::series::TimeData;
 use springmass::detect::fit::effort::Effort;
+use springmass::detect::fit::general::Hypothesis;
 use springmass::detect::fit::options::FitSpec;
+use springmass::detect::fit::unseen::unseen;
 use springmass::detect::fit::{fit, DefectCount, FitOptions, Model};
+use springmass::detect::misfit::time::TimeMisfit;
+use springmass::detect::model::MeasurementModel;
+use springmass::detect::unknowns::DefectKind;
 use springmass::detect::unknowns::KindChoice;
 use springmass::noise::NoiseLevel;
+use springmass::sensitivity::Param;
 use springmass::{Chain, Defect};
 use std::time::{Duration, Instant};
 
@@ -243,9 +257,69 @@ fn bench_fit_d(c: &mut Criterion<CpuTime>) {
     }
 }
 
+/// The time misfit with the measurement model's default `near`: every
+/// probe of the hidden-defect check summed over its modes.
+#[derive(Debug)]
+struct Summed<'a>(&'a TimeMisfit);
+
+impl MeasurementModel for Summed<'_> {
+    fn name(&self) -> &'static str {
+        "time, summed"
+    }
+    fn dof(&self) -> usize {
+        MeasurementModel::dof(self.0)
+    }
+    fn residuals(&self, chain: &Chain) -> springmass::Result<Vec<f64>> {
+        self.0.residuals(chain)
+    }
+    fn jacobian(
+        &self,
+        chain: &Chain,
+        params: &[Param],
+    ) -> springmass::Result<Option<nalgebra::DMatrix<f64>>> {
+        MeasurementModel::jacobian(self.0, chain, params)
+    }
+}
+
+fn bench_unseen(c: &mut Criterion<CpuTime>) {
+    for (name, n, defects) in [
+        ("s3", 20, vec![(8, 5.0), (15, 2.0)]),
+        ("n60", 60, vec![(9, 2.5), (23, 0.5)]),
+    ] {
+        let truth = Chain::paper(n)
+            .unwrap()
+            .with_defects(defects.iter().map(|&(at, m)| Defect::Mass { at, m }))
+            .unwrap();
+        let data =
+            TimeData::simulate(&truth, 300.0, 0.05, NoiseLevel::RelativeMax(1e-2), 1).unwrap();
+        let misfit = TimeMisfit::new(data);
+        let summed = Summed(&misfit);
+        let model = Model::new(n).unwrap();
+        let h = Hypothesis::from_parts(truth.defects().to_vec(), vec![0.0; 2], vec![], 0.0);
+        let kinds = [DefectKind::Mass, DefectKind::Spring];
+        let check = |m: &dyn MeasurementModel| unseen(&h, &model, m, &kinds, 1.0, false).unwrap();
+        assert_eq!(check(&misfit), check(&summed), "{name}: the same elements");
+        let mut grp = c.benchmark_group(format!("cpu/unseen/{name}"));
+        grp.sample_size(10).measurement_time(Duration::from_secs(5));
+        grp.bench_function("stepped", |b| b.iter(|| check(black_box(&misfit))));
+        grp.bench_function("summed", |b| b.iter(|| check(black_box(&summed))));
+        grp.finish();
+        let ts = mean_s(3, || {
+            check(&misfit);
+        });
+        let tm = mean_s(3, || {
+            check(&summed);
+        });
+        println!(
+            "{name}: the hidden-defect check stepped {ts:.3} s, summed over modes {tm:.3} s, ratio {:.2}x (wall, one thread, mean of 3)",
+            ts / tm
+        );
+    }
+}
+
 criterion_group! {
     name = benches_kauto;
     config = Criterion::default().with_measurement(CpuTime);
-    targets = bench_kauto, bench_kinds, bench_fit_d
+    targets = bench_kauto, bench_kinds, bench_fit_d, bench_unseen
 }
 criterion_main!(benches_kauto);

@@ -87,7 +87,7 @@ pub trait MeasurementModel: Sync + std::fmt::Debug {
     /// The residuals of chains that differ from `base` in a few elements
     /// (the hidden-defect check's probes): [`MeasurementModel::residuals`]
     /// to rounding, perhaps cheaper after work done once for `base` (the
-    /// time misfit of a long chain resumes each chain's simulation where it
+    /// time misfit of a grounded chain resumes each chain's simulation where it
     /// first differs from `base`'s, and stops where the caller has seen
     /// enough, see [`Enough`]). The default calls `residuals`.
     ///

@@ -239,14 +239,12 @@ pub fn welch(rec: &AmbientRecord, seg_len: usize) -> Result<CrossSpectrum> {
     let p = rec.channels.len();
     let bins = seg_len / 2 + 1;
     let mut g = vec![DMatrix::<Complex64>::zeros(p, p); bins];
-    let twiddle: Vec<Complex64> = (0..seg_len)
-        .map(|n| Complex64::from_polar(1.0, -TAU * n as f64 / seg_len as f64))
-        .collect();
+    let fft = rustfft::FftPlanner::new().plan_fft_forward(seg_len);
     for s in 0..k {
         let spectra: Vec<Vec<Complex64>> = rec
             .channels
             .iter()
-            .map(|c| dft(&c[s * hop..s * hop + seg_len], &w, &twiddle))
+            .map(|c| dft(&c[s * hop..s * hop + seg_len], &w, fft.as_ref()))
             .collect();
         for (j, gj) in g.iter_mut().enumerate() {
             for a in 0..p {
@@ -272,20 +270,19 @@ pub fn welch(rec: &AmbientRecord, seg_len: usize) -> Result<CrossSpectrum> {
     })
 }
 
-/// Windowed, de-meaned DFT of one segment at bins `0..=L/2` (direct sum:
-/// `O(L^2)`, a few milliseconds for the lengths used here).
-fn dft(x: &[f64], w: &[f64], twiddle: &[Complex64]) -> Vec<Complex64> {
+/// Windowed, de-meaned DFT of one segment at bins `0..=L/2` (`sum_n y_n
+/// e^{-2 pi i j n / L}`, by the FFT `fft` of length `L`).
+fn dft(x: &[f64], w: &[f64], fft: &dyn rustfft::Fft<f64>) -> Vec<Complex64> {
     let len = x.len();
     let mean = x.iter().sum::<f64>() / len as f64;
-    let y: Vec<f64> = x.iter().zip(w).map(|(v, w)| (v - mean) * w).collect();
-    (0..=len / 2)
-        .map(|j| {
-            y.iter()
-                .enumerate()
-                .map(|(n, v)| twiddle[(j * n) % len] * *v)
-                .sum()
-        })
-        .collect()
+    let mut y: Vec<Complex64> = x
+        .iter()
+        .zip(w)
+        .map(|(v, w)| Complex64::new((v - mean) * w, 0.0))
+        .collect();
+    fft.process(&mut y);
+    y.truncate(len / 2 + 1);
+    y
 }
 
 /// The segment length for `nominal`: the smallest power of two whose bin

@@ -59,56 +59,62 @@ use crate::chain::{Chain, Probe};
 use crate::detect::unknowns::DefectKind;
 use crate::error::{Error, Result};
 use num_complex::Complex64;
+use std::sync::Arc;
 
 mod run;
 use run::MAX_STORED;
-pub use run::{simulate, Run, Saved, TimeGrid, ENOUGH_EVERY, SAVED_EVERY};
+pub use run::{simulate, sub_steps, Run, Saved, TimeGrid, ENOUGH_EVERY, SAVED_EVERY};
 
-/// Radix-2 complex FFT of one size.
-#[derive(Clone, Debug)]
+/// A complex FFT of one size (rustfft's planner: any size, SIMD kernels).
+#[derive(Clone)]
 struct Fft {
     n: usize,
-    tw: Vec<Complex64>,
+    forward: Arc<dyn rustfft::Fft<f64>>,
+    inverse: Arc<dyn rustfft::Fft<f64>>,
+}
+
+impl std::fmt::Debug for Fft {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Fft").field("n", &self.n).finish()
+    }
 }
 
 impl Fft {
     fn new(n: usize) -> Fft {
-        debug_assert!(n.is_power_of_two());
-        let tw = (0..n / 2)
-            .map(|k| Complex64::from_polar(1.0, -2.0 * std::f64::consts::PI * k as f64 / n as f64))
-            .collect();
-        Fft { n, tw }
+        let mut planner = rustfft::FftPlanner::new();
+        Fft {
+            n,
+            forward: planner.plan_fft_forward(n),
+            inverse: planner.plan_fft_inverse(n),
+        }
     }
 
-    /// In place, forward (`e^{-2 pi i jk/n}`); `inverse` conjugates and scales by `1/n`.
-    fn run(&self, a: &mut [Complex64], inverse: bool) {
-        let n = self.n;
-        let bits = n.trailing_zeros();
-        for i in 0..n {
-            let j = i.reverse_bits() >> (usize::BITS - bits);
-            if j > i {
-                a.swap(i, j);
-            }
-        }
-        if inverse {
-            a.iter_mut().for_each(|z| *z = z.conj());
-        }
-        let mut len = 2;
-        while len <= n {
-            let stride = n / len;
-            for chunk in a.chunks_exact_mut(len) {
-                let (lo, hi) = chunk.split_at_mut(len / 2);
-                for (k, (u, w)) in lo.iter_mut().zip(hi.iter_mut()).enumerate() {
-                    let t = *w * self.tw[k * stride];
-                    *w = *u - t;
-                    *u += t;
+    /// The smallest size of the form `2^a 3^b 5^c` at least `m` (a size
+    /// the planner transforms about as fast as a power of two).
+    fn size_for(m: usize) -> usize {
+        let mut n = m.max(1);
+        loop {
+            let mut r = n;
+            for p in [2, 3, 5] {
+                while r.is_multiple_of(p) {
+                    r /= p;
                 }
             }
-            len <<= 1;
+            if r == 1 {
+                return n;
+            }
+            n += 1;
         }
+    }
+
+    /// In place, forward (`e^{-2 pi i jk/n}`); `inverse` the inverse scaled by `1/n`.
+    fn run(&self, a: &mut [Complex64], inverse: bool) {
         if inverse {
-            let s = 1.0 / n as f64;
-            a.iter_mut().for_each(|z| *z = z.conj() * s);
+            self.inverse.process(a);
+            let s = 1.0 / self.n as f64;
+            a.iter_mut().for_each(|z| *z *= s);
+        } else {
+            self.forward.process(a);
         }
     }
 }
@@ -137,7 +143,8 @@ impl Screen {
             return None;
         }
         let grid = TimeGrid::new(t, chain)?;
-        let size = (2 * grid.steps()).next_power_of_two();
+        // a linear convolution of `steps` samples: no wrap below `2 steps - 1`
+        let size = Fft::size_for((2 * grid.steps()).saturating_sub(1));
         Some(Screen {
             grid,
             y: y.to_vec(),
@@ -487,6 +494,39 @@ mod tests {
                 assert!(err < tol, "{kind:?} {p}: relative error {err:.2e}");
             }
         }
+    }
+
+    /// The transform's size is the smallest `2^a 3^b 5^c` that holds the
+    /// linear convolution, and the transform pair is the identity.
+    #[test]
+    fn sizes_are_smooth_and_the_transforms_invert() {
+        let smooth = |mut n: usize| {
+            for p in [2, 3, 5] {
+                while n.is_multiple_of(p) {
+                    n /= p;
+                }
+            }
+            n == 1
+        };
+        for m in 1..3000 {
+            let n = Fft::size_for(m);
+            assert!(
+                n >= m && smooth(n) && (m..n).all(|j| !smooth(j)),
+                "{m}: {n}"
+            );
+        }
+        assert_eq!(Fft::size_for(2 * 6001 - 1), 12150);
+        let fft = Fft::new(360);
+        let a: Vec<Complex64> = (0..360)
+            .map(|j| Complex64::new((j as f64 * 0.37).sin(), (j as f64).cos()))
+            .collect();
+        let mut b = a.clone();
+        fft.run(&mut b, false);
+        // the forward transform's zero frequency is the sum
+        let sum: Complex64 = a.iter().sum();
+        assert!((b[0] - sum).norm() < 1e-12 * 360.0);
+        fft.run(&mut b, true);
+        assert!(a.iter().zip(&b).all(|(x, y)| (x - y).norm() < 1e-14));
     }
 
     /// Candidates beyond the front of a short record's simulation score

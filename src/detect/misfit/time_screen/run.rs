@@ -10,6 +10,9 @@ use crate::error::{Error, Result};
 /// simulation; more candidates are screened in chunks.
 pub(super) const MAX_STORED: usize = 1 << 23;
 
+/// Most internal steps per record step of a [`TimeGrid`].
+pub(crate) const MAX_SUB: usize = 256;
+
 /// The uniform grid behind a record: internal steps of `dt`, the record's
 /// samples every `sub` steps from step `first`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -29,7 +32,9 @@ impl TimeGrid {
     /// uniform (to `1e-9` of its step) and starts at a multiple of the step
     /// at or after 0. The internal step divides the record's so that
     /// `dt omega_max <= 1` (`omega_max` Gershgorin's bound on `chain`'s
-    /// frequencies).
+    /// frequencies); `None` too where that takes more than `MAX_SUB` (256)
+    /// internal steps per record step (a record far too coarse for the
+    /// chain, which its modal sum serves at any step).
     pub fn new(t: &[f64], chain: &Chain) -> Option<TimeGrid> {
         let n = t.len();
         if n < 3 {
@@ -46,7 +51,11 @@ impl TimeGrid {
             return None;
         }
         let w = omega_max(chain);
-        let sub = ((step * w).ceil() as usize).max(1);
+        let sub = (step * w).ceil().max(1.0);
+        if sub > MAX_SUB as f64 {
+            return None;
+        }
+        let sub = sub as usize;
         let dt = step / sub as f64;
         let f = t[0] / dt;
         if f < -1e-9 || (f - f.round()).abs() > 1e-6 || f > 1e9 {
@@ -208,6 +217,20 @@ fn taylor_terms(theta: f64) -> usize {
     m
 }
 
+/// `||A||` in the energy norm: `A` is skew (norm `omega_max`) plus the
+/// damping.
+fn norm(chain: &Chain) -> f64 {
+    let (m, d) = (chain.masses(), chain.dampers());
+    omega_max(chain) + (0..chain.n()).map(|i| d[i] / m[i]).fold(0.0, f64::max)
+}
+
+/// Taylor sub-steps per internal step of `grid` when [`simulate`] steps
+/// `chain` (`h ||A|| <= THETA`): 1 unless heavy damping or a stiff chain
+/// asks for more.
+pub fn sub_steps(chain: &Chain, grid: &TimeGrid) -> usize {
+    ((grid.dt * norm(chain) / THETA).ceil() as usize).max(1)
+}
+
 /// What [`advance`] knows at an internal step: `x_1`, `x` and `v` of the
 /// tracked masses (in their order), and the whole state where a Taylor
 /// step ends (and at the start).
@@ -232,11 +255,8 @@ fn advance(
     tracked: &[usize],
     mut each: impl FnMut(usize, &At) -> bool,
 ) {
-    // in the energy norm A is skew (norm omega_max) plus the damping
-    let (m, d) = (chain.masses(), chain.dampers());
-    let norm = omega_max(chain) + (0..chain.n()).map(|i| d[i] / m[i]).fold(0.0, f64::max);
-    let theta = grid.dt * norm;
-    let inner = ((theta / THETA).ceil() as usize).max(1);
+    let theta = grid.dt * norm(chain);
+    let inner = sub_steps(chain, grid);
     let block = if inner > 1 || theta.is_nan() || theta <= 0.0 {
         1
     } else {
@@ -315,6 +335,8 @@ pub struct Saved {
     /// `x_1` at the record's samples.
     pub x1: Vec<f64>,
     marks: Vec<Mark>,
+    /// The grid the states were saved on (their steps are its own).
+    grid: TimeGrid,
 }
 
 /// One saved state of [`Saved`].
@@ -369,13 +391,19 @@ impl Saved {
             true
         });
         finite(x1.iter())?;
-        Ok(Saved { rows, x1, marks })
+        Ok(Saved {
+            rows,
+            x1,
+            marks,
+            grid: *grid,
+        })
     }
 
     /// `x_1` of `changed` on `grid` (its own grid: [`TimeGrid::new`] of
     /// the record's times for `changed`), from the last saved state
     /// before the front reached the first stepping row in which `changed`
-    /// differs from the saved chain (from rest when there is none). Every
+    /// differs from the saved chain (from rest when there is none, or
+    /// when `grid` is not the grid the states were saved on). Every
     /// [`ENOUGH_EVERY`]-th part of the record `enough` is asked with the
     /// samples so far; when it answers `true` these first samples are
     /// returned.
@@ -393,7 +421,15 @@ impl Saved {
         let Some(first) = self.rows.first_difference(&st) else {
             return Ok(self.x1.clone());
         };
-        let (mut x1, from, fresh) = match self.marks.iter().rev().find(|m| m.touched < first) {
+        // a chain whose own grid is another (a lighter mass: a finer step)
+        // is stepped from rest: the saved steps are of the saved grid
+        let same_grid = *grid == self.grid;
+        let mark = self
+            .marks
+            .iter()
+            .rev()
+            .find(|m| same_grid && m.touched < first);
+        let (mut x1, from, fresh) = match mark {
             Some(mark) => {
                 st.x[..mark.x.len()].copy_from_slice(&mark.x);
                 st.v[..mark.v.len()].copy_from_slice(&mark.v);
@@ -851,5 +887,11 @@ pub(super) mod tests {
         // not uniform, or not from a multiple of the step
         assert!(TimeGrid::new(&[0.0, 1.0, 3.0], &c).is_none());
         assert!(TimeGrid::new(&[0.3, 0.8, 1.3], &c).is_none());
+        // a record far too coarse for the chain (more than MAX_SUB internal
+        // steps per sample), and one whose step overflows any grid: none
+        let t: Vec<f64> = (0..10).map(|i| 200.0 * i as f64).collect();
+        assert!(TimeGrid::new(&t, &c).is_none());
+        let t: Vec<f64> = (0..10).map(|i| 5e199 * i as f64).collect();
+        assert!(TimeGrid::new(&t, &c).is_none());
     }
 }
