@@ -825,14 +825,19 @@ mod tests {
             assert!(g1.sub > g0.sub, "n = {n}: {} {}", g0.sub, g1.sub);
             let whole = misfit.residuals(&probe).unwrap();
             let all = misfit.near(&base).unwrap()(&probe, &mut |_| false).unwrap();
-            let peak = whole.iter().fold(0.0f64, |a, b| a.max(b.abs()));
-            assert_eq!(all.len(), whole.len());
-            let worst = all
-                .iter()
-                .zip(&whole)
-                .fold(0.0f64, |w, (a, b)| w.max((a - b).abs()));
-            assert!(worst <= 1e-10 * peak, "n = {n}: {worst:e} of {peak:e}");
+            assert_same_record(&all, &whole, n);
         }
+    }
+
+    /// `all` is `whole` to `1e-10` of its peak (the chain of `n` masses).
+    fn assert_same_record(all: &[f64], whole: &[f64], n: usize) {
+        let peak = whole.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+        assert_eq!(all.len(), whole.len());
+        let worst = all
+            .iter()
+            .zip(whole)
+            .fold(0.0f64, |w, (a, b)| w.max((a - b).abs()));
+        assert!(worst <= 1e-10 * peak, "n = {n}: {worst:e} of {peak:e}");
     }
 
     #[test]
@@ -853,13 +858,7 @@ mod tests {
             let whole = misfit.residuals(&probe).unwrap();
             let near = misfit.near(&base).unwrap();
             let all = near(&probe, &mut |_| false).unwrap();
-            let peak = whole.iter().fold(0.0f64, |a, b| a.max(b.abs()));
-            assert_eq!(all.len(), whole.len());
-            let worst = all
-                .iter()
-                .zip(&whole)
-                .fold(0.0f64, |w, (a, b)| w.max((a - b).abs()));
-            assert!(worst <= 1e-10 * peak, "n = {n}: {worst:e} of {peak:e}");
+            assert_same_record(&all, &whole, n);
             let first = near(&probe, &mut |r| r.len() >= 300).unwrap();
             assert!(first.len() >= 300 && first.len() < whole.len(), "n = {n}");
         }
