@@ -304,3 +304,34 @@ fn grid_over_seeds() {
     }
     assert!(dishonest.is_empty(), "{}", dishonest.join("\n"));
 }
+
+/// White noise, the stiffness unknown and far from its start (`--fit k`
+/// on a chain of `k = 2`, fitted from 1): the first white fit, started at
+/// the wrong stiffness, misses and leaves a coloured residual, so an AR
+/// model is fitted; its answer is right and leaves white noise. The answer
+/// is then the white fit's (from that level), not the AR fit's: the AR
+/// model over a white residual colours it, and the right answer was called
+/// a `model-mismatch` with every standard error 30 times too large.
+#[test]
+fn a_colour_that_was_the_first_fits_misfit_gives_way_to_white_noise() {
+    let truth = scenes::paper_with(10, "mass:4:2")
+        .unwrap()
+        .with_k(2.0)
+        .unwrap();
+    for seed in [1, 2] {
+        let obs = record(&truth, 5e-3, Deviation::Ar(0.0), seed);
+        let spec = springmass::detect::fit::options::FitSpec {
+            fit: Some("k".into()),
+            ..springmass::detect::fit::options::FitSpec::new(10)
+        };
+        let (model, opts) = spec.build().unwrap();
+        let r = fit(&obs, &model, &opts).unwrap();
+        let case = format!("seed {seed}:\n{}", r.summary());
+        assert!(right(&r, &truth).1, "{case}");
+        assert_eq!(r.status, Status::Converged, "{case}");
+        let white = r.noise_model.as_ref().is_none_or(|m| m.p == 0);
+        assert!(white, "{case}");
+        let k = r.params.iter().find(|p| p.name == "k").expect("k fitted");
+        assert!((k.value - 2.0).abs() < 3.0 * k.se, "{case}");
+    }
+}

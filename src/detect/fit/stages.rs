@@ -521,7 +521,16 @@ fn refine<'a>(
         if !done {
             if let Some(r) = stage.residual() {
                 let (noise, var, still) = record::reestimate(r, series.t(), &rec.noise, choice)?;
-                done = still || (noise.is_white() && rec.nuisance == Nuisance::None);
+                if !still && noise.is_white() && rec.nuisance == Nuisance::None {
+                    // the coloured model's answer leaves white noise: the
+                    // colour was the first fit's misfit, so the answer is
+                    // the white fit's, from this residual's level
+                    let level = if estimated { var.sqrt() } else { *sigma };
+                    let mut white = plain(obs, model, opts, level, estimated, stage.narrow)?;
+                    white.evaluations += evaluations;
+                    return Ok(white);
+                }
+                done = still;
                 if !done {
                     rec.noise = noise;
                     if estimated {
@@ -537,6 +546,35 @@ fn refine<'a>(
             return Ok(stage);
         }
     }
+}
+
+/// The white fit without nuisances from noise level `sigma` (the record
+/// model settled, [`refine`]), left for [`last`] to settle and widen.
+///
+/// # Errors
+/// As [`fit_every_k`].
+fn plain<'a>(
+    obs: &'a Observations,
+    model: &'a Model,
+    opts: &'a FitOptions,
+    sigma: f64,
+    estimated: bool,
+    narrow: bool,
+) -> Result<Stage<'a>> {
+    let sigma = sigma.max(f64::MIN_POSITIVE);
+    let mut stage = run(
+        obs,
+        model,
+        opts,
+        None,
+        RecordModel::default(),
+        sigma,
+        estimated,
+        narrow,
+        false,
+    )?;
+    stage.engine.record.converged = true;
+    Ok(stage)
 }
 
 /// The nuisances at `chain` under `rec` (empty without nuisances): what the
