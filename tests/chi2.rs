@@ -122,7 +122,7 @@ fn bromwich_whitened_under_ar_noise_is_a_calibrated_chi_square() {
             })
             .collect();
         let data = TimeData::new(traj.t.clone(), y.clone(), innovation).unwrap();
-        let obs = laplace_obs_under(&data, MisfitKind::Bromwich, &setup, &model).unwrap();
+        let obs = laplace_obs_under(&data, MisfitKind::Bromwich, &setup, &model, None).unwrap();
         red.push(obs.chi2(s3).unwrap() / obs.dof() as f64);
         let marginal = innovation / (1.0f64 - rho * rho).sqrt();
         let white = TimeData::new(traj.t.clone(), y, marginal).unwrap();

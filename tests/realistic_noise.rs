@@ -311,7 +311,7 @@ fn grid_over_seeds() {
 /// model is fitted; its answer is right and leaves white noise. The answer
 /// is then the white fit's (from that level), not the AR fit's: the AR
 /// model over a white residual colours it, and the right answer was called
-/// a `model-mismatch` with every standard error 30 times too large.
+/// a `model-mismatch` with every standard error about 27 times too large.
 #[test]
 fn a_colour_that_was_the_first_fits_misfit_gives_way_to_white_noise() {
     let truth = scenes::paper_with(10, "mass:4:2")

@@ -97,9 +97,10 @@ pub struct Args {
     #[arg(long)]
     pub max_evals: Option<usize>,
     /// When the blow came, on the record's time axis: auto (detected from a
-    /// quiet pre-trigger segment or a late clock, then fitted with its
-    /// standard error) or a time [default: auto; a record that starts with
-    /// the blow is fitted as it is].
+    /// quiet pre-trigger segment, a late clock, or a displacement record
+    /// that starts away from rest, cut short after the blow; then fitted
+    /// with its standard error) or a time [default: auto; a record that
+    /// starts with the blow is fitted as it is].
     #[arg(long, requires = "data", allow_hyphen_values = true)]
     pub trigger: Option<String>,
     /// The window of a measured force (--force-column, --force): auto (the

@@ -11,8 +11,12 @@
 //! not start with the blow (a quiet lead-in of [`LEAD_IN`] samples or
 //! more, an axis that starts before 0, or one that starts more than a step
 //! and a half after 0; a record that moves from its first samples on an
-//! axis from 0 is taken as the paper's, whatever its chain): the first sample that leaves the
-//! record's starting level by more than five noise levels brackets the blow;
+//! axis from 0 is taken as the paper's, whatever its chain, unless it is of
+//! a displacement that starts more than five noise levels from rest, which
+//! the blow's displacement is not): the first sample that leaves the
+//! record's starting level by more than five noise levels brackets the blow
+//! (for a displacement cut short, the bracket is the comparison window
+//! before the first sample);
 //! inside that bracket the time `t0` is the minimiser of the chi-square of
 //! `b + A u(t - t0)` on the first few periods (`u` the uniform chain's
 //! response of the observed quantity, zero before `t0`; the level `b` and
@@ -172,30 +176,55 @@ pub fn detect_onset(rec: &Series, uniform: &Chain) -> Result<Option<f64>> {
     let dt = t[1] - t[0];
     // only a record that shows it does not start with the blow is
     // examined: a quiet lead-in of at least LEAD_IN samples, an axis that
-    // starts before 0 or more than a step and a half after it; a record
-    // that moves from its first samples on an axis from 0 is the paper's
+    // starts before 0 or more than a step and a half after it, or a
+    // displacement that starts away from rest; a record that moves from
+    // its first samples on an axis from 0 is the paper's
     let lead_in = first >= LEAD_IN;
-    if !(lead_in || rec.origin() < 0.0 || t[0] > 1.5 * dt) {
+    let cut = cut_short(rec, sigma);
+    if !(lead_in || cut || rec.origin() < 0.0 || t[0] > 1.5 * dt) {
         return Ok(None);
     }
-    let lo = t[first.saturating_sub(2)] - if first <= 2 { dt } else { 0.0 };
-    let hi = t[first];
     let u = ModalResponse::impulse_observable(
         uniform,
         rec.measurement().sensor().at,
         rec.measurement().sensor().kind,
     )?;
-    let end = hi + window(uniform, dt);
+    let window = window(uniform, dt);
+    let end = t[first] + window;
     let last = t.partition_point(|&v| v <= end).max(first + 4).min(t.len());
     let w = Window {
         t: &t[..last],
         x: &x[..last],
         u: &u,
     };
-    let best = golden(&w, lo, hi);
+    // the blow in the samples' bracket, and for a displacement that starts
+    // away from rest also before the record (its quiet start may be the
+    // flat top of the first swing, not a lead-in at an offset): the better
+    let inside = (lead_in || !cut).then(|| {
+        let lo = t[first.saturating_sub(2)] - if first <= 2 { dt } else { 0.0 };
+        golden(&w, lo, t[first])
+    });
+    let before = cut.then(|| golden(&w, t[0] - window, t[0]));
+    let Some(best) = [inside, before]
+        .into_iter()
+        .flatten()
+        .min_by(|a, b| w.chi2(*a).total_cmp(&w.chi2(*b)))
+    else {
+        return Ok(None);
+    };
     let null = -rec.origin();
     let gain = (w.chi2(null) - w.chi2(best)) / (sigma * sigma);
     Ok((gain > DETECTION_CHI2 && (best - null).abs() > MIN_SHIFT * dt).then_some(best))
+}
+
+/// Whether `rec` is a displacement record that starts away from rest by
+/// more than five noise levels `sigma`: a displacement is 0 at the blow, so
+/// such a record was cut short after it (a logger started by a threshold
+/// without a pre-trigger segment), or its sensor has an offset (the
+/// detection's free level then finds no shift).
+fn cut_short(rec: &Series, sigma: f64) -> bool {
+    rec.measurement().sensor().kind == crate::forward::Observable::Displacement
+        && rec.x()[0].abs() > 5.0 * sigma
 }
 
 /// Length of the comparison window after the first moving sample: four
@@ -289,6 +318,34 @@ mod tests {
         for seed in 0..10 {
             for noise in [0.0, 1e-3, 1e-2] {
                 let rec = late(0.0, 0.0, noise, seed);
+                assert_eq!(
+                    detect_onset(&rec, &uniform).unwrap(),
+                    None,
+                    "{seed} {noise}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_displacement_cut_short_after_the_blow_is_found() {
+        let uniform = Chain::paper(20).unwrap();
+        for (t0, noise) in [(-0.37, 1e-3), (-1.3, 1e-2), (-0.07, 0.0), (-4.1, 1e-3)] {
+            let rec = late(t0, 0.0, noise, 3);
+            let got = detect_onset(&rec, &uniform).unwrap().expect("found");
+            assert!((got - t0).abs() < 0.05, "t0 {t0} noise {noise}: {got}");
+        }
+    }
+
+    /// A sensor's offset is no cut: the detection's free level takes it.
+    #[test]
+    fn an_offset_record_that_starts_with_the_blow_is_left_alone() {
+        let uniform = Chain::paper(20).unwrap();
+        for seed in 0..10 {
+            for noise in [1e-3, 1e-2] {
+                let rec = late(0.0, 0.0, noise, seed);
+                let x: Vec<f64> = rec.x().iter().map(|v| v + 0.05).collect();
+                let rec = Series::on_axis(rec.t().to_vec(), x, None).unwrap();
                 assert_eq!(
                     detect_onset(&rec, &uniform).unwrap(),
                     None,

@@ -4,14 +4,13 @@
 
 use super::chainfit::{default_bounds, fit_chain};
 use super::effort::Effort;
-use super::general::{
-    self, fit_general, laplace_obs, laplace_obs_under, GeneralOptions, Hypothesis, Setup,
-};
+use super::general::{self, fit_general, laplace_obs_under, GeneralOptions, Hypothesis, Setup};
 use super::model::Model;
 use super::options::FitOptions;
 use super::report::KRow;
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
+use crate::detect::data::noise_model::NoiseModel;
 use crate::detect::data::observations::{Observations, Series};
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::{Misfit, MisfitKind};
@@ -294,11 +293,13 @@ impl Engine<'_> {
                     MisfitKind::Time => MisfitKind::Bromwich,
                     laplace => laplace,
                 };
+                let uniform = self.model.chain().uniform();
+                let head = Some(&uniform);
                 let coarse = match self.record.screen_data(&td)? {
                     Some(screen) => {
-                        laplace_obs_under(&screen, coarse_kind, &setup, &self.record.noise)?
+                        laplace_obs_under(&screen, coarse_kind, &setup, &self.record.noise, head)?
                     }
-                    None => laplace_obs(&td, coarse_kind, &setup)?,
+                    None => laplace_obs_under(&td, coarse_kind, &setup, &NoiseModel::White, head)?,
                 };
                 // further sensors: each sensor's transform at its own level
                 let coarse = match td.others() {
@@ -306,7 +307,9 @@ impl Engine<'_> {
                     others => coarse.with_others(
                         others
                             .iter()
-                            .map(|o| laplace_obs(o, coarse_kind, &setup))
+                            .map(|o| {
+                                laplace_obs_under(o, coarse_kind, &setup, &NoiseModel::White, head)
+                            })
                             .collect::<Result<_>>()?,
                     ),
                 };

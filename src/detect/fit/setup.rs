@@ -26,7 +26,9 @@ use crate::detect::misfit::quadrature::Rule;
 use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::MisfitKind;
 use crate::error::{Error, Result};
+use crate::time::modal::ModalResponse;
 use crate::time::series::{SeriesTransform, TransformOptions};
+use num_complex::Complex64;
 
 /// Settings of a noisy fit.
 #[derive(Clone, Debug)]
@@ -196,6 +198,45 @@ fn screen_obs(
     )
 }
 
+/// `int_0^{t_0} u(t) e^{-s t} dt` at the nodes `s`, with `u` the observed
+/// response of `uniform` to the impulse and `t_0` the record's first time:
+/// the transform of the part of the response before the record (`None`
+/// when the record starts at the blow, `t_0 <= 0`, or is driven by a
+/// measured force, whose record is not re-timed). Composite Gauss-Legendre
+/// (8 points per panel, each panel at most 1.5 radians of the fastest
+/// oscillation of `u e^{-s t}`). Exact for a defect whose echo reaches the
+/// sensor after `t_0`; the head is a screening value for the shortlist
+/// (the time refits compare the samples themselves).
+///
+/// # Errors
+/// The uniform chain's modal errors.
+fn head(data: &TimeData, uniform: &Chain, s: &[Complex64]) -> Result<Option<Vec<Complex64>>> {
+    let t0 = data.t()[0];
+    let m = data.measurement();
+    if t0.is_nan() || t0 <= 0.0 || m.force().is_some() {
+        return Ok(None);
+    }
+    let sensor = m.sensor();
+    let u = ModalResponse::impulse_observable(uniform, sensor.at, sensor.kind)?;
+    let band = 2.0 * (uniform.k() / uniform.mass()).sqrt();
+    let fastest = band + s.iter().fold(0.0f64, |a, z| a.max(z.norm()));
+    let panels = ((t0 * fastest / 1.5).ceil() as usize).clamp(1, 1 << 20);
+    let rule = Rule::gauss_legendre_uniform(0.0, t0, panels, 8)?;
+    let x = u.eval_many(&rule.nodes);
+    Ok(Some(
+        s.iter()
+            .map(|&z| {
+                rule.nodes
+                    .iter()
+                    .zip(&rule.weights)
+                    .zip(&x)
+                    .map(|((&t, &w), &v)| w * v * (-z * t).exp())
+                    .sum()
+            })
+            .collect(),
+    ))
+}
+
 /// Laplace data at the nodes of `choice` (real axis or Bromwich) from the
 /// sampled series of `data`, weighted as `setup.weighting` says:
 ///
@@ -213,7 +254,7 @@ fn screen_obs(
 /// # Errors
 /// [`Error::InvalidParameter`] for [`MisfitKind::Time`]; as [`SeriesTransform`].
 pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result<LaplaceObs> {
-    laplace_obs_under(data, choice, setup, &NoiseModel::White)
+    laplace_obs_under(data, choice, setup, &NoiseModel::White, None)
 }
 
 /// [`laplace_obs`] when the record's noise follows `noise` (`data`'s
@@ -221,6 +262,10 @@ pub fn laplace_obs(data: &TimeData, choice: MisfitKind, setup: &Setup) -> Result
 /// that of the coloured noise ([`NoiseModel::covariance_root_t`]), so the
 /// whitened Laplace chi-square is a chi-square under the record model and
 /// the time-domain refits keep their slack ([`Setup::time_slack`]).
+/// With `uniform`, a record that starts after the blow (first sample at
+/// `t_0 > 0`: cut short, or re-timed to a blow between two samples) has the
+/// part of its transform before `t_0` taken from that chain (by composite Gauss-Legendre):
+/// the model's transform is the whole response's.
 ///
 /// # Errors
 /// As [`laplace_obs`].
@@ -229,6 +274,7 @@ pub fn laplace_obs_under(
     choice: MisfitKind,
     setup: &Setup,
     noise: &NoiseModel,
+    uniform: Option<&Chain>,
 ) -> Result<LaplaceObs> {
     let (s, w) = choice
         .laplace_nodes(&setup.real_rule, setup.bromwich_sigma, &setup.bromwich_rule)
@@ -255,6 +301,12 @@ pub fn laplace_obs_under(
     } else {
         (tr.eval_many(&s)?, None)
     };
+    let mut vals = vals;
+    if let Some(head) = uniform.map(|c| head(data, c, &s)).transpose()?.flatten() {
+        for (v, h) in vals.iter_mut().zip(head) {
+            v.value += h;
+        }
+    }
     // a measured force: its transform by the same rule (noise-free input)
     let m = data.measurement();
     let force_hat = match m.force() {

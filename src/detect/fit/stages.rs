@@ -521,16 +521,22 @@ fn refine<'a>(
         if !done {
             if let Some(r) = stage.residual() {
                 let (noise, var, still) = record::reestimate(r, series.t(), &rec.noise, choice)?;
-                if !still && noise.is_white() && rec.nuisance == Nuisance::None {
+                let white = !still && noise.is_white() && rec.nuisance == Nuisance::None;
+                if white {
                     // the coloured model's answer leaves white noise: the
-                    // colour was the first fit's misfit, so the answer is
-                    // the white fit's, from this residual's level
+                    // colour may have been the first fit's misfit, so the
+                    // white fit from this residual's level is the answer
+                    // when it explains the record
                     let level = if estimated { var.sqrt() } else { *sigma };
-                    let mut white = plain(obs, model, opts, level, estimated, stage.narrow)?;
-                    white.evaluations += evaluations;
-                    return Ok(white);
+                    let plain = last(plain(obs, model, opts, level, estimated, stage.narrow)?)?;
+                    evaluations += plain.evaluations;
+                    if plain.explained {
+                        let mut plain = plain;
+                        plain.evaluations = evaluations;
+                        return Ok(plain);
+                    }
                 }
-                done = still;
+                done = still || white;
                 if !done {
                     rec.noise = noise;
                     if estimated {
@@ -548,8 +554,8 @@ fn refine<'a>(
     }
 }
 
-/// The white fit without nuisances from noise level `sigma` (the record
-/// model settled, [`refine`]), left for [`last`] to settle and widen.
+/// The white fit without nuisances from noise level `sigma` ([`refine`]),
+/// to be settled and widened by [`last`].
 ///
 /// # Errors
 /// As [`fit_every_k`].
