@@ -302,54 +302,33 @@ mod tests {
         Series::on_axis(t, x, None).unwrap()
     }
 
+    /// A late blow, and a displacement cut short after it (`t0 < 0`).
     #[test]
-    fn a_late_blow_is_found_within_a_small_part_of_a_step() {
+    fn a_late_blow_or_a_cut_is_found_within_a_small_part_of_a_step() {
         let uniform = Chain::paper(20).unwrap();
-        for (t0, noise) in [(10.0, 1e-3), (10.07, 1e-2), (3.31, 0.0)] {
+        let late_cases = [(10.0, 1e-3), (10.07, 1e-2), (3.31, 0.0)];
+        let cut_cases = [(-0.37, 1e-3), (-1.3, 1e-2), (-0.07, 0.0), (-4.1, 1e-3)];
+        for (t0, noise) in late_cases.into_iter().chain(cut_cases) {
             let rec = late(t0, 0.0, noise, 3);
             let got = detect_onset(&rec, &uniform).unwrap().expect("found");
             assert!((got - t0).abs() < 0.05, "t0 {t0} noise {noise}: {got}");
         }
     }
 
+    /// Also with a sensor's offset, which is no cut: the detection's free
+    /// level takes it.
     #[test]
     fn a_record_that_starts_with_the_blow_is_left_alone() {
         let uniform = Chain::paper(20).unwrap();
-        for seed in 0..10 {
+        for (seed, offset) in (0..10).flat_map(|s| [(s, 0.0), (s, 0.05)]) {
             for noise in [0.0, 1e-3, 1e-2] {
                 let rec = late(0.0, 0.0, noise, seed);
-                assert_eq!(
-                    detect_onset(&rec, &uniform).unwrap(),
-                    None,
-                    "{seed} {noise}"
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn a_displacement_cut_short_after_the_blow_is_found() {
-        let uniform = Chain::paper(20).unwrap();
-        for (t0, noise) in [(-0.37, 1e-3), (-1.3, 1e-2), (-0.07, 0.0), (-4.1, 1e-3)] {
-            let rec = late(t0, 0.0, noise, 3);
-            let got = detect_onset(&rec, &uniform).unwrap().expect("found");
-            assert!((got - t0).abs() < 0.05, "t0 {t0} noise {noise}: {got}");
-        }
-    }
-
-    /// A sensor's offset is no cut: the detection's free level takes it.
-    #[test]
-    fn an_offset_record_that_starts_with_the_blow_is_left_alone() {
-        let uniform = Chain::paper(20).unwrap();
-        for seed in 0..10 {
-            for noise in [1e-3, 1e-2] {
-                let rec = late(0.0, 0.0, noise, seed);
-                let x: Vec<f64> = rec.x().iter().map(|v| v + 0.05).collect();
+                let x: Vec<f64> = rec.x().iter().map(|v| v + offset).collect();
                 let rec = Series::on_axis(rec.t().to_vec(), x, None).unwrap();
                 assert_eq!(
                     detect_onset(&rec, &uniform).unwrap(),
                     None,
-                    "{seed} {noise}"
+                    "{seed} {noise} {offset}"
                 );
             }
         }
