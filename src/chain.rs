@@ -786,6 +786,11 @@ impl Chain {
     pub fn mass(&self) -> f64 {
         self.mass
     }
+    /// The uniform chain's band `2 sqrt(k / mass)`: every undamped natural
+    /// frequency of the uniform chain lies below it, whatever its ends.
+    pub fn uniform_band(&self) -> f64 {
+        2.0 * (self.k / self.mass).sqrt()
+    }
     /// The defects, in the order given.
     pub fn defects(&self) -> &[Defect] {
         &self.defects

@@ -464,7 +464,7 @@ impl Chain {
     /// sin(theta_j / 2)` (closed form for its ends, `closed_theta`).
     pub fn uniform_omegas(&self) -> Vec<f64> {
         let ends = (self.left, self.right);
-        let scale = 2.0 * (self.k / self.mass).sqrt();
+        let scale = self.uniform_band();
         (1..=self.n)
             .map(|j| scale * (0.5 * closed_theta(ends, self.n, j)).sin())
             .collect()

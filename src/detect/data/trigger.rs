@@ -232,7 +232,7 @@ fn cut_short(rec: &Series, sigma: f64) -> bool {
 /// defect near the sensor biases the time by a few hundredths of a step
 /// here; the joint refinement of the fit removes that).
 fn window(uniform: &Chain, dt: f64) -> f64 {
-    let w_max = 2.0 * (uniform.k() / uniform.mass()).sqrt();
+    let w_max = uniform.uniform_band();
     (4.0 * std::f64::consts::TAU / w_max).max(8.0 * dt)
 }
 

@@ -27,7 +27,7 @@ use crate::detect::misfit::time::TimeMisfit;
 use crate::detect::misfit::MisfitKind;
 use crate::error::{Error, Result};
 use crate::time::modal::ModalResponse;
-use crate::time::series::{SeriesTransform, TransformOptions};
+use crate::time::series::{LaplaceValue, SeriesTransform, TransformOptions};
 use num_complex::Complex64;
 
 /// Settings of a noisy fit.
@@ -132,7 +132,7 @@ impl Setup {
         if let Some(t) = t_end {
             setup.bromwich_sigma = (10.0 / t).max(0.05);
         }
-        let band = 2.0 * (chain.k() / chain.mass()).sqrt();
+        let band = chain.uniform_band();
         let w = (2.0 * band).max(4.0);
         if (w - 4.0).abs() > 1e-12 {
             setup.bromwich_rule = Rule::gauss_legendre_uniform(0.0, w, 10, 8)?;
@@ -218,7 +218,7 @@ fn head(data: &TimeData, uniform: &Chain, s: &[Complex64]) -> Result<Option<Vec<
     }
     let sensor = m.sensor();
     let u = ModalResponse::impulse_observable(uniform, sensor.at, sensor.kind)?;
-    let band = 2.0 * (uniform.k() / uniform.mass()).sqrt();
+    let band = uniform.uniform_band();
     let fastest = band + s.iter().fold(0.0f64, |a, z| a.max(z.norm()));
     let panels = ((t0 * fastest / 1.5).ceil() as usize).clamp(1, 1 << 20);
     let rule = Rule::gauss_legendre_uniform(0.0, t0, panels, 8)?;
@@ -235,6 +235,42 @@ fn head(data: &TimeData, uniform: &Chain, s: &[Complex64]) -> Result<Option<Vec<
             })
             .collect(),
     ))
+}
+
+/// The record's transform at the nodes `s`, with the values' covariance
+/// when `whitened` (one pass of the weights; under `noise` when it is
+/// coloured), and the part before the first sample from `uniform`
+/// ([`head`]) added to the values.
+///
+/// # Errors
+/// As [`SeriesTransform`]; the uniform chain's modal errors.
+fn record_transform(
+    data: &TimeData,
+    s: &[Complex64],
+    whitened: bool,
+    noise: &NoiseModel,
+    uniform: Option<&Chain>,
+) -> Result<(Vec<LaplaceValue>, Option<nalgebra::DMatrix<f64>>)> {
+    let opts = TransformOptions {
+        noise_sigma: Some(data.sigma()),
+        ..TransformOptions::default()
+    };
+    let tr = SeriesTransform::new(data.t(), data.y(), &opts)?;
+    let (mut vals, cov) = if !noise.is_white() {
+        let (v, c) = tr.eval_with_coloured_covariance(s, &|a| noise.covariance_root_t(a))?;
+        (v, whitened.then_some(c))
+    } else if whitened {
+        let (v, c) = tr.eval_with_covariance(s)?;
+        (v, Some(c))
+    } else {
+        (tr.eval_many(s)?, None)
+    };
+    if let Some(head) = uniform.map(|c| head(data, c, s)).transpose()?.flatten() {
+        for (v, h) in vals.iter_mut().zip(head) {
+            v.value += h;
+        }
+    }
+    Ok((vals, cov))
 }
 
 /// Laplace data at the nodes of `choice` (real axis or Bromwich) from the
@@ -285,28 +321,8 @@ pub fn laplace_obs_under(
                 "a Laplace misfit (real-axis or bromwich)",
             )
         })?;
-    let opts = TransformOptions {
-        noise_sigma: Some(data.sigma()),
-        ..TransformOptions::default()
-    };
-    let tr = SeriesTransform::new(data.t(), data.y(), &opts)?;
     let whitened = setup.weighting == crate::detect::data::whiten::Weighting::Whitened;
-    // whitened: the values and their covariance from one pass of the weights
-    let (vals, cov) = if !noise.is_white() {
-        let (v, c) = tr.eval_with_coloured_covariance(&s, &|a| noise.covariance_root_t(a))?;
-        (v, whitened.then_some(c))
-    } else if whitened {
-        let (v, c) = tr.eval_with_covariance(&s)?;
-        (v, Some(c))
-    } else {
-        (tr.eval_many(&s)?, None)
-    };
-    let mut vals = vals;
-    if let Some(head) = uniform.map(|c| head(data, c, &s)).transpose()?.flatten() {
-        for (v, h) in vals.iter_mut().zip(head) {
-            v.value += h;
-        }
-    }
+    let (vals, cov) = record_transform(data, &s, whitened, noise, uniform)?;
     // a measured force: its transform by the same rule (noise-free input)
     let m = data.measurement();
     let force_hat = match m.force() {
@@ -357,10 +373,7 @@ pub fn laplace_obs_under(
 /// The values and their diagonal weights `w_q / v_q` (the rule's weight
 /// over the node's noise and error variance, floored at the value's
 /// rounding).
-fn diagonal_weights(
-    vals: &[crate::time::series::LaplaceValue],
-    w: &[f64],
-) -> (Vec<num_complex::Complex64>, Vec<f64>) {
+fn diagonal_weights(vals: &[LaplaceValue], w: &[f64]) -> (Vec<num_complex::Complex64>, Vec<f64>) {
     vals.iter()
         .zip(w)
         .map(|(v, wq)| {

@@ -358,7 +358,7 @@ fn laplace_band(
             let nodes = (2 * free).max(80);
             let panels = nodes.div_ceil(8);
             // the band of Setup::for_record: twice the chain's, at least 4
-            let chain_band = 2.0 * (model.chain().k() / model.chain().mass()).sqrt();
+            let chain_band = model.chain().uniform_band();
             setup.bromwich_rule = crate::detect::misfit::quadrature::Rule::gauss_legendre_uniform(
                 0.0,
                 (2.0 * chain_band).max(4.0) * band,
