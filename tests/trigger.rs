@@ -203,6 +203,30 @@ fn a_long_cut_with_its_time_given_is_fitted() {
     }
 }
 
+/// Records cut 2.5 and 3.0 after their blow, by default: the uniform
+/// chain's best match before the record can be a period away from the blow
+/// (a defect's echo has reached the comparison window), and the fit then
+/// tries the comparison's other minima, keeping the first time whose fit
+/// explains the record. Before, such records were placed wrong and called
+/// `model-mismatch`.
+#[test]
+fn a_long_cut_is_fitted_by_default() {
+    for cut in [2.5, 3.0] {
+        let r = fit(
+            &cut_short(cut, 1e-2, 1),
+            &Model::new(20).unwrap(),
+            &FitOptions::default(),
+        )
+        .unwrap();
+        let what = format!("cut {cut}: {}", r.summary());
+        let pos: Vec<usize> = r.defects.iter().map(|d| d.at).collect();
+        assert_eq!(pos, [8, 15], "{what}");
+        assert_eq!(r.status, Status::Converged, "{what}");
+        let tr = r.trigger.expect("re-timed");
+        assert!((tr.time + cut).abs() < 4.0 * tr.se, "{what}");
+    }
+}
+
 /// A record cut 1.0 after its blow starts on the flat top of the first
 /// swing: its first samples stay within the noise of the first, like a
 /// lead-in at an offset. The blow is sought both inside that start and

@@ -208,10 +208,10 @@ fn fit_with_model(
     // the scene path's records are the model's own, started by the blow
     let retime = match given {
         None => trigger::plan(obs, model, opts.trigger)?,
-        Some(_) => None,
+        Some(_) => Vec::new(),
     };
-    match (retime, obs) {
-        (Some(t0), Observations::Series(rec)) => {
+    match (&retime[..], obs) {
+        ([t0, others @ ..], Observations::Series(rec)) => {
             let auto = opts.trigger == options::TriggerSpec::Auto;
             // the time is refined with the white fit's chain (the record
             // model left to the fit at the refined time); that white fit is
@@ -228,9 +228,23 @@ fn fit_with_model(
             let first: Option<(&trigger::FitRun<'_>, bool)> =
                 (damping::screen_options(opts) != *opts).then_some((&first, keeps));
             let refine = (auto, opts.nuisance.widest());
-            let mut report = trigger::fit_retimed(rec, model, t0, refine, first, |o| {
-                fit_record(o, model, opts, None)
-            })?;
+            let at = |t0: f64| {
+                trigger::fit_retimed(rec, model, t0, refine, first, |o| {
+                    fit_record(o, model, opts, None)
+                })
+            };
+            let mut report = at(*t0)?;
+            // a record cut short: the blow's other possible times, when the
+            // first does not explain the record (the first that does)
+            for &t in others {
+                if report.fits_data {
+                    break;
+                }
+                let other = at(t)?;
+                if other.fits_data {
+                    report = other;
+                }
+            }
             doubt_coloured_lead_in(&mut report);
             Ok(report)
         }

@@ -39,9 +39,10 @@ use crate::chain::Chain;
 use crate::detect::data::noise_model::NoiseModel;
 use crate::detect::data::nuisance::{Nuisance, Projector};
 use crate::detect::data::observations::{Observations, Series};
-use crate::detect::data::trigger::{detect_onset, TriggerSpec};
+use crate::detect::data::trigger::{detect_onset, onset_candidates, TriggerSpec};
 pub use crate::detect::fit::report::trigger::TriggerEstimate;
 use crate::detect::fit::{FitReport, Model};
+use crate::detect::search::lsq::difference_within;
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 use crate::time::modal::ModalResponse;
@@ -56,14 +57,16 @@ pub const MAX_N_REFINE: usize = 100;
 /// Most refits at a refined time.
 pub const MAX_REFITS: usize = 3;
 
-/// The time (on `obs`'s own re-based axis, [`Series::t`]) to re-time the
-/// record to, or `None` for the paper's record that starts with the blow.
+/// The times (on `obs`'s own re-based axis, [`Series::t`]) to re-time the
+/// record to, best first ([`onset_candidates`]: more than one only for a
+/// displacement cut short after its blow), or none for the paper's record
+/// that starts with the blow.
 ///
 /// # Errors
 /// The detection's modal errors.
-pub(super) fn plan(obs: &Observations, model: &Model, spec: TriggerSpec) -> Result<Option<f64>> {
+pub(super) fn plan(obs: &Observations, model: &Model, spec: TriggerSpec) -> Result<Vec<f64>> {
     let Observations::Series(s) = obs else {
-        return Ok(None);
+        return Ok(Vec::new());
     };
     if s.separate_records() {
         // one blow time re-times one test: several records must each
@@ -81,13 +84,19 @@ pub(super) fn plan(obs: &Observations, model: &Model, spec: TriggerSpec) -> Resu
                 ));
             }
         }
-        return Ok(None);
+        return Ok(Vec::new());
     }
-    let t0 = match spec {
-        TriggerSpec::At(v) => v - s.origin(),
-        TriggerSpec::Auto => detect_onset(s, &model.chain().uniform())?.unwrap_or(-s.origin()),
+    let times = match spec {
+        TriggerSpec::At(v) => vec![v - s.origin()],
+        TriggerSpec::Auto => match onset_candidates(s, &model.chain().uniform())? {
+            found if found.is_empty() => vec![-s.origin()],
+            found => found,
+        },
     };
-    Ok((t0 != 0.0).then_some(t0))
+    Ok(match times[..] {
+        [0.0] => Vec::new(),
+        _ => times,
+    })
 }
 
 /// Fit the record re-timed to `t0` by `run`, refine the time (when
@@ -313,18 +322,31 @@ fn standard_error(rec: &Series, report: &FitReport, model: &Model, time: f64) ->
     let chain = fitted_chain(report, model)?;
     let params = fitted_params(&chain, model);
     let nuisance = Nuisance::ALL[report.nuisance.len().min(2)];
-    let r = Record::after(rec, time, report.noise_sigma, nuisance)?;
+    time_error(rec, (&chain, &params), (report.noise_sigma, nuisance), time)
+}
+
+/// [`standard_error`] of `chain` with its fitted `params`, the record's
+/// noise level and nuisances as given.
+fn time_error(
+    rec: &Series,
+    (chain, params): (&Chain, &[Param]),
+    (sigma, nuisance): (f64, Nuisance),
+    time: f64,
+) -> Result<f64> {
+    let r = Record::after(rec, time, sigma, nuisance)?;
     let h_t = 1e-4 * step_near(rec.t(), time);
     let mut cols: Vec<Vec<f64>> = Vec::with_capacity(params.len() + 1);
-    let u = r.response(&chain)?;
+    let u = r.response(chain)?;
     let (plus, minus) = (r.residuals(&u, time + h_t), r.residuals(&u, time - h_t));
     cols.push(difference(&plus, &minus, h_t));
-    for p in &params {
-        let v = p.get(&chain)?;
+    for p in params {
+        let v = p.get(chain)?;
         let h = 1e-6 * v.abs().max(1e-6);
-        let up = r.residuals(&r.response(&p.set(&chain, v + h)?)?, time);
-        let down = r.residuals(&r.response(&p.set(&chain, v - h)?)?, time);
-        cols.push(difference(&up, &down, h));
+        // a value on its bound (a damper fitted at 0): the one-sided
+        // difference
+        let at =
+            |v: f64| -> Result<Vec<f64>> { Ok(r.residuals(&r.response(&p.set(chain, v)?)?, time)) };
+        cols.push(difference_within(at(v + h), at(v - h), || at(v), h)?);
     }
     let j = DMatrix::from_fn(r.t.len(), cols.len(), |i, c| cols[c][i]);
     Ok((j.transpose() * &j)
@@ -386,5 +408,17 @@ mod tests {
         let tr = r.trigger.expect("re-timed");
         assert!(tr.detected && tr.se > 0.0 && tr.se < 0.05, "{tr:?}");
         assert!((tr.time - 10.13).abs() < 4.0 * tr.se.max(1e-3), "{tr:?}");
+    }
+
+    /// A fitted damper on its bound 0: its one-sided difference (the
+    /// central one left the domain `d >= 0`, and the whole fit failed with
+    /// an error about a value the user never gave).
+    #[test]
+    fn a_damper_fitted_at_zero_still_gives_the_time_its_error() {
+        let truth = crate::scenes::paper_with(10, "damper:8:0").unwrap();
+        let rec = record(&truth, 0.0, 3.3, 1e-3, 2);
+        let params = [Param::Defect(0)];
+        let se = time_error(&rec, (&truth, &params), (1e-3, Nuisance::None), 3.3).unwrap();
+        assert!(se.is_finite() && se > 0.0 && se < 0.01, "{se}");
     }
 }

@@ -100,13 +100,29 @@ fn difference_column<P: LeastSquares + ?Sized>(
     th[j] = v - h;
     let dn = p.residuals(th);
     th[j] = v;
+    difference_within(up, dn, || p.residuals(th), h)
+}
+
+/// The central difference `(up - dn) / 2h` of residuals evaluated a step
+/// `h` either side of a value; when one side failed (it left the model's
+/// domain: a value on a bound such as `d >= 0`), the one-sided difference
+/// of the other side against `center`, the residuals at the value itself.
+///
+/// # Errors
+/// Both sides' failure (the first side's error), or `center`'s.
+pub(crate) fn difference_within(
+    up: Result<Vec<f64>>,
+    dn: Result<Vec<f64>>,
+    center: impl FnOnce() -> Result<Vec<f64>>,
+    h: f64,
+) -> Result<Vec<f64>> {
     let diff = |a: &[f64], b: &[f64], w: f64| -> Vec<f64> {
         a.iter().zip(b).map(|(a, b)| (a - b) / w).collect()
     };
     match (up, dn) {
         (Ok(up), Ok(dn)) => Ok(diff(&up, &dn, 2.0 * h)),
-        (Ok(up), Err(_)) => Ok(diff(&up, &p.residuals(th)?, h)),
-        (Err(_), Ok(dn)) => Ok(diff(&p.residuals(th)?, &dn, h)),
+        (Ok(up), Err(_)) => Ok(diff(&up, &center()?, h)),
+        (Err(_), Ok(dn)) => Ok(diff(&center()?, &dn, h)),
         (Err(e), Err(_)) => Err(e),
     }
 }
