@@ -615,9 +615,68 @@ fn cli_takes_the_dynamic_residual_and_refuses_an_unknown_one() {
     );
     assert!(ok, "{err}");
     assert!(String::from_utf8_lossy(&stdout).contains("status"));
+    // modes held out of a defect search: refused (it was silently ignored)
+    let (ok, _, err) = fit_modes(&file, &[&base[..], &["--defects", "1"]].concat());
+    assert!(!ok && err.contains("hold_out"), "{err}");
     let (ok, _, err) = fit_modes(
         &file,
         &[&base[..], &["--modal-residual", "energy"]].concat(),
     );
     assert!(!ok && err.contains("modal_residual"), "{err}");
+}
+
+/// Exact modes of `truth` from the dense generalized eigenproblem (not the
+/// fit's modal code): the first `count` modes at `floors`, no errors given.
+fn exact_modes(truth: &Chain, count: usize, floors: &[usize]) -> MeasuredModes {
+    let (k, m) = dense(truth);
+    let r = m.map(|v| if v > 0.0 { 1.0 / v.sqrt() } else { 0.0 });
+    let eig = nalgebra::SymmetricEigen::new(&r * &k * &r);
+    let mut order: Vec<usize> = (0..truth.n()).collect();
+    order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
+    let modes = order[..count]
+        .iter()
+        .map(|&j| MeasuredMode {
+            frequency: eig.eigenvalues[j].sqrt() / TAU,
+            frequency_se: None,
+            damping: None,
+            shape: floors
+                .iter()
+                .map(|&i| ShapeEntry {
+                    mass: i,
+                    value: r[(i - 1, i - 1)] * eig.eigenvectors[(i - 1, j)],
+                    se: None,
+                })
+                .collect(),
+        })
+        .collect();
+    MeasuredModes::new(modes).unwrap()
+}
+
+/// Four exact modes seen at the two end masses only: several modes' shapes
+/// agree there (two numbers each), and pairing the model's modes with the
+/// measured ones by shape alone took the wrong partners: exact data were
+/// fitted to a wrong spring with a standard error of 0 and called
+/// `converged` (or a right one called a mismatch). The frequency now tells
+/// such modes apart: the truth, exactly.
+#[test]
+fn exact_modes_at_the_two_ends_find_the_changed_spring() {
+    use springmass::detect::fit::modal_locate::{locate_from_modes, ModalLocateOptions};
+    for (n, at) in [(12, 2), (14, 7), (10, 5), (8, 4)] {
+        let nominal = Chain::new(n).unwrap();
+        let truth = nominal
+            .clone()
+            .with_defect(Defect::Spring { at, k: 0.75 })
+            .unwrap();
+        let data = exact_modes(&truth, 4, &[1, n]);
+        let r = locate_from_modes(&nominal, data, &ModalLocateOptions::default()).unwrap();
+        let what = format!("n {n}, spring {at}: {r:?}");
+        assert_eq!(r.k, 1, "{what}");
+        assert_eq!(r.defects[0].at, at, "{what}");
+        assert!((r.defects[0].factor - 0.75).abs() < 1e-6, "{what}");
+        assert_eq!(
+            r.status,
+            springmass::detect::fit::Status::Converged,
+            "{what}"
+        );
+    }
 }

@@ -71,6 +71,14 @@ pub fn run_scene(
 fn run_locate(a: &Args, n: usize) -> anyhow::Result<()> {
     use springmass::detect::fit::modal_locate::{locate_from_modes, ModalLocateOptions};
     let path = a.modes.clone().expect("checked by the caller");
+    if let Some(h) = &a.hold_out {
+        // the search fits every mode; it was silently ignored
+        Err(springmass::Error::invalid(
+            "hold_out",
+            h,
+            "no modes held out with --defects (the defect search fits every mode; --hold-out belongs to the profile, without --defects)",
+        ))?;
+    }
     let mut opts = ModalLocateOptions::default();
     let text = a.defects.as_deref().unwrap_or("auto");
     (opts.k_min, opts.k_max) = parse_defects(text)?;

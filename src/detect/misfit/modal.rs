@@ -1,11 +1,14 @@
 //! Modal misfit: a chain against measured modes (the modal-property
 //! difference of structural model updating), one [`MeasurementModel`].
 //!
-//! The chain's undamped modes ([`undamped_modes`]) are paired with the
-//! measured ones by the modal assurance criterion over the measured masses,
-//! `MAC(a, b) = (a.b)^2 / ((a.a)(b.b))`, with forced one-to-one matching (the
-//! pair of highest MAC first; a mode measured at fewer than two masses takes
-//! the nearest free frequency). Each pair gives
+//! The chain's undamped modes ([`undamped_modes`]) are paired one-to-one
+//! with the measured ones by shape first, frequency second
+//! ([`ModalMisfit::pairing`]): among the model modes whose shape over the
+//! measured masses explains a measured shape about as well as the best
+//! one's (at many masses, the mode of highest modal assurance criterion
+//! `MAC(a, b) = (a.b)^2 / ((a.a)(b.b))` alone), the one of the smallest
+//! whole chi-square; a mode measured at fewer than two masses takes the
+//! nearest free frequency. Each pair gives
 //!
 //! * a frequency residual `(f_j - f_meas) / se_f`, `f_j = omega_j / (2 pi)`
 //!   (Hz when the chain is in SI units);
@@ -119,13 +122,23 @@ impl Target {
             .collect()
     }
 
-    /// MAC between model mode `j` and this mode, over the measured masses.
-    fn mac(&self, modes: &UndampedModes, j: usize) -> f64 {
-        let a = self.model_shape(modes, j);
-        let b: Vec<f64> = self.shape.iter().map(|e| e.1).collect();
-        mac(&a, &b)
+    /// The shape residuals' chi-square against model mode `j` at its best
+    /// scale ([`shape_residuals`]; 0 without a comparable shape).
+    fn shape_chi2(&self, modes: &UndampedModes, j: usize) -> f64 {
+        if !self.has_shape() {
+            return 0.0;
+        }
+        let mut r = Vec::with_capacity(self.shape.len());
+        shape_residuals(&self.model_shape(modes, j), self, &mut r);
+        r.iter().map(|v| v * v).sum()
     }
 }
+
+/// How much worse (in chi-square) a model mode's shape may explain a
+/// measured shape than the best mode's does and still be a candidate
+/// partner of it ([`ModalMisfit::pairing`]): 25, five standard errors in
+/// one component.
+pub const SHAPE_TIE: f64 = 25.0;
 
 /// `(a.b)^2 / ((a.a)(b.b))`, 0 for a zero vector.
 pub fn mac(a: &[f64], b: &[f64]) -> f64 {
@@ -200,11 +213,24 @@ impl ModalMisfit {
     }
 
     /// The model mode paired with each measured mode (0-based indices into
-    /// `modes`), by MAC with forced one-to-one matching.
+    /// `modes`), one-to-one: a measured shape is paired with one of the
+    /// model modes whose shape explains it about as well as the best one
+    /// does (the shape chi-square at its best scale within [`SHAPE_TIE`]; at many masses
+    /// that is the highest-MAC mode alone), choosing among them by the
+    /// pair's whole chi-square (frequency and shape), the smallest pairs
+    /// first; at two or three masses several modes' shapes agree, and the
+    /// frequency tells them apart (pairing by MAC alone took the wrong one,
+    /// and exact data were fitted to a wrong chain). A mode left without
+    /// one of those, or measured at fewer than two masses, takes the free
+    /// mode of the smallest such chi-square (for a bare frequency: the
+    /// nearest free frequency).
     pub fn pairing(&self, modes: &UndampedModes) -> Vec<usize> {
         let nm = modes.omega.len();
         let mut pair: Vec<Option<usize>> = vec![None; self.targets.len()];
         let mut taken = vec![false; nm];
+        let cost = |t: &Target, j: usize, shape: f64| {
+            ((modes.omega[j] / TAU - t.frequency) / t.frequency_se).powi(2) + shape
+        };
         let mut cands: Vec<(f64, usize, usize)> = Vec::new();
         for (t, target) in self
             .targets
@@ -212,21 +238,32 @@ impl ModalMisfit {
             .enumerate()
             .filter(|(_, t)| t.has_shape())
         {
-            cands.extend((0..nm).map(|j| (target.mac(modes, j), t, j)));
+            let shapes: Vec<f64> = (0..nm).map(|j| target.shape_chi2(modes, j)).collect();
+            let best = shapes.iter().copied().fold(f64::INFINITY, f64::min);
+            cands.extend(
+                (0..nm)
+                    .filter(|&j| shapes[j] <= best + SHAPE_TIE)
+                    .map(|j| (cost(target, j, shapes[j]), t, j)),
+            );
         }
-        cands.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        cands.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
         for (_, t, j) in cands {
             if pair[t].is_none() && !taken[j] {
                 pair[t] = Some(j);
                 taken[j] = true;
             }
         }
-        for (t, target) in self.targets.iter().enumerate() {
+        // shaped modes first (their shapes are the surer guide), then the
+        // bare frequencies
+        let order = (0..self.targets.len()).filter(|&t| self.targets[t].has_shape());
+        let order = order.chain((0..self.targets.len()).filter(|&t| !self.targets[t].has_shape()));
+        for t in order.collect::<Vec<_>>() {
             if pair[t].is_none() {
-                let f = |j: usize| (modes.omega[j] / TAU - target.frequency).abs();
+                let target = &self.targets[t];
+                let c = |j: usize| cost(target, j, target.shape_chi2(modes, j));
                 let j = (0..nm)
                     .filter(|&j| !taken[j])
-                    .min_by(|&a, &b| f(a).total_cmp(&f(b)))
+                    .min_by(|&a, &b| c(a).total_cmp(&c(b)))
                     .expect("no more measured modes than model modes");
                 pair[t] = Some(j);
                 taken[j] = true;
