@@ -263,3 +263,31 @@ fn two_hundred_records_change_at_120() {
     // has probability 0.6%
     run.check(&rows, 1);
 }
+
+/// More damping than the model's is not a spring change: the springs'
+/// profile of such a record moves every spring to take up the misfit, and
+/// its time residual stays coloured. It is now `model-mismatch` (it was
+/// `converged`, and monitoring named springs 0 to 2 as changed); records of
+/// the model's damping stay `converged`.
+#[test]
+fn a_profile_that_cannot_explain_a_damping_change_says_so() {
+    let dir = temp_dir("damping");
+    let sim = dir.join("sim.csv");
+    let sim = sim.to_str().unwrap();
+    let status = |d: &str, seed: &str| {
+        let run = |line: String| springmass(&line.split(' ').collect::<Vec<_>>());
+        run(format!(
+            "simulate --n 6 --d {d} --t-end 80 --dt 0.1 --noise rel:0.01 --seed {seed} --out {sim}"
+        ));
+        let json = run(format!(
+            "fit --data {sim} --n 6 --d 0.1 --profile springs --json"
+        ));
+        let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+        v["status"].as_str().unwrap().to_string()
+    };
+    for seed in ["1", "2"] {
+        assert_eq!(status("0.13", seed), "model-mismatch", "seed {seed}");
+        assert_eq!(status("0.1", seed), "converged", "seed {seed}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -620,6 +620,18 @@ fn print_summary(rows: &[Row], alarm_rate: f64) {
             first.changed.join(", ")
         );
     }
+    // a change is flagged from the record's test; which elements changed
+    // comes from a profile that may not explain the record
+    let unexplained = flagged
+        .iter()
+        .filter(|r| r.fit_status == "model-mismatch")
+        .count();
+    if unexplained > 0 {
+        println!(
+            "{unexplained} of the {} flagged records are not explained by the profile (fit_status model-mismatch): the change is real, but the elements named changed are not reliable (a change the profile cannot express: damping, a mass, a support)",
+            flagged.len()
+        );
+    }
     for r in rows
         .iter()
         .filter(|r| r.status.starts_with("failed"))

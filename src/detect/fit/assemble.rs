@@ -291,6 +291,12 @@ impl Engine<'_> {
                     j => self.record.scales.get(j - 1).copied().unwrap_or(1.0),
                 };
                 let whiteness_p = f.sensors.get(j).map_or(f64::NAN, |r| r.2);
+                // an exact record's residual is its rounding (as for one
+                // sensor, [`goodness_of_fit`])
+                let peak = o.x().iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                let exact = f.sensors.get(j).is_some_and(|&(rss, n, _)| {
+                    estimated && (rss / n.max(1) as f64).sqrt() <= EXACT_RECORD_RESIDUAL * peak
+                });
                 SensorEstimate {
                     record: if s.separate_records() { j + 1 } else { 0 },
                     at: o.measurement().sensor().at,
@@ -301,7 +307,7 @@ impl Engine<'_> {
                         _ => sigma * scale,
                     },
                     whiteness_p,
-                    fits_data: whiteness_p.is_nan() || whiteness_p >= FITS_DATA_P,
+                    fits_data: whiteness_p.is_nan() || whiteness_p >= FITS_DATA_P || exact,
                 }
             })
             .collect()

@@ -87,10 +87,12 @@ pub use report::{ElementEstimate, ProfileReport};
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::observations::{Observations, Series};
+use crate::detect::fit::assemble::FITS_DATA_P;
 use crate::detect::fit::chainfit::fit_chain;
 use crate::detect::fit::general::{laplace_obs, Setup};
 use crate::detect::fit::model::Model;
 use crate::detect::fit::options::{FitOptions, NoiseSpec};
+use crate::detect::fit::record::whiteness_p;
 use crate::detect::fit::report::FitReport;
 use crate::detect::fit::select::chi2_sf;
 use crate::detect::misfit::time::TimeMisfit;
@@ -520,22 +522,18 @@ pub fn fit_profile_with(
     let p = visible + np;
     // a record: the visible values polished by the time-domain chi-square
     // (the likelihood of the samples themselves), the others held
-    if let Observations::Series(series) = obs {
-        if p > 0 && p <= TIME_POLISH_MAX && visible == nf {
+    let polished = match obs {
+        Observations::Series(series) if p > 0 && p <= TIME_POLISH_MAX && visible == nf => {
             time_polish(series, sigma, &space, &visible_set, &bounds, &mut fin)?;
+            Some(series)
         }
-    }
+        _ => None,
+    };
     iterations += fin.iterations;
     let fit_dof = fin.m.saturating_sub(p).max(1) as f64;
-    // with an estimated sigma, the final level from this fit's residual
-    let scale = if estimated {
-        (fin.chi2 / fit_dof).sqrt()
-    } else {
-        1.0
-    };
+    let (scale, fits_data, fit_p_value) =
+        goodness(polished, (sigma, estimated), &space, &fin, fit_dof)?;
     let chi2_out = fin.chi2 / (scale * scale);
-    let fit_p_value = chi2_sf(chi2_out, fit_dof);
-    let fits_data = estimated || fit_p_value > 0.01;
     let (elements, params) = estimates(&space, &fin, &visible_set, scale);
     let covariance = element_covariance(&fin, &visible_set, scale);
     let visible_depth = order[..visible]
@@ -543,7 +541,7 @@ pub fn fit_profile_with(
         .map(|&i| space.elems[i].depth)
         .fold(None, |a: Option<f64>, d| Some(a.map_or(d, |x| x.max(d))));
     let any_bound = elements.iter().any(|e| e.at_bound);
-    let (status, mut message) = verdict(fin.converged, any_bound, visible);
+    let (status, mut message) = verdict(fin.converged, any_bound, visible, fits_data);
     let note = visibility_note(&space.elems, &order, visible, opts.change, visible_depth);
     message.push_str(&note);
     message.push_str(&noise_note(fits_data, fit_p_value));
@@ -570,6 +568,53 @@ pub fn fit_profile_with(
         seconds: t0.elapsed().as_secs_f64(),
         chain: space.chain(&fin.theta)?,
     })
+}
+
+/// The final fit's goodness of fit: the noise scale (an estimated level
+/// is read from this fit's residual: `1` when given), whether the answer
+/// explains the data, and the p-value behind that. With a given level the
+/// chi-square is tested (`p > 0.01`); the time residual of a record
+/// whose final fit is the time-domain chi-square (`polished`) is also
+/// tested for whiteness (Ljung-Box, as the defect fit's,
+/// [`FITS_DATA_P`]), the only test with an estimated level: the level
+/// takes up any misfit, while the residual of a wrong chain (a damping the
+/// model lacks, a defect of another kind) stays coloured. (A profile left
+/// on the Bromwich line, with values the data do not see, is not so
+/// tested: its chain is not the time residual's best.) The p-value is
+/// the failed test's, else the chi-square's (given level) or the
+/// whiteness test's.
+///
+/// # Errors
+/// The forward model's, at the final chain.
+fn goodness(
+    polished: Option<&Series>,
+    (sigma, estimated): (f64, bool),
+    space: &Space,
+    fin: &FinalFit,
+    fit_dof: f64,
+) -> Result<(f64, bool, f64)> {
+    let scale = if estimated {
+        (fin.chi2 / fit_dof).sqrt()
+    } else {
+        1.0
+    };
+    let chi2_p = chi2_sf(fin.chi2 / (scale * scale), fit_dof);
+    let white_p = match polished {
+        Some(s) => {
+            let tm = TimeMisfit::new(s.time_data(sigma * scale)?);
+            whiteness_p(&tm.residuals(&space.chain(&fin.theta)?)?)
+        }
+        None => f64::NAN,
+    };
+    let white = white_p.is_nan() || white_p >= FITS_DATA_P;
+    let chi2_ok = estimated || chi2_p > 0.01;
+    let p = match (chi2_ok, white) {
+        (_, false) => white_p,
+        (false, true) => chi2_p,
+        (true, true) if estimated && !white_p.is_nan() => white_p,
+        (true, true) => chi2_p,
+    };
+    Ok((scale, chi2_ok && white, p))
 }
 
 /// The space of the profile: the chain's uniform part, the defects held

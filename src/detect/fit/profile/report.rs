@@ -71,10 +71,14 @@ pub struct ProfileReport {
     pub lambda: f64,
     /// Continuation stages run.
     pub stages: usize,
-    /// The residual is consistent with noise (chi-square test at the 1%
-    /// level with a given noise level; always true with an estimated one).
+    /// The residual is consistent with noise: the chi-square test at the
+    /// 1% level with a given noise level, and for a record the Ljung-Box
+    /// whiteness test of its time residual (the defect fit's level), the
+    /// only test with an estimated level. Otherwise the status is
+    /// `model-mismatch`.
     pub fits_data: bool,
-    /// Its p-value.
+    /// Its p-value: the failed test's, else the chi-square's (given level)
+    /// or the whiteness test's (estimated).
     pub fit_p_value: f64,
     /// How the fit ended.
     pub status: Status,
@@ -136,7 +140,7 @@ impl ProfileReport {
         }
         let _ = writeln!(
             s,
-            "  noise sigma {:.3e} ({}); chi2 {:.1} for {} data, {} free; p = {:.3}",
+            "  noise sigma {:.3e} ({}); chi2 {:.1} for {} data, {} free; p = {}",
             self.noise_sigma,
             if self.noise_estimated {
                 "estimated"
@@ -146,7 +150,7 @@ impl ProfileReport {
             self.chi2,
             self.m,
             self.p,
-            self.fit_p_value
+            crate::detect::fit::report::fmt_p(self.fit_p_value)
         );
         let _ = writeln!(
             s,
@@ -158,7 +162,12 @@ impl ProfileReport {
 }
 
 /// The profile's status and the first words of its message.
-pub(super) fn verdict(converged: bool, any_bound: bool, visible: usize) -> (Status, String) {
+pub(super) fn verdict(
+    converged: bool,
+    any_bound: bool,
+    visible: usize,
+    fits_data: bool,
+) -> (Status, String) {
     if !converged {
         (
             Status::Stalled,
@@ -168,6 +177,11 @@ pub(super) fn verdict(converged: bool, any_bound: bool, visible: usize) -> (Stat
         (
             Status::ValueAtBound,
             "a value ended on its bound (a wrong basin, or a value outside the range)".to_string(),
+        )
+    } else if !fits_data {
+        (
+            Status::ModelMismatch,
+            "model-mismatch: the profile does not explain the data (the chain, damping or noise model differs from the data's)".to_string(),
         )
     } else if visible == 0 {
         (

@@ -389,15 +389,27 @@ impl FitReport {
         }
         self.answer_lines(&mut out);
         out.push_str(&format!(
-            "status: {} - {}\nnoise sigma {} ({}), chi2 {} on {} dof, fits the data: {} (p = {:.3})\n",
+            "status: {} - {}\nnoise sigma {} ({}), chi2 {} on {} dof, fits the data: {} (p = {})\n",
             self.status.name(),
             self.message,
             fmt_g(self.noise_sigma),
-            if self.noise_estimated { "estimated" } else { "given" },
+            if self.noise_estimated {
+                "estimated"
+            } else {
+                "given"
+            },
             fmt_g(self.chi2),
             self.dof,
-            if self.fits_data { "yes" } else { "NO" },
-            self.fit_p_value
+            match (
+                self.fits_data,
+                self.fit_p_value < crate::detect::fit::assemble::FITS_DATA_P
+            ) {
+                (false, _) => "NO",
+                // fitted to the rounding of its digits: no test can judge that
+                (true, true) => "yes, an exact record",
+                (true, false) => "yes",
+            },
+            fmt_p(self.fit_p_value)
         ));
         self.sensor_lines(&mut out);
         if let Some(t) = &self.trigger {
@@ -558,4 +570,14 @@ fn interval_text(i: Option<[f64; 2]>, method: Option<&str>, level: f64) -> Strin
 /// `name`, `sep`, ` value +- se` and a newline (`d = 0.1 +- 0.002`).
 fn value_line(name: &str, sep: &str, value: f64, se: f64) -> String {
     format!("{name}{sep} {} +- {}\n", fmt_g(value), fmt_g(se))
+}
+
+/// A p-value to three decimals, or in exponent form below 0.001 (where
+/// three decimals print 0.000).
+pub(crate) fn fmt_p(p: f64) -> String {
+    if p >= 1e-3 || p == 0.0 || p.is_nan() {
+        format!("{p:.3}")
+    } else {
+        format!("{p:.1e}")
+    }
 }
