@@ -611,6 +611,20 @@ fn monitor_flags_the_output_only_records_after_a_storey_weakened() {
         .arg(&records)
         .output()
         .unwrap();
+    // a damping model without its parameter: refused, not sent to --fit d
+    // (which fits only the grounded d of an output-only record)
+    let between = cli()
+        .args(["fit", "--data"])
+        .arg(dir.join("base.csv"))
+        .args(common)
+        .args(["--fit", "d", "--damping", "between"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&between.stderr);
+    assert!(
+        !between.status.success() && err.contains("between:0.05"),
+        "{err}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
     assert!(
         out.status.success(),

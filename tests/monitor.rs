@@ -231,6 +231,23 @@ fn bad_input_is_named_and_a_bad_record_is_a_row() {
     assert!(out.contains("1 failed"), "{out}");
     let text = std::fs::read_to_string(&table).unwrap();
     assert!(text.contains("failed: "), "{text}");
+    // records of another chain than the baseline's: each row says why, the
+    // table is still written (it failed to write after every fit), and a
+    // run with no record tested exits with an error
+    let (code, err) = fails(&[
+        "monitor",
+        "--baseline",
+        b,
+        "--n",
+        "5",
+        r,
+        "--out",
+        table.to_str().unwrap(),
+    ]);
+    assert_ne!(code, 0, "{err}");
+    assert!(err.contains("every record failed"), "{err}");
+    let text = std::fs::read_to_string(&table).unwrap();
+    assert!(text.contains("the same --n"), "{text}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -268,16 +285,16 @@ fn two_hundred_records_change_at_120() {
 /// profile of such a record moves every spring to take up the misfit, and
 /// its time residual stays coloured. It is now `model-mismatch` (it was
 /// `converged`, and monitoring named springs 0 to 2 as changed); records of
-/// the model's damping stay `converged`.
+/// the model's damping stay `converged`, and so does an exact record.
 #[test]
 fn a_profile_that_cannot_explain_a_damping_change_says_so() {
     let dir = temp_dir("damping");
     let sim = dir.join("sim.csv");
     let sim = sim.to_str().unwrap();
-    let status = |d: &str, seed: &str| {
+    let status = |d: &str, noise: &str| {
         let run = |line: String| springmass(&line.split(' ').collect::<Vec<_>>());
         run(format!(
-            "simulate --n 6 --d {d} --t-end 80 --dt 0.1 --noise rel:0.01 --seed {seed} --out {sim}"
+            "simulate --n 6 --d {d} --t-end 80 --dt 0.1 {noise} --out {sim}"
         ));
         let json = run(format!(
             "fit --data {sim} --n 6 --d 0.1 --profile springs --json"
@@ -286,8 +303,12 @@ fn a_profile_that_cannot_explain_a_damping_change_says_so() {
         v["status"].as_str().unwrap().to_string()
     };
     for seed in ["1", "2"] {
-        assert_eq!(status("0.13", seed), "model-mismatch", "seed {seed}");
-        assert_eq!(status("0.1", seed), "converged", "seed {seed}");
+        let noise = format!("--noise rel:0.01 --seed {seed}");
+        assert_eq!(status("0.13", &noise), "model-mismatch", "seed {seed}");
+        assert_eq!(status("0.1", &noise), "converged", "seed {seed}");
     }
+    // an exact record: its residual is rounding, not a misfit
+    let exact = "--defect spring:3:0.9";
+    assert_eq!(status("0.1", exact), "converged");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -43,6 +43,19 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     } else {
         a.observe.clone()
     };
+    if let Some(model) = a
+        .damping
+        .as_deref()
+        .filter(|m| *m != "grounded" && !m.contains(':'))
+    {
+        // the chain's own message would send the user to --fit d, which
+        // fits only the grounded d here
+        Err(springmass::Error::invalid(
+            "damping",
+            model,
+            format!("{model} with its parameters given for an output-only record (e.g. between:0.05, rayleigh:0.01:0.02, modal:0.02): its fit estimates only the grounded model's d (--fit d)"),
+        ))?;
+    }
     let nominal = super::fit_modes::nominal_chain(a, n)?;
     let rec = AmbientRecord::read_csv(&path, observe, kind)?;
     let report = fit_ambient(&nominal, &rec, &opts)

@@ -159,6 +159,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         plot(svg, &base, &rows, a.alarm_rate)?;
     }
     print_summary(&rows, a.alarm_rate);
+    // the tables are written; a run with no record tested is a failure
+    if let Some(first) = rows
+        .iter()
+        .map(|r| &r.status)
+        .find(|s| s.starts_with("failed"))
+    {
+        if rows.iter().all(|r| r.status.starts_with("failed")) {
+            anyhow::bail!("every record failed; the first: {first}");
+        }
+    }
     Ok(())
 }
 
@@ -277,6 +287,19 @@ fn record_row(
             return row;
         }
     };
+    if snap.labels != base.labels {
+        // another chain than the baseline's (its --n, ends or profile)
+        let span = |l: &[String]| match (l.first(), l.last()) {
+            (Some(a), Some(b)) => format!("{} elements, {a} to {b}", l.len()),
+            _ => "no elements".to_string(),
+        };
+        row.status = format!(
+            "failed: the record's profile has {}, the baseline's {}: fit both with the same --n, ends and --profile",
+            span(&snap.labels),
+            span(&base.labels)
+        );
+        return row;
+    }
     row.factors.clone_from(&snap.factors);
     row.ses = snap.ses();
     match change_test(base, &snap, alarm_rate) {

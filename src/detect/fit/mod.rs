@@ -235,14 +235,16 @@ fn fit_with_model(
             };
             let mut report = at(*t0)?;
             // a record cut short: the blow's other possible times, when the
-            // first does not explain the record (the first that does)
+            // first does not explain the record (the first that does; a
+            // time whose fit fails is passed over, the first report kept)
             for &t in others {
                 if report.fits_data {
                     break;
                 }
-                let other = at(t)?;
-                if other.fits_data {
-                    report = other;
+                match at(t) {
+                    Ok(other) if other.fits_data => report = other,
+                    Err(crate::Error::Cancelled) => return Err(crate::Error::Cancelled),
+                    _ => {}
                 }
             }
             doubt_coloured_lead_in(&mut report);

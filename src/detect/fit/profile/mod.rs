@@ -87,7 +87,7 @@ pub use report::{ElementEstimate, ProfileReport};
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::observations::{Observations, Series};
-use crate::detect::fit::assemble::FITS_DATA_P;
+use crate::detect::fit::assemble::{EXACT_RECORD_RESIDUAL, FITS_DATA_P};
 use crate::detect::fit::chainfit::fit_chain;
 use crate::detect::fit::general::{laplace_obs, Setup};
 use crate::detect::fit::model::Model;
@@ -599,14 +599,22 @@ fn goodness(
         1.0
     };
     let chi2_p = chi2_sf(fin.chi2 / (scale * scale), fit_dof);
-    let white_p = match polished {
+    let (white_p, exact) = match polished {
         Some(s) => {
             let tm = TimeMisfit::new(s.time_data(sigma * scale)?);
-            whiteness_p(&tm.residuals(&space.chain(&fin.theta)?)?)
+            let r = tm.residuals(&space.chain(&fin.theta)?)?;
+            // an exact record's residual is its rounding, which no
+            // whiteness test can judge (as the defect fit's)
+            let rms = (r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64).sqrt();
+            let peak = s.x().iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            (
+                whiteness_p(&r),
+                rms * sigma * scale <= EXACT_RECORD_RESIDUAL * peak,
+            )
         }
-        None => f64::NAN,
+        None => (f64::NAN, false),
     };
-    let white = white_p.is_nan() || white_p >= FITS_DATA_P;
+    let white = white_p.is_nan() || white_p >= FITS_DATA_P || exact;
     let chi2_ok = estimated || chi2_p > 0.01;
     let p = match (chi2_ok, white) {
         (_, false) => white_p,
