@@ -234,16 +234,8 @@ fn bad_input_is_named_and_a_bad_record_is_a_row() {
     // records of another chain than the baseline's: each row says why, the
     // table is still written (it failed to write after every fit), and a
     // run with no record tested exits with an error
-    let (code, err) = fails(&[
-        "monitor",
-        "--baseline",
-        b,
-        "--n",
-        "5",
-        r,
-        "--out",
-        table.to_str().unwrap(),
-    ]);
+    let other_n = format!("monitor --baseline {b} --n 5 {r} --out {}", table.display());
+    let (code, err) = fails(&other_n.split(' ').collect::<Vec<_>>());
     assert_ne!(code, 0, "{err}");
     assert!(err.contains("every record failed"), "{err}");
     let text = std::fs::read_to_string(&table).unwrap();

@@ -222,21 +222,19 @@ pub fn onset_candidates(rec: &Series, uniform: &Chain) -> Result<Vec<f64>> {
     });
     // first the best of the two brackets' minimisers, then the other
     // minima before a record cut short, best first
-    let before = cut.then(|| golden(&w, t[0] - window, t[0]));
+    let before = match cut {
+        true => minima(&w, t[0] - window, t[0]),
+        false => Vec::new(),
+    };
     let chi2 = |v: f64| (v, w.chi2(v));
-    let best = [inside, before]
+    // (the best itself among them is dropped below as a repeat)
+    let mut others: Vec<(f64, f64)> = before.iter().copied().map(chi2).collect();
+    others.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let best = [inside, before.first().copied()]
         .into_iter()
         .flatten()
         .map(chi2)
         .min_by(|a, b| a.1.total_cmp(&b.1));
-    let mut others: Vec<(f64, f64)> = match cut {
-        true => minima(&w, t[0] - window, t[0])
-            .into_iter()
-            .map(chi2)
-            .collect(),
-        false => Vec::new(),
-    };
-    others.sort_by(|a, b| a.1.total_cmp(&b.1));
     let null = -rec.origin();
     let c_null = w.chi2(null);
     let mut out: Vec<f64> = Vec::new();
@@ -315,20 +313,29 @@ const GRID: usize = 24;
 /// ([`crate::linalg::golden`]) in its bracket.
 fn golden(w: &Window<'_>, lo: f64, hi: f64) -> f64 {
     let (at, c) = grid(w, lo, hi);
-    let i = (0..=GRID)
-        .min_by(|&a, &b| c[a].total_cmp(&c[b]))
-        .unwrap_or(0);
-    refine(w, &at, i)
+    refine(w, &at, lowest(&c))
 }
 
 /// Every local minimum of [`Window::chi2`] on `[lo, hi]`: the grid's
-/// (a point no higher than its neighbours), each refined as in [`golden`].
+/// (a point no higher than its neighbours), each refined as in [`golden`];
+/// the first is [`golden`]'s (the grid's lowest point), the others in the
+/// grid's order.
 fn minima(w: &Window<'_>, lo: f64, hi: f64) -> Vec<f64> {
     let (at, c) = grid(w, lo, hi);
-    (0..=GRID)
-        .filter(|&i| (i == 0 || c[i] <= c[i - 1]) && (i == GRID || c[i] <= c[i + 1]))
+    let low = lowest(&c);
+    std::iter::once(low)
+        .chain((0..=GRID).filter(|&i| {
+            i != low && (i == 0 || c[i] <= c[i - 1]) && (i == GRID || c[i] <= c[i + 1])
+        }))
         .map(|i| refine(w, &at, i))
         .collect()
+}
+
+/// The index of the grid's lowest chi-square (the first of equals).
+fn lowest(c: &[f64]) -> usize {
+    (0..c.len())
+        .min_by(|&a, &b| c[a].total_cmp(&c[b]))
+        .unwrap_or(0)
 }
 
 /// The grid of [`golden`] on `[lo, hi]`: a point's time, and the chi-square

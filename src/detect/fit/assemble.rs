@@ -293,10 +293,10 @@ impl Engine<'_> {
                 let whiteness_p = f.sensors.get(j).map_or(f64::NAN, |r| r.2);
                 // an exact record's residual is its rounding (as for one
                 // sensor, [`goodness_of_fit`])
-                let peak = o.x().iter().fold(0.0f64, |a, v| a.max(v.abs()));
-                let exact = f.sensors.get(j).is_some_and(|&(rss, n, _)| {
-                    estimated && (rss / n.max(1) as f64).sqrt() <= EXACT_RECORD_RESIDUAL * peak
-                });
+                let exact = f
+                    .sensors
+                    .get(j)
+                    .is_some_and(|&(rss, n, _)| estimated && exact_record(rss, n, o.max_abs()));
                 SensorEstimate {
                     record: if s.separate_records() { j + 1 } else { 0 },
                     at: o.measurement().sensor().at,
@@ -374,6 +374,13 @@ fn rescaled(ranked: &[Hypothesis], scale: f64) -> Vec<Hypothesis> {
 /// numbers, which is not random and which no whiteness test can judge.
 pub(super) const EXACT_RECORD_RESIDUAL: f64 = 1e-8;
 
+/// Whether a residual of sum of squares `rss` over `n` samples is the
+/// rounding of an exact record whose largest `|x|` is `peak`
+/// ([`EXACT_RECORD_RESIDUAL`]).
+pub(super) fn exact_record(rss: f64, n: usize, peak: f64) -> bool {
+    (rss / n.max(1) as f64).sqrt() <= EXACT_RECORD_RESIDUAL * peak
+}
+
 /// Whether the residual is consistent with noise, and the p-value: the
 /// Ljung-Box whiteness test of the time residual when sigma was estimated,
 /// the chi-square test otherwise. An estimated residual below
@@ -385,8 +392,8 @@ fn goodness_of_fit(f: &KFit, chi2_final: f64, estimated: bool) -> (bool, f64) {
             // under a record model: the whitened residual's whiteness
             let p = noise::ljung_box(f.whitened.as_deref().unwrap_or(r), 20).1;
             let peak = model.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            let rms = (r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64).sqrt();
-            (p >= FITS_DATA_P || rms <= EXACT_RECORD_RESIDUAL * peak, p)
+            let rss = r.iter().map(|v| v * v).sum::<f64>();
+            (p >= FITS_DATA_P || exact_record(rss, r.len(), peak), p)
         }
         _ => {
             let p = select::chi2_sf(chi2_final, f.dof.max(1) as f64);

@@ -231,6 +231,13 @@ impl ModalMisfit {
         let cost = |t: &Target, j: usize, shape: f64| {
             ((modes.omega[j] / TAU - t.frequency) / t.frequency_se).powi(2) + shape
         };
+        // each target's shape chi-square against every model mode (0
+        // without a comparable shape)
+        let shapes: Vec<Vec<f64>> = self
+            .targets
+            .iter()
+            .map(|t| (0..nm).map(|j| t.shape_chi2(modes, j)).collect())
+            .collect();
         let mut cands: Vec<(f64, usize, usize)> = Vec::new();
         for (t, target) in self
             .targets
@@ -238,12 +245,11 @@ impl ModalMisfit {
             .enumerate()
             .filter(|(_, t)| t.has_shape())
         {
-            let shapes: Vec<f64> = (0..nm).map(|j| target.shape_chi2(modes, j)).collect();
-            let best = shapes.iter().copied().fold(f64::INFINITY, f64::min);
+            let best = shapes[t].iter().copied().fold(f64::INFINITY, f64::min);
             cands.extend(
                 (0..nm)
-                    .filter(|&j| shapes[j] <= best + SHAPE_TIE)
-                    .map(|j| (cost(target, j, shapes[j]), t, j)),
+                    .filter(|&j| shapes[t][j] <= best + SHAPE_TIE)
+                    .map(|j| (cost(target, j, shapes[t][j]), t, j)),
             );
         }
         cands.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
@@ -259,8 +265,7 @@ impl ModalMisfit {
         let order = order.chain((0..self.targets.len()).filter(|&t| !self.targets[t].has_shape()));
         for t in order.collect::<Vec<_>>() {
             if pair[t].is_none() {
-                let target = &self.targets[t];
-                let c = |j: usize| cost(target, j, target.shape_chi2(modes, j));
+                let c = |j: usize| cost(&self.targets[t], j, shapes[t][j]);
                 let j = (0..nm)
                     .filter(|&j| !taken[j])
                     .min_by(|&a, &b| c(a).total_cmp(&c(b)))

@@ -87,7 +87,7 @@ pub use report::{ElementEstimate, ProfileReport};
 use crate::chain::{Chain, Defect};
 use crate::detect::data::laplace::LaplaceObs;
 use crate::detect::data::observations::{Observations, Series};
-use crate::detect::fit::assemble::{EXACT_RECORD_RESIDUAL, FITS_DATA_P};
+use crate::detect::fit::assemble::{exact_record, FITS_DATA_P};
 use crate::detect::fit::chainfit::fit_chain;
 use crate::detect::fit::general::{laplace_obs, Setup};
 use crate::detect::fit::model::Model;
@@ -493,18 +493,7 @@ pub fn fit_profile_with(
     opts: &ProfileOptions,
     defect_fit: Option<DefectFitter>,
 ) -> Result<ProfileReport> {
-    opts.validate()?;
-    if let Observations::Series(s) = obs {
-        if !s.others().is_empty() {
-            return Err(crate::error::Error::invalid(
-                "observe",
-                format!("{} sensors", s.sensors().count()),
-                "one sensor for the whole-profile fit",
-            ));
-        }
-    }
-    // issue 32 item 7: dense n x n blocks; refuse before allocating
-    crate::io::check_fit_memory(model.chain().n(), true)?;
+    check_input(obs, model, opts)?;
     let t0 = Instant::now();
     let space = profile_space(obs, model, opts)?;
     let (nf, np) = (space.elems.len(), space.params.len());
@@ -570,6 +559,26 @@ pub fn fit_profile_with(
     })
 }
 
+/// The options, one sensor, and the memory of the dense `n x n` blocks
+/// (issue 32 item 7: refused before allocating).
+///
+/// # Errors
+/// Invalid options; several sensors (field `observe`); a chain above the
+/// memory budget.
+fn check_input(obs: &Observations, model: &Model, opts: &ProfileOptions) -> Result<()> {
+    opts.validate()?;
+    if let Observations::Series(s) = obs {
+        if !s.others().is_empty() {
+            return Err(crate::error::Error::invalid(
+                "observe",
+                format!("{} sensors", s.sensors().count()),
+                "one sensor for the whole-profile fit",
+            ));
+        }
+    }
+    crate::io::check_fit_memory(model.chain().n(), true)
+}
+
 /// The final fit's goodness of fit: the noise scale (an estimated level
 /// is read from this fit's residual: `1` when given), whether the answer
 /// explains the data, and the p-value behind that. With a given level the
@@ -603,14 +612,11 @@ fn goodness(
         Some(s) => {
             let tm = TimeMisfit::new(s.time_data(sigma * scale)?);
             let r = tm.residuals(&space.chain(&fin.theta)?)?;
-            // an exact record's residual is its rounding, which no
-            // whiteness test can judge (as the defect fit's)
-            let rms = (r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64).sqrt();
-            let peak = s.x().iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            (
-                whiteness_p(&r),
-                rms * sigma * scale <= EXACT_RECORD_RESIDUAL * peak,
-            )
+            // an exact record's residual (in the data's units) is its
+            // rounding, which no whiteness test can judge (as the defect fit's)
+            let level = sigma * scale;
+            let rss = r.iter().map(|v| (v * level).powi(2)).sum::<f64>();
+            (whiteness_p(&r), exact_record(rss, r.len(), s.max_abs()))
         }
         None => (f64::NAN, false),
     };
