@@ -130,6 +130,7 @@ fn smu_mode(row: &[f64; 5], floors: usize) -> MeasuredMode {
         frequency: row[0],
         frequency_se: None,
         damping: None,
+        damping_se: None,
         shape: (1..=floors)
             .map(|j| ShapeEntry {
                 mass: j,
@@ -200,6 +201,7 @@ fn synthetic(truth: &Chain, count: usize, floors: &[usize], seed: u64) -> Measur
                 frequency: m.omega[j] / TAU * (1.0 + 0.01 * gauss()),
                 frequency_se: Some(0.01 * m.omega[j] / TAU),
                 damping: None,
+                damping_se: None,
                 shape: floors
                     .iter()
                     .map(|&i| ShapeEntry {
@@ -532,6 +534,7 @@ fn the_dynamic_residual_updates_a_frame_and_smu() {
             frequency: m.omega[j] / TAU,
             frequency_se: None,
             damping: None,
+            damping_se: None,
             shape: [2, 4, 6]
                 .iter()
                 .map(|&i| ShapeEntry {
@@ -639,6 +642,7 @@ fn exact_modes(truth: &Chain, count: usize, floors: &[usize]) -> MeasuredModes {
             frequency: eig.eigenvalues[j].sqrt() / TAU,
             frequency_se: None,
             damping: None,
+            damping_se: None,
             shape: floors
                 .iter()
                 .map(|&i| ShapeEntry {
@@ -679,4 +683,135 @@ fn exact_modes_at_the_two_ends_find_the_changed_spring() {
             "{what}"
         );
     }
+}
+
+/// The first `count` modes of a chain with dampers `c` between its masses
+/// (`c[j]` joins masses `j` and `j + 1`, walls at `0` and `n`), as a modal
+/// survey reports them: the poles `p` of the first-order state matrix
+/// `[[0, I], [-M^-1 K, -M^-1 C]]` (a Schur form), frequency `|p| / (2 pi)`,
+/// damping ratio `-Re p / |p|`, and each complex shape (a dense complex
+/// solve with `psi_1 = 1`) divided by its largest component and its real
+/// part taken: another realisation than the fit's, and another solver.
+fn damped_survey(truth: &Chain, c: &[f64], count: usize, floors: &[usize]) -> MeasuredModes {
+    use nalgebra::{Complex, DMatrix};
+    let n = truth.n();
+    let (k, m) = dense(truth);
+    let mut cm = DMatrix::<f64>::zeros(n, n);
+    for (j, &v) in c.iter().enumerate() {
+        if j >= 1 {
+            cm[(j - 1, j - 1)] += v;
+        }
+        if j < n {
+            cm[(j, j)] += v;
+        }
+        if j >= 1 && j < n {
+            cm[(j - 1, j)] -= v;
+            cm[(j, j - 1)] -= v;
+        }
+    }
+    let minv = m.clone().try_inverse().unwrap();
+    let mut a = DMatrix::<f64>::zeros(2 * n, 2 * n);
+    a.view_mut((0, n), (n, n)).fill_with_identity();
+    a.view_mut((n, 0), (n, n)).copy_from(&(-&minv * &k));
+    a.view_mut((n, n), (n, n)).copy_from(&(-&minv * &cm));
+    let mut poles: Vec<Complex<f64>> = a
+        .complex_eigenvalues()
+        .iter()
+        .copied()
+        .filter(|z| z.im > 0.0)
+        .collect();
+    poles.sort_by(|x, y| x.norm().total_cmp(&y.norm()));
+    let modes = poles[..count]
+        .iter()
+        .map(|&p| {
+            let q = DMatrix::from_fn(n, n, |r, s| {
+                p * p * m[(r, s)] + p * cm[(r, s)] + Complex::from(k[(r, s)])
+            });
+            let sub = q.view((1, 1), (n - 1, n - 1)).into_owned();
+            let rhs = -q.view((1, 0), (n - 1, 1)).into_owned();
+            let rest = sub.lu().solve(&rhs).unwrap();
+            let psi: Vec<Complex<f64>> = std::iter::once(Complex::from(1.0))
+                .chain(rest.iter().copied())
+                .collect();
+            let top = *psi
+                .iter()
+                .max_by(|x, y| x.norm().total_cmp(&y.norm()))
+                .unwrap();
+            MeasuredMode {
+                frequency: p.norm() / TAU,
+                frequency_se: None,
+                damping: Some(-p.re / p.norm()),
+                damping_se: None,
+                shape: floors
+                    .iter()
+                    .map(|&i| ShapeEntry {
+                        mass: i,
+                        value: (psi[i - 1] / top).re,
+                        se: None,
+                    })
+                    .collect(),
+            }
+        })
+        .collect();
+    MeasuredModes::new(modes).unwrap()
+}
+
+/// A storey's damper ten times its nominal value beside a softened
+/// storey, seen in four damped modes at four floors. With the nominal
+/// damping given, the damping ratios are fitted and the dampers searched:
+/// the softened spring and the changed damper, both. With an undamped
+/// nominal chain the damper passed for a second, stiffer spring, called
+/// `converged`; the report now says the ratios were not used.
+#[test]
+fn a_changed_damper_is_found_from_damped_modes() {
+    use springmass::chain::Damping;
+    use springmass::detect::fit::modal_locate::{locate_from_modes, ModalLocateOptions};
+    let n = 8;
+    let nominal = Chain::new(n)
+        .unwrap()
+        .with_damping(Damping::Between { c: 0.03 })
+        .unwrap();
+    let truth = Chain::new(n)
+        .unwrap()
+        .with_defect(Defect::Spring { at: 4, k: 0.7 })
+        .unwrap();
+    let mut c = vec![0.03; n + 1];
+    c[2] = 0.3;
+    let data = damped_survey(&truth, &c, 4, &[1, 3, 6, 8]);
+    let opts = ModalLocateOptions {
+        kinds: Some(ProfileMode::Springs),
+        dampers: true,
+        ..ModalLocateOptions::default()
+    };
+    let r = locate_from_modes(&nominal, data.clone(), &opts).unwrap();
+    let what = r.summary();
+    assert_eq!(r.damping_ratios, "fitted", "{what}");
+    assert_eq!(r.k, 2, "{what}");
+    let spring = r.defects.iter().find(|d| d.kind == "spring").expect(&what);
+    let damper = r.defects.iter().find(|d| d.kind == "damper").expect(&what);
+    assert_eq!((spring.at, damper.at), (4, 2), "{what}");
+    assert!((spring.factor - 0.7).abs() < 0.01, "{what}");
+    let se = damper.se.expect(&what);
+    assert!((damper.factor - 10.0).abs() < 2.0 * se, "{what}");
+    assert_eq!(
+        r.status,
+        springmass::detect::fit::Status::Converged,
+        "{what}"
+    );
+    // an undamped nominal leaves the ratios out, and says so
+    let plain = locate_from_modes(
+        &Chain::new(n).unwrap(),
+        data.clone(),
+        &ModalLocateOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(plain.damping_ratios, "not used");
+    assert!(
+        plain.message.contains("damping ratios were not used"),
+        "{}",
+        plain.message
+    );
+    // dampers cannot be searched without a damped nominal
+    let err = locate_from_modes(&Chain::new(n).unwrap(), data, &opts).unwrap_err();
+    assert!(err.to_string().contains("kinds"), "{err}");
 }

@@ -1859,13 +1859,15 @@ def _modes_csv(modes: Any) -> str:
     if not isinstance(modes, (list, tuple)) or not modes:
         raise _invalid("modes", type(modes).__name__, "a path, or a non-empty list of dicts (one per mode)")
     masses = sorted({int(j) for m in modes for j in dict(m.get("phi", {}))})
-    cols = ["frequency", "frequency_se", "damping"] + [f"phi_{j}" for j in masses]
+    cols = ["frequency", "frequency_se", "damping", "damping_se"] + [f"phi_{j}" for j in masses]
     rows = []
     for i, m in enumerate(modes):
         if not isinstance(m, dict) or "frequency" not in m:
             raise _invalid(f"modes[{i + 1}]", m, 'a dict with "frequency" (Hz) and optional "phi": {mass: value}')
         phi = {int(j): v for j, v in dict(m.get("phi", {})).items()}
-        cells = [m.get("frequency"), m.get("frequency_se"), m.get("damping")] + [phi.get(j) for j in masses]
+        cells = [m.get("frequency"), m.get("frequency_se"), m.get("damping"), m.get("damping_se")] + [
+            phi.get(j) for j in masses
+        ]
         rows.append(",".join("" if v is None else repr(float(v)) for v in cells))
     return ",".join(cols) + "\n" + "\n".join(rows) + "\n"
 
@@ -1885,6 +1887,9 @@ def update_from_modes(
     seed: int = 1,
     baseline: Any = None,
     modal_residual: str = "property",
+    damping: Optional[str] = None,
+    defects: Optional[str] = None,
+    kinds: Optional[str] = None,
 ) -> Dict[str, Any]:
     """Update the storey springs (or masses) of a nominal chain from measured modes.
 
@@ -1919,6 +1924,20 @@ def update_from_modes(
         MAC-paired shapes) or ``"dynamic"`` (the modal dynamic residual:
         the equations of motion at the measured frequencies, the unmeasured
         shape components profiled out); ``--modal-residual`` of the CLI.
+    damping : str, optional
+        The nominal damping model, as ``--damping`` of the CLI
+        (``"between:0.03"``: dampers between the storeys; by default the
+        grounded ``d``). With a damped nominal chain the measured damping
+        ratios (column ``damping``, dict key ``"damping"``) are fitted too.
+    defects : str, optional
+        ``"auto"``, ``"auto:K"`` or ``"K"``: search which elements changed
+        instead of updating every one (``springmass fit --modes FILE
+        --defects``); the report then has ``defects``, ``k_selection`` and
+        ``runner_up``.
+    kinds : str, optional
+        With ``defects``: ``"spring"`` (default), ``"mass"``, ``"damper"``,
+        a comma list of them, or ``"any"`` (dampers included when the
+        ratios are fitted).
 
     Returns
     -------
@@ -1951,6 +1970,9 @@ def update_from_modes(
         seed=_count("seed", seed),
         baseline=_baseline(baseline),
         modal_residual=_text("modal_residual", modal_residual),
+        damping=None if damping is None else _text("damping", damping),
+        defects=None if defects is None else _text("defects", defects),
+        kinds=None if kinds is None else _text("kinds", kinds),
     )
     out = json.loads(raw["report"])
     out["summary"] = raw["summary"]

@@ -880,7 +880,7 @@ fn spectral<'py>(
 /// its text summary.
 #[pyfunction]
 #[pyo3(signature = (modes, *, n, mass, k, d, left, right, profile, hold_out, starts, seed,
-    baseline=None, modal_residual=None))]
+    baseline=None, modal_residual=None, damping=None, defects=None, kinds=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit_modes<'py>(
     py: Python<'py>,
@@ -897,11 +897,26 @@ fn fit_modes<'py>(
     seed: u64,
     baseline: Option<BaselineArg>,
     modal_residual: Option<String>,
+    damping: Option<String>,
+    defects: Option<String>,
+    kinds: Option<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use springmass::detect::fit::modal_update::{
         update_from_modes, ModalFormulation, ModalUpdateOptions,
     };
-    let spec = nominal_spec(n, mass, k, d, left, right, baseline)?;
+    let mut spec = nominal_spec(n, mass, k, d, left, right, baseline)?;
+    spec.damping = damping;
+    if let Some(text) = defects {
+        return locate_modes(py, modes, &spec, &text, kinds, modal_residual);
+    }
+    if let Some(k) = kinds {
+        return Err(Error::invalid(
+            "kinds",
+            k,
+            "kinds with defects (the defect search); the update frees profile's kind",
+        ))
+        .py_err();
+    }
     let report = interruptible(py, move || -> Result<_> {
         let data = springmass::detect::data::modes::MeasuredModes::from_csv_str(&modes)?;
         let opts = ModalUpdateOptions {
@@ -918,6 +933,42 @@ fn fit_modes<'py>(
         update_from_modes(spec.model()?.chain(), data, &opts)
     })?;
     report_dict(py, &report, report.summary(), "modal update")
+}
+
+/// `fit_modes` with `defects`: which elements changed
+/// (`springmass::detect::fit::modal_locate`, `springmass fit --modes FILE
+/// --defects`).
+fn locate_modes<'py>(
+    py: Python<'py>,
+    modes: String,
+    spec: &FitSpec,
+    defects: &str,
+    kinds: Option<String>,
+    modal_residual: Option<String>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use springmass::detect::fit::modal_locate::{
+        locate_from_modes, parse_defect_count, parse_kinds, ModalLocateOptions,
+    };
+    use springmass::detect::fit::modal_update::ModalFormulation;
+    let nominal = spec.model().py_err()?.chain().clone();
+    let (k_min, k_max) = parse_defect_count(defects).py_err()?;
+    let report = interruptible(py, move || -> Result<_> {
+        let data = springmass::detect::data::modes::MeasuredModes::from_csv_str(&modes)?;
+        let mut opts = ModalLocateOptions {
+            k_min,
+            k_max,
+            formulation: match &modal_residual {
+                Some(f) => ModalFormulation::parse(f)?,
+                None => ModalFormulation::default(),
+            },
+            ..Default::default()
+        };
+        if let Some(k) = &kinds {
+            (opts.kinds, opts.dampers) = parse_kinds(k, &nominal, &data)?;
+        }
+        locate_from_modes(&nominal, data, &opts)
+    })?;
+    report_dict(py, &report, report.summary(), "modal defect search")
 }
 
 /// A fit scene (`springmass fit --scene`, `springmass::detect::fit::fit_scene`):

@@ -84,3 +84,63 @@ def test_bad_modes_name_the_field(tmp_path):
         springmass.update_from_modes(str(tmp_path / "missing.csv"), n=2)
     with pytest.raises(ValueError, match="modes"):
         springmass.update_from_modes([], n=2)
+
+
+def _damped_modes(n, springs, dampers, floors, count):
+    """Modes of a fixed-fixed chain (unit masses) with dampers between the
+    storeys, by numpy's eig of the first-order state matrix: frequency
+    |p| / 2 pi, damping ratio -Re p / |p|, each shape divided by its largest
+    component and its real part taken."""
+    def lap(v):
+        a = np.zeros((n, n))
+        for j, x in enumerate(v):
+            if j >= 1:
+                a[j - 1, j - 1] += x
+            if j < n:
+                a[j, j] += x
+            if 1 <= j < n:
+                a[j - 1, j] -= x
+                a[j, j - 1] -= x
+        return a
+
+    k, c = lap(springs), lap(dampers)
+    a = np.block([[np.zeros((n, n)), np.eye(n)], [-k, -c]])
+    lam, vec = np.linalg.eig(a)
+    keep = lam.imag > 0
+    lam, vec = lam[keep], vec[:, keep]
+    order = np.argsort(np.abs(lam))[:count]
+    modes = []
+    for j in order:
+        psi = vec[:n, j]
+        psi = (psi / psi[np.argmax(np.abs(psi))]).real
+        modes.append(
+            {
+                "frequency": abs(lam[j]) / (2 * np.pi),
+                "damping": -lam[j].real / abs(lam[j]),
+                "phi": {i: psi[i - 1] for i in floors},
+            }
+        )
+    return modes
+
+
+def test_a_changed_damper_is_searched_from_damped_modes():
+    n = 8
+    springs = np.ones(n + 1)
+    springs[4] = 0.7
+    dampers = np.full(n + 1, 0.03)
+    dampers[2] = 0.3
+    modes = _damped_modes(n, springs, dampers, [1, 3, 6, 8], 4)
+    r = springmass.update_from_modes(
+        modes, n=n, damping="between:0.03", defects="auto", kinds="spring,damper"
+    )
+    assert r["status"] == "converged", r["summary"]
+    assert r["damping_ratios"] == "fitted"
+    found = {(d["kind"], d["at"]): d["factor"] for d in r["defects"]}
+    assert set(found) == {("spring", 4), ("damper", 2)}, r["summary"]
+    assert abs(found[("spring", 4)] - 0.7) < 0.01
+    # an undamped nominal leaves the ratios out and says so; a damper
+    # search then has nothing to fit
+    plain = springmass.update_from_modes(modes, n=n, defects="auto")
+    assert plain["damping_ratios"] == "not used"
+    with pytest.raises(ValueError, match="kinds"):
+        springmass.update_from_modes(modes, n=n, defects="auto", kinds="damper")

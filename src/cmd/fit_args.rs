@@ -24,11 +24,12 @@ pub struct Args {
     #[arg(long, conflicts_with = "scene", action = clap::ArgAction::Append)]
     pub data: Vec<PathBuf>,
     /// Measured modes instead of a series: CSV, one row per mode, columns
-    /// frequency (Hz), optional frequency_se, damping, phi_J (shape at mass
-    /// J) and phi_J_se; the storey springs (or masses, --profile) are updated
-    /// as factors of the nominal chain (--n, --mass, --k, --left, --right,
-    /// --baseline), or with --defects the changed ones are found (--kinds
-    /// spring|mass|any).
+    /// frequency (Hz), optional frequency_se, damping (ratio), damping_se,
+    /// phi_J (shape at mass J) and phi_J_se; the storey springs (or masses,
+    /// --profile) are updated as factors of the nominal chain (--n, --mass,
+    /// --k, --left, --right, --baseline), or with --defects the changed ones
+    /// are found (--kinds spring|mass|damper|any, or a comma list). With a
+    /// damped nominal chain (--damping, --d) the damping ratios are fitted.
     #[arg(long, conflicts_with_all = ["scene", "column", "gamma", "fit", "known",
         "noise", "misfit", "criterion", "max_evals", "trigger", "force_window", "noise_model",
         "nuisance", "observe", "observe_kind", "force_column", "force", "plot", "out_csv",

@@ -85,20 +85,12 @@ fn run_locate(a: &Args, n: usize) -> anyhow::Result<()> {
     if let Some(f) = &a.modal_residual {
         opts.formulation = springmass::detect::fit::modal_update::ModalFormulation::parse(f)?;
     }
-    if let Some(kinds) = &a.kinds {
-        opts.kinds = match kinds.as_str() {
-            "spring" | "springs" => ProfileMode::Springs,
-            "mass" | "masses" => ProfileMode::Masses,
-            "any" | "both" => ProfileMode::Both,
-            other => Err(springmass::Error::invalid(
-                "kinds",
-                other,
-                "spring, mass or any (with --modes)",
-            ))?,
-        };
-    }
     let nominal = nominal_chain(a, n)?;
     let modes = MeasuredModes::read_csv(&path)?;
+    if let Some(kinds) = &a.kinds {
+        (opts.kinds, opts.dampers) =
+            springmass::detect::fit::modal_locate::parse_kinds(kinds, &nominal, &modes)?;
+    }
     let report = locate_from_modes(&nominal, modes, &opts)
         .with_context(|| format!("searching the modes of {}", path.display()))?;
     if a.json {
@@ -111,17 +103,7 @@ fn run_locate(a: &Args, n: usize) -> anyhow::Result<()> {
 
 /// `auto` (0..=2), `auto:K` (0..=K) or `K` (exactly K).
 pub(crate) fn parse_defects(text: &str) -> springmass::Result<(usize, usize)> {
-    let bad =
-        || springmass::Error::invalid("defects", text, "auto, auto:K or K (a number of defects)");
-    match text.split_once(':') {
-        None if text == "auto" => Ok((0, 2)),
-        Some(("auto", k)) => Ok((0, k.parse().map_err(|_| bad())?)),
-        None => {
-            let k = text.parse().map_err(|_| bad())?;
-            Ok((k, k))
-        }
-        Some(_) => Err(bad()),
-    }
+    springmass::detect::fit::modal_locate::parse_defect_count(text)
 }
 
 /// The nominal chain of the flags: uniform (--mass, --k, --d) or a baseline.

@@ -739,6 +739,16 @@ impl Modes {
         }
     }
 
+    /// The simple poles of the quadratic path in the upper half-plane and
+    /// real (near-double pairs apart), with their vectors (physical
+    /// coordinates, any scale and phase); `None` on another path.
+    pub fn quadratic_poles(&self) -> Option<(&[Complex64], &[Vec<Complex64>])> {
+        match &self.inner {
+            Inner::Quad { poles, vecs, .. } => Some((poles, vecs)),
+            Inner::Prop { .. } => None,
+        }
+    }
+
     /// The path used.
     pub fn path(&self) -> ModalPath {
         self.path

@@ -8,7 +8,8 @@
 //! |---|---|---|
 //! | `frequency` | natural frequency, Hz (`frequency [Hz]`; `[rad/s]` is converted) | yes |
 //! | `frequency_se` | its standard error, same unit | no |
-//! | `damping` | modal damping ratio (reported against the model's, not fitted) | no |
+//! | `damping` | modal damping ratio `-Re p / abs(p)` of the mode's pole `p`; fitted when the nominal chain is damped, reported otherwise | no |
+//! | `damping_se` | its standard error | no |
 //! | `phi_J` | mode-shape component at mass `J` (1-based), any scaling; an empty cell = not measured | no |
 //! | `phi_J_se` | its standard error, in the row's scaling | no |
 //!
@@ -46,6 +47,8 @@ pub struct MeasuredMode {
     pub frequency_se: Option<f64>,
     /// Damping ratio, when given.
     pub damping: Option<f64>,
+    /// Its standard error, when given.
+    pub damping_se: Option<f64>,
     /// Mode-shape components at the measured masses, by mass.
     pub shape: Vec<ShapeEntry>,
 }
@@ -219,6 +222,7 @@ enum Role {
     Frequency,
     FrequencySe,
     Damping,
+    DampingSe,
     Shape(usize),
     ShapeSe(usize),
 }
@@ -248,6 +252,7 @@ impl Column {
             "frequency" | "f" => Role::Frequency,
             "frequency_se" | "f_se" => Role::FrequencySe,
             "damping" | "zeta" => Role::Damping,
+            "damping_se" | "zeta_se" => Role::DampingSe,
             _ => match lower.strip_prefix("phi_") {
                 Some(rest) => match rest.strip_suffix("_se") {
                     Some(j) => Role::ShapeSe(mass(j).ok_or_else(|| bad(shape_help()))?),
@@ -276,7 +281,7 @@ impl Column {
 }
 
 fn shape_help() -> String {
-    "columns are frequency, frequency_se, damping, phi_J and phi_J_se with J a mass number >= 1"
+    "columns are frequency, frequency_se, damping, damping_se, phi_J and phi_J_se with J a mass number >= 1"
         .to_string()
 }
 
@@ -300,6 +305,7 @@ fn read_row(
         frequency: f64::NAN,
         frequency_se: None,
         damping: None,
+        damping_se: None,
         shape: Vec::new(),
     };
     let mut ses: Vec<(usize, f64)> = Vec::new();
@@ -328,6 +334,7 @@ fn read_row(
             Role::Frequency => mode.frequency = v * c.to_hz,
             Role::FrequencySe => mode.frequency_se = Some(v * c.to_hz),
             Role::Damping => mode.damping = Some(v),
+            Role::DampingSe => mode.damping_se = Some(v),
             Role::Shape(j) => mode.shape.push(ShapeEntry {
                 mass: j,
                 value: v,
@@ -372,6 +379,16 @@ fn check_mode(i: usize, m: &MeasuredMode) -> Result<()> {
     positive("frequency", m.frequency)?;
     if let Some(se) = m.frequency_se {
         positive("frequency_se", se)?;
+    }
+    if let Some(se) = m.damping_se {
+        if m.damping.is_none() {
+            return Err(Error::invalid(
+                field("damping_se"),
+                se,
+                "a standard error only where the damping ratio is given",
+            ));
+        }
+        positive("damping_se", se)?;
     }
     if let Some(z) = m.damping {
         if !(0.0..1.0).contains(&z) {

@@ -22,7 +22,7 @@
 //! let truth = nominal.clone().with_defect(Defect::Spring { at: 2, k: 0.7 })?;
 //! let m = undamped_modes(&truth)?;
 //! let modes = (0..3).map(|j| MeasuredMode {
-//!     frequency: m.omega[j] / std::f64::consts::TAU, frequency_se: None, damping: None,
+//!     frequency: m.omega[j] / std::f64::consts::TAU, frequency_se: None, damping: None, damping_se: None,
 //!     shape: [1, 3, 6].iter().map(|&i| ShapeEntry { mass: i, value: m.shapes[(i - 1, j)], se: None }).collect(),
 //! }).collect();
 //! let r = locate_from_modes(&nominal, MeasuredModes::new(modes)?, &ModalLocateOptions::default())?;
@@ -31,7 +31,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::chain::{Chain, Defect};
+use crate::chain::{Chain, Damping, Defect};
 use crate::detect::data::modes::MeasuredModes;
 use crate::detect::fit::modal_update::{
     elements, on_bound, FactorEstimate, FactorProblem, ASSUMED_NOTE,
@@ -52,8 +52,12 @@ pub const MAX_SETS: usize = 20_000;
 /// Options of [`locate_from_modes`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct ModalLocateOptions {
-    /// Where defects may be: springs (default), masses or both.
-    pub kinds: ProfileMode,
+    /// Where defects may be: springs (default), masses or both; `None`
+    /// for dampers alone.
+    pub kinds: Option<ProfileMode>,
+    /// Dampers too (default false): needs measured damping ratios and a
+    /// damped nominal chain (grounded or between-storey damping).
+    pub dampers: bool,
     /// Smallest number of defects tried (default 0).
     pub k_min: usize,
     /// Largest number of defects tried (default 2).
@@ -70,7 +74,8 @@ pub struct ModalLocateOptions {
 impl Default for ModalLocateOptions {
     fn default() -> ModalLocateOptions {
         ModalLocateOptions {
-            kinds: ProfileMode::Springs,
+            kinds: Some(ProfileMode::Springs),
+            dampers: false,
             k_min: 0,
             k_max: 2,
             bounds: (0.05, 20.0),
@@ -114,6 +119,9 @@ pub struct ModalLocateReport {
     pub p_value: Option<f64>,
     /// Whether the standard errors came from the table.
     pub errors_given: bool,
+    /// The table's damping ratios: `fitted` (a damped nominal chain),
+    /// `not used` (an undamped one) or `none` (not in the table).
+    pub damping_ratios: &'static str,
     /// The best set of every `k` tried.
     pub k_selection: Vec<KRow>,
     /// The runner-up set at the chosen `k` and its chi-square gap.
@@ -187,10 +195,22 @@ pub fn locate_from_modes(
     modes: MeasuredModes,
     opts: &ModalLocateOptions,
 ) -> Result<ModalLocateReport> {
-    let errors_given = ModalMisfit::new(modes.clone(), nominal.n(), opts.weights)?.errors_given();
-    let model = modal_model(modes, nominal.n(), opts.weights, opts.formulation)?;
+    let property =
+        ModalMisfit::new(modes.clone(), nominal.n(), opts.weights)?.with_damping_of(nominal);
+    let errors_given = property.errors_given();
+    let damping_ratios = if property.uses_damping() {
+        "fitted"
+    } else if property.ignores_damping() {
+        "not used"
+    } else {
+        "none"
+    };
+    let model = modal_model(modes, nominal, opts.weights, opts.formulation)?;
     let misfit = model.as_ref();
-    let els = elements(nominal, opts.kinds);
+    let mut els = opts.kinds.map_or_else(Vec::new, |k| elements(nominal, k));
+    if opts.dampers {
+        els.extend(damper_elements(nominal, &property)?);
+    }
     check_size(els.len(), opts.k_max)?;
     let n_data = misfit.dof() as f64;
     let mut best: Vec<(SetFit, Option<SetFit>)> = Vec::new();
@@ -243,6 +263,7 @@ pub fn locate_from_modes(
         dof: misfit.dof(),
         p_value: None,
         errors_given,
+        damping_ratios,
         k_selection,
         runner_up: second
             .as_ref()
@@ -295,17 +316,136 @@ fn binomial(n: usize, k: usize) -> f64 {
     (0..k).fold(1.0, |acc, i| acc * (n - i) as f64 / (i + 1) as f64)
 }
 
-/// `spring 3`, `mass 2`.
+/// `spring 3`, `mass 2`, `damper 2`.
 fn name(d: &Defect) -> String {
-    format!(
-        "{} {}",
-        if matches!(d, Defect::Mass { .. }) {
-            "mass"
-        } else {
-            "spring"
-        },
-        d.at()
-    )
+    format!("{} {}", d.kind(), d.at())
+}
+
+/// `--defects` of a modal or output-only search: `auto` (0 to 2), `auto:K`
+/// (0 to K) or `K` (exactly K), as `(k_min, k_max)`.
+///
+/// # Errors
+/// Another text (field `defects`).
+///
+/// ```
+/// use springmass::detect::fit::modal_locate::parse_defect_count;
+/// assert_eq!(parse_defect_count("auto")?, (0, 2));
+/// assert_eq!(parse_defect_count("auto:3")?, (0, 3));
+/// assert_eq!(parse_defect_count("1")?, (1, 1));
+/// assert!(parse_defect_count("two").is_err());
+/// # Ok::<(), springmass::Error>(())
+/// ```
+pub fn parse_defect_count(text: &str) -> Result<(usize, usize)> {
+    let bad = || Error::invalid("defects", text, "auto, auto:K or K (a number of defects)");
+    match text.split_once(':') {
+        None if text == "auto" => Ok((0, 2)),
+        Some(("auto", k)) => Ok((0, k.parse().map_err(|_| bad())?)),
+        None => {
+            let k = text.parse().map_err(|_| bad())?;
+            Ok((k, k))
+        }
+        Some(_) => Err(bad()),
+    }
+}
+
+/// `--kinds` of a modal search: `spring`, `mass`, `damper` or a comma
+/// list of them, or `any` (springs and masses, and dampers when the modes
+/// can show them: measured damping ratios and a damped `nominal`).
+///
+/// # Errors
+/// Another word (field `kinds`).
+///
+/// ```
+/// use springmass::Chain;
+/// use springmass::detect::data::modes::MeasuredModes;
+/// use springmass::detect::fit::modal_locate::parse_kinds;
+/// use springmass::detect::fit::profile::ProfileMode;
+/// let modes = MeasuredModes::from_csv_str("frequency,damping,phi_1\n0.1,0.02,1\n")?;
+/// let damped = Chain::new(4)?.with_d(0.05)?;
+/// assert_eq!(parse_kinds("any", &damped, &modes)?, (Some(ProfileMode::Both), true));
+/// assert_eq!(parse_kinds("any", &Chain::new(4)?, &modes)?, (Some(ProfileMode::Both), false));
+/// assert_eq!(parse_kinds("damper", &damped, &modes)?, (None, true));
+/// assert!(parse_kinds("beam", &damped, &modes).is_err());
+/// # Ok::<(), springmass::Error>(())
+/// ```
+pub fn parse_kinds(
+    text: &str,
+    nominal: &Chain,
+    modes: &MeasuredModes,
+) -> Result<(Option<ProfileMode>, bool)> {
+    let (mut springs, mut masses, mut dampers) = (false, false, false);
+    for word in text.split(',').map(str::trim) {
+        match word {
+            "spring" | "springs" => springs = true,
+            "mass" | "masses" => masses = true,
+            "damper" | "dampers" => dampers = true,
+            "any" | "both" | "all" => {
+                springs = true;
+                masses = true;
+                dampers |= crate::time::survey_modes::is_damped(nominal)
+                    && modes.modes().iter().any(|m| m.damping.is_some());
+            }
+            other => {
+                return Err(Error::invalid(
+                    "kinds",
+                    other,
+                    "spring, mass, damper (a comma list of them) or any, with --modes",
+                ))
+            }
+        }
+    }
+    let kinds = match (springs, masses) {
+        (true, true) => Some(ProfileMode::Both),
+        (true, false) => Some(ProfileMode::Springs),
+        (false, true) => Some(ProfileMode::Masses),
+        (false, false) => None,
+    };
+    Ok((kinds, dampers))
+}
+
+/// The dampers of `nominal` as elements: one per storey (between-storey
+/// damping) or per mass (grounded), each at its nominal value (a damper
+/// of value 0 has no factor and is left out).
+///
+/// # Errors
+/// Damping ratios the misfit does not compare (field `kinds`: an undamped
+/// nominal chain or a table without them); another damping model.
+fn damper_elements(nominal: &Chain, misfit: &ModalMisfit) -> Result<Vec<Defect>> {
+    if !misfit.uses_damping() {
+        return Err(Error::invalid(
+            "kinds",
+            "damper",
+            "damping ratios in the table (column damping) and a damped nominal chain (--d, --damping) to search dampers",
+        ));
+    }
+    let (values, sites): (Vec<f64>, Vec<usize>) = match nominal.damping() {
+        Damping::Between { .. } => {
+            let (lo, hi) = nominal.spring_range();
+            (nominal.spring_dampers(), (lo..=hi).collect())
+        }
+        Damping::Grounded => {
+            let d = nominal.dampers();
+            (
+                std::iter::once(0.0).chain(d).collect(),
+                (1..=nominal.n()).collect(),
+            )
+        }
+        other => {
+            return Err(Error::invalid(
+                "kinds",
+                "damper",
+                format!(
+                    "the grounded or between damping model for damper defects (not {})",
+                    other.name()
+                ),
+            ))
+        }
+    };
+    Ok(sites
+        .into_iter()
+        .filter(|&at| values[at] > 0.0)
+        .map(|at| Defect::Damper { at, d: values[at] })
+        .collect())
 }
 
 /// The best and second-best sets of `k` elements, and the sets fitted.
@@ -442,7 +582,7 @@ fn judge(mut r: ModalLocateReport) -> ModalLocateReport {
     let weights = if r.errors_given {
         "standard errors from the table"
     } else {
-        "chi-square under assumed weights (1% frequency, 5% shape): give frequency_se and phi_J_se for a test"
+        "chi-square under assumed weights (1% frequency, 5% shape, 25% damping ratio where fitted): give frequency_se, phi_J_se and damping_se for a test"
     };
     (r.status, r.resolved, r.message) = if r.p_value.is_some_and(|p| p < 0.01) {
         let msg = format!(
@@ -481,5 +621,10 @@ fn judge(mut r: ModalLocateReport) -> ModalLocateReport {
         };
         (Status::Converged, true, format!("{what}; {weights}"))
     };
+    if r.damping_ratios == "not used" {
+        r.message.push_str(
+            "; the table's damping ratios were not used (an undamped nominal chain): a changed damper can pass for a changed spring here, give the nominal damping (--damping, --d) to fit them and --kinds any to search the dampers",
+        );
+    }
     r
 }

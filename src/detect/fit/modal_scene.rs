@@ -104,7 +104,7 @@ pub fn fit_modal_scene(scene: &FitScene) -> Result<SceneReport> {
     let k = scene.unknowns()?.k();
     let nominal = scene.truth()?.uniform();
     let opts = ModalLocateOptions {
-        kinds,
+        kinds: Some(kinds),
         k_min: k,
         k_max: k,
         formulation: formulation(scene)?,

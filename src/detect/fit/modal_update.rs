@@ -35,7 +35,7 @@ use crate::detect::misfit::modal_dynamic::ModalDynamicResidual;
 use crate::detect::model::MeasurementModel;
 use crate::detect::search::lsq::{covariance, levenberg_marquardt, LeastSquares, LmFit, LmOptions};
 use crate::error::{Error, Result};
-use crate::time::modal::{natural_modes, undamped_modes};
+use crate::time::survey_modes::SurveyModes;
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
@@ -139,19 +139,24 @@ impl ModalUpdateOptions {
     }
 }
 
-/// The measurement model of `formulation` for `modes` against `n`-mass
-/// chains.
+/// The measurement model of `formulation` for `modes` against chains like
+/// `nominal` (the property difference compares the measured damping
+/// ratios too when `nominal` is damped; the dynamic residual is the
+/// undamped eigen-equation's and leaves them out).
 ///
 /// # Errors
 /// As [`ModalMisfit::new`] and [`ModalDynamicResidual::new`].
 pub fn modal_model(
     modes: MeasuredModes,
-    n: usize,
+    nominal: &Chain,
     weights: ModalWeights,
     formulation: ModalFormulation,
 ) -> Result<Box<dyn MeasurementModel>> {
+    let n = nominal.n();
     Ok(match formulation {
-        ModalFormulation::PropertyDifference => Box::new(ModalMisfit::new(modes, n, weights)?),
+        ModalFormulation::PropertyDifference => {
+            Box::new(ModalMisfit::new(modes, n, weights)?.with_damping_of(nominal))
+        }
         ModalFormulation::DynamicResidual => {
             Box::new(ModalDynamicResidual::new(modes, n, weights)?)
         }
@@ -161,7 +166,7 @@ pub fn modal_model(
 /// One fitted element.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct FactorEstimate {
-    /// `spring` or `mass`.
+    /// `spring`, `mass` or `damper`.
     pub kind: &'static str,
     /// Spring index (`0..=n`, spring `j` joins masses `j` and `j + 1`) or
     /// mass (1-based).
@@ -192,11 +197,7 @@ impl FactorEstimate {
         at_bound: bool,
     ) -> FactorEstimate {
         FactorEstimate {
-            kind: if matches!(d, Defect::Mass { .. }) {
-                "mass"
-            } else {
-                "spring"
-            },
+            kind: d.kind(),
             at: d.at(),
             nominal: d.value(),
             value: d.value() * factor,
@@ -424,7 +425,7 @@ pub(crate) fn elements(nominal: &Chain, mode: ProfileMode) -> Vec<Defect> {
 /// let truth = nominal.clone().with_defect(Defect::Spring { at: 1, k: 0.7 })?;
 /// let m = undamped_modes(&truth)?;
 /// let modes = (0..2).map(|j| MeasuredMode {
-///     frequency: m.omega[j] / std::f64::consts::TAU, frequency_se: None, damping: None,
+///     frequency: m.omega[j] / std::f64::consts::TAU, frequency_se: None, damping: None, damping_se: None,
 ///     shape: (0..3).map(|i| ShapeEntry { mass: i + 1, value: m.shapes[(i, j)], se: None }).collect(),
 /// }).collect();
 /// let r = update_from_modes(&nominal, MeasuredModes::new(modes)?, &ModalUpdateOptions::default())?;
@@ -440,8 +441,9 @@ pub fn update_from_modes(
     let (fitted, held) = modes.split(&opts.hold_out)?;
     // the property difference pairs and predicts the modes in the report
     // whichever model is fitted
-    let pairing = ModalMisfit::new(fitted.clone(), nominal.n(), opts.weights)?;
-    let model = modal_model(fitted.clone(), nominal.n(), opts.weights, opts.formulation)?;
+    let pairing =
+        ModalMisfit::new(fitted.clone(), nominal.n(), opts.weights)?.with_damping_of(nominal);
+    let model = modal_model(fitted.clone(), nominal, opts.weights, opts.formulation)?;
     let misfit = model.as_ref();
     let els = elements(nominal, opts.mode);
     let mut problem = FactorProblem {
@@ -643,17 +645,9 @@ fn predict(
     fitted: &MeasuredModes,
     held: &[MeasuredMode],
 ) -> Result<Vec<PredictedMode>> {
-    let modes = undamped_modes(chain)?;
-    let zetas: Vec<Option<f64>> = if chain
-        .dampers()
-        .iter()
-        .chain(&chain.spring_dampers())
-        .any(|&d| d > 0.0)
-    {
-        natural_modes(chain)?.iter().map(|m| m.zeta).collect()
-    } else {
-        vec![None; chain.n()]
-    };
+    let modes = misfit.modes_of(chain)?;
+    let damped = crate::time::survey_modes::is_damped(chain);
+    let zetas: Vec<Option<f64>> = modes.zeta.iter().map(|&z| damped.then_some(z)).collect();
     let all: Vec<&MeasuredMode> = fitted.modes().iter().chain(held).collect();
     let mut paired: Vec<Option<usize>> = vec![None; modes.omega.len()];
     for (t, j) in misfit.pairing(&modes).into_iter().enumerate() {
@@ -683,7 +677,7 @@ fn predict(
 }
 
 /// MAC of model mode `j` and `m` over `m`'s masses (`None` below two).
-fn shape_mac(modes: &crate::time::modal::UndampedModes, j: usize, m: &MeasuredMode) -> Option<f64> {
+fn shape_mac(modes: &SurveyModes, j: usize, m: &MeasuredMode) -> Option<f64> {
     (m.shape.len() >= 2).then(|| {
         let a: Vec<f64> = m
             .shape
@@ -696,13 +690,13 @@ fn shape_mac(modes: &crate::time::modal::UndampedModes, j: usize, m: &MeasuredMo
 }
 
 /// Relative frequency distance of model mode `j` from `m`.
-fn frequency_gap(modes: &crate::time::modal::UndampedModes, j: usize, m: &MeasuredMode) -> f64 {
+fn frequency_gap(modes: &SurveyModes, j: usize, m: &MeasuredMode) -> f64 {
     (modes.omega[j] / std::f64::consts::TAU / m.frequency - 1.0).abs()
 }
 
 /// Said when a chi-square test ran on assumed weights.
 pub(crate) const ASSUMED_NOTE: Option<&str> = Some(
-    " (under the assumed weights, 1% frequency and 5% shape: if the modes are less precise, give frequency_se and phi_J_se)",
+    " (under the assumed weights, 1% frequency, 5% shape and 25% damping ratio where fitted: if the modes are less precise, give frequency_se, phi_J_se and damping_se)",
 );
 
 /// Status, `resolved` and message.

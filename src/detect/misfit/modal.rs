@@ -1,7 +1,9 @@
 //! Modal misfit: a chain against measured modes (the modal-property
 //! difference of structural model updating), one [`MeasurementModel`].
 //!
-//! The chain's undamped modes ([`undamped_modes`]) are paired one-to-one
+//! The chain's survey modes ([`survey_modes`]: the undamped modes of an
+//! undamped chain, the damped poles' frequencies, ratios and realised
+//! shapes of a damped one) are paired one-to-one
 //! with the measured ones by shape first, frequency second
 //! ([`ModalMisfit::pairing`]): among the model modes whose shape over the
 //! measured masses explains a measured shape about as well as the best
@@ -12,15 +14,19 @@
 //!
 //! * a frequency residual `(f_j - f_meas) / se_f`, `f_j = omega_j / (2 pi)`
 //!   (Hz when the chain is in SI units);
+//! * with a damped nominal chain ([`ModalMisfit::with_damping_of`]) and a
+//!   measured ratio, a damping residual `(zeta_j - zeta_meas) / se_zeta`
+//!   (a damper's change shows there first; an undamped model would take
+//!   it up with a spring);
 //! * shape residuals `(c a_i - b_i) / se_i` at the measured masses, with the
 //!   model's shape `a` scaled by the weighted least-squares factor `c` onto
 //!   the measured `b` (any scaling of the data; one degree of freedom per
 //!   mode goes to `c`).
 //!
-//! Standard errors come from the table (`frequency_se`, `phi_J_se`) or from
-//! [`ModalWeights`] (default 1% of the frequency and 5% of the mode's
-//! largest measured component); a fit without given errors scales its
-//! standard errors by its residual.
+//! Standard errors come from the table (`frequency_se`, `damping_se`,
+//! `phi_J_se`) or from [`ModalWeights`] (default 1% of the frequency, 25%
+//! of the damping ratio and 5% of the mode's largest measured component);
+//! a fit without given errors scales its standard errors by its residual.
 //!
 //! ```
 //! use springmass::{Chain, chain::Boundary, time::modal::undamped_modes};
@@ -30,7 +36,7 @@
 //! let chain = Chain::new(3)?.with_boundaries(Boundary::Fixed, Boundary::Free)?;
 //! let m = undamped_modes(&chain)?;
 //! let mode = |j: usize| MeasuredMode {
-//!     frequency: m.omega[j] / std::f64::consts::TAU, frequency_se: None, damping: None,
+//!     frequency: m.omega[j] / std::f64::consts::TAU, frequency_se: None, damping: None, damping_se: None,
 //!     shape: (0..3).map(|i| ShapeEntry { mass: i + 1, value: 2.0 * m.shapes[(i, j)], se: None }).collect() };
 //! let data = MeasuredModes::new(vec![mode(0), mode(1)])?;
 //! let misfit = ModalMisfit::new(data, 3, ModalWeights::default())?;
@@ -44,7 +50,7 @@ use crate::detect::data::modes::{MeasuredMode, MeasuredModes};
 use crate::detect::model::MeasurementModel;
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
-use crate::time::modal::{undamped_modes, UndampedModes};
+use crate::time::survey_modes::{is_damped, survey_modes, SurveyModes};
 use nalgebra::DMatrix;
 use std::f64::consts::TAU;
 
@@ -56,24 +62,35 @@ pub struct ModalWeights {
     /// A shape component's standard error relative to the mode's largest
     /// measured component (default 0.05).
     pub shape_rel: f64,
+    /// A damping ratio's standard error relative to it (default 0.25;
+    /// ratios below [`DAMPING_FLOOR`] take it of the floor): damping is
+    /// the least precise modal property a survey gives.
+    pub damping_rel: f64,
 }
+
+/// The smallest damping ratio a relative standard error is taken of
+/// (0.005): a ratio of 0.001 is not known to 0.00025.
+pub const DAMPING_FLOOR: f64 = 0.005;
 
 impl Default for ModalWeights {
     fn default() -> ModalWeights {
         ModalWeights {
             frequency_rel: 0.01,
             shape_rel: 0.05,
+            damping_rel: 0.25,
         }
     }
 }
 
 impl ModalWeights {
     /// # Errors
-    /// A value not in `(0, 1]` (fields `frequency_rel`, `shape_rel`).
+    /// A value not in `(0, 1]` (fields `frequency_rel`, `shape_rel`,
+    /// `damping_rel`).
     pub fn check(&self) -> Result<()> {
         for (f, v) in [
             ("frequency_rel", self.frequency_rel),
             ("shape_rel", self.shape_rel),
+            ("damping_rel", self.damping_rel),
         ] {
             if !(v > 0.0 && v <= 1.0) {
                 return Err(Error::invalid(f, v, "a relative standard error in (0, 1]"));
@@ -92,6 +109,10 @@ pub(crate) struct Target {
     pub(crate) frequency_se: f64,
     /// `(0-based mass, value, se)`.
     pub(crate) shape: Vec<(usize, f64, f64)>,
+    /// The damping ratio and its standard error, when measured.
+    pub(crate) damping: Option<(f64, f64)>,
+    /// Whether the table gave that standard error (or no ratio).
+    pub(crate) damping_se_given: bool,
 }
 
 impl Target {
@@ -106,6 +127,13 @@ impl Target {
                 .iter()
                 .map(|e| (e.mass - 1, e.value, e.se.unwrap_or(shape_se)))
                 .collect(),
+            damping: m.damping.map(|z| {
+                (
+                    z,
+                    m.damping_se.unwrap_or(w.damping_rel * z.max(DAMPING_FLOOR)),
+                )
+            }),
+            damping_se_given: m.damping.is_none() || m.damping_se.is_some(),
         }
     }
 
@@ -115,7 +143,7 @@ impl Target {
     }
 
     /// The model shape `j` at the measured masses.
-    fn model_shape(&self, modes: &UndampedModes, j: usize) -> Vec<f64> {
+    fn model_shape(&self, modes: &SurveyModes, j: usize) -> Vec<f64> {
         self.shape
             .iter()
             .map(|&(i, ..)| modes.shapes[(i, j)])
@@ -124,7 +152,7 @@ impl Target {
 
     /// The shape residuals' chi-square against model mode `j` at its best
     /// scale ([`shape_residuals`]; 0 without a comparable shape).
-    fn shape_chi2(&self, modes: &UndampedModes, j: usize) -> f64 {
+    fn shape_chi2(&self, modes: &SurveyModes, j: usize) -> f64 {
         if !self.has_shape() {
             return 0.0;
         }
@@ -189,6 +217,8 @@ pub struct ModalMisfit {
     targets: Vec<Target>,
     n: usize,
     given_errors: bool,
+    /// Whether measured damping ratios are compared (a damped nominal).
+    damped: bool,
 }
 
 impl ModalMisfit {
@@ -203,13 +233,34 @@ impl ModalMisfit {
             targets,
             n,
             given_errors,
+            damped: false,
         })
+    }
+
+    /// Compare the measured damping ratios too when `nominal` is damped
+    /// (its chains' ratios are then a model of the measured ones; an
+    /// undamped nominal says nothing of them, and they are left out).
+    pub fn with_damping_of(mut self, nominal: &Chain) -> ModalMisfit {
+        self.damped = is_damped(nominal);
+        self
+    }
+
+    /// Whether measured damping ratios are part of the misfit.
+    pub fn uses_damping(&self) -> bool {
+        self.damped && self.targets.iter().any(|t| t.damping.is_some())
+    }
+
+    /// Whether the table has damping ratios the misfit leaves out (an
+    /// undamped nominal chain).
+    pub fn ignores_damping(&self) -> bool {
+        !self.damped && self.targets.iter().any(|t| t.damping.is_some())
     }
 
     /// Whether every standard error came from the table (then `chi^2` is a
     /// goodness-of-fit test; otherwise the weights are assumed).
     pub fn errors_given(&self) -> bool {
         self.given_errors
+            && (!self.uses_damping() || self.targets.iter().all(|t| t.damping_se_given))
     }
 
     /// The model mode paired with each measured mode (0-based indices into
@@ -224,7 +275,7 @@ impl ModalMisfit {
     /// one of those, or measured at fewer than two masses, takes the free
     /// mode of the smallest such chi-square (for a bare frequency: the
     /// nearest free frequency).
-    pub fn pairing(&self, modes: &UndampedModes) -> Vec<usize> {
+    pub fn pairing(&self, modes: &SurveyModes) -> Vec<usize> {
         let nm = modes.omega.len();
         let mut pair: Vec<Option<usize>> = vec![None; self.targets.len()];
         let mut taken = vec![false; nm];
@@ -279,12 +330,13 @@ impl ModalMisfit {
             .collect()
     }
 
-    /// The chain's undamped modes.
+    /// The chain's survey modes ([`survey_modes`]).
     ///
     /// # Errors
     /// A chain of another size than the data's (field `n`); the eigen
-    /// solver's errors.
-    pub fn modes_of(&self, chain: &Chain) -> Result<UndampedModes> {
+    /// solvers' errors; fewer oscillating modes than measured ones (a
+    /// heavily damped chain).
+    pub fn modes_of(&self, chain: &Chain) -> Result<SurveyModes> {
         if chain.n() != self.n {
             return Err(Error::invalid(
                 "n",
@@ -292,7 +344,18 @@ impl ModalMisfit {
                 format!("the data's n = {}", self.n),
             ));
         }
-        undamped_modes(chain)
+        let modes = survey_modes(chain)?;
+        if modes.len() < self.targets.len() {
+            return Err(Error::Numerical {
+                method: "modal misfit".into(),
+                reason: format!(
+                    "the chain has {} oscillating modes for {} measured ones (the others are overdamped)",
+                    modes.len(),
+                    self.targets.len()
+                ),
+            });
+        }
+        Ok(modes)
     }
 }
 
@@ -320,7 +383,10 @@ impl MeasurementModel for ModalMisfit {
     fn dof(&self) -> usize {
         self.targets
             .iter()
-            .map(|t| 1 + if t.has_shape() { t.shape.len() - 1 } else { 0 })
+            .map(|t| {
+                1 + usize::from(self.damped && t.damping.is_some())
+                    + if t.has_shape() { t.shape.len() - 1 } else { 0 }
+            })
             .sum()
     }
 
@@ -330,6 +396,9 @@ impl MeasurementModel for ModalMisfit {
         let mut r = Vec::with_capacity(self.dof() + self.targets.len());
         for (target, &j) in self.targets.iter().zip(&pair) {
             r.push((modes.omega[j] / TAU - target.frequency) / target.frequency_se);
+            if let (true, Some((z, se))) = (self.damped, target.damping) {
+                r.push((modes.zeta[j] - z) / se);
+            }
             if target.has_shape() {
                 shape_residuals(&target.model_shape(&modes, j), target, &mut r);
             }
@@ -347,6 +416,7 @@ mod tests {
     use super::*;
     use crate::chain::{Boundary, Defect};
     use crate::detect::data::modes::ShapeEntry;
+    use crate::time::modal::undamped_modes;
 
     fn measured(chain: &Chain, which: &[usize], at: &[usize]) -> MeasuredModes {
         let m = undamped_modes(chain).unwrap();
@@ -356,6 +426,7 @@ mod tests {
                 frequency: m.omega[j] / TAU,
                 frequency_se: None,
                 damping: None,
+                damping_se: None,
                 shape: at
                     .iter()
                     .map(|&i| ShapeEntry {
@@ -374,7 +445,7 @@ mod tests {
         let chain = Chain::new(6).unwrap();
         let data = measured(&chain, &[1, 4], &[1, 2, 3, 4, 5, 6]);
         let misfit = ModalMisfit::new(data, 6, ModalWeights::default()).unwrap();
-        let modes = undamped_modes(&chain).unwrap();
+        let modes = survey_modes(&chain).unwrap();
         assert_eq!(misfit.pairing(&modes), vec![1, 4]);
         assert!(misfit.chi2(&chain).unwrap() < 1e-20);
     }
@@ -404,7 +475,7 @@ mod tests {
         assert!(m.chi2(&Chain::new(4).unwrap()).is_err());
         let w = ModalWeights {
             frequency_rel: 0.0,
-            shape_rel: 0.05,
+            ..ModalWeights::default()
         };
         assert!(w.check().is_err());
     }

@@ -33,7 +33,7 @@
 //! let truth = frame.clone().with_defect(Defect::Spring { at: 2, k: 0.6 })?;
 //! let m = undamped_modes(&truth)?;
 //! let mode = |j: usize| MeasuredMode {
-//!     frequency: m.omega[j] / std::f64::consts::TAU, frequency_se: None, damping: None,
+//!     frequency: m.omega[j] / std::f64::consts::TAU, frequency_se: None, damping: None, damping_se: None,
 //!     shape: [1, 4].iter().map(|&i| ShapeEntry { mass: i, value: 3.0 * m.shapes[(i - 1, j)], se: None }).collect() };
 //! let mdr = ModalDynamicResidual::new(MeasuredModes::new(vec![mode(0), mode(1)])?, 4, ModalWeights::default())?;
 //! assert!(mdr.chi2(&truth)? < 1e-16);                     // the truth fits exactly
@@ -277,6 +277,7 @@ mod tests {
                 frequency: f + df[0],
                 frequency_se: fse,
                 damping: None,
+                damping_se: None,
                 shape: at
                     .iter()
                     .zip(&ds)
@@ -345,6 +346,7 @@ mod tests {
             frequency: 0.1,
             frequency_se: None,
             damping: None,
+            damping_se: None,
             shape: vec![],
         }])
         .unwrap();

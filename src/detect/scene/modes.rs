@@ -158,6 +158,7 @@ impl FitScene {
                 frequency,
                 frequency_se: (fnoise > 0.0).then_some(fnoise * f),
                 damping: None,
+                damping_se: None,
                 shape,
             });
         }
