@@ -494,10 +494,10 @@ fn the_cli_fits_an_ambient_record() {
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("ambient.csv");
     write_csv(&rec, &path);
-    let run = |extra: &[&str]| {
+    let run_on = |file: &std::path::Path, extra: &[&str]| {
         std::process::Command::new(env!("CARGO_BIN_EXE_springmass"))
             .args(["fit", "--data"])
-            .arg(&path)
+            .arg(file)
             .args([
                 "--n",
                 "8",
@@ -517,11 +517,37 @@ fn the_cli_fits_an_ambient_record() {
             .output()
             .unwrap()
     };
+    let run = |extra: &[&str]| run_on(&path, extra);
     let out = run(&[]);
     // a force band over every fitted frequency: the white model's answer
     let banded = run(&["--ambient-band", "0:10"]);
     let bad = run(&["--ambient-band", "1"]);
+    // a record with another column (a temperature) before the channels:
+    // --column picks the channels (it was refused as too many columns)
+    let text = std::fs::read_to_string(&path).unwrap();
+    let extra: String = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            let (t, rest) = l.split_once(',').unwrap();
+            match i {
+                0 => format!("{t},temp,{rest}\n"),
+                _ => format!("{t},{}.5,{rest}\n", i % 7),
+            }
+        })
+        .collect();
+    let extra_path = dir.join("extra.csv");
+    std::fs::write(&extra_path, extra).unwrap();
+    let picked = run_on(&extra_path, &["--column", "a1,a5,a8"]);
+    let unpicked = run_on(&extra_path, &[]);
+    let short = run_on(&extra_path, &["--column", "a1,a5"]);
     let _ = std::fs::remove_dir_all(&dir);
+    let p: serde_json::Value = serde_json::from_slice(&picked.stdout)
+        .unwrap_or_else(|_| panic!("{}", String::from_utf8_lossy(&picked.stderr)));
+    assert!(!unpicked.status.success());
+    assert!(String::from_utf8_lossy(&unpicked.stderr).contains("--column"));
+    assert!(!short.status.success());
+    assert!(String::from_utf8_lossy(&short.stderr).contains("invalid column"));
     assert!(
         out.status.success(),
         "{}",
@@ -535,6 +561,7 @@ fn the_cli_fits_an_ambient_record() {
     let b: serde_json::Value = serde_json::from_slice(&banded.stdout).unwrap();
     assert_eq!(b["force_band"], serde_json::json!([0.0, 10.0]), "{b}");
     assert_eq!(b["factors"], v["factors"]);
+    assert_eq!(p["factors"], v["factors"], "{p}");
     assert!(!bad.status.success());
     assert!(
         String::from_utf8_lossy(&bad.stderr).contains("ambient_band"),

@@ -626,6 +626,9 @@ fn cli_takes_the_dynamic_residual_and_refuses_an_unknown_one() {
         &[&base[..], &["--modal-residual", "energy"]].concat(),
     );
     assert!(!ok && err.contains("modal_residual"), "{err}");
+    // the intervals' level is the records' option (it was ignored)
+    let (ok, _, err) = fit_modes(&file, &[&base[..], &["--level", "0.95"]].concat());
+    assert!(!ok && err.contains("--level"), "{err}");
 }
 
 /// Exact modes of `truth` from the dense generalized eigenproblem (not the

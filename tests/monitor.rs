@@ -202,6 +202,25 @@ fn bad_input_is_named_and_a_bad_record_is_a_row() {
     let (code, err) = fails(&["monitor", "--baseline", r, "--n", N, r]);
     assert_ne!(code, 0);
     assert!(err.contains("baseline"), "{err}");
+    // the baseline's fit says what its sensor measured: records of another
+    // kind are refused before any fit (a displacement baseline here)
+    let kinds = std::fs::read_to_string(&base).unwrap();
+    assert!(
+        kinds.contains("\"observe_kind\": \"displacement\""),
+        "{kinds}"
+    );
+    let (code, err) = fails(&[
+        "monitor",
+        "--baseline",
+        b,
+        "--n",
+        N,
+        "--observe-kind",
+        "acceleration",
+        r,
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("observe_kind"), "{err}");
     let missing = dir.join("nope.csv");
     let (code, err) = fails(&[
         "monitor",

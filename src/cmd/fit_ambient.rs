@@ -57,7 +57,12 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         ))?;
     }
     let nominal = super::fit_modes::nominal_chain(a, n)?;
-    let rec = AmbientRecord::read_csv(&path, observe, kind)?;
+    let columns: Vec<&str> = a
+        .column
+        .as_deref()
+        .map_or_else(Vec::new, |c| c.split(',').map(str::trim).collect());
+    let series = springmass::series::TimeSeries::read_csv(&path)?;
+    let rec = AmbientRecord::from_series_columns(&series, &columns, observe, kind)?;
     let report = fit_ambient(&nominal, &rec, &opts)
         .with_context(|| format!("fitting the ambient record {}", path.display()))?;
     if a.json {

@@ -33,7 +33,7 @@ pub struct Args {
     #[arg(long, conflicts_with_all = ["scene", "column", "gamma", "fit", "known",
         "noise", "misfit", "criterion", "max_evals", "trigger", "force_window", "noise_model",
         "nuisance", "observe", "observe_kind", "force_column", "force", "plot", "out_csv",
-        "profile_change", "penalty", "method", "trace"])]
+        "profile_change", "penalty", "method", "trace", "level"])]
     pub modes: Option<PathBuf>,
     /// Modes of --modes (1-based, increasing frequency) kept out of the fit
     /// and only predicted, e.g. 3,4.

@@ -114,12 +114,62 @@ impl AmbientRecord {
             return Err(Error::invalid(
                 "observe",
                 format!("{observe:?}"),
-                format!("one mass per value column of the record ({p} columns)"),
+                format!("one mass per value column of the record ({p} columns; --column a,b picks some)"),
             ));
         }
         let channels = (0..p)
             .map(|i| ts.column_at(i).expect("counted").to_vec())
             .collect();
+        AmbientRecord::new(dt, observe, kind, channels)
+    }
+
+    /// The record of the value columns `columns` of `ts` (names or 1-based
+    /// numbers, one per observed mass, in order); every value column when
+    /// `columns` is empty ([`AmbientRecord::from_series`]).
+    ///
+    /// # Errors
+    /// A column not in the record, or not one per observed mass (field
+    /// `column`); as [`AmbientRecord::new`].
+    ///
+    /// ```
+    /// use springmass::series::TimeSeries;
+    /// use springmass::{detect::data::ambient::AmbientRecord, forward::Observable};
+    /// let ts = TimeSeries::from_csv_str("t,x1,x5,x9\n0,1,2,3\n1,2,1,0\n2,0,3,1\n")?;
+    /// let r = AmbientRecord::from_series_columns(&ts, &["x9", "x1"], vec![9, 1], Observable::Displacement)?;
+    /// assert_eq!(r.channels[0], vec![3.0, 0.0, 1.0]);
+    /// assert!(AmbientRecord::from_series_columns(&ts, &["x1"], vec![1, 9], Observable::Displacement).is_err());
+    /// # Ok::<(), springmass::Error>(())
+    /// ```
+    pub fn from_series_columns(
+        ts: &TimeSeries,
+        columns: &[&str],
+        observe: Vec<usize>,
+        kind: Observable,
+    ) -> Result<AmbientRecord> {
+        if columns.is_empty() {
+            return AmbientRecord::from_series(ts, observe, kind);
+        }
+        if columns.len() != observe.len() {
+            return Err(Error::invalid(
+                "column",
+                columns.join(","),
+                format!(
+                    "one column per observed mass ({} masses in --observe)",
+                    observe.len()
+                ),
+            ));
+        }
+        let dt = ts.uniform_step(1e-6).ok_or_else(|| {
+            Error::invalid(
+                "t",
+                "non-uniform",
+                "a uniform sampling step (resample the record first)",
+            )
+        })?;
+        let channels = columns
+            .iter()
+            .map(|c| ts.select(c).map(|(_, v)| v.to_vec()))
+            .collect::<Result<Vec<_>>>()?;
         AmbientRecord::new(dt, observe, kind, channels)
     }
 

@@ -821,9 +821,16 @@ impl AmbientReport {
         let band = self.force_band.map_or(String::new(), |(a, b)| {
             format!(" in the force band {a:.4}..{b:.4} rad/time")
         });
+        // a floor is a free linear term of the fitted spectrum; below 0 it is
+        // no noise level (the model's spectrum exceeds the measured one there)
+        let negative = if self.noise_floor.iter().any(|&v| v < 0.0) {
+            " (a negative floor is no noise level: the fitted spectrum exceeds the measured one on that channel)"
+        } else {
+            ""
+        };
         let _ = writeln!(
             out,
-            "force level {:.4e}{band}, sensor-noise floors [{}]",
+            "force level {:.4e}{band}, sensor-noise floors [{}]{negative}",
             self.force_level,
             floors.join(", ")
         );

@@ -536,6 +536,10 @@ pub fn fit_profile_with(
     message.push_str(&noise_note(fits_data, fit_p_value));
     Ok(ProfileReport {
         mode: opts.mode,
+        observe_kind: match obs {
+            Observations::Series(series) => Some(series.measurement().sensor().kind),
+            _ => None,
+        },
         elements,
         params,
         covariance,

@@ -42,6 +42,10 @@ impl ElementEstimate {
 pub struct ProfileReport {
     /// What was free.
     pub mode: ProfileMode,
+    /// What the record's sensor measured (`None` for exact data): kept so
+    /// that `springmass monitor` fits later records of that sensor alike.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub observe_kind: Option<crate::forward::Observable>,
     /// Every free value, in order of position (masses, then springs).
     pub elements: Vec<ElementEstimate>,
     /// Fitted chain parameters (`d`, `gamma`, `k`, `mass`), as the model
