@@ -242,8 +242,14 @@ pub struct ModalUpdateReport {
     pub chi2: f64,
     /// Number of data (frequencies and shape components less one scale per shape).
     pub dof: usize,
-    /// Upper-tail p-value of `chi2` on `dof - p` (only with given errors).
+    /// Upper-tail p-value of `chi2` on `dof - parameters`.
     pub p_value: Option<f64>,
+    /// The number of factors the data fit: every factor without a prior;
+    /// under the prior the trace of the data's hat matrix
+    /// `J (J^T J + I / w^2)^-1 J^T` (a factor the prior holds counts for
+    /// less than one), so that the goodness-of-fit test and the residual
+    /// scale do not count as fitted what the prior fixed.
+    pub parameters: f64,
     /// Whether the standard errors came from the table.
     pub errors_given: bool,
     /// The measurement model fitted.
@@ -461,12 +467,12 @@ pub fn update_from_modes(
     }
     let chain = problem.chain(&best.theta)?;
     let chi2 = misfit.chi2(&chain)?;
+    let parameters = effective_parameters(&best, misfit.dof());
     let factors = estimates(
         &els,
         &best,
         &problem,
-        chi2,
-        misfit.dof(),
+        (chi2, misfit.dof() as f64 - parameters),
         pairing.errors_given(),
         opts,
     );
@@ -483,6 +489,7 @@ pub fn update_from_modes(
         chi2,
         dof: misfit.dof(),
         p_value: None,
+        parameters,
         errors_given: pairing.errors_given(),
         formulation: opts.formulation,
         prior_width: problem.prior,
@@ -605,21 +612,40 @@ fn combinations(
     ))
 }
 
-/// Factor estimates with standard errors and the determined flags.
+/// The trace of the data rows' hat matrix of `fit` (its first `m` rows
+/// are the data, any further ones the prior's): the number of factors the
+/// data fit (see [`ModalUpdateReport::parameters`]); the factor count when
+/// the normal matrix is singular.
+fn effective_parameters(fit: &LmFit, m: usize) -> f64 {
+    let j = &fit.jacobian;
+    let p = j.ncols();
+    let m = m.min(j.nrows());
+    let Some(inv) = (j.transpose() * j).try_inverse() else {
+        return p as f64;
+    };
+    let data = j.rows(0, m);
+    let trace = (&inv * (data.transpose() * data)).trace();
+    if trace.is_finite() {
+        trace.clamp(0.0, p as f64)
+    } else {
+        p as f64
+    }
+}
+
+/// Factor estimates with standard errors and the determined flags;
+/// `(chi2, free)` the data chi-square and its degrees of freedom.
 fn estimates(
     els: &[Defect],
     fit: &LmFit,
     problem: &FactorProblem,
-    chi2: f64,
-    dof: usize,
+    (chi2, free): (f64, f64),
     given: bool,
     opts: &ModalUpdateOptions,
 ) -> Vec<FactorEstimate> {
-    let p = els.len();
-    let scale = if given || dof <= p {
+    let scale = if given || free <= 0.0 {
         1.0
     } else {
-        (chi2 / (dof - p) as f64).sqrt().max(f64::MIN_POSITIVE)
+        (chi2 / free).sqrt().max(f64::MIN_POSITIVE)
     };
     let cov: Option<DMatrix<f64>> = covariance(&fit.jacobian).ok();
     els.iter()
@@ -701,10 +727,9 @@ pub(crate) const ASSUMED_NOTE: Option<&str> = Some(
 
 /// Status, `resolved` and message.
 fn judge(mut r: ModalUpdateReport) -> ModalUpdateReport {
-    let p = r.factors.len();
-    let free = r.dof.saturating_sub(p);
-    if free > 0 {
-        r.p_value = Some(chi2_sf(r.chi2, free as f64));
+    let free = r.dof as f64 - r.parameters;
+    if free > 0.5 {
+        r.p_value = Some(chi2_sf(r.chi2, free));
     }
     let undetermined: Vec<String> = r
         .factors
@@ -718,7 +743,7 @@ fn judge(mut r: ModalUpdateReport) -> ModalUpdateReport {
             "model-mismatch".into(),
             false,
             format!(
-                "the updated chain does not explain the modes (chi2 {:.3} on {free} dof, p = {:.2e}): check the pairing (MAC), the ends, or free the masses too{}",
+                "the updated chain does not explain the modes (chi2 {:.3} on {free:.1} dof, p = {:.2e}): check the pairing (MAC), the ends, or free the masses too{}",
                 r.chi2,
                 r.p_value.unwrap_or(0.0),
                 ASSUMED_NOTE.filter(|_| !r.errors_given).unwrap_or("")
@@ -735,7 +760,7 @@ fn judge(mut r: ModalUpdateReport) -> ModalUpdateReport {
             ),
         )
     } else {
-        let how = match (r.errors_given, free > 0) {
+        let how = match (r.errors_given, free > 0.0) {
             (true, _) => "standard errors from the table",
             (false, true) => "standard errors from the assumed weights, scaled by the residual",
             (false, false) => {
