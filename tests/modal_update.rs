@@ -861,3 +861,57 @@ fn a_changed_damper_is_found_from_damped_modes() {
     let err = locate_from_modes(&Chain::new(n).unwrap(), data, &opts).unwrap_err();
     assert!(err.to_string().contains("kinds"), "{err}");
 }
+
+/// Three changed elements (two storeys and a damper) under `--defects
+/// auto`: the exhaustive search to two stopped there and called the two
+/// storeys `converged`; one more is now tried, nested in the best answers
+/// at two, while it wins.
+#[test]
+fn auto_tries_one_more_defect_while_it_wins() {
+    use springmass::chain::Damping;
+    use springmass::detect::fit::modal_locate::{locate_from_modes, ModalLocateOptions};
+    let n = 8;
+    let nominal = Chain::new(n)
+        .unwrap()
+        .with_damping(Damping::Between { c: 0.03 })
+        .unwrap();
+    let truth = Chain::new(n)
+        .unwrap()
+        .with_defect(Defect::Spring { at: 2, k: 0.7 })
+        .unwrap()
+        .with_defect(Defect::Spring { at: 6, k: 0.8 })
+        .unwrap();
+    let mut c = vec![0.03; n + 1];
+    c[4] = 0.3;
+    let data = damped_survey(&truth, &c, 6, &[1, 3, 5, 7, 8]);
+    let opts = ModalLocateOptions {
+        kinds: Some(ProfileMode::Springs),
+        dampers: true,
+        ..ModalLocateOptions::default()
+    };
+    let two = locate_from_modes(&nominal, data.clone(), &opts).unwrap();
+    assert_eq!((two.k, two.nested_above), (2, None), "{}", two.summary());
+    let auto = ModalLocateOptions {
+        extend: true,
+        ..opts
+    };
+    let r = locate_from_modes(&nominal, data, &auto).unwrap();
+    let what = r.summary();
+    assert_eq!((r.k, r.nested_above), (3, Some(2)), "{what}");
+    let mut found: Vec<(&str, usize)> = r.defects.iter().map(|d| (d.kind, d.at)).collect();
+    found.sort_unstable();
+    assert_eq!(
+        found,
+        vec![("damper", 4), ("spring", 2), ("spring", 6)],
+        "{what}"
+    );
+    assert_eq!(
+        r.status,
+        springmass::detect::fit::Status::Converged,
+        "{what}"
+    );
+    assert!(
+        r.k_selection.len() == 5 && r.k_selection[4].k == 4,
+        "{what}"
+    );
+}

@@ -957,6 +957,7 @@ fn locate_modes<'py>(
         let mut opts = ModalLocateOptions {
             k_min,
             k_max,
+            extend: defects.trim() == "auto",
             formulation: match &modal_residual {
                 Some(f) => ModalFormulation::parse(f)?,
                 None => ModalFormulation::default(),

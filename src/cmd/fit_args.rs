@@ -75,7 +75,10 @@ pub struct Args {
     /// A known defect `kind:at:value` (repeatable).
     #[arg(long = "known", value_name = "KIND:AT:VALUE", requires = "data")]
     pub known: Vec<String>,
-    /// Number of defects: auto (0..=4 by the criterion), auto:KMAX, or K [default: auto].
+    /// Number of defects: auto (0..=4 by the criterion; with --modes 0..=2
+    /// over every set, then one more at a time, nested in the best answers
+    /// at one fewer, while it wins; output-only records 0..=2), auto:KMAX,
+    /// or K [default: auto].
     #[arg(long, requires = "data")]
     pub defects: Option<String>,
     /// Kinds of defect sought: mass, spring, damper, ground (a spring to the

@@ -82,6 +82,7 @@ fn run_locate(a: &Args, n: usize) -> anyhow::Result<()> {
     let mut opts = ModalLocateOptions::default();
     let text = a.defects.as_deref().unwrap_or("auto");
     (opts.k_min, opts.k_max) = parse_defects(text)?;
+    opts.extend = text.trim() == "auto";
     if let Some(f) = &a.modal_residual {
         opts.formulation = springmass::detect::fit::modal_update::ModalFormulation::parse(f)?;
     }
@@ -90,6 +91,10 @@ fn run_locate(a: &Args, n: usize) -> anyhow::Result<()> {
     if let Some(kinds) = &a.kinds {
         (opts.kinds, opts.dampers) =
             springmass::detect::fit::modal_locate::parse_kinds(kinds, &nominal, &modes)?;
+        let ratios = modes.modes().iter().any(|m| m.damping.is_some());
+        if kinds.contains("any") && !ratios && springmass::time::survey_modes::is_damped(&nominal) {
+            eprintln!("note: the table has no damping ratios (column damping): the dampers are not searched");
+        }
     }
     let report = locate_from_modes(&nominal, modes, &opts)
         .with_context(|| format!("searching the modes of {}", path.display()))?;

@@ -34,7 +34,7 @@
 use crate::chain::{Chain, Damping, Defect};
 use crate::detect::data::modes::MeasuredModes;
 use crate::detect::fit::modal_update::{
-    elements, on_bound, FactorEstimate, FactorProblem, ASSUMED_NOTE,
+    assumed_note, elements, on_bound, FactorEstimate, FactorProblem,
 };
 use crate::detect::fit::modal_update::{modal_model, ModalFormulation};
 use crate::detect::fit::profile::ProfileMode;
@@ -60,8 +60,12 @@ pub struct ModalLocateOptions {
     pub dampers: bool,
     /// Smallest number of defects tried (default 0).
     pub k_min: usize,
-    /// Largest number of defects tried (default 2).
+    /// Largest number of defects tried exhaustively (default 2).
     pub k_max: usize,
+    /// `--defects auto`: while the largest number tried wins, try one more
+    /// in the best [`NESTED_FROM`] answers at one fewer (default false;
+    /// the report's `nested_above` says from where).
+    pub extend: bool,
     /// Factors bounded to `[lo, hi]` (default `[0.05, 20]`).
     pub bounds: (f64, f64),
     /// Standard errors assumed where the table gives none.
@@ -78,6 +82,7 @@ impl Default for ModalLocateOptions {
             dampers: false,
             k_min: 0,
             k_max: 2,
+            extend: false,
             bounds: (0.05, 20.0),
             weights: ModalWeights::default(),
             formulation: ModalFormulation::default(),
@@ -119,8 +124,12 @@ pub struct ModalLocateReport {
     pub p_value: Option<f64>,
     /// Whether the standard errors came from the table.
     pub errors_given: bool,
+    /// The standard errors assumed where the table gives none and the
+    /// columns that would give them; `None` when it gives every one.
+    pub assumed_weights: Option<(String, String)>,
     /// The table's damping ratios: `fitted` (a damped nominal chain),
-    /// `not used` (an undamped one) or `none` (not in the table).
+    /// `not used` (an undamped one), `absent` (not in the table, the
+    /// nominal damped: no damper can be searched) or `none` (neither).
     pub damping_ratios: &'static str,
     /// The best set of every `k` tried.
     pub k_selection: Vec<KRow>,
@@ -129,6 +138,11 @@ pub struct ModalLocateReport {
     /// The runner-up set's fitted defects (the scene report's alternative).
     #[serde(skip)]
     pub runner_up_defects: Vec<Defect>,
+    /// Whether dampers were among the elements searched.
+    pub dampers_searched: bool,
+    /// With `extend`: the number of defects above which the sets were
+    /// searched nested in the best ones at one fewer (not exhaustively).
+    pub nested_above: Option<usize>,
     /// Position sets fitted.
     pub sets: usize,
     /// The chain with the defects.
@@ -174,12 +188,19 @@ impl ModalLocateReport {
                 row.set.join(", ")
             );
         }
+        if let Some(k) = self.nested_above {
+            let _ = writeln!(
+                out,
+                "more than {k} defects: each set one element more than the best {NESTED_FROM} at one fewer (nested, not every set)"
+            );
+        }
         let _ = writeln!(out, "{} position sets fitted", self.sets);
         out
     }
 }
 
 /// One fitted set.
+#[derive(Clone)]
 struct SetFit {
     idx: Vec<usize>,
     fit: LmFit,
@@ -202,6 +223,8 @@ pub fn locate_from_modes(
         "fitted"
     } else if property.ignores_damping() {
         "not used"
+    } else if crate::time::survey_modes::is_damped(nominal) {
+        "absent"
     } else {
         "none"
     };
@@ -222,15 +245,36 @@ pub fn locate_from_modes(
             format!("<= k_max = {}", opts.k_max),
         ));
     }
+    let mut top = Vec::new();
     for k in opts.k_min..=opts.k_max {
-        let (first, second, count) = best_sets(nominal, &els, misfit, k, opts)?;
+        let (mut fits, count) = best_sets(nominal, &els, misfit, k, opts)?;
         sets += count;
-        best.push((first, second));
+        let second = (fits.len() > 1).then(|| fits.remove(1));
+        top = fits;
+        best.push((top[0].clone(), second));
     }
     let bic = |f: &SetFit| f.fit.chi2 + 2.0 * f.idx.len() as f64 * n_data.max(1.0).ln();
-    let chosen = (0..best.len())
-        .min_by(|&a, &b| bic(&best[a].0).total_cmp(&bic(&best[b].0)))
-        .expect("k = 0 at least");
+    let choose = |best: &[(SetFit, Option<SetFit>)]| {
+        (0..best.len())
+            .min_by(|&a, &b| bic(&best[a].0).total_cmp(&bic(&best[b].0)))
+            .expect("k = 0 at least")
+    };
+    let mut chosen = choose(&best);
+    // auto: while the largest number tried wins, one more defect is tried
+    // in the best answers at one fewer (nested), as long as it wins
+    let mut nested_above = None;
+    while opts.extend && chosen + 1 == best.len() && top[0].idx.len() < els.len() {
+        let (mut fits, count) = nested_sets(nominal, &els, misfit, &top, opts)?;
+        sets += count;
+        if fits.is_empty() {
+            break;
+        }
+        nested_above.get_or_insert(top[0].idx.len());
+        let second = (fits.len() > 1).then(|| fits.remove(1));
+        top = fits;
+        best.push((top[0].clone(), second));
+        chosen = choose(&best);
+    }
     let label = |idx: &[usize]| idx.iter().map(|&i| name(&els[i])).collect::<Vec<_>>();
     let k_selection = best
         .iter()
@@ -263,12 +307,15 @@ pub fn locate_from_modes(
         dof: misfit.dof(),
         p_value: None,
         errors_given,
+        assumed_weights: property.assumed(),
         damping_ratios,
         k_selection,
         runner_up: second
             .as_ref()
             .map(|s| (label(&s.idx), s.fit.chi2 - answer.fit.chi2)),
         runner_up_defects,
+        nested_above,
+        dampers_searched: opts.dampers,
         sets,
         chain,
     };
@@ -448,14 +495,15 @@ fn damper_elements(nominal: &Chain, misfit: &ModalMisfit) -> Result<Vec<Defect>>
         .collect())
 }
 
-/// The best and second-best sets of `k` elements, and the sets fitted.
+/// The best sets of `k` elements (at most [`NESTED_FROM`], best first),
+/// and the sets fitted.
 fn best_sets(
     nominal: &Chain,
     els: &[Defect],
     misfit: &dyn MeasurementModel,
     k: usize,
     opts: &ModalLocateOptions,
-) -> Result<(SetFit, Option<SetFit>, usize)> {
+) -> Result<(Vec<SetFit>, usize)> {
     let mut fits: Vec<SetFit> = Vec::new();
     let mut idx: Vec<usize> = (0..k).collect();
     loop {
@@ -471,13 +519,58 @@ fn best_sets(
         }
     }
     let count = fits.len();
-    fits.sort_by(|a, b| a.fit.chi2.total_cmp(&b.fit.chi2));
-    let mut it = fits.into_iter();
-    let first = it.next().ok_or_else(|| Error::Numerical {
-        method: "modal defect search".into(),
-        reason: format!("no set of {k} elements could be fitted"),
-    })?;
-    Ok((first, it.next(), count))
+    Ok((best_of(fits, k)?, count))
+}
+
+/// The best [`NESTED_FROM`] of `fits` (of `k` elements), best first.
+///
+/// # Errors
+/// No fit at all.
+fn best_of(mut fits: Vec<SetFit>, k: usize) -> Result<Vec<SetFit>> {
+    if fits.is_empty() {
+        return Err(Error::Numerical {
+            method: "modal defect search".into(),
+            reason: format!("no set of {k} elements could be fitted"),
+        });
+    }
+    fits.sort_by(|a, b| a.fit.chi2.total_cmp(&b.fit.chi2).then(a.idx.cmp(&b.idx)));
+    fits.truncate(NESTED_FROM);
+    Ok(fits)
+}
+
+/// How many of the best sets at one defect fewer the nested search of
+/// `--defects auto` grows by one element.
+pub const NESTED_FROM: usize = 8;
+
+/// The sets of one element more than the sets of `top` (each grown by
+/// every element it does not hold, each set once), fitted: their best
+/// [`NESTED_FROM`] (empty when none could be fitted) and the sets fitted.
+fn nested_sets(
+    nominal: &Chain,
+    els: &[Defect],
+    misfit: &dyn MeasurementModel,
+    top: &[SetFit],
+    opts: &ModalLocateOptions,
+) -> Result<(Vec<SetFit>, usize)> {
+    let mut seen = std::collections::BTreeSet::new();
+    for t in top {
+        for e in (0..els.len()).filter(|e| !t.idx.contains(e)) {
+            let mut idx = t.idx.clone();
+            idx.push(e);
+            idx.sort_unstable();
+            seen.insert(idx);
+        }
+    }
+    let mut fits = Vec::new();
+    for idx in seen {
+        crate::cancel::check()?;
+        if let Some(fit) = fit_set(nominal, els, misfit, &idx, opts)? {
+            fits.push(SetFit { idx, fit });
+        }
+    }
+    let count = fits.len();
+    let k = top.first().map_or(0, |t| t.idx.len() + 1);
+    Ok((best_of(fits, k).unwrap_or_default(), count))
 }
 
 /// The next k-subset of `0..n` in lexicographic order; false after the
@@ -579,17 +672,23 @@ fn judge(mut r: ModalLocateReport) -> ModalLocateReport {
         .filter(|&i| i > 0)
         .map(|i| r.k_selection[i - 1].bic - r.k_selection[i].bic)
         .filter(|gain| *gain < margin);
-    let weights = if r.errors_given {
-        "standard errors from the table"
-    } else {
-        "chi-square under assumed weights (1% frequency, 5% shape, 25% damping ratio where fitted): give frequency_se, phi_J_se and damping_se for a test"
+    let weights = match &r.assumed_weights {
+        None => "standard errors from the table".to_string(),
+        Some((what, cols)) => {
+            format!("chi-square under assumed weights ({what}): give {cols} for a test")
+        }
     };
     (r.status, r.resolved, r.message) = if r.p_value.is_some_and(|p| p < 0.01) {
         let msg = format!(
-            "no set of up to {} changed elements explains the modes (chi2 {:.3} on {free} dof): check the pairing (MAC) and the nominal chain, or update every element (--profile){}",
+            "no set of up to {} changed elements explains the modes (chi2 {:.3} on {free} dof): check the pairing (MAC) and the nominal chain, {}or update every element (--profile){}",
             r.k_selection.last().map_or(0, |row| row.k),
             r.chi2,
-            ASSUMED_NOTE.filter(|_| !r.errors_given).unwrap_or("")
+            if r.damping_ratios == "fitted" && !r.dampers_searched {
+                "search the dampers too (--kinds spring,damper or any), "
+            } else {
+                ""
+            },
+            assumed_note(r.assumed_weights.as_ref().map(|(w, _)| w.as_str()))
         );
         (Status::ModelMismatch, false, msg)
     } else if let Some(gain) = marginal {

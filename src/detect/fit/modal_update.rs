@@ -252,6 +252,9 @@ pub struct ModalUpdateReport {
     pub parameters: f64,
     /// Whether the standard errors came from the table.
     pub errors_given: bool,
+    /// The standard errors assumed where the table gives none (`1%
+    /// frequency, 5% shape`); `None` when it gives every one.
+    pub assumed_weights: Option<String>,
     /// The measurement model fitted.
     pub formulation: ModalFormulation,
     /// Width of the prior on the factors, when one was needed.
@@ -491,6 +494,7 @@ pub fn update_from_modes(
         p_value: None,
         parameters,
         errors_given: pairing.errors_given(),
+        assumed_weights: pairing.assumed().map(|(w, _)| w),
         formulation: opts.formulation,
         prior_width: problem.prior,
         combinations,
@@ -720,10 +724,13 @@ fn frequency_gap(modes: &SurveyModes, j: usize, m: &MeasuredMode) -> f64 {
     (modes.omega[j] / std::f64::consts::TAU / m.frequency - 1.0).abs()
 }
 
-/// Said when a chi-square test ran on assumed weights.
-pub(crate) const ASSUMED_NOTE: Option<&str> = Some(
-    " (under the assumed weights, 1% frequency, 5% shape and 25% damping ratio where fitted: if the modes are less precise, give frequency_se, phi_J_se and damping_se)",
-);
+/// Said when a chi-square test ran on assumed weights
+/// ([`ModalMisfit::assumed`]); empty when the table gave every one.
+pub(crate) fn assumed_note(assumed: Option<&str>) -> String {
+    assumed.map_or(String::new(), |w| {
+        format!(" (under the assumed weights, {w}: if the modes are less precise, give their standard errors)")
+    })
+}
 
 /// Status, `resolved` and message.
 fn judge(mut r: ModalUpdateReport) -> ModalUpdateReport {
@@ -746,7 +753,7 @@ fn judge(mut r: ModalUpdateReport) -> ModalUpdateReport {
                 "the updated chain does not explain the modes (chi2 {:.3} on {free:.1} dof, p = {:.2e}): check the pairing (MAC), the ends, or free the masses too{}",
                 r.chi2,
                 r.p_value.unwrap_or(0.0),
-                ASSUMED_NOTE.filter(|_| !r.errors_given).unwrap_or("")
+                assumed_note(r.assumed_weights.as_deref())
             ),
         )
     } else if !undetermined.is_empty() {

@@ -113,6 +113,10 @@ pub(crate) struct Target {
     pub(crate) damping: Option<(f64, f64)>,
     /// Whether the table gave that standard error (or no ratio).
     pub(crate) damping_se_given: bool,
+    /// Whether the table gave the frequency's standard error.
+    pub(crate) frequency_se_given: bool,
+    /// Whether the table gave every shape component's standard error.
+    pub(crate) shape_se_given: bool,
 }
 
 impl Target {
@@ -134,6 +138,8 @@ impl Target {
                 )
             }),
             damping_se_given: m.damping.is_none() || m.damping_se.is_some(),
+            frequency_se_given: m.frequency_se.is_some(),
+            shape_se_given: m.shape.iter().all(|e| e.se.is_some()),
         }
     }
 
@@ -219,6 +225,7 @@ pub struct ModalMisfit {
     given_errors: bool,
     /// Whether measured damping ratios are compared (a damped nominal).
     damped: bool,
+    weights: ModalWeights,
 }
 
 impl ModalMisfit {
@@ -234,7 +241,35 @@ impl ModalMisfit {
             n,
             given_errors,
             damped: false,
+            weights,
         })
+    }
+
+    /// The standard errors the table does not give and the misfit assumes,
+    /// as `(assumed weights, missing columns)`, e.g. `("1% frequency",
+    /// "frequency_se")`; `None` when the table gives every one.
+    pub fn assumed(&self) -> Option<(String, String)> {
+        let w = &self.weights;
+        let pct = |v: f64| format!("{}%", 100.0 * v);
+        let mut what = Vec::new();
+        let mut cols = Vec::new();
+        if self.targets.iter().any(|t| !t.frequency_se_given) {
+            what.push(format!("{} frequency", pct(w.frequency_rel)));
+            cols.push("frequency_se");
+        }
+        if self
+            .targets
+            .iter()
+            .any(|t| t.has_shape() && !t.shape_se_given)
+        {
+            what.push(format!("{} shape", pct(w.shape_rel)));
+            cols.push("phi_J_se");
+        }
+        if self.uses_damping() && self.targets.iter().any(|t| !t.damping_se_given) {
+            what.push(format!("{} damping ratio", pct(w.damping_rel)));
+            cols.push("damping_se");
+        }
+        (!what.is_empty()).then(|| (what.join(", "), cols.join(", ")))
     }
 
     /// Compare the measured damping ratios too when `nominal` is damped
