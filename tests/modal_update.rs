@@ -522,26 +522,34 @@ fn cli_finds_the_changed_storey_and_says_mismatch_when_none_explains() {
     let dir = temp_dir("locate");
     let smu = smu_file(&dir);
     // every storey of the SMU frame differs from nominal: two defects cannot explain it
-    let (ok, stdout, err) = fit_modes(
-        &smu,
-        &[
-            "--n",
-            "4",
-            "--mass",
-            "0.0312364",
-            "--k",
-            "10",
-            "--right",
-            "free",
-            "--defects",
-            "auto",
-            "--json",
-        ],
-    );
-    assert!(ok, "{err}");
-    let v: serde_json::Value = serde_json::from_slice(&stdout).unwrap();
+    let frame = |defects: &str| {
+        let (ok, stdout, err) = fit_modes(
+            &smu,
+            &[
+                "--n",
+                "4",
+                "--mass",
+                "0.0312364",
+                "--k",
+                "10",
+                "--right",
+                "free",
+                "--defects",
+                defects,
+                "--json",
+            ],
+        );
+        assert!(ok, "{err}");
+        serde_json::from_slice::<serde_json::Value>(&stdout).unwrap()
+    };
+    let v = frame("auto:2");
     assert_eq!(v["status"], "model-mismatch", "{}", v["message"]);
     assert_eq!(v["resolved"], false);
+    // auto goes on while one more storey wins: all four
+    let v = frame("auto");
+    assert_eq!(v["k"], 4, "{v}");
+    assert_eq!(v["nested_above"], 2, "{v}");
+    assert_ne!(v["status"], "model-mismatch", "{}", v["message"]);
     // a bad --defects and --kinds are refused naming the field
     for (flag, value, field) in [
         ("--defects", "two", "defects"),

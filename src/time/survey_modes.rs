@@ -47,6 +47,11 @@ pub struct SurveyModes {
     pub zeta: Vec<f64>,
     /// Column `j` is mode `j`'s real shape, row `i` mass `i + 1` (any scale).
     pub shapes: DMatrix<f64>,
+    /// The complex shapes the real ones were realised from (the quadratic
+    /// path; `None` where the modes are real), same layout: a survey that
+    /// realised them otherwise (normalised to a reference mass, say) is
+    /// compared with them.
+    pub complex_shapes: Option<DMatrix<Complex64>>,
 }
 
 impl SurveyModes {
@@ -83,6 +88,7 @@ pub fn survey_modes(chain: &Chain) -> Result<SurveyModes> {
             zeta: vec![0.0; m.omega.len()],
             omega: m.omega,
             shapes: m.shapes,
+            complex_shapes: None,
         });
     }
     if matches!(chain.damping(), Damping::Modal { .. }) || proportional_damping(chain).is_some() {
@@ -95,6 +101,7 @@ pub fn survey_modes(chain: &Chain) -> Result<SurveyModes> {
             zeta,
             omega: m.omega,
             shapes: m.shapes,
+            complex_shapes: None,
         });
     }
     complex_survey_modes(chain)
@@ -116,10 +123,12 @@ fn complex_survey_modes(chain: &Chain) -> Result<SurveyModes> {
     order.sort_by(|&a, &b| poles[a].norm().total_cmp(&poles[b].norm()));
     let n = chain.n();
     let mut shapes = DMatrix::zeros(n, order.len());
+    let mut complex = DMatrix::zeros(n, order.len());
     for (col, &j) in order.iter().enumerate() {
         let real = realise(&vecs[j]);
         for (i, v) in real.into_iter().enumerate() {
             shapes[(i, col)] = v;
+            complex[(i, col)] = vecs[j][i];
         }
     }
     Ok(SurveyModes {
@@ -129,6 +138,7 @@ fn complex_survey_modes(chain: &Chain) -> Result<SurveyModes> {
             .map(|&j| -poles[j].re / poles[j].norm())
             .collect(),
         shapes,
+        complex_shapes: Some(complex),
     })
 }
 
@@ -154,6 +164,7 @@ mod tests {
             .unwrap();
         let s = survey_modes(&c).unwrap();
         let u = undamped_modes(&c).unwrap();
+        assert!(s.complex_shapes.is_none());
         assert_eq!((s.omega, s.shapes), (u.omega, u.shapes));
         assert!(s.zeta.iter().all(|&z| z == 0.0));
     }

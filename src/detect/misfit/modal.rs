@@ -394,6 +394,44 @@ impl ModalMisfit {
     }
 }
 
+/// The shape residuals of model mode `j` against `target`, its complex
+/// shape (a damped chain's, [`SurveyModes::complex_shapes`]) realised as a
+/// survey does: turned most real, or normalised to the measured mass where
+/// the measured shape is largest (a reference), and its real part taken;
+/// whichever explains the measured shape better (the two differ by the
+/// square of the mode's complexity, which a precise survey of strongly
+/// complex modes sees). A real mode has one realisation.
+fn realised_shape_residuals(modes: &SurveyModes, j: usize, target: &Target, out: &mut Vec<f64>) {
+    let start = out.len();
+    shape_residuals(&target.model_shape(modes, j), target, out);
+    let Some(complex) = &modes.complex_shapes else {
+        return;
+    };
+    let Some(&(reference, ..)) = target
+        .shape
+        .iter()
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+    else {
+        return;
+    };
+    let pivot = complex[(reference, j)];
+    if pivot.norm() == 0.0 {
+        return;
+    }
+    let other: Vec<f64> = target
+        .shape
+        .iter()
+        .map(|&(i, ..)| (complex[(i, j)] / pivot).re)
+        .collect();
+    let mut alt = Vec::with_capacity(target.shape.len());
+    shape_residuals(&other, target, &mut alt);
+    let sq = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
+    if sq(&alt) < sq(&out[start..]) {
+        out.truncate(start);
+        out.extend(alt);
+    }
+}
+
 /// The weighted scale `c` taking `a` onto `b` and the residuals `(c a - b)/se`.
 fn shape_residuals(a: &[f64], target: &Target, out: &mut Vec<f64>) {
     let (mut num, mut den) = (0.0, 0.0);
@@ -435,7 +473,7 @@ impl MeasurementModel for ModalMisfit {
                 r.push((modes.zeta[j] - z) / se);
             }
             if target.has_shape() {
-                shape_residuals(&target.model_shape(&modes, j), target, &mut r);
+                realised_shape_residuals(&modes, j, target, &mut r);
             }
         }
         Ok(r)
