@@ -356,6 +356,18 @@ fn mass_changes_from_full_modes() {
 
 const BIN: &str = env!("CARGO_BIN_EXE_springmass");
 
+/// The SMU frame's nominal chain as flags.
+const SMU_CHAIN: [&str; 8] = [
+    "--n",
+    "4",
+    "--mass",
+    "0.0312364",
+    "--k",
+    "10",
+    "--right",
+    "free",
+];
+
 fn temp_dir(tag: &str) -> std::path::PathBuf {
     let d = std::env::temp_dir().join(format!("springmass-modal-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
@@ -392,19 +404,7 @@ fn cli_updates_the_smu_frame_and_lists_every_mode() {
     let file = smu_file(&dir);
     let (ok, stdout, err) = fit_modes(
         &file,
-        &[
-            "--n",
-            "4",
-            "--mass",
-            "0.0312364",
-            "--k",
-            "10",
-            "--right",
-            "free",
-            "--hold-out",
-            "3,4",
-            "--json",
-        ],
+        &[&SMU_CHAIN[..], &["--hold-out", "3,4", "--json"]].concat(),
     );
     assert!(ok, "{err}");
     let v: serde_json::Value = serde_json::from_slice(&stdout).unwrap();
@@ -525,19 +525,7 @@ fn cli_finds_the_changed_storey_and_says_mismatch_when_none_explains() {
     let frame = |defects: &str| {
         let (ok, stdout, err) = fit_modes(
             &smu,
-            &[
-                "--n",
-                "4",
-                "--mass",
-                "0.0312364",
-                "--k",
-                "10",
-                "--right",
-                "free",
-                "--defects",
-                defects,
-                "--json",
-            ],
+            &[&SMU_CHAIN[..], &["--defects", defects, "--json"]].concat(),
         );
         assert!(ok, "{err}");
         serde_json::from_slice::<serde_json::Value>(&stdout).unwrap()
@@ -810,6 +798,59 @@ fn damped_survey(truth: &Chain, c: &[f64], count: usize, floors: &[usize]) -> Me
     MeasuredModes::new(modes).unwrap()
 }
 
+/// Changed storeys and dampers, each `(index, value)`.
+type Changes<'a> = (&'a [(usize, f64)], &'a [(usize, f64)]);
+
+/// A frame of unit masses and storeys with dampers `c0` between its
+/// storeys, of which `springs` and `dampers` (index, value) changed: its
+/// nominal chain and its survey ([`damped_survey`], `count` modes at
+/// `floors`).
+fn damped_frame(
+    n: usize,
+    c0: f64,
+    (springs, dampers): Changes,
+    count: usize,
+    floors: &[usize],
+) -> (Chain, MeasuredModes) {
+    let nominal = Chain::new(n)
+        .unwrap()
+        .with_damping(springmass::chain::Damping::Between { c: c0 })
+        .unwrap();
+    let truth = Chain::new(n)
+        .unwrap()
+        .with_defects(springs.iter().map(|&(at, k)| Defect::Spring { at, k }))
+        .unwrap();
+    let mut c = vec![c0; n + 1];
+    for &(at, v) in dampers {
+        c[at] = v;
+    }
+    (nominal, damped_survey(&truth, &c, count, floors))
+}
+
+/// The modal defect search over the dampers and `kinds`.
+fn search_dampers(
+    nominal: &Chain,
+    data: &MeasuredModes,
+    kinds: Option<ProfileMode>,
+    extend: bool,
+) -> springmass::detect::fit::modal_locate::ModalLocateReport {
+    use springmass::detect::fit::modal_locate::{locate_from_modes, ModalLocateOptions};
+    let opts = ModalLocateOptions {
+        kinds,
+        dampers: true,
+        extend,
+        ..ModalLocateOptions::default()
+    };
+    locate_from_modes(nominal, data.clone(), &opts).unwrap()
+}
+
+/// The `(kind, at)` of a search's defects, sorted.
+fn found(r: &springmass::detect::fit::modal_locate::ModalLocateReport) -> Vec<(&str, usize)> {
+    let mut f: Vec<(&str, usize)> = r.defects.iter().map(|d| (d.kind, d.at)).collect();
+    f.sort_unstable();
+    f
+}
+
 /// A storey's damper ten times its nominal value beside a softened
 /// storey, seen in four damped modes at four floors. With the nominal
 /// damping given, the damping ratios are fitted and the dampers searched:
@@ -818,32 +859,16 @@ fn damped_survey(truth: &Chain, c: &[f64], count: usize, floors: &[usize]) -> Me
 /// `converged`; the report now says the ratios were not used.
 #[test]
 fn a_changed_damper_is_found_from_damped_modes() {
-    use springmass::chain::Damping;
     use springmass::detect::fit::modal_locate::{locate_from_modes, ModalLocateOptions};
     let n = 8;
-    let nominal = Chain::new(n)
-        .unwrap()
-        .with_damping(Damping::Between { c: 0.03 })
-        .unwrap();
-    let truth = Chain::new(n)
-        .unwrap()
-        .with_defect(Defect::Spring { at: 4, k: 0.7 })
-        .unwrap();
-    let mut c = vec![0.03; n + 1];
-    c[2] = 0.3;
-    let data = damped_survey(&truth, &c, 4, &[1, 3, 6, 8]);
-    let opts = ModalLocateOptions {
-        kinds: Some(ProfileMode::Springs),
-        dampers: true,
-        ..ModalLocateOptions::default()
-    };
-    let r = locate_from_modes(&nominal, data.clone(), &opts).unwrap();
+    let changes: Changes = (&[(4, 0.7)], &[(2, 0.3)]);
+    let (nominal, data) = damped_frame(n, 0.03, changes, 4, &[1, 3, 6, 8]);
+    let r = search_dampers(&nominal, &data, Some(ProfileMode::Springs), false);
     let what = r.summary();
     assert_eq!(r.damping_ratios, "fitted", "{what}");
-    assert_eq!(r.k, 2, "{what}");
+    assert_eq!(found(&r), vec![("damper", 2), ("spring", 4)], "{what}");
     let spring = r.defects.iter().find(|d| d.kind == "spring").expect(&what);
     let damper = r.defects.iter().find(|d| d.kind == "damper").expect(&what);
-    assert_eq!((spring.at, damper.at), (4, 2), "{what}");
     assert!((spring.factor - 0.7).abs() < 0.01, "{what}");
     let se = damper.se.expect(&what);
     assert!((damper.factor - 10.0).abs() < 2.0 * se, "{what}");
@@ -853,12 +878,8 @@ fn a_changed_damper_is_found_from_damped_modes() {
         "{what}"
     );
     // an undamped nominal leaves the ratios out, and says so
-    let plain = locate_from_modes(
-        &Chain::new(n).unwrap(),
-        data.clone(),
-        &ModalLocateOptions::default(),
-    )
-    .unwrap();
+    let undamped = Chain::new(n).unwrap();
+    let plain = locate_from_modes(&undamped, data.clone(), &ModalLocateOptions::default()).unwrap();
     assert_eq!(plain.damping_ratios, "not used");
     assert!(
         plain.message.contains("damping ratios were not used"),
@@ -866,7 +887,11 @@ fn a_changed_damper_is_found_from_damped_modes() {
         plain.message
     );
     // dampers cannot be searched without a damped nominal
-    let err = locate_from_modes(&Chain::new(n).unwrap(), data, &opts).unwrap_err();
+    let opts = ModalLocateOptions {
+        dampers: true,
+        ..ModalLocateOptions::default()
+    };
+    let err = locate_from_modes(&undamped, data, &opts).unwrap_err();
     assert!(err.to_string().contains("kinds"), "{err}");
 }
 
@@ -876,40 +901,15 @@ fn a_changed_damper_is_found_from_damped_modes() {
 /// at two, while it wins.
 #[test]
 fn auto_tries_one_more_defect_while_it_wins() {
-    use springmass::chain::Damping;
-    use springmass::detect::fit::modal_locate::{locate_from_modes, ModalLocateOptions};
-    let n = 8;
-    let nominal = Chain::new(n)
-        .unwrap()
-        .with_damping(Damping::Between { c: 0.03 })
-        .unwrap();
-    let truth = Chain::new(n)
-        .unwrap()
-        .with_defect(Defect::Spring { at: 2, k: 0.7 })
-        .unwrap()
-        .with_defect(Defect::Spring { at: 6, k: 0.8 })
-        .unwrap();
-    let mut c = vec![0.03; n + 1];
-    c[4] = 0.3;
-    let data = damped_survey(&truth, &c, 6, &[1, 3, 5, 7, 8]);
-    let opts = ModalLocateOptions {
-        kinds: Some(ProfileMode::Springs),
-        dampers: true,
-        ..ModalLocateOptions::default()
-    };
-    let two = locate_from_modes(&nominal, data.clone(), &opts).unwrap();
+    let changes: Changes = (&[(2, 0.7), (6, 0.8)], &[(4, 0.3)]);
+    let (nominal, data) = damped_frame(8, 0.03, changes, 6, &[1, 3, 5, 7, 8]);
+    let two = search_dampers(&nominal, &data, Some(ProfileMode::Springs), false);
     assert_eq!((two.k, two.nested_above), (2, None), "{}", two.summary());
-    let auto = ModalLocateOptions {
-        extend: true,
-        ..opts
-    };
-    let r = locate_from_modes(&nominal, data, &auto).unwrap();
+    let r = search_dampers(&nominal, &data, Some(ProfileMode::Springs), true);
     let what = r.summary();
     assert_eq!((r.k, r.nested_above), (3, Some(2)), "{what}");
-    let mut found: Vec<(&str, usize)> = r.defects.iter().map(|d| (d.kind, d.at)).collect();
-    found.sort_unstable();
     assert_eq!(
-        found,
+        found(&r),
         vec![("damper", 4), ("spring", 2), ("spring", 6)],
         "{what}"
     );
@@ -931,29 +931,11 @@ fn auto_tries_one_more_defect_while_it_wins() {
 /// one of the realisations compared, and the answer is exact.
 #[test]
 fn a_survey_normalised_to_a_reference_floor_is_fitted_exactly() {
-    use springmass::chain::Damping;
-    use springmass::detect::fit::modal_locate::{locate_from_modes, ModalLocateOptions};
-    let n = 6;
-    let nominal = Chain::new(n)
-        .unwrap()
-        .with_damping(Damping::Between { c: 0.02 })
-        .unwrap();
-    let mut c = vec![0.02; n + 1];
-    c[2] = 0.2;
-    let data = damped_survey(&Chain::new(n).unwrap(), &c, n, &[1, 2, 3, 4, 5, 6]);
-    let opts = ModalLocateOptions {
-        kinds: None,
-        dampers: true,
-        ..ModalLocateOptions::default()
-    };
-    let r = locate_from_modes(&nominal, data, &opts).unwrap();
+    let changes: Changes = (&[], &[(2, 0.2)]);
+    let (nominal, data) = damped_frame(6, 0.02, changes, 6, &[1, 2, 3, 4, 5, 6]);
+    let r = search_dampers(&nominal, &data, None, false);
     let what = r.summary();
-    assert_eq!(r.k, 1, "{what}");
-    assert_eq!(
-        (r.defects[0].kind, r.defects[0].at),
-        ("damper", 2),
-        "{what}"
-    );
+    assert_eq!(found(&r), vec![("damper", 2)], "{what}");
     assert!((r.defects[0].factor - 10.0).abs() < 1e-5, "{what}");
     assert_eq!(
         r.status,

@@ -102,13 +102,7 @@ impl AmbientRecord {
         observe: Vec<usize>,
         kind: Observable,
     ) -> Result<AmbientRecord> {
-        let dt = ts.uniform_step(1e-6).ok_or_else(|| {
-            Error::invalid(
-                "t",
-                "non-uniform",
-                "a uniform sampling step (resample the record first)",
-            )
-        })?;
+        let dt = uniform_step(ts)?;
         let p = ts.names().len();
         if p != observe.len() {
             return Err(Error::invalid(
@@ -159,13 +153,7 @@ impl AmbientRecord {
                 ),
             ));
         }
-        let dt = ts.uniform_step(1e-6).ok_or_else(|| {
-            Error::invalid(
-                "t",
-                "non-uniform",
-                "a uniform sampling step (resample the record first)",
-            )
-        })?;
+        let dt = uniform_step(ts)?;
         let channels = columns
             .iter()
             .map(|c| ts.select(c).map(|(_, v)| v.to_vec()))
@@ -194,6 +182,20 @@ impl AmbientRecord {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
+}
+
+/// The record's sampling step.
+///
+/// # Errors
+/// A non-uniform one (field `t`).
+fn uniform_step(ts: &TimeSeries) -> Result<f64> {
+    ts.uniform_step(1e-6).ok_or_else(|| {
+        Error::invalid(
+            "t",
+            "non-uniform",
+            "a uniform sampling step (resample the record first)",
+        )
+    })
 }
 
 fn check_observe(observe: &[usize], channels: usize) -> Result<()> {
