@@ -1935,9 +1935,10 @@ def update_from_modes(
         --defects``); the report then has ``defects``, ``k_selection`` and
         ``runner_up``.
     kinds : str, optional
-        With ``defects``: ``"spring"`` (default), ``"mass"``, ``"damper"``,
-        a comma list of them, or ``"any"`` (dampers included when the
-        ratios are fitted).
+        With ``defects``: ``"spring"``, ``"mass"``, ``"damper"``, a comma
+        list of them, or ``"any"`` (dampers included when the ratios are
+        fitted); by default the springs, and the dampers when the ratios
+        are fitted.
 
     Returns
     -------

@@ -964,9 +964,8 @@ fn locate_modes<'py>(
             },
             ..Default::default()
         };
-        if let Some(k) = &kinds {
-            (opts.kinds, opts.dampers) = parse_kinds(k, &nominal, &data)?;
-        }
+        let kinds = kinds.as_deref().unwrap_or("default");
+        (opts.kinds, opts.dampers) = parse_kinds(kinds, &nominal, &data)?;
         locate_from_modes(&nominal, data, &opts)
     })?;
     report_dict(py, &report, report.summary(), "modal defect search")

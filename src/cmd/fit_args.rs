@@ -28,7 +28,8 @@ pub struct Args {
     /// phi_J (shape at mass J) and phi_J_se; the storey springs (or masses,
     /// --profile) are updated as factors of the nominal chain (--n, --mass,
     /// --k, --left, --right, --baseline), or with --defects the changed ones
-    /// are found (--kinds spring|mass|damper|any, or a comma list). With a
+    /// are found (--kinds spring|mass|damper|any, or a comma list; by
+    /// default spring, and damper too when the ratios are fitted). With a
     /// damped nominal chain (--damping, --d) the damping ratios are fitted.
     #[arg(long, conflicts_with_all = ["scene", "column", "gamma", "fit", "known",
         "noise", "misfit", "criterion", "max_evals", "trigger", "force_window", "noise_model",

@@ -88,13 +88,14 @@ fn run_locate(a: &Args, n: usize) -> anyhow::Result<()> {
     }
     let nominal = nominal_chain(a, n)?;
     let modes = MeasuredModes::read_csv(&path)?;
-    if let Some(kinds) = &a.kinds {
-        (opts.kinds, opts.dampers) =
-            springmass::detect::fit::modal_locate::parse_kinds(kinds, &nominal, &modes)?;
-        let ratios = modes.modes().iter().any(|m| m.damping.is_some());
-        if kinds.contains("any") && !ratios && springmass::time::survey_modes::is_damped(&nominal) {
-            eprintln!("note: the table has no damping ratios (column damping): the dampers are not searched");
-        }
+    let kinds = a.kinds.as_deref().unwrap_or("default");
+    (opts.kinds, opts.dampers) =
+        springmass::detect::fit::modal_locate::parse_kinds(kinds, &nominal, &modes)?;
+    let ratios = modes.modes().iter().any(|m| m.damping.is_some());
+    if kinds.contains("any") && !ratios && springmass::time::survey_modes::is_damped(&nominal) {
+        eprintln!(
+            "note: the table has no damping ratios (column damping): the dampers are not searched"
+        );
     }
     let report = locate_from_modes(&nominal, modes, &opts)
         .with_context(|| format!("searching the modes of {}", path.display()))?;

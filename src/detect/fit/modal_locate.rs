@@ -396,8 +396,10 @@ pub fn parse_defect_count(text: &str) -> Result<(usize, usize)> {
 }
 
 /// `--kinds` of a modal search: `spring`, `mass`, `damper` or a comma
-/// list of them, or `any` (springs and masses, and dampers when the modes
-/// can show them: measured damping ratios and a damped `nominal`).
+/// list of them, `any` (springs and masses, and dampers when the modes
+/// can show them: measured damping ratios and a damped `nominal`), or
+/// `default` (the command line's and Python's default: springs, and
+/// dampers when the modes can show them).
 ///
 /// # Errors
 /// Another word (field `kinds`).
@@ -412,6 +414,8 @@ pub fn parse_defect_count(text: &str) -> Result<(usize, usize)> {
 /// assert_eq!(parse_kinds("any", &damped, &modes)?, (Some(ProfileMode::Both), true));
 /// assert_eq!(parse_kinds("any", &Chain::new(4)?, &modes)?, (Some(ProfileMode::Both), false));
 /// assert_eq!(parse_kinds("damper", &damped, &modes)?, (None, true));
+/// assert_eq!(parse_kinds("default", &damped, &modes)?, (Some(ProfileMode::Springs), true));
+/// assert_eq!(parse_kinds("default", &Chain::new(4)?, &modes)?, (Some(ProfileMode::Springs), false));
 /// assert!(parse_kinds("beam", &damped, &modes).is_err());
 /// # Ok::<(), springmass::Error>(())
 /// ```
@@ -421,6 +425,9 @@ pub fn parse_kinds(
     modes: &MeasuredModes,
 ) -> Result<(Option<ProfileMode>, bool)> {
     let (mut springs, mut masses, mut dampers) = (false, false, false);
+    // dampers show in the modes through measured ratios of a damped chain
+    let measurable = crate::time::survey_modes::is_damped(nominal)
+        && modes.modes().iter().any(|m| m.damping.is_some());
     for word in text.split(',').map(str::trim) {
         match word {
             "spring" | "springs" => springs = true,
@@ -429,14 +436,17 @@ pub fn parse_kinds(
             "any" | "both" | "all" => {
                 springs = true;
                 masses = true;
-                dampers |= crate::time::survey_modes::is_damped(nominal)
-                    && modes.modes().iter().any(|m| m.damping.is_some());
+                dampers |= measurable;
+            }
+            "default" => {
+                springs = true;
+                dampers |= measurable;
             }
             other => {
                 return Err(Error::invalid(
                     "kinds",
                     other,
-                    "spring, mass, damper (a comma list of them) or any, with --modes",
+                    "spring, mass, damper (a comma list of them), any or default, with --modes",
                 ))
             }
         }
