@@ -219,15 +219,7 @@ pub fn locate_from_modes(
     let property =
         ModalMisfit::new(modes.clone(), nominal.n(), opts.weights)?.with_damping_of(nominal);
     let errors_given = property.errors_given();
-    let damping_ratios = if property.uses_damping() {
-        "fitted"
-    } else if property.ignores_damping() {
-        "not used"
-    } else if crate::time::survey_modes::is_damped(nominal) {
-        "absent"
-    } else {
-        "none"
-    };
+    let damping_ratios = damping_ratios(&property, nominal);
     let model = modal_model(modes, nominal, opts.weights, opts.formulation)?;
     let misfit = model.as_ref();
     let mut els = opts.kinds.map_or_else(Vec::new, |k| elements(nominal, k));
@@ -235,9 +227,6 @@ pub fn locate_from_modes(
         els.extend(damper_elements(nominal, &property)?);
     }
     check_size(els.len(), opts.k_max)?;
-    let n_data = misfit.dof() as f64;
-    let mut best: Vec<(SetFit, Option<SetFit>)> = Vec::new();
-    let mut sets = 0;
     if opts.k_min > opts.k_max {
         return Err(Error::invalid(
             "defects",
@@ -245,36 +234,9 @@ pub fn locate_from_modes(
             format!("<= k_max = {}", opts.k_max),
         ));
     }
-    let mut top = Vec::new();
-    for k in opts.k_min..=opts.k_max {
-        let (mut fits, count) = best_sets(nominal, &els, misfit, k, opts)?;
-        sets += count;
-        let second = (fits.len() > 1).then(|| fits.remove(1));
-        top = fits;
-        best.push((top[0].clone(), second));
-    }
-    let bic = |f: &SetFit| f.fit.chi2 + 2.0 * f.idx.len() as f64 * n_data.max(1.0).ln();
-    let choose = |best: &[(SetFit, Option<SetFit>)]| {
-        (0..best.len())
-            .min_by(|&a, &b| bic(&best[a].0).total_cmp(&bic(&best[b].0)))
-            .expect("k = 0 at least")
-    };
-    let mut chosen = choose(&best);
-    // auto: while the largest number tried wins, one more defect is tried
-    // in the best answers at one fewer (nested), as long as it wins
-    let mut nested_above = None;
-    while opts.extend && chosen + 1 == best.len() && top[0].idx.len() < els.len() {
-        let (mut fits, count) = nested_sets(nominal, &els, misfit, &top, opts)?;
-        sets += count;
-        if fits.is_empty() {
-            break;
-        }
-        nested_above.get_or_insert(top[0].idx.len());
-        let second = (fits.len() > 1).then(|| fits.remove(1));
-        top = fits;
-        best.push((top[0].clone(), second));
-        chosen = choose(&best);
-    }
+    let search = search_by_k(nominal, &els, misfit, opts)?;
+    let (best, chosen) = (&search.best, search.chosen);
+    let bic = |f: &SetFit| bic(f, misfit.dof());
     let label = |idx: &[usize]| idx.iter().map(|&i| name(&els[i])).collect::<Vec<_>>();
     let k_selection = best
         .iter()
@@ -314,12 +276,85 @@ pub fn locate_from_modes(
             .as_ref()
             .map(|s| (label(&s.idx), s.fit.chi2 - answer.fit.chi2)),
         runner_up_defects,
-        nested_above,
+        nested_above: search.nested_above,
         dampers_searched: opts.dampers,
-        sets,
+        sets: search.sets,
         chain,
     };
     Ok(judge(report))
+}
+
+/// What the table's damping ratios are to the misfit (see
+/// [`ModalLocateReport::damping_ratios`]).
+fn damping_ratios(property: &ModalMisfit, nominal: &Chain) -> &'static str {
+    if property.uses_damping() {
+        "fitted"
+    } else if property.ignores_damping() {
+        "not used"
+    } else if crate::time::survey_modes::is_damped(nominal) {
+        "absent"
+    } else {
+        "none"
+    }
+}
+
+/// `chi2 + 2 k ln N` of a set on `n_data` data.
+fn bic(f: &SetFit, n_data: usize) -> f64 {
+    f.fit.chi2 + 2.0 * f.idx.len() as f64 * (n_data as f64).max(1.0).ln()
+}
+
+/// The best and second-best set of every number of defects tried, the
+/// one BIC chooses, from where the search was nested, and the sets fitted.
+struct ByK {
+    best: Vec<(SetFit, Option<SetFit>)>,
+    chosen: usize,
+    nested_above: Option<usize>,
+    sets: usize,
+}
+
+/// Every set of `k_min..=k_max` elements of `els`; with `extend`, while the
+/// largest number tried wins, one more defect in the best answers at one
+/// fewer (nested), as long as it wins.
+fn search_by_k(
+    nominal: &Chain,
+    els: &[Defect],
+    misfit: &dyn MeasurementModel,
+    opts: &ModalLocateOptions,
+) -> Result<ByK> {
+    let n_data = misfit.dof();
+    let choose = |best: &[(SetFit, Option<SetFit>)]| {
+        (0..best.len())
+            .min_by(|&a, &b| bic(&best[a].0, n_data).total_cmp(&bic(&best[b].0, n_data)))
+            .expect("k = 0 at least")
+    };
+    let mut out = ByK {
+        best: Vec::new(),
+        chosen: 0,
+        nested_above: None,
+        sets: 0,
+    };
+    let mut top = Vec::new();
+    for k in opts.k_min..=opts.k_max {
+        let (mut fits, count) = best_sets(nominal, els, misfit, k, opts)?;
+        out.sets += count;
+        let second = (fits.len() > 1).then(|| fits.remove(1));
+        top = fits;
+        out.best.push((top[0].clone(), second));
+    }
+    out.chosen = choose(&out.best);
+    while opts.extend && out.chosen + 1 == out.best.len() && top[0].idx.len() < els.len() {
+        let (mut fits, count) = nested_sets(nominal, els, misfit, &top, opts)?;
+        out.sets += count;
+        if fits.is_empty() {
+            break;
+        }
+        out.nested_above.get_or_insert(top[0].idx.len());
+        let second = (fits.len() > 1).then(|| fits.remove(1));
+        top = fits;
+        out.best.push((top[0].clone(), second));
+        out.chosen = choose(&out.best);
+    }
+    Ok(out)
 }
 
 /// The defects of the set `fit` of `els`, fitted (the chain of `problem`
