@@ -155,6 +155,9 @@ def fit_modes(
     seed: int,
     baseline: Any = None,
     modal_residual: Optional[str] = None,
+    damping: Optional[str] = None,
+    defects: Optional[str] = None,
+    kinds: Optional[str] = None,
 ) -> Dict[str, Any]:
     """{"report": JSON text, "summary": text}."""
 
