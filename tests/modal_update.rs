@@ -10,20 +10,27 @@ use springmass::detect::fit::profile::ProfileMode;
 use springmass::time::modal::undamped_modes;
 use std::f64::consts::TAU;
 
+/// The `n x n` matrix of links `v[j]` between masses `j` and `j + 1`
+/// (`v[0]` and `v[n]` to the walls): springs' `K` or dampers' `C`.
+fn links(n: usize, v: &[f64]) -> nalgebra::DMatrix<f64> {
+    let mut out = nalgebra::DMatrix::zeros(n, n);
+    for (j, vj) in v.iter().enumerate() {
+        let (a, b) = (j.checked_sub(1), (j < n).then_some(j));
+        for (p, q, s) in [(a, a, 1.0), (b, b, 1.0), (a, b, -1.0), (b, a, -1.0)] {
+            if let (Some(p), Some(q)) = (p, q) {
+                out[(p, q)] += s * vj;
+            }
+        }
+    }
+    out
+}
+
 /// Dense `K` and `M` of a chain from its coefficient lists (the definitions:
 /// spring `j` joins masses `j` and `j + 1`, springs 0 and n the walls).
 fn dense(chain: &Chain) -> (nalgebra::DMatrix<f64>, nalgebra::DMatrix<f64>) {
     let n = chain.n();
     let (m, k, g) = (chain.masses(), chain.springs(), chain.grounds());
-    let mut kk = nalgebra::DMatrix::zeros(n, n);
-    for (j, kj) in k.iter().enumerate() {
-        let (a, b) = (j.checked_sub(1), (j < n).then_some(j));
-        for (p, q, s) in [(a, a, 1.0), (b, b, 1.0), (a, b, -1.0), (b, a, -1.0)] {
-            if let (Some(p), Some(q)) = (p, q) {
-                kk[(p, q)] += s * kj;
-            }
-        }
-    }
+    let mut kk = links(n, &k);
     for i in 0..n {
         kk[(i, i)] += g[i];
     }
@@ -625,18 +632,7 @@ fn the_dynamic_residual_updates_a_frame_and_smu() {
 fn cli_takes_the_dynamic_residual_and_refuses_an_unknown_one() {
     let dir = temp_dir("mdr");
     let file = smu_file(&dir);
-    let base = [
-        "--n",
-        "4",
-        "--mass",
-        "0.0312364",
-        "--k",
-        "10",
-        "--right",
-        "free",
-        "--hold-out",
-        "3,4",
-    ];
+    let base = [&SMU_CHAIN[..], &["--hold-out", "3,4"]].concat();
     let (ok, stdout, err) = fit_modes(
         &file,
         &[&base[..], &["--modal-residual", "dynamic", "--json"]].concat(),
@@ -738,19 +734,7 @@ fn damped_survey(truth: &Chain, c: &[f64], count: usize, floors: &[usize]) -> Me
     use nalgebra::{Complex, DMatrix};
     let n = truth.n();
     let (k, m) = dense(truth);
-    let mut cm = DMatrix::<f64>::zeros(n, n);
-    for (j, &v) in c.iter().enumerate() {
-        if j >= 1 {
-            cm[(j - 1, j - 1)] += v;
-        }
-        if j < n {
-            cm[(j, j)] += v;
-        }
-        if j >= 1 && j < n {
-            cm[(j - 1, j)] -= v;
-            cm[(j, j - 1)] -= v;
-        }
-    }
+    let cm = links(n, c);
     let minv = m.clone().try_inverse().unwrap();
     let mut a = DMatrix::<f64>::zeros(2 * n, 2 * n);
     a.view_mut((0, n), (n, n)).fill_with_identity();

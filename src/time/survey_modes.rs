@@ -34,7 +34,9 @@
 
 use crate::chain::{Chain, Damping};
 use crate::error::{Error, Result};
-use crate::time::modal::{natural_modes, proportional_damping, undamped_modes, Modes};
+use crate::time::modal::{
+    natural_modes, proportional_damping, undamped_modes, Modes, UndampedModes,
+};
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 
@@ -82,29 +84,55 @@ pub fn is_damped(chain: &Chain) -> bool {
 /// The eigen solvers' errors and size limits; a chain without an
 /// oscillating mode.
 pub fn survey_modes(chain: &Chain) -> Result<SurveyModes> {
-    if !is_damped(chain) {
-        let m = undamped_modes(chain)?;
-        return Ok(SurveyModes {
-            zeta: vec![0.0; m.omega.len()],
-            omega: m.omega,
-            shapes: m.shapes,
-            complex_shapes: None,
-        });
+    let damped = is_damped(chain);
+    let modal = matches!(chain.damping(), Damping::Modal { .. });
+    if damped && !modal && proportional_damping(chain).is_none() {
+        return complex_survey_modes(chain);
     }
-    if matches!(chain.damping(), Damping::Modal { .. }) || proportional_damping(chain).is_some() {
-        let m = undamped_modes(chain)?;
-        let zeta = natural_modes(chain)?
+    let m = undamped_modes(chain)?;
+    let zeta = if !damped {
+        vec![0.0; m.omega.len()]
+    } else if modal {
+        natural_modes(chain)?
             .iter()
             .map(|z| z.zeta.unwrap_or(0.0))
-            .collect();
-        return Ok(SurveyModes {
-            zeta,
-            omega: m.omega,
-            shapes: m.shapes,
-            complex_shapes: None,
-        });
-    }
-    complex_survey_modes(chain)
+            .collect()
+    } else {
+        proportional_ratios(chain, &m)
+    };
+    Ok(SurveyModes {
+        zeta,
+        omega: m.omega,
+        shapes: m.shapes,
+        complex_shapes: None,
+    })
+}
+
+/// The damping ratios `phi^T D phi / (2 omega)` of proportionally damped
+/// modes from their mass-normalised shapes (exact there; no second eigen
+/// solve), 0 for a rigid-body mode.
+fn proportional_ratios(chain: &Chain, m: &UndampedModes) -> Vec<f64> {
+    let c = chain.coefficients();
+    let n = chain.n();
+    let top = m.omega.iter().fold(0.0_f64, |a, &w| a.max(w * w));
+    (0..m.omega.len())
+        .map(|j| {
+            let w = m.omega[j];
+            if w * w <= 64.0 * f64::EPSILON * top {
+                return 0.0;
+            }
+            let x = |i: usize| {
+                if i == 0 || i > n {
+                    0.0
+                } else {
+                    m.shapes[(i - 1, j)]
+                }
+            };
+            let grounded: f64 = (1..=n).map(|i| c.d[i - 1] * x(i) * x(i)).sum();
+            let between: f64 = (0..=n).map(|k| c.c[k] * (x(k) - x(k + 1)).powi(2)).sum();
+            (grounded + between) / (2.0 * w)
+        })
+        .collect()
 }
 
 /// The quadratic path's oscillating modes, realised.
