@@ -74,6 +74,8 @@ mod real_setups;
 mod realistic_noise;
 #[path = "records.rs"]
 mod records;
+#[path = "room_for_more.rs"]
+mod room_for_more;
 #[path = "scene_data.rs"]
 mod scene_data;
 #[path = "search.rs"]

@@ -57,7 +57,10 @@ fn csv_round_trip_recovers_system1_with_sigma_and_k_unknown() {
         "{} vs {sigma_true}",
         r.noise_sigma
     );
-    assert_eq!(r.k_selection.len(), 4);
+    // k raised to 3 at most, and not past 2 where one or two more defects
+    // cannot win (the answer explains the record)
+    let ks: Vec<usize> = r.k_selection.iter().map(|row| row.k).collect();
+    assert!(ks == [0, 1, 2] || ks == [0, 1, 2, 3], "{ks:?}");
     assert!(r.fits_data, "{}", r.summary());
     let p = r.predicted.as_ref().unwrap();
     assert_eq!(p.model.len(), rec.x().len());

@@ -36,7 +36,8 @@ def test_round_trip_recovers_system3_at_one_percent_noise():
     # would show halved or doubled
     assert r.unseen is not None and r.unseen["elements"] == [], r.unseen
     assert (r.unseen["checked"], r.unseen["of"]) == (39, 39), r.unseen
-    assert [row.k for row in r.k_selection] == [0, 1, 2, 3]
+    # k raised past 2 only where one or two more defects could win
+    assert [row.k for row in r.k_selection] in ([0, 1, 2], [0, 1, 2, 3])
     assert min(r.k_selection, key=lambda row: row.criterion).k == 2
     assert r.predicted.shape == t.shape
     np.testing.assert_allclose(r.residual, x - r.predicted, rtol=0, atol=1e-15)

@@ -28,6 +28,7 @@ use crate::error::{Error, Result};
 
 mod kernel;
 mod nested;
+mod room;
 
 /// Stop the `auto` loop when more defects have not lowered the time-domain
 /// residual by more than noise would (a BIC step of `2 ln N` per defect at

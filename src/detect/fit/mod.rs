@@ -425,7 +425,8 @@ fn settle_sigma(
 /// The fits with each number of defects of `ks` at noise level `sigma`,
 /// each at least as good as the one before ([`Engine::monotone`]; with
 /// `narrowed`, searched from it), then the backward pass; with `stop`, the
-/// loop ends early where more defects do not help ([`stop_early`]).
+/// loop ends early where more defects do not help ([`stop_early`]) or
+/// cannot win ([`Engine::no_room_for_more`]).
 /// Returns the fits and the evaluations spent.
 ///
 /// # Errors
@@ -448,7 +449,10 @@ fn fit_ks(
         };
         evaluations += f.evaluations;
         fits.push(f);
-        if stop && stop_early(&fits, engine.obs.len(), engine.opts.effort) {
+        if stop
+            && (stop_early(&fits, engine.obs.len(), engine.opts.effort)
+                || engine.no_room_for_more(&fits))
+        {
             break;
         }
     }
