@@ -421,14 +421,10 @@ pub struct HeatmapSpec {
     pub part: Option<String>,
 }
 
-fn one_usize() -> usize {
-    1
-}
-fn yes() -> bool {
-    true
-}
-fn default_case_rows() -> usize {
-    200
+serde_defaults! {
+    fn one_usize() -> usize = 1;
+    fn yes() -> bool = true;
+    fn default_case_rows() -> usize = 200;
 }
 
 /// Every field of a study file outside `[scene]`.

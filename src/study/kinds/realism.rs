@@ -21,12 +21,12 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::case::{CaseOutput, KindScene};
+use super::case::{range_problems, CaseOutput, KindScene};
 use crate::chain::{Chain, Units};
 use crate::detect::data::observations::{Observations, Series};
 use crate::detect::fit::options::FitSpec;
 use crate::detect::fit::{fit, FitReport, Status};
-use crate::error::{check_f64, Error, Result};
+use crate::error::{Error, Result};
 use crate::study::realistic::{record, Deviations};
 use crate::study::schema::FieldDoc;
 use serde::{Deserialize, Serialize};
@@ -112,17 +112,11 @@ pub struct Scene {
     pub options: FitSpec,
 }
 
-fn default_none() -> String {
-    "none".into()
-}
-fn default_t_end() -> f64 {
-    200.0
-}
-fn default_dt() -> f64 {
-    0.2
-}
-fn one() -> f64 {
-    1.0
+serde_defaults! {
+    fn default_none() -> String = "none".into();
+    fn default_t_end() -> f64 = 200.0;
+    fn default_dt() -> f64 = 0.2;
+    fn one() -> f64 = 1.0;
 }
 
 impl Scene {
@@ -188,7 +182,7 @@ impl KindScene for Scene {
         if let Err(e) = Deviations::named(&self.deviation, 1.0) {
             out.push(e);
         }
-        let checks = [
+        out.extend(range_problems(&[
             (
                 "level",
                 self.level,
@@ -209,12 +203,7 @@ impl KindScene for Scene {
             ),
             ("mass", self.mass, self.mass > 0.0, "> 0"),
             ("k", self.k, self.k > 0.0, "> 0"),
-        ];
-        for (field, v, ok, allowed) in checks {
-            if let Err(e) = check_f64(field, v, ok, allowed) {
-                out.push(e);
-            }
-        }
+        ]));
         let spec = FitSpec {
             n: 1,
             ..self.options.clone()
@@ -256,29 +245,26 @@ pub fn run(s: &Scene, seed: u64) -> Result<CaseOutput> {
     let score = super::noise::score(&rep, &truth);
     let converged = rep.status == Status::Converged;
     let mut out = CaseOutput::default();
-    let mut put = |k: &str, v: f64| {
-        out.metrics.insert(k.into(), serde_json::json!(v));
-    };
     let flag = |b: bool| f64::from(u8::from(b));
-    put("k_true", truth.defects().len() as f64);
-    put("k_found", rep.k as f64);
-    put("positions_ok", flag(score.positions_ok));
-    put("values", score.values as f64);
-    put("within_3se", score.within_3se as f64);
-    put("converged", flag(converged));
-    put("resolved", flag(rep.resolved));
-    put("mismatch", flag(rep.status == Status::ModelMismatch));
-    put(
+    out.metric("k_true", truth.defects().len() as f64);
+    out.metric("k_found", rep.k as f64);
+    out.metric("positions_ok", flag(score.positions_ok));
+    out.metric("values", score.values as f64);
+    out.metric("within_3se", score.within_3se as f64);
+    out.metric("converged", flag(converged));
+    out.metric("resolved", flag(rep.resolved));
+    out.metric("mismatch", flag(rep.status == Status::ModelMismatch));
+    out.metric(
         "wrong_confident",
         flag(!score.positions_ok && (converged || rep.resolved)),
     );
-    put("fits_data", flag(rep.fits_data));
-    put("in_interval", in_interval(&rep, &truth) as f64);
-    put("interval_level", rep.level);
+    out.metric("fits_data", flag(rep.fits_data));
+    out.metric("in_interval", in_interval(&rep, &truth) as f64);
+    out.metric("interval_level", rep.level);
     let (answer_p, truth_p) = probabilities(&rep, &truth);
-    put("answer_p", answer_p);
-    put("truth_p", truth_p);
-    out.timings.insert("t_fit".into(), serde_json::json!(t_fit));
+    out.metric("answer_p", answer_p);
+    out.metric("truth_p", truth_p);
+    out.timing("t_fit", t_fit);
     Ok(out)
 }
 
