@@ -44,7 +44,7 @@ pub const FIELDS: &[FieldDoc] = &[
     FieldDoc::new("dt", "float > 0", "0.2", "Sampling step, in units of sqrt(mass / k)."),
     FieldDoc::new("mass", "float > 0", "1", "Uniform mass (kg for an SI chain); defect masses scale with it."),
     FieldDoc::new("k", "float > 0", "1", "Uniform stiffness (N/m for an SI chain); the damping scales with sqrt(mass k)."),
-    FieldDoc::opaque("options", "table", "{}", "Options of `springmass fit` as text, by their long names with `_` (e.g. `{ fit = \"d\", defects = \"auto\" }`); n, mass, k and d come from the scene."),
+    FieldDoc::new("options", "table", "{}", "Options of `springmass fit` as text, by their long names with `_` (e.g. `{ fit = \"d\", defects = \"auto\" }`); n, mass, k and d come from the scene.").opaque(),
 ];
 
 /// `(column, meaning)` of the metrics.
