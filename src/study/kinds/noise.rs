@@ -276,6 +276,16 @@ fn told_model(s: &Scene, truth: &Chain) -> Result<Model> {
     model.fitting(&parse_params(&s.fit.join(","))?)
 }
 
+/// The failed range checks of a record's `level`, `t_end` and `dt` (of
+/// this kind and of kind `realism`); `dt_allowed` words dt's check.
+pub(super) fn record_problems(level: f64, t_end: f64, dt: f64, dt_allowed: &str) -> Vec<Error> {
+    range_problems(&[
+        ("level", level, (0.0..=1.0).contains(&level), "in [0, 1]"),
+        ("t_end", t_end, t_end > 0.0 && t_end <= 1e5, "in (0, 1e5]"),
+        ("dt", dt, dt > 0.0 && t_end / dt <= 1e6, dt_allowed),
+    ])
+}
+
 impl KindScene for Scene {
     const FIELDS: &'static [FieldDoc] = FIELDS;
 
@@ -284,26 +294,12 @@ impl KindScene for Scene {
         if let Err(e) = truth(&self.system) {
             out.push(e);
         }
-        out.extend(range_problems(&[
-            (
-                "level",
-                self.level,
-                (0.0..=1.0).contains(&self.level),
-                "in [0, 1]",
-            ),
-            (
-                "t_end",
-                self.t_end,
-                self.t_end > 0.0 && self.t_end <= 1e5,
-                "in (0, 1e5]",
-            ),
-            (
-                "dt",
-                self.dt,
-                self.dt > 0.0 && self.t_end / self.dt <= 1e6,
-                "> 0 with at most 1e6 samples",
-            ),
-        ]));
+        out.extend(record_problems(
+            self.level,
+            self.t_end,
+            self.dt,
+            "> 0 with at most 1e6 samples",
+        ));
         if !matches!(self.defects.as_str(), "given" | "auto") {
             out.push(Error::invalid(
                 "defects",

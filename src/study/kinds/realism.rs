@@ -182,25 +182,13 @@ impl KindScene for Scene {
         if let Err(e) = Deviations::named(&self.deviation, 1.0) {
             out.push(e);
         }
+        out.extend(super::noise::record_problems(
+            self.level,
+            self.t_end,
+            self.dt,
+            "> 0, at most 1e6 samples",
+        ));
         out.extend(range_problems(&[
-            (
-                "level",
-                self.level,
-                (0.0..=1.0).contains(&self.level),
-                "in [0, 1]",
-            ),
-            (
-                "t_end",
-                self.t_end,
-                self.t_end > 0.0 && self.t_end <= 1e5,
-                "in (0, 1e5]",
-            ),
-            (
-                "dt",
-                self.dt,
-                self.dt > 0.0 && self.t_end / self.dt <= 1e6,
-                "> 0, at most 1e6 samples",
-            ),
             ("mass", self.mass, self.mass > 0.0, "> 0"),
             ("k", self.k, self.k > 0.0, "> 0"),
         ]));
