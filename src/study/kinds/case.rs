@@ -119,12 +119,23 @@ pub trait KindScene: DeserializeOwned {
 pub fn unknown_errors(value: &toml::Value, schema: &[FieldDoc]) -> (Vec<Error>, toml::Value) {
     let mut clean = value.clone();
     let mut out = Vec::new();
-    for p in unknown_fields(value, schema) {
-        let path = p.path.strip_prefix("scene.").unwrap_or(&p.path).to_string();
+    for (path, e) in unknown_field_errors(value, schema) {
         remove_path(&mut clean, &path);
-        out.push(Error::invalid(path, "present", p.message));
+        out.push(e);
     }
     (out, clean)
+}
+
+/// Each unknown field of `value` against `schema`: its path relative to
+/// the scene, and the error naming it.
+fn unknown_field_errors(
+    value: &toml::Value,
+    schema: &[FieldDoc],
+) -> impl Iterator<Item = (String, Error)> {
+    unknown_fields(value, schema).into_iter().map(|p| {
+        let path = p.path.strip_prefix("scene.").unwrap_or(&p.path).to_string();
+        (path.clone(), Error::invalid(path, "present", p.message))
+    })
 }
 
 /// Deserialize `value` as a `T`, collecting type errors: each failing field
@@ -262,9 +273,8 @@ pub fn chain_problems(spec: &crate::chain::ChainSpec) -> Vec<Error> {
 /// # Errors
 /// [`Error::InvalidParameter`] naming the field.
 pub fn from_scene<T: DeserializeOwned>(value: &toml::Value, schema: &[FieldDoc]) -> Result<T> {
-    if let Some(p) = unknown_fields(value, schema).into_iter().next() {
-        let path = p.path.strip_prefix("scene.").unwrap_or(&p.path).to_string();
-        return Err(Error::invalid(path, "present", p.message));
+    if let Some((_, e)) = unknown_field_errors(value, schema).next() {
+        return Err(e);
     }
     from_text(value)
 }
