@@ -96,6 +96,17 @@ struct Factor<T> {
     exp2: i32,
 }
 
+impl<T> Factor<T> {
+    /// A factor of the closed form: `e^{half_exp lambda / 2} * mant`.
+    fn closed(half_exp: usize, mant: T) -> Factor<T> {
+        Factor {
+            half_exp,
+            mant,
+            exp2: 0,
+        }
+    }
+}
+
 impl<T> From<profile::Scaled<T>> for Factor<T> {
     fn from(v: profile::Scaled<T>) -> Factor<T> {
         Factor {
@@ -351,26 +362,10 @@ impl<T: Scalar> Green<T> {
     fn end_point(&self, end: Boundary, p: usize) -> Factor<T> {
         debug_assert!(self.profile.is_none());
         match (end, self.stat) {
-            (Boundary::Fixed, true) => Factor {
-                half_exp: 0,
-                mant: T::from_f64(p as f64),
-                exp2: 0,
-            },
-            (Boundary::Fixed, false) => Factor {
-                half_exp: 2 * p,
-                mant: self.half_one_minus_q2p(p),
-                exp2: 0,
-            },
-            (Boundary::Free, true) => Factor {
-                half_exp: 0,
-                mant: T::one(),
-                exp2: 0,
-            },
-            (Boundary::Free, false) => Factor {
-                half_exp: 2 * p - 1,
-                mant: self.half_one_plus_q(2 * p - 1),
-                exp2: 0,
-            },
+            (Boundary::Fixed, true) => Factor::closed(0, T::from_f64(p as f64)),
+            (Boundary::Fixed, false) => Factor::closed(2 * p, self.half_one_minus_q2p(p)),
+            (Boundary::Free, true) => Factor::closed(0, T::one()),
+            (Boundary::Free, false) => Factor::closed(2 * p - 1, self.half_one_plus_q(2 * p - 1)),
         }
     }
 
@@ -398,34 +393,7 @@ impl<T: Scalar> Green<T> {
         if let Some(p) = &self.profile {
             return p.left_diff(i).into();
         }
-        match (self.left, self.stat) {
-            (Boundary::Fixed, true) => Factor {
-                half_exp: 0,
-                mant: T::from_f64(-1.0),
-                exp2: 0,
-            },
-            (Boundary::Fixed, false) => {
-                let m = (T::one() + self.qhalf(2 * (2 * i + 1))) * self.one_m_q.clone();
-                Factor {
-                    half_exp: 2 * i + 2,
-                    mant: m.scale(-0.5),
-                    exp2: 0,
-                }
-            }
-            (Boundary::Free, true) => Factor {
-                half_exp: 0,
-                mant: T::zero(),
-                exp2: 0,
-            },
-            (Boundary::Free, false) => {
-                let m = self.half_one_minus_q2p(i) * self.one_m_q.clone();
-                Factor {
-                    half_exp: 2 * i + 1,
-                    mant: -m,
-                    exp2: 0,
-                }
-            }
-        }
+        self.end_diff(self.left, i + 1, -1.0)
     }
 
     /// `R_j - R_{j+1}` with `p = n + 1 - j`: fixed
@@ -435,33 +403,26 @@ impl<T: Scalar> Green<T> {
         if let Some(p) = &self.profile {
             return p.right_diff(j).into();
         }
-        let p = self.n + 1 - j;
-        match (self.right, self.stat) {
-            (Boundary::Fixed, true) => Factor {
-                half_exp: 0,
-                mant: T::one(),
-                exp2: 0,
-            },
+        self.end_diff(self.right, self.n + 1 - j, 1.0)
+    }
+
+    /// The closed form's difference of two neighbouring end factors, `p`
+    /// and `p - 1` masses from an end held `end`, times `sign` (`-1` on the
+    /// left, `1` on the right): fixed `e^{p lambda} (1 + q^{2p-1}) (1 - q) / 2`,
+    /// free `e^{(p-1/2) lambda} (1 - q^{2(p-1)}) (1 - q) / 2`; at a static
+    /// `s`, `1` fixed and `0` free.
+    fn end_diff(&self, end: Boundary, p: usize, sign: f64) -> Factor<T> {
+        debug_assert!(self.profile.is_none());
+        match (end, self.stat) {
+            (Boundary::Fixed, true) => Factor::closed(0, T::from_f64(sign)),
             (Boundary::Fixed, false) => {
                 let m = (T::one() + self.qhalf(2 * (2 * p - 1))) * self.one_m_q.clone();
-                Factor {
-                    half_exp: 2 * p,
-                    mant: m.scale(0.5),
-                    exp2: 0,
-                }
+                Factor::closed(2 * p, m.scale(0.5 * sign))
             }
-            (Boundary::Free, true) => Factor {
-                half_exp: 0,
-                mant: T::zero(),
-                exp2: 0,
-            },
+            (Boundary::Free, true) => Factor::closed(0, T::zero()),
             (Boundary::Free, false) => {
                 let m = self.half_one_minus_q2p(p - 1) * self.one_m_q.clone();
-                Factor {
-                    half_exp: 2 * p - 1,
-                    mant: m,
-                    exp2: 0,
-                }
+                Factor::closed(2 * p - 1, if sign < 0.0 { -m } else { m })
             }
         }
     }

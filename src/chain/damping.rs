@@ -658,4 +658,139 @@ mod tests {
         };
         assert!(a > 0.0 && b == 0.0, "{a} {b}");
     }
+
+    #[test]
+    fn damping_models_validate_and_roundtrip() {
+        let c = Chain::paper(5).unwrap();
+        for (bad, field) in [
+            (Damping::Between { c: -0.1 }, "damping.c"),
+            (
+                Damping::Rayleigh {
+                    a: 0.1,
+                    b: f64::NAN,
+                },
+                "damping.b",
+            ),
+            (Damping::Rayleigh { a: -1.0, b: 0.0 }, "damping.a"),
+        ] {
+            match c.clone().with_damping(bad.clone()) {
+                Err(Error::InvalidParameter {
+                    field: f, allowed, ..
+                }) => {
+                    assert_eq!(f, field);
+                    assert!(allowed.contains(">= 0"));
+                }
+                other => panic!("{bad:?} gave {other:?}"),
+            }
+        }
+        // a model that needs a parameter not given: typed, naming `damping`
+        match Damping::build("rayleigh", None, Some(0.1), None) {
+            Err(Error::InvalidParameter { field, allowed, .. }) => {
+                assert_eq!(field, "damping");
+                assert!(allowed.contains("parameter b"), "{allowed}");
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(matches!(
+            Damping::build("viscous", None, None, None),
+            Err(Error::InvalidParameter { field, .. }) if field == "damping"
+        ));
+        assert_eq!(
+            Damping::build("between", Some(0.2), None, None).unwrap(),
+            Damping::Between { c: 0.2 }
+        );
+        // between: a damper defect sits on a spring, 0..=n
+        let b = c.clone().with_damping(Damping::Between { c: 0.1 }).unwrap();
+        let b = b.with_defect(Defect::Damper { at: 0, d: 0.5 }).unwrap();
+        assert_eq!(b.spring_dampers(), vec![0.5, 0.1, 0.1, 0.1, 0.1, 0.1]);
+        assert_eq!(b.dampers(), vec![0.1; 5]);
+        assert!(b
+            .clone()
+            .with_defect(Defect::Damper { at: 6, d: 0.5 })
+            .is_err());
+        // the same defect is refused at mass 0 in the grounded model
+        assert!(c
+            .clone()
+            .with_defect(Defect::Damper { at: 0, d: 0.5 })
+            .is_err());
+        // rayleigh: a mass defect's site is s^2 + a s
+        let r = c
+            .with_d(0.0)
+            .unwrap()
+            .with_damping(Damping::Rayleigh { a: 0.2, b: 0.3 })
+            .unwrap()
+            .with_defect(Defect::Mass { at: 2, m: 3.0 })
+            .unwrap();
+        assert_eq!(r.site(&r.defects()[0]).poly, [0.0, 0.2, 1.0]);
+        assert!((r.dampers()[1] - 0.6).abs() < 1e-15);
+        assert_eq!(r.spring_dampers()[0], 0.3);
+        // serde: the model in JSON and TOML; grounded chains print as before
+        let json = serde_json::to_string(&r).unwrap();
+        assert!(
+            json.contains(r#""damping":{"model":"rayleigh","a":0.2,"b":0.3}"#),
+            "{json}"
+        );
+        assert_eq!(serde_json::from_str::<Chain>(&json).unwrap(), r);
+        assert!(!serde_json::to_string(&Chain::paper(3).unwrap())
+            .unwrap()
+            .contains("damping"));
+        let spec: ChainSpec =
+            toml::from_str("n = 4\nd = 0\ndamping = { model = \"between\", c = 0.05 }").unwrap();
+        assert_eq!(
+            spec.build().unwrap().damping(),
+            &Damping::Between { c: 0.05 }
+        );
+        assert!(toml::from_str::<ChainSpec>("n = 4\ndamping = { model = \"between\" }").is_err());
+        // SI: c in N s/m, a = C/M, b = C/K
+        let si = r.to_si(&Units::new(10.0, 100.0, 1000.0).unwrap()).unwrap();
+        assert_eq!(si.damping(), &Damping::Rayleigh { a: 20.0, b: 3.0 });
+        // modal: a ratio in 0..=4, the same in SI; no damper defects; its
+        // tridiagonal stand-in a Rayleigh damping close to zeta
+        let (m, missing) = Damping::parse_spec("modal").unwrap();
+        assert_eq!((m, missing), (Damping::modal(0.0), vec!["zeta"]));
+        let m = Damping::parse_complete("modal:0.03").unwrap();
+        for bad in ["modal:-0.1", "modal:5", "modal:nan"] {
+            match Damping::parse_complete(bad) {
+                Err(Error::InvalidParameter { field, allowed, .. }) => {
+                    assert_eq!(field, "damping.zeta", "{bad}");
+                    assert!(allowed.contains("0 <= zeta <= 4"), "{allowed}");
+                }
+                other => panic!("{bad}: {other:?}"),
+            }
+        }
+        let mc = Chain::paper(5)
+            .unwrap()
+            .with_d(0.0)
+            .unwrap()
+            .with_damping(m.clone())
+            .unwrap();
+        assert_eq!(
+            mc.to_si(&Units::new(10.0, 100.0, 1000.0).unwrap())
+                .unwrap()
+                .damping(),
+            &m
+        );
+        match mc.clone().with_defect(Defect::Damper { at: 2, d: 0.3 }) {
+            Err(Error::InvalidParameter { field, allowed, .. }) => {
+                assert_eq!(field, "defects[0]");
+                assert!(allowed.contains("no dampers"), "{allowed}");
+            }
+            other => panic!("{other:?}"),
+        }
+        let Damping::Rayleigh { a, b } = mc.tridiagonal_damping() else {
+            panic!("a Rayleigh stand-in")
+        };
+        let worst = mc
+            .uniform_omegas()
+            .iter()
+            .map(|w| (a / (2.0 * w) + b * w / 2.0 - 0.03).abs())
+            .fold(0.0, f64::max);
+        assert!(a > 0.0 && b > 0.0 && worst < 0.03, "{a} {b} {worst}");
+        let json = serde_json::to_string(&mc).unwrap();
+        assert!(
+            json.contains(r#""damping":{"model":"modal","zeta":0.03}"#),
+            "{json}"
+        );
+        assert_eq!(serde_json::from_str::<Chain>(&json).unwrap(), mc);
+    }
 }

@@ -599,11 +599,7 @@ fn run_profile(
     if let Some(svg) = &a.plot {
         plot_profile(svg, &r, mode, path)?;
     }
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&r)?);
-    } else {
-        print!("{}", r.summary());
-    }
+    super::print_report(a.json, &r, |r| r.summary())?;
     Ok(r)
 }
 

@@ -65,12 +65,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let rec = AmbientRecord::from_series_columns(&series, &columns, observe, kind)?;
     let report = fit_ambient(&nominal, &rec, &opts)
         .with_context(|| format!("fitting the ambient record {}", path.display()))?;
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print!("{}", report.summary());
-    }
-    Ok(())
+    super::print_report(a.json, &report, |r| r.summary())
 }
 
 /// The fit's options from the flags: --defects or --profile, --kinds,

@@ -35,12 +35,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let modes = MeasuredModes::read_csv(&path)?;
     let report = update_from_modes(&nominal, modes, &opts)
         .with_context(|| format!("updating the chain from {}", path.display()))?;
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print!("{}", report.summary());
-    }
-    Ok(())
+    super::print_report(a.json, &report, |r| r.summary())
 }
 
 /// A `modes` scene with a `[profile]` (or `--profile`): every element of
@@ -59,12 +54,7 @@ pub fn run_scene(
     opts.check()?;
     let modes = scene.measured_modes().context("in [data]")?;
     let report = update_from_modes(&scene.truth()?.uniform(), modes, &opts)?;
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print!("{}", report.summary());
-    }
-    Ok(())
+    super::print_report(a.json, &report, |r| r.summary())
 }
 
 /// `--defects`: which elements changed.
@@ -99,12 +89,7 @@ fn run_locate(a: &Args, n: usize) -> anyhow::Result<()> {
     }
     let report = locate_from_modes(&nominal, modes, &opts)
         .with_context(|| format!("searching the modes of {}", path.display()))?;
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print!("{}", report.summary());
-    }
-    Ok(())
+    super::print_report(a.json, &report, |r| r.summary())
 }
 
 /// `auto` (0..=2), `auto:K` (0..=K) or `K` (exactly K).

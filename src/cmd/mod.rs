@@ -140,3 +140,18 @@ pub fn read_chain_spec(path: &std::path::Path) -> anyhow::Result<ChainSpec> {
     spec.baseline = spec.baseline.map(|b| b.relative_to(dir));
     Ok(spec)
 }
+
+/// Print a report: pretty JSON with `--json` (`json`), otherwise its text
+/// `summary`.
+pub fn print_report<R: serde::Serialize>(
+    json: bool,
+    report: &R,
+    summary: impl FnOnce(&R) -> String,
+) -> anyhow::Result<()> {
+    if json {
+        println!("{}", serde_json::to_string_pretty(report)?);
+    } else {
+        print!("{}", summary(report));
+    }
+    Ok(())
+}

@@ -421,14 +421,10 @@ pub struct HeatmapSpec {
     pub part: Option<String>,
 }
 
-fn one_usize() -> usize {
-    1
-}
-fn yes() -> bool {
-    true
-}
-fn default_case_rows() -> usize {
-    200
+serde_defaults! {
+    fn one_usize() -> usize = 1;
+    fn yes() -> bool = true;
+    fn default_case_rows() -> usize = 200;
 }
 
 /// Every field of a study file outside `[scene]`.
@@ -441,10 +437,10 @@ pub const STUDY_FIELDS: &[FieldDoc] = &[
     FieldDoc::new("study.repeats", "integer >= 1", "1", "Replicates of every sweep point, each with its own derived seed (a `repeat` column tells them apart)."),
     FieldDoc::new("study.timings", "bool", "true", "Record measured timings (the `t_*` columns). Timings are the only non-reproducible numbers: with `false` two runs of a study give identical bytes."),
     FieldDoc::new("study.invalid_cases", "\"error\" | \"skip\"", "\"error\"", "Cases of the sweep whose scene fails the kind's checks (for example j1 = j2 when two positions are crossed): refuse the file, or record them with status `skipped` and the reason and run the others (counted apart from failed cases). Only failed range checks are skipped: unknown fields and values of the wrong type are always problems of the file."),
-    FieldDoc::opaque("scene", "table", "{}", "The base case, in the schema of `study.kind` (the `scene.*` fields of that kind). Sweeps override fields of it."),
+    FieldDoc::new("scene", "table", "{}", "The base case, in the schema of `study.kind` (the `scene.*` fields of that kind). Sweeps override fields of it.").opaque(),
     FieldDoc::new("sweep", "array of tables", "[]", "Sweep axes `[[sweep]]`, crossed: every combination of values is one case. The first axis varies slowest. No axes: one case (per repeat)."),
     FieldDoc::new("sweep[].path", "string", "required", "Field path inside `[scene]`: dotted keys, `[i]` for an array element, e.g. `chain.n`, `chain.defects[1].m`. Missing tables are created; the resulting case must satisfy the kind's schema (a misspelled path is an unknown field)."),
-    FieldDoc::opaque("sweep[].values", "array", "none", "Explicit values of the axis (numbers, strings, arrays or tables). Exactly one of `values` and `range`."),
+    FieldDoc::new("sweep[].values", "array", "none", "Explicit values of the axis (numbers, strings, arrays or tables). Exactly one of `values` and `range`.").opaque(),
     FieldDoc::new("sweep[].range", "table", "none", "A numeric range. Exactly one of `values` and `range`."),
     FieldDoc::new("sweep[].range.from", "float", "required", "First value."),
     FieldDoc::new("sweep[].range.to", "float", "required", "Last value (with `step`: included when a step lands on it, within 1e-9 of the step)."),
@@ -458,10 +454,10 @@ pub const STUDY_FIELDS: &[FieldDoc] = &[
     FieldDoc::new("part", "array of tables", "[]", "Further parts `[[part]]` of the study, each with its own kind, base scene and axes, run, resumed, sharded and reported with the main part. With parts, every case has a `part` column (`main` for the cases of `[scene]` and `[[sweep]]`), and tables, plots and heatmaps can be restricted to one part with `part = \"<name>\"`."),
     FieldDoc::new("part[].name", "string", "required", "Name of the part (letters, digits, `-`, `_`, `.`; not `main`; unique): its label in the `part` column."),
     FieldDoc::new("part[].kind", "string", "required", "What one case of the part does (`forward`, `suppress`, `fit`, `locate`)."),
-    FieldDoc::opaque("part[].scene", "table", "{}", "Base scene of the part, in the schema of its kind (checked like `[scene]`)."),
+    FieldDoc::new("part[].scene", "table", "{}", "Base scene of the part, in the schema of its kind (checked like `[scene]`).").opaque(),
     FieldDoc::new("part[].sweep", "array of tables", "[]", "Axes of the part `[[part.sweep]]`, crossed like `[[sweep]]` (same fields); `study.repeats` applies."),
     FieldDoc::new("part[].sweep[].path", "string", "required", "As `sweep[].path`, inside the part's scene."),
-    FieldDoc::opaque("part[].sweep[].values", "array", "none", "As `sweep[].values`."),
+    FieldDoc::new("part[].sweep[].values", "array", "none", "As `sweep[].values`.").opaque(),
     FieldDoc::new("part[].sweep[].range", "table", "none", "As `sweep[].range`."),
     FieldDoc::new("part[].sweep[].range.from", "float", "required", "As `sweep[].range.from`."),
     FieldDoc::new("part[].sweep[].range.to", "float", "required", "As `sweep[].range.to`."),
@@ -503,7 +499,7 @@ pub const STUDY_FIELDS: &[FieldDoc] = &[
     FieldDoc::new("report.trace[].file", "string", "\"trace-<series>.svg\"", "Output file name inside the output folder (`trace.svg` without `series`)."),
     FieldDoc::new("report.trace[].title", "string", "\"best residual against evaluations\"", "Plot title."),
     FieldDoc::new("report.trace[].series", "array of strings", "one line per case", "Axis columns whose values define the lines (e.g. `[\"search\"]`: one line per optimizer and budget)."),
-    FieldDoc::opaque("report.trace[].filter", "table", "{}", "Only the cases whose axis columns have these labels: `{ system = \"3\", data = \"exact\" }` (a label or an array of labels per column)."),
+    FieldDoc::new("report.trace[].filter", "table", "{}", "Only the cases whose axis columns have these labels: `{ system = \"3\", data = \"exact\" }` (a label or an array of labels per column).").opaque(),
     FieldDoc::new("report.trace[].aggregate", "\"median\" | \"mean\" | \"min\" | \"max\"", "\"median\"", "Reduction over the cases of a line (repeats, axes not in `series`) of their best residual so far, at every evaluation count where one of them improves."),
     FieldDoc::new("report.trace[].part", "string", "every part", "Only the cases of this part (`main` or a `[[part]]` name; studies with parts)."),
     FieldDoc::new("report.trace[].logx", "bool", "false", "Logarithmic evaluations axis."),

@@ -29,6 +29,18 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
+/// Functions for serde's `#[serde(default = "...")]` of the study's
+/// tables, one line each: `fn name() -> Type = value;`.
+macro_rules! serde_defaults {
+    ($(fn $name:ident() -> $t:ty = $v:expr;)*) => {
+        $(
+            fn $name() -> $t {
+                $v
+            }
+        )*
+    };
+}
+
 pub mod check;
 pub mod config;
 pub mod kinds;

@@ -40,16 +40,12 @@ impl FieldDoc {
         }
     }
 
-    /// A field whose contents are free-form.
-    pub const fn opaque(
-        path: &'static str,
-        ty: &'static str,
-        default: &'static str,
-        doc: &'static str,
-    ) -> FieldDoc {
+    /// The field with its contents free-form:
+    /// `FieldDoc::new(..).opaque()`.
+    pub const fn opaque(self) -> FieldDoc {
         FieldDoc {
             opaque: true,
-            ..FieldDoc::new(path, ty, default, doc)
+            ..self
         }
     }
 }

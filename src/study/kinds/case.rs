@@ -3,7 +3,7 @@
 //! schema (every unknown field, every type error, every range check).
 //! Below the kinds' own files and [`super`].
 
-use crate::error::{Error, Result};
+use crate::error::{check_f64, Error, Result};
 use crate::study::paths::remove_path;
 use crate::study::schema::{line_of, unknown_fields as schema_unknown_fields, FieldDoc, Problem};
 use serde::de::DeserializeOwned;
@@ -22,6 +22,19 @@ pub struct CaseOutput {
     pub trace: Vec<[f64; 2]>,
 }
 
+impl CaseOutput {
+    /// Record the metric `key`: `v` as a JSON number ([`num`]: `null` when
+    /// not finite).
+    pub fn metric(&mut self, key: &str, v: f64) {
+        self.metrics.insert(key.into(), num(v));
+    }
+
+    /// Record the timing `key` (measured seconds), as [`CaseOutput::metric`].
+    pub fn timing(&mut self, key: &str, seconds: f64) {
+        self.timings.insert(key.into(), num(seconds));
+    }
+}
+
 /// One picture of one case.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CasePlot {
@@ -29,6 +42,19 @@ pub struct CasePlot {
     pub name: String,
     /// The SVG text.
     pub svg: String,
+}
+
+impl CasePlot {
+    /// The picture `name` of the line plot `plot`.
+    ///
+    /// # Errors
+    /// As [`crate::plot::LinePlot::to_svg_string`].
+    pub fn of_lines(name: &str, plot: &crate::plot::LinePlot) -> Result<CasePlot> {
+        Ok(CasePlot {
+            name: name.into(),
+            svg: plot.to_svg_string()?,
+        })
+    }
 }
 
 /// Unknown fields of `value` against `schema` (paths relative to the scene).
@@ -93,12 +119,23 @@ pub trait KindScene: DeserializeOwned {
 pub fn unknown_errors(value: &toml::Value, schema: &[FieldDoc]) -> (Vec<Error>, toml::Value) {
     let mut clean = value.clone();
     let mut out = Vec::new();
-    for p in unknown_fields(value, schema) {
-        let path = p.path.strip_prefix("scene.").unwrap_or(&p.path).to_string();
+    for (path, e) in unknown_field_errors(value, schema) {
         remove_path(&mut clean, &path);
-        out.push(Error::invalid(path, "present", p.message));
+        out.push(e);
     }
     (out, clean)
+}
+
+/// Each unknown field of `value` against `schema`: its path relative to
+/// the scene, and the error naming it.
+fn unknown_field_errors(
+    value: &toml::Value,
+    schema: &[FieldDoc],
+) -> impl Iterator<Item = (String, Error)> {
+    unknown_fields(value, schema).into_iter().map(|p| {
+        let path = p.path.strip_prefix("scene.").unwrap_or(&p.path).to_string();
+        (path.clone(), Error::invalid(path, "present", p.message))
+    })
 }
 
 /// Deserialize `value` as a `T`, collecting type errors: each failing field
@@ -136,6 +173,15 @@ pub fn typed_scene<T: DeserializeOwned>(mut value: toml::Value) -> (Vec<Error>, 
         }
     }
     (out, None)
+}
+
+/// The failed range checks among `checks`, in order: each is
+/// `(field, value, ok, allowed)` as [`check_f64`] takes it.
+pub fn range_problems(checks: &[(&str, f64, bool, &str)]) -> Vec<Error> {
+    checks
+        .iter()
+        .filter_map(|&(field, v, ok, allowed)| check_f64(field, v, ok, allowed).err())
+        .collect()
 }
 
 /// `e` with its field put under `prefix` (e.g. `perturbation.`): errors of
@@ -227,9 +273,8 @@ pub fn chain_problems(spec: &crate::chain::ChainSpec) -> Vec<Error> {
 /// # Errors
 /// [`Error::InvalidParameter`] naming the field.
 pub fn from_scene<T: DeserializeOwned>(value: &toml::Value, schema: &[FieldDoc]) -> Result<T> {
-    if let Some(p) = unknown_fields(value, schema).into_iter().next() {
-        let path = p.path.strip_prefix("scene.").unwrap_or(&p.path).to_string();
-        return Err(Error::invalid(path, "present", p.message));
+    if let Some((_, e)) = unknown_field_errors(value, schema).next() {
+        return Err(e);
     }
     from_text(value)
 }

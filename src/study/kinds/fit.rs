@@ -74,7 +74,7 @@ pub const FIELDS: &[FieldDoc] = &[
     FieldDoc::new("unknowns.mass_bounds", "[float, float]", "[0.1, 100]", "Bounds of unknown masses."),
     FieldDoc::new("unknowns.kind", "\"mass\" | \"spring\" | \"damper\" | \"ground\" | \"any\"", "\"mass\"", "Kind of the sought defects; anything but mass (or `chain`, or `misfit.kind = \"time\"`) selects the general noisy fit."),
     FieldDoc::new("unknowns.chain", "array of \"d\" | \"gamma\" | \"k\" | \"mass\"", "[]", "Uniform chain parameters fitted alongside the defects (not all four: they scale out)."),
-    FieldDoc::opaque("unknowns.chain_start", "table", "the [chain] values", "Starting values of fitted chain parameters, e.g. `{ d = 0.2 }`."),
+    FieldDoc::new("unknowns.chain_start", "table", "the [chain] values", "Starting values of fitted chain parameters, e.g. `{ d = 0.2 }`.").opaque(),
     FieldDoc::new("unknowns.spring_bounds", "[float, float]", "[0.01, 100]", "Bounds of unknown springs (lo > 0)."),
     FieldDoc::new("unknowns.damper_bounds", "[float, float]", "[0, 100]", "Bounds of unknown dampers (lo >= 0)."),
     FieldDoc::new("unknowns.defects", "array of tables", "[]", "Per-defect knowledge (known position and/or mass, bounds)."),
@@ -502,8 +502,8 @@ pub fn run(value: &toml::Value, seed: u64) -> Result<CaseOutput> {
     m.insert("evaluations".into(), r.evaluations.into());
     m.insert("nodes".into(), r.nodes.into());
     out.trace = best_so_far(&r.trace);
-    out.timings.insert("t_setup".into(), num(r.setup_time_s));
-    out.timings.insert("t_search".into(), num(r.wall_time_s));
+    out.timing("t_setup", r.setup_time_s);
+    out.timing("t_search", r.wall_time_s);
     Ok(out)
 }
 

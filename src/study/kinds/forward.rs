@@ -29,7 +29,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::case::{num, prefix_chain, CaseOutput, KindScene};
+use super::case::{prefix_chain, CaseOutput, KindScene};
 use crate::chain::{ChainSpec, Defect};
 use crate::error::{check_f64, Error, Result};
 use crate::forward::transfer::Transfer;
@@ -146,32 +146,16 @@ impl Default for Timing {
     }
 }
 
-fn one() -> usize {
-    1
-}
-fn default_kind() -> String {
-    "mass".into()
-}
-fn half() -> f64 {
-    0.5
-}
-fn five() -> f64 {
-    5.0
-}
-fn default_from() -> f64 {
-    0.01
-}
-fn default_to() -> f64 {
-    10.0
-}
-fn default_count() -> usize {
-    32
-}
-fn default_spacing() -> String {
-    "log".into()
-}
-fn default_min_seconds() -> f64 {
-    0.002
+serde_defaults! {
+    fn one() -> usize = 1;
+    fn default_kind() -> String = "mass".into();
+    fn half() -> f64 = 0.5;
+    fn five() -> f64 = 5.0;
+    fn default_from() -> f64 = 0.01;
+    fn default_to() -> f64 = 10.0;
+    fn default_count() -> usize = 32;
+    fn default_spacing() -> String = "log".into();
+    fn default_min_seconds() -> f64 = 0.002;
 }
 
 /// Largest grid.
@@ -420,17 +404,15 @@ pub fn run(scene: &Scene, seed: u64) -> Result<CaseOutput> {
     out.metrics.insert("unresolved".into(), m.unresolved.into());
     out.metrics
         .insert("woodbury_nonfinite".into(), m.nonfinite.into());
-    out.metrics.insert("max_rel_diff".into(), num(m.max_rel));
-    out.metrics
-        .insert("max_rel_diff_transfer".into(), num(m.max_rel_transfer));
-    out.metrics.insert("rms_rel_diff".into(), num(m.rms_rel));
-    out.metrics.insert("x_min".into(), num(m.x_min));
-    out.metrics.insert("x_max".into(), num(m.x_max));
-    out.timings.insert("t_woodbury".into(), num(m.t_woodbury));
-    out.timings.insert("t_reference".into(), num(m.t_reference));
-    out.timings.insert("t_transfer".into(), num(m.t_transfer));
-    out.timings
-        .insert("t_speedup".into(), num(m.t_reference / m.t_woodbury));
+    out.metric("max_rel_diff", m.max_rel);
+    out.metric("max_rel_diff_transfer", m.max_rel_transfer);
+    out.metric("rms_rel_diff", m.rms_rel);
+    out.metric("x_min", m.x_min);
+    out.metric("x_max", m.x_max);
+    out.timing("t_woodbury", m.t_woodbury);
+    out.timing("t_reference", m.t_reference);
+    out.timing("t_transfer", m.t_transfer);
+    out.timing("t_speedup", m.t_reference / m.t_woodbury);
     Ok(out)
 }
 

@@ -24,7 +24,9 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::case::{chain_problems, num, CaseOutput, CasePlot, KindScene};
+use super::case::{
+    chain_problems, num, prefix_chain, range_problems, CaseOutput, CasePlot, KindScene,
+};
 use crate::chain::{Chain, ChainSpec, Defect};
 use crate::detect::locate::{curve, default_grid, locate, LaplaceData, Method, Model, SChoice};
 use crate::error::{check_f64, Error, Result};
@@ -122,17 +124,11 @@ impl Precision {
     }
 }
 
-fn default_method() -> String {
-    "exact".into()
-}
-fn default_source() -> String {
-    "exact".into()
-}
-fn default_t_end() -> f64 {
-    300.0
-}
-fn default_dt() -> f64 {
-    0.05
+serde_defaults! {
+    fn default_method() -> String = "exact".into();
+    fn default_source() -> String = "exact".into();
+    fn default_t_end() -> f64 = 300.0;
+    fn default_dt() -> f64 = 0.05;
 }
 
 /// Every scene field of kind `locate`.
@@ -214,24 +210,20 @@ impl KindScene for Scene {
         }
         match self.data.as_str() {
             "exact" => {}
-            "simulated" => {
-                if let Err(e) = check_f64(
+            "simulated" => out.extend(range_problems(&[
+                (
                     "t_end",
                     self.t_end,
                     self.t_end > 0.0,
                     "t_end > 0 and finite",
-                ) {
-                    out.push(e);
-                }
-                if let Err(e) = check_f64(
+                ),
+                (
                     "dt",
                     self.dt,
                     self.dt > 0.0 && self.dt <= self.t_end && self.t_end / self.dt <= 2e6,
                     "0 < dt <= t_end, at most 2e6 steps",
-                ) {
-                    out.push(e);
-                }
-            }
+                ),
+            ])),
             other => out.push(Error::invalid("data", other, "\"exact\" or \"simulated\"")),
         }
         if let Err(e) = self.precision.bits() {
@@ -258,18 +250,7 @@ impl Scene {
 
     /// The true chain and its defect `(at, m)`.
     fn truth(&self) -> Result<(Chain, usize, f64)> {
-        let chain = self.chain.build().map_err(|e| match e {
-            Error::InvalidParameter {
-                field,
-                value,
-                allowed,
-            } => Error::InvalidParameter {
-                field: format!("chain.{field}"),
-                value,
-                allowed,
-            },
-            other => other,
-        })?;
+        let chain = self.chain.build().map_err(prefix_chain)?;
         match chain.defects() {
             [Defect::Mass { at, m }] => Ok((chain.clone(), *at, *m)),
             d => Err(Error::invalid(
@@ -363,7 +344,7 @@ fn run_in<T: RealScalar>(scene: &Scene, _seed: u64, bits: usize) -> Result<CaseO
         }
         Err(e) => return Err(e),
     }
-    out.timings.insert("t_locate".into(), num(t));
+    out.timing("t_locate", t);
     if scene.plots {
         if let Some(plot) = js_plot(scene, &model, &data, method, at)? {
             out.plots.push(plot);
@@ -395,10 +376,7 @@ fn js_plot<T: RealScalar>(
     .log_x(true)
     .line(Line::new("j(s)", pts))
     .line(Line::new("true j", truth).dashed());
-    Ok(chart.to_svg_string().ok().map(|svg| CasePlot {
-        name: "js".into(),
-        svg,
-    }))
+    Ok(CasePlot::of_lines("js", &chart).ok())
 }
 
 #[cfg(test)]

@@ -24,10 +24,11 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::case::{CaseOutput, KindScene};
+use super::case::{range_problems, CaseOutput, KindScene};
 use crate::chain::Chain;
+use crate::detect::data::observations::{Observations, Series};
 use crate::detect::data::series::TimeData;
-use crate::detect::fit::{parse_params, FitReport};
+use crate::detect::fit::{parse_params, FitReport, Model};
 use crate::detect::misfit::MisfitKind;
 use crate::error::{check_f64, Error, Result};
 use crate::noise::NoiseLevel;
@@ -129,24 +130,13 @@ pub struct Scene {
     pub profile: String,
 }
 
-fn default_none() -> String {
-    "none".into()
-}
-
-fn default_t_end() -> f64 {
-    200.0
-}
-fn default_dt() -> f64 {
-    0.2
-}
-fn default_given() -> String {
-    "given".into()
-}
-fn default_misfit() -> String {
-    "default".into()
-}
-fn default_auto() -> String {
-    "auto".into()
+serde_defaults! {
+    fn default_none() -> String = "none".into();
+    fn default_t_end() -> f64 = 200.0;
+    fn default_dt() -> f64 = 0.2;
+    fn default_given() -> String = "given".into();
+    fn default_misfit() -> String = "default".into();
+    fn default_auto() -> String = "auto".into();
 }
 
 /// The truth of a reference system by name ([`crate::scenes::NOISE_SYSTEMS`]
@@ -239,10 +229,8 @@ pub fn score(rep: &FitReport, truth: &Chain) -> Score {
 /// # Errors
 /// As [`crate::detect::fit::fit`]; a bad `fit` or `d_start`.
 pub fn fit_record(s: &Scene, truth: &Chain, data: &TimeData) -> Result<FitReport> {
-    use crate::detect::data::observations::{Observations, Series};
-    use crate::detect::fit::{fit, DefectCount, FitOptions, Model, NoiseSpec, DEFAULT_K_MAX};
-    let sigma = (s.noise == "given" && data.sigma() > 0.0).then_some(data.sigma());
-    let obs = Observations::Series(Series::new(data.t().to_vec(), data.y().to_vec(), sigma)?);
+    use crate::detect::fit::{fit, DefectCount, FitOptions, NoiseSpec, DEFAULT_K_MAX};
+    let (obs, sigma) = observations(s, data)?;
     let misfit = match s.misfit.as_str() {
         "default" => None,
         m => Some(MisfitKind::parse(m)?),
@@ -261,12 +249,41 @@ pub fn fit_record(s: &Scene, truth: &Chain, data: &TimeData) -> Result<FitReport
         parallel: false,
         ..FitOptions::default()
     };
+    fit(&obs, &told_model(s, truth)?, &opts)
+}
+
+/// The record as the fit's observations, and the noise level the fit is
+/// told: the true one when `s.noise = "given"` (and the record is noisy).
+///
+/// # Errors
+/// As [`Series::new`].
+fn observations(s: &Scene, data: &TimeData) -> Result<(Observations, Option<f64>)> {
+    let sigma = (s.noise == "given" && data.sigma() > 0.0).then_some(data.sigma());
+    let obs = Observations::Series(Series::new(data.t().to_vec(), data.y().to_vec(), sigma)?);
+    Ok((obs, sigma))
+}
+
+/// The model the fit is told: the truth's uniform part, with d =
+/// `s.d_start` when given, fitting the chain parameters `s.fit`.
+///
+/// # Errors
+/// A bad `d_start` or `fit`.
+fn told_model(s: &Scene, truth: &Chain) -> Result<Model> {
     let mut model = Model::from_chain(&truth.uniform());
     if let Some(d) = s.d_start {
         model = model.with_d(d)?;
     }
-    let model = model.fitting(&parse_params(&s.fit.join(","))?)?;
-    fit(&obs, &model, &opts)
+    model.fitting(&parse_params(&s.fit.join(","))?)
+}
+
+/// The failed range checks of a record's `level`, `t_end` and `dt` (of
+/// this kind and of kind `realism`); `dt_allowed` words dt's check.
+pub(super) fn record_problems(level: f64, t_end: f64, dt: f64, dt_allowed: &str) -> Vec<Error> {
+    range_problems(&[
+        ("level", level, (0.0..=1.0).contains(&level), "in [0, 1]"),
+        ("t_end", t_end, t_end > 0.0 && t_end <= 1e5, "in (0, 1e5]"),
+        ("dt", dt, dt > 0.0 && t_end / dt <= 1e6, dt_allowed),
+    ])
 }
 
 impl KindScene for Scene {
@@ -277,27 +294,10 @@ impl KindScene for Scene {
         if let Err(e) = truth(&self.system) {
             out.push(e);
         }
-        let mut push = |r: Result<f64>| {
-            if let Err(e) = r {
-                out.push(e);
-            }
-        };
-        push(check_f64(
-            "level",
+        out.extend(record_problems(
             self.level,
-            (0.0..=1.0).contains(&self.level),
-            "in [0, 1]",
-        ));
-        push(check_f64(
-            "t_end",
             self.t_end,
-            self.t_end > 0.0 && self.t_end <= 1e5,
-            "in (0, 1e5]",
-        ));
-        push(check_f64(
-            "dt",
             self.dt,
-            self.dt > 0.0 && self.t_end / self.dt <= 1e6,
             "> 0 with at most 1e6 samples",
         ));
         if !matches!(self.defects.as_str(), "given" | "auto") {
@@ -362,38 +362,35 @@ pub fn run(s: &Scene, seed: u64) -> Result<CaseOutput> {
     let t_fit = t0.elapsed().as_secs_f64();
     let score = score(&rep, &truth);
     let mut out = CaseOutput::default();
-    let mut put = |k: &str, v: f64| {
-        out.metrics.insert(k.into(), serde_json::json!(v));
-    };
-    put("k_true", k_true as f64);
-    put("k_found", rep.k as f64);
-    put("k_ok", (rep.k == k_true) as u8 as f64);
-    put("positions_ok", score.positions_ok as u8 as f64);
-    put("values", score.values as f64);
-    put("within_2se", score.within_2se as f64);
-    put("within_3se", score.within_3se as f64);
-    put("wrong_flagged", score.wrong_flagged as u8 as f64);
-    put("resolved", rep.resolved as u8 as f64);
-    put("fits_data", rep.fits_data as u8 as f64);
-    put("visible", f64::NAN);
-    put(
+    out.metric("k_true", k_true as f64);
+    out.metric("k_found", rep.k as f64);
+    out.metric("k_ok", (rep.k == k_true) as u8 as f64);
+    out.metric("positions_ok", score.positions_ok as u8 as f64);
+    out.metric("values", score.values as f64);
+    out.metric("within_2se", score.within_2se as f64);
+    out.metric("within_3se", score.within_3se as f64);
+    out.metric("wrong_flagged", score.wrong_flagged as u8 as f64);
+    out.metric("resolved", rep.resolved as u8 as f64);
+    out.metric("fits_data", rep.fits_data as u8 as f64);
+    out.metric("visible", f64::NAN);
+    out.metric(
         "depth",
         rep.visibility
             .as_ref()
             .and_then(|v| v.depth)
             .map_or(f64::NAN, |d| d as f64),
     );
-    put("sigma_ratio", sigma_ratio(rep.noise_sigma, &data));
+    out.metric("sigma_ratio", sigma_ratio(rep.noise_sigma, &data));
     let d = rep.params.iter().find(|p| p.name == "d");
-    put("d_fit", d.map_or(f64::NAN, |p| p.value));
-    put("d_se", d.map_or(f64::NAN, |p| p.se));
-    put(
+    out.metric("d_fit", d.map_or(f64::NAN, |p| p.value));
+    out.metric("d_se", d.map_or(f64::NAN, |p| p.se));
+    out.metric(
         "d_within_3se",
         d.map_or(f64::NAN, |p| {
             f64::from(u8::from((p.value - truth.d()).abs() <= 3.0 * p.se))
         }),
     );
-    out.timings.insert("t_fit".into(), serde_json::json!(t_fit));
+    out.timing("t_fit", t_fit);
     Ok(out)
 }
 
@@ -412,17 +409,11 @@ fn sigma_ratio(estimated: f64, data: &TimeData) -> f64 {
 /// `positions_ok` when the values more than 3 SE from uniform are exactly
 /// the true defects' (of the profiled kind).
 fn run_profile(s: &Scene, truth: &Chain, data: &TimeData) -> Result<CaseOutput> {
-    use crate::detect::data::observations::{Observations, Series};
     use crate::detect::fit::fit_profile;
     use crate::detect::fit::profile::{ProfileMode, ProfileOptions};
-    use crate::detect::fit::{Model, NoiseSpec};
-    let sigma = (s.noise == "given" && data.sigma() > 0.0).then_some(data.sigma());
-    let obs = Observations::Series(Series::new(data.t().to_vec(), data.y().to_vec(), sigma)?);
-    let mut model = Model::from_chain(&truth.uniform());
-    if let Some(d) = s.d_start {
-        model = model.with_d(d)?;
-    }
-    let model = model.fitting(&parse_params(&s.fit.join(","))?)?;
+    use crate::detect::fit::NoiseSpec;
+    let (obs, sigma) = observations(s, data)?;
+    let model = told_model(s, truth)?;
     let mut opts = ProfileOptions::new(ProfileMode::parse(&s.profile)?);
     opts.noise = sigma.map_or(NoiseSpec::Auto, NoiseSpec::Sigma);
     let t0 = Instant::now();
@@ -455,26 +446,23 @@ fn run_profile(s: &Scene, truth: &Chain, data: &TimeData) -> Result<CaseOutput> 
                 .any(|e| e.kind == d.kind() && e.at == d.at() && e.visible)
     });
     let mut out = CaseOutput::default();
-    let mut put = |k: &str, v: f64| {
-        out.metrics.insert(k.into(), serde_json::json!(v));
-    };
     let k_true = truth.defects().len() as f64;
-    put("k_true", k_true);
-    put("k_found", f64::NAN);
-    put("k_ok", f64::NAN);
-    put("positions_ok", f64::from(u8::from(positions_ok)));
-    put("values", values as f64);
-    put("within_2se", w2 as f64);
-    put("within_3se", w3 as f64);
-    put("wrong_flagged", f64::NAN);
-    put("resolved", f64::NAN);
-    put("fits_data", f64::from(u8::from(rep.fits_data)));
-    put("sigma_ratio", sigma_ratio(rep.noise_sigma, data));
-    put("d_fit", f64::NAN);
-    put("d_se", f64::NAN);
-    put("d_within_3se", f64::NAN);
-    put("visible", rep.visible_count() as f64);
-    put("depth", rep.visible_depth.unwrap_or(f64::NAN));
-    out.timings.insert("t_fit".into(), serde_json::json!(t_fit));
+    out.metric("k_true", k_true);
+    out.metric("k_found", f64::NAN);
+    out.metric("k_ok", f64::NAN);
+    out.metric("positions_ok", f64::from(u8::from(positions_ok)));
+    out.metric("values", values as f64);
+    out.metric("within_2se", w2 as f64);
+    out.metric("within_3se", w3 as f64);
+    out.metric("wrong_flagged", f64::NAN);
+    out.metric("resolved", f64::NAN);
+    out.metric("fits_data", f64::from(u8::from(rep.fits_data)));
+    out.metric("sigma_ratio", sigma_ratio(rep.noise_sigma, data));
+    out.metric("d_fit", f64::NAN);
+    out.metric("d_se", f64::NAN);
+    out.metric("d_within_3se", f64::NAN);
+    out.metric("visible", rep.visible_count() as f64);
+    out.metric("depth", rep.visible_depth.unwrap_or(f64::NAN));
+    out.timing("t_fit", t_fit);
     Ok(out)
 }

@@ -21,12 +21,12 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use super::case::{CaseOutput, KindScene};
+use super::case::{range_problems, CaseOutput, KindScene};
 use crate::chain::{Chain, Units};
 use crate::detect::data::observations::{Observations, Series};
 use crate::detect::fit::options::FitSpec;
 use crate::detect::fit::{fit, FitReport, Status};
-use crate::error::{check_f64, Error, Result};
+use crate::error::{Error, Result};
 use crate::study::realistic::{record, Deviations};
 use crate::study::schema::FieldDoc;
 use serde::{Deserialize, Serialize};
@@ -44,7 +44,7 @@ pub const FIELDS: &[FieldDoc] = &[
     FieldDoc::new("dt", "float > 0", "0.2", "Sampling step, in units of sqrt(mass / k)."),
     FieldDoc::new("mass", "float > 0", "1", "Uniform mass (kg for an SI chain); defect masses scale with it."),
     FieldDoc::new("k", "float > 0", "1", "Uniform stiffness (N/m for an SI chain); the damping scales with sqrt(mass k)."),
-    FieldDoc::opaque("options", "table", "{}", "Options of `springmass fit` as text, by their long names with `_` (e.g. `{ fit = \"d\", defects = \"auto\" }`); n, mass, k and d come from the scene."),
+    FieldDoc::new("options", "table", "{}", "Options of `springmass fit` as text, by their long names with `_` (e.g. `{ fit = \"d\", defects = \"auto\" }`); n, mass, k and d come from the scene.").opaque(),
 ];
 
 /// `(column, meaning)` of the metrics.
@@ -112,17 +112,11 @@ pub struct Scene {
     pub options: FitSpec,
 }
 
-fn default_none() -> String {
-    "none".into()
-}
-fn default_t_end() -> f64 {
-    200.0
-}
-fn default_dt() -> f64 {
-    0.2
-}
-fn one() -> f64 {
-    1.0
+serde_defaults! {
+    fn default_none() -> String = "none".into();
+    fn default_t_end() -> f64 = 200.0;
+    fn default_dt() -> f64 = 0.2;
+    fn one() -> f64 = 1.0;
 }
 
 impl Scene {
@@ -188,33 +182,16 @@ impl KindScene for Scene {
         if let Err(e) = Deviations::named(&self.deviation, 1.0) {
             out.push(e);
         }
-        let checks = [
-            (
-                "level",
-                self.level,
-                (0.0..=1.0).contains(&self.level),
-                "in [0, 1]",
-            ),
-            (
-                "t_end",
-                self.t_end,
-                self.t_end > 0.0 && self.t_end <= 1e5,
-                "in (0, 1e5]",
-            ),
-            (
-                "dt",
-                self.dt,
-                self.dt > 0.0 && self.t_end / self.dt <= 1e6,
-                "> 0, at most 1e6 samples",
-            ),
+        out.extend(super::noise::record_problems(
+            self.level,
+            self.t_end,
+            self.dt,
+            "> 0, at most 1e6 samples",
+        ));
+        out.extend(range_problems(&[
             ("mass", self.mass, self.mass > 0.0, "> 0"),
             ("k", self.k, self.k > 0.0, "> 0"),
-        ];
-        for (field, v, ok, allowed) in checks {
-            if let Err(e) = check_f64(field, v, ok, allowed) {
-                out.push(e);
-            }
-        }
+        ]));
         let spec = FitSpec {
             n: 1,
             ..self.options.clone()
@@ -256,29 +233,26 @@ pub fn run(s: &Scene, seed: u64) -> Result<CaseOutput> {
     let score = super::noise::score(&rep, &truth);
     let converged = rep.status == Status::Converged;
     let mut out = CaseOutput::default();
-    let mut put = |k: &str, v: f64| {
-        out.metrics.insert(k.into(), serde_json::json!(v));
-    };
     let flag = |b: bool| f64::from(u8::from(b));
-    put("k_true", truth.defects().len() as f64);
-    put("k_found", rep.k as f64);
-    put("positions_ok", flag(score.positions_ok));
-    put("values", score.values as f64);
-    put("within_3se", score.within_3se as f64);
-    put("converged", flag(converged));
-    put("resolved", flag(rep.resolved));
-    put("mismatch", flag(rep.status == Status::ModelMismatch));
-    put(
+    out.metric("k_true", truth.defects().len() as f64);
+    out.metric("k_found", rep.k as f64);
+    out.metric("positions_ok", flag(score.positions_ok));
+    out.metric("values", score.values as f64);
+    out.metric("within_3se", score.within_3se as f64);
+    out.metric("converged", flag(converged));
+    out.metric("resolved", flag(rep.resolved));
+    out.metric("mismatch", flag(rep.status == Status::ModelMismatch));
+    out.metric(
         "wrong_confident",
         flag(!score.positions_ok && (converged || rep.resolved)),
     );
-    put("fits_data", flag(rep.fits_data));
-    put("in_interval", in_interval(&rep, &truth) as f64);
-    put("interval_level", rep.level);
+    out.metric("fits_data", flag(rep.fits_data));
+    out.metric("in_interval", in_interval(&rep, &truth) as f64);
+    out.metric("interval_level", rep.level);
     let (answer_p, truth_p) = probabilities(&rep, &truth);
-    put("answer_p", answer_p);
-    put("truth_p", truth_p);
-    out.timings.insert("t_fit".into(), serde_json::json!(t_fit));
+    out.metric("answer_p", answer_p);
+    out.metric("truth_p", truth_p);
+    out.timing("t_fit", t_fit);
     Ok(out)
 }
 

@@ -131,32 +131,16 @@ impl Default for PerturbationSpec {
     }
 }
 
-fn one() -> f64 {
-    1.0
-}
-fn paper_d() -> f64 {
-    0.1
-}
-fn default_scheme() -> String {
-    "cloak".into()
-}
-fn default_input() -> String {
-    "impulse".into()
-}
-fn default_duration() -> f64 {
-    10.0
-}
-fn default_t_end() -> f64 {
-    100.0
-}
-fn default_dt() -> f64 {
-    0.05
-}
-fn default_method() -> String {
-    "auto".into()
-}
-fn default_target() -> String {
-    "all".into()
+serde_defaults! {
+    fn one() -> f64 = 1.0;
+    fn paper_d() -> f64 = 0.1;
+    fn default_scheme() -> String = "cloak".into();
+    fn default_input() -> String = "impulse".into();
+    fn default_duration() -> f64 = 10.0;
+    fn default_t_end() -> f64 = 100.0;
+    fn default_dt() -> f64 = 0.05;
+    fn default_method() -> String = "auto".into();
+    fn default_target() -> String = "all".into();
 }
 
 /// Largest number of output samples of one case.
@@ -346,23 +330,17 @@ pub fn run(scene: &Scene, seed: u64) -> Result<CaseOutput> {
     let m = &run.metrics;
     let mut out = CaseOutput::default();
     out.metrics.insert("masses".into(), (scene.n + 1).into());
-    out.metrics.insert("rel_x_end".into(), num(m.rel_x_end));
-    out.metrics
-        .insert("rel_x1_minus_y1".into(), num(m.rel_x1_minus_y1));
-    out.metrics.insert(
-        "rel_x_end_vs_uncontrolled".into(),
-        num(m.rel_x_end_vs_uncontrolled),
-    );
-    out.metrics.insert("max_abs_y1".into(), num(m.max_abs_y1));
-    out.metrics
-        .insert("max_abs_y_end".into(), num(m.max_abs_y_end));
-    out.metrics
-        .insert("sim_vs_exact_y1".into(), num(m.sim_vs_exact_y1));
+    out.metric("rel_x_end", m.rel_x_end);
+    out.metric("rel_x1_minus_y1", m.rel_x1_minus_y1);
+    out.metric("rel_x_end_vs_uncontrolled", m.rel_x_end_vs_uncontrolled);
+    out.metric("max_abs_y1", m.max_abs_y1);
+    out.metric("max_abs_y_end", m.max_abs_y_end);
+    out.metric("sim_vs_exact_y1", m.sim_vs_exact_y1);
     out.metrics.insert(
         "sim_vs_exact_x1".into(),
         m.sim_vs_exact_x1.map_or(serde_json::Value::Null, num),
     );
-    out.timings.insert("t_verify".into(), num(t_verify));
+    out.timing("t_verify", t_verify);
     if scene.plots {
         out.plots = plots(scene, &run)?;
     }
@@ -406,18 +384,9 @@ fn plots(scene: &Scene, run: &Run) -> Result<Vec<CasePlot>> {
     .line(Line::new("without controls", series(&run.t, &run.y_end)))
     .line(Line::new("with controls", series(&run.t, &run.x_end)).dashed());
     Ok(vec![
-        CasePlot {
-            name: "controls".into(),
-            svg: controls.to_svg_string()?,
-        },
-        CasePlot {
-            name: "x1".into(),
-            svg: x1.to_svg_string()?,
-        },
-        CasePlot {
-            name: "x_end".into(),
-            svg: x_end.to_svg_string()?,
-        },
+        CasePlot::of_lines("controls", &controls)?,
+        CasePlot::of_lines("x1", &x1)?,
+        CasePlot::of_lines("x_end", &x_end)?,
     ])
 }
 
