@@ -633,9 +633,12 @@ fn fit_data_with_modal_damping() {
 /// masses 2.787 at 3, 2.949 at 4, 0.471 at 9 and 0.57 at 18, 1% noise: the
 /// nested search's best four were 3, 4, 6 and 9 with 6 at 0.51 standard
 /// errors from 1, and the answer 3, 4, 6 came back `converged` without the
-/// intervals). The best three, 3, 4 and 6, have a chi-square 33.6 higher:
-/// dropping mass 6 costs far more than its error says, so the answer stays
-/// the four, with mass 6 flagged (a step down to another answer, with its
+/// intervals; then the answer was the four, with mass 6 flagged). The set
+/// without the null defect, 3, 4 and 9, is now refitted from the four's
+/// values, and the search at four defects searched again from it
+/// (`fit::searched_again`): the answer holds 3, 4 and 9, and a fourth
+/// defect that the data do not place for sure is not called `converged`
+/// unless it is the truth's (a step down to another answer, with its
 /// doubt, is `stages::tests`).
 #[test]
 fn a_step_down_past_a_null_defect_to_another_answer_is_not_converged() {
@@ -659,17 +662,12 @@ fn a_step_down_past_a_null_defect_to_another_answer_is_not_converged() {
         "--threads",
         "1",
     ]));
-    assert_eq!(positions(&r), vec![3, 4, 6, 9], "{r}");
-    assert_eq!(r["status"], "not-identifiable", "{r}");
-    assert_eq!(r["resolved"], false, "{r}");
-    let msg = r["message"].as_str().unwrap();
-    assert!(msg.contains("standard errors of the uniform 1"), "{msg}");
-    let six = r["defects"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|d| d["at"] == 6)
-        .unwrap();
-    assert_eq!(six["identifiable"], false, "{r}");
+    let at = positions(&r);
+    assert!(at.starts_with(&[3, 4]) && at.contains(&9), "{r}");
+    assert!(!at.contains(&6), "{r}");
+    if at != [3, 4, 9, 18] {
+        assert_eq!(r["status"], "not-identifiable", "{r}");
+        assert_eq!(r["resolved"], false, "{r}");
+    }
     std::fs::remove_dir_all(&dir).ok();
 }

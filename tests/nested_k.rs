@@ -22,6 +22,11 @@ use springmass::scenes;
 /// Displacement of mass 1 after the impulse on `[0, 150]`, step 0.25, with
 /// white noise of `level` times its peak.
 fn record(n: usize, defects: &str, level: f64, seed: u64) -> Observations {
+    noisy_record(n, defects, level, seed).0
+}
+
+/// [`record`] and its noise level in the record's units.
+pub(crate) fn noisy_record(n: usize, defects: &str, level: f64, seed: u64) -> (Observations, f64) {
     let truth = scenes::paper_with(n, defects).unwrap();
     let (t, mut x) = crate::dense::records(&truth, &[1], 150.0, 0.25);
     let x = x.remove(0);
@@ -29,7 +34,8 @@ fn record(n: usize, defects: &str, level: f64, seed: u64) -> Observations {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let noise = Normal::new(0.0, level * peak).unwrap();
     let y = x.iter().map(|v| v + noise.sample(&mut rng)).collect();
-    Observations::Series(Series::new(t, y, None).unwrap())
+    let obs = Observations::Series(Series::new(t, y, None).unwrap());
+    (obs, level * peak)
 }
 
 fn fit_auto(obs: &Observations, n: usize, kinds: KindChoice, exhaustive: bool) -> FitReport {
@@ -43,13 +49,15 @@ fn fit_auto(obs: &Observations, n: usize, kinds: KindChoice, exhaustive: bool) -
     fit(obs, &Model::new(n).unwrap(), &opts).unwrap()
 }
 
-fn key(r: &FitReport) -> Vec<(&'static str, usize)> {
+/// The kinds and positions of a report's defects, sorted.
+pub(crate) fn key(r: &FitReport) -> Vec<(&'static str, usize)> {
     let mut k: Vec<_> = r.defects.iter().map(|d| (d.kind, d.at)).collect();
     k.sort();
     k
 }
 
-fn truth(defects: &str) -> Vec<(&str, usize)> {
+/// The kinds and positions of `defects` (`kind:at:value ...`), sorted.
+pub(crate) fn truth(defects: &str) -> Vec<(&str, usize)> {
     let mut w: Vec<_> = defects
         .split_whitespace()
         .map(|d| {

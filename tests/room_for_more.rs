@@ -10,28 +10,10 @@
 //! (`tests/common/dense.rs`, the matrix exponential, not the modal sum the
 //! fit uses), with white noise from a seeded ChaCha8 stream.
 
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
-use springmass::detect::data::observations::{Observations, Series};
-use springmass::detect::fit::{fit, DefectCount, FitOptions, FitReport, Model, NoiseSpec};
+use springmass::detect::fit::{fit, DefectCount, FitOptions, Model, NoiseSpec};
 use springmass::detect::unknowns::KindChoice;
-use springmass::scenes;
 
-/// Displacement of mass 1 after the impulse on `[0, 150]`, step 0.25, with
-/// white noise of `level` times its peak; returns the record and the noise
-/// level in its units.
-fn record(n: usize, defects: &str, level: f64, seed: u64) -> (Observations, f64) {
-    let truth = scenes::paper_with(n, defects).unwrap();
-    let (t, mut x) = crate::dense::records(&truth, &[1], 150.0, 0.25);
-    let x = x.remove(0);
-    let peak = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let noise = Normal::new(0.0, level * peak).unwrap();
-    let y = x.iter().map(|v| v + noise.sample(&mut rng)).collect();
-    let obs = Observations::Series(Series::new(t, y, None).unwrap());
-    (obs, level * peak)
-}
+use crate::nested_k::{key, noisy_record as record, truth};
 
 fn options(kinds: KindChoice, noise: NoiseSpec, defects: DefectCount) -> FitOptions {
     FitOptions {
@@ -42,25 +24,6 @@ fn options(kinds: KindChoice, noise: NoiseSpec, defects: DefectCount) -> FitOpti
         uncertainty: false,
         ..FitOptions::default()
     }
-}
-
-fn key(r: &FitReport) -> Vec<(&'static str, usize)> {
-    let mut k: Vec<_> = r.defects.iter().map(|d| (d.kind, d.at)).collect();
-    k.sort();
-    k
-}
-
-fn truth(defects: &str) -> Vec<(&str, usize)> {
-    let mut w: Vec<_> = defects
-        .split_whitespace()
-        .map(|d| {
-            let mut p = d.split(':');
-            let kind = p.next().unwrap();
-            (kind, p.next().unwrap().parse().unwrap())
-        })
-        .collect();
-    w.sort();
-    w
 }
 
 #[test]

@@ -463,13 +463,45 @@ fn fit_ks(
 /// Every fit made no worse than the next one's best answer with a defect
 /// dropped ([`Engine::backward`]), from the largest `k` down. Returns the
 /// evaluations spent.
-fn backward_pass(engine: &Engine, fits: &mut [KFit], sigma: f64) -> Result<usize> {
+fn backward_pass(engine: &Engine, fits: &mut Vec<KFit>, sigma: f64) -> Result<usize> {
     let mut spent = 0;
     for i in (1..fits.len()).rev() {
         if let Some(f) = engine.backward(&fits[i - 1], &fits[i], sigma)? {
             spent += f.evaluations.saturating_sub(fits[i - 1].evaluations);
             fits[i - 1] = f;
+            spent += searched_again(engine, fits, i, sigma)?;
         }
+    }
+    Ok(spent)
+}
+
+/// After the backward rule has bettered `fits[i - 1]`: a search at
+/// `fits[i]` narrowed from the answers at one defect fewer drew its sets
+/// from the answers just beaten, so it is searched again from the better
+/// one and kept where it is better (and the fit after it made no worse
+/// than it, [`Engine::monotone`]). Returns the evaluations spent. (n = 23,
+/// masses at 3, 4, 9 and 18, 1% noise: the nested search at four defects,
+/// drawn from 3, 4 and 6, missed the truth; once the backward rule had
+/// found 3, 4 and 9, the answer was those three, `converged`, where the
+/// truth has a chi-square 31 lower.)
+///
+/// # Errors
+/// As [`Engine::fit_k`].
+fn searched_again(engine: &Engine, fits: &mut Vec<KFit>, i: usize, sigma: f64) -> Result<usize> {
+    if fits[i].searched.is_none() {
+        return Ok(0);
+    }
+    let again = crate::cancel::checked(engine.fit_k(fits[i].k, sigma, Some(&fits[i - 1])))?;
+    let again = engine.monotone(&fits[i - 1], again, sigma)?;
+    let spent = again.evaluations;
+    if again.rss >= fits[i].rss {
+        return Ok(spent);
+    }
+    fits[i] = again;
+    if i + 1 < fits.len() {
+        let next = fits.remove(i + 1);
+        let next = engine.monotone(&fits[i], next, sigma)?;
+        fits.insert(i + 1, next);
     }
     Ok(spent)
 }

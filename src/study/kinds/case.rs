@@ -23,7 +23,7 @@ pub struct CaseOutput {
 }
 
 impl CaseOutput {
-    /// Record the metric `key`: `v` as a JSON number ([`num`]: `null` when
+    /// Record the metric `key`: `v` as a JSON number (`null` when
     /// not finite).
     pub fn metric(&mut self, key: &str, v: f64) {
         self.metrics.insert(key.into(), num(v));

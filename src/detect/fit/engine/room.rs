@@ -28,6 +28,7 @@ use crate::detect::fit::assemble::fits_data;
 use crate::detect::fit::options::DefectCount;
 use crate::detect::fit::select::Criterion;
 use crate::detect::fit::NoiseSpec;
+use crate::detect::model::MeasurementModel;
 use crate::detect::unknowns::DefectKind;
 use crate::error::Result;
 use crate::sensitivity::Param;
@@ -54,7 +55,7 @@ pub(super) struct Room {
 
 impl Engine<'_> {
     /// Whether the `auto` loop may stop at the last of `fits`: it explains
-    /// the record and [`Engine::room`] leaves one and two more defects
+    /// the record and [`Probe::bound`] leaves one and two more defects
     /// below [`MARGIN`] of the criterion's price (BIC only; never at effort
     /// high, with a scene's unknowns, positions or per-slot kinds given).
     pub(in crate::detect::fit) fn no_room_for_more(&self, fits: &[KFit]) -> bool {
@@ -75,23 +76,30 @@ impl Engine<'_> {
         if !fits_data(f, level, estimated) {
             return false;
         }
-        let Ok(Some(room)) = self.room(f) else {
-            return false;
-        };
         let scale = (level / f.sigma_fit).powi(2);
         // BIC's price of a defect of unknown position: two parameters
         let price = 2.0 * (f.n_data.max(2) as f64).ln();
-        room.one / scale < MARGIN * price && room.two / scale < MARGIN * 2.0 * price
+        let no_room = |room: Option<Room>| {
+            room.is_some_and(|r| {
+                r.one / scale < MARGIN * price && r.two / scale < MARGIN * 2.0 * price
+            })
+        };
+        let Ok(Some(probe)) = self.probe(f) else {
+            return false;
+        };
+        let Ok(data) = self.measurement_at(f.sigma_fit) else {
+            return false;
+        };
+        no_room(probe.bound(data.as_ref()).ok().flatten())
     }
 
-    /// [`Room`] at the answer of `f`, in the chi-square of the residuals
-    /// whitened at `f.sigma_fit`; `None` where the measurement model has no
-    /// analytic Jacobian, or an element of the search has no value to
-    /// differentiate at.
+    /// The [`Probe`] of the answer of `f`: `None` where an element of the
+    /// search has no value to differentiate at, or the search has more than
+    /// [`MAX_ELEMENTS`].
     ///
     /// # Errors
-    /// The measurement model's errors at the answer.
-    fn room(&self, f: &KFit) -> Result<Option<Room>> {
+    /// As the unknowns' construction and the answer's chain.
+    fn probe(&self, f: &KFit) -> Result<Option<Probe>> {
         let Some(best) = f.ranked.first() else {
             return Ok(None);
         };
@@ -112,20 +120,48 @@ impl Engine<'_> {
         if elements.is_empty() || elements.len() > MAX_ELEMENTS {
             return Ok(None);
         }
-        let Some(probe) = neutral(&answer, &elements)? else {
+        let Some(chain) = neutral(&answer, &elements)? else {
             return Ok(None);
         };
-        let data = self.measurement_at(f.sigma_fit)?;
         let own = answer.defects().len();
         let mut params: Vec<Param> = (0..own).map(Param::Defect).collect();
         params.extend_from_slice(self.model.fitted());
         let fitted = params.len();
         params.extend((0..elements.len()).map(|i| Param::Defect(own + i)));
-        let Some(j) = data.jacobian(&probe, &params)? else {
+        Ok(Some(Probe {
+            answer,
+            chain,
+            params,
+            fitted,
+        }))
+    }
+}
+
+/// An answer and every element the search may add to it, each a defect at
+/// its chain value ([`neutral`]).
+struct Probe {
+    answer: Chain,
+    /// The answer with the elements' neutral defects after its own.
+    chain: Chain,
+    /// The answer's own parameters (its defects' values, the fitted chain
+    /// parameters), then one per element.
+    params: Vec<Param>,
+    /// How many of `params` are the answer's own.
+    fitted: usize,
+}
+
+impl Probe {
+    /// [`Room`] at the answer on `data`, in the chi-square of its whitened
+    /// residuals; `None` where `data` has no analytic Jacobian.
+    ///
+    /// # Errors
+    /// The measurement model's errors at the answer.
+    fn bound(&self, data: &dyn MeasurementModel) -> Result<Option<Room>> {
+        let Some(j) = data.jacobian(&self.chain, &self.params)? else {
             return Ok(None);
         };
-        let r = DVector::from_vec(data.residuals(&answer)?);
-        Ok(Some(bound(&j, fitted, &r)))
+        let r = DVector::from_vec(data.residuals(&self.answer)?);
+        Ok(Some(bound(&j, self.fitted, &r)))
     }
 }
 
