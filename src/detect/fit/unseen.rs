@@ -217,7 +217,13 @@ impl Bounds {
                 .clone()
         };
         match q {
-            Some(q) => (&d - &*q * (q.transpose() * &d)).norm_squared(),
+            Some(q) => {
+                // d - Q Q^T d, without a copy of Q's transpose
+                let along = q.tr_mul(&d);
+                let mut off = d;
+                off.gemv(-1.0, &*q, &along, 1.0);
+                off.norm_squared()
+            }
             None if m < self.own.ncols() => 0.0,
             None => d.norm_squared(),
         }

@@ -202,9 +202,10 @@ fn bound(j: &DMatrix<f64>, fitted: usize, r: &DVector<f64>) -> Room {
     let mut c = j.columns(fitted, m).into_owned();
     if fitted > 0 {
         let q = j.columns(0, fitted).into_owned().qr().q();
-        c -= &q * (q.transpose() * &c);
+        c.gemm(-1.0, &q, &q.tr_mul(&c), 1.0);
     }
-    let b = c.transpose() * r;
+    let b = c.tr_mul(r);
+    // (a transposed copy: the blocked product is faster than dot products)
     let g = c.transpose() * &c;
     // a column the answer's parameters absorb entirely shows nothing
     let tiny = 1e-12 * g.diagonal().max().max(f64::MIN_POSITIVE);
