@@ -314,6 +314,36 @@ pub const DERIVATIVE_ANCHOR: usize = 256;
 /// chain fit's few columns keep to the bit).
 pub const GEMM_COLUMNS: usize = 8;
 
+/// Steps the poles `p` along the uniform grid `ts` (step `dt`): for each
+/// sample `i` at `t >= 0`, calls `f(i, t, w)` with `w[l] = e^{p[l] t}`,
+/// taken exactly every [`DERIVATIVE_ANCHOR`] samples and at the first
+/// sample from `t = 0` on, and otherwise one complex multiplication by
+/// `e^{p[l] dt}` from the sample before (the pole sums' shared recurrence).
+fn step_poles<const L: usize>(
+    p: &[Complex64; L],
+    ts: &[f64],
+    dt: f64,
+    mut f: impl FnMut(usize, f64, &[Complex64; L]),
+) {
+    let z: [Complex64; L] = std::array::from_fn(|l| (p[l] * dt).exp());
+    let mut w = [Complex64::new(0.0, 0.0); L];
+    for (i, &t) in ts.iter().enumerate() {
+        if t < 0.0 {
+            continue;
+        }
+        if i % DERIVATIVE_ANCHOR == 0 || t - dt < 0.0 {
+            for l in 0..L {
+                w[l] = (p[l] * t).exp();
+            }
+        } else {
+            for l in 0..L {
+                w[l] *= z[l];
+            }
+        }
+        f(i, t, &w);
+    }
+}
+
 /// The step `dt` when `ts` is uniform to rounding: every
 /// `|t_i - (t_0 + i dt)| <= 8 eps max(|t_0|, |t_last|, dt)` with
 /// `dt = (t_last - t_0) / (N - 1) > 0`; `None` otherwise or for fewer than
@@ -1538,21 +1568,7 @@ impl DoublePoleSum {
                     })
                 })
                 .collect();
-            let z: [Complex64; L] = std::array::from_fn(|l| (p[l] * dt).exp());
-            let mut w = [zero; L];
-            for (i, &t) in ts.iter().enumerate() {
-                if t < 0.0 {
-                    continue;
-                }
-                if i % DERIVATIVE_ANCHOR == 0 || t - dt < 0.0 {
-                    for l in 0..L {
-                        w[l] = (p[l] * t).exp();
-                    }
-                } else {
-                    for l in 0..L {
-                        w[l] *= z[l];
-                    }
-                }
+            step_poles(&p, ts, dt, |i, t, w| {
                 for (o, c) in out.iter_mut().zip(&coef) {
                     let mut acc = 0.0;
                     for l in 0..L {
@@ -1561,7 +1577,7 @@ impl DoublePoleSum {
                     }
                     o[i] += acc;
                 }
-            }
+            });
         }
         out
     }
@@ -1576,22 +1592,12 @@ impl DoublePoleSum {
         let terms = &sums[0].terms;
         let mut basis = DMatrix::zeros(ts.len(), 4 * terms.len());
         for (j, d) in terms.iter().enumerate() {
-            let z = (d.p * dt).exp();
-            let mut w = Complex64::new(0.0, 0.0);
-            for (i, &t) in ts.iter().enumerate() {
-                if t < 0.0 {
-                    continue;
-                }
-                if i % DERIVATIVE_ANCHOR == 0 || t - dt < 0.0 {
-                    w = (d.p * t).exp();
-                } else {
-                    w *= z;
-                }
+            step_poles(&[d.p], ts, dt, |i, t, [w]| {
                 basis[(i, 4 * j)] = t * w.re;
                 basis[(i, 4 * j + 1)] = t * w.im;
                 basis[(i, 4 * j + 2)] = w.re;
                 basis[(i, 4 * j + 3)] = w.im;
-            }
+            });
         }
         let coef = DMatrix::from_fn(4 * terms.len(), sums.len(), |row, c| {
             let d = &sums[c].terms[row / 4];
