@@ -61,6 +61,7 @@ use crate::error::{Error, Result};
 use num_complex::Complex64;
 use std::sync::Arc;
 
+mod kernel;
 mod run;
 use run::MAX_STORED;
 pub use run::{simulate, sub_steps, Run, Saved, TimeGrid, ENOUGH_EVERY, SAVED_EVERY};

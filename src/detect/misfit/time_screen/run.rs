@@ -4,6 +4,7 @@
 //! ([`simulate`], exact to rounding as [`crate::time::simulate`]'s `Rk`)
 //! and the states saved along it to restart from ([`Saved`]).
 
+use super::kernel::{self, max_abs};
 use crate::chain::Chain;
 use crate::error::{Error, Result};
 /// Largest number of stored samples (masses x internal steps) of one
@@ -611,42 +612,29 @@ impl Stepper {
                 entries[1 + c] = st.nx[p];
                 entries[1 + nt + c] = st.nv[p];
             }
-            for (i, (row, f)) in between.chunks_mut(w).zip(pw.iter_mut()).enumerate() {
-                *f *= (i + 1) as f64 / b as f64;
-                for (r, e) in row.iter_mut().zip(&entries) {
-                    *r += *f * e;
-                }
-            }
+            kernel::accumulate(between, &mut pw, b, &entries);
         });
     }
 
     /// The next Taylor term `alpha A t` into `n*`, added to the state;
-    /// returns its largest entry.
+    /// returns its largest entry ([`kernel::term`]).
     #[inline]
     fn term(&mut self, alpha: f64, hi: usize) -> f64 {
-        let w = hi + 2;
-        let (txw, tvw) = (&self.tx[..w], &self.tv[..w]);
-        let (nxw, nvw) = (&mut self.nx[1..=hi], &mut self.nv[1..=hi]);
-        let (xw, vw) = (&mut self.x[1..=hi], &mut self.v[1..=hi]);
-        let (low, dgw, upw, ddw) = (
-            &self.lo[1..=hi],
-            &self.dg[1..=hi],
-            &self.up[1..=hi],
-            &self.dd[1..=hi],
-        );
-        for i in 0..hi {
-            let a = alpha
-                * (low[i] * txw[i]
-                    + dgw[i] * txw[i + 1]
-                    + upw[i] * txw[i + 2]
-                    + ddw[i] * tvw[i + 1]);
-            let b = alpha * tvw[i + 1];
-            nvw[i] = a;
-            nxw[i] = b;
-            vw[i] += a;
-            xw[i] += b;
-        }
-        max_abs(nvw, nxw)
+        kernel::term(
+            alpha,
+            kernel::Term {
+                lo: &self.lo[1..=hi],
+                dg: &self.dg[1..=hi],
+                up: &self.up[1..=hi],
+                dd: &self.dd[1..=hi],
+                tx: &self.tx[..hi + 2],
+                tv: &self.tv[..hi + 2],
+                nx: &mut self.nx[1..=hi],
+                nv: &mut self.nv[1..=hi],
+                x: &mut self.x[1..=hi],
+                v: &mut self.v[1..=hi],
+            },
+        )
     }
 
     /// The first row (1-based) in which `other`'s stepping differs from
@@ -684,33 +672,6 @@ impl Stepper {
             self.reach = self.n;
         }
     }
-}
-
-/// The largest `|v|` of `a` and `b` (NaN ignored, 0 for none), in four
-/// independent lanes: a single running maximum waits on each comparison
-/// (half the stepping's time when it did), the lanes do not; the result is
-/// the same.
-#[inline]
-fn max_abs(a: &[f64], b: &[f64]) -> f64 {
-    let mut m = [0.0f64; 4];
-    for s in [a, b] {
-        let mut it = s.chunks_exact(4);
-        for c in &mut it {
-            for (l, &v) in m.iter_mut().zip(c) {
-                let v = v.abs();
-                if v > *l {
-                    *l = v;
-                }
-            }
-        }
-        for &v in it.remainder() {
-            let v = v.abs();
-            if v > m[0] {
-                m[0] = v;
-            }
-        }
-    }
-    m.into_iter().fold(0.0, |a, v| if v > a { v } else { a })
 }
 
 /// The screen's kernels take the grounded model only.
