@@ -274,7 +274,13 @@ impl Ctx<'_, '_> {
     /// Stage 0: the fixed slots, their free values fitted.
     fn start(&self) -> Result<Stage> {
         let (pairs, values) = self.g.start_pairs();
-        let fit = self.refit(&pairs, &self.g.slot_of(0), &values, f64::INFINITY)?;
+        let fit = self.refit(
+            &pairs,
+            &self.g.slot_of(0),
+            &values,
+            f64::INFINITY,
+            self.g.opts.time.max_iter,
+        )?;
         Ok(Stage {
             best: fit.clone(),
             seen: vec![fit],
@@ -361,7 +367,8 @@ impl Ctx<'_, '_> {
             }
             let mut values: Vec<f64> = cur.chain.defects().iter().map(|d| d.value()).collect();
             values.push(v);
-            self.refit(&pairs, &slot_of, &values, beat).ok()
+            self.refit(&pairs, &slot_of, &values, beat, self.g.opts.time.max_iter)
+                .ok()
         });
         fits.into_iter().flatten().collect()
     }
@@ -388,6 +395,7 @@ impl Ctx<'_, '_> {
         })?;
         cur = self.neighbours(prev, cur, n_fixed, &mut seen);
         cur = self.moves(cur, n_fixed, &mut seen)?;
+        cur = self.polished(cur, n_fixed, &mut seen);
         Ok(Stage {
             best: cur,
             seen,
@@ -464,6 +472,28 @@ impl Ctx<'_, '_> {
         Ok(cur)
     }
 
+    /// The stage's best fit, its values refitted to the minimum when its
+    /// capped refit stopped short ([`TimeStage::max_iter`] iterations, or
+    /// abandoned): the search compares hypotheses on a few iterations each,
+    /// but the answer's values and standard errors must be the minimum's
+    /// (a deep defect's flat valley took a dozen iterations and more). At
+    /// most [`POLISH_ITER`] iterations; kept (and added to `seen`) when it
+    /// is no worse.
+    fn polished(&self, cur: TFit, n_fixed: usize, seen: &mut Vec<TFit>) -> TFit {
+        if cur.converged {
+            return cur;
+        }
+        let slot_of = self.g.slot_of(cur.pairs.len() - n_fixed);
+        let values: Vec<f64> = cur.chain.defects().iter().map(|d| d.value()).collect();
+        match self.refit(&cur.pairs, &slot_of, &values, f64::INFINITY, POLISH_ITER) {
+            Ok(f) if f.rss <= cur.rss => {
+                seen.push(f.clone());
+                f
+            }
+            _ => cur,
+        }
+    }
+
     /// Refit the free values of `pairs` (slot order, `slot_of` their slots)
     /// from `values` on the record; the placed defects in canonical order.
     /// A refit whose chi-square is still above `beat` (unwhitened) after
@@ -475,6 +505,7 @@ impl Ctx<'_, '_> {
         slot_of: &[usize],
         values: &[f64],
         beat: f64,
+        max_iter: usize,
     ) -> Result<TFit> {
         let g = self.g;
         let slots = g.unknowns.slots();
@@ -520,7 +551,7 @@ impl Ctx<'_, '_> {
             abandoned: false,
         };
         let lm_opts = LmOptions {
-            max_iter: g.opts.time.max_iter,
+            max_iter,
             rtol: 1e-7,
             xtol: 1e-7,
             ..LmOptions::default()
@@ -581,6 +612,10 @@ struct Values<'a> {
     evaluations: usize,
     abandoned: bool,
 }
+
+/// Levenberg-Marquardt iterations of the refit of a stage's best fit
+/// that stopped short ([`Ctx::polished`]).
+const POLISH_ITER: usize = 100;
 
 /// Evaluations after which a refit that has not beaten its target is abandoned.
 const ABANDON_AFTER: usize = 4;

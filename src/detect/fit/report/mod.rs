@@ -256,7 +256,8 @@ pub struct FitReport {
     pub evaluations: usize,
     /// Position (and kind) sets fitted for the chosen number of defects.
     pub sets_fitted: usize,
-    /// Whether every position set was ranked (false: the Woodbury kernel's
+    /// Whether every position set was ranked (false: a search that does
+    /// not enumerate, greedy, relax or stochastic; the Woodbury kernel's
     /// beam search, for more sets than `max_sets`; or a search over every
     /// kind whose kinds per position were narrowed, `detect::fit::narrow`,
     /// which `method` then names).
