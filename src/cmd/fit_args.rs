@@ -85,7 +85,8 @@ pub struct Args {
     /// Kinds of defect sought: mass, spring, damper, ground (a spring to the
     /// ground) or any (mass, spring or damper) [default: any; mass with
     /// another --method than enumerate, and in chains too long to
-    /// enumerate every kind (the search is then greedy)].
+    /// enumerate every kind (the search is then greedy, as it is for 3
+    /// defects or more told in a chain of 40 masses or more)].
     #[arg(long, requires = "data")]
     pub kinds: Option<String>,
     /// Noise standard deviation of the samples: auto (estimated) or SIGMA [default: auto].

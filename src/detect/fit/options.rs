@@ -55,6 +55,8 @@ use crate::error::{Error, Result};
 use crate::forward::Observable;
 use serde::Serialize;
 
+mod default_search;
+
 /// How many defects to look for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub enum DefectCount {
@@ -633,36 +635,6 @@ impl FitSpec {
         Ok(opts)
     }
 
-    /// The kinds sought and the search, into `opts` (whose number of
-    /// defects, effort and exhaustiveness are set). Not asked for: every
-    /// kind with the enumeration, masses with another search
-    /// ([`crate::detect::search::Search::default_kinds`]) and where an
-    /// enumeration of every kind would pass `max_sets`; and the
-    /// enumeration, unless the chain is too long to enumerate.
-    ///
-    /// # Errors
-    /// The parse errors of `kinds` and `method`.
-    fn kinds_and_method(&self, opts: &mut FitOptions) -> Result<()> {
-        let asked = self.method.as_deref().map(FitMethod::parse).transpose()?;
-        opts.kinds = match &self.kinds {
-            Some(k) => parse_kinds(k)?,
-            None => asked.unwrap_or_default().search().default_kinds(),
-        };
-        if self.kinds.is_none() && asked.is_none() && enumeration_too_large(self.n, opts) {
-            opts.kinds = KindChoice::Mass;
-        }
-        if let Some(m) = asked {
-            opts.method = m;
-        } else if enumeration_too_large(self.n, opts) && self.sensors.len() <= 1 {
-            // not asked for: a chain too long to enumerate is searched
-            // greedily (the report's method line says so; the greedy
-            // search reads one sensor: several are enumerated, or refused
-            // beyond `max_sets`)
-            opts.method = FitMethod::Greedy;
-        }
-        Ok(())
-    }
-
     /// The window of a measured force ([`ForceWindow::parse`]).
     ///
     /// # Errors
@@ -870,41 +842,6 @@ impl FitSpec {
     }
 }
 
-/// Whether enumerating the position sets of the largest number of defects
-/// `opts` may try would exceed `opts.max_sets` (about `C(P, k)` sets for `P`
-/// positions of the allowed kinds), with one kind choice for every defect
-/// (what the greedy search needs). With every kind sought and the number
-/// of defects left to the criterion, the searches from three defects on
-/// are nested in the answers at one fewer (unless `exhaustive`; effort
-/// high nests only searches beyond `max_sets`): such a search is enumerated
-/// where one kind's would be and its largest search in full stays within
-/// `max_sets`.
-fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
-    let per = opts
-        .slot_kinds
-        .first()
-        .copied()
-        .unwrap_or(opts.kinds)
-        .kinds()
-        .len();
-    let same_kinds = opts.slot_kinds.windows(2).all(|w| w[0] == w[1]);
-    let sets = |positions: usize, k: usize| {
-        (0..k).fold(1.0, |c, i| {
-            c * (positions as f64 - i as f64) / (i + 1) as f64
-        })
-    };
-    let max = opts.max_sets as f64;
-    let too_large = match opts.defects {
-        DefectCount::Exactly(k) => sets((n + 1) * per, k) > max,
-        DefectCount::Auto { k_max } if per > 1 && !opts.exhaustive => {
-            let full = k_max.min(super::narrow::NEST_FROM - 1);
-            sets(n + 1, k_max) > max || sets((n + 1) * per, full) > max
-        }
-        DefectCount::Auto { k_max } => sets((n + 1) * per, k_max) > max,
-    };
-    same_kinds && too_large
-}
-
 /// `mass`, `spring`, `damper` or `any` (surrounding blanks ignored).
 ///
 /// # Errors
@@ -1011,43 +948,6 @@ mod tests {
             spec.options().unwrap().defects,
             DefectCount::Auto { k_max: 4 }
         );
-    }
-
-    /// Every kind by default where the enumeration can take it; masses with
-    /// another search, and where an enumeration of every kind would pass
-    /// `max_sets` (the search is then greedy, as for masses); a kind asked
-    /// for is kept.
-    #[test]
-    fn the_default_kinds_follow_the_search() {
-        let kinds = |n: usize, method: Option<&str>, kinds: Option<&str>| {
-            let o = FitSpec {
-                method: method.map(str::to_string),
-                kinds: kinds.map(str::to_string),
-                ..FitSpec::new(n)
-            }
-            .options()
-            .unwrap();
-            (o.kinds, o.method)
-        };
-        use FitMethod::*;
-        use KindChoice::{Any, Mass, Spring};
-        assert_eq!(kinds(20, None, None), (Any, Enumerate));
-        assert_eq!(kinds(47, None, None), (Any, Enumerate));
-        for m in ["greedy", "relax", "ga", "nelder-mead", "pso"] {
-            let method = FitMethod::parse(m).unwrap();
-            assert_eq!(kinds(20, Some(m), None), (Mass, method), "{m}");
-        }
-        assert_eq!(kinds(20, Some("greedy"), Some("any")), (Any, Greedy));
-        assert_eq!(kinds(20, None, Some("spring")), (Spring, Enumerate));
-        // four of n + 1 positions pass max_sets from n = 48 on: masses,
-        // greedily, as before every kind was the default
-        assert_eq!(kinds(48, None, None), (Mass, Greedy));
-        assert_eq!(kinds(48, None, Some("any")), (Any, Greedy));
-        assert_eq!(kinds(1000, None, None), (Mass, Greedy));
-        // every choice's name parses back to it
-        for k in [Any, Mass, Spring, KindChoice::MassOrSpring] {
-            assert_eq!(parse_kinds(k.name()).unwrap(), k);
-        }
     }
 
     #[test]

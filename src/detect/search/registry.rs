@@ -281,7 +281,10 @@ pub fn names(keep: impl Fn(&Search) -> bool, last: &str) -> String {
 
 /// The command line's help of `--method`: one line per search.
 pub fn cli_help() -> String {
-    let mut out = String::from("The search over positions [default: enumerate]:");
+    let mut out = String::from(
+        "The search over positions [default: enumerate; greedy for chains too long to \
+         enumerate and for 3 defects or more told in a chain of 40 masses or more]:",
+    );
     for s in SEARCHES {
         out.push_str(&format!("\n  {}: {}", s.name, s.help));
     }

@@ -428,8 +428,12 @@ impl FitReport {
             out.push_str(&p.lines());
         }
         self.modes_line(&mut out);
+        let ranked = match self.exhaustive {
+            true => "",
+            false => " (not every set ranked)",
+        };
         out.push_str(&format!(
-            "{}\nmisfit {}, method {}, {} evaluations, {:.2} s\n",
+            "{}\nmisfit {}, method {}{ranked}, {} evaluations, {:.2} s\n",
             self.setup, self.misfit, self.method, self.evaluations, self.wall_time_s
         ));
         out
