@@ -62,28 +62,30 @@ fn term_body(alpha: f64, a: Term<'_>, max: impl Fn(&[f64], &[f64]) -> f64) -> f6
 
 /// `between` (rows of `entries.len()` values, one per internal step `i =
 /// 1..b-1` inside a block step of `b`) plus `(i / b)^m entries` for the
-/// `m`-th term: `pw[i - 1]` holds `(i / b)^(m - 1)` and is raised here.
+/// `m`-th term: `pw[i - 1]` holds `(i / b)^(m - 1)` and is raised here by
+/// `ratio[i - 1] = i / b` (divided once per block step, not per term).
 #[inline]
-pub(super) fn accumulate(between: &mut [f64], pw: &mut [f64], b: usize, entries: &[f64]) {
+pub(super) fn accumulate(between: &mut [f64], pw: &mut [f64], ratio: &[f64], entries: &[f64]) {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: the processor has AVX2 (detected just above).
-        return unsafe { accumulate_avx2(between, pw, b, entries) };
+        return unsafe { accumulate_avx2(between, pw, ratio, entries) };
     }
-    accumulate_body(between, pw, b, entries)
+    accumulate_body(between, pw, ratio, entries)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn accumulate_avx2(between: &mut [f64], pw: &mut [f64], b: usize, entries: &[f64]) {
-    accumulate_body(between, pw, b, entries)
+fn accumulate_avx2(between: &mut [f64], pw: &mut [f64], ratio: &[f64], entries: &[f64]) {
+    accumulate_body(between, pw, ratio, entries)
 }
 
 #[inline(always)]
-fn accumulate_body(between: &mut [f64], pw: &mut [f64], b: usize, entries: &[f64]) {
-    let w = entries.len();
-    for (i, (row, f)) in between.chunks_mut(w).zip(pw.iter_mut()).enumerate() {
-        *f *= (i + 1) as f64 / b as f64;
+fn accumulate_body(between: &mut [f64], pw: &mut [f64], ratio: &[f64], entries: &[f64]) {
+    for (f, r) in pw.iter_mut().zip(ratio) {
+        *f *= r;
+    }
+    for (row, f) in between.chunks_mut(entries.len()).zip(pw.iter()) {
         for (r, e) in row.iter_mut().zip(entries) {
             *r += *f * e;
         }
@@ -250,11 +252,12 @@ mod tests {
                 let acc = |dispatch: bool| {
                     let mut between = mk(0.9, (b - 1) * hi);
                     let mut pw = vec![1.0; b - 1];
+                    let ratio: Vec<f64> = (1..b).map(|i| i as f64 / b as f64).collect();
                     for _ in 0..3 {
                         if dispatch {
-                            accumulate(&mut between, &mut pw, b, &tx[..hi]);
+                            accumulate(&mut between, &mut pw, &ratio, &tx[..hi]);
                         } else {
-                            accumulate_body(&mut between, &mut pw, b, &tx[..hi]);
+                            accumulate_body(&mut between, &mut pw, &ratio, &tx[..hi]);
                         }
                     }
                     between

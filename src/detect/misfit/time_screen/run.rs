@@ -605,6 +605,7 @@ impl Stepper {
         // (i / b)^term for the step i inside, and the term's entries that
         // are summed there
         let mut pw = vec![1.0; b - 1];
+        let ratio: Vec<f64> = (1..b).map(|i| i as f64 / b as f64).collect();
         let mut entries = vec![0.0; w];
         self.series(b as f64 * dt, hi, scale, |st| {
             entries[0] = st.nx[1];
@@ -612,7 +613,7 @@ impl Stepper {
                 entries[1 + c] = st.nx[p];
                 entries[1 + nt + c] = st.nv[p];
             }
-            kernel::accumulate(between, &mut pw, b, &entries);
+            kernel::accumulate(between, &mut pw, &ratio, &entries);
         });
     }
 
