@@ -82,6 +82,20 @@ fn simulated(chain: &Chain) -> bool {
         && !LAST_MODES.with(|c| c.borrow().as_ref().is_some_and(|(k, _)| k == chain))
 }
 
+/// Defect `i` of `chain` (a Jacobian's [`Param::Defect`]).
+///
+/// # Errors
+/// An index out of range (field `params`).
+fn defect_at(chain: &Chain, i: usize) -> Result<&crate::chain::Defect> {
+    chain.defects().get(i).ok_or_else(|| {
+        Error::invalid(
+            "params",
+            format!("defect {i}"),
+            format!("an index below {}", chain.defects().len()),
+        )
+    })
+}
+
 /// Whether `chain`'s record can be simulated by [`simulate`]: an impulse
 /// to respond to, grounded damping.
 fn steppable(chain: &Chain) -> bool {
@@ -379,14 +393,7 @@ impl TimeMisfit {
             let Param::Defect(i) = *p else {
                 return Ok(None);
             };
-            let d = chain.defects().get(i).ok_or_else(|| {
-                Error::invalid(
-                    "params",
-                    format!("defect {i}"),
-                    format!("an index below {}", chain.defects().len()),
-                )
-            })?;
-            cands.push(DefectKind::key_of(d));
+            cands.push(DefectKind::key_of(defect_at(chain, i)?));
         }
         let Some(screen) = Screen::new(self.data.t(), self.data.y(), chain) else {
             return Ok(None);
@@ -421,14 +428,7 @@ impl TimeMisfit {
         for p in params {
             let col = match *p {
                 Param::Defect(i) => {
-                    let d = chain.defects().get(i).ok_or_else(|| {
-                        Error::invalid(
-                            "params",
-                            format!("defect {i}"),
-                            format!("an index below {}", chain.defects().len()),
-                        )
-                    })?;
-                    let site = chain.site(d);
+                    let site = chain.site(defect_at(chain, i)?);
                     let u: Vec<(usize, f64)> = site.probe.entries(n).collect();
                     match modes.value_derivative_poly(at, 1, gamma, &u, site.poly)? {
                         Some(d) => Some(d),
