@@ -740,7 +740,8 @@ def fit(
     method : str, optional
         The search over positions, a name of :func:`searches` (default
         ``"enumerate"``, or ``"greedy"`` when enumeration would pass 200 000
-        position sets):
+        position sets, and for three defects or more told in a chain of 40
+        masses or more):
 @SEARCHES@
     seed : int, default 0
         Seed of the stochastic searches (same seed, same answer).
