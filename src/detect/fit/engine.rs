@@ -486,18 +486,19 @@ impl Engine<'_> {
     /// Run the options' search for the unknowns of `k` defects.
     fn search(&self, unknowns: &Unknowns, k: usize, sigma: f64, x: &Inputs<'_>) -> Result<Found> {
         let kernel = self.woodbury(unknowns)?;
+        let enumerated = self.opts.method == FitMethod::Enumerate || k == 0;
         let mut found = match (&kernel, self.opts.method) {
             (Some((misfit, mass)), FitMethod::Enumerate) => {
-                return self.search_kernel(unknowns, misfit, mass, sigma, x)
+                self.search_kernel(unknowns, misfit, mass, sigma, x)?
             }
-            (_, FitMethod::Enumerate) => return self.search_general(unknowns, x),
-            _ if k == 0 => return self.search_general(unknowns, x),
+            (_, FitMethod::Enumerate) => self.search_general(unknowns, x)?,
+            _ if k == 0 => self.search_general(unknowns, x)?,
             (_, FitMethod::Relax) => self.search_relax(unknowns, x)?,
             (_, FitMethod::Greedy) => self.search_greedy(unknowns, x)?,
             _ => self.search_stochastic(unknowns, kernel.as_ref(), x)?,
         };
         // a search that does not enumerate ranks some sets only
-        found.exhaustive = false;
+        found.exhaustive &= enumerated;
         Ok(found)
     }
 

@@ -61,7 +61,6 @@ fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
         .unwrap_or(opts.kinds)
         .kinds()
         .len();
-    let same_kinds = opts.slot_kinds.windows(2).all(|w| w[0] == w[1]);
     let sets = |positions: usize, k: usize| {
         (0..k).fold(1.0, |c, i| {
             c * (positions as f64 - i as f64) / (i + 1) as f64
@@ -76,7 +75,7 @@ fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
         }
         DefectCount::Auto { k_max } => sets((n + 1) * per, k_max) > max,
     };
-    same_kinds && too_large
+    same_kinds(opts) && too_large
 }
 
 /// Chains from this many masses on are searched greedily when told
@@ -98,7 +97,12 @@ fn greedy_by_default(n: usize, opts: &FitOptions) -> bool {
         && n >= GREEDY_FROM_N
         && !opts.exhaustive
         && opts.effort != Effort::High
-        && opts.slot_kinds.windows(2).all(|w| w[0] == w[1])
+        && same_kinds(opts)
+}
+
+/// One kind choice for every defect (what the greedy search takes).
+fn same_kinds(opts: &FitOptions) -> bool {
+    opts.slot_kinds.windows(2).all(|w| w[0] == w[1])
 }
 
 #[cfg(test)]

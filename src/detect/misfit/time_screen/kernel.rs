@@ -31,18 +31,17 @@ pub(super) fn term(alpha: f64, a: Term<'_>) -> f64 {
         // SAFETY: the processor has AVX2 (detected just above).
         return unsafe { term_avx2(alpha, a) };
     }
-    term_body(alpha, a, max_abs)
+    term_body(alpha, a)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn term_avx2(alpha: f64, a: Term<'_>) -> f64 {
-    // a closure: a target-feature function is not `Fn` itself
-    term_body(alpha, a, |p, q| max_abs_avx2(p, q))
+    term_body(alpha, a)
 }
 
 #[inline(always)]
-fn term_body(alpha: f64, a: Term<'_>, max: impl Fn(&[f64], &[f64]) -> f64) -> f64 {
+fn term_body(alpha: f64, a: Term<'_>) -> f64 {
     let hi = a.lo.len();
     let (tx, tv) = (&a.tx[..hi + 2], &a.tv[..hi + 2]);
     let (nx, nv) = (&mut a.nx[..hi], &mut a.nv[..hi]);
@@ -57,7 +56,7 @@ fn term_body(alpha: f64, a: Term<'_>, max: impl Fn(&[f64], &[f64]) -> f64) -> f6
         v[i] += acc;
         x[i] += vel;
     }
-    max(nv, nx)
+    max_abs(nv, nx)
 }
 
 /// `between` (rows of `entries.len()` values, one per internal step `i =
@@ -119,91 +118,9 @@ pub(super) fn max_abs(a: &[f64], b: &[f64]) -> f64 {
     m.into_iter().fold(0.0, |a, v| if v > a { v } else { a })
 }
 
-/// [`max_abs`] four lanes at a time in one AVX register: `vmaxpd(v, l)` is
-/// `if v > l { v } else { l }`, the same select (a NaN `v` leaves `l`), so
-/// the lanes, and the result, are [`max_abs`]'s.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn max_abs_avx2(a: &[f64], b: &[f64]) -> f64 {
-    use std::arch::x86_64::{
-        _mm256_andnot_pd, _mm256_loadu_pd, _mm256_max_pd, _mm256_set1_pd, _mm256_setzero_pd,
-        _mm256_storeu_pd,
-    };
-    let sign = _mm256_set1_pd(-0.0);
-    let mut lanes = _mm256_setzero_pd();
-    let mut m = [0.0f64; 4];
-    for s in [a, b] {
-        let mut it = s.chunks_exact(4);
-        for c in &mut it {
-            // SAFETY: `c` holds four f64 (an unaligned load reads them).
-            let v = unsafe { _mm256_loadu_pd(c.as_ptr()) };
-            lanes = _mm256_max_pd(_mm256_andnot_pd(sign, v), lanes);
-        }
-        for &v in it.remainder() {
-            let v = v.abs();
-            if v > m[0] {
-                m[0] = v;
-            }
-        }
-    }
-    let mut l = [0.0f64; 4];
-    // SAFETY: `l` holds four f64 (an unaligned store writes them).
-    unsafe { _mm256_storeu_pd(l.as_mut_ptr(), lanes) };
-    // the remainders' maximum joins lane 0 as it would have there
-    m[0] = if l[0] > m[0] { l[0] } else { m[0] };
-    m[1..].copy_from_slice(&l[1..]);
-    m.into_iter().fold(0.0, |a, v| if v > a { v } else { a })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The AVX maximum is the lanes' maximum, NaN ignored, over lengths
-    /// with every remainder, NaN, infinities and signed zeros.
-    #[test]
-    #[cfg(target_arch = "x86_64")]
-    fn vector_maximum_is_the_lanes_maximum() {
-        if !std::is_x86_feature_detected!("avx2") {
-            return;
-        }
-        let special = [
-            f64::NAN,
-            -0.0,
-            0.0,
-            -3.5,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            1e-300,
-        ];
-        for la in 0..11usize {
-            for lb in 0..9usize {
-                for (k, &x) in special.iter().enumerate() {
-                    let a: Vec<f64> = (0..la)
-                        .map(|i| {
-                            if i == k % la.max(1) {
-                                x
-                            } else {
-                                (i as f64 - 4.2).sin()
-                            }
-                        })
-                        .collect();
-                    let b: Vec<f64> = (0..lb)
-                        .map(|i| {
-                            if i + 1 == lb {
-                                -x
-                            } else {
-                                (i as f64 * 1.3).cos() - 0.5
-                            }
-                        })
-                        .collect();
-                    // SAFETY: the processor has AVX2 (checked above).
-                    let v = unsafe { max_abs_avx2(&a, &b) };
-                    assert_eq!(v.to_bits(), max_abs(&a, &b).to_bits(), "{la} {lb} {x}");
-                }
-            }
-        }
-    }
 
     /// The dispatched loops (AVX2 where the processor has it) give the
     /// baseline loops' values to the bit, over lengths that leave every
@@ -233,7 +150,7 @@ mod tests {
                 let big = if dispatch {
                     term(0.37, t)
                 } else {
-                    term_body(0.37, t, max_abs)
+                    term_body(0.37, t)
                 };
                 (big, nx, nv, x, v)
             };
