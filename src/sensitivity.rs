@@ -83,6 +83,15 @@ pub enum Param {
 }
 
 impl Param {
+    /// Whether this is a damping parameter: the grounded `d` or a damping
+    /// model's own.
+    pub fn is_damping(&self) -> bool {
+        matches!(
+            self,
+            Param::D | Param::C | Param::A | Param::B | Param::Zeta { .. }
+        )
+    }
+
     /// Every parameter of `chain`: its defects in order, then `D`, `K`, `Mass`, `Gamma`.
     pub fn all(chain: &Chain) -> Vec<Param> {
         let mut v: Vec<Param> = (0..chain.defects().len()).map(Param::Defect).collect();

@@ -16,7 +16,7 @@ use crate::sensitivity::{
 };
 use nalgebra::DMatrix;
 use num_complex::Complex64;
-use std::sync::OnceLock;
+use std::sync::{Arc, RwLock};
 
 /// Laplace-domain observations: `chi^2 = sum_q w_q |X_1(s_q) - d_q|^2`
 /// (diagonal weights, [`LaplaceObs::new`]) or `chi^2 = ||W r||^2` with `r`
@@ -32,8 +32,8 @@ pub struct LaplaceObs {
     sensor: Sensor,
     /// Transform of the measured force at the nodes (`None`: the impulse).
     force_hat: Option<Vec<Complex64>>,
-    /// Per-node powers of the uniform chain of the first chain evaluated
-    /// (every candidate of a fit shares it).
+    /// Per-node powers of one uniform chain: the first evaluated, or the
+    /// one a fit holds its chain parameters at ([`LaplaceObs::retable`]).
     tables: TableCache,
     /// The same data at a subset of the nodes, whitened by their own
     /// (marginal) covariance: a cheaper true chi-square for screening.
@@ -87,10 +87,65 @@ thread_local! {
 /// values per node: 640 KB per node at this size).
 pub const MAX_TABLE_N: usize = 10_000;
 
-/// [`SweepTable`]s at the nodes, built once for one uniform chain; compares
-/// equal to every other cache (it is derived data).
-#[derive(Clone, Debug, Default)]
-struct TableCache(OnceLock<Option<Vec<SweepTable<Complex64>>>>);
+/// [`SweepTable`]s at the nodes for one uniform chain (`None` above
+/// [`MAX_TABLE_N`] masses), with the chain's `(k, mass, d)` and `n` they
+/// were built for.
+#[derive(Debug)]
+struct Tables {
+    key: ((u64, u64, u64), usize),
+    nodes: Option<Vec<SweepTable<Complex64>>>,
+}
+
+impl Tables {
+    fn key(chain: &Chain) -> ((u64, u64, u64), usize) {
+        let (k, mass, d) = (chain.k(), chain.mass(), chain.d());
+        ((k.to_bits(), mass.to_bits(), d.to_bits()), chain.n())
+    }
+}
+
+/// The [`Tables`] of one uniform chain, built on first use and rebuilt
+/// by [`LaplaceObs::retable`]; a chain they were not built for falls back
+/// to the direct sweep ([`crate::forward::transfer::Transfer::fits`]).
+/// Clones share the tables; compares equal to every other cache (it is
+/// derived data).
+#[derive(Debug, Default)]
+struct TableCache(RwLock<Option<Arc<Tables>>>);
+
+impl Clone for TableCache {
+    fn clone(&self) -> TableCache {
+        TableCache(RwLock::new(self.get()))
+    }
+}
+
+impl TableCache {
+    fn get(&self) -> Option<Arc<Tables>> {
+        self.0.read().ok().and_then(|t| t.clone())
+    }
+
+    /// The tables for `chain`'s uniform part, built when there are none
+    /// or (with `rebuild`) when they were built for another.
+    fn for_chain(&self, s: &[Complex64], chain: &Chain, rebuild: bool) -> Option<Arc<Tables>> {
+        let key = Tables::key(chain);
+        match self.get() {
+            Some(t) if !rebuild || t.key == key => return Some(t),
+            _ => {}
+        }
+        let built = Arc::new(Tables {
+            key,
+            nodes: (chain.n() <= MAX_TABLE_N)
+                .then(|| s.iter().map(|&z| SweepTable::new(chain, z)).collect()),
+        });
+        let mut slot = self.0.write().ok()?;
+        match slot.as_ref() {
+            // another thread built the same first
+            Some(t) if t.key == key || !rebuild => Some(t.clone()),
+            _ => {
+                *slot = Some(built.clone());
+                Some(built)
+            }
+        }
+    }
+}
 
 impl PartialEq for TableCache {
     fn eq(&self, _: &TableCache) -> bool {
@@ -205,16 +260,27 @@ impl LaplaceObs {
         self.sensor
     }
 
-    /// The sweep tables of the nodes for `chain`'s uniform part (built on
-    /// first use; `None` above [`MAX_TABLE_N`] masses).
-    fn tables(&self, chain: &Chain) -> Option<&[SweepTable<Complex64>]> {
+    /// The sweep tables of the nodes (built on first use for `chain`'s
+    /// uniform part; `None` above [`MAX_TABLE_N`] masses).
+    fn tables(&self, chain: &Chain) -> Option<Arc<Tables>> {
         self.tables
-            .0
-            .get_or_init(|| {
-                (chain.n() <= MAX_TABLE_N)
-                    .then(|| self.s.iter().map(|&z| SweepTable::new(chain, z)).collect())
-            })
-            .as_deref()
+            .for_chain(&self.s, chain, false)
+            .filter(|t| t.nodes.is_some())
+    }
+
+    /// Build the sweep tables for `chain`'s uniform part (this
+    /// observation's, its screen's and the other sensors'), unless they
+    /// are: a fit that holds the chain parameters at new values calls it
+    /// before its evaluations, which then take the tabulated sweep (the
+    /// tables of other values do not apply to them).
+    pub(crate) fn retable(&self, chain: &Chain) {
+        self.tables.for_chain(&self.s, chain, true);
+        if let Some(sc) = &self.screen {
+            sc.retable(chain);
+        }
+        for o in &self.others {
+            o.retable(chain);
+        }
     }
 
     /// Whether the model is `s^p F(s) X_at(s)` (or `X_at`), which the
@@ -237,7 +303,7 @@ impl LaplaceObs {
     /// `X` at `sites` by the tabulated sweep, if it applies.
     fn x_sites(&self, fwd: &Forward, q: usize, sites: &[usize]) -> Option<Vec<Complex64>> {
         let tables = self.tables(fwd.chain())?;
-        fwd.sites_with(&self.s[q], &tables[q], sites)
+        fwd.sites_with(&self.s[q], &tables.nodes.as_ref()?[q], sites)
     }
 
     /// The model of the data at node `q` for `fwd`'s chain.
@@ -434,7 +500,8 @@ impl LaplaceObs {
     /// buffers once for all nodes.
     fn tabulated_gradients(&self, fwd: &Forward) -> Vec<Option<Gradient<Complex64>>> {
         let chain = fwd.chain();
-        let Some(tables) = self.tables(chain) else {
+        let tables = self.tables(chain);
+        let Some(nodes) = tables.as_ref().and_then(|t| t.nodes.as_deref()) else {
             return vec![None; self.s.len()];
         };
         let n = chain.n();
@@ -447,7 +514,7 @@ impl LaplaceObs {
         let mut work = SweepWork::default();
         self.s
             .iter()
-            .zip(tables)
+            .zip(nodes)
             .map(|(s, table)| {
                 if !fwd.sites_into(s, table, &sites, &mut work) {
                     return None;
@@ -733,6 +800,59 @@ mod tests {
     /// The residuals and Jacobian through the memo of the last sweep agree
     /// with the per-call path (the model node by node, nalgebra's `W r` and
     /// `W J`, the general gradient), whichever of the two is asked first.
+    #[test]
+    fn retabled_nodes_serve_a_chain_of_other_damping() {
+        let truth = crate::scenes::paper_with(12, "mass:3:2.5 spring:9:0.6").unwrap();
+        let s: Vec<Complex64> = (1..8)
+            .map(|q| Complex64::new(0.05, 0.3 * q as f64))
+            .collect();
+        let exact = || LaplaceObs::exact(&truth, s.clone(), vec![1.0; s.len()]).unwrap();
+        let params = [Param::Defect(0), Param::Defect(1)];
+        let obs = exact();
+        // the tables are built for the first chain evaluated
+        let _ = obs.residuals(&truth).unwrap();
+        let other = truth.clone().with_d(0.5 * truth.d()).unwrap();
+        let tabulated = |o: &LaplaceObs, c: &Chain| {
+            let g = o.tabulated_gradients(&Forward::new(c));
+            g.iter().filter(|g| g.is_some()).count()
+        };
+        assert_eq!(tabulated(&obs, &truth), s.len());
+        assert_eq!(
+            tabulated(&obs, &other),
+            0,
+            "tables of another d do not apply"
+        );
+        let direct = (
+            obs.residuals(&other).unwrap(),
+            obs.jacobian(&other, &params).unwrap(),
+        );
+        obs.retable(&other);
+        assert_eq!(tabulated(&obs, &other), s.len(), "retabled at the other d");
+        assert_eq!(tabulated(&obs, &truth), 0);
+        // a fresh observation (no memo of the direct sweep) retabled: the
+        // same residuals and Jacobian to rounding
+        let fresh = exact();
+        fresh.retable(&other);
+        let r = fresh.residuals(&other).unwrap();
+        let j = fresh.jacobian(&other, &params).unwrap();
+        let scale = direct.0.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        assert!(scale > 0.0);
+        for (a, b) in r.iter().zip(&direct.0) {
+            assert!((a - b).abs() <= 1e-12 * scale, "{a} vs {b}");
+        }
+        let scale = direct.1.amax();
+        for (a, b) in j.iter().zip(direct.1.iter()) {
+            assert!((a - b).abs() <= 1e-12 * scale, "{a} vs {b}");
+        }
+        // retabling at the chain the tables are for builds nothing new
+        let before = fresh.tables.get().unwrap();
+        let more = other
+            .clone()
+            .with_defect(crate::chain::Defect::Mass { at: 5, m: 1.3 });
+        fresh.retable(&more.unwrap());
+        assert!(Arc::ptr_eq(&before, &fresh.tables.get().unwrap()));
+    }
+
     #[test]
     fn memo_of_the_sweep_matches_the_per_call_path() {
         let truth = crate::scenes::paper_with(12, "mass:3:2.5 mass:9:0.6").unwrap();

@@ -402,6 +402,20 @@ impl Engine<'_> {
     /// is within `max_sets`, with a scene's unknowns or another search than
     /// enumeration).
     pub(super) fn fit_k(&self, k: usize, sigma: f64, previous: Option<&KFit>) -> Result<KFit> {
+        self.fit_k_after(k, sigma, previous, true)
+    }
+
+    /// [`Self::fit_k`] after `previous`, the fit at `k - 1`: its best
+    /// answer's fitted chain parameters start the search's (a warm start:
+    /// the damping of a record barely moves with one more defect), and,
+    /// with `narrow`, its answers narrow the search as in [`Self::fit_k`].
+    pub(super) fn fit_k_after(
+        &self,
+        k: usize,
+        sigma: f64,
+        previous: Option<&KFit>,
+        narrow: bool,
+    ) -> Result<KFit> {
         let (coarse, fine, misfit_name, setup) = self.prepared(sigma)?;
         let Some(unknowns) = self.unknowns(k)? else {
             let (ranked, evaluations) = self.fit_uniform(&coarse, fine.as_ref())?;
@@ -413,8 +427,14 @@ impl Engine<'_> {
         let every_set = self.opts.exhaustive
             || (self.opts.effort.every_set() && set_count(&unknowns) <= self.opts.max_sets as f64);
         let from = previous.filter(|_| {
-            self.given.is_none() && self.opts.method == FitMethod::Enumerate && !every_set
+            narrow && self.given.is_none() && self.opts.method == FitMethod::Enumerate && !every_set
         });
+        let start = match previous.and_then(|p| p.ranked.first()) {
+            Some(best) if !self.model.fitted().is_empty() => {
+                Some(best.to_chain(self.model.chain())?)
+            }
+            _ => None,
+        };
         let (mut unknowns, mut notes, mut spent) = (unknowns, Vec::new(), 0);
         if let Some(p) = from {
             let effort = self.opts.effort;
@@ -446,7 +466,8 @@ impl Engine<'_> {
                 unknowns = nw.unknowns;
             }
         }
-        let mut found = self.search_prepared(k, sigma, &unknowns, &coarse, fine.as_ref(), setup)?;
+        let mut found =
+            self.search_prepared(k, sigma, &unknowns, (&coarse, fine.as_ref()), setup, start)?;
         if !notes.is_empty() {
             found.evaluations += spent;
             found.exhaustive = false;
@@ -462,15 +483,16 @@ impl Engine<'_> {
         k: usize,
         sigma: f64,
         unknowns: &Unknowns,
-        coarse: &LaplaceObs,
-        fine: Option<&TimeMisfit>,
+        (coarse, fine): (&LaplaceObs, Option<&TimeMisfit>),
         mut setup: Setup,
+        start: Option<Chain>,
     ) -> Result<Found> {
         // a small fit runs on one thread (search::parallel)
         let large = set_count(unknowns) >= MIN_SETS as f64;
         let gopts = GeneralOptions {
             parallel: self.opts.parallel && large,
             max_sets: self.opts.max_sets,
+            start,
             ..GeneralOptions::default()
         };
         setup.shortlist = setup.shortlist.max(self.opts.alternatives + 1);

@@ -441,8 +441,7 @@ fn fit_ks(
     let mut evaluations = 0;
     let mut fits: Vec<KFit> = Vec::with_capacity(ks.len());
     for &k in ks {
-        let from = fits.last().filter(|_| narrowed);
-        let f = crate::cancel::checked(engine.fit_k(k, sigma, from))?;
+        let f = crate::cancel::checked(engine.fit_k_after(k, sigma, fits.last(), narrowed))?;
         let f = match fits.last() {
             Some(prev) => engine.monotone(prev, f, sigma)?,
             None => f,

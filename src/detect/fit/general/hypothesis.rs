@@ -127,6 +127,27 @@ impl Hypothesis {
         self.chain.iter().find(|p| p.name == name)
     }
 
+    /// Whether a fitted chain parameter lies more than `ses` of its
+    /// standard errors from its value in `base` (a parameter without a
+    /// finite standard error: when it differs at all).
+    ///
+    /// # Errors
+    /// A parameter name `base` does not know.
+    pub fn chain_moved_from(&self, base: &Chain, ses: f64) -> Result<bool> {
+        for p in &self.chain {
+            let was = chain_param(&p.name, base)?.get(base)?;
+            let room = if p.std_error.is_finite() {
+                ses * p.std_error
+            } else {
+                0.0
+            };
+            if (p.value - was).abs() > room {
+                return Ok(true);
+            }
+        }
+        Ok(false)
+    }
+
     /// The chain this hypothesis describes: `base` with the fitted chain
     /// parameters and the defects.
     ///

@@ -144,6 +144,11 @@ pub struct GeneralOptions {
     /// is repeated with the chain parameters at the best fit's values
     /// (default 2).
     pub rounds: usize,
+    /// The chain-parameter values the first round starts from (a chain of
+    /// the same `n`, whose uniform part is taken); `None`: the base
+    /// chain's (default). The fit at `k` defects starts from the answer
+    /// at `k - 1`; the bounds of the chain parameters are the base's.
+    pub start: Option<Chain>,
 }
 
 impl Default for GeneralOptions {
@@ -152,9 +157,15 @@ impl Default for GeneralOptions {
             parallel: true,
             max_sets: 200_000,
             rounds: 2,
+            start: None,
         }
     }
 }
+
+/// A round whose best fit left every chain parameter within this many
+/// standard errors of the values the round started from is the last: the
+/// next would rank the sets at practically the same values.
+const SETTLED_SE: f64 = 0.5;
 
 /// The result of [`fit_general`].
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -190,8 +201,10 @@ pub struct GeneralFit {
 ///   (the others are dropped: a set whose Laplace chi-square exceeds the
 ///   best's by more than the slack cannot win in the time domain, see
 ///   `time_refits` in the source).
-/// * with chain parameters, `opts.rounds` rounds: the chain parameters of
-///   the best fit become the starting values of the next coarse pass; the
+/// * with chain parameters, up to `opts.rounds` rounds: the chain
+///   parameters of the best fit become the starting values of the next
+///   coarse pass (none when they are within half a standard error of this
+///   round's: [`GeneralOptions::start`] warm-starts the first); the
 ///   next fine pass and time refits take the earlier rounds' fits of the
 ///   sets they have fitted already (those fits free the chain parameters)
 ///   and fit only the sets new to the shortlist.
@@ -236,15 +249,22 @@ pub fn fit_general(
     } else {
         opts.rounds.max(1)
     };
-    let mut current = base.uniform();
+    let mut current = match &opts.start {
+        Some(c) if c.n() == base.n() => c.uniform(),
+        _ => base.uniform(),
+    };
     let mut evaluations = 0;
     let mut last: Option<(Vec<Hypothesis>, usize, Vec<KindPositions>)> = None;
     let mut memo = Memo::default();
     for _ in 0..rounds {
         let (ranked, m, spent, shortlist) = passes.round(&current, &hyps, &mut memo)?;
         evaluations += spent;
+        let moved = ranked[0].chain_moved_from(&current, SETTLED_SE)?;
         current = ranked[0].to_chain(&current)?.uniform();
         last = Some((ranked, m, shortlist));
+        if !moved {
+            break;
+        }
     }
     let (ranked, residuals, shortlist) = last.expect("at least one round");
     Ok(GeneralFit {
@@ -316,6 +336,8 @@ impl Passes<'_> {
         hyps: &[KindPositions],
         memo: &mut Memo,
     ) -> Result<(Vec<Hypothesis>, usize, usize, Vec<KindPositions>)> {
+        // the passes below evaluate at `current`'s chain parameters
+        self.coarse.retable(current);
         let (pool, screened) = self.screen(current, hyps);
         let (ranked, spent) = coarse_pass(
             current,
@@ -382,11 +404,33 @@ impl Passes<'_> {
         (pool, spent)
     }
 
+    /// Whether the fine pass on the Laplace values holds the chain
+    /// parameters at the round's values: ahead of a time-domain refit
+    /// (which frees them), when they are damping parameters and every
+    /// defect sought is a mass. A mass changes the response's frequencies,
+    /// the damping its decay: the fits of mass sets at the damping of the
+    /// answer at one defect fewer ([`GeneralOptions::start`]) rank the
+    /// sets as their fits with the damping free do, and run on the
+    /// tabulated sweep, built once per damping value (with `d` free every
+    /// step sweeps every mass). A spring or a damper defect trades off
+    /// with the damping: holding it lost the truth (a spring and a damper
+    /// with `d` fitted: a damper at mass 1 instead of 7, `converged`), so
+    /// those fits free it.
+    fn holds_damping(&self) -> bool {
+        self.fine.is_some()
+            && self
+                .unknowns
+                .slots()
+                .iter()
+                .all(|s| s.kind == crate::detect::unknowns::KindChoice::Mass)
+            && self.unknowns.chain().iter().all(|p| p.is_damping())
+    }
+
     /// The fine pass on the Laplace values: values and chain parameters
-    /// from the coarse values and from a second start, the better kept
-    /// (ahead of a time-domain refit these fits only choose its start, and
-    /// the second is fitted only where the first does not explain the
-    /// values, [`explained_chi2`]).
+    /// (held where [`Passes::holds_damping`]) from the coarse values and
+    /// from a second start, the better kept (ahead of a time-domain refit
+    /// these fits only choose its start, and the second is fitted only
+    /// where the first does not explain the values, [`explained_chi2`]).
     fn laplace_fits(
         &self,
         current: &Chain,
@@ -404,6 +448,7 @@ impl Passes<'_> {
             (Some(_), false) => explained_chi2(self.coarse),
             _ => None,
         };
+        let holds_damping = self.holds_damping();
         let done = &memo.laplace;
         let fits = map_maybe_par(ranked, self.parallel, |(h, pairs)| {
             if let Some(f) = Memo::reused(done, pairs) {
@@ -416,7 +461,7 @@ impl Passes<'_> {
                     pairs,
                     values,
                     &self.chain_bounds,
-                    true,
+                    !holds_damping,
                     self.coarse,
                     100,
                     tol,
@@ -846,6 +891,48 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A round whose best fit leaves the damping within half a standard
+    /// error of where the round started is the last; from the answer at
+    /// one defect fewer (the warm start) the record's damping is found in
+    /// one round, and the answer is the one of two rounds from afar.
+    #[test]
+    fn a_round_that_leaves_the_damping_where_it_started_is_the_last() {
+        let truth = crate::scenes::paper_with(6, "mass:2:3.0 mass:5:0.5")
+            .unwrap()
+            .with_d(0.12)
+            .unwrap();
+        let data =
+            TimeData::simulate(&truth, 150.0, 0.25, NoiseLevel::RelativeMax(1e-3), 2).unwrap();
+        let setup = Setup::new().unwrap();
+        let u = Unknowns::free(6, &[KindChoice::Mass; 2], &[crate::sensitivity::Param::D]).unwrap();
+        let base = truth.uniform().with_d(0.1).unwrap();
+        let bromwich = laplace_obs(&data, MisfitKind::Bromwich, &setup).unwrap();
+        let time = TimeMisfit::new(data.clone());
+        let fit = |rounds: usize, start: Option<Chain>| {
+            let opts = GeneralOptions {
+                rounds,
+                parallel: false,
+                start,
+                ..GeneralOptions::default()
+            };
+            fit_general(&base, &u, &bromwich, Some(&time), &setup, &opts).unwrap()
+        };
+        let far = fit(2, None);
+        assert!(
+            far.evaluations > fit(1, None).evaluations,
+            "d moved: two rounds"
+        );
+        let best = &far.ranked[0];
+        assert!(best.matches(&truth, 0.05), "{best:?}");
+        let warm = best.to_chain(&base).unwrap();
+        let (one, two) = (fit(1, Some(warm.clone())), fit(2, Some(warm)));
+        assert_eq!(one.evaluations, two.evaluations, "settled: one round");
+        assert_eq!(one.ranked, two.ranked);
+        let d = |f: &GeneralFit| f.ranked[0].param("d").unwrap().clone();
+        assert_eq!(two.ranked[0].key(), best.key());
+        assert!((d(&two).value - d(&far).value).abs() <= 0.1 * d(&far).std_error);
     }
 }
 
