@@ -833,14 +833,10 @@ mod tests {
         assert_eq!(rule.ranked, all.ranked);
     }
 
-    /// With a chain parameter free, a round takes the fits of the sets an
-    /// earlier round fitted ([`Memo`]): past the chain parameters' fixed
-    /// point, a further round changes nothing, bit for bit, and spends only
-    /// its coarse pass; and every fit it took is still a minimum at the
-    /// final chain parameters (refitted from where it stands, it gains
-    /// nothing), for the time misfit and for Bromwich values alone.
-    #[test]
-    fn later_rounds_take_the_fits_of_the_sets_already_fitted() {
+    /// Two masses of n = 6 at `d = 0.12` (0.1% noise), sought with `d`
+    /// free from `d = 0.1`: the truth, setup, unknowns, base chain, the
+    /// record's Bromwich values and its time misfit.
+    fn damped_pair() -> (Chain, Setup, Unknowns, Chain, LaplaceObs, TimeMisfit) {
         let truth = crate::scenes::paper_with(6, "mass:2:3.0 mass:5:0.5")
             .unwrap()
             .with_d(0.12)
@@ -849,15 +845,25 @@ mod tests {
             TimeData::simulate(&truth, 150.0, 0.25, NoiseLevel::RelativeMax(1e-3), 2).unwrap();
         let setup = Setup::new().unwrap();
         let u = Unknowns::free(6, &[KindChoice::Mass; 2], &[crate::sensitivity::Param::D]).unwrap();
-        // start from d = 0.1: the first round moves it
         let base = truth.uniform().with_d(0.1).unwrap();
+        let bromwich = laplace_obs(&data, MisfitKind::Bromwich, &setup).unwrap();
+        (truth, setup, u, base, bromwich, TimeMisfit::new(data))
+    }
+
+    /// With a chain parameter free, a round takes the fits of the sets an
+    /// earlier round fitted ([`Memo`]): past the chain parameters' fixed
+    /// point, a further round (when it runs) changes nothing, bit for bit,
+    /// and spends only its coarse pass; and every fit it took is still a minimum at the
+    /// final chain parameters (refitted from where it stands, it gains
+    /// nothing), for the time misfit and for Bromwich values alone.
+    #[test]
+    fn later_rounds_take_the_fits_of_the_sets_already_fitted() {
+        let (truth, setup, u, base, bromwich, time) = damped_pair();
         let rounds = |r: usize| GeneralOptions {
             rounds: r,
             parallel: false,
             ..GeneralOptions::default()
         };
-        let bromwich = laplace_obs(&data, MisfitKind::Bromwich, &setup).unwrap();
-        let time = TimeMisfit::new(data.clone());
         for fine in [Some(&time), None] {
             let fit = |r| fit_general(&base, &u, &bromwich, fine, &setup, &rounds(r)).unwrap();
             let (one, two, three) = (fit(1), fit(2), fit(3));
@@ -899,17 +905,7 @@ mod tests {
     /// one round, and the answer is the one of two rounds from afar.
     #[test]
     fn a_round_that_leaves_the_damping_where_it_started_is_the_last() {
-        let truth = crate::scenes::paper_with(6, "mass:2:3.0 mass:5:0.5")
-            .unwrap()
-            .with_d(0.12)
-            .unwrap();
-        let data =
-            TimeData::simulate(&truth, 150.0, 0.25, NoiseLevel::RelativeMax(1e-3), 2).unwrap();
-        let setup = Setup::new().unwrap();
-        let u = Unknowns::free(6, &[KindChoice::Mass; 2], &[crate::sensitivity::Param::D]).unwrap();
-        let base = truth.uniform().with_d(0.1).unwrap();
-        let bromwich = laplace_obs(&data, MisfitKind::Bromwich, &setup).unwrap();
-        let time = TimeMisfit::new(data.clone());
+        let (truth, setup, u, base, bromwich, time) = damped_pair();
         let fit = |rounds: usize, start: Option<Chain>| {
             let opts = GeneralOptions {
                 rounds,
