@@ -14,8 +14,9 @@ use crate::detect::unknowns::{DefectKind, Unknowns};
 use crate::error::{Error, Result};
 use crate::sensitivity::Param;
 
-/// Starting values of a defect value of `kind` on `base`: the first starts
-/// the coarse pass, the second is the alternative start of the fine pass.
+/// Starting values of a defect value of `kind` on `base`, heavier (or
+/// stiffer) and lighter than the uniform value: the coarse pass starts
+/// from each, the second is also the alternative start of the fine pass.
 pub(super) fn starts(kind: DefectKind, base: &Chain) -> [f64; 2] {
     [kind.start(base), kind.alt_start(base)]
 }
