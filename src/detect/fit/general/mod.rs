@@ -414,8 +414,8 @@ impl Passes<'_> {
     /// tabulated sweep, built once per damping value (with `d` free every
     /// step sweeps every mass). A spring or a damper defect trades off
     /// with the damping: holding it lost the truth (a spring and a damper
-    /// with `d` fitted: a damper at mass 1 instead of 7, `converged`), so
-    /// those fits free it.
+    /// with `d` fitted: a damper at mass 1 instead of 7, reported
+    /// `model-mismatch`), so those fits free it.
     fn holds_damping(&self) -> bool {
         self.fine.is_some()
             && self
@@ -852,9 +852,10 @@ mod tests {
     /// With a chain parameter free, a round takes the fits of the sets an
     /// earlier round fitted ([`Memo`]): past the chain parameters' fixed
     /// point, a further round (when it runs) changes nothing, bit for bit,
-    /// and spends only its coarse pass; and every fit it took is still a minimum at the
-    /// final chain parameters (refitted from where it stands, it gains
-    /// nothing), for the time misfit and for Bromwich values alone.
+    /// and spends only its coarse pass; and every fit it took is still a
+    /// minimum at the final chain parameters (refitted from where it
+    /// stands, it gains nothing), for the time misfit and for Bromwich
+    /// values alone.
     #[test]
     fn later_rounds_take_the_fits_of_the_sets_already_fitted() {
         let (truth, setup, u, base, bromwich, time) = damped_pair();
