@@ -6,6 +6,7 @@
 use super::chainfit::default_bounds;
 use super::engine::{Engine, KFit, MODES_MAX_N};
 use super::general::{self, identify_general, Hypothesis};
+use super::goodness::{exact_record, FITS_DATA_P};
 use super::identify::Identifiability;
 use super::judge::{judge, Bar, Evidence};
 use super::report::Unseen;
@@ -19,12 +20,6 @@ use crate::detect::data::observations::Observations;
 use crate::detect::unknowns::{DefectKind, KindBounds};
 use crate::error::Result;
 use std::time::Instant;
-
-/// The p-value below which a residual is not noise: the level of the fit's
-/// `fits_data` test (chi-square or Ljung-Box), and of each sensor's or
-/// record's own residual in a joint fit (one that fails disagrees with the
-/// joint answer).
-pub const FITS_DATA_P: f64 = 1e-3;
 
 impl Engine<'_> {
     #[allow(clippy::too_many_arguments)]
@@ -368,23 +363,10 @@ fn rescaled(ranked: &[Hypothesis], scale: f64) -> Vec<Hypothesis> {
         .collect()
 }
 
-/// Relative residual below which a record counts as exact to its printed
-/// digits: no sensor resolves 1e-8 of its range (a 24-bit converter
-/// resolves 6e-8), so a smaller residual is the rounding of the file's
-/// numbers, which is not random and which no whiteness test can judge.
-pub(super) const EXACT_RECORD_RESIDUAL: f64 = 1e-8;
-
-/// Whether a residual of sum of squares `rss` over `n` samples is the
-/// rounding of an exact record whose largest `|x|` is `peak`
-/// ([`EXACT_RECORD_RESIDUAL`]).
-pub(super) fn exact_record(rss: f64, n: usize, peak: f64) -> bool {
-    (rss / n.max(1) as f64).sqrt() <= EXACT_RECORD_RESIDUAL * peak
-}
-
 /// Whether the residual is consistent with noise, and the p-value: the
 /// Ljung-Box whiteness test of the time residual when sigma was estimated,
 /// the chi-square test otherwise. An estimated residual below
-/// [`EXACT_RECORD_RESIDUAL`] of the record's peak fits (an exact record: the
+/// [`EXACT_RECORD_RESIDUAL`](super::goodness::EXACT_RECORD_RESIDUAL) of the record's peak fits (an exact record: the
 /// residual is its rounding), with the test's p-value still reported.
 fn goodness_of_fit(f: &KFit, chi2_final: f64, estimated: bool) -> (bool, f64) {
     match (&f.predicted, estimated) {

@@ -75,6 +75,7 @@ pub mod damping_scales;
 pub mod effort;
 mod engine;
 pub mod general;
+mod goodness;
 pub mod greedy;
 pub mod identifiable;
 pub mod identify;

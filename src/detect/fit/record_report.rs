@@ -147,7 +147,7 @@ impl Engine<'_> {
             hints.push("a trend (a sensor offset or drift): try --nuisance offset+drift");
         }
         let p = record::whiteness_p(f.whitened.as_deref().unwrap_or(r));
-        if p < super::assemble::FITS_DATA_P {
+        if p < super::goodness::FITS_DATA_P {
             hints.push(if self.record.noise.is_white() {
                 "colour (correlated noise): try --noise-model ar"
             } else {

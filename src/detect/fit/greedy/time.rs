@@ -130,7 +130,14 @@ struct Ctx<'a, 'g> {
     /// invariant, so results do not depend on it.
     scale: f64,
     counters: Counters,
+    /// The last candidates scored ([`Ctx::scored`]): the chain, the
+    /// defects present, and the scores. The first move of stage 1 takes
+    /// its one defect out again, back to the chain stage 1 scored.
+    last_scored: Mutex<Option<Scored>>,
 }
+
+/// A chain, the defects present on it, and its candidates' scores.
+type Scored = (Chain, KindPositions, Vec<(f64, DefectKind, usize, f64)>);
 
 /// The time stage for `g` on `t` (module docs), or `None` where it does not
 /// apply (another measurement, fitted chain parameters, no impulse, a
@@ -155,6 +162,7 @@ pub(super) fn run(g: &Greedy<'_>, t: &TimeMisfit) -> Result<Option<GreedyFit>> {
         screen,
         scale: if big > 0.0 { 1e-3 * big } else { 1.0 },
         counters: Counters::default(),
+        last_scored: Mutex::new(None),
     };
     let key = Key {
         t: data.t().iter().map(|v| v.to_bits()).collect(),
@@ -307,8 +315,25 @@ impl Ctx<'_, '_> {
     }
 
     /// Every candidate against `chain`, best first: `(drop, kind, at,
-    /// value)`, the drop in unwhitened squares, the value the step's.
+    /// value)`, the drop in unwhitened squares, the value the step's. The
+    /// chain scored last is not scored again (the same scores).
     fn scored(
+        &self,
+        chain: &Chain,
+        present: &KindPositions,
+    ) -> Result<Vec<(f64, DefectKind, usize, f64)>> {
+        let last = |l: &Scored| l.0 == *chain && l.1 == *present;
+        let mut memo = self.last_scored.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(l) = memo.as_ref().filter(|l| last(l)) {
+            return Ok(l.2.clone());
+        }
+        let out = self.score_all(chain, present)?;
+        *memo = Some((chain.clone(), present.clone(), out.clone()));
+        Ok(out)
+    }
+
+    /// [`Ctx::scored`] without its memo.
+    fn score_all(
         &self,
         chain: &Chain,
         present: &KindPositions,

@@ -403,7 +403,7 @@ impl FitReport {
             self.dof,
             match (
                 self.fits_data,
-                self.fit_p_value < crate::detect::fit::assemble::FITS_DATA_P
+                self.fit_p_value < crate::detect::fit::goodness::FITS_DATA_P
             ) {
                 (false, _) => "NO",
                 // fitted to the rounding of its digits: no test can judge that
