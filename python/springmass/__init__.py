@@ -832,6 +832,10 @@ def fit(
         more is nested in the best answers at one defect fewer, and
         ``kinds="any"`` tries at each position the kinds the data point to
         (much faster; the report's ``to_dict()["exhaustive"]`` is then False).
+        A chain whose sets pass 200 000 (from n = 48 with up to four
+        defects), searched greedily by default, is then enumerated, or
+        refused at once with the count of its sets (ask for fewer defects,
+        ``defects="auto:3"``).
     effort : {"low", "normal", "high"}, default "normal"
         Speed against accuracy of the search: ``"low"`` refits fewer sets
         in the time domain and, with ``defects="auto"``, nests the searches

@@ -202,7 +202,11 @@ pub struct Args {
     /// number of defects. By default the search at 3 defects and more is
     /// nested in the best answers at one defect fewer, and --kinds any
     /// tries at each position the kinds the data point to (much faster;
-    /// the report then says `exhaustive: false`). With --scene: rank every
+    /// the report then says `exhaustive: false`), and a chain whose sets
+    /// pass 200 000 (from n = 48 with up to four defects) is searched
+    /// greedily; with --exhaustive it is enumerated, or refused at once
+    /// with the count of its sets (ask for fewer: --defects auto:3). With
+    /// --scene: rank every
     /// position set (`search.exhaustive`; by default, from 3 defects on
     /// chains of 40 masses or more, a greedy answer whose residual is at
     /// the data's error floor is kept without enumerating: `certified`).

@@ -6,7 +6,7 @@
 use super::{parse_kinds, DefectCount, FitMethod, FitOptions, FitSpec};
 use crate::detect::fit::effort::Effort;
 use crate::detect::unknowns::KindChoice;
-use crate::error::Result;
+use crate::error::{Error, Result};
 
 impl FitSpec {
     /// The kinds sought and the search, into `opts` (whose number of
@@ -30,6 +30,30 @@ impl FitSpec {
         }
         if let Some(m) = asked {
             opts.method = m;
+        } else if opts.exhaustive {
+            // every set asked for: enumerated, or refused here when the
+            // sets are too many (rather than searched greedily, or refused
+            // only at the number of defects that passes `max_sets`, after
+            // the fits of fewer)
+            if enumeration_too_large(self.n, opts) {
+                let k = match opts.defects {
+                    DefectCount::Exactly(k) | DefectCount::Auto { k_max: k } => k,
+                };
+                return Err(Error::invalid(
+                    "exhaustive",
+                    format!(
+                        "every set of up to {} defects on n = {} ({:.0} sets)",
+                        k,
+                        self.n,
+                        largest_search(self.n, opts)
+                    ),
+                    format!(
+                        "at most max_sets = {} sets: fewer defects (defects = auto:K), or \
+                         the default search without exhaustive",
+                        opts.max_sets
+                    ),
+                ));
+            }
         } else if (enumeration_too_large(self.n, opts) || greedy_by_default(self.n, opts))
             && self.sensors.len() <= 1
         {
@@ -54,6 +78,12 @@ impl FitSpec {
 /// where one kind's would be and its largest search in full stays within
 /// `max_sets`.
 fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
+    same_kinds(opts) && largest_search(n, opts) > opts.max_sets as f64
+}
+
+/// The sets of the largest search an enumeration would make (see
+/// [`enumeration_too_large`]).
+fn largest_search(n: usize, opts: &FitOptions) -> f64 {
     let per = opts
         .slot_kinds
         .first()
@@ -66,16 +96,14 @@ fn enumeration_too_large(n: usize, opts: &FitOptions) -> bool {
             c * (positions as f64 - i as f64) / (i + 1) as f64
         })
     };
-    let max = opts.max_sets as f64;
-    let too_large = match opts.defects {
-        DefectCount::Exactly(k) => sets((n + 1) * per, k) > max,
+    match opts.defects {
+        DefectCount::Exactly(k) => sets((n + 1) * per, k),
         DefectCount::Auto { k_max } if per > 1 && !opts.exhaustive => {
             let full = k_max.min(crate::detect::fit::narrow::NEST_FROM - 1);
-            sets(n + 1, k_max) > max || sets((n + 1) * per, full) > max
+            sets(n + 1, k_max).max(sets((n + 1) * per, full))
         }
-        DefectCount::Auto { k_max } => sets((n + 1) * per, k_max) > max,
-    };
-    same_kinds(opts) && too_large
+        DefectCount::Auto { k_max } => sets((n + 1) * per, k_max),
+    }
 }
 
 /// Chains from this many masses on are searched greedily when told
@@ -164,6 +192,23 @@ mod tests {
             ..FitSpec::new(60)
         };
         assert!(!greedy_by_default(60, &mixed.options().unwrap()));
+        // every set asked for where the sets are too many: refused at once,
+        // with the count, not searched greedily (n = 60, up to four
+        // defects: 521 855 sets); with fewer defects, enumerated
+        let every = |n: usize, k: &str| {
+            FitSpec {
+                defects: Some(k.to_string()),
+                exhaustive: Some(true),
+                ..FitSpec::new(n)
+            }
+            .options()
+        };
+        let e = every(60, "auto").unwrap_err().to_string();
+        assert!(e.contains("exhaustive") && e.contains("521855 sets"), "{e}");
+        assert!(e.contains("auto:K"), "{e}");
+        assert_eq!(every(60, "auto:3").unwrap().method, Enumerate);
+        assert_eq!(every(20, "auto").unwrap().method, Enumerate);
+        assert!(every(1000, "3").is_err());
         // every choice's name parses back to it
         for k in [Any, Mass, Spring, KindChoice::MassOrSpring] {
             assert_eq!(parse_kinds(k.name()).unwrap(), k);
