@@ -889,9 +889,10 @@ impl Unknowns {
                 None => groups.push((*s, vec![i])),
             }
         }
+        let slots = self.slots.len();
         let per_group: Vec<Vec<KindPositions>> = groups
             .iter()
-            .map(|(s, idx)| {
+            .map(|(s, idx)| -> Result<Vec<KindPositions>> {
                 let mut cands: KindPositions = Vec::new();
                 for &k in s.kind.kinds() {
                     for at in k.positions(self.n) {
@@ -906,13 +907,28 @@ impl Unknowns {
                     }
                 }
                 cands.sort_by_key(|&(k, at)| (at, k));
+                // refused before its sets are drawn when they are too many
+                // (every set of four of 300 masses is 331 million: the
+                // process aborted on memory before the count below was
+                // reached): the other slots take
+                // at most one pair each, so at least this many remain
+                let least = binomial(cands.len().saturating_sub(slots - idx.len()), idx.len());
+                if least > max as f64 {
+                    return Err(Error::invalid(
+                        "search.max_sets",
+                        max,
+                        format!(
+                            "at least {least:.0} hypotheses (fewer unknowns, or a larger max_sets)"
+                        ),
+                    ));
+                }
                 let all: Vec<usize> = (0..cands.len()).collect();
-                crate::detect::unknowns::subsets(&all, idx.len())
+                Ok(crate::detect::unknowns::subsets(&all, idx.len())
                     .into_iter()
                     .map(|c| c.into_iter().map(|j| cands[j]).collect())
-                    .collect()
+                    .collect())
             })
-            .collect();
+            .collect::<Result<_>>()?;
         let mut out: Vec<KindPositions> = vec![vec![(DefectKind::Mass, 0); self.slots.len()]];
         for ((_, idx), choices) in groups.iter().zip(&per_group) {
             let mut next = Vec::with_capacity(out.len() * choices.len());
@@ -949,6 +965,14 @@ impl Unknowns {
         }
         Ok(out)
     }
+}
+
+/// `C(n, p)` as a float (exact below 2^53).
+fn binomial(n: usize, p: usize) -> f64 {
+    if p > n {
+        return 0.0;
+    }
+    (0..p).fold(1.0, |c, i| c * (n - i) as f64 / (i + 1) as f64)
 }
 
 /// All `p`-subsets of `allowed`, each in the order of `allowed`, in
@@ -1031,6 +1055,38 @@ mod tests {
             KindChoice::MassOrSpring.kinds(),
             &[DefectKind::Mass, DefectKind::Spring]
         );
+    }
+
+    /// Too many sets are refused before they are drawn (four free masses
+    /// of 300: 331 million sets were being drawn when the process aborted
+    /// on memory), with a count that is a lower bound of the
+    /// hypotheses; a search within `max` is drawn in full.
+    #[test]
+    fn too_many_sets_are_refused_before_they_are_drawn() {
+        let free = |n: usize, k: usize| {
+            Unknowns::new(
+                n,
+                vec![Slot::free(KindChoice::Mass); k],
+                vec![],
+                KindBounds::default(),
+            )
+            .unwrap()
+        };
+        let e = free(300, 4).hypotheses(200_000).unwrap_err().to_string();
+        assert!(e.contains("max_sets") && e.contains("330791175"), "{e}");
+        // C(300, 3) = 4 455 100
+        assert!(free(300, 3).hypotheses(200_000).is_err());
+        assert_eq!(free(60, 3).hypotheses(200_000).unwrap().len(), 34_220);
+        // a slot at a known position takes one pair: C(59, 3) remain
+        let mut slots = vec![Slot::free(KindChoice::Mass); 3];
+        slots.push(Slot {
+            at: Some(5),
+            ..Slot::free(KindChoice::Mass)
+        });
+        let u = Unknowns::new(60, slots, vec![], KindBounds::default()).unwrap();
+        assert_eq!(u.hypotheses(200_000).unwrap().len(), 32_509);
+        assert_eq!(binomial(61, 4), 521_855.0);
+        assert_eq!(binomial(3, 4), 0.0);
     }
 
     fn field<T: std::fmt::Debug>(r: Result<T>) -> String {

@@ -30,31 +30,8 @@ impl FitSpec {
         }
         if let Some(m) = asked {
             opts.method = m;
-        } else if opts.exhaustive {
-            // every set asked for: enumerated, or refused here when the
-            // sets are too many (rather than searched greedily, or refused
-            // only at the number of defects that passes `max_sets`, after
-            // the fits of fewer)
-            if enumeration_too_large(self.n, opts) {
-                let k = match opts.defects {
-                    DefectCount::Exactly(k) | DefectCount::Auto { k_max: k } => k,
-                };
-                return Err(Error::invalid(
-                    "exhaustive",
-                    format!(
-                        "every set of up to {} defects on n = {} ({:.0} sets)",
-                        k,
-                        self.n,
-                        largest_search(self.n, opts)
-                    ),
-                    format!(
-                        "at most max_sets = {} sets: fewer defects (defects = auto:K), or \
-                         the default search without exhaustive",
-                        opts.max_sets
-                    ),
-                ));
-            }
-        } else if (enumeration_too_large(self.n, opts) || greedy_by_default(self.n, opts))
+        } else if !opts.exhaustive
+            && (enumeration_too_large(self.n, opts) || greedy_by_default(self.n, opts))
             && self.sensors.len() <= 1
         {
             // not asked for: a chain too long to enumerate, or many
@@ -63,6 +40,32 @@ impl FitSpec {
             // the greedy search reads one sensor: several are enumerated,
             // or refused beyond `max_sets`)
             opts.method = FitMethod::Greedy;
+        }
+        // every set asked for: enumerated, or refused here when the sets
+        // are too many (rather than searched greedily, or refused only at
+        // the number of defects that passes `max_sets`, after the fits of
+        // fewer)
+        if opts.exhaustive
+            && opts.method == FitMethod::Enumerate
+            && enumeration_too_large(self.n, opts)
+        {
+            let k = match opts.defects {
+                DefectCount::Exactly(k) | DefectCount::Auto { k_max: k } => k,
+            };
+            return Err(Error::invalid(
+                "exhaustive",
+                format!(
+                    "every set of up to {} defects on n = {} (about {:.0} sets)",
+                    k,
+                    self.n,
+                    largest_search(self.n, opts)
+                ),
+                format!(
+                    "at most max_sets = {} sets: fewer defects (defects = auto:K), or \
+                     the default search without exhaustive",
+                    opts.max_sets
+                ),
+            ));
         }
         Ok(())
     }
@@ -204,7 +207,10 @@ mod tests {
             .options()
         };
         let e = every(60, "auto").unwrap_err().to_string();
-        assert!(e.contains("exhaustive") && e.contains("521855 sets"), "{e}");
+        assert!(
+            e.contains("exhaustive") && e.contains("about 521855 sets"),
+            "{e}"
+        );
         assert!(e.contains("auto:K"), "{e}");
         assert_eq!(every(60, "auto:3").unwrap().method, Enumerate);
         assert_eq!(every(20, "auto").unwrap().method, Enumerate);
