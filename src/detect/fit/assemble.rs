@@ -366,8 +366,9 @@ fn rescaled(ranked: &[Hypothesis], scale: f64) -> Vec<Hypothesis> {
 /// Whether the residual is consistent with noise, and the p-value: the
 /// Ljung-Box whiteness test of the time residual when sigma was estimated,
 /// the chi-square test otherwise. An estimated residual below
-/// [`EXACT_RECORD_RESIDUAL`](super::goodness::EXACT_RECORD_RESIDUAL) of the record's peak fits (an exact record: the
-/// residual is its rounding), with the test's p-value still reported.
+/// [`EXACT_RECORD_RESIDUAL`](super::goodness::EXACT_RECORD_RESIDUAL) of
+/// the record's peak fits (an exact record: the residual is its
+/// rounding), with the test's p-value still reported.
 fn goodness_of_fit(f: &KFit, chi2_final: f64, estimated: bool) -> (bool, f64) {
     match (&f.predicted, estimated) {
         (Some((model, r)), true) => {

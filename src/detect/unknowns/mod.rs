@@ -861,6 +861,49 @@ impl Unknowns {
         self.slots[i].bounds.unwrap_or(self.bounds.of(kind))
     }
 
+    /// The `(kind, position)` sets of `count` interchangeable slots like
+    /// `s`: every `count`-subset of its candidate pairs, ordered by position
+    /// then kind. Refused before they are drawn when too many (see
+    /// [`Unknowns::hypotheses`]).
+    ///
+    /// # Errors
+    /// More than `max` sets even after the other slots took one pair each
+    /// (field `search.max_sets`).
+    fn group_sets(&self, s: &Slot, count: usize, max: usize) -> Result<Vec<KindPositions>> {
+        let mut cands: KindPositions = Vec::new();
+        for &k in s.kind.kinds() {
+            for at in k.positions(self.n) {
+                let allowed = match (s.at, &self.candidates) {
+                    (Some(a), _) => a == at,
+                    (None, Some(c)) => c.contains(&(k, at)),
+                    (None, None) => true,
+                };
+                if allowed {
+                    cands.push((k, at));
+                }
+            }
+        }
+        cands.sort_by_key(|&(k, at)| (at, k));
+        // refused before the sets are drawn when they are too many (every
+        // set of four of 300 masses is 331 million: the process aborted on
+        // memory before the count of the whole product was reached): the
+        // other slots take at most one pair each, so at least this many
+        // hypotheses remain
+        let least = binomial(cands.len().saturating_sub(self.slots.len() - count), count);
+        if least > max as f64 {
+            return Err(Error::invalid(
+                "search.max_sets",
+                max,
+                format!("at least {least:.0} hypotheses (fewer unknowns, or a larger max_sets)"),
+            ));
+        }
+        let all: Vec<usize> = (0..cands.len()).collect();
+        Ok(crate::detect::unknowns::subsets(&all, count)
+            .into_iter()
+            .map(|c| c.into_iter().map(|j| cands[j]).collect())
+            .collect())
+    }
+
     /// Every admissible hypothesis, deterministic order: slots with the same
     /// description are interchangeable (their `(kind, position)` pairs form a
     /// set, drawn by [`subsets`] from the
@@ -889,45 +932,9 @@ impl Unknowns {
                 None => groups.push((*s, vec![i])),
             }
         }
-        let slots = self.slots.len();
         let per_group: Vec<Vec<KindPositions>> = groups
             .iter()
-            .map(|(s, idx)| -> Result<Vec<KindPositions>> {
-                let mut cands: KindPositions = Vec::new();
-                for &k in s.kind.kinds() {
-                    for at in k.positions(self.n) {
-                        let allowed = match (s.at, &self.candidates) {
-                            (Some(a), _) => a == at,
-                            (None, Some(c)) => c.contains(&(k, at)),
-                            (None, None) => true,
-                        };
-                        if allowed {
-                            cands.push((k, at));
-                        }
-                    }
-                }
-                cands.sort_by_key(|&(k, at)| (at, k));
-                // refused before its sets are drawn when they are too many
-                // (every set of four of 300 masses is 331 million: the
-                // process aborted on memory before the count below was
-                // reached): the other slots take
-                // at most one pair each, so at least this many remain
-                let least = binomial(cands.len().saturating_sub(slots - idx.len()), idx.len());
-                if least > max as f64 {
-                    return Err(Error::invalid(
-                        "search.max_sets",
-                        max,
-                        format!(
-                            "at least {least:.0} hypotheses (fewer unknowns, or a larger max_sets)"
-                        ),
-                    ));
-                }
-                let all: Vec<usize> = (0..cands.len()).collect();
-                Ok(crate::detect::unknowns::subsets(&all, idx.len())
-                    .into_iter()
-                    .map(|c| c.into_iter().map(|j| cands[j]).collect())
-                    .collect())
-            })
+            .map(|(s, idx)| self.group_sets(s, idx.len(), max))
             .collect::<Result<_>>()?;
         let mut out: Vec<KindPositions> = vec![vec![(DefectKind::Mass, 0); self.slots.len()]];
         for ((_, idx), choices) in groups.iter().zip(&per_group) {

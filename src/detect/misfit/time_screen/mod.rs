@@ -363,20 +363,7 @@ impl Screen {
             Some(&i) => Self::factors(run, cands[i], n, &mut b1)?,
             None => (&[][..], &[][..]),
         };
-        // `re + i im`, zero-padded to the transform's size (each entry
-        // written once: no zeroing of what is then overwritten)
-        let pack = |re: &[f64], im: &[f64]| {
-            let filled = re.len().max(im.len()).min(size);
-            let mut z = Vec::with_capacity(size);
-            z.extend((0..filled).map(|i| {
-                Complex64::new(
-                    re.get(i).copied().unwrap_or(0.0),
-                    im.get(i).copied().unwrap_or(0.0),
-                )
-            }));
-            z.resize(size, Complex64::new(0.0, 0.0));
-            z
-        };
+        let pack = |re: &[f64], im: &[f64]| packed(re, im, size);
         let same = std::ptr::eq(a0.as_ptr(), c0.as_ptr())
             && (a1.is_empty() || std::ptr::eq(a1.as_ptr(), c1.as_ptr()));
         let mut za = pack(a0, a1);
@@ -447,6 +434,21 @@ impl Screen {
     pub fn y(&self) -> &[f64] {
         &self.y
     }
+}
+
+/// `re + i im`, zero-padded to `size` entries (each written once: no
+/// zeroing of what is then overwritten).
+fn packed(re: &[f64], im: &[f64], size: usize) -> Vec<Complex64> {
+    let filled = re.len().max(im.len()).min(size);
+    let mut z = Vec::with_capacity(size);
+    z.extend((0..filled).map(|i| {
+        Complex64::new(
+            re.get(i).copied().unwrap_or(0.0),
+            im.get(i).copied().unwrap_or(0.0),
+        )
+    }));
+    z.resize(size, Complex64::new(0.0, 0.0));
+    z
 }
 
 #[cfg(test)]
