@@ -795,8 +795,10 @@ def fit(
         ``zeta_1``, ``zeta_2``, ..); parameters not given are fitted with
         ``fit=("d",)``. Default: grounded, or with ``fit=("d",)`` the
         model the BIC chooses (``FitResult.damping``): the models searched
-        cheapest first until one explains the record, the others fitted at
-        its defects (``effort="high"`` searches every model).
+        one at a time, the cheapest first and next one that does better
+        at the best defects so far, until one explains the record and no
+        other does better at its defects (``effort="high"`` searches every
+        model).
     trigger : "auto" or float, default "auto"
         When the blow came on the record's time axis: ``"auto"`` detects a
         quiet pre-trigger segment or a clock that does not start at the blow

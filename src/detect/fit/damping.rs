@@ -14,11 +14,13 @@
 //! `N` samples, `p` the free parameters: defect values and positions as the
 //! number-of-defects criterion counts them, plus the chain parameters),
 //! every candidate's value in `damping.candidates`. The models' positions
-//! are searched one after the other in [`ORDER`], the cheapest first; as
-//! soon as the best so
-//! far explains the record (its residual is noise), each model not yet
-//! searched is fitted at its set alone, and if none does better there it
-//! is chosen ([`fit_choosing`]; `--effort high` searches every model).
+//! are searched one after the other, first the cheapest ([`ORDER`]);
+//! after each search the models not yet searched are fitted at the best
+//! set so far alone, and as soon as the best so far explains the record
+//! (its residual is noise) and none does better at its set, it is chosen;
+//! otherwise a model that did better there, or explains the record there,
+//! is searched next ([`fit_choosing`]; `--effort high` searches every
+//! model).
 //! The chosen model's screening fit is its answer when it explains the
 //! record (a screening fit is then finished as a full one). When the
 //! chosen model's screening residual is not noise, it is fitted
@@ -115,8 +117,9 @@ type Candidate<'n> = (&'n str, Model, Result<FitReport>);
 /// A defect set: each defect's kind and position.
 pub type Set = [(DefectKind, usize)];
 
-/// The order in which [`fit_choosing`] searches the models when it may
-/// stop early: the cheapest first. Measured on System 3's 1% record
+/// The models by the cost of their search, the cheapest first, the order
+/// in which [`fit_choosing`] searches them but for a model its fit at the
+/// best set so far puts forward. Measured on System 3's 1% record
 /// (grounded damping, CPU seconds of each screening fit on one thread):
 /// grounded 0.27, rayleigh 0.84, modal 1.25, between 2.31 (its damping is
 /// not proportional: complex modes).
@@ -155,14 +158,22 @@ pub struct ChoiceFits<'a> {
 /// time that of the whole choice.
 ///
 /// The models' positions are searched ([`ChoiceFits::candidate`]) one
-/// after the other in [`ORDER`], until one explains the record (its
-/// residual is noise) with a [`criterion`] no model searched before beats:
-/// each model not yet searched is then fitted at that model's set alone
-/// (values and damping parameters free, [`ChoiceFits::at`]), and if none
-/// does better there, that model is chosen and the others are listed as
-/// fitted at its set ([`DampingCandidate::searched`] false). Otherwise,
-/// and with [`ChoiceFits::every`] (every model searched side by side),
-/// the smallest criterion chooses. The chosen model's screening fit is the
+/// after the other, [`ORDER`]'s first model first. After each search the
+/// models not yet searched are fitted at the best set so far (the set of
+/// the searched model with the smallest [`criterion`]) alone (values and
+/// damping parameters free, [`ChoiceFits::at`]; each model at a set once):
+/// when that best model explains the record (its residual is noise) and
+/// none does better at its set, it is chosen and the others are listed as
+/// fitted at its set ([`DampingCandidate::searched`] false); otherwise the
+/// models that did better at that set than a best that explains the
+/// record, or explain the record there, are searched next, the smallest
+/// criterion first, and the others after them in [`ORDER`] (on a record
+/// damped between storeys, the grounded search fails, the Rayleigh one
+/// explains the record and the between-storey model does better at its
+/// set: it is searched next, not modal damping). When no model is chosen
+/// so, and with
+/// [`ChoiceFits::every`] (every model searched side by side), the smallest
+/// criterion chooses. The chosen model's screening fit is the
 /// answer when it explains the record (it is then the fit
 /// [`ChoiceFits::chosen`] gives, [`FitReport::screened`]); otherwise the
 /// model is fitted again as asked ([`ChoiceFits::refit`]), or, where the
@@ -191,32 +202,120 @@ pub fn fit_choosing(model: &Model, fits: &ChoiceFits<'_>) -> Result<FitReport> {
         return chosen(best_of(all)?, started, fits);
     }
     let mut searched: Vec<Candidate<'_>> = Vec::new();
-    let mut spent = 0;
-    for (i, name) in ORDER.into_iter().enumerate() {
+    let mut pending: Vec<&str> = ORDER.to_vec();
+    let mut at = AtSets::default();
+    while !pending.is_empty() {
+        let name = pending.remove(0);
         searched.extend(search(model, &[name], fits)?);
-        // the best so far, if it explains the record, against the models
-        // not searched yet at its set
+        // the best so far against the models not searched yet at its set
         let best = searched
             .iter()
-            .filter_map(|(_, m, r)| r.as_ref().ok().map(|r| (criterion(r), m, r)))
+            .filter_map(|(_, _, r)| r.as_ref().ok().map(|r| (criterion(r), r)))
+            .filter(|b| b.0.is_finite())
             .min_by(|a, b| a.0.total_cmp(&b.0));
-        let Some((bar, _, r)) = best.filter(|b| b.0.is_finite() && b.2.fits_data) else {
+        let Some((bar, r)) = best else {
             continue;
         };
-        let rest = &ORDER[i + 1..];
-        let (others, at_spent) = at_set(model, r, bar, rest, fits)?;
-        spent += at_spent;
-        if let Some(others) = others {
+        // one model left needs no order; a best that does not explain the
+        // record cannot be chosen by a check at its set
+        if pending.len() < 2 && !r.fits_data {
+            continue;
+        }
+        let set: Vec<(DefectKind, usize)> = r.found().iter().map(DefectKind::key_of).collect();
+        let others = at.fit(model, &set, &pending, fits)?;
+        let holds = |c: &Option<AtSet>| c.as_ref().is_some_and(|c| c.0.criterion >= bar);
+        if r.fits_data && others.iter().all(holds) {
             let mut best = best_of(searched)?;
-            best.candidates.extend(others);
+            best.candidates
+                .extend(others.into_iter().flatten().map(|c| c.0));
             best.candidates.sort_by_key(|c| model_rank(&c.model));
-            best.evaluations += spent;
+            best.evaluations += at.spent;
             return chosen(best, started, fits);
         }
+        // the models that did better at the best set than a best that
+        // explains the record, or explain the record there, are searched
+        // next, the smallest criterion first; the others after them, in
+        // ORDER (a fit at a set of a model that does not explain the
+        // record, with defects it took to make up for its damping, is no
+        // ranking: on modally damped records the between-storey model did
+        // better there than the modal one)
+        let promising = |c: &Option<AtSet>| {
+            c.as_ref()
+                .filter(|c| c.1 || (r.fits_data && c.0.criterion < bar))
+                .map(|c| c.0.criterion)
+                .filter(|v| !v.is_nan())
+                .unwrap_or(f64::INFINITY)
+        };
+        let mut order: Vec<(&str, f64)> = pending
+            .iter()
+            .copied()
+            .zip(others.iter().map(promising))
+            .collect();
+        order.sort_by(|a, b| a.1.total_cmp(&b.1));
+        pending = order.into_iter().map(|(n, _)| n).collect();
     }
     let mut best = best_of(searched)?;
-    best.evaluations += spent;
+    best.evaluations += at.spent;
     chosen(best, started, fits)
+}
+
+/// A model's fit at a set: its entry and whether it explains the record.
+type AtSet = (DampingCandidate, bool);
+
+/// A model, a set and the model's fit there (`None`: the fit failed).
+type Done = (String, Vec<(DefectKind, usize)>, Option<AtSet>);
+
+/// The fits of models at a set ([`ChoiceFits::at`]), each made once: a
+/// model is fitted at a set again when a later best has the same set.
+#[derive(Default)]
+struct AtSets {
+    /// `(model, set)` and its fit (`None`: the fit failed).
+    done: Vec<Done>,
+    /// The evaluations of every fit made.
+    spent: usize,
+}
+
+impl AtSets {
+    /// The entries of the models `names` fitted at `set` (side by side
+    /// where not fitted before, taken in their order), `None` where a fit
+    /// failed.
+    ///
+    /// # Errors
+    /// A cancellation.
+    fn fit(
+        &mut self,
+        model: &Model,
+        set: &Set,
+        names: &[&str],
+        fits: &ChoiceFits<'_>,
+    ) -> Result<Vec<Option<AtSet>>> {
+        let find = |done: &[Done], name: &str| {
+            done.iter().position(|(n, s, _)| n == name && s[..] == *set)
+        };
+        let new: Vec<&str> = names
+            .iter()
+            .copied()
+            .filter(|n| find(&self.done, n).is_none())
+            .collect();
+        let fitted = parallel::map(&new, fits.parallel, 2, |&name| {
+            (name, model.candidate(name).and_then(|m| (fits.at)(&m, set)))
+        });
+        for (name, r) in fitted {
+            let entry = match r {
+                Ok(r) => {
+                    self.spent += r.evaluations;
+                    Some((candidate_of(name, &r, false), r.fits_data))
+                }
+                Err(Error::Cancelled) => return Err(Error::Cancelled),
+                Err(_) => None,
+            };
+            self.done.push((name.to_string(), set.to_vec(), entry));
+        }
+        Ok(names
+            .iter()
+            .map(|n| find(&self.done, n).and_then(|i| self.done[i].2.clone()))
+            .collect())
+    }
 }
 
 /// The screening fits of the models `names` side by side, in their order.
@@ -309,46 +408,6 @@ fn candidate_of(name: &str, r: &FitReport, searched: bool) -> DampingCandidate {
         positions: r.found().iter().map(|d| d.at()).collect(),
         searched,
     }
-}
-
-/// The models `names` fitted at the set of `fit` (side by side, taken in
-/// their order), whose [`criterion`] is `bar`. Returns their entries when
-/// none has a smaller criterion (`None` when one has, or a fit failed), and
-/// the evaluations spent.
-///
-/// # Errors
-/// A cancellation.
-fn at_set(
-    model: &Model,
-    fit: &FitReport,
-    bar: f64,
-    names: &[&str],
-    fits: &ChoiceFits<'_>,
-) -> Result<(Option<Vec<DampingCandidate>>, usize)> {
-    let set: Vec<(DefectKind, usize)> = fit.found().iter().map(DefectKind::key_of).collect();
-    let fitted = parallel::map(names, fits.parallel, 2, |&name| {
-        (
-            name,
-            model.candidate(name).and_then(|m| (fits.at)(&m, &set)),
-        )
-    });
-    let mut out = Vec::new();
-    let mut spent = 0;
-    let mut holds = true;
-    for (name, r) in fitted {
-        match r {
-            Ok(r) => {
-                spent += r.evaluations;
-                let c = candidate_of(name, &r, false);
-                // NaN (no residual) cannot show that `fit` is the best
-                holds &= c.criterion >= bar;
-                out.push(c);
-            }
-            Err(Error::Cancelled) => return Err(Error::Cancelled),
-            Err(_) => holds = false,
-        }
-    }
-    Ok((holds.then_some(out), spent))
 }
 
 /// The searched candidates' entries in the order of [`Damping::MODELS`],
@@ -720,29 +779,33 @@ mod tests {
                 false,
                 "rayleigh",
                 &["grounded", "rayleigh"],
-                &["between", "between", "modal", "modal", "rayleigh"],
+                // each model fitted at the set once
+                &["between", "modal", "rayleigh"],
                 [true, false, true, false],
             ),
-            // grounded and rayleigh do not explain the record, modal does:
-            // between is fitted at its set only
+            // grounded does not explain the record: the others are fitted
+            // at its set and searched in that order; modal, the best there,
+            // explains the record, and between and rayleigh do no better at
+            // its set (rayleigh, next in ORDER, is never searched)
             (
                 [(1.0, no), (0.65, yes), (0.9, no), (0.6, yes)],
-                [(1.0, no), (0.7, no), (1.0, no), (1.0, no)],
+                [(1.0, no), (0.7, no), (1.0, no), (0.6, yes)],
                 false,
                 "modal",
-                &["grounded", "modal", "rayleigh"],
-                &["between"],
-                [true, false, true, true],
+                &["grounded", "modal"],
+                &["between", "modal", "rayleigh"],
+                [true, false, false, true],
             ),
-            // nothing explains the record: every model searched, the
-            // smallest criterion chosen
+            // nothing explains the record: every model searched (in the
+            // order of their fits at the best set), the smallest criterion
+            // chosen
             (
                 [(1.0, no), (0.8, no), (0.9, no), (0.7, no)],
                 [(1.0, yes); 4],
                 false,
                 "modal",
                 &every,
-                &[],
+                &["between", "modal", "rayleigh"],
                 [true; 4],
             ),
             // a model that explains the record but is beaten by one
@@ -753,7 +816,7 @@ mod tests {
                 false,
                 "grounded",
                 &every,
-                &[],
+                &["between", "modal", "rayleigh"],
                 [true; 4],
             ),
             // every model searched when asked, none at a set
