@@ -161,18 +161,19 @@ pub struct ChoiceFits<'a> {
 /// after the other, [`ORDER`]'s first model first. After each search the
 /// models not yet searched are fitted at the best set so far (the set of
 /// the searched model with the smallest [`criterion`]) alone (values and
-/// damping parameters free, [`ChoiceFits::at`]; each model at a set once):
+/// damping parameters free, [`ChoiceFits::at`]; each model at a set once;
+/// the modal model without the set's damper defects, a kind it does not
+/// take, with which the grounded model makes up for modal damping):
 /// when that best model explains the record (its residual is noise) and
 /// none does better at its set, it is chosen and the others are listed as
 /// fitted at its set ([`DampingCandidate::searched`] false); otherwise the
 /// models that did better at that set than a best that explains the
 /// record, or explain the record there, are searched next, the smallest
 /// criterion first, and the others after them in [`ORDER`] (on a record
-/// damped between storeys, the grounded search fails, the Rayleigh one
-/// explains the record and the between-storey model does better at its
-/// set: it is searched next, not modal damping). When no model is chosen
-/// so, and with
-/// [`ChoiceFits::every`] (every model searched side by side), the smallest
+/// damped between storeys the grounded search fails and the
+/// between-storey model explains the record at its set: it is searched
+/// next, not Rayleigh and modal damping). When no model is chosen so, and
+/// with [`ChoiceFits::every`] (every model searched side by side), the smallest
 /// criterion chooses. The chosen model's screening fit is the
 /// answer when it explains the record (it is then the fit
 /// [`ChoiceFits::chosen`] gives, [`FitReport::screened`]); otherwise the
@@ -298,7 +299,18 @@ impl AtSets {
             .filter(|n| find(&self.done, n).is_none())
             .collect();
         let fitted = parallel::map(&new, fits.parallel, 2, |&name| {
-            (name, model.candidate(name).and_then(|m| (fits.at)(&m, set)))
+            let fit = |m: Model| {
+                // a damper defect is not a defect of a model that damps
+                // each mode (the kinds its searches take): left out
+                let modal = m.chain().damping().is_modal();
+                let kept: Vec<_> = set
+                    .iter()
+                    .copied()
+                    .filter(|&(kind, _)| !(modal && kind == DefectKind::Damper))
+                    .collect();
+                (fits.at)(&m, &kept)
+            };
+            (name, model.candidate(name).and_then(fit))
         });
         for (name, r) in fitted {
             let entry = match r {
@@ -843,6 +855,55 @@ mod tests {
                 "case {i}"
             );
         }
+    }
+
+    /// A damper defect of the best set is left out of the set the modal
+    /// model is fitted at (it damps each mode; its searches take no
+    /// damper), and kept for the others.
+    #[test]
+    fn a_damper_is_left_out_of_the_modal_models_set() {
+        let (mut base, model) = base();
+        let mut damper = base.defects[0].clone();
+        damper.kind = "damper";
+        damper.at = 4;
+        damper.value = 0.3;
+        base.defects.push(damper);
+        let sets = Mutex::new(Vec::new());
+        let candidate = |_: &Model| Ok(stub(&base, (1.0, false)));
+        let at_set = |m: &Model, set: &Set| {
+            let name = m.chain().damping().name().to_string();
+            sets.lock().unwrap().push((name, set.to_vec()));
+            Ok(stub(&base, (1.0, false)))
+        };
+        fit_choosing(
+            &model,
+            &ChoiceFits {
+                candidate: &candidate,
+                at: &at_set,
+                chosen: &candidate,
+                refit: None,
+                every: false,
+                parallel: false,
+            },
+        )
+        .unwrap();
+        let mut sets = sets.into_inner().unwrap();
+        sets.sort();
+        let full: Vec<(DefectKind, usize)> = base.found().iter().map(DefectKind::key_of).collect();
+        assert_eq!(full.len(), 2);
+        assert!(full.contains(&(DefectKind::Damper, 4)));
+        let without: Vec<_> = full
+            .iter()
+            .copied()
+            .filter(|p| p.0 != DefectKind::Damper)
+            .collect();
+        // fitted once each at grounded's set (the best never changes)
+        let want = [
+            ("between".to_string(), full.clone()),
+            ("modal".to_string(), without),
+            ("rayleigh".to_string(), full),
+        ];
+        assert_eq!(sets, want);
     }
 
     #[test]
