@@ -37,7 +37,7 @@ use crate::detect::fit::options::FitOptions;
 use crate::detect::fit::record::{NoiseModelChoice, NuisanceChoice};
 use crate::detect::fit::report::{FitReport, Status};
 use crate::detect::search::parallel;
-use crate::detect::unknowns::DefectKind;
+use crate::detect::unknowns::{DefectKind, KindChoice};
 use crate::error::{Error, Result};
 
 /// `N ln(RSS / N) + p ln N` of a report (module docs); `NaN` without a
@@ -173,8 +173,8 @@ pub struct ChoiceFits<'a> {
 /// damped between storeys the grounded search fails and the
 /// between-storey model explains the record at its set: it is searched
 /// next, not Rayleigh and modal damping). When no model is chosen so, and
-/// with [`ChoiceFits::every`] (every model searched side by side), the smallest
-/// criterion chooses. The chosen model's screening fit is the
+/// with [`ChoiceFits::every`] (every model searched side by side), the
+/// smallest criterion chooses. The chosen model's screening fit is the
 /// answer when it explains the record (it is then the fit
 /// [`ChoiceFits::chosen`] gives, [`FitReport::screened`]); otherwise the
 /// model is fitted again as asked ([`ChoiceFits::refit`]), or, where the
@@ -300,13 +300,14 @@ impl AtSets {
             .collect();
         let fitted = parallel::map(&new, fits.parallel, 2, |&name| {
             let fit = |m: Model| {
-                // a damper defect is not a defect of a model that damps
-                // each mode (the kinds its searches take): left out
-                let modal = m.chain().damping().is_modal();
+                // a kind of `any` the model's searches do not take (no
+                // damper under modal damping, `KindChoice::under`) left
+                // out of the set; a kind asked for by name (ground) kept
+                let takes = KindChoice::Any.under(m.chain().damping()).kinds();
                 let kept: Vec<_> = set
                     .iter()
                     .copied()
-                    .filter(|&(kind, _)| !(modal && kind == DefectKind::Damper))
+                    .filter(|(kind, _)| takes.contains(kind) || !DefectKind::ANY.contains(kind))
                     .collect();
                 (fits.at)(&m, &kept)
             };
