@@ -253,17 +253,44 @@ pub struct Gradient<T> {
 /// `s` invalid (as [`check_s`]), `o` outside `1..=n`, [`Error::Singular`] when an
 /// elimination pivot vanishes (a pole of the response).
 pub fn green_column<T: Scalar>(chain: &Chain, s: T, o: usize) -> Result<Vec<T>> {
+    green_column_with(chain, &Coeffs::of(chain), s, o)
+}
+
+/// The chain's coefficients that [`green_column`] reads, taken once for
+/// many `s`.
+struct Coeffs {
+    m: Vec<f64>,
+    kap: Vec<f64>,
+    dmp: Vec<f64>,
+    gnd: Vec<f64>,
+    /// spring-parallel dampers ([`green_column_general`])
+    between: bool,
+}
+
+impl Coeffs {
+    fn of(chain: &Chain) -> Coeffs {
+        Coeffs {
+            m: chain.masses(),
+            kap: chain.springs(),
+            dmp: chain.dampers(),
+            gnd: chain.grounds(),
+            between: chain.spring_dampers().iter().any(|&c| c != 0.0),
+        }
+    }
+}
+
+/// [`green_column`] from the chain's coefficients `c`. The excess
+/// stiffnesses from the right are needed from mass `o` on, those from the
+/// left up to it: only those are computed.
+fn green_column_with<T: Scalar>(chain: &Chain, c: &Coeffs, s: T, o: usize) -> Result<Vec<T>> {
     check_s(&s)?;
     chain.check_observe(o)?;
     let n = chain.n();
-    let m = chain.masses();
-    let kap = chain.springs();
-    let dmp = chain.dampers();
-    let gnd = chain.grounds();
-    let cd = chain.spring_dampers();
-    if cd.iter().any(|&c| c != 0.0) {
+    let (m, kap, dmp, gnd) = (&c.m, &c.kap, &c.dmp, &c.gnd);
+    if c.between {
         return green_column_general(chain, s, o);
     }
+    let oi = o - 1;
     let s2 = s.clone() * s.clone();
     let local: Vec<T> = (0..n)
         .map(|i| s2.scale(m[i]) + s.scale(dmp[i]) + T::from_f64(gnd[i]))
@@ -271,7 +298,7 @@ pub fn green_column<T: Scalar>(chain: &Chain, s: T, o: usize) -> Result<Vec<T>> 
     // tails: tr[i] = contribution from the right of mass i+1 (0-based i), tl likewise.
     let mut er: Vec<T> = vec![T::zero(); n];
     let mut tail_r: Vec<T> = vec![T::zero(); n];
-    for i in (0..n).rev() {
+    for i in (oi..n).rev() {
         let kr = kap[i + 1];
         let t = if i + 1 == n {
             T::from_f64(kr)
@@ -283,7 +310,7 @@ pub fn green_column<T: Scalar>(chain: &Chain, s: T, o: usize) -> Result<Vec<T>> 
     }
     let mut el: Vec<T> = vec![T::zero(); n];
     let mut tail_l: Vec<T> = vec![T::zero(); n];
-    for i in 0..n {
+    for i in 0..=oi {
         let kl = kap[i];
         let t = if i == 0 {
             T::from_f64(kl)
@@ -293,7 +320,6 @@ pub fn green_column<T: Scalar>(chain: &Chain, s: T, o: usize) -> Result<Vec<T>> 
         el[i] = local[i].clone() + t.clone();
         tail_l[i] = t;
     }
-    let oi = o - 1;
     let mut g = vec![T::zero(); n];
     g[oi] = T::one() / (local[oi].clone() + tail_r[oi].clone() + tail_l[oi].clone());
     for i in oi + 1..n {
@@ -348,30 +374,57 @@ pub fn gradient<T: Scalar>(
     observe: usize,
     params: &[Param],
 ) -> Result<Gradient<T>> {
-    let gamma = chain.gamma();
-    let g1 = green_column(chain, s.clone(), 1)?;
-    let go = if observe == 1 {
-        None
-    } else {
-        Some(green_column(chain, s.clone(), observe)?)
-    };
-    let go_ref: &[T] = go.as_deref().unwrap_or(&g1);
-    let value = g1[observe - 1].scale(gamma);
-    let forms = Forms {
-        go: go_ref,
-        g1: &g1,
-        n: chain.n(),
-    };
-    let sites = DefectSites::of(chain);
-    let mut grad = Vec::with_capacity(params.len());
-    for p in params {
-        // b = (G e_o)^T dK (G e_1); derivative = -gamma b
-        match forms.form(chain, p, &sites, &s)? {
-            Some(b) => grad.push(-b.scale(gamma)),
-            None => grad.push(go_ref[0].clone()),
+    Gradients::new(chain).at(s, observe, params)
+}
+
+/// [`gradient`] at many `s` of one chain: the chain's coefficients and its
+/// defects' sites taken once (the same values as [`gradient`]).
+pub struct Gradients<'a> {
+    chain: &'a Chain,
+    coeffs: Coeffs,
+    sites: DefectSites,
+}
+
+impl<'a> Gradients<'a> {
+    /// For `chain`.
+    pub fn new(chain: &'a Chain) -> Gradients<'a> {
+        Gradients {
+            chain,
+            coeffs: Coeffs::of(chain),
+            sites: DefectSites::of(chain),
         }
     }
-    Ok(Gradient { value, grad })
+
+    /// [`gradient`] of the chain at `s`.
+    ///
+    /// # Errors
+    /// As [`gradient`].
+    pub fn at<T: Scalar>(&self, s: T, observe: usize, params: &[Param]) -> Result<Gradient<T>> {
+        let chain = self.chain;
+        let gamma = chain.gamma();
+        let g1 = green_column_with(chain, &self.coeffs, s.clone(), 1)?;
+        let go = if observe == 1 {
+            None
+        } else {
+            Some(green_column_with(chain, &self.coeffs, s.clone(), observe)?)
+        };
+        let go_ref: &[T] = go.as_deref().unwrap_or(&g1);
+        let value = g1[observe - 1].scale(gamma);
+        let forms = Forms {
+            go: go_ref,
+            g1: &g1,
+            n: chain.n(),
+        };
+        let mut grad = Vec::with_capacity(params.len());
+        for p in params {
+            // b = (G e_o)^T dK (G e_1); derivative = -gamma b
+            match forms.form(chain, p, &self.sites, &s)? {
+                Some(b) => grad.push(-b.scale(gamma)),
+                None => grad.push(go_ref[0].clone()),
+            }
+        }
+        Ok(Gradient { value, grad })
+    }
 }
 
 /// The bilinear forms of [`gradient`] between the Green columns of the

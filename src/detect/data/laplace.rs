@@ -7,11 +7,12 @@
 
 use crate::chain::Chain;
 use crate::detect::data::measurement::{laplace_gradient, laplace_model, scale_gradient, Sensor};
+use crate::detect::data::whitener::Whitener;
 use crate::error::{check_f64, Error, Result};
 use crate::forward::transfer::{SweepTable, SweepWork};
 use crate::forward::Forward;
 use crate::sensitivity::{
-    defect_gradient_from, defect_gradient_with, gradient, observe_defect_gradient_with, Gradient,
+    defect_gradient_from, defect_gradient_with, observe_defect_gradient_with, Gradient, Gradients,
     Param,
 };
 use nalgebra::DMatrix;
@@ -28,7 +29,7 @@ pub struct LaplaceObs {
     s: Vec<Complex64>,
     values: Vec<Complex64>,
     weights: Vec<f64>,
-    whitening: Option<DMatrix<f64>>,
+    whitening: Option<Whitener>,
     sensor: Sensor,
     /// Transform of the measured force at the nodes (`None`: the impulse).
     force_hat: Option<Vec<Complex64>>,
@@ -354,7 +355,7 @@ impl LaplaceObs {
         if whitening.iter().any(|v| !v.is_finite()) {
             return Err(Error::invalid("whitening", "non-finite entry", "finite"));
         }
-        obs.whitening = Some(whitening);
+        obs.whitening = Some(Whitener::rotated(whitening));
         obs.id = ObsId::fresh();
         Ok(obs)
     }
@@ -365,14 +366,21 @@ impl LaplaceObs {
     /// count, the misfit is not a chi-square).
     pub fn dof(&self) -> usize {
         let own = match &self.whitening {
-            Some(w) => w.nrows(),
+            Some(w) => w.rows(),
             None => crate::time::series::stacked_rows(&self.s).len(),
         };
         own + self.others.iter().map(LaplaceObs::dof).sum::<usize>()
     }
 
-    /// The whitening matrix, if any.
+    /// The whitening matrix, if any: `R` of the `W = Q R` given to
+    /// [`LaplaceObs::whitened`] (the same whitening, see
+    /// [`Whitener::rotated`]).
     pub fn whitening(&self) -> Option<&DMatrix<f64>> {
+        self.whitening.as_ref().map(Whitener::matrix)
+    }
+
+    /// The whitening as the products use it.
+    pub(crate) fn whitener(&self) -> Option<&Whitener> {
         self.whitening.as_ref()
     }
 
@@ -432,7 +440,7 @@ impl LaplaceObs {
         if let Some(w) = &self.whitening {
             let diff: Vec<Complex64> = model.iter().zip(&self.values).map(|(x, d)| x - d).collect();
             let r = crate::time::series::stack_re_im(&self.s, &diff);
-            return Ok(whiten(w, &r, 1));
+            return Ok(w.apply(&r, 1));
         }
         let mut r = Vec::with_capacity(2 * self.s.len());
         for (q, &x) in model.iter().enumerate() {
@@ -566,10 +574,14 @@ impl LaplaceObs {
             _ => vec![None; self.s.len()],
         };
         let mut grads: Vec<Vec<Complex64>> = Vec::with_capacity(self.s.len());
+        // the chain's coefficients, taken once for every node that needs them
+        let mut general: Option<Gradients> = None;
         for (q, tab) in tabs.into_iter().enumerate() {
             let g = match tab {
                 Some(g) => g,
-                None => self.node_gradient(&fwd, chain, q, defect_idx.as_deref(), params)?,
+                None => {
+                    self.node_gradient(&fwd, chain, q, defect_idx.as_deref(), params, &mut general)?
+                }
             };
             grads.push(g.grad);
         }
@@ -585,9 +597,9 @@ impl LaplaceObs {
                 }
             });
             return Ok(DMatrix::from_vec(
-                w.nrows(),
+                w.rows(),
                 params.len(),
-                whiten(w, j.as_slice(), params.len()),
+                w.apply(j.as_slice(), params.len()),
             ));
         }
         let mut rows: Vec<Vec<f64>> = Vec::with_capacity(2 * self.s.len());
@@ -611,7 +623,7 @@ impl LaplaceObs {
         &self,
         fwd: &Forward,
         idx: &[usize],
-        w: &DMatrix<f64>,
+        w: &Whitener,
     ) -> Option<DMatrix<f64>> {
         if !self.sweep_memo_applies() {
             return None;
@@ -630,7 +642,7 @@ impl LaplaceObs {
             }
             Some(j)
         })?;
-        Some(DMatrix::from_vec(w.nrows(), p, whiten(w, &j, p)))
+        Some(DMatrix::from_vec(w.rows(), p, w.apply(&j, p)))
     }
 
     /// Defect values of the tabulated observable: the sweeps of the
@@ -653,14 +665,17 @@ impl LaplaceObs {
     }
 
     /// The gradient of the model at node `q` with respect to `params`
-    /// (`defect_idx`: their defect indices when all are defect values).
-    fn node_gradient(
+    /// (`defect_idx`: their defect indices when all are defect values;
+    /// `general`: the chain's [`Gradients`], made at the first node that
+    /// needs them and kept for the others).
+    fn node_gradient<'c>(
         &self,
         fwd: &Forward,
-        chain: &Chain,
+        chain: &'c Chain,
         q: usize,
         defect_idx: Option<&[usize]>,
         params: &[Param],
+        general: &mut Option<Gradients<'c>>,
     ) -> Result<Gradient<Complex64>> {
         let s = self.s[q];
         let force = self.force_hat.as_ref().map(|f| f[q]);
@@ -681,103 +696,11 @@ impl LaplaceObs {
                     grad: idx.iter().map(|&i| all.grad[i]).collect(),
                 }
             }
-            _ if paper => gradient(chain, s, 1, params)?,
+            _ if paper => general
+                .get_or_insert_with(|| Gradients::new(chain))
+                .at(s, 1, params)?,
             _ => laplace_gradient(self.sensor, chain, s, force, params)?,
         })
-    }
-}
-
-/// `W X` for the `cols` columns of `x` (column-major, `W.ncols()` rows),
-/// column-major: every column of `W` read once for all columns of `X`. The
-/// same sums in the same order as nalgebra's product (`W[i][0] x_0`, then
-/// `+ W[i][j] x_j` for `j = 1, 2, ...`), so the same values.
-pub(crate) fn whiten(w: &DMatrix<f64>, x: &[f64], cols: usize) -> Vec<f64> {
-    let mut out = vec![0.0; w.nrows() * cols];
-    whiten_into(w, x, cols, &mut out);
-    out
-}
-
-/// [`whiten`] into `out` (`W.nrows() * cols` entries, every one written).
-pub(crate) fn whiten_into(w: &DMatrix<f64>, x: &[f64], cols: usize, out: &mut [f64]) {
-    let (k, m) = w.shape();
-    debug_assert_eq!(x.len(), m * cols);
-    debug_assert_eq!(out.len(), k * cols);
-    if k == 0 || m == 0 {
-        out.fill(0.0);
-        return;
-    }
-    let ws = w.as_slice();
-    // blocks of rows of W held in registers across all its columns (every
-    // entry of W read once per pair of columns of X, no store until the
-    // block is done); per output the same sums in the same order as below
-    let mut i0 = 0;
-    if cols == 1 {
-        while i0 + 16 <= k {
-            whiten_block::<16, 1>(ws, k, m, x, out, i0, 0);
-            i0 += 16;
-        }
-    }
-    while i0 + 8 <= k {
-        let mut c = 0;
-        while c + 2 <= cols {
-            whiten_block::<8, 2>(ws, k, m, x, out, i0, c);
-            c += 2;
-        }
-        if c < cols {
-            whiten_block::<8, 1>(ws, k, m, x, out, i0, c);
-        }
-        i0 += 8;
-    }
-    // the last rows, column by column
-    if i0 < k {
-        for (j, wc) in ws.chunks_exact(k).enumerate() {
-            for (c, o) in out.chunks_exact_mut(k).enumerate() {
-                let v = x[c * m + j];
-                let (o, wc) = (&mut o[i0..], &wc[i0..]);
-                if j == 0 {
-                    for (o, a) in o.iter_mut().zip(wc) {
-                        *o = a * v;
-                    }
-                } else {
-                    for (o, a) in o.iter_mut().zip(wc) {
-                        *o += a * v;
-                    }
-                }
-            }
-        }
-    }
-}
-
-/// Rows `i0..i0 + R` of `W X` for the columns `c0..c0 + C` of `X` (`W`
-/// column-major `k x m` in `ws`, `X` column-major `m x cols` in `x`, the
-/// result column-major `k x cols` in `out`): `W[i][0] x_0`, then
-/// `+ W[i][j] x_j` for `j = 1, 2, ...`, in registers.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn whiten_block<const R: usize, const C: usize>(
-    ws: &[f64],
-    k: usize,
-    m: usize,
-    x: &[f64],
-    out: &mut [f64],
-    i0: usize,
-    c0: usize,
-) {
-    let xs: [&[f64]; C] = std::array::from_fn(|c| &x[(c0 + c) * m..(c0 + c + 1) * m]);
-    let w0: &[f64; R] = ws[i0..i0 + R].try_into().expect("block");
-    let mut acc: [[f64; R]; C] = std::array::from_fn(|c| w0.map(|v| v * xs[c][0]));
-    for j in 1..m {
-        let wj: &[f64; R] = ws[j * k + i0..j * k + i0 + R].try_into().expect("block");
-        for (a, xc) in acc.iter_mut().zip(&xs) {
-            let v = xc[j];
-            for (a, w) in a.iter_mut().zip(wj) {
-                *a += w * v;
-            }
-        }
-    }
-    for (c, a) in acc.iter().enumerate() {
-        let o = (c0 + c) * k + i0;
-        out[o..o + R].copy_from_slice(a);
     }
 }
 
@@ -799,6 +722,7 @@ impl crate::detect::model::MeasurementModel for LaplaceObs {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sensitivity::gradient;
 
     /// Tables built for one damping do not serve another; retabled, they
     /// do, with the direct sweep's residuals and Jacobian to rounding, and
@@ -877,6 +801,9 @@ mod tests {
             1.0 / (1.0 + (i as f64 - j as f64).abs()) + 0.01 * i as f64
         });
         let obs = LaplaceObs::whitened(s.clone(), values.clone(), w.clone()).unwrap();
+        // the observation holds W rotated (the same whitening): the per-call
+        // products below take the matrix it holds
+        let w = obs.whitening().unwrap().clone();
         let params = [Param::Defect(0), Param::Defect(1)];
         let chains = [
             truth.clone(),
@@ -931,26 +858,5 @@ mod tests {
         let ro = other.residuals(&truth).unwrap();
         let ra = obs.residuals(&truth).unwrap();
         assert_ne!(ro, ra);
-        // whiten() is nalgebra's product, column by column
-        let x = DMatrix::from_fn(m, 3, |i, j| (i * 3 + j) as f64 - 7.5);
-        let wm = DMatrix::from_fn(4, m, |i, j| ((i + 2 * j) % 5) as f64 * 0.3 - 0.4);
-        assert_eq!(whiten(&wm, x.as_slice(), 3), (&wm * &x).as_slice().to_vec());
-        // register blocks and the rows left over: the same sums in the same
-        // order as column by column (`W[i][0] x_0`, then `+ W[i][j] x_j`)
-        for (rows, cols) in [(8, 1), (17, 2), (19, 3), (24, 5), (19, 1), (40, 1)] {
-            let x = DMatrix::from_fn(m, cols, |i, j| ((i * 7 + j) % 11) as f64 * 0.37 - 1.1);
-            let wm = DMatrix::from_fn(rows, m, |i, j| ((i * 5 + 3 * j) % 13) as f64 * 0.21 - 1.3);
-            let mut want = vec![0.0; rows * cols];
-            for c in 0..cols {
-                for i in 0..rows {
-                    let mut acc = wm[(i, 0)] * x[(0, c)];
-                    for j in 1..m {
-                        acc += wm[(i, j)] * x[(j, c)];
-                    }
-                    want[c * rows + i] = acc;
-                }
-            }
-            assert_eq!(whiten(&wm, x.as_slice(), cols), want, "{rows} x {cols}");
-        }
     }
 }

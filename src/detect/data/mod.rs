@@ -13,6 +13,7 @@
 //! | [`noise_model`] | the record's noise model: white or AR(p), its prediction-error whitening, Burg's estimate and the order by BIC |
 //! | [`nuisance`] | the sensor's offset and drift, profiled out by projection |
 //! | [`whiten`] | whitening of the correlated Laplace-domain noise of a transformed series |
+//! | [`whitener`] | the whitening product `W X`, with `W` rotated to zeros before its diagonal that the product skips |
 
 pub mod ambient;
 pub mod exact;
@@ -26,6 +27,7 @@ pub mod observations;
 pub mod series;
 pub mod trigger;
 pub mod whiten;
+pub mod whitener;
 
 /// Laplace values at nodes: `nodes` nodes, `values` values and as many of a
 /// third array (`third = (its length, its name)`), at least one node; else

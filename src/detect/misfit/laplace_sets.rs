@@ -29,7 +29,7 @@
 //! defects.
 
 use crate::chain::{Chain, Probe, Site};
-use crate::detect::data::laplace::{whiten, LaplaceObs};
+use crate::detect::data::laplace::LaplaceObs;
 use crate::error::{Error, Result};
 use crate::green::{Green, ProbeFactors};
 use crate::time::series::stacked_rows;
@@ -447,7 +447,7 @@ impl SetModel<'_> {
     fn residual_of(&self, x: &[Complex64], columns: usize) -> Vec<f64> {
         let obs = self.tables.obs;
         let s = obs.nodes();
-        match obs.whitening() {
+        match obs.whitener() {
             Some(w) => {
                 let rows = &self.tables.rows;
                 let mut stacked = Vec::with_capacity(rows.len() * columns);
@@ -458,7 +458,7 @@ impl SetModel<'_> {
                             .map(|&(q, im)| if im { col[q].im } else { col[q].re }),
                     );
                 }
-                whiten(w, &stacked, columns)
+                w.apply(&stacked, columns)
             }
             None => {
                 let mut out = Vec::new();

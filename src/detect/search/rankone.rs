@@ -56,6 +56,7 @@
 
 use crate::chain::{Chain, Defect, Probe};
 use crate::detect::data::laplace::LaplaceObs;
+use crate::detect::data::whitener::Whitener;
 use crate::detect::unknowns::{DefectKind, KindBounds};
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
@@ -199,7 +200,7 @@ pub struct Target {
     s: Vec<C>,
     d: Vec<C>,
     sw: Vec<f64>,
-    w: Option<DMatrix<f64>>,
+    w: Option<Whitener>,
     rows: Vec<(usize, bool)>,
 }
 
@@ -222,7 +223,7 @@ impl Target {
         Target {
             d: obs.values().to_vec(),
             sw: obs.weights().iter().map(|w| w.sqrt()).collect(),
-            w: obs.whitening().cloned(),
+            w: obs.whitener().cloned(),
             rows,
             s,
         }
@@ -236,7 +237,7 @@ impl Target {
     /// Number of whitened residuals.
     pub fn m(&self) -> usize {
         match &self.w {
-            Some(w) => w.nrows(),
+            Some(w) => w.rows(),
             None => self.rows.len(),
         }
     }
@@ -262,7 +263,7 @@ impl Target {
                 }
                 // out = W tmp: the register-blocked product, the same sums in
                 // the same order as column by column
-                crate::detect::data::laplace::whiten_into(w, tmp, 1, out);
+                w.apply_into(tmp, 1, out);
             }
         }
     }
