@@ -20,7 +20,12 @@
 //! Before the search at `k = 2` (or any `k` that is not nested), the best
 //! answer at `k - 1` (the incumbent) is extended by each `(kind, position)`
 //! pair in turn and refitted on the coarse (Laplace) misfit from there,
-//! every value free: the chi-square each pair reaches is its sensitivity.
+//! every defect value free and the chain parameters (a fitted damping)
+//! held at the incumbent's, as the coarse pass that ranks the sets holds
+//! them: the chi-square each pair reaches is its sensitivity. (With the
+//! damping free too, each fit's Jacobian took the general gradient at
+//! every node instead of the tabulated sweep: System 3's 1% record with
+//! `--fit d --damping grounded` spent a fifth of its instructions here.)
 //! The search at `k` then draws its sets from
 //!
 //! * at each position, the kind that reached the lowest chi-square there;
@@ -220,20 +225,15 @@ pub(super) fn narrow(
     let mut scored: Vec<((DefectKind, usize), f64)> = Vec::with_capacity(pairs.len());
     for &pair in pairs.iter().filter(|p| !held.contains(p)) {
         let (with, values) = incumbent.extended(pair, &start);
-        let chi2 = match general::fit_pairs_from(
-            &start,
-            unknowns,
-            &with,
-            &values,
-            obs,
-            SENSITIVITY_ITER,
-        ) {
-            Ok((h, e)) => {
-                evaluations += e;
-                h.chi2
-            }
-            Err(_) => f64::INFINITY,
-        };
+        let chi2 =
+            match general::fit_values_from(&start, unknowns, &with, &values, obs, SENSITIVITY_ITER)
+            {
+                Ok((h, e)) => {
+                    evaluations += e;
+                    h.chi2
+                }
+                Err(_) => f64::INFINITY,
+            };
         scored.push((pair, chi2));
     }
     let kept = kept_pairs(&scored, answers, n);

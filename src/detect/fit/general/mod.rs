@@ -91,7 +91,7 @@ pub use super::setup::{laplace_obs, laplace_obs_under, Setup};
 use hypothesis::rank;
 pub use hypothesis::{param_name, FittedParam, Hypothesis};
 use sets::{better, fit_pairs, fit_pairs_coarse, fit_pairs_fast, starts, Fitted, Tol};
-pub(crate) use sets::{fit_pairs_from, fit_placed_from};
+pub(crate) use sets::{fit_pairs_from, fit_placed_from, fit_values_from};
 
 /// Which of the shortlist's Laplace fits `fits` (in shortlist order) are
 /// refitted in the time domain: the best and the runner-up by the Laplace

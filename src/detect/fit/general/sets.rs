@@ -244,6 +244,35 @@ pub(crate) fn fit_pairs_from(
     obs: &dyn MeasurementModel,
     max_iter: usize,
 ) -> Result<(Hypothesis, usize)> {
+    fit_from(base, unknowns, pairs, values, obs, max_iter, true)
+}
+
+/// [`fit_pairs_from`] with the chain parameters held at `base`'s values:
+/// the defect values alone.
+///
+/// # Errors
+/// As [`fit_pairs_from`].
+pub(crate) fn fit_values_from(
+    base: &Chain,
+    unknowns: &Unknowns,
+    pairs: &[(DefectKind, usize)],
+    values: &[f64],
+    obs: &dyn MeasurementModel,
+    max_iter: usize,
+) -> Result<(Hypothesis, usize)> {
+    fit_from(base, unknowns, pairs, values, obs, max_iter, false)
+}
+
+/// [`fit_pairs_from`], the chain parameters free `with_chain`.
+fn fit_from(
+    base: &Chain,
+    unknowns: &Unknowns,
+    pairs: &[(DefectKind, usize)],
+    values: &[f64],
+    obs: &dyn MeasurementModel,
+    max_iter: usize,
+    with_chain: bool,
+) -> Result<(Hypothesis, usize)> {
     if pairs.len() != unknowns.k() || values.len() != pairs.len() {
         return Err(Error::invalid(
             "pairs",
@@ -258,7 +287,7 @@ pub(crate) fn fit_pairs_from(
         pairs,
         values,
         &chain_bounds,
-        true,
+        with_chain,
         obs,
         max_iter,
         Tol::Full,
