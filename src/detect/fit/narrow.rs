@@ -225,15 +225,23 @@ pub(super) fn narrow(
     let mut scored: Vec<((DefectKind, usize), f64)> = Vec::with_capacity(pairs.len());
     for &pair in pairs.iter().filter(|p| !held.contains(p)) {
         let (with, values) = incumbent.extended(pair, &start);
-        let chi2 =
-            match general::fit_values_from(&start, unknowns, &with, &values, obs, SENSITIVITY_ITER)
-            {
-                Ok((h, e)) => {
-                    evaluations += e;
-                    h.chi2
-                }
-                Err(_) => f64::INFINITY,
-            };
+        // the chain parameters held (the module docs)
+        let fit = general::fit_pairs_from(
+            &start,
+            unknowns,
+            &with,
+            &values,
+            obs,
+            SENSITIVITY_ITER,
+            false,
+        );
+        let chi2 = match fit {
+            Ok((h, e)) => {
+                evaluations += e;
+                h.chi2
+            }
+            Err(_) => f64::INFINITY,
+        };
         scored.push((pair, chi2));
     }
     let kept = kept_pairs(&scored, answers, n);

@@ -171,7 +171,7 @@ impl Engine<'_> {
         Ok(starts
             .into_iter()
             .filter(|(pairs, values)| {
-                general::fit_pairs_from(start, &unknowns, pairs, values, &coarse, SLACK_ITER)
+                general::fit_pairs_from(start, &unknowns, pairs, values, &coarse, SLACK_ITER, true)
                     .is_ok_and(|(h, _)| h.chi2 <= floor + setup.time_slack)
             })
             .collect())
@@ -204,7 +204,9 @@ impl Engine<'_> {
         };
         let (mut best, mut spent): (Option<Hypothesis>, usize) = (None, 0);
         for (pairs, values) in &starts {
-            if let Ok((h, e)) = general::fit_pairs_from(start, &unknowns, pairs, values, obs, 100) {
+            if let Ok((h, e)) =
+                general::fit_pairs_from(start, &unknowns, pairs, values, obs, 100, true)
+            {
                 spent += e;
                 if best.as_ref().is_none_or(|b| h.chi2 < b.chi2) {
                     best = Some(h);

@@ -91,7 +91,7 @@ pub use super::setup::{laplace_obs, laplace_obs_under, Setup};
 use hypothesis::rank;
 pub use hypothesis::{param_name, FittedParam, Hypothesis};
 use sets::{better, fit_pairs, fit_pairs_coarse, fit_pairs_fast, starts, Fitted, Tol};
-pub(crate) use sets::{fit_pairs_from, fit_placed_from, fit_values_from};
+pub(crate) use sets::{fit_pairs_from, fit_placed_from};
 
 /// Which of the shortlist's Laplace fits `fits` (in shortlist order) are
 /// refitted in the time domain: the best and the runner-up by the Laplace
@@ -887,7 +887,7 @@ mod tests {
             for h in &three.ranked {
                 let start = h.to_chain(&base).unwrap().uniform();
                 let (again, _) =
-                    fit_pairs_from(&start, &u, &h.key(), &h.masses(), obs, 100).unwrap();
+                    fit_pairs_from(&start, &u, &h.key(), &h.masses(), obs, 100, true).unwrap();
                 assert!(
                     again.chi2 >= h.chi2 * (1.0 - 1e-6),
                     "{:?}: {} refitted to {}",

@@ -224,47 +224,27 @@ pub(crate) fn fit_placed_from(
         method: "fit_placed_from".into(),
         reason: "no hypothesis".into(),
     })?;
-    fit_pairs_from(&base.uniform(), unknowns, pairs, values, obs, max_iter)
+    fit_pairs_from(
+        &base.uniform(),
+        unknowns,
+        pairs,
+        values,
+        obs,
+        max_iter,
+        true,
+    )
 }
 
 /// Fit the `(kind, position)` pairs `pairs` of `unknowns` (one per slot, in
 /// slot order) on any measurement model `obs`, from `values` and the chain
-/// parameters of `base`, to full tolerance: a warm start (the fit at
-/// `k + 1` defects from the fit at `k`). Levenberg-Marquardt accepts only
-/// steps that lower the chi-square, so the answer is never worse than the
-/// start.
+/// parameters of `base` (fitted too `with_chain`, else held), to full
+/// tolerance: a warm start (the fit at `k + 1` defects from the fit at
+/// `k`). Levenberg-Marquardt accepts only steps that lower the chi-square,
+/// so the answer is never worse than the start.
 ///
 /// # Errors
 /// A pair count other than the unknowns' slot count; as the fit.
 pub(crate) fn fit_pairs_from(
-    base: &Chain,
-    unknowns: &Unknowns,
-    pairs: &[(DefectKind, usize)],
-    values: &[f64],
-    obs: &dyn MeasurementModel,
-    max_iter: usize,
-) -> Result<(Hypothesis, usize)> {
-    fit_from(base, unknowns, pairs, values, obs, max_iter, true)
-}
-
-/// [`fit_pairs_from`] with the chain parameters held at `base`'s values:
-/// the defect values alone.
-///
-/// # Errors
-/// As [`fit_pairs_from`].
-pub(crate) fn fit_values_from(
-    base: &Chain,
-    unknowns: &Unknowns,
-    pairs: &[(DefectKind, usize)],
-    values: &[f64],
-    obs: &dyn MeasurementModel,
-    max_iter: usize,
-) -> Result<(Hypothesis, usize)> {
-    fit_from(base, unknowns, pairs, values, obs, max_iter, false)
-}
-
-/// [`fit_pairs_from`], the chain parameters free `with_chain`.
-fn fit_from(
     base: &Chain,
     unknowns: &Unknowns,
     pairs: &[(DefectKind, usize)],
