@@ -46,7 +46,7 @@
 //! # Ok::<(), springmass::Error>(())
 //! ```
 
-use crate::chain::{Chain, Damping, Defect, Probe, Site};
+use crate::chain::{Chain, Coefficients, Damping, Defect, Probe, Site};
 use crate::error::{Error, Result};
 use crate::forward::{check_s, Forward, Observable};
 use crate::scalar::Scalar;
@@ -253,42 +253,20 @@ pub struct Gradient<T> {
 /// `s` invalid (as [`check_s`]), `o` outside `1..=n`, [`Error::Singular`] when an
 /// elimination pivot vanishes (a pole of the response).
 pub fn green_column<T: Scalar>(chain: &Chain, s: T, o: usize) -> Result<Vec<T>> {
-    green_column_with(chain, &Coeffs::of(chain), s, o)
+    green_column_with(chain, &chain.coefficients(), s, o)
 }
 
-/// The chain's coefficients that [`green_column`] reads, taken once for
-/// many `s`.
-struct Coeffs {
-    m: Vec<f64>,
-    kap: Vec<f64>,
-    dmp: Vec<f64>,
-    gnd: Vec<f64>,
-    /// spring-parallel dampers ([`green_column_general`])
-    between: bool,
-}
-
-impl Coeffs {
-    fn of(chain: &Chain) -> Coeffs {
-        Coeffs {
-            m: chain.masses(),
-            kap: chain.springs(),
-            dmp: chain.dampers(),
-            gnd: chain.grounds(),
-            between: chain.spring_dampers().iter().any(|&c| c != 0.0),
-        }
-    }
-}
-
-/// [`green_column`] from the chain's coefficients `c`. The excess
+/// [`green_column`] from the chain's coefficients `c`
+/// ([`Chain::coefficients`], taken once for many `s`). The excess
 /// stiffnesses from the right are needed from mass `o` on, those from the
 /// left up to it: only those are computed.
-fn green_column_with<T: Scalar>(chain: &Chain, c: &Coeffs, s: T, o: usize) -> Result<Vec<T>> {
+fn green_column_with<T: Scalar>(chain: &Chain, c: &Coefficients, s: T, o: usize) -> Result<Vec<T>> {
     check_s(&s)?;
     chain.check_observe(o)?;
     let n = chain.n();
-    let (m, kap, dmp, gnd) = (&c.m, &c.kap, &c.dmp, &c.gnd);
-    if c.between {
-        return green_column_general(chain, s, o);
+    let (m, kap, dmp, gnd) = (&c.m, &c.k, &c.d, &c.g);
+    if c.c.iter().any(|&v| v != 0.0) {
+        return green_column_general(c, s, o);
     }
     let oi = o - 1;
     let s2 = s.clone() * s.clone();
@@ -339,13 +317,12 @@ fn green_column_with<T: Scalar>(chain: &Chain, c: &Coeffs, s: T, o: usize) -> Re
 
 /// [`green_column`] with spring-parallel dampers (`kappa_i = k_i + c_i s`):
 /// the O(n) solver of the transposed column (`G` is symmetric).
-fn green_column_general<T: Scalar>(chain: &Chain, s: T, o: usize) -> Result<Vec<T>> {
+fn green_column_general<T: Scalar>(c: &Coefficients, s: T, o: usize) -> Result<Vec<T>> {
     // G e_o = K^{-1} e_o: the impulse on mass o of the mirrored chain is not
     // at hand, so solve with a unit impulse on mass 1 when o = 1 and by the
     // symmetric identity G e_o = (row o of G) otherwise: one solve per mass
     // would be O(n^2); instead eliminate the general system directly.
-    let c = chain.coefficients();
-    let n = chain.n();
+    let n = c.m.len();
     let s2 = s.clone() * s.clone();
     let dd = c.d_diag();
     let kd = c.k_diag();
@@ -381,7 +358,7 @@ pub fn gradient<T: Scalar>(
 /// defects' sites taken once (the same values as [`gradient`]).
 pub struct Gradients<'a> {
     chain: &'a Chain,
-    coeffs: Coeffs,
+    coeffs: Coefficients,
     sites: DefectSites,
 }
 
@@ -390,7 +367,7 @@ impl<'a> Gradients<'a> {
     pub fn new(chain: &'a Chain) -> Gradients<'a> {
         Gradients {
             chain,
-            coeffs: Coeffs::of(chain),
+            coeffs: chain.coefficients(),
             sites: DefectSites::of(chain),
         }
     }

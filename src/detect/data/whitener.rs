@@ -106,8 +106,10 @@ impl Whitener {
         // the last rows, column by column
         if i0 < k {
             let j0 = from(i0, k);
-            for o in out.chunks_exact_mut(k) {
-                o[i0..].fill(0.0);
+            if j0 >= m {
+                for o in out.chunks_exact_mut(k) {
+                    o[i0..].fill(0.0);
+                }
             }
             for (j, wc) in ws.chunks_exact(k).enumerate().skip(j0) {
                 for (c, o) in out.chunks_exact_mut(k).enumerate() {
