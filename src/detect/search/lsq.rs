@@ -408,9 +408,12 @@ const FURTHER: (f64, f64) = (2.0, 16.0);
 /// The chi-square at a point further along the accepted Gauss-Newton step
 /// `d = trial - theta` (chi-square `f0` at `theta`, `f1` at the trial),
 /// moved into `w.trial`, when it is lower than `f1`; `None` otherwise
-/// (`w.trial` kept); first whether a point was evaluated. One evaluation, at the minimum of the parabola
-/// through `f0`, the slope `2 g.d` and `f1`, made only where that minimum
-/// is at least [`FURTHER`]`.0` steps out.
+/// (`w.trial` kept); first whether a point was evaluated. One evaluation,
+/// at the minimum of the parabola through `f0`, the slope `2 g.d` and
+/// `f1`, made only where that minimum is at least [`FURTHER`]`.0` steps
+/// out. A point tried and not kept costs one residual more: the adapter
+/// keeps the residuals of the last point only, and the normal equations
+/// at the trial evaluate them again.
 ///
 /// Why: where the model cannot explain the data (a large residual) the
 /// Gauss-Newton matrix `J^T J` can overstate the chi-square's curvature
